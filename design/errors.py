@@ -1,0 +1,30 @@
+"""The one exceptions module of hapticopt.
+
+Every user-facing failure is one of these; its message is a single line naming the field,
+the value, and what is allowed (with its unit). The CLI turns them into exit code 2.
+"""
+
+from __future__ import annotations
+
+
+class HapticoptError(Exception):
+    """Base class of every error hapticopt raises on purpose."""
+
+
+class InvalidDesign(HapticoptError, ValueError):
+    """A design value is missing, unknown, non-numeric or out of its allowed range."""
+
+
+class InputFileError(HapticoptError, ValueError):
+    """An input file is missing, unreadable or malformed."""
+
+
+class UnknownName(HapticoptError, KeyError):
+    """A preset, scene, problem or metric name that does not exist."""
+
+    def __str__(self) -> str:  # KeyError quotes its message; we want the plain line
+        return str(self.args[0]) if self.args else ""
+
+
+class InvalidInput(HapticoptError, ValueError):
+    """A non-design input (CLI option, scene or problem field) is invalid."""

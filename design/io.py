@@ -1,0 +1,155 @@
+"""Load and save design descriptions (TOML, units in the keys) and bundled presets.
+
+This is where design values enter hapticopt, so every check with a user-facing message
+happens here or in the design constructors.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any, Union
+
+from design import master, prrr
+from design.atomic import write_text
+from design.errors import InputFileError, InvalidDesign, UnknownName
+from design.schema import section_from_table, section_to_table, specs
+
+Design = Union[prrr.PrrrDesign, master.MasterDesign]
+
+_DEVICES: dict[str, type] = {prrr.DEVICE: prrr.PrrrDesign, master.DEVICE: master.MasterDesign}
+_TOP_KEYS = {"name", "device", "description"}
+
+
+def _section_classes(design_cls: type) -> dict[str, type]:
+    hints = {f.name: f.default_factory for f in design_cls.__dataclass_fields__.values()  # type: ignore[attr-defined]
+             if f.name in design_cls.SECTIONS}
+    return hints
+
+
+def design_from_dict(data: dict[str, Any], *, source: str = "design") -> Design:
+    """Build a design from a TOML-shaped mapping (edge units). Raises :class:`InvalidDesign`."""
+    device = data.get("device")
+    if device not in _DEVICES:
+        allowed = ", ".join(f'"{d}"' for d in _DEVICES)
+        raise InvalidDesign(f"{source}: device = {device!r} is not a known device: allowed {allowed}")
+    cls = _DEVICES[device]
+    sections = _section_classes(cls)
+    kwargs: dict[str, Any] = {}
+    for key, value in data.items():
+        if key in _TOP_KEYS:
+            if key in ("name", "description"):
+                if not isinstance(value, str) or (key == "name" and not value.strip()):
+                    raise InvalidDesign(f"{source}: {key} = {value!r} must be a non-empty string")
+                kwargs[key] = value
+            continue
+        if key not in sections:
+            allowed = ", ".join(sorted(_TOP_KEYS | set(sections)))
+            raise InvalidDesign(f"{source}: {key} is not a known key for a {device} design: allowed {allowed}")
+        kwargs[key] = section_from_table(sections[key], value, key)
+    return cls(**kwargs)
+
+
+def design_to_dict(design: Design) -> dict[str, Any]:
+    """The TOML-shaped mapping of a design (edge units); inverse of :func:`design_from_dict`."""
+    out: dict[str, Any] = {"name": design.name, "device": design.device}
+    if design.description:
+        out["description"] = design.description
+    for section in design.SECTIONS:
+        out[section] = section_to_table(getattr(design, section))
+    return out
+
+
+def load_design(path: str | Path) -> Design:
+    """Load a design TOML file. Raises :class:`InputFileError` or :class:`InvalidDesign`."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(f"design file {str(path)!r} does not exist: give a path to a .toml design or --preset NAME")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputFileError(f"design file {str(path)!r} is not valid TOML: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputFileError(f"design file {str(path)!r} cannot be read: {exc}") from None
+    return design_from_dict(data, source=path.name)
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else ("inf" if value > 0 else "-inf")
+    raise TypeError(f"cannot write {value!r} to TOML")
+
+
+def dumps(design: Design) -> str:
+    """Design as TOML text (edge units, full precision)."""
+    data = design_to_dict(design)
+    lines = [f"{k} = {_toml_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    for section, table in data.items():
+        if isinstance(table, dict):
+            lines.append("")
+            lines.append(f"[{section}]")
+            lines.extend(f"{k} = {_toml_value(v)}" for k, v in table.items())
+    return "\n".join(lines) + "\n"
+
+
+def save_design(design: Design, path: str | Path) -> None:
+    """Write a design TOML file atomically."""
+    write_text(path, dumps(design))
+
+
+# ---------------------------------------------------------------------------- presets
+def _preset_dir():
+    return resources.files("design.presets")
+
+
+def preset_names() -> list[str]:
+    """Names of the bundled presets."""
+    return sorted(p.name[: -len(".toml")] for p in _preset_dir().iterdir() if p.name.endswith(".toml"))
+
+
+def load_preset(name: str) -> Design:
+    """Load a bundled preset by name. Raises :class:`UnknownName`."""
+    names = preset_names()
+    if name not in names:
+        raise UnknownName(f"preset {name!r} does not exist: allowed presets are {', '.join(names)}")
+    text = (_preset_dir() / f"{name}.toml").read_text(encoding="utf-8")
+    return design_from_dict(tomllib.loads(text), source=f"preset {name}")
+
+
+# ---------------------------------------------------------------------------- overrides
+def apply_overrides(design: Design, assignments: list[str]) -> Design:
+    """Apply ``section.key=value`` assignments (TOML keys, edge units) to a design."""
+    if not assignments:
+        return design
+    data = design_to_dict(design)
+    for assignment in assignments:
+        if "=" not in assignment:
+            raise InvalidDesign(f"--set {assignment!r} must have the form section.key=value, e.g. geometry.beta_deg=50")
+        lhs, rhs = (s.strip() for s in assignment.split("=", 1))
+        if lhs in ("name", "description"):
+            data[lhs] = rhs
+            continue
+        if lhs.count(".") != 1:
+            raise InvalidDesign(f"--set {lhs} must name section.key, e.g. geometry.beta_deg")
+        section, key = lhs.split(".")
+        if section not in design.SECTIONS:
+            raise InvalidDesign(f"--set {lhs}: {section} is not a section of a {design.device} design: "
+                                f"allowed {', '.join(design.SECTIONS)}")
+        allowed_keys = {s.key for s in specs(getattr(design, section)).values()}
+        if key not in allowed_keys:
+            raise InvalidDesign(f"{lhs} is not a known parameter: allowed keys in [{section}] are "
+                                f"{', '.join(sorted(allowed_keys))}")
+        try:
+            value = tomllib.loads(f"v = {rhs}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = rhs
+        data[section][key] = value
+    return design_from_dict(data, source="--set")

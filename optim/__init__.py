@@ -1,0 +1,1 @@
+"""Optimisation problems, the NLopt driver, the recorder, the pipeline and the CLI."""

@@ -1,0 +1,26 @@
+"""The ``hapticopt`` command line. Each subcommand lives in its own ``optim.cli_*`` module."""
+
+from __future__ import annotations
+
+import typer
+
+from optim import cli_evaluate
+
+app = typer.Typer(
+    name="hapticopt",
+    help="Design optimisation of haptic mechanisms: describe, evaluate, optimise, export, verify.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+app.command("evaluate")(cli_evaluate.evaluate)
+app.command("presets")(cli_evaluate.presets)
+
+
+def main() -> None:
+    """Console-script entry point (the ``__main__`` guard that Dask's LocalCluster needs)."""
+    app()
+
+
+if __name__ == "__main__":
+    main()
