@@ -22,7 +22,7 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)
-	$(BIN)/python -m pytest -q benchmarks --benchmark-enable --benchmark-columns=min,median,max,rounds
+	$(BIN)/python -m pytest -q benchmarks -o python_files='bench_*.py' --benchmark-enable --benchmark-columns=min,median,max,rounds
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis .benchmarks
