@@ -135,15 +135,19 @@ def inverse_kinematics(params: PrrrParams, p: jax.Array) -> IkSolution:
     d3, d4 = params.d3, params.d4
     c2 = (rho2 - d3**2 - d4**2) / (2.0 * d3 * d4)
     reach_ok = jnp.abs(c2) <= 1.0 + 1e-12
-    elbow = jnp.arccos(jnp.clip(c2, -1.0, 1.0))
+    c2 = jnp.clip(c2, -1.0, 1.0)
+    elbow = jnp.arccos(c2)
+    s2 = jnp.sqrt(1.0 - c2**2)  # sin of the elbow angle, ≥ 0
     rho = jnp.sqrt(rho2)
+    # the two branches share every transcendental: θ1 = φ ∓ ψ for θ2 = ±elbow
+    phi = jnp.arctan2(rho_t, rho_v)
+    psi = jnp.arctan2(d4 * s2, d3 + d4 * c2)
 
-    def branch(th2: jax.Array) -> jax.Array:
-        th1 = jnp.arctan2(rho_t, rho_v) - jnp.arctan2(d4 * jnp.sin(th2), d3 + d4 * jnp.cos(th2))
-        th1 = jnp.arctan2(jnp.sin(th1), jnp.cos(th1))  # wrap to (−π, π]
+    def branch(th1: jax.Array, th2: jax.Array) -> jax.Array:
+        th1 = jnp.mod(th1 + jnp.pi, 2.0 * jnp.pi) - jnp.pi  # wrap to [−π, π)
         return jnp.stack([th1, th2, -(th1 + th2)], axis=-1)
 
-    theta = jnp.stack([branch(elbow), branch(-elbow)], axis=-3)
+    theta = jnp.stack([branch(phi - psi, elbow), branch(phi + psi, -elbow)], axis=-3)
     c_e = slider_offset(params)
     half = params.stroke / 2.0
     s_dev = sliders - c_e

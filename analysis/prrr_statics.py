@@ -18,10 +18,6 @@ from analysis.status import Status
 from design.prrr import PrrrDesign
 
 
-class StaticsArrays(dict):
-    """Plain mapping of jax arrays returned by :func:`statics_arrays` (batchable)."""
-
-
 def condition_2norm(J: jax.Array) -> jax.Array:
     """cond₂(J) = σ_max/σ_min. Has a kink where singular values coincide: no gradients through it."""
     s = jnp.linalg.svd(J, compute_uv=False)

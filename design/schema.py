@@ -115,6 +115,6 @@ def section_to_table(section: Any) -> dict[str, float]:
     out: dict[str, float] = {}
     for name, spec in specs(section).items():
         value = from_si(float(getattr(section, name)), spec.unit)
-        # 12 significant digits: deg/rad round trips must not print 59.99999999999999
-        out[spec.key] = int(round(value)) if spec.integer else float(f"{value:.12g}")
+        # 15 significant digits: deg/rad round trips must not print 59.99999999999999
+        out[spec.key] = int(round(value)) if spec.integer else float(f"{value:.15g}")
     return out

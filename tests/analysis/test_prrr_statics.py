@@ -1,0 +1,101 @@
+"""3-PRRR statics against seed 002's closed forms and tables."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from analysis import prrr_statics
+from analysis.prrr_kinematics import params_of
+from analysis.status import Status
+from design import io
+
+
+def test_prrr_paper_max_force_is_table_1(prrr_paper):
+    # seed 002 Table 1: 1378 (digest: 1378; Table prints 1379), 1194, 3581 N; ±0.2 %
+    r = prrr_statics.evaluate(prrr_paper)
+    np.testing.assert_allclose(r.max_force, [1378, 1194, 3581], rtol=2e-3)
+    assert r.status is Status.OK
+
+
+def test_prrr_paper_stiffness_limit_is_eq_15(prrr_paper):
+    # seed 002 eq 15 (corrected, digest): k/2, k/2, 3k with k = 56.27 N/mm → 28.14, 28.14, 168.8 N/mm
+    m = prrr_statics.evaluate(prrr_paper).metrics()
+    np.testing.assert_allclose(m["stiffness_limit_N_per_mm"], [28.14, 28.14, 168.8], rtol=2e-3)
+
+
+def test_prrr_paper_effective_mass_is_eq_7(prrr_paper):
+    # seed 002 eq 7 at β = π/3: (M/9)[[13, −5, −5], [−5, 13, −5], [−5, −5, 13]], M = 0.66 kg
+    M = 0.66
+    expected = M / 9 * np.array([[13, -5, -5], [-5, 13, -5], [-5, -5, 13]])
+    np.testing.assert_allclose(prrr_statics.evaluate(prrr_paper).effective_mass, expected, rtol=1e-13)
+
+
+def test_prrr_paper_condition_is_sqrt6(prrr_paper):
+    # digest table: cond₂(J) = 2.449 = √6 at β = π/3
+    assert prrr_statics.evaluate(prrr_paper).condition == pytest.approx(math.sqrt(6), rel=1e-13)
+
+
+def test_isotropic_beta_table_5(prrr_paper):
+    # seed 002 Table 5 / digest: β = 35.26° (0.196π) gives cond(J) = 1 and equal stiffness limits
+    r = prrr_statics.evaluate(io.apply_overrides(prrr_paper, ["geometry.beta_deg=35.26"]))
+    assert r.condition == pytest.approx(1.0, abs=1e-3)
+    k = r.stiffness_limit
+    assert k[0] == pytest.approx(k[1], rel=1e-12)
+    assert k[0] == pytest.approx(k[2], rel=1e-3)
+    np.testing.assert_allclose(r.max_force, [3374, 2922, 3581], rtol=2e-3)  # digest table, β = 0.196π
+
+
+def test_exact_isotropic_angle_gives_cond_one():
+    beta = math.atan(1 / math.sqrt(2))  # digest: isotropic angle
+    J = prrr_statics.jacobian(jnp.asarray(beta))
+    assert float(prrr_statics.condition_2norm(J)) == pytest.approx(1.0, abs=1e-12)
+    assert float(prrr_statics.condition_frobenius(J)) == pytest.approx(1.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("beta_deg", [5.0, 20.0, 45.0, 70.0, 85.0])
+def test_closed_forms_at_any_beta(prrr_paper, beta_deg):
+    # digest: F_x = 2F/T, F_y = √3F/T, F_z = 3F; pure x = 3F/(2T); k_x = k_y = 3k/(2T²), k_z = 3k
+    d = io.apply_overrides(prrr_paper, [f"geometry.beta_deg={beta_deg}"])
+    r = prrr_statics.evaluate(d)
+    T, F, k = math.tan(math.radians(beta_deg)), d.actuator.force_limit, d.actuator.spring
+    np.testing.assert_allclose(r.max_force, [2 * F / T, math.sqrt(3) * F / T, 3 * F], rtol=1e-12)
+    assert r.max_pure_force[0] == pytest.approx(3 * F / (2 * T), rel=1e-12)
+    np.testing.assert_allclose(r.stiffness_limit, [3 * k / (2 * T**2), 3 * k / (2 * T**2), 3 * k], rtol=1e-12)
+    # eq 7 general entry: (M/9)(1 + 4T²) on the diagonal
+    assert r.effective_mass[0, 0] == pytest.approx(d.end_effector.mass / 9 * (1 + 4 * T**2), rel=1e-12)
+
+
+@pytest.mark.parametrize("beta_deg", [1.0, 89.0])
+def test_extreme_beta_is_finite(prrr_paper, beta_deg):
+    r = prrr_statics.evaluate(io.apply_overrides(prrr_paper, [f"geometry.beta_deg={beta_deg}"]))
+    assert r.status is Status.OK
+    for v in r.metrics().values():
+        assert np.all(np.isfinite(np.asarray(v, dtype=float)))
+
+
+def test_frobenius_condition_gradient_matches_finite_difference():
+    """The smooth condition form has a well-defined gradient through the isotropic angle."""
+    f = lambda b: prrr_statics.condition_frobenius(prrr_statics.jacobian(b))  # noqa: E731
+    for beta in (0.4, math.atan(1 / math.sqrt(2)), 1.2):
+        g = float(jax.grad(f)(jnp.asarray(beta)))
+        h = 1e-6
+        fd = (float(f(jnp.asarray(beta + h))) - float(f(jnp.asarray(beta - h)))) / (2 * h)
+        assert g == pytest.approx(fd, rel=1e-6, abs=1e-8)
+
+
+def test_batched_statics_equal_single(prrr_paper):
+    designs = [io.apply_overrides(prrr_paper, [f"geometry.beta_deg={b}"]) for b in (20, 35, 50, 65)]
+    from analysis.prrr_kinematics import stack_params
+
+    P = stack_params(designs)
+    n = len(designs)
+    out = jax.vmap(prrr_statics.statics_arrays)(P, jnp.full(n, 56270.0), jnp.full(n, 1000.0), jnp.full(n, 0.66))
+    for i, d in enumerate(designs):
+        one = prrr_statics.statics_arrays(params_of(d), jnp.asarray(56270.0), jnp.asarray(1000.0), jnp.asarray(0.66))
+        for key in one:
+            np.testing.assert_allclose(out[key][i], one[key], rtol=1e-12, atol=1e-12)

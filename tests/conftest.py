@@ -1,0 +1,22 @@
+"""Shared test fixtures. jax float64 is switched on by importing ``analysis``."""
+
+import analysis  # noqa: F401  (float64 before any jax array exists)
+import pytest
+from hypothesis import settings
+
+settings.register_profile("ci", deadline=None, derandomize=True, print_blob=True)
+settings.load_profile("ci")
+
+
+@pytest.fixture(scope="session")
+def prrr_paper():
+    from design import io
+
+    return io.load_preset("prrr-paper")
+
+
+@pytest.fixture(scope="session")
+def master_paper():
+    from design import io
+
+    return io.load_preset("master-paper")

@@ -1,0 +1,119 @@
+"""``hapticopt evaluate`` / ``presets``: output, JSON schema, and one-line errors with exit code 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from optim.cli import app
+
+runner = CliRunner()
+
+
+def invoke(*args: str):
+    return runner.invoke(app, list(args))
+
+
+def test_evaluate_preset_json_has_reference_metrics():
+    res = invoke("evaluate", "--preset", "prrr-paper", "--json")
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert set(out) >= {"design", "metrics", "timings_s"}
+    m = out["metrics"]
+    # seed 002 Table 1 and eq 15 (see tests/analysis/test_prrr_statics.py for the sources)
+    assert m["max_force_N"] == pytest.approx([1378, 1194, 3581], rel=2e-3)
+    assert m["stiffness_limit_N_per_mm"] == pytest.approx([28.14, 28.14, 168.8], rel=2e-3)
+    assert m["jacobian_condition"] == pytest.approx(6**0.5, rel=1e-12)
+    assert len(m["effective_mass_kg"]) == 3
+    assert out["design"]["geometry"]["beta_deg"] == 60.0
+
+
+def test_set_changes_design():
+    res = invoke("evaluate", "--preset", "prrr-paper", "--set", "geometry.beta_deg=35.26", "--json")
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["metrics"]["jacobian_condition"] == pytest.approx(1.0, abs=1e-3)
+
+
+def test_table_output_names_metrics_with_units():
+    res = invoke("evaluate", "--preset", "prrr-paper")
+    assert res.exit_code == 0
+    for name in ("jacobian_condition", "max_force_N", "stiffness_limit_N_per_mm", "effective_mass_kg"):
+        assert name in res.stdout
+
+
+def test_evaluate_design_file(tmp_path: Path):
+    from design import io
+
+    path = tmp_path / "mine.toml"
+    io.save_design(io.apply_overrides(io.load_preset("prrr-paper"), ["name=mine"]), path)
+    res = invoke("evaluate", str(path), "--json")
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["design"]["name"] == "mine"
+
+
+def test_presets_lists_both_devices():
+    res = invoke("presets")
+    assert res.exit_code == 0
+    assert "prrr-paper" in res.stdout and "master-paper" in res.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "pattern"),
+    [
+        (("--preset", "prrr-paper", "--set", "geometry.beta_deg=0"), "geometry.beta_deg = 0 is out of range: allowed 0 < beta_deg < 90 (deg)"),
+        (("--preset", "prrr-paper", "--set", "geometry.beta_deg=90"), "geometry.beta_deg = 90 is out of range"),
+        (("--preset", "prrr-paper", "--set", "geometry.d3_mm=-5"), "geometry.d3_mm = -5 is out of range: allowed 0 < d3_mm ≤ 2000 (mm)"),
+        (("--preset", "prrr-paper", "--set", "geometry.d3_mm=0"), "geometry.d3_mm = 0 is out of range"),
+        (("--preset", "prrr-paper", "--set", "geometry.zz_mm=1"), "geometry.zz_mm is not a known parameter"),
+        (("--preset", "prrr-paper", "--set", "geometry.beta_deg=abc"), "geometry.beta_deg = 'abc' is not a number"),
+        (("--preset", "nope"), "preset 'nope' does not exist"),
+        (("/definitely/missing.toml",), "does not exist"),
+        (("--preset", "prrr-paper", "--fidelity", "ultra"), "--fidelity = 'ultra' is not a fidelity level"),
+        ((), "give exactly one of FILE or --preset"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2(args, pattern):
+    res = invoke("evaluate", *args)
+    assert res.exit_code == 2
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, res.stderr
+    assert pattern in lines[0]
+    assert "Traceback" not in res.output
+
+
+def test_malformed_and_unknown_key_files(tmp_path: Path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[geometry\n")
+    res = invoke("evaluate", str(bad))
+    assert res.exit_code == 2 and "is not valid TOML" in res.stderr
+    unknown = tmp_path / "unknown.toml"
+    unknown.write_text('name = "u"\ndevice = "prrr"\nfoo = 1\n')
+    res = invoke("evaluate", str(unknown))
+    assert res.exit_code == 2 and "foo is not a known key" in res.stderr
+
+
+def test_console_script_end_to_end_no_traceback():
+    """The installed entry point: real process, one error line, exit 2."""
+    exe = Path(sys.executable).with_name("hapticopt")
+    res = subprocess.run([str(exe), "evaluate", "--preset", "prrr-paper", "--set", "geometry.beta_deg=95"],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2
+    assert res.stderr.strip().count("\n") == 0 and "geometry.beta_deg = 95" in res.stderr
+    ok = subprocess.run([str(exe), "evaluate", "--preset", "prrr-paper", "--json"],
+                        capture_output=True, text=True, timeout=120)
+    assert ok.returncode == 0 and json.loads(ok.stdout)["metrics"]["jacobian_condition"] > 2.4
+
+
+def test_help_is_accurate():
+    res = invoke("--help")
+    assert res.exit_code == 0
+    for cmd in ("evaluate", "presets"):
+        assert cmd in res.stdout
+    res = invoke("evaluate", "--help")
+    for opt in ("--preset", "--set", "--fidelity", "--json", "--plots"):
+        assert opt in res.stdout
