@@ -1,0 +1,276 @@
+"""One design point: run the evaluators, pick the problem's scalars, and their gradients.
+
+This is the unit of work handed to an executor (process pool, Dask worker or inline), so
+everything here is picklable and module-level. Failures are values (:class:`Outcome`), never
+exceptions.
+
+Gradients. An evaluator module may provide a differentiable twin of its metrics::
+
+    def jax_metrics(design, values: Mapping[str, jax.Array]) -> Mapping[str, jax.Array]
+
+where ``values`` maps TOML keys (``"geometry.beta_deg"``, edge units) to jax scalars that
+override the design's fields, and the result holds metrics with the same names and
+engineering units as ``Result.metrics()``. :data:`JAX_ADAPTERS` supplies the twin for
+evaluators that do not define one (``analysis.prrr_statics``). A metric without a jax twin
+gets central finite differences (2n extra evaluations; reported as ``gradient_source = "fd"``).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+import traceback
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+import analysis  # noqa: F401  (jax float64 before any array exists)
+import numpy as np
+
+from analysis.fidelity import Fidelity
+from design.errors import InvalidDesign
+from design.units import TO_SI
+from optim.problem import MetricRef, Variable, design_at
+
+
+class Outcome(StrEnum):
+    OK = "ok"
+    INVALID_DESIGN = "invalid_design"  # the variables violate a design rule (e.g. bore ≥ boss)
+    EVALUATOR_FAILED = "evaluator_failed"  # an evaluator raised or returned Status.FAILED
+    NONFINITE = "nonfinite"  # a picked metric is NaN/inf
+
+
+class GradientMode(StrEnum):
+    NONE = "none"
+    JAX = "jax"
+    FD = "fd"
+
+
+@dataclass(frozen=True, kw_only=True)
+class PointTask:
+    base: Any
+    variables: tuple[Variable, ...]
+    x: tuple[float, ...]  # edge units
+    fidelity: Fidelity
+    refs: tuple[MetricRef, ...]  # objective first, then constraints
+    only: tuple[str, ...] | None = None  # evaluator names to run (None: all for the device)
+    gradient: GradientMode = GradientMode.NONE
+    jax_sources: tuple[tuple[str, str], ...] = ()  # metric name -> evaluator module with a jax twin
+
+
+@dataclass(frozen=True, kw_only=True)
+class PointResult:
+    x: tuple[float, ...]
+    outcome: Outcome
+    message: str = ""
+    values: tuple[float, ...] = ()  # one per ref (NaN when unavailable)
+    gradients: tuple[tuple[float, ...], ...] | None = None  # d value / d x (edge units), one row per ref
+    gradient_source: str = "none"
+    metrics: dict[str, Any] = field(default_factory=dict)
+    statuses: dict[str, str] = field(default_factory=dict)
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, (bool, str)) or value is None:
+        return value
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return float(value) if not isinstance(value, (int, np.integer)) else int(value)
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    return str(value)
+
+
+def run_evaluators(design: Any, fidelity: Fidelity, only: tuple[str, ...] | None
+                   ) -> tuple[dict[str, Any], dict[str, str], dict[str, float], str]:
+    """metrics, statuses, timings, failure message ('' if none). Exceptions become values."""
+    from analysis.registry import EVALUATORS
+
+    metrics: dict[str, Any] = {}
+    statuses: dict[str, str] = {}
+    timings: dict[str, float] = {}
+    failures: list[str] = []
+    for entry in EVALUATORS[design.device]:
+        if only is not None and entry.name not in only:
+            continue
+        t0 = time.perf_counter()
+        try:
+            result = entry.load().evaluate(design, fidelity=fidelity)
+            metrics.update(_jsonable(result.metrics()))
+            statuses[entry.name] = str(result.status)
+            if str(result.status) == "failed":
+                failures.append(f"{entry.name}: {result.message or 'failed'}")
+        except Exception as exc:  # an evaluator failure is a handled outcome
+            statuses[entry.name] = "failed"
+            last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+            where = f" ({last.filename.rsplit('/', 1)[-1]}:{last.lineno})" if last else ""
+            failures.append(f"{entry.name}: {type(exc).__name__}: {exc}{where}")
+        timings[entry.name] = time.perf_counter() - t0
+    return metrics, statuses, timings, "; ".join(failures)
+
+
+def evaluate_point(task: PointTask) -> PointResult:
+    """Evaluate one design point (the function executors run)."""
+    x = tuple(float(v) for v in task.x)
+    try:
+        design = design_at(task.base, task.variables, x)
+    except InvalidDesign as exc:
+        return PointResult(x=x, outcome=Outcome.INVALID_DESIGN, message=str(exc),
+                           values=tuple(math.nan for _ in task.refs))
+    metrics, statuses, timings, failure = run_evaluators(design, task.fidelity, task.only)
+    values = tuple(ref.value(metrics) for ref in task.refs)
+    if failure:
+        outcome, message = Outcome.EVALUATOR_FAILED, failure
+    elif not all(math.isfinite(v) for v in values):
+        bad = [r.text for r, v in zip(task.refs, values) if not math.isfinite(v)]
+        outcome, message = Outcome.NONFINITE, "non-finite " + ", ".join(bad)
+    else:
+        outcome, message = Outcome.OK, ""
+    gradients = None
+    source = "none"
+    if outcome is Outcome.OK and task.gradient is not GradientMode.NONE:
+        t0 = time.perf_counter()
+        if task.gradient is GradientMode.JAX:
+            g = jax_gradients(task.base, task.variables, task.refs, task.jax_sources, x)
+            source = "jax"
+        else:
+            g = fd_gradients(task, x, values)
+            source = "fd"
+        timings["gradient"] = time.perf_counter() - t0
+        if g is not None and np.all(np.isfinite(g)):
+            gradients = tuple(tuple(float(v) for v in row) for row in g)
+        else:
+            outcome, message = Outcome.NONFINITE, "non-finite gradient"
+    return PointResult(x=x, outcome=outcome, message=message, values=values, gradients=gradients,
+                       gradient_source=source, metrics=metrics, statuses=statuses, timings_s=timings)
+
+
+# ------------------------------------------------------------------------------------ jax twins
+def _si(design: Any, values: Mapping[str, Any], key: str) -> Any:
+    """The field ``section.toml_key`` of ``design`` in SI, overridden by ``values`` (edge units)."""
+    from design.schema import specs
+
+    section, tkey = key.split(".")
+    sec = getattr(design, section)
+    for name, spec in specs(sec).items():
+        if spec.key == tkey:
+            if key in values:
+                return values[key] * TO_SI[spec.unit]
+            return float(getattr(sec, name))
+    raise KeyError(key)
+
+
+def _prrr_statics_jax(design: Any, values: Mapping[str, Any]) -> dict[str, Any]:
+    """Differentiable twin of :func:`analysis.prrr_statics.evaluate` (same names and units)."""
+    from analysis.prrr_kinematics import PrrrParams
+    from analysis.prrr_statics import statics_arrays
+
+    g = "geometry."
+    params = PrrrParams(*(_si(design, values, g + k) for k in
+                          ("beta_deg", "d1_mm", "d2_mm", "d3_mm", "d4_mm", "r4_mm", "b5_mm", "stroke_mm")))
+    out = statics_arrays(params, _si(design, values, "actuator.spring_N_per_mm"),
+                         _si(design, values, "actuator.force_limit_N"), _si(design, values, "end_effector.mass_kg"))
+    return {
+        "jacobian_condition": out["condition"],
+        "jacobian_condition_frobenius": out["condition_frobenius"],
+        "max_force_N": out["max_force"],
+        "max_pure_force_N": out["max_pure_force"],
+        "stiffness_limit_N_per_mm": out["stiffness_limit"] * 1e-3,
+        "effective_mass_kg": out["effective_mass"],
+    }
+
+
+#: evaluator module -> jax twin, for evaluators that do not define ``jax_metrics`` themselves
+JAX_ADAPTERS: dict[str, Callable[[Any, Mapping[str, Any]], Mapping[str, Any]]] = {
+    "analysis.prrr_statics": _prrr_statics_jax,
+}
+
+
+def jax_twin(module_name: str) -> Callable[[Any, Mapping[str, Any]], Mapping[str, Any]] | None:
+    import importlib
+
+    module = importlib.import_module(module_name)
+    fn = getattr(module, "jax_metrics", None)
+    return fn if callable(fn) else JAX_ADAPTERS.get(module_name)
+
+
+def _pick_jax(raw: Any, ref: MetricRef) -> Any:
+    import jax.numpy as jnp
+
+    if ref.reduce == "min":
+        return jnp.min(jnp.asarray(raw))
+    if ref.reduce == "max":
+        return jnp.max(jnp.asarray(raw))
+    value = jnp.asarray(raw)
+    for i in ref.index:
+        value = value[i]
+    return value
+
+
+@functools.lru_cache(maxsize=16)
+def _jacobian_fn(base: Any, variables: tuple[Variable, ...], refs: tuple[MetricRef, ...],
+                 jax_sources: tuple[tuple[str, str], ...]) -> Callable[[np.ndarray], np.ndarray]:
+    import jax
+    import jax.numpy as jnp
+
+    sources = dict(jax_sources)
+    twins = {name: jax_twin(module) for name, module in sources.items()}
+
+    def picked(xv: Any) -> Any:
+        values = {v.key: xv[i] for i, v in enumerate(variables)}
+        cache: dict[str, Mapping[str, Any]] = {}
+        out = []
+        for ref in refs:
+            module = sources[ref.name]
+            if module not in cache:
+                cache[module] = twins[ref.name](base, values)  # type: ignore[misc]
+            out.append(_pick_jax(cache[module][ref.name], ref))
+        return jnp.stack(out)
+
+    return jax.jit(jax.jacfwd(picked))
+
+
+def jax_gradients(base: Any, variables: tuple[Variable, ...], refs: tuple[MetricRef, ...],
+                  jax_sources: tuple[tuple[str, str], ...], x: Sequence[float]) -> np.ndarray:
+    """d ref / d x (edge units), shape (len(refs), len(x)), from the evaluators' jax twins."""
+    fn = _jacobian_fn(base, variables, refs, jax_sources)
+    return np.asarray(fn(np.asarray(x, dtype=float)))
+
+
+def fd_gradients(task: PointTask, x: Sequence[float], values: Sequence[float], *, rel_step: float = 1e-6
+                 ) -> np.ndarray:
+    """Central finite differences (one-sided at a bound), step rel_step × variable range."""
+    n = len(x)
+    g = np.full((len(task.refs), n), np.nan)
+    for i, var in enumerate(task.variables):
+        h = rel_step * (var.upper - var.lower)
+        lo_ok = x[i] - h >= var.lower
+        hi_ok = x[i] + h <= var.upper
+        pts = []
+        for sgn, ok in ((1.0, hi_ok), (-1.0, lo_ok)):
+            if ok:
+                xp = list(x)
+                xp[i] = x[i] + sgn * h
+                try:
+                    d = design_at(task.base, task.variables, xp)
+                except InvalidDesign:
+                    pts.append(None)
+                    continue
+                m, _, _, fail = run_evaluators(d, task.fidelity, task.only)
+                pts.append(None if fail else [ref.value(m) for ref in task.refs])
+            else:
+                pts.append(None)
+        fp, fm = pts
+        if fp is not None and fm is not None:
+            g[:, i] = (np.asarray(fp) - np.asarray(fm)) / (2 * h)
+        elif fp is not None:
+            g[:, i] = (np.asarray(fp) - np.asarray(values)) / h
+        elif fm is not None:
+            g[:, i] = (np.asarray(values) - np.asarray(fm)) / h
+    return g

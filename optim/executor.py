@@ -1,0 +1,87 @@
+"""Where design points are evaluated: behind :class:`concurrent.futures.Executor`.
+
+* ``"local"`` (default): a :class:`~concurrent.futures.ProcessPoolExecutor` on this machine —
+  no server, lowest overhead for independent evaluations;
+* ``"inline"``: in the calling thread (tests, benchmarks, debugging);
+* ``"tcp://host:port"``: a Dask cluster, through ``Client(address).get_executor()``.
+
+The results do not depend on the choice: each evaluation is a pure function of its task.
+Dask's LocalCluster needs the ``if __name__ == "__main__":`` guard that ``optim/cli.py`` has.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from typing import Any
+
+from design.errors import InvalidInput
+
+
+class InlineExecutor(Executor):
+    """Runs each submitted call at once in the caller's thread (an Executor with no workers)."""
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
+        future: Future = Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except BaseException as exc:  # noqa: BLE001 - delivered through the future
+            future.set_exception(exc)
+        return future
+
+
+def default_workers() -> int:
+    return max(1, min(4, os.cpu_count() or 1))
+
+
+def worker_count(executor: Executor) -> int:
+    """How many evaluations ``executor`` can run at once (1 for inline)."""
+    if isinstance(executor, InlineExecutor):
+        return 1
+    n = getattr(executor, "_max_workers", None)
+    if isinstance(n, int):
+        return n
+    client = getattr(executor, "_client", None)
+    if client is not None:
+        try:
+            return max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values()))
+        except Exception:  # noqa: BLE001 - a count is only a hint
+            return 2
+    return 2
+
+
+@contextlib.contextmanager
+def make_executor(scheduler: str = "local", *, workers: int | None = None) -> Iterator[Executor]:
+    """An executor for ``scheduler`` ("local", "inline" or a Dask address ``tcp://…``), closed on exit."""
+    if scheduler == "inline":
+        yield InlineExecutor()
+        return
+    if scheduler == "local":
+        # forkserver/spawn: a forked jax runtime is not safe
+        ctx = multiprocessing.get_context("spawn")
+        pool = ProcessPoolExecutor(max_workers=workers or default_workers(), mp_context=ctx)
+        try:
+            yield pool
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+        return
+    if "://" in scheduler:
+        try:
+            from distributed import Client
+        except ImportError:  # pragma: no cover - dask[distributed] is a dependency
+            raise InvalidInput("--scheduler: dask.distributed is not installed") from None
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise InvalidInput(f"--scheduler = {scheduler!r}: cannot reach the Dask scheduler: {exc}") from None
+        try:
+            executor = client.get_executor()
+            executor._client = client  # type: ignore[attr-defined]  # for worker_count
+            yield executor
+        finally:
+            client.close()
+        return
+    raise InvalidInput(f"--scheduler = {scheduler!r} is not allowed: use local, inline or a Dask address tcp://HOST:PORT")

@@ -1,0 +1,541 @@
+"""Optimisation problems: a TOML file naming a base design, variables, objective and constraints.
+
+A problem is a frozen value. The TOML layout (see ``optim/problems/*.toml`` and
+``docs/optimisation.md``)::
+
+    name = "prrr-workspace"
+    description = "..."
+    device = "prrr"
+    base = "prrr-paper"            # a bundled preset, or base_file = "my-design.toml"
+
+    [[variables]]                  # one table per design variable, by TOML key (edge units)
+    key = "geometry.beta_deg"
+    lower = 20.0                   # optional: default is the field's allowed range
+    upper = 70.0
+    start = 45.0                   # optional: default is the base design's value
+
+    [objective]
+    metric = "workspace_footprint_ratio"   # name, name[i], name[i][j], min(name), max(name)
+    sense = "maximise"                     # or "minimise"
+
+    [[constraints]]
+    metric = "stiffness_limit_N_per_mm[0]"
+    min = 20.0                             # metric ≥ 20 (and/or max = … for metric ≤ …)
+
+    [optimiser]
+    algorithm = "LN_COBYLA"        # LN_COBYLA LN_BOBYQA LD_SLSQP LD_MMA GN_ISRES GN_DIRECT_L AUGLAG
+    local = "LN_BOBYQA"            # AUGLAG's subsidiary / polish after a global algorithm
+    starts = 4                     # multi-start count (start 0 is the base design)
+    seed = 1
+    xtol_rel = 1e-6
+    ftol_rel = 1e-9
+    max_evals = 400                # in total over all starts
+    max_time_s = 120
+
+    [fidelity]
+    optimise = "draft"             # used inside the loop
+    final = "fine"                 # the optimum is re-evaluated and checked at this level
+
+    [verify]
+    scenes = ["free-space", "virtual-wall"]
+
+Every error is one line naming the field, the value and what is allowed
+(:class:`design.errors.InputFileError`, :class:`~design.errors.InvalidInput`,
+:class:`~design.errors.UnknownName`); the CLI turns them into exit code 2.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+import re
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from enum import StrEnum
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from analysis.fidelity import Fidelity
+from design import io
+from design.errors import InputFileError, InvalidDesign, InvalidInput, UnknownName
+from design.schema import specs
+from design.units import from_si, pretty, to_si
+
+_TOP_KEYS = {"name", "description", "device", "base", "base_file", "variables", "objective", "constraints",
+             "optimiser", "fidelity", "verify"}
+
+
+class Sense(StrEnum):
+    MINIMISE = "minimise"
+    MAXIMISE = "maximise"
+
+
+class Algorithm(StrEnum):
+    """The NLopt algorithms hapticopt drives (families: local DF, gradient, global, AUGLAG)."""
+
+    LN_COBYLA = "LN_COBYLA"
+    LN_BOBYQA = "LN_BOBYQA"
+    LD_SLSQP = "LD_SLSQP"
+    LD_MMA = "LD_MMA"
+    GN_ISRES = "GN_ISRES"
+    GN_DIRECT_L = "GN_DIRECT_L"
+    AUGLAG = "AUGLAG"
+
+    @property
+    def needs_gradient(self) -> bool:
+        return self.value.startswith("LD_")
+
+    @property
+    def is_global(self) -> bool:
+        return self.value.startswith("GN_")
+
+    @property
+    def handles_constraints(self) -> bool:
+        return self in (Algorithm.LN_COBYLA, Algorithm.LD_SLSQP, Algorithm.LD_MMA, Algorithm.GN_ISRES,
+                        Algorithm.AUGLAG)
+
+
+#: local algorithms allowed as AUGLAG's subsidiary or as the polish after a global search
+LOCAL_ALGORITHMS = (Algorithm.LN_COBYLA, Algorithm.LN_BOBYQA, Algorithm.LD_SLSQP, Algorithm.LD_MMA)
+
+
+class Op(StrEnum):
+    GE = ">="
+    LE = "<="
+
+
+_REF_RE = re.compile(r"^\s*(?:(min|max)\(\s*([A-Za-z_][A-Za-z0-9_]*)\s*\)|([A-Za-z_][A-Za-z0-9_]*)((?:\s*\[\s*\d+\s*(?:,\s*\d+\s*)*\])*))\s*$")
+
+
+@dataclass(frozen=True, kw_only=True)
+class MetricRef:
+    """A scalar picked from an evaluator metric: ``name``, ``name[i]``, ``name[i][j]``, ``min(name)``."""
+
+    text: str
+    name: str
+    index: tuple[int, ...] = ()
+    reduce: str | None = None  # "min" or "max" over every component
+
+    @staticmethod
+    def parse(text: str, where: str) -> "MetricRef":
+        if not isinstance(text, str):
+            raise InvalidInput(f"{where} = {text!r} must be a metric name string, e.g. \"max_force_N[0]\"")
+        m = _REF_RE.match(text)
+        if m is None:
+            raise InvalidInput(f"{where} = {text!r} is not a metric reference: allowed name, name[i], name[i][j], "
+                               "min(name), max(name)")
+        if m.group(1):
+            return MetricRef(text=text.strip(), name=m.group(2), reduce=m.group(1))
+        index = tuple(int(i) for i in re.findall(r"\d+", m.group(4) or ""))
+        return MetricRef(text=text.strip(), name=m.group(3), index=index)
+
+    def value(self, metrics: Mapping[str, Any]) -> float:
+        """The scalar value in ``metrics`` (NaN if missing or not numeric: a handled outcome)."""
+        raw = metrics.get(self.name)
+        try:
+            return float(_pick(raw, self.index, self.reduce))
+        except (TypeError, ValueError, IndexError, KeyError):
+            return math.nan
+
+    def check(self, metrics: Mapping[str, Any], where: str) -> None:
+        """Raise a one-line error unless this reference picks a number from ``metrics``."""
+        if self.name not in metrics:
+            known = ", ".join(sorted(metrics)) or "(none)"
+            raise UnknownName(f"{where} = {self.text!r}: metric {self.name!r} is not computed for this device: "
+                              f"known metrics are {known}")
+        raw = metrics[self.name]
+        try:
+            float(_pick(raw, self.index, self.reduce))
+        except (TypeError, ValueError, IndexError, KeyError):
+            raise InvalidInput(f"{where} = {self.text!r} does not pick one number from {self.name} = {raw!r}: "
+                               f"give a component index such as {self.name}[0] or min({self.name})") from None
+
+
+def _pick(raw: Any, index: tuple[int, ...], reduce: str | None) -> float:
+    if isinstance(raw, bool):
+        raise TypeError
+    if reduce is not None:
+        flat = list(_flatten(raw))
+        if not flat:
+            raise ValueError
+        return min(flat) if reduce == "min" else max(flat)
+    value = raw
+    for i in index:
+        if not isinstance(value, (list, tuple)):
+            raise TypeError
+        value = value[i]
+    if isinstance(value, (list, tuple, dict, str, bool)) or value is None:
+        raise TypeError
+    return float(value)
+
+
+def _flatten(raw: Any):
+    if isinstance(raw, (list, tuple)):
+        for item in raw:
+            yield from _flatten(item)
+    elif isinstance(raw, (int, float)) and not isinstance(raw, bool):
+        yield float(raw)
+    else:
+        raise TypeError
+
+
+@dataclass(frozen=True, kw_only=True)
+class Variable:
+    """A design variable by TOML key ``section.key``; bounds and start in the key's (edge) unit."""
+
+    key: str
+    section: str
+    field: str  # dataclass field name (SI inside the design)
+    unit: str
+    lower: float
+    upper: float
+    start: float
+
+    @property
+    def label(self) -> str:
+        return f"{self.key} [{pretty(self.unit)}]"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Objective:
+    metric: MetricRef
+    sense: Sense
+
+
+@dataclass(frozen=True, kw_only=True)
+class Constraint:
+    """``metric op value``; nlopt sees c(x) = ±(value − metric)/scale ≤ 0."""
+
+    metric: MetricRef
+    op: Op
+    value: float
+
+    @property
+    def scale(self) -> float:
+        return max(abs(self.value), 1e-12)
+
+    def normalised(self, metric_value: float) -> float:
+        """Violation in units of |value| (≤ 0 satisfied)."""
+        if self.op is Op.GE:
+            return (self.value - metric_value) / self.scale
+        return (metric_value - self.value) / self.scale
+
+    @property
+    def text(self) -> str:
+        return f"{self.metric.text} {self.op.value} {self.value:g}"
+
+
+@dataclass(frozen=True, kw_only=True)
+class OptimiserConfig:
+    """How to search: a frozen value (see the module docstring for the TOML keys)."""
+
+    algorithm: Algorithm = Algorithm.LN_COBYLA
+    local: Algorithm = Algorithm.LN_BOBYQA
+    starts: int = 1
+    seed: int = 0
+    xtol_rel: float = 1e-6
+    ftol_rel: float = 1e-9
+    max_evals: int = 200
+    max_time_s: float = 600.0
+    constraint_tol: float = 1e-4  # normalised violation accepted as feasible
+
+    def fingerprint(self) -> dict[str, Any]:
+        return {k: str(v) if isinstance(v, StrEnum) else v for k, v in dataclasses.asdict(self).items()}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Problem:
+    name: str
+    description: str
+    device: str
+    base_source: str  # "preset NAME" or a file path
+    base: Any  # the base design (frozen)
+    variables: tuple[Variable, ...]
+    objective: Objective
+    constraints: tuple[Constraint, ...] = ()
+    optimiser: OptimiserConfig = OptimiserConfig()
+    fidelity_optimise: Fidelity = Fidelity.DRAFT
+    fidelity_final: Fidelity = Fidelity.FINE
+    scenes: tuple[str, ...] = ()
+    source_text: str = ""
+
+    @property
+    def lower(self) -> list[float]:
+        return [v.lower for v in self.variables]
+
+    @property
+    def upper(self) -> list[float]:
+        return [v.upper for v in self.variables]
+
+    @property
+    def start(self) -> list[float]:
+        return [v.start for v in self.variables]
+
+    def metric_refs(self) -> tuple[MetricRef, ...]:
+        return (self.objective.metric,) + tuple(c.metric for c in self.constraints)
+
+    def with_optimiser(self, **changes: Any) -> "Problem":
+        return dataclasses.replace(self, optimiser=dataclasses.replace(self.optimiser, **changes))
+
+    def design_at(self, x: Sequence[float]) -> Any:
+        """The base design with the variables set to ``x`` (edge units). Raises :class:`InvalidDesign`."""
+        return design_at(self.base, self.variables, x)
+
+    def fingerprint(self) -> str:
+        """Hash of everything that decides the sequence of evaluated points (for ``--resume``)."""
+        payload = repr((self.name, io.dumps(self.base), self.variables, self.objective, self.constraints,
+                        self.optimiser.fingerprint(), str(self.fidelity_optimise)))
+        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+
+def design_at(base: Any, variables: Sequence[Variable], x: Sequence[float]) -> Any:
+    """``base`` with each variable's field set to x[i] (edge units), validated by the constructor."""
+    by_section: dict[str, dict[str, float]] = {}
+    for var, value in zip(variables, x, strict=True):
+        by_section.setdefault(var.section, {})[var.field] = to_si(float(value), var.unit)
+    changes = {}
+    for section, values in by_section.items():
+        changes[section] = dataclasses.replace(getattr(base, section), **values)
+    return dataclasses.replace(base, **changes)  # the design's constructor validates every field
+
+
+# ------------------------------------------------------------------------------------ loading
+def _problem_dir():
+    return resources.files("optim.problems")
+
+
+def problem_names() -> list[str]:
+    """Names of the bundled problems."""
+    return sorted(p.name[: -len(".toml")] for p in _problem_dir().iterdir() if p.name.endswith(".toml"))
+
+
+def load_problem(name_or_path: str | Path) -> Problem:
+    """A bundled problem by name, or a problem TOML file by path."""
+    text_arg = str(name_or_path)
+    path = Path(text_arg)
+    if text_arg in problem_names() and not path.is_file():
+        text = (_problem_dir() / f"{text_arg}.toml").read_text(encoding="utf-8")
+        return problem_from_text(text, source=f"problem {text_arg}", base_dir=None)
+    if not path.is_file():
+        raise UnknownName(f"problem {text_arg!r} is neither a bundled problem nor a file: bundled problems are "
+                          f"{', '.join(problem_names())}")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputFileError(f"problem file {text_arg!r} cannot be read: {exc}") from None
+    return problem_from_text(text, source=path.name, base_dir=path.parent)
+
+
+def problem_from_text(text: str, *, source: str, base_dir: Path | None) -> Problem:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputFileError(f"{source} is not valid TOML: {exc}") from None
+    return problem_from_dict(data, source=source, base_dir=base_dir, source_text=text)
+
+
+def _table(data: Mapping[str, Any], key: str, source: str, allowed: set[str]) -> dict[str, Any]:
+    table = data.get(key, {})
+    if not isinstance(table, Mapping):
+        raise InvalidInput(f"{source}: [{key}] must be a table")
+    for k in table:
+        if k not in allowed:
+            raise InvalidInput(f"{source}: {key}.{k} is not a known key: allowed {', '.join(sorted(allowed))}")
+    return dict(table)
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)):
+        raise InvalidInput(f"{where} = {value!r} must be a finite number")
+    return float(value)
+
+
+def _enum(cls: type, value: Any, where: str) -> Any:
+    try:
+        return cls(value)
+    except ValueError:
+        allowed = ", ".join(m.value for m in cls)  # type: ignore[attr-defined]
+        raise InvalidInput(f"{where} = {value!r} is not allowed: allowed {allowed}") from None
+
+
+def problem_from_dict(data: Mapping[str, Any], *, source: str = "problem", base_dir: Path | None = None,
+                      source_text: str = "") -> Problem:
+    """Build and validate a :class:`Problem` (metric names are checked later against an evaluation)."""
+    for key in data:
+        if key not in _TOP_KEYS:
+            raise InvalidInput(f"{source}: {key} is not a known key: allowed {', '.join(sorted(_TOP_KEYS))}")
+    name = data.get("name")
+    if not isinstance(name, str) or not name.strip():
+        raise InvalidInput(f"{source}: name = {name!r} must be a non-empty string")
+    description = data.get("description", "")
+    # base design
+    if ("base" in data) == ("base_file" in data):
+        raise InvalidInput(f"{source}: give exactly one of base = \"PRESET\" or base_file = \"design.toml\"")
+    if "base" in data:
+        base = io.load_preset(str(data["base"]))
+        base_source = f"preset {data['base']}"
+    else:
+        p = Path(str(data["base_file"]))
+        if not p.is_absolute() and base_dir is not None:
+            p = base_dir / p
+        base = io.load_design(p)
+        base_source = str(p)
+    device = data.get("device", base.device)
+    if device != base.device:
+        raise InvalidInput(f"{source}: device = {device!r} but the base design is a {base.device!r} design")
+    variables = _variables(data.get("variables"), base, source)
+    objective = _objective(data.get("objective"), source)
+    constraints = _constraints(data.get("constraints", []), source)
+    optimiser = _optimiser(_table(data, "optimiser", source, {f.name for f in dataclasses.fields(OptimiserConfig)}),
+                           source, bool(constraints))
+    fid = _table(data, "fidelity", source, {"optimise", "final"})
+    fidelity_optimise = _enum(Fidelity, fid.get("optimise", "draft"), f"{source}: fidelity.optimise")
+    fidelity_final = _enum(Fidelity, fid.get("final", "fine"), f"{source}: fidelity.final")
+    ver = _table(data, "verify", source, {"scenes"})
+    scenes = ver.get("scenes", [])
+    if not isinstance(scenes, list) or not all(isinstance(s, str) for s in scenes):
+        raise InvalidInput(f"{source}: verify.scenes = {scenes!r} must be a list of scene names")
+    return Problem(name=name.strip(), description=str(description), device=device, base_source=base_source,
+                   base=base, variables=variables, objective=objective, constraints=constraints,
+                   optimiser=optimiser, fidelity_optimise=fidelity_optimise, fidelity_final=fidelity_final,
+                   scenes=tuple(scenes), source_text=source_text)
+
+
+def _variables(raw: Any, base: Any, source: str) -> tuple[Variable, ...]:
+    if not isinstance(raw, list) or not raw:
+        raise InvalidInput(f"{source}: [[variables]] must list at least one design variable, e.g. key = \"geometry.beta_deg\"")
+    out: list[Variable] = []
+    seen: set[str] = set()
+    for i, table in enumerate(raw):
+        where = f"{source}: variables[{i}]"
+        if not isinstance(table, Mapping):
+            raise InvalidInput(f"{where} must be a table with key, lower, upper")
+        for k in table:
+            if k not in ("key", "lower", "upper", "start"):
+                raise InvalidInput(f"{where}.{k} is not a known key: allowed key, lower, upper, start")
+        key = table.get("key")
+        if not isinstance(key, str) or key.count(".") != 1:
+            raise InvalidInput(f"{where}.key = {key!r} must name section.key, e.g. \"geometry.beta_deg\"")
+        section, tkey = key.split(".")
+        if section not in base.SECTIONS:
+            raise InvalidInput(f"{where}.key = {key!r}: {section} is not a section of a {base.device} design: "
+                               f"allowed {', '.join(base.SECTIONS)}")
+        by_key = {s.key: (fname, s) for fname, s in specs(getattr(base, section)).items()}
+        if tkey not in by_key:
+            raise InvalidInput(f"{where}.key = {key!r} is not a variable of the design: allowed keys in "
+                               f"[{section}] are {', '.join(sorted(by_key))}")
+        if key in seen:
+            raise InvalidInput(f"{where}.key = {key!r} appears twice")
+        seen.add(key)
+        fname, spec = by_key[tkey]
+        lower = _number(table["lower"], f"{where}.lower") if "lower" in table else spec.lo
+        upper = _number(table["upper"], f"{where}.upper") if "upper" in table else spec.hi
+        if not (math.isfinite(lower) and math.isfinite(upper)):
+            raise InvalidInput(f"{where} ({key}): the field's range {spec.allowed()} is unbounded: give lower and upper")
+        if lower >= upper:
+            raise InvalidInput(f"{where} ({key}): lower = {lower:g} must be below upper = {upper:g} "
+                               f"({pretty(spec.unit)})")
+        for bound, bname in ((lower, "lower"), (upper, "upper")):
+            if bound < spec.lo or bound > spec.hi:
+                raise InvalidInput(f"{where}.{bname} = {bound:g} is outside the field's range: allowed {spec.allowed()}")
+        # open field ends: keep the variable strictly inside
+        span = upper - lower
+        if spec.lo_open and lower <= spec.lo:
+            lower = spec.lo + 1e-6 * span
+        if spec.hi_open and upper >= spec.hi:
+            upper = spec.hi - 1e-6 * span
+        base_value = from_si(float(getattr(getattr(base, section), fname)), spec.unit)
+        start = _number(table["start"], f"{where}.start") if "start" in table else base_value
+        if not lower <= start <= upper:
+            what = "start" if "start" in table else "the base design's value"
+            raise InvalidInput(f"{where} ({key}): infeasible start: {what} {start:g} is outside "
+                               f"[{lower:g}, {upper:g}] ({pretty(spec.unit)})")
+        out.append(Variable(key=key, section=section, field=fname, unit=spec.unit, lower=lower, upper=upper,
+                            start=start))
+    # the start design itself must be valid (cross-field rules)
+    try:
+        design_at(base, out, [v.start for v in out])
+    except InvalidDesign as exc:
+        raise InvalidInput(f"{source}: infeasible start: {exc}") from None
+    return tuple(out)
+
+
+def _objective(raw: Any, source: str) -> Objective:
+    if not isinstance(raw, Mapping):
+        raise InvalidInput(f"{source}: [objective] must be a table with metric and sense")
+    for k in raw:
+        if k not in ("metric", "sense"):
+            raise InvalidInput(f"{source}: objective.{k} is not a known key: allowed metric, sense")
+    if "metric" not in raw:
+        raise InvalidInput(f"{source}: objective.metric is missing, e.g. metric = \"jacobian_condition\"")
+    metric = MetricRef.parse(raw["metric"], f"{source}: objective.metric")
+    sense = _enum(Sense, raw.get("sense", "minimise"), f"{source}: objective.sense")
+    return Objective(metric=metric, sense=sense)
+
+
+def _constraints(raw: Any, source: str) -> tuple[Constraint, ...]:
+    if not isinstance(raw, list):
+        raise InvalidInput(f"{source}: [[constraints]] must be an array of tables")
+    out: list[Constraint] = []
+    for i, table in enumerate(raw):
+        where = f"{source}: constraints[{i}]"
+        if not isinstance(table, Mapping):
+            raise InvalidInput(f"{where} must be a table with metric and min and/or max")
+        for k in table:
+            if k not in ("metric", "min", "max"):
+                raise InvalidInput(f"{where}.{k} is not a known key: allowed metric, min, max")
+        if "metric" not in table:
+            raise InvalidInput(f"{where}.metric is missing")
+        metric = MetricRef.parse(table["metric"], f"{where}.metric")
+        if "min" not in table and "max" not in table:
+            raise InvalidInput(f"{where} ({metric.text}) needs min = … (metric ≥ min) and/or max = … (metric ≤ max)")
+        lo = _number(table["min"], f"{where}.min") if "min" in table else None
+        hi = _number(table["max"], f"{where}.max") if "max" in table else None
+        if lo is not None and hi is not None and lo > hi:
+            raise InvalidInput(f"{where} ({metric.text}): min = {lo:g} must not exceed max = {hi:g}")
+        if lo is not None:
+            out.append(Constraint(metric=metric, op=Op.GE, value=lo))
+        if hi is not None:
+            out.append(Constraint(metric=metric, op=Op.LE, value=hi))
+    return tuple(out)
+
+
+def _optimiser(table: dict[str, Any], source: str, constrained: bool) -> OptimiserConfig:
+    kw: dict[str, Any] = {}
+    where = f"{source}: optimiser"
+    if "algorithm" in table:
+        kw["algorithm"] = _enum(Algorithm, table["algorithm"], f"{where}.algorithm")
+    if "local" in table:
+        kw["local"] = _enum(Algorithm, table["local"], f"{where}.local")
+        if kw["local"] not in LOCAL_ALGORITHMS:
+            raise InvalidInput(f"{where}.local = {table['local']!r} must be a local algorithm: allowed "
+                               f"{', '.join(a.value for a in LOCAL_ALGORITHMS)}")
+    for key in ("starts", "seed", "max_evals"):
+        if key in table:
+            v = table[key]
+            if isinstance(v, bool) or not isinstance(v, int) or v < (0 if key == "seed" else 1):
+                raise InvalidInput(f"{where}.{key} = {v!r} must be a whole number ≥ {0 if key == 'seed' else 1}")
+            kw[key] = v
+    for key in ("xtol_rel", "ftol_rel", "max_time_s", "constraint_tol"):
+        if key in table:
+            v = _number(table[key], f"{where}.{key}")
+            if v < 0 or (key == "max_time_s" and v == 0):
+                raise InvalidInput(f"{where}.{key} = {v!r} must be {'> 0' if key == 'max_time_s' else '≥ 0'}")
+            kw[key] = v
+    cfg = OptimiserConfig(**kw)
+    if constrained and not cfg.algorithm.handles_constraints:
+        raise InvalidInput(f"{where}.algorithm = {cfg.algorithm.value!r} cannot handle constraints: use LN_COBYLA, "
+                           "LD_SLSQP, LD_MMA, GN_ISRES or AUGLAG")
+    if cfg.starts > cfg.max_evals:
+        raise InvalidInput(f"{where}.starts = {cfg.starts} exceeds max_evals = {cfg.max_evals}")
+    return cfg
+
+
+def check_metrics(problem: Problem, metrics: Mapping[str, Any]) -> None:
+    """Raise a one-line error for any objective/constraint metric the evaluators do not produce."""
+    problem.objective.metric.check(metrics, "objective.metric")
+    for i, c in enumerate(problem.constraints):
+        c.metric.check(metrics, f"constraints ({c.text})")

@@ -1,0 +1,1 @@
+"""Bundled optimisation problems (TOML), loaded with :func:`optim.problem.load_problem`."""

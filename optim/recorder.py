@@ -1,0 +1,131 @@
+"""The run recorder: every evaluation written as it happens to SQLite in the run directory.
+
+``DIR/evaluations.sqlite`` in WAL mode, one transaction per evaluation (design vector,
+metrics JSON, gradients, timings, outcome). ``--resume`` re-opens it: because the optimiser is
+deterministic (same problem, same seed), it asks the same points in the same order, and each
+one found here under its exact key (the float64 bit patterns of the vector, the fidelity and
+whether a gradient was computed) is replayed without running an evaluator.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from design.errors import InvalidInput
+from optim.evaluation import Outcome, PointResult
+
+FILENAME = "evaluations.sqlite"
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS sessions (id INTEGER PRIMARY KEY, started REAL NOT NULL, resumed INTEGER NOT NULL);
+CREATE TABLE IF NOT EXISTS evaluations (
+    id INTEGER PRIMARY KEY,
+    key TEXT NOT NULL UNIQUE,
+    session INTEGER NOT NULL,
+    start INTEGER NOT NULL,
+    stage TEXT NOT NULL,
+    fidelity TEXT NOT NULL,
+    x TEXT NOT NULL,
+    outcome TEXT NOT NULL,
+    message TEXT NOT NULL,
+    vals TEXT NOT NULL,
+    gradients TEXT,
+    gradient_source TEXT NOT NULL,
+    metrics TEXT NOT NULL,
+    statuses TEXT NOT NULL,
+    timings TEXT NOT NULL,
+    created REAL NOT NULL
+);
+"""
+
+
+def point_key(x: Sequence[float], fidelity: str, gradient: bool) -> str:
+    """Exact key of an evaluation: hex float64 bit patterns, fidelity, gradient flag."""
+    return ",".join(float(v).hex() for v in x) + f"|{fidelity}|{'g' if gradient else '-'}"
+
+
+class Recorder:
+    """SQLite recorder (thread-safe: the driver may evaluate several starts at once)."""
+
+    def __init__(self, run_dir: str | Path, *, fingerprint: str, resume: bool) -> None:
+        self.path = Path(run_dir) / FILENAME
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if not resume:
+            for suffix in ("", "-wal", "-shm"):
+                Path(str(self.path) + suffix).unlink(missing_ok=True)
+        elif not self.path.is_file():
+            raise InvalidInput(f"--resume: {self.path} does not exist: there is no run to resume in {run_dir}")
+        self._lock = threading.Lock()
+        self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=30.0)
+        self._db.execute("PRAGMA journal_mode=WAL")
+        self._db.execute("PRAGMA synchronous=NORMAL")
+        self._db.executescript(_SCHEMA)
+        row = self._db.execute("SELECT value FROM meta WHERE key='fingerprint'").fetchone()
+        if row is None:
+            self._db.execute("INSERT INTO meta(key, value) VALUES ('fingerprint', ?)", (fingerprint,))
+        elif row[0] != fingerprint:
+            raise InvalidInput(f"--resume: the run in {run_dir} was made with a different problem or optimiser "
+                               f"settings (fingerprint {row[0]} ≠ {fingerprint}): use the same settings or a new --out")
+        cur = self._db.execute("INSERT INTO sessions(started, resumed) VALUES (?, ?)", (time.time(), int(resume)))
+        self.session = int(cur.lastrowid or 0)
+        self._previous: dict[str, PointResult] = {}
+        for key, x, outcome, message, vals, grads, gsrc, metrics, statuses, timings in self._db.execute(
+                "SELECT key, x, outcome, message, vals, gradients, gradient_source, metrics, statuses, timings "
+                "FROM evaluations WHERE session < ? ORDER BY id", (self.session,)):
+            self._previous[key] = PointResult(
+                x=tuple(json.loads(x)), outcome=Outcome(outcome), message=message,
+                values=tuple(json.loads(vals)),
+                gradients=None if grads is None else tuple(tuple(r) for r in json.loads(grads)),
+                gradient_source=gsrc, metrics=json.loads(metrics), statuses=json.loads(statuses),
+                timings_s=json.loads(timings))
+
+    @property
+    def n_previous(self) -> int:
+        return len(self._previous)
+
+    def lookup(self, key: str) -> PointResult | None:
+        """A result recorded by an earlier session of this run (replay), or None."""
+        return self._previous.get(key)
+
+    def record(self, key: str, result: PointResult, *, start: int, stage: str, fidelity: str) -> None:
+        """Write one evaluation in its own transaction (durable once this returns)."""
+        row = (key, self.session, start, stage, fidelity, json.dumps([float(v) for v in result.x]),
+               str(result.outcome), result.message, json.dumps(list(result.values)),
+               None if result.gradients is None else json.dumps([list(r) for r in result.gradients]),
+               result.gradient_source, json.dumps(result.metrics), json.dumps(result.statuses),
+               json.dumps(result.timings_s), time.time())
+        with self._lock:
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                self._db.execute(
+                    "INSERT OR IGNORE INTO evaluations(key, session, start, stage, fidelity, x, outcome, message, vals,"
+                    " gradients, gradient_source, metrics, statuses, timings, created)"
+                    " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)", row)
+                self._db.execute("COMMIT")
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+
+    def rows(self) -> list[dict[str, Any]]:
+        """Every recorded evaluation (all sessions), in insertion order."""
+        with self._lock:
+            cur = self._db.execute("SELECT id, key, session, start, stage, outcome, x, timings FROM evaluations ORDER BY id")
+            cols = [c[0] for c in cur.description]
+            return [dict(zip(cols, r)) for r in cur.fetchall()]
+
+    def close(self) -> None:
+        with self._lock:
+            self._db.close()
+
+    def __enter__(self) -> "Recorder":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
