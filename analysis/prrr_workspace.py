@@ -256,7 +256,8 @@ def workspace_core(wp: WorkspaceParams, *, n_phi: int, n_r: int, xp=np) -> dict:
     link_extent = xp.maximum(link_extent, xp.sqrt(wp.d1**2 + wp.d2**2)) + wp.boss_radius
     footprint = 2.0 * xp.maximum(wp.rail_envelope, link_extent)
 
-    empty = ~(volume > 0.0)
+    # tangent roots leave rounding-sized slivers (~1e-23 m³): below 1e-12 L ρ_max² counts as empty
+    empty = ~(volume > 1e-12 * L * wp.rho_max**2)
     return {
         "volume": xp.maximum(volume, 0.0),
         "reach_radius": r_reach,

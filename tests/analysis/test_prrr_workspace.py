@@ -1,0 +1,203 @@
+"""Tests of analysis.prrr_workspace (3-PRRR reach ∩ stroke workspace)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from analysis import prrr_workspace as W
+from analysis.fidelity import Fidelity
+from analysis.prrr_kinematics import inverse_kinematics, leg_chain, params_of
+from analysis.status import Status
+from design import io
+from design.prrr import PrrrDesign
+
+
+@pytest.fixture(scope="module")
+def paper() -> PrrrDesign:
+    return io.load_preset("prrr-paper")
+
+
+def with_geometry(design: PrrrDesign, **changes: float) -> PrrrDesign:
+    return dataclasses.replace(design, geometry=dataclasses.replace(design.geometry, **changes))
+
+
+def test_paper_inscribed_cylinder_matches_closed_form(paper: PrrrDesign) -> None:
+    g = paper.geometry
+    r = W.evaluate(paper, fidelity=Fidelity.DRAFT)
+    m = r.metrics()
+    assert r.status == Status.OK
+    # seed digest (seed 002): the largest disc every leg reaches has radius d3 + d4 − d2 = 71.25 mm
+    assert m["workspace_cylinder_diameter_mm"] == pytest.approx(142.5, abs=0.5)
+    assert r.cylinder_diameter == pytest.approx(2.0 * (g.d3 + g.d4 - g.d2), rel=1e-12)
+    # H = L − 2R cot β at R = 70 mm, L = 170 mm (seed digest; paper Table 1: φ140 × 89 mm)
+    assert m["workspace_height_at_diameter_mm"] == pytest.approx(89.0, abs=0.5)
+    assert r.height_at_required == pytest.approx(g.stroke - 0.140 / math.tan(g.beta), rel=1e-12)
+    # max-volume cylinder: R* = min(R_reach, L tan β / 3); here R_reach = 71.25 mm < 98.1 mm
+    assert r.cylinder_height == pytest.approx(g.stroke - 2.0 * 0.07125 / math.tan(g.beta), rel=1e-12)
+
+
+def test_required_diameter_that_does_not_fit_gives_zero_height(paper: PrrrDesign) -> None:
+    r = W.evaluate(paper, fidelity=Fidelity.DRAFT, required_diameter=0.150)  # > φ142.5 reach disc
+    assert r.height_at_required == 0.0
+    assert "does not fit" in r.message
+    assert r.metrics()["workspace_required_diameter_mm"] == pytest.approx(150.0)
+
+
+def test_cylinder_is_volume_optimal_when_stroke_binds(paper: PrrrDesign) -> None:
+    # short stroke: L tan β / 3 < R_reach, so R* = L tan β / 3 (d/dR of R²(L − 2R cot β) = 0)
+    d = with_geometry(paper, stroke=0.060)
+    r = W.evaluate(d, fidelity=Fidelity.DRAFT)
+    assert r.cylinder_diameter / 2.0 == pytest.approx(0.060 * math.tan(d.geometry.beta) / 3.0, rel=1e-12)
+    assert r.cylinder_height == pytest.approx(0.060 / 3.0, rel=1e-12)
+
+
+def _grid_volume(design: PrrrDesign, n: int) -> float:
+    """Independent volume: midpoint xy grid, reach from the geometric IK (z-independent) and the
+    z interval from its slider positions (slope 1 in z, eq 1)."""
+    g = design.geometry
+    P = params_of(design)
+    ext = 0.2
+    xs = (np.arange(n) + 0.5) / n * 2 * ext - ext
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    pts = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], axis=-1)
+    ik = inverse_kinematics(P, jnp.asarray(pts))
+    reach = np.asarray(ik.reach_ok).all(axis=-1)
+    dev = np.asarray(ik.sliders) - g.c_e  # slider deviation at z = 0
+    height = np.clip((g.stroke / 2 - dev).min(axis=-1) - (-g.stroke / 2 - dev).max(axis=-1), 0.0, None)
+    return float(np.sum(np.where(reach, height, 0.0)) * (2 * ext / n) ** 2)
+
+
+def test_volume_agrees_with_independent_ik_grid(paper: PrrrDesign) -> None:
+    v = W.evaluate(paper, fidelity=Fidelity.FINE).volume
+    v_grid = _grid_volume(paper, 500)
+    assert v_grid == pytest.approx(v, rel=3e-3)  # grid: O(h) boundary error, h = 0.8 mm
+
+
+def test_volume_converges_at_second_order(paper: PrrrDesign) -> None:
+    wp = W.workspace_params(paper)
+    ref = float(W.workspace_core(wp, n_phi=16384, n_r=2)["volume"])
+    ns = np.array([24, 48, 96, 192])
+    err = np.array([abs(float(W.workspace_core(wp, n_phi=int(n), n_r=2)["volume"]) - ref) for n in ns])
+    rate = -np.polyfit(np.log(ns), np.log(err), 1)[0]
+    # midpoint rule on a periodic integrand with kinks: O(n⁻²) (observed ≈ 2, docs/workspace.md)
+    assert rate > 1.8
+    assert err[-1] / ref < 1e-4
+
+
+def test_sampled_points_are_reachable_by_ik(paper: PrrrDesign) -> None:
+    pts = W.sample_points(W.workspace_params(paper), n_phi=16, n_r=8, n_z=4)
+    assert len(pts) > 1000
+    ik = inverse_kinematics(params_of(paper), jnp.asarray(pts))
+    assert bool(np.all(np.asarray(ik.reachable)))
+
+
+def test_outside_points_are_unreachable_by_ik(paper: PrrrDesign) -> None:
+    """Points just beyond the cylinder's top/bottom and beyond the reach disc are not reachable."""
+    g = paper.geometry
+    r = W.evaluate(paper, fidelity=Fidelity.DRAFT)
+    z0, z1 = W.cylinder_z_range(paper, r)
+    R = r.cylinder_diameter / 2
+    ang = np.linspace(0, 2 * np.pi, 360, endpoint=False)
+    ring = np.stack([R * np.cos(ang), R * np.sin(ang), np.zeros_like(ang)], axis=-1)
+    P = params_of(paper)
+    inside = inverse_kinematics(P, jnp.asarray(ring * (1 - 1e-9) + [0, 0, z1 * (1 - 1e-9)])).reachable
+    assert bool(np.all(np.asarray(inside)))
+    # the cylinder touches the stroke limit somewhere on its top rim and the reach edge somewhere on its side
+    above = np.asarray(inverse_kinematics(P, jnp.asarray(ring + [0, 0, z1 + 1e-4])).reachable)
+    outside = np.asarray(inverse_kinematics(P, jnp.asarray(ring * (1 + 1e-3))).reachable)
+    assert not above.all() and not outside.all()
+    assert g.stroke > 0
+
+
+def test_jacobian_constancy_checked_at_fine(paper: PrrrDesign) -> None:
+    r = W.evaluate(paper, fidelity=Fidelity.FINE)
+    assert r.condition_points > 500
+    # the slider map is affine in p (eq 1), so central differences are exact up to rounding
+    assert 0.0 <= r.metrics()["jacobian_condition_deviation"] < 1e-9
+    assert "jacobian_condition_deviation" not in W.evaluate(paper, fidelity=Fidelity.DRAFT).metrics()
+
+
+def test_footprint_covers_rails_and_links(paper: PrrrDesign) -> None:
+    g, s = paper.geometry, paper.structure
+    r = W.evaluate(paper, fidelity=Fidelity.STANDARD)
+    assert r.footprint_diameter >= 2 * (g.r_p + W.SEA_ENVELOPE_RADIAL)
+    # links' swept extent from the kinematics module's serial chain at sampled workspace points
+    pts = W.sample_points(W.workspace_params(paper), n_phi=32, n_r=12, n_z=1)
+    P = params_of(paper)
+    ik = inverse_kinematics(P, jnp.asarray(pts))
+    chain = leg_chain(P, ik.sliders, ik.theta[:, W.ELBOW_BRANCH])
+    extent = max(np.linalg.norm(np.asarray(getattr(chain, k))[..., :2], axis=-1).max() for k in ("a", "b", "q"))
+    fine = W.evaluate(paper, fidelity=Fidelity.FINE).footprint_diameter
+    assert fine >= 2 * (extent + s.boss_diameter / 2) - 1e-9 or fine == pytest.approx(
+        2 * (extent + s.boss_diameter / 2), rel=2e-3)
+    # sampling under-estimates a maximum: cheaper levels are within 2 % of fine and below it
+    assert r.footprint_diameter <= fine + 1e-12
+    assert r.footprint_diameter == pytest.approx(fine, rel=2e-2)
+    assert r.footprint_ratio == pytest.approx(r.cylinder_diameter / r.footprint_diameter)
+
+
+def _hard_cases(paper: PrrrDesign) -> dict[str, PrrrDesign]:
+    g = paper.geometry
+    # the z axis reaches the R1→R3 distance ρ0 = sqrt((c_u/sin β)² + d2²) = d2 when c_u = 0
+    return {
+        "beta_1deg": with_geometry(paper, beta=math.radians(1.0)),
+        "beta_89deg": with_geometry(paper, beta=math.radians(89.0)),
+        "barely_reaching": with_geometry(paper, d3=g.d2 / 2 + 0.0002, d4=g.d2 / 2 + 0.0002),
+        "empty": with_geometry(paper, d3=g.d2 / 2 - 0.001, d4=g.d2 / 2 - 0.001),
+        "unequal_links": with_geometry(paper, d3=0.100, d4=0.040),
+    }
+
+
+@pytest.mark.parametrize("fidelity", list(Fidelity))
+def test_hard_cases_give_finite_metrics(paper: PrrrDesign, fidelity: Fidelity) -> None:
+    for name, design in _hard_cases(paper).items():
+        r = W.evaluate(design, fidelity=fidelity)
+        for key, value in r.metrics().items():
+            assert math.isfinite(value), (name, key)
+            assert value >= 0.0, (name, key)
+        if r.status == Status.EMPTY:
+            assert r.volume == 0.0 and r.cylinder_diameter == 0.0 and r.cylinder_height == 0.0
+
+
+def test_hard_case_statuses(paper: PrrrDesign) -> None:
+    cases = {k: W.evaluate(d, fidelity=Fidelity.STANDARD) for k, d in _hard_cases(paper).items()}
+    assert cases["empty"].status == Status.EMPTY
+    assert cases["beta_1deg"].status == Status.EMPTY  # ellipse semi-axis (d3+d4) sin 1° ≈ 2.8 mm
+    tiny = cases["barely_reaching"]
+    assert tiny.status == Status.OK
+    # reach radius = d3 + d4 − d2 = 0.4 mm (seed digest closed form, c_u = 0)
+    assert tiny.cylinder_diameter == pytest.approx(0.0008, rel=1e-9)
+    # tiny: the region lies within ~1 mm of the axis, so V < L·(π·1 mm²) ≈ 5.3e-7 m³ (paper: 2.2e-3 m³)
+    assert 0.0 < tiny.volume < paper.geometry.stroke * math.pi * 1e-6
+    assert cases["beta_89deg"].status == Status.OK
+    assert cases["unequal_links"].status == Status.OK
+
+
+def test_batch_equals_single(paper: PrrrDesign) -> None:
+    rng = np.random.default_rng(4)
+    designs = list(_hard_cases(paper).values()) + [paper]
+    for _ in range(6):
+        designs.append(with_geometry(paper, beta=math.radians(rng.uniform(20, 75)),
+                                     d2=rng.uniform(0.05, 0.12), d3=rng.uniform(0.05, 0.12),
+                                     d4=rng.uniform(0.05, 0.12), stroke=rng.uniform(0.05, 0.3)))
+    for fidelity in (Fidelity.DRAFT, Fidelity.STANDARD):
+        batch = W.evaluate_batch(designs, fidelity=fidelity)
+        for d, b in zip(designs, batch):
+            s = W.evaluate(d, fidelity=fidelity)
+            assert b.status == s.status
+            for f in ("volume", "reach_radius", "cylinder_diameter", "cylinder_height", "height_at_required",
+                      "footprint_diameter"):
+                x, y = getattr(s, f), getattr(b, f)
+                assert abs(x - y) <= 1e-12 * max(abs(x), 1e-3), (d.geometry, f, x, y)
+
+
+def test_plot_writes_png(paper: PrrrDesign, tmp_path) -> None:
+    r = W.evaluate(paper, fidelity=Fidelity.DRAFT)
+    files = W.plot(paper, r, tmp_path)
+    assert [f.name for f in files] == ["prrr-paper_workspace.png"]
+    assert files[0].stat().st_size > 10_000
