@@ -141,7 +141,11 @@ class RunResult:
 
     @property
     def status(self) -> str:
-        """``converged`` if any start converged, else the first start's status."""
+        """``no_valid_point`` if no point evaluated cleanly (e.g. every start fails: a plateau of
+        penalties stalls any local method), ``converged`` if any start converged, else the first
+        start's status."""
+        if self.best is None:
+            return "no_valid_point"
         if any(s.status.converged for s in self.starts):
             return "converged"
         return str(self.starts[0].status) if self.starts else "no_starts"

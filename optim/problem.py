@@ -447,7 +447,8 @@ def _variables(raw: Any, base: Any, source: str) -> tuple[Variable, ...]:
             lower = spec.lo + 1e-6 * span
         if spec.hi_open and upper >= spec.hi:
             upper = spec.hi - 1e-6 * span
-        base_value = from_si(float(getattr(getattr(base, section), fname)), spec.unit)
+        # 15 significant digits, as design.schema writes TOML: 60° stays 60, not 59.99999999999999
+        base_value = float(f"{from_si(float(getattr(getattr(base, section), fname)), spec.unit):.15g}")
         start = _number(table["start"], f"{where}.start") if "start" in table else base_value
         if not lower <= start <= upper:
             what = "start" if "start" in table else "the base design's value"
