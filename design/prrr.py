@@ -100,6 +100,25 @@ class Structure:
                                   doc="Young's modulus (aluminium 6061)")
     poisson_ratio: float = param("poisson_ratio", "", default=0.33, lo=0.0, hi=0.5, hi_open=True,
                                  doc="Poisson's ratio (aluminium 6061)")
+    # --- CAD (design/cad_prrr.py); defaults chosen here, the paper gives no part data
+    clearance: float = param("clearance_mm", "mm", default=0.5, lo=0.0, hi=50.0, lo_open=True,
+                             doc="axial gap between stacked links at a joint")
+    rail_width: float = param("rail_width_mm", "mm", default=20.0, lo=0.0, hi=500.0, lo_open=True,
+                              doc="square cross-section of each vertical slider rail")
+    carriage_height: float = param("carriage_height_mm", "mm", default=50.0, lo=0.0, hi=1000.0, lo_open=True,
+                                   doc="height of the carriage block along the rail")
+    carriage_wall: float = param("carriage_wall_mm", "mm", default=8.0, lo=0.0, hi=500.0, lo_open=True,
+                                 doc="wall of the carriage block around the rail")
+    sea_envelope: float = param("sea_envelope_mm", "mm", default=25.0, lo=0.0, hi=1000.0, lo_open=True,
+                                doc="radial depth of the SEA housing envelope outside the rail")
+    base_radius: float = param("base_radius_mm", "mm", default=140.0, lo=0.0, hi=5000.0, lo_open=True,
+                               doc="radius of the base plate")
+    base_thickness: float = param("base_thickness_mm", "mm", default=10.0, lo=0.0, hi=500.0, lo_open=True,
+                                  doc="thickness of the base plate")
+    base_clearance: float = param("base_clearance_mm", "mm", default=5.0, lo=0.0, hi=500.0,
+                                  doc="gap between the lowest carriage and the base plate")
+    stem_diameter: float = param("stem_diameter_mm", "mm", default=10.0, lo=0.0, hi=500.0, lo_open=True,
+                                 doc="diameter of the end-effector stem carrying the handle ball")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -1,0 +1,281 @@
+"""Parts as tables of primitives: the one parametric source of the CAD, the analytic mass
+properties, the interference meshes and the MJCF geoms.
+
+A part is a rigid solid described in its own frame (SI, metres) as a set of primitives:
+
+* ``SOLID`` primitives are united (box, cylinder, sphere),
+* ``HOLE`` primitives are subtracted from that union (pin bores, rail slots),
+* ``OVERLAP`` primitives exist only for the analytic mass model: they are the regions counted
+  twice by the solids (a boss disc overlapping the end of its link bar: a "cap segment") and
+  are subtracted once. The CAD ignores them.
+
+The CAD (:mod:`design.cad_prrr`, :mod:`design.cad_master`) turns SOLID/HOLE into OpenCASCADE
+solids, :func:`manifold_of` into manifold3d meshes, and :func:`volume_properties` sums closed
+forms (cap segments by a fixed Gauss–Legendre rule) without building any solid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum, StrEnum
+
+import math
+
+import numpy as np
+
+from design import cad_units
+
+_EX = np.array([1.0, 0.0, 0.0])
+_EY = np.array([0.0, 1.0, 0.0])
+
+
+class Kind(IntEnum):
+    BOX = 0  # dims (lx, ly, lz), centred on the origin
+    CYLINDER = 1  # dims (radius, height, 0), axis = local z, centred
+    SPHERE = 2  # dims (radius, 0, 0)
+    CAPSEG = 3  # dims (R, h, thickness): {x ≥ 0, |y| ≤ h, x² + y² ≤ R²} × |z| ≤ thickness/2
+
+
+class Role(StrEnum):
+    SOLID = "solid"
+    HOLE = "hole"
+    OVERLAP = "overlap"
+
+
+@dataclass(frozen=True, kw_only=True, eq=False, slots=True)
+class Primitive:
+    """One primitive in a part frame [m]: ``R`` (3, 3) columns are its local axes, ``o`` (3,) its
+    centre (cap segments: the disc centre), ``dims`` (3,) as listed in :class:`Kind`."""
+
+    kind: Kind
+    role: Role
+    o: np.ndarray
+    R: np.ndarray
+    dims: tuple[float, float, float]
+
+
+@dataclass(frozen=True, kw_only=True)
+class PartSpec:
+    """A named rigid part: primitives in its frame, material density, owning body."""
+
+    name: str
+    body: str  # rigid body that carries the part (MJCF body name)
+    density: float  # [kg/m³]
+    primitives: tuple[Primitive, ...]
+
+
+# ---------------------------------------------------------------------------- frames
+def frame(x_dir, z_dir) -> np.ndarray:
+    """Rotation whose columns are x, y = z × x, z (x made orthogonal to z)."""
+    z = np.asarray(z_dir, dtype=float)
+    z = z / math.sqrt(z @ z)
+    x = np.asarray(x_dir, dtype=float)
+    x = x - (x @ z) * z
+    x = x / math.sqrt(x @ x)
+    y = np.array([z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]])
+    out = np.empty((3, 3))
+    out[:, 0], out[:, 1], out[:, 2] = x, y, z
+    return out
+
+
+def transform(R: np.ndarray, o) -> np.ndarray:
+    """4×4 homogeneous transform from a rotation and an origin."""
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = o
+    return T
+
+
+def _prim(kind: Kind, role: Role, origin, R, dims) -> Primitive:
+    return Primitive(kind=kind, role=role, o=np.asarray(origin, dtype=float), R=R, dims=dims)
+
+
+def box(origin, R, lx: float, ly: float, lz: float, role: Role = Role.SOLID) -> Primitive:
+    return _prim(Kind.BOX, role, origin, R, (lx, ly, lz))
+
+
+def cylinder(origin, axis, radius: float, height: float, role: Role = Role.SOLID, *,
+             R: np.ndarray | None = None) -> Primitive:
+    """Cylinder along ``axis`` (or along the z column of a given rotation ``R``)."""
+    if R is None:
+        axis = np.asarray(axis, dtype=float)
+        helper = _EX if abs(axis[0]) < 0.9 * math.sqrt(axis @ axis) else _EY
+        R = frame(helper, axis)
+    return _prim(Kind.CYLINDER, role, origin, R, (radius, height, 0.0))
+
+
+def sphere(origin, radius: float) -> Primitive:
+    return _prim(Kind.SPHERE, Role.SOLID, origin, np.eye(3), (radius, 0.0, 0.0))
+
+
+def capseg(origin, R, radius: float, half_strip: float, thickness: float) -> Primitive:
+    """Overlap of a boss disc (radius, at origin) with a bar along local +x of half-width half_strip."""
+    return _prim(Kind.CAPSEG, Role.OVERLAP, origin, R, (radius, min(half_strip, radius), thickness))
+
+
+def bar_with_bosses(R: np.ndarray, o, x0: float, x1: float, *, width: float, thickness: float, z: float,
+                    bosses: tuple[float, ...], boss_radius: float, bore_radius: float) -> list[Primitive]:
+    """A flat bar along local x from ``x0`` to ``x1`` (frame ``R``, origin ``o``), in the layer centred
+    at local ``z``, with round bosses (and bores along local z) at the x positions ``bosses``.
+
+    Bosses must lie on the bar and be at least a boss diameter apart (checked by the callers'
+    design rules) so their overlaps with the bar are disjoint cap segments.
+    """
+    o = np.asarray(o, dtype=float)
+    ex, ez = R[:, 0], R[:, 2]
+    out = [box(o + ((x0 + x1) / 2) * ex + z * ez, R, x1 - x0, width, thickness)]
+    flip = R @ np.diag([-1.0, -1.0, 1.0])  # local x reversed (z kept)
+    for xb in bosses:
+        c = o + xb * ex + z * ez
+        out.append(cylinder(c, None, boss_radius, thickness, R=R))
+        if xb < x1 - 1e-12:
+            out.append(capseg(c, R, boss_radius, width / 2, thickness))
+        if xb > x0 + 1e-12:
+            out.append(capseg(c, flip, boss_radius, width / 2, thickness))
+        out.append(cylinder(c, None, bore_radius, thickness, role=Role.HOLE, R=R))
+    return out
+
+
+# ---------------------------------------------------------------------------- mass properties
+@dataclass(frozen=True, kw_only=True)
+class VolumeProps:
+    """Volume [m³], centroid (3,) [m] and second-moment tensor about the centroid (3, 3) [m⁵]
+    (multiply by density for the inertia tensor in kg·m²), all in the part frame."""
+
+    volume: float
+    centroid: np.ndarray
+    inertia: np.ndarray
+
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(24)
+
+
+def _local_props(kind: np.ndarray, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per primitive (n,): volume, local centroid (n, 3), diagonal second moments about the local
+    origin in inertia-tensor form (n, 3). Every local tensor here is diagonal."""
+    a, b, c = dims[:, 0], dims[:, 1], dims[:, 2]
+    n = len(kind)
+    v = np.zeros(n)
+    cen = np.zeros((n, 3))
+    I = np.zeros((n, 3))
+    m = kind == Kind.BOX
+    if m.any():
+        vb = a[m] * b[m] * c[m]
+        v[m] = vb
+        I[m] = np.stack([b[m] ** 2 + c[m] ** 2, a[m] ** 2 + c[m] ** 2, a[m] ** 2 + b[m] ** 2], axis=1) * (vb / 12.0)[:, None]
+    m = kind == Kind.CYLINDER
+    if m.any():
+        r, h = a[m], b[m]
+        vc = np.pi * r * r * h
+        v[m] = vc
+        ixx = vc * (3 * r * r + h * h) / 12.0
+        I[m] = np.stack([ixx, ixx, vc * r * r / 2.0], axis=1)
+    m = kind == Kind.SPHERE
+    if m.any():
+        vs = 4.0 / 3.0 * np.pi * a[m] ** 3
+        v[m] = vs
+        I[m] = (0.4 * vs * a[m] ** 2)[:, None] * np.ones(3)
+    m = kind == Kind.CAPSEG
+    if m.any():
+        R_, h, t = a[m], b[m], c[m]
+        y = _GL_X[None, :] * h[:, None]
+        w = _GL_W[None, :] * h[:, None]
+        X = np.sqrt(np.maximum(R_[:, None] ** 2 - y * y, 0.0))
+        A = np.sum(w * X, axis=1)
+        Sx = np.sum(w * X * X, axis=1) / 2.0
+        xx = np.sum(w * X**3, axis=1) / 3.0 * t
+        yy = np.sum(w * y * y * X, axis=1) * t
+        zz = A * t**3 / 12.0
+        v[m] = A * t
+        cen[m, 0] = Sx / A
+        I[m] = np.stack([yy + zz, xx + zz, xx + yy], axis=1)
+    return v, cen, I
+
+
+def volume_properties(prims) -> VolumeProps:
+    """Closed-form volume properties of a part (SOLID − OVERLAP − HOLE)."""
+    return volume_properties_many([prims])[0]
+
+
+def volume_properties_many(groups) -> list[VolumeProps]:
+    """:func:`volume_properties` of several parts in one vectorised pass."""
+    flat = [p for g in groups for p in g]
+    idx = np.repeat(np.arange(len(groups)), [len(g) for g in groups])
+    kind = np.fromiter((p.kind for p in flat), dtype=int, count=len(flat))
+    sign = np.fromiter((1.0 if p.role == Role.SOLID else -1.0 for p in flat), dtype=float, count=len(flat))
+    dims = np.array([p.dims for p in flat], dtype=float)
+    R = np.stack([p.R for p in flat])
+    o = np.stack([p.o for p in flat])
+    v, c_loc, I_loc = _local_props(kind, dims)
+    co = np.einsum("nij,nj->ni", R, c_loc)  # centroid offset from the primitive origin
+    c = o + co
+    I_o = np.einsum("nij,nj,nkj->nik", R, I_loc, R)
+    eye = np.eye(3)
+    oo = np.einsum("ni,ni->n", o, o)
+    oc = np.einsum("ni,ni->n", o, co)
+    J = I_o + v[:, None, None] * (
+        (oo + 2.0 * oc)[:, None, None] * eye
+        - np.einsum("ni,nj->nij", o, o) - np.einsum("ni,nj->nij", o, co) - np.einsum("ni,nj->nij", co, o))
+    sv = sign * v
+    n = len(groups)
+    onehot = np.zeros((n, len(flat)))
+    onehot[idx, np.arange(len(flat))] = 1.0
+    V = onehot @ sv
+    first = onehot @ (sv[:, None] * c)
+    Jt = (onehot @ (sign[:, None, None] * J).reshape(len(flat), 9)).reshape(n, 3, 3)
+    out = []
+    for k in range(n):
+        cen = first[k] / V[k]
+        Jc = Jt[k] - V[k] * ((cen @ cen) * eye - np.outer(cen, cen))
+        out.append(VolumeProps(volume=float(V[k]), centroid=cen, inertia=0.5 * (Jc + Jc.T)))
+    return out
+
+
+def bbox(prims, T: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned bounds (lo, hi) [m] of the SOLID primitives, optionally after transform ``T``."""
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for p in prims:
+        if p.role != Role.SOLID:
+            continue
+        R, o = p.R, p.o
+        if T is not None:
+            R, o = T[:3, :3] @ R, T[:3, :3] @ o + T[:3, 3]
+        a, b, c = p.dims
+        if p.kind == Kind.BOX:
+            ext = np.abs(R) @ np.array([a, b, c]) / 2
+        elif p.kind == Kind.CYLINDER:
+            az = R[:, 2]
+            ext = a * np.sqrt(np.clip(1 - az * az, 0, 1)) + b / 2 * np.abs(az)
+        else:
+            ext = np.full(3, a)
+        lo = np.minimum(lo, o - ext)
+        hi = np.maximum(hi, o + ext)
+    return lo, hi
+
+
+# ---------------------------------------------------------------------------- manifold3d meshes
+def manifold_of(spec: PartSpec, *, segments: int = 32):
+    """The part as a manifold3d ``Manifold`` in its own frame, in mm."""
+    import manifold3d as m3d
+
+    def one(p: Primitive):
+        d = cad_units.to_mm(np.asarray(p.dims))
+        if p.kind == Kind.BOX:
+            base = m3d.Manifold.cube(tuple(d), center=True)
+        elif p.kind == Kind.CYLINDER:
+            h = d[1] + (2.0 if p.role == Role.HOLE else 0.0)
+            base = m3d.Manifold.cylinder(h, d[0], d[0], segments, True)
+        else:
+            base = m3d.Manifold.sphere(d[0], segments)
+        M = np.zeros((3, 4))
+        M[:, :3] = p.R
+        M[:, 3] = cad_units.to_mm(p.o)
+        return base.transform(M)
+
+    solids = [one(p) for p in spec.primitives if p.role == Role.SOLID]
+    holes = [one(p) for p in spec.primitives if p.role == Role.HOLE]
+    body = m3d.Manifold.batch_boolean(solids, m3d.OpType.Add)
+    if holes:
+        body = body - m3d.Manifold.batch_boolean(holes, m3d.OpType.Add)
+    return body
