@@ -1,0 +1,139 @@
+"""Recorder: SQLite in WAL mode, one row per evaluation, exact-key replay, SIGKILL then --resume."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from design.errors import InvalidInput
+from optim import driver
+from optim.evaluation import Outcome, PointResult, evaluate_point
+from optim.problem import load_problem
+from optim.recorder import FILENAME, Recorder, point_key
+
+DATA = Path(__file__).parent / "data"
+PROBLEM = DATA / "resume-problem.toml"
+
+
+def test_point_key_is_exact():
+    x = (35.264389682754654, 0.1)
+    assert point_key(x, "draft", False) == point_key(list(x), "draft", False)
+    assert point_key(x, "draft", False) != point_key((math.nextafter(x[0], 99), 0.1), "draft", False)
+    assert point_key(x, "draft", False) != point_key(x, "fine", False) != point_key(x, "draft", True)
+
+
+def test_record_roundtrip_wal_and_one_row_per_evaluation(tmp_path):
+    r = PointResult(x=(1.5, 2.0), outcome=Outcome.NONFINITE, message="nan", values=(math.nan, 1.25),
+                    gradients=((0.1, 0.2), (0.3, 0.4)), gradient_source="jax",
+                    metrics={"a": [1.0, 2.0], "b": math.inf}, statuses={"statics": "ok"}, timings_s={"statics": 1e-4})
+    with Recorder(tmp_path, fingerprint="f1", resume=False) as rec:
+        rec.record("k1", r, start=0, stage="search", fidelity="draft")
+        rec.record("k1", r, start=0, stage="search", fidelity="draft")  # the same key twice: one row
+    db = sqlite3.connect(tmp_path / FILENAME)
+    assert db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    assert db.execute("SELECT COUNT(*) FROM evaluations").fetchone()[0] == 1
+    db.close()
+    with Recorder(tmp_path, fingerprint="f1", resume=True) as rec:
+        back = rec.lookup("k1")
+    assert back.x == r.x and back.outcome is Outcome.NONFINITE and back.gradients == r.gradients
+    assert math.isnan(back.values[0]) and back.values[1] == 1.25
+    assert back.metrics["a"] == [1.0, 2.0] and back.metrics["b"] == math.inf
+
+
+def test_resume_checks_fingerprint_and_existence(tmp_path):
+    with pytest.raises(InvalidInput, match="no run to resume"):
+        Recorder(tmp_path / "nothing", fingerprint="f", resume=True)
+    Recorder(tmp_path, fingerprint="f1", resume=False).close()
+    with pytest.raises(InvalidInput, match="different problem or optimiser settings"):
+        Recorder(tmp_path, fingerprint="f2", resume=True)
+
+
+class _Counting:
+    """evaluate_point that records which points it really evaluated."""
+
+    def __init__(self):
+        self.keys: list[str] = []
+
+    def __call__(self, task):
+        self.keys.append(point_key(task.x, str(task.fidelity), task.gradient != "none"))
+        return evaluate_point(task)
+
+
+def test_interrupted_run_resumes_without_repeating(tmp_path):
+    problem = load_problem(PROBLEM)
+    full = driver.run(problem)
+
+    class Crash(BaseException):
+        pass
+
+    def crash_after(n):
+        def progress(rec, best, n_eval):
+            if n_eval >= n:
+                raise Crash
+        return progress
+
+    first = _Counting()
+    with Recorder(tmp_path, fingerprint=problem.fingerprint(), resume=False) as rec:
+        with pytest.raises(Crash):
+            driver.run(problem, recorder=rec, evaluate_fn=first, progress=crash_after(37))
+    second = _Counting()
+    with Recorder(tmp_path, fingerprint=problem.fingerprint(), resume=True) as rec:
+        res = driver.run(problem, recorder=rec, evaluate_fn=second)
+    assert len(first.keys) == 37 and not set(first.keys) & set(second.keys)
+    assert res.n_replayed == 37 and res.n_evaluated == full.n_evaluated - 37
+    assert [(r.x, r.f) for r in res.history] == [(r.x, r.f) for r in full.history]
+    assert res.best.x == full.best.x
+
+
+def test_sigkill_mid_run_then_resume(tmp_path):
+    run_dir = tmp_path / "run"
+    script = DATA / "slow_run.py"
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    proc = subprocess.Popen([sys.executable, str(script), str(run_dir), "--delay", "0.05"], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    db_path = run_dir / FILENAME
+    n_killed = 0
+    deadline = time.monotonic() + 60
+    try:
+        while time.monotonic() < deadline:
+            if db_path.exists():
+                try:
+                    with sqlite3.connect(db_path, timeout=1) as db:
+                        n_killed = db.execute("SELECT COUNT(*) FROM evaluations").fetchone()[0]
+                    db.close()
+                except sqlite3.OperationalError:
+                    n_killed = 0
+                if n_killed >= 20:
+                    break
+            assert proc.poll() is None, "the run finished before it could be killed"
+            time.sleep(0.02)
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait()
+    assert proc.returncode == -signal.SIGKILL
+    with sqlite3.connect(db_path) as db:
+        recorded = {k for (k,) in db.execute("SELECT key FROM evaluations")}
+    db.close()
+    assert 20 <= len(recorded) < 100  # killed mid-run
+    out = subprocess.run([sys.executable, str(script), str(run_dir), "--resume"], env=env, capture_output=True,
+                         text=True, check=True)
+    resumed = json.loads(out.stdout)
+    with sqlite3.connect(db_path) as db:
+        rows = db.execute("SELECT key, session FROM evaluations").fetchall()
+    db.close()
+    keys = [k for k, _ in rows]
+    assert len(keys) == len(set(keys))  # no evaluation recorded twice
+    assert {k for k, s in rows if s == 2}.isdisjoint(recorded)  # the resumed session computed only new points
+    assert resumed["n_replayed"] == len(recorded)
+    reference = driver.run(load_problem(PROBLEM))  # uninterrupted, same seed
+    assert resumed["history"] == [[list(r.x), r.f] for r in reference.history]
+    assert tuple(resumed["best_x"]) == reference.best.x
