@@ -277,8 +277,15 @@ class PrrrPose:
     branch: int
 
 
-#: default elbow branch (θ2 ≥ 0 is branch 0): the elbows point inwards and down, away from the rails
-DEFAULT_BRANCH = 0
+#: default elbow branch of the CAD. Branch 0 (θ2 ≥ 0) puts the elbows inwards and down, where
+#: the three link2 collide under the platform (2 mm³ each at home, ``analysis.interference``);
+#: branch 1 puts them outwards and up, interference-free at home.
+DEFAULT_BRANCH = 1
+
+
+def home_point(design: PrrrDesign) -> np.ndarray:
+    """The home pose p = 0 (sliders at c_e, seed 002 eq 1) [m]."""
+    return np.zeros(3)
 
 
 def solve_pose(design: PrrrDesign, p=(0.0, 0.0, 0.0), *, branch: int = DEFAULT_BRANCH) -> PrrrPose:

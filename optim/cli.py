@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from optim import cli_evaluate
+from optim import cli_export
 from optim import cli_optimise
 
 app = typer.Typer(
@@ -16,6 +17,7 @@ app = typer.Typer(
 )
 app.command("evaluate")(cli_evaluate.evaluate)
 app.command("presets")(cli_evaluate.presets)
+app.command("export")(cli_export.export)
 app.command("optimise")(cli_optimise.optimise)
 app.command("problems")(cli_optimise.problems)
 

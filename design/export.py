@@ -1,0 +1,133 @@
+"""Export a design's CAD: STEP assembly, per-part STL, MJCF, mass properties, optional picture.
+
+Writes into ``out_dir``::
+
+    <name>.step            one flat assembly of the posed parts, each solid named after its part
+    parts/<part>.stl       every posed part, mm, binary STL
+    <name>.xml             MJCF (inertias from the CAD)
+    mass_properties.json   per part and per body, CAD volume integrals (SI values in mm/kg units)
+    <name>.png             with ``render=True``: off-screen pyvista picture
+
+Everything is computed in memory first (a design that cannot be built raises before any file
+is touched); each file is then written atomically (:mod:`design.atomic`), so a failure leaves no
+partial file behind.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from design import atomic
+
+
+@dataclass(frozen=True, kw_only=True)
+class ExportResult:
+    out_dir: Path
+    files: tuple[Path, ...]
+    timings_s: dict[str, float]
+    total_mass_kg: float
+
+
+def _cad(design: Any):
+    if design.device == "prrr":
+        from design import cad_prrr
+
+        return cad_prrr
+    from design import cad_master
+
+    return cad_master
+
+
+def _mjcf(design: Any, p, masses) -> str | None:
+    if design.device == "prrr":
+        from design import mjcf_prrr
+
+        return mjcf_prrr.prrr_mjcf(design, p=p, mass_properties=masses)
+    try:
+        from design import mjcf_master  # owned by the master-dynamics work (issue 5)
+    except ImportError:
+        return None
+    return mjcf_master.master_mjcf(design, mass_properties=masses)
+
+
+def build_assembly(design: Any, p=None) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Part solids (own frames, mm) and their posed frames at ``p`` [m] (None: the home pose)."""
+    cad = _cad(design)
+    solids = cad.build_parts(design)
+    pose = cad.solve_pose(design, cad.home_point(design) if p is None else p)
+    return solids, cad.part_frames(design, pose)
+
+
+def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False) -> ExportResult:
+    """Write the export set of ``design`` posed at end-effector position ``p`` [m] into ``out_dir``."""
+    from build123d import Compound, export_step, export_stl
+
+    from design import mass_properties as mp
+
+    out_dir = Path(out_dir)
+    cad = _cad(design)
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    specs = cad.part_specs(design)
+    p = cad.home_point(design) if p is None else np.asarray(p, dtype=float)
+    pose = cad.solve_pose(design, p)
+    frames = cad.part_frames(design, pose)
+    solids = cad.build_parts(design)
+    placed = cad.posed(solids, frames)
+    timings["cad"] = time.perf_counter() - t0
+    t = time.perf_counter()
+    masses = mp.from_cad(design, solids=solids, specs=specs)
+    mjcf = _mjcf(design, p, masses)
+    timings["mass_properties+mjcf"] = time.perf_counter() - t
+    files: list[Path] = []
+    t = time.perf_counter()
+    step_path = out_dir / f"{design.name}.step"
+    assembly = Compound(children=list(placed.values()), label=design.name)
+    with atomic.atomic_path(step_path) as tmp:
+        export_step(assembly, tmp)
+    files.append(step_path)
+    timings["step"] = time.perf_counter() - t
+    t = time.perf_counter()
+    for name, solid in placed.items():
+        target = out_dir / "parts" / f"{name}.stl"
+        with atomic.atomic_path(target) as tmp:
+            export_stl(solid, tmp, tolerance=0.01, angular_tolerance=0.1)
+        files.append(target)
+    timings["stl"] = time.perf_counter() - t
+    if mjcf is not None:
+        target = out_dir / f"{design.name}.xml"
+        atomic.write_text(target, mjcf)
+        files.append(target)
+    target = out_dir / "mass_properties.json"
+    atomic.write_text(target, masses.to_json())
+    files.append(target)
+    if render:
+        t = time.perf_counter()
+        target = out_dir / f"{design.name}.png"
+        render_png([f for f in files if f.suffix == ".stl"], target, title=design.name)
+        files.append(target)
+        timings["render"] = time.perf_counter() - t
+    timings["total"] = time.perf_counter() - t0
+    return ExportResult(out_dir=out_dir, files=tuple(files), timings_s=timings, total_mass_kg=masses.total_mass)
+
+
+def render_png(stl_files: list[Path], target: Path, *, title: str = "") -> None:
+    """Off-screen pyvista picture of the given STL parts, written atomically."""
+    import pyvista as pv
+
+    plotter = pv.Plotter(off_screen=True, window_size=(1024, 768))
+    colours = ["#8c9bab", "#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#ccb974"]
+    for k, f in enumerate(sorted(stl_files)):
+        plotter.add_mesh(pv.read(str(f)), color=colours[k % len(colours)], smooth_shading=True)
+    if title:
+        plotter.add_text(title, font_size=12)
+    plotter.camera_position = "iso"
+    plotter.camera.elevation = 15
+    with atomic.atomic_path(target) as tmp:
+        plotter.screenshot(str(tmp))
+    plotter.close()
