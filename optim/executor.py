@@ -75,7 +75,7 @@ def make_executor(scheduler: str = "local", *, workers: int | None = None) -> It
             raise InvalidInput("--scheduler: dask.distributed is not installed") from None
         try:
             client = Client(scheduler, timeout="10s")
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:
             raise InvalidInput(f"--scheduler = {scheduler!r}: cannot reach the Dask scheduler: {exc}") from None
         try:
             executor = client.get_executor()

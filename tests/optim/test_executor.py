@@ -1,0 +1,61 @@
+"""Executors: inline, local process pool and a Dask cluster on loopback give the same results."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from design.errors import InvalidInput
+from optim import driver
+from optim.executor import InlineExecutor, make_executor, worker_count
+from optim.problem import load_problem
+
+PROBLEM = Path(__file__).parent / "data" / "resume-problem.toml"
+
+
+def _square(x):
+    return x * x
+
+
+def _boom():
+    raise ValueError("boom")
+
+
+def test_inline_executor_is_an_executor():
+    ex = InlineExecutor()
+    assert ex.submit(_square, 3).result() == 9
+    assert list(ex.map(_square, [1, 2, 3])) == [1, 4, 9]
+    with pytest.raises(ValueError, match="boom"):
+        ex.submit(_boom).result()
+    assert worker_count(ex) == 1
+
+
+def test_unknown_scheduler_is_one_line_error():
+    with pytest.raises(InvalidInput, match="use local, inline or a Dask address"):
+        with make_executor("cluster-please"):
+            pass
+
+
+def _by_start(res):
+    """Each start's own sequence (starts run concurrently on a parallel executor)."""
+    return {s.start: [(r.x, r.f) for r in res.history if r.start == s.start] for s in res.starts}
+
+
+def test_same_results_inline_process_pool_and_dask_loopback():
+    from distributed import LocalCluster
+
+    problem = load_problem(PROBLEM)
+    inline = driver.run(problem)
+    with make_executor("local", workers=2) as pool:
+        assert worker_count(pool) == 2
+        pooled = driver.run(problem, executor=pool)
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp", host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        with make_executor(cluster.scheduler_address) as dask_ex:
+            assert worker_count(dask_ex) == 2
+            dasked = driver.run(problem, executor=dask_ex)
+    assert _by_start(pooled) == _by_start(inline) == _by_start(dasked)
+    assert pooled.best.x == inline.best.x == dasked.best.x
+    assert pooled.n_evaluated == inline.n_evaluated == dasked.n_evaluated
