@@ -34,7 +34,9 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
         EvaluatorEntry(name="statics", module="analysis.prrr_statics"),
         EvaluatorEntry(name="workspace", module="analysis.prrr_workspace"),
     ),
-    "master": (),
+    "master": (
+        EvaluatorEntry(name="workspace", module="analysis.master_workspace"),
+    ),
 }
 
 
