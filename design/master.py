@@ -28,11 +28,11 @@ _MASS = dict(lo=0.0, hi=100.0)
 class MasterGeometry:
     """Link lengths (PHANToM Premium 1.5 class)."""
 
-    upper_arm: float = param("upper_arm_mm", "mm", default=210.0, **_LEN, doc="shoulder (θ2 axis) to elbow, L5")
-    forearm: float = param("forearm_mm", "mm", default=210.0, **_LEN, doc="elbow to handle centre, L4")
+    upper_arm: float = param("upper_arm_mm", "mm", default=220.0, **_LEN, doc="shoulder (θ2 axis) to elbow, L5")
+    forearm: float = param("forearm_mm", "mm", default=220.0, **_LEN, doc="elbow to handle centre, L4")
     driver_link: float = param("driver_link_mm", "mm", default=60.0, **_LEN,
                                doc="θ3 driver link of the parallelogram (short side)")
-    shoulder_height: float = param("shoulder_height_mm", "mm", default=150.0, **_LEN,
+    shoulder_height: float = param("shoulder_height_mm", "mm", default=400.0, **_LEN,
                                    doc="height of the θ2/θ3 axes above the base plate")
 
 
