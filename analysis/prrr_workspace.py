@@ -32,9 +32,9 @@ So the workspace is {(x, y) reached by every leg} × z-interval(x, y), and
   outside every hole), also for R (the feasible centres form a convex 3-fold-symmetric set,
   which contains its centroid, the axis). R_reach is computed exactly (sampled start, Newton
   on the ellipse parameter).
-* **footprint**: the device envelope in xy, the larger of the rail/carriage circle
-  (r_p + the SEA carriage's radial envelope) and the links' swept extent (the R1, R2, R3 joint
-  bosses over the sampled reach region, elbow branch 0 of the inverse kinematics).
+* **footprint**: the device envelope in xy, the larger of the fixed parts' circle (base plate,
+  carriage and SEA block as built by ``design.cad_prrr``) and the links' swept extent (the
+  R1, R2, R3 joint bosses over the sampled reach region, in the CAD's elbow branch).
 * **Jacobian constancy**: the IK slider map is differentiated by central differences at
   sampled workspace points; the largest relative deviation of cond₂ from the analytic
   cond₂(J) is reported.
@@ -65,14 +65,19 @@ from design.prrr import GAMMAS, PrrrDesign
 _GAMMA = np.asarray(GAMMAS)
 _THIRD = 2.0 * math.pi / 3.0
 
-#: Radial envelope of the SEA carriage beyond the rail axis [m]. Seed 002 gives the device as
-#: φ260 mm with rails at r_p = 100 mm (Table 1/2), i.e. 30 mm beyond the rail; the CAD
-#: (issue 3) is the place to refine this.
-SEA_ENVELOPE_RADIAL = 0.030
+def base_envelope(design: PrrrDesign) -> float:
+    """Radius [m] of the fixed parts' envelope in xy, as built by ``design.cad_prrr``: the base
+    plate, and the carriage/SEA block (radially r_p − … to r_p + rail_width/2 + clearance +
+    sea_envelope, tangentially ±(rail_width/2 + clearance + carriage_wall)), whose outer corner
+    is the farthest point."""
+    g, s = design.geometry, design.structure
+    half_slot = s.rail_width / 2.0 + s.clearance
+    return max(s.base_radius, math.hypot(g.r_p + half_slot + s.sea_envelope, half_slot + s.carriage_wall))
 
-#: Elbow branch used for the links' swept extent: branch 0 of
-#: :func:`analysis.prrr_kinematics.inverse_kinematics` (θ2 ≥ 0).
-ELBOW_BRANCH = 0
+
+#: Elbow branch used for the links' swept extent: the CAD's assembly mode
+#: (``design.cad_prrr.DEFAULT_BRANCH``: branch 1 of the IK, elbows outwards, θ2 ≤ 0).
+ELBOW_BRANCH = 1
 
 #: Default required cylinder diameter for ``workspace_height_at_diameter_mm`` [m]
 #: (seed 002 Table 1: workspace φ140 × 89 mm).
@@ -112,7 +117,7 @@ class WorkspaceParams(NamedTuple):
     stroke: jax.Array
     rho_min: jax.Array  # inner reach radius |ρ| (|d3 − d4| without elbow limits)
     rho_max: jax.Array  # outer reach radius (d3 + d4 without elbow limits)
-    rail_envelope: jax.Array  # r_p + SEA carriage envelope [m]
+    rail_envelope: jax.Array  # radius of the base plate / carriage / SEA envelope [m]
     boss_radius: jax.Array  # joint boss radius [m]
     required_radius: jax.Array  # radius of the required cylinder [m]
 
@@ -125,7 +130,7 @@ def workspace_params(design: PrrrDesign, *, required_diameter: float = DEFAULT_R
     lo = abs(g.d3 - g.d4) if rho_min is None else rho_min
     hi = g.d3 + g.d4 if rho_max is None else rho_max
     vals = (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke, lo, hi,
-            g.r_p + SEA_ENVELOPE_RADIAL, s.boss_diameter / 2.0, required_diameter / 2.0)
+            base_envelope(design), s.boss_diameter / 2.0, required_diameter / 2.0)
     return WorkspaceParams(*(np.float64(v) for v in vals))
 
 
@@ -397,11 +402,14 @@ def _result(arrays: dict, required_radius: float, fidelity: Fidelity) -> PrrrWor
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
-             required_diameter: float = DEFAULT_REQUIRED_DIAMETER) -> PrrrWorkspace:
+             required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
+             interference: bool | None = None) -> PrrrWorkspace:
     """Workspace of ``design``: reach and stroke at every level; at fine fidelity also the
-    numerical check of the constant Jacobian and link interference (when available).
+    numerical check of the constant Jacobian and link interference.
 
     ``required_diameter`` [m]: the diameter of ``workspace_height_at_diameter_mm``.
+    ``interference``: check link interference (default: the fidelity's setting, fine only).
+    The inscribed-cylinder metrics are always reach-and-stroke; interference reduces the volume.
     """
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
@@ -410,7 +418,7 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     if fidelity is Fidelity.FINE:
         dev, n = jacobian_constancy(design)
         result = dataclasses.replace(result, condition_deviation=dev, condition_points=n)
-    if smp.interference and result.status == Status.OK:
+    if (smp.interference if interference is None else interference) and result.status == Status.OK:
         result = _with_interference(design, result)
     return result
 
@@ -437,9 +445,51 @@ def batch_arrays(wp: WorkspaceParams, *, fidelity: Fidelity = Fidelity.STANDARD)
     return [{k: v[i] for k, v in out.items()} for i in range(n)]
 
 
+#: sampling of the interference check at fine fidelity (3·n_phi·n_r·n_z poses, ~20 ms each)
+INTERFERENCE_SAMPLING = dict(n_phi=6, n_r=4, n_z=3)
+
+
+def interference_samples(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Workspace sample points (m, 3) [m], their volume weights (m,) [m³] (polar cells:
+    r·Δr·Δφ·Δz) and whether each pose is free of link interference (``analysis.interference``,
+    the CAD's parts and elbow branch)."""
+    from analysis import interference
+
+    wp = workspace_params(design)
+    pts = sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)
+    if len(pts) == 0:
+        return pts, np.zeros(0), np.zeros(0, dtype=bool)
+    wpn = WorkspaceParams(*(np.asarray(v, dtype=float) for v in wp))
+    phi = (np.arange(n_phi) + 0.5) * (_THIRD / n_phi)
+    _, _, _, lo, hi, holes = _ray_intervals(wpn, phi, np)
+    r = np.hypot(pts[:, 0], pts[:, 1])
+    ang = np.mod(np.arctan2(pts[:, 1], pts[:, 0]), _THIRD)
+    k = np.clip((ang / (_THIRD / n_phi)).astype(int), 0, n_phi - 1)
+    a = pts[:, :2] @ np.stack([np.cos(_GAMMA), np.sin(_GAMMA)])
+    cot = 1.0 / math.tan(design.geometry.beta)
+    dz = np.maximum(design.geometry.stroke - cot * (a.max(axis=1) - a.min(axis=1)), 0.0) / n_z
+    weights = r * (hi - lo)[k] / n_r * (_THIRD / n_phi) * dz
+    model = interference.prepare(design)
+    free = np.array([res.ok for res in interference.check_poses(model, pts, branch=ELBOW_BRANCH)])
+    return pts, weights, free
+
+
 def _with_interference(design: PrrrDesign, result: PrrrWorkspace) -> PrrrWorkspace:
-    """Hook for link interference (``analysis.interference``, issue 3); see module docs."""
-    return result
+    """Remove the sampled share of the volume whose poses have link interference. The result is
+    a subset of the reach-only workspace by construction (poses are only removed)."""
+    from design.errors import HapticoptError
+
+    try:
+        _, w, free = interference_samples(design, **INTERFERENCE_SAMPLING)
+    except HapticoptError as exc:  # the CAD cannot build this design's parts
+        return dataclasses.replace(result, message=f"interference not checked: {exc}")
+    removed = float(w[~free].sum() / w.sum()) if w.sum() > 0 else 0.0
+    message = result.message
+    if removed > 0:
+        message = (message + "; " if message else "") + \
+            f"link interference at {int((~free).sum())} of {len(free)} sampled poses"
+    return dataclasses.replace(result, volume=result.volume * (1.0 - removed), interference_removed=removed,
+                               message=message)
 
 
 def cylinder_z_range(design: PrrrDesign, result: PrrrWorkspace) -> tuple[float, float]:

@@ -73,7 +73,7 @@ def _grid_volume(design: PrrrDesign, n: int) -> float:
 
 
 def test_volume_agrees_with_independent_ik_grid(paper: PrrrDesign) -> None:
-    v = W.evaluate(paper, fidelity=Fidelity.FINE).volume
+    v = W.evaluate(paper, fidelity=Fidelity.FINE, interference=False).volume
     v_grid = _grid_volume(paper, 500)
     assert v_grid == pytest.approx(v, rel=3e-3)  # grid: O(h) boundary error, h = 0.8 mm
 
@@ -115,7 +115,7 @@ def test_outside_points_are_unreachable_by_ik(paper: PrrrDesign) -> None:
 
 
 def test_jacobian_constancy_checked_at_fine(paper: PrrrDesign) -> None:
-    r = W.evaluate(paper, fidelity=Fidelity.FINE)
+    r = W.evaluate(paper, fidelity=Fidelity.FINE, interference=False)
     assert r.condition_points > 500
     # the slider map is affine in p (eq 1), so central differences are exact up to rounding
     assert 0.0 <= r.metrics()["jacobian_condition_deviation"] < 1e-9
@@ -125,14 +125,14 @@ def test_jacobian_constancy_checked_at_fine(paper: PrrrDesign) -> None:
 def test_footprint_covers_rails_and_links(paper: PrrrDesign) -> None:
     g, s = paper.geometry, paper.structure
     r = W.evaluate(paper, fidelity=Fidelity.STANDARD)
-    assert r.footprint_diameter >= 2 * (g.r_p + W.SEA_ENVELOPE_RADIAL)
+    assert r.footprint_diameter >= 2 * max(s.base_radius, g.r_p + s.rail_width / 2 + s.sea_envelope)
     # links' swept extent from the kinematics module's serial chain at sampled workspace points
     pts = W.sample_points(W.workspace_params(paper), n_phi=32, n_r=12, n_z=1)
     P = params_of(paper)
     ik = inverse_kinematics(P, jnp.asarray(pts))
     chain = leg_chain(P, ik.sliders, ik.theta[:, W.ELBOW_BRANCH])
     extent = max(np.linalg.norm(np.asarray(getattr(chain, k))[..., :2], axis=-1).max() for k in ("a", "b", "q"))
-    fine = W.evaluate(paper, fidelity=Fidelity.FINE).footprint_diameter
+    fine = W.evaluate(paper, fidelity=Fidelity.FINE, interference=False).footprint_diameter
     assert fine >= 2 * (extent + s.boss_diameter / 2) - 1e-9 or fine == pytest.approx(
         2 * (extent + s.boss_diameter / 2), rel=2e-3)
     # sampling under-estimates a maximum: cheaper levels are within 2 % of fine and below it
@@ -156,7 +156,7 @@ def _hard_cases(paper: PrrrDesign) -> dict[str, PrrrDesign]:
 @pytest.mark.parametrize("fidelity", list(Fidelity))
 def test_hard_cases_give_finite_metrics(paper: PrrrDesign, fidelity: Fidelity) -> None:
     for name, design in _hard_cases(paper).items():
-        r = W.evaluate(design, fidelity=fidelity)
+        r = W.evaluate(design, fidelity=fidelity, interference=False)  # interference: see below
         for key, value in r.metrics().items():
             assert math.isfinite(value), (name, key)
             assert value >= 0.0, (name, key)
@@ -201,3 +201,28 @@ def test_plot_writes_png(paper: PrrrDesign, tmp_path) -> None:
     files = W.plot(paper, r, tmp_path)
     assert [f.name for f in files] == ["prrr-paper_workspace.png"]
     assert files[0].stat().st_size > 10_000
+
+
+def test_elbow_branch_is_the_cads() -> None:
+    from design import cad_prrr
+
+    assert W.ELBOW_BRANCH == cad_prrr.DEFAULT_BRANCH
+
+
+def test_interference_aware_workspace_is_a_subset(paper: PrrrDesign, monkeypatch) -> None:
+    small = dict(n_phi=2, n_r=2, n_z=2)  # 24 poses (the fine level uses 216)
+    pts, w, free = W.interference_samples(paper, **small)
+    assert len(pts) == 24 and np.all(w > 0)
+    # the volume weights are a quadrature of the same workspace (coarse: within 15 %)
+    reach_only = W.evaluate(paper, fidelity=Fidelity.STANDARD)
+    assert w.sum() == pytest.approx(reach_only.volume, rel=0.15)
+    monkeypatch.setattr(W, "INTERFERENCE_SAMPLING", small)
+    r = W.evaluate(paper, fidelity=Fidelity.STANDARD, interference=True)
+    removed = float(w[~free].sum() / w.sum())
+    assert r.interference_removed == pytest.approx(removed, rel=1e-12)
+    assert 0.0 <= r.volume <= reach_only.volume
+    assert r.volume == pytest.approx(reach_only.volume * (1 - removed), rel=1e-12)
+    assert r.metrics()["workspace_interference_removed_fraction"] == pytest.approx(removed)
+    # every interference-free pose is reachable (subset of the reach-only workspace)
+    ik = inverse_kinematics(params_of(paper), jnp.asarray(pts[free]))
+    assert bool(np.all(np.asarray(ik.reachable)))
