@@ -17,6 +17,7 @@ All geometry is SI here; build123d receives mm through :mod:`design.cad_units`.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -405,7 +406,8 @@ def build_parts(design: PrrrDesign) -> dict[str, object]:
         key = id(spec.primitives)
         if key not in cache:
             cache[key] = build_solid(spec)
-        solid = cache[key].moved(_location(np.eye(4)))
+        # an independent shape per part: STEP keeps one name per shared shape
+        solid = copy.deepcopy(cache[key])
         solid.label = name
         out[name] = solid
     return out

@@ -178,9 +178,12 @@ def _local_props(kind: np.ndarray, dims: np.ndarray) -> tuple[np.ndarray, np.nda
     m = kind == Kind.CAPSEG
     if m.any():
         R_, h, t = a[m], b[m], c[m]
-        y = _GL_X[None, :] * h[:, None]
-        w = _GL_W[None, :] * h[:, None]
-        X = np.sqrt(np.maximum(R_[:, None] ** 2 - y * y, 0.0))
+        # y = R sin φ, φ ∈ [−φ0, φ0]: X = R cos φ, dy = R cos φ dφ (smooth, exact up to h = R)
+        phi0 = np.arcsin(np.clip(h / R_, 0.0, 1.0))
+        phi = _GL_X[None, :] * phi0[:, None]
+        X = R_[:, None] * np.cos(phi)
+        y = R_[:, None] * np.sin(phi)
+        w = _GL_W[None, :] * phi0[:, None] * X
         A = np.sum(w * X, axis=1)
         Sx = np.sum(w * X * X, axis=1) / 2.0
         xx = np.sum(w * X**3, axis=1) / 3.0 * t

@@ -1,0 +1,113 @@
+"""3-PRRR CAD: closed-form volumes, CAD joint axes = kinematic axes, hard cases."""
+
+import math
+
+import numpy as np
+import pytest
+
+from design import cad_prrr, io
+from design.errors import InvalidDesign, InvalidInput
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return io.load_preset("prrr-paper")
+
+
+@pytest.fixture(scope="module")
+def solids(paper):
+    return cad_prrr.build_parts(paper)
+
+
+def _cap_area(R: float, h: float) -> float:
+    # closed form: ∫_{-h}^{h} sqrt(R² − y²) dy = h·sqrt(R² − h²) + R²·asin(h/R)
+    return h * math.sqrt(R * R - h * h) + R * R * math.asin(h / R)
+
+
+def test_link_volume_is_the_closed_form(paper, solids):
+    s = paper.structure
+    R, r, W, T = s.boss_diameter / 2, s.bore_diameter / 2, s.link_width, s.link_thickness
+    for name, L in (("link1_1", paper.geometry.d3), ("link2_1", paper.geometry.d4)):
+        # stadium-like profile: bar L×W + two boss discs − their overlaps with the bar − two bores
+        area = L * W + 2 * (math.pi * R * R - _cap_area(R, W / 2)) - 2 * math.pi * r * r
+        riser = 0.0
+        if name == "link2_1":  # R3 boss raised to the platform lug layer (module docstring)
+            lay = cad_prrr.layout(paper)
+            riser = (lay.s_lug - lay.T / 2 - lay.g) - (lay.s_link2 + lay.T / 2)
+        expected = area * T + riser * math.pi * (R * R - r * r)
+        assert solids[name].volume * 1e-9 == pytest.approx(expected, rel=1e-6)
+
+
+def test_rail_and_base_volumes(paper, solids):
+    lay = cad_prrr.layout(paper)
+    s = paper.structure
+    rail = s.rail_width**2 * (lay.z_rail_top - lay.z_base_top)
+    base = math.pi * s.base_radius**2 * s.base_thickness
+    assert solids["rail_1"].volume * 1e-9 == pytest.approx(rail, rel=1e-9)
+    assert solids["base"].volume * 1e-9 == pytest.approx(base, rel=1e-6)
+
+
+def test_every_part_is_one_valid_solid(solids):
+    assert set(solids) == {"base", "platform"} | {f"{k}_{i}" for k in ("rail", "carriage", "link1", "link2")
+                                                for i in (1, 2, 3)}
+    for s in solids.values():
+        assert s.is_valid and len(s.solids()) == 1
+
+
+def _bore_axes(solid, radius_mm):
+    """(point, direction) of every cylindrical face of the given radius [mm]."""
+    from build123d import GeomType
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+
+    out = []
+    for f in solid.faces():
+        if f.geom_type != GeomType.CYLINDER:
+            continue
+        cyl = BRepAdaptor_Surface(f.wrapped).Cylinder()
+        if abs(cyl.Radius() - radius_mm) < 1e-6:
+            ax = cyl.Axis()
+            loc, d = ax.Location(), ax.Direction()
+            out.append((np.array([loc.X(), loc.Y(), loc.Z()]), np.array([d.X(), d.Y(), d.Z()])))
+    return out
+
+
+def _line_distance(p, d, q):
+    v = q - p
+    return float(np.linalg.norm(v - (v @ d) * d))
+
+
+@pytest.mark.parametrize("point_mm", [(0.0, 0.0, 0.0), (20.0, -15.0, 25.0)])
+def test_cad_joint_axes_are_the_kinematic_axes(paper, solids, point_mm):
+    pose = cad_prrr.solve_pose(paper, np.asarray(point_mm) * 1e-3)
+    placed = cad_prrr.posed(solids, cad_prrr.part_frames(paper, pose))
+    r_bore = paper.structure.bore_diameter / 2 * 1e3
+    for ax in cad_prrr.joint_axes(paper, pose):
+        p = ax.point * 1e3
+        if ax.kind == "slide":  # the rail's centre line is the slide axis
+            c = np.array(tuple(placed[ax.parent if ax.parent != "base" else f"rail_{ax.name[-1]}"].center()))
+            assert _line_distance(p, ax.direction, c) < 1e-6
+            continue
+        for part in (ax.parent, ax.child):
+            found = [(q, d) for q, d in _bore_axes(placed[part], r_bore)
+                     if abs(abs(d @ ax.direction) - 1) < 1e-9 and _line_distance(q, d, p) < 1e-6]
+            assert found, f"{ax.name}: no bore of {part} on the kinematic axis"
+
+
+def test_unreachable_pose_is_a_clear_error(paper):
+    with pytest.raises(InvalidInput, match="not reachable"):
+        cad_prrr.solve_pose(paper, (0.5, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("override, match", [
+    ("geometry.beta_deg=10", "beta_deg"),  # near the lower bound of β
+    ("geometry.beta_deg=89.9", "beta_deg"),  # near the upper bound of β
+    ("structure.link_thickness_mm=0.1", "link_thickness_mm"),  # minimum cross-section
+    ("structure.link_width_mm=0.3", "link_width_mm"),
+    ("structure.bore_diameter_mm=23.8", "bore_diameter_mm"),  # zero-thickness boss wall
+    ("geometry.d3_mm=20", "d3_mm"),  # link shorter than its two bosses
+])
+def test_hard_cases_give_a_clear_invalid_design(paper, override, match):
+    design = io.apply_overrides(paper, [override])
+    with pytest.raises(InvalidDesign, match=match) as err:
+        cad_prrr.part_specs(design)
+    assert "\n" not in str(err.value)

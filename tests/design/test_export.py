@@ -1,0 +1,141 @@
+"""Export: STEP re-read by gmsh, STL manifold and volume, MJCF vs mass_properties.json,
+atomic writes, and the `hapticopt export` command."""
+
+import json
+import struct
+
+import mujoco
+import numpy as np
+import pytest
+
+from design import export as ex
+from design import io
+from design.mass_properties import from_cad
+
+PARTS = {"base", "platform"} | {f"{k}_{i}" for k in ("rail", "carriage", "link1", "link2") for i in (1, 2, 3)}
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return io.load_preset("prrr-paper")
+
+
+@pytest.fixture(scope="module")
+def exported(paper, tmp_path_factory):
+    out = tmp_path_factory.mktemp("export")
+    return ex.export(paper, out, p=np.array([0.01, -0.02, 0.015]))
+
+
+@pytest.fixture(scope="module")
+def cad_volumes_mm3(paper):
+    from design import cad_prrr
+
+    return {n: s.volume for n, s in cad_prrr.build_parts(paper).items()}
+
+
+def test_files(exported, paper):
+    names = {f.relative_to(exported.out_dir).as_posix() for f in exported.files}
+    assert names == ({f"{paper.name}.step", f"{paper.name}.xml", "mass_properties.json"}
+                     | {f"parts/{n}.stl" for n in PARTS})
+    assert not list(exported.out_dir.rglob("*.tmp*"))
+
+
+def test_step_reimported_by_gmsh_has_the_same_solids(exported, paper, cad_volumes_mm3):
+    # acceptance: same number of solids, volumes within 0.1 % (gmsh's OpenCASCADE import)
+    import gmsh
+
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.occ.importShapes(str(exported.out_dir / f"{paper.name}.step"))
+        gmsh.model.occ.synchronize()
+        vols = gmsh.model.getEntities(3)
+        got = sorted(gmsh.model.occ.getMass(3, tag) for _, tag in vols)
+        labels = {gmsh.model.getEntityName(3, tag).split("/")[-1] for _, tag in vols}
+    finally:
+        gmsh.finalize()
+    assert len(vols) == len(PARTS)
+    want = sorted(cad_volumes_mm3.values())
+    assert np.allclose(got, want, rtol=1e-3)
+    assert PARTS <= labels  # part names survive the flat assembly
+
+
+def _read_stl(path):
+    data = path.read_bytes()
+    (n,) = struct.unpack_from("<I", data, 80)
+    rec = np.frombuffer(data, dtype=np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")]), count=n, offset=84)
+    verts, tris = np.unique(rec["v"].reshape(-1, 3), axis=0, return_inverse=True)
+    return verts.astype(np.float32), tris.reshape(-1, 3).astype(np.uint32)
+
+
+def test_every_stl_is_a_closed_manifold_with_the_solid_volume(exported, cad_volumes_mm3):
+    # acceptance: manifold3d accepts every STL; volume within 0.5 % of the solid
+    import manifold3d as m3d
+
+    for name in PARTS:
+        verts, tris = _read_stl(exported.out_dir / "parts" / f"{name}.stl")
+        man = m3d.Manifold(m3d.Mesh(vert_properties=verts, tri_verts=tris))
+        assert man.status() == m3d.Error.NoError, name
+        assert man.genus() >= 0
+        assert man.volume() == pytest.approx(cad_volumes_mm3[name], rel=5e-3), name
+
+
+def test_mjcf_matches_mass_properties_json(exported, paper):
+    data = json.loads((exported.out_dir / "mass_properties.json").read_text())
+    model = mujoco.MjModel.from_xml_path(str(exported.out_dir / f"{paper.name}.xml"))
+    assert model.body_mass.sum() == pytest.approx(data["total_mass_kg"], rel=1e-9)
+    for name, body in data["bodies"].items():
+        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        R = np.zeros(9)
+        mujoco.mju_quat2Mat(R, model.body_iquat[b])
+        R = R.reshape(3, 3)
+        inertia_kg_mm2 = R @ np.diag(model.body_inertia[b]) @ R.T * 1e6
+        assert model.body_mass[b] == pytest.approx(body["mass_kg"], rel=1e-9)
+        assert inertia_kg_mm2 == pytest.approx(np.array(body["inertia_kg_mm2"]), rel=1e-6, abs=1e-9)
+
+
+def test_json_is_the_cad_mass_properties(exported, paper):
+    data = json.loads((exported.out_dir / "mass_properties.json").read_text())
+    assert data["method"] == "cad"
+    cad = from_cad(paper)
+    assert data["parts"]["platform"]["mass_kg"] == pytest.approx(cad.parts["platform"].mass, rel=1e-12)
+
+
+def test_a_failing_writer_leaves_no_partial_file(paper, tmp_path, monkeypatch):
+    import build123d
+
+    def broken(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(build123d, "export_stl", broken)
+    with pytest.raises(OSError, match="disk full"):
+        ex.export(paper, tmp_path / "out")
+    left = [p for p in (tmp_path / "out").rglob("*") if p.is_file()]
+    # the STEP written before the failure is complete; nothing partial or temporary remains
+    assert [p.name for p in left] == [f"{paper.name}.step"]
+
+
+def test_invalid_design_writes_nothing(paper, tmp_path):
+    from design.errors import InvalidDesign
+
+    bad = io.apply_overrides(paper, ["structure.bore_diameter_mm=23.8"])
+    with pytest.raises(InvalidDesign, match="bore_diameter_mm"):
+        ex.export(bad, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_export_and_errors(tmp_path):
+    from typer.testing import CliRunner
+
+    from optim.cli import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["export", "--preset", "prrr-paper", "--out", str(tmp_path / "o"), "--pose", "0,0,10"])
+    assert res.exit_code == 0, res.output
+    assert "interference: none" in res.output
+    assert (tmp_path / "o" / "prrr-paper.step").is_file()
+    res = runner.invoke(app, ["export", "--preset", "prrr-paper", "--out", str(tmp_path / "p"), "--pose", "1,2"])
+    assert res.exit_code == 2 and "--pose" in res.output
+    res = runner.invoke(app, ["export", "--preset", "prrr-paper", "--out", str(tmp_path / "q"), "--pose", "500,0,0"])
+    assert res.exit_code == 2 and "not reachable" in res.output
+    assert not (tmp_path / "q").exists()

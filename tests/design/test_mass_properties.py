@@ -1,0 +1,70 @@
+"""Analytic mass properties (part tables) against the CAD's volume integrals (OpenCASCADE)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from design import cad_prrr, io, mass_properties as mp, parts
+
+
+@pytest.fixture(scope="module", params=["prrr-paper", "prrr-isotropic-slim"])
+def pair(request):
+    d = io.load_preset("prrr-paper")
+    if request.param == "prrr-isotropic-slim":  # seed 002 Table 5 angle, other cross-sections
+        d = io.apply_overrides(d, ["geometry.beta_deg=35.26", "structure.link_width_mm=14",
+                                   "structure.link_thickness_mm=6", "structure.boss_diameter_mm=18",
+                                   "structure.stem_diameter_mm=8"])
+    return mp.analytic(d), mp.from_cad(d)
+
+
+def test_analytic_matches_cad_per_part(pair):
+    # acceptance (issue 3): mass ≤ 2 %, inertia ≤ 5 % (relative Frobenius norm about the CoM)
+    ana, cad = pair
+    assert set(ana.parts) == set(cad.parts)
+    for name in cad.parts:
+        a, c = ana.parts[name], cad.parts[name]
+        assert a.mass == pytest.approx(c.mass, rel=0.02), name
+        assert np.linalg.norm(a.inertia - c.inertia) <= 0.05 * np.linalg.norm(c.inertia), name
+        # CoM: not in the issue; our own bound, 0.5 mm (the platform's stem/arm junction is approximate)
+        assert np.linalg.norm(a.com - c.com) <= 0.5e-3, name
+
+
+def test_bodies_combine_with_the_parallel_axis_theorem():
+    d = io.load_preset("prrr-paper")
+    m = mp.analytic(d)
+    base = m.bodies()["base"]
+    members = [m.parts[n] for n in ("base", "rail_1", "rail_2", "rail_3")]
+    assert base.mass == pytest.approx(sum(p.mass for p in members), rel=1e-12)
+    # z-axis inertia by hand: Σ (I_zz + m·(x² + y²)) about the common CoM (on the z axis by symmetry)
+    izz = sum(p.inertia[2, 2] + p.mass * (p.com[0] ** 2 + p.com[1] ** 2) for p in members)
+    assert base.com[:2] == pytest.approx([0.0, 0.0], abs=1e-12)
+    assert base.inertia[2, 2] == pytest.approx(izz, rel=1e-12)
+
+
+def test_primitive_closed_forms():
+    # box, cylinder, sphere closed forms; cap segment with h ≥ R is a half disc (centroid 4R/3π)
+    R, t = 0.012, 0.01
+    vp = parts.volume_properties([parts.capseg((0, 0, 0), np.eye(3), R, 2 * R, t)])
+    assert vp.volume == pytest.approx(-math.pi * R * R / 2 * t, rel=1e-12)  # OVERLAP counts negative
+    assert vp.centroid[0] == pytest.approx(4 * R / (3 * math.pi), rel=1e-10)
+    cyl = parts.volume_properties([parts.cylinder((0.1, 0, 0), (0, 0, 1), R, t)])
+    assert cyl.inertia[2, 2] == pytest.approx(math.pi * R**2 * t * R**2 / 2, rel=1e-12)
+    assert cyl.centroid == pytest.approx([0.1, 0, 0])
+
+
+def test_total_mass_is_the_order_of_the_paper_device():
+    # seed 002 Table 1 reports 4.4 kg for the whole device (actuators included); our aluminium
+    # structure without motors must be below that and of the same order
+    total = mp.analytic(io.load_preset("prrr-paper")).total_mass
+    assert 1.0 < total < 4.4
+
+
+def test_json_has_parts_and_bodies():
+    import json
+
+    d = io.load_preset("prrr-paper")
+    data = json.loads(mp.analytic(d).to_json())
+    assert set(data["parts"]) == set(cad_prrr.part_specs(d))
+    assert data["bodies"]["base"]["mass_kg"] == pytest.approx(
+        sum(data["parts"][n]["mass_kg"] for n in ("base", "rail_1", "rail_2", "rail_3")))
