@@ -94,6 +94,36 @@ class MasterActuators:
 
 
 @dataclass(frozen=True, kw_only=True)
+class MasterStructure:
+    """Cross-sections and materials of the CAD (design/cad_master.py); not in seed 003, documented defaults."""
+
+    link_width: float = param("link_width_mm", "mm", default=14.0, lo=0.0, hi=500.0, lo_open=True,
+                              doc="link cross-section, in the arm plane")
+    link_thickness: float = param("link_thickness_mm", "mm", default=8.0, lo=0.0, hi=500.0, lo_open=True,
+                                  doc="link cross-section, along the joint axis")
+    boss_diameter: float = param("boss_diameter_mm", "mm", default=18.0, lo=0.0, hi=500.0, lo_open=True,
+                                 doc="joint boss outer diameter")
+    bore_diameter: float = param("bore_diameter_mm", "mm", default=6.0, lo=0.0, hi=500.0, lo_open=True,
+                                 doc="joint pin bore diameter")
+    clearance: float = param("clearance_mm", "mm", default=0.5, lo=0.0, hi=50.0, lo_open=True,
+                             doc="axial gap between stacked links at a joint")
+    density: float = param("density_kg_per_m3", "kg_per_m3", default=2700.0, lo=0.0, hi=25000.0, lo_open=True,
+                           doc="link material density (aluminium 6061)")
+    counterweight_density: float = param("counterweight_density_kg_per_m3", "kg_per_m3", default=7850.0, lo=0.0,
+                                         hi=25000.0, lo_open=True, doc="counterweight material (steel)")
+    counterweight_length: float = param("counterweight_length_mm", "mm", default=20.0, lo=0.0, hi=500.0,
+                                        lo_open=True, doc="counterweight disc length along the joint axis")
+    turret_radius: float = param("turret_radius_mm", "mm", default=30.0, lo=0.0, hi=1000.0, lo_open=True,
+                                 doc="radius of the turret drum")
+    base_radius: float = param("base_radius_mm", "mm", default=110.0, lo=0.0, hi=5000.0, lo_open=True,
+                               doc="radius of the base plate")
+    base_thickness: float = param("base_thickness_mm", "mm", default=12.0, lo=0.0, hi=500.0, lo_open=True,
+                                  doc="thickness of the base plate (below z = 0)")
+    handle_diameter: float = param("handle_diameter_mm", "mm", default=25.0, lo=0.0, hi=500.0, lo_open=True,
+                                   doc="handle ball diameter at the forearm tip")
+
+
+@dataclass(frozen=True, kw_only=True)
 class MasterDesign:
     """A complete surgical-master design. Frozen; change with :func:`dataclasses.replace`."""
 
@@ -104,10 +134,11 @@ class MasterDesign:
     counterweights: Counterweights = field(default_factory=Counterweights)
     joints: MasterJoints = field(default_factory=MasterJoints)
     actuators: MasterActuators = field(default_factory=MasterActuators)
+    structure: MasterStructure = field(default_factory=MasterStructure)
 
     device = DEVICE
 
-    SECTIONS = ("geometry", "links", "counterweights", "joints", "actuators")
+    SECTIONS = ("geometry", "links", "counterweights", "joints", "actuators", "structure")
 
     def __post_init__(self) -> None:
         validate(self)
