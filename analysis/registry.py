@@ -36,6 +36,8 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
     ),
     "master": (
         EvaluatorEntry(name="workspace", module="analysis.master_workspace"),
+        EvaluatorEntry(name="balance", module="analysis.master_balance"),
+        EvaluatorEntry(name="transparency", module="analysis.master_transparency"),
     ),
 }
 
