@@ -17,13 +17,13 @@ All geometry is SI here; build123d receives mm through :mod:`design.cad_units`.
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from design import cad_units
+from design import parts as _parts
 from design.errors import InvalidDesign
 from design.parts import (PartSpec, Role, bar_with_bosses, box, capseg, cylinder, frame, sphere,
                           transform)
@@ -357,67 +357,16 @@ def joint_axes(design: PrrrDesign, pose: PrrrPose) -> list[JointAxis]:
 
 
 # ---------------------------------------------------------------------------- build123d
-def _location(T_m: np.ndarray):
-    from build123d import Location, Plane
-
-    T = cad_units.transform_to_mm(T_m)
-    return Location(Plane(origin=tuple(T[:3, 3]), x_dir=tuple(T[:3, 0]), z_dir=tuple(T[:3, 2])))
-
-
 def build_solid(spec: PartSpec):
-    """The OpenCASCADE solid of one part in its own frame (mm). Raises :class:`InvalidDesign`
-    if the result is not one valid solid."""
-    from build123d import Box, Cylinder, Solid, Sphere
-
-    from design.parts import Kind
-
-    solids, holes = [], []
-    for p in spec.primitives:
-        if p.role == Role.OVERLAP:
-            continue
-        d = cad_units.to_mm(np.asarray(p.dims))
-        if p.kind == Kind.BOX:
-            s = Box(*d)
-        elif p.kind == Kind.CYLINDER:
-            s = Cylinder(d[0], d[1] + (2.0 if p.role == Role.HOLE else 0.0))
-        else:
-            s = Sphere(d[0])
-        s = s.moved(_location(transform(p.R, p.o)))
-        (solids if p.role == Role.SOLID else holes).append(s)
-    part = solids[0].fuse(*solids[1:]) if len(solids) > 1 else solids[0]
-    if holes:
-        part = part.cut(*holes)
-    part = part.clean()
-    found = part.solids()
-    if len(found) != 1 or not part.is_valid:
-        raise InvalidDesign(f"part {spec.name}: the CAD gives {len(found)} solids (valid={part.is_valid}); "
-                            f"check the structure.* cross-sections and the geometry of this part")
-    out = Solid(found[0].wrapped)
-    out.label = spec.name
-    return out
+    """One part as a build123d solid in its own frame (mm); see :func:`design.parts.build_solid`."""
+    return _parts.build_solid(spec)
 
 
 def build_parts(design: PrrrDesign) -> dict[str, object]:
     """Every part as a build123d solid in its own frame (mm); identical legs are built once."""
-    specs = part_specs(design)
-    cache: dict[int, object] = {}
-    out = {}
-    for name, spec in specs.items():
-        key = id(spec.primitives)
-        if key not in cache:
-            cache[key] = build_solid(spec)
-        # an independent shape per part: STEP keeps one name per shared shape
-        solid = copy.deepcopy(cache[key])
-        solid.label = name
-        out[name] = solid
-    return out
+    return _parts.build_all(part_specs(design))
 
 
 def posed(solids: dict[str, object], frames: dict[str, np.ndarray]) -> dict[str, object]:
     """Parts moved to their posed frames (mm), labels kept."""
-    out = {}
-    for name, s in solids.items():
-        m = s.moved(_location(frames[name]))
-        m.label = name
-        out[name] = m
-    return out
+    return _parts.posed(solids, frames)

@@ -1,0 +1,119 @@
+"""Surgical-master CAD: closed-form volumes, counterweight masses, CAD axes = kinematic axes."""
+
+import math
+
+import numpy as np
+import pytest
+
+from design import cad_master, io, mass_properties as mp
+from design.errors import InvalidDesign, InvalidInput
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return io.load_preset("master-paper")
+
+
+@pytest.fixture(scope="module")
+def solids(paper):
+    return cad_master.build_parts(paper)
+
+
+def test_parts_are_single_valid_solids(solids):
+    assert set(solids) == {"base", "turret", "upper_arm", "counterweight_upper", "driver_link",
+                           "counterweight_forearm", "coupler", "forearm", "handle"}
+    for s in solids.values():
+        assert s.is_valid and len(s.solids()) == 1
+
+
+def test_coupler_volume_is_the_closed_form(paper, solids):
+    s = paper.structure
+    R, r, W, T = s.boss_diameter / 2, s.bore_diameter / 2, s.link_width, s.link_thickness
+    h = W / 2
+    cap = h * math.sqrt(R * R - h * h) + R * R * math.asin(h / R)  # ∫_{-h}^{h} sqrt(R² − y²) dy
+    area = paper.geometry.upper_arm * W + 2 * (math.pi * R * R - cap) - 2 * math.pi * r * r
+    assert solids["coupler"].volume * 1e-9 == pytest.approx(area * T, rel=1e-6)
+
+
+def test_counterweights_have_the_design_masses(paper):
+    # seed 003: m2 (upper) and m4 (forearm) are design values; the CAD sizes the discs from them
+    cad = mp.from_cad(paper)
+    assert cad.parts["counterweight_upper"].mass == pytest.approx(paper.counterweights.upper_mass, rel=1e-6)
+    assert cad.parts["counterweight_forearm"].mass == pytest.approx(paper.counterweights.forearm_mass, rel=1e-6)
+    # and sit at r2x / r4z along their links (link frames: x along the link)
+    assert cad.parts["counterweight_upper"].com[0] == pytest.approx(-paper.counterweights.upper_distance, abs=1e-9)
+    assert cad.parts["counterweight_forearm"].com[0] == pytest.approx(paper.counterweights.forearm_distance, abs=1e-9)
+
+
+def test_analytic_matches_cad(paper):
+    ana, cad = mp.analytic(paper), mp.from_cad(paper)
+    for name, c in cad.parts.items():
+        a = ana.parts[name]
+        assert a.mass == pytest.approx(c.mass, rel=0.02), name
+        assert np.linalg.norm(a.inertia - c.inertia) <= 0.05 * np.linalg.norm(c.inertia), name
+
+
+def _bore_lines(solid, radius_mm):
+    from build123d import GeomType
+    from OCP.BRepAdaptor import BRepAdaptor_Surface
+
+    out = []
+    for f in solid.faces():
+        if f.geom_type == GeomType.CYLINDER:
+            cyl = BRepAdaptor_Surface(f.wrapped).Cylinder()
+            if abs(cyl.Radius() - radius_mm) < 1e-6:
+                loc, d = cyl.Axis().Location(), cyl.Axis().Direction()
+                out.append((np.array([loc.X(), loc.Y(), loc.Z()]), np.array([d.X(), d.Y(), d.Z()])))
+    return out
+
+
+@pytest.mark.parametrize("q", [(0.0, 0.0, 0.0), (0.4, 0.5, -0.3)])
+def test_cad_joint_axes_are_the_kinematic_axes(paper, solids, q):
+    pose = cad_master.pose_from_q(paper, q)
+    placed = cad_master.posed(solids, cad_master.part_frames(paper, pose))
+    r = paper.structure.bore_diameter / 2 * 1e3
+    for ax in cad_master.joint_axes(paper, pose):
+        if ax.name == "theta1":  # the turret drum is centred on the θ1 axis
+            c = np.array(tuple(placed["turret"].faces().sort_by()[0].center()))
+            assert np.linalg.norm(c[:2]) < 1e-6
+            continue
+        p = ax.point * 1e3
+        for part in (ax.parent, ax.child):
+            ok = [1 for o, d in _bore_lines(placed[part], r)
+                  if abs(abs(d @ ax.direction) - 1) < 1e-9 and np.linalg.norm((p - o) - ((p - o) @ d) * d) < 1e-6]
+            assert ok, f"{ax.name}: no bore of {part} on the kinematic axis"
+
+
+def test_home_pose_and_workspace_poses_are_interference_free(paper):
+    from analysis import interference as itf
+
+    model = itf.prepare(paper)
+    for q in [(0.0, 0.0, 0.0), (0.5, 0.3, -0.5), (0.0, 1.2, 0.2)]:
+        frames = cad_master.part_frames(paper, cad_master.pose_from_q(paper, q))
+        assert itf.check_frames(model, frames) == ()
+    res = itf.check_pose(model, cad_master.home_point(paper))
+    assert res.ok
+
+
+def test_pose_errors(paper):
+    with pytest.raises(InvalidInput, match="not reachable"):
+        cad_master.solve_pose(paper, (2.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("override, match", [
+    ("structure.link_thickness_mm=0.2", "link_thickness_mm"),
+    ("structure.bore_diameter_mm=17.9", "bore_diameter_mm"),
+    ("geometry.driver_link_mm=10", "driver_link_mm"),
+    ("geometry.shoulder_height_mm=40", "shoulder_height_mm"),
+])
+def test_hard_cases(paper, override, match):
+    with pytest.raises(InvalidDesign, match=match):
+        cad_master.part_specs(io.apply_overrides(paper, [override]))
+
+
+def test_export_master(paper, tmp_path):
+    from design.export import export
+
+    res = export(paper, tmp_path)
+    names = {f.name for f in res.files}
+    assert {f"{paper.name}.step", "mass_properties.json", "handle.stl"} <= names
