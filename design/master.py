@@ -41,14 +41,14 @@ class MasterLinks:
     """Masses and centres of mass of the moving links (CoM measured along each link from its proximal joint)."""
 
     upper_arm_mass: float = param("upper_arm_mass_kg", "kg", default=0.080, **_MASS)
-    upper_arm_com: float = param("upper_arm_com_mm", "mm", default=105.0, lo=-2000.0, hi=2000.0)
+    upper_arm_com: float = param("upper_arm_com_mm", "mm", default=110.0, lo=-2000.0, hi=2000.0)
     forearm_mass: float = param("forearm_mass_kg", "kg", default=0.060, **_MASS)
-    forearm_com: float = param("forearm_com_mm", "mm", default=105.0, lo=-2000.0, hi=2000.0)
+    forearm_com: float = param("forearm_com_mm", "mm", default=110.0, lo=-2000.0, hi=2000.0)
     driver_link_mass: float = param("driver_link_mass_kg", "kg", default=0.030, **_MASS)
     driver_link_com: float = param("driver_link_com_mm", "mm", default=30.0, lo=-2000.0, hi=2000.0)
     coupler_mass: float = param("coupler_mass_kg", "kg", default=0.040, **_MASS,
                                 doc="parallelogram coupler, parallel to the upper arm")
-    coupler_com: float = param("coupler_com_mm", "mm", default=105.0, lo=-2000.0, hi=2000.0)
+    coupler_com: float = param("coupler_com_mm", "mm", default=110.0, lo=-2000.0, hi=2000.0)
     handle_mass: float = param("handle_mass_kg", "kg", default=0.030, **_MASS, doc="handle/gimbal at the forearm tip")
     turret_inertia: float = param("turret_inertia_kg_mm2", "kg_mm2", default=2000.0, lo=0.0, hi=1e9,
                                   doc="turret inertia about the θ1 axis")
@@ -58,10 +58,10 @@ class MasterLinks:
 class Counterweights:
     """Counterweights on the rear extensions of the driven links."""
 
-    upper_mass: float = param("upper_mass_kg", "kg", default=0.20, **_MASS, doc="m2 (seed 003)")
+    upper_mass: float = param("upper_mass_kg", "kg", default=0.4125, **_MASS, doc="m2 (seed 003)")
     upper_distance: float = param("upper_distance_mm", "mm", default=80.0, lo=0.0, hi=2000.0,
                                   doc="behind the shoulder along the upper arm, r2x")
-    forearm_mass: float = param("forearm_mass_kg", "kg", default=0.20, **_MASS, doc="m4 (seed 003)")
+    forearm_mass: float = param("forearm_mass_kg", "kg", default=0.12375, **_MASS, doc="m4 (seed 003)")
     forearm_distance: float = param("forearm_distance_mm", "mm", default=80.0, lo=0.0, hi=2000.0,
                                     doc="behind the elbow drive axis along the driver link, r4z")
 
