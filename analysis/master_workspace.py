@@ -26,7 +26,7 @@ det J = ρ·L4·L5·cos(θ2 − θ3). The joint ranges are a box in (θ1, θ3, �
   searched on a grid in (x, z) (5² at draft, 9² above) over the range that keeps the box within the
   workspace's bounding box (y at the centroid's y; the workspace is mirror-symmetric in y for
   a symmetric θ1 range), refined on a second grid one step around the best, and kept only if it beats the
-  centroid. Centring on the centroid instead would report 0.72 for master-paper, where the
+  centroid. Centring on the centroid instead reported 0.72 for master-paper (210 mm links), where the
   best-placed cube is fully covered, as the paper states (seed 003: a 200 mm cube).
 """
 
