@@ -17,6 +17,7 @@ setup: $(STAMP)
 # The main job: evaluate the reference 3-PRRR and print its metrics.
 run: $(STAMP)
 	$(BIN)/hapticopt evaluate --preset prrr-paper
+	$(BIN)/hapticopt export --preset prrr-paper --render
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -70,9 +70,10 @@ class PrrrLayout:
     z_rail_top: float
 
 
-def _need(cond: bool, message: str) -> None:
+def _need(cond: bool, message) -> None:
+    """Raise :class:`InvalidDesign` with ``message()`` unless ``cond`` (message built lazily)."""
     if not cond:
-        raise InvalidDesign(message)
+        raise InvalidDesign(message())
 
 
 def _mm(x: float) -> str:
@@ -90,17 +91,16 @@ def layout(design: PrrrDesign) -> PrrrLayout:
     # --- cross-sections and walls
     for key, val in (("link_thickness_mm", T), ("link_width_mm", W), ("clearance_mm", g),
                      ("carriage_wall_mm", s_.carriage_wall), ("base_thickness_mm", s_.base_thickness)):
-        _need(val >= MIN_FEATURE, f"structure.{key} = {_mm(val)} is too thin for the CAD: allowed ≥ {_mm(MIN_FEATURE)} (mm)")
+        _need(val >= MIN_FEATURE, lambda: f"structure.{key} = {_mm(val)} is too thin for the CAD: allowed ≥ {_mm(MIN_FEATURE)} (mm)")
     _need(R - r >= MIN_FEATURE,
-          f"structure.bore_diameter_mm = {_mm(2 * r)} leaves a boss wall of {_mm(R - r)} mm: allowed ≤ "
+          lambda: f"structure.bore_diameter_mm = {_mm(2 * r)} leaves a boss wall of {_mm(R - r)} mm: allowed ≤ "
           f"structure.boss_diameter_mm − {_mm(2 * MIN_FEATURE)} = {_mm(2 * R - 2 * MIN_FEATURE)} (mm)")
-    _need(W / 2 - r >= MIN_FEATURE or R - r >= MIN_FEATURE, "unreachable")
     for key, L in (("d3_mm", g_.d3), ("d4_mm", g_.d4)):
         _need(L >= 2 * R + MIN_FEATURE,
-              f"geometry.{key} = {_mm(L)} is too short for two bosses of structure.boss_diameter_mm = {_mm(2 * R)}: "
+              lambda: f"geometry.{key} = {_mm(L)} is too short for two bosses of structure.boss_diameter_mm = {_mm(2 * R)}: "
               f"allowed ≥ {_mm(2 * R + MIN_FEATURE)} (mm)")
     _need(e_.handle_diameter > s_.stem_diameter + 2 * MIN_FEATURE,
-          f"end_effector.handle_diameter_mm = {_mm(e_.handle_diameter)} must exceed structure.stem_diameter_mm "
+          lambda: f"end_effector.handle_diameter_mm = {_mm(e_.handle_diameter)} must exceed structure.stem_diameter_mm "
           f"= {_mm(s_.stem_diameter)} + {_mm(2 * MIN_FEATURE)} (mm)")
     s_clevis, s_link2 = -(T + g), T + g
     s_lug = max(g_.r4, 2 * T + 2 * g)
@@ -108,7 +108,7 @@ def layout(design: PrrrDesign) -> PrrrLayout:
     half_slot = s_.rail_width / 2 + g
     x_in = g_.r_p - half_slot - s_.carriage_wall
     x_out = g_.r_p + half_slot + s_.sea_envelope
-    _need(x_in > 0.0, f"structure.carriage_wall_mm = {_mm(s_.carriage_wall)}: the carriage crosses the z axis "
+    _need(x_in > 0.0, lambda: f"structure.carriage_wall_mm = {_mm(s_.carriage_wall)}: the carriage crosses the z axis "
           f"(allowed < geometry.r_p_mm − rail_width/2 − clearance = {_mm(g_.r_p - half_slot)} mm)")
     u, t, v, w = leg_vectors(beta, 0.0)
     A = np.array([g_.d1, g_.d2, 0.0])
@@ -120,20 +120,20 @@ def layout(design: PrrrDesign) -> PrrrLayout:
     reach = W / 2 + T
     hz = s_.carriage_height / 2
     _need(abs(ze) <= 4 * hz + 1e-12,
-          f"geometry.beta_deg = {deg:g}: the R1 bracket would meet the carriage {_mm(abs(ze))} mm off its centre "
+          lambda: f"geometry.beta_deg = {deg:g}: the R1 bracket would meet the carriage {_mm(abs(ze))} mm off its centre "
           f"(allowed ≤ 2·structure.carriage_height_mm = {_mm(4 * hz)} mm); raise beta or d1/d2")
     block_z = (min(-hz, ze - reach), max(hz, ze + reach))
     _need(np.linalg.norm(bracket_end - Ac) >= R + MIN_FEATURE,
-          f"geometry.d2_mm = {_mm(g_.d2)}: the R1 clevis sits inside the carriage block; move it out (d1, d2)")
+          lambda: f"geometry.d2_mm = {_mm(g_.d2)}: the R1 clevis sits inside the carriage block; move it out (d1, d2)")
     # --- platform (frame at p): lug centres at radius rho, arms along −v to the stem axis
     lug_rho = (g_.b5 - (s_lug - g_.r4)) * math.cos(beta)
     arm_length = lug_rho / math.sin(beta)
     Rs = s_.stem_diameter / 2
     _need(lug_rho - R * math.sin(beta) - T / 2 * math.cos(beta) >= Rs + MIN_FEATURE,
-          f"geometry.b5_mm = {_mm(g_.b5)} (with beta_deg = {deg:g}): the R3 lugs at radius {_mm(lug_rho)} mm "
+          lambda: f"geometry.b5_mm = {_mm(g_.b5)} (with beta_deg = {deg:g}): the R3 lugs at radius {_mm(lug_rho)} mm "
           f"run into the stem of structure.stem_diameter_mm = {_mm(2 * Rs)}; raise b5 or reduce the stem/boss")
     _need(arm_length <= 10 * (g_.b5 + g_.r4),
-          f"geometry.beta_deg = {deg:g} is too flat for the platform: arms of {_mm(arm_length)} mm (allowed ≥ "
+          lambda: f"geometry.beta_deg = {deg:g} is too flat for the platform: arms of {_mm(arm_length)} mm (allowed ≥ "
           f"{math.degrees(math.asin(min(1.0, lug_rho / (10 * (g_.b5 + g_.r4))))):.3g} deg)")
     lug_z = (s_lug - g_.r4) * math.sin(beta)
     stem_bottom = lug_z - lug_rho * math.cos(beta) / math.sin(beta) - T
@@ -145,7 +145,6 @@ def layout(design: PrrrDesign) -> PrrrLayout:
     carriage_hi = max(block_z[1], Ac[2] + T / 2 * math.sin(beta) + R * math.cos(beta))
     z_base_top = c_e - half + carriage_lo - s_.base_clearance
     z_rail_top = c_e + half + carriage_hi + s_.base_clearance
-    _need(s_.base_radius >= x_out * 1.0 - 0.0 or True, "unreachable")
     return PrrrLayout(T=T, W=W, R_boss=R, r_bore=r, g=g, s_clevis=s_clevis, s_link2=s_link2, s_lug=s_lug,
                       block_x=(x_in, x_out), block_y=half_slot + s_.carriage_wall, block_z=block_z,
                       slot=half_slot, bracket_end=bracket_end, lug_rho=lug_rho, arm_length=arm_length,

@@ -203,35 +203,39 @@ def volume_properties(prims) -> VolumeProps:
 def volume_properties_many(groups) -> list[VolumeProps]:
     """:func:`volume_properties` of several parts in one vectorised pass."""
     flat = [p for g in groups for p in g]
+    nf = len(flat)
     idx = np.repeat(np.arange(len(groups)), [len(g) for g in groups])
-    kind = np.fromiter((p.kind for p in flat), dtype=int, count=len(flat))
-    sign = np.fromiter((1.0 if p.role == Role.SOLID else -1.0 for p in flat), dtype=float, count=len(flat))
+    kind = np.array([p.kind for p in flat])
+    sign = np.where(np.array([p.role == Role.SOLID for p in flat]), 1.0, -1.0)
     dims = np.array([p.dims for p in flat], dtype=float)
-    R = np.stack([p.R for p in flat])
-    o = np.stack([p.o for p in flat])
+    R = np.array([p.R for p in flat])
+    o = np.array([p.o for p in flat])
     v, c_loc, I_loc = _local_props(kind, dims)
     co = np.einsum("nij,nj->ni", R, c_loc)  # centroid offset from the primitive origin
     c = o + co
-    I_o = np.einsum("nij,nj,nkj->nik", R, I_loc, R)
-    eye = np.eye(3)
-    oo = np.einsum("ni,ni->n", o, o)
-    oc = np.einsum("ni,ni->n", o, co)
-    J = I_o + v[:, None, None] * (
-        (oo + 2.0 * oc)[:, None, None] * eye
-        - np.einsum("ni,nj->nij", o, o) - np.einsum("ni,nj->nij", o, co) - np.einsum("ni,nj->nij", co, o))
-    sv = sign * v
+    # ∫(|r|²I − r rᵀ) about the part origin, r = o + s: I_o + v(|o|² + 2 o·co) I − v(o oᵀ + o coᵀ + co oᵀ)
+    RI = R * I_loc[:, None, :]
+    J = np.einsum("nij,nkj->nik", RI, R)
+    scal = v * (np.einsum("ni,ni->n", o, o) + 2.0 * np.einsum("ni,ni->n", o, co))
+    J[:, 0, 0] += scal
+    J[:, 1, 1] += scal
+    J[:, 2, 2] += scal
+    J -= v[:, None, None] * (o[:, :, None] * (o + 2.0 * co)[:, None, :])
     n = len(groups)
-    onehot = np.zeros((n, len(flat)))
-    onehot[idx, np.arange(len(flat))] = 1.0
-    V = onehot @ sv
-    first = onehot @ (sv[:, None] * c)
-    Jt = (onehot @ (sign[:, None, None] * J).reshape(len(flat), 9)).reshape(n, 3, 3)
-    out = []
-    for k in range(n):
-        cen = first[k] / V[k]
-        Jc = Jt[k] - V[k] * ((cen @ cen) * eye - np.outer(cen, cen))
-        out.append(VolumeProps(volume=float(V[k]), centroid=cen, inertia=0.5 * (Jc + Jc.T)))
-    return out
+    onehot = np.zeros((n, nf))
+    onehot[idx, np.arange(nf)] = sign
+    V = onehot @ v
+    first = onehot @ (v[:, None] * c)
+    Jt = (onehot @ J.reshape(nf, 9)).reshape(n, 3, 3)
+    cen = first / V[:, None]
+    # back to the centroid: J_c = J − V(|c|² I − c cᵀ), symmetrised
+    Jc = Jt + V[:, None, None] * cen[:, :, None] * cen[:, None, :]
+    cc = V * np.einsum("ni,ni->n", cen, cen)
+    Jc[:, 0, 0] -= cc
+    Jc[:, 1, 1] -= cc
+    Jc[:, 2, 2] -= cc
+    Jc = 0.5 * (Jc + Jc.transpose(0, 2, 1))
+    return [VolumeProps(volume=float(V[k]), centroid=cen[k], inertia=Jc[k]) for k in range(n)]
 
 
 def bbox(prims, T: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:

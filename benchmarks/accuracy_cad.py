@@ -1,0 +1,56 @@
+"""Accuracy of the analytic mass model against the CAD, and the CAD timings, for docs/cad.md.
+
+Run: .venv/bin/python benchmarks/accuracy_cad.py
+Prints a markdown table per design: per-part mass and inertia error of :func:`mass_properties.analytic`
+against :func:`mass_properties.from_cad` (OpenCASCADE volume integrals), and the time per call of
+each (CPU time, this machine).
+"""
+
+from __future__ import annotations
+
+import time
+
+import analysis  # noqa: F401
+import numpy as np
+
+from design import io
+from design import mass_properties as mp
+
+DESIGNS = {
+    "prrr-paper": ("prrr-paper", []),
+    "prrr β=35.26° slim": ("prrr-paper", ["geometry.beta_deg=35.26", "structure.link_width_mm=14",
+                                          "structure.link_thickness_mm=6", "structure.boss_diameter_mm=18",
+                                          "structure.stem_diameter_mm=8"]),
+    "master-paper": ("master-paper", []),
+}
+
+
+def cpu_per_call(f, n: int) -> float:
+    f()
+    t = time.process_time()
+    for _ in range(n):
+        f()
+    return (time.process_time() - t) / n
+
+
+def main() -> None:
+    for label, (preset, sets) in DESIGNS.items():
+        d = io.apply_overrides(io.load_preset(preset), sets)
+        ana, cad = mp.analytic(d), mp.from_cad(d)
+        print(f"\n### {label}\n")
+        print("| part | mass CAD (g) | mass error | inertia error (Frobenius) | CoM offset (mm) |")
+        print("|---|---|---|---|---|")
+        for name, c in cad.parts.items():
+            a = ana.parts[name]
+            print(f"| {name} | {c.mass * 1e3:.2f} | {a.mass / c.mass - 1:+.3%} | "
+                  f"{np.linalg.norm(a.inertia - c.inertia) / np.linalg.norm(c.inertia):.3%} | "
+                  f"{np.linalg.norm(a.com - c.com) * 1e3:.3f} |")
+        t_a = cpu_per_call(lambda: mp.analytic(d), 300)
+        t_c = cpu_per_call(lambda: mp.from_cad(d), 2)
+        print(f"\ntotal mass {cad.total_mass:.4f} kg (analytic {ana.total_mass:.4f} kg); "
+              f"analytic {t_a * 1e3:.3f} ms, CAD (build + integrals) {t_c:.3f} s per design "
+              f"(CPU time): speed ratio {t_c / t_a:.0f}×")
+
+
+if __name__ == "__main__":
+    main()
