@@ -30,6 +30,7 @@ def evaluate(
     fidelity: Annotated[str, typer.Option("--fidelity", help="draft, standard or fine.")] = "standard",
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, metrics, status, timings_s}.")] = False,
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write pictures of the evaluators' results to this directory.")] = None,
+    sweep: Annotated[Optional[str], typer.Option("--sweep", help="Parameter sweep (master: counterweight); writes a plot and a CSV table to --plots DIR or the current directory.")] = None,
 ) -> None:
     """Evaluate a design and print its metrics (units in the metric names)."""
     t_start = time.perf_counter()
@@ -47,6 +48,10 @@ def evaluate(
     evaluation = evaluate_all(design, fidelity=level)
     timings = {"imports": t_import - t_start, **evaluation.timings_s}
     written = write_plots(design, evaluation, plots) if plots is not None else []
+    if sweep is not None:
+        from optim.cli_sweep import run_sweep
+
+        written += run_sweep(design, sweep, plots if plots is not None else Path("."), level)
     timings["total"] = time.perf_counter() - t_start
     metrics = evaluation.metrics()
     status = {k: str(v) for k, v in evaluation.statuses.items()}
