@@ -81,21 +81,24 @@ def slider_offset(params: PrrrParams) -> jax.Array:
     return -(params.b5 + params.r4) / jnp.sin(b) + r5_of(params) + params.d1 / jnp.tan(b)
 
 
-def jacobian_inverse(beta: jax.Array) -> jax.Array:
-    """J⁻¹ (3×3), rows [−cos γ_i / tan β, −sin γ_i / tan β, 1] (seed 002 eq 1)."""
-    T = jnp.tan(beta)
-    return jnp.stack([-jnp.cos(_GAMMA) / T, -jnp.sin(_GAMMA) / T, jnp.ones(3)], axis=-1)
+def jacobian_inverse(beta: jax.Array, xp=jnp) -> jax.Array:
+    """J⁻¹ (3×3), rows [−cos γ_i / tan β, −sin γ_i / tan β, 1] (seed 002 eq 1).
+
+    ``xp`` is the array module (``jax.numpy`` default, ``numpy`` for jit-free single calls).
+    """
+    T = xp.tan(beta)
+    return xp.stack([-xp.cos(_GAMMA) / T, -xp.sin(_GAMMA) / T, xp.ones(3)], axis=-1)
 
 
-def jacobian(beta: jax.Array) -> jax.Array:
+def jacobian(beta: jax.Array, xp=jnp) -> jax.Array:
     """Analytic J (3×3), Ḋ ↦ ṗ: (1/3)[[−2T, T, T], [0, −√3T, √3T], [1, 1, 1]] (seed 002 eq 2)."""
-    T = jnp.tan(beta)
-    r3 = jnp.sqrt(3.0)
-    one = jnp.ones_like(T)
-    return jnp.stack([
-        jnp.stack([-2.0 * T, T, T]),
-        jnp.stack([0.0 * T, -r3 * T, r3 * T]),
-        jnp.stack([one, one, one]),
+    T = xp.tan(beta)
+    r3 = xp.sqrt(3.0)
+    one = xp.ones_like(T)
+    return xp.stack([
+        xp.stack([-2.0 * T, T, T]),
+        xp.stack([0.0 * T, -r3 * T, r3 * T]),
+        xp.stack([one, one, one]),
     ]) / 3.0
 
 

@@ -13,42 +13,44 @@ import jax.numpy as jnp
 import numpy as np
 
 from analysis.fidelity import Fidelity
-from analysis.prrr_kinematics import PrrrParams, jacobian, jacobian_inverse, params_of
+from analysis.prrr_kinematics import PrrrParams, jacobian, jacobian_inverse
 from analysis.status import Status
 from design.prrr import PrrrDesign
 
 
-def condition_2norm(J: jax.Array) -> jax.Array:
+def condition_2norm(J: jax.Array, xp=jnp) -> jax.Array:
     """cond₂(J) = σ_max/σ_min. Has a kink where singular values coincide: no gradients through it."""
-    s = jnp.linalg.svd(J, compute_uv=False)
+    s = xp.linalg.svd(J, compute_uv=False)
     return s[..., 0] / s[..., -1]
 
 
-def condition_frobenius(J: jax.Array) -> jax.Array:
+def condition_frobenius(J: jax.Array, xp=jnp) -> jax.Array:
     """Smooth condition number ‖J‖_F‖J⁻¹‖_F / 3 (= 1 exactly where cond₂ = 1); use for gradients."""
-    Ji = jnp.linalg.inv(J)
-    return jnp.sqrt(jnp.sum(J**2, axis=(-2, -1)) * jnp.sum(Ji**2, axis=(-2, -1))) / 3.0
+    Ji = xp.linalg.inv(J)
+    return xp.sqrt(xp.sum(J**2, axis=(-2, -1)) * xp.sum(Ji**2, axis=(-2, -1))) / 3.0
 
 
-def statics_arrays(params: PrrrParams, spring: jax.Array, force_limit: jax.Array, mass: jax.Array) -> dict:
+def statics_arrays(params: PrrrParams, spring: jax.Array, force_limit: jax.Array, mass: jax.Array,
+                   xp=jnp) -> dict:
     """All statics quantities in SI for one design (vmap over a leading batch for many).
 
-    ``spring`` k [N/m], ``force_limit`` F_max per actuator [N], ``mass`` M [kg].
+    ``spring`` k [N/m], ``force_limit`` F_max per actuator [N], ``mass`` M [kg]. ``xp`` is the
+    array module: ``jax.numpy`` (default; jit/vmap/grad) or ``numpy`` (single design, no compile).
     """
-    J = jacobian(params.beta)
-    Ji = jacobian_inverse(params.beta)
+    J = jacobian(params.beta, xp=xp)
+    Ji = jacobian_inverse(params.beta, xp=xp)
     stiffness = spring * Ji.T @ Ji  # eq 14: J⁻ᵀ (k I) J⁻¹ [N/m]
     return {
         "jacobian": J,
-        "condition": condition_2norm(J),
-        "condition_frobenius": condition_frobenius(J),
+        "condition": condition_2norm(J, xp=xp),
+        "condition_frobenius": condition_frobenius(J, xp=xp),
         "effective_mass": mass * J.T @ J,  # eq 7: Jᵀ diag(M,M,M) J [kg], slider space
         "stiffness_matrix": stiffness,
-        "stiffness_limit": jnp.diagonal(stiffness),
+        "stiffness_limit": xp.diagonal(stiffness),
         # eq 4, F = J⁻ᵀ f with |f_i| ≤ F_max: per-axis maximum over the force box
-        "max_force": force_limit * jnp.sum(jnp.abs(Ji), axis=0),
+        "max_force": force_limit * xp.sum(xp.abs(Ji), axis=0),
         # a pure force along one axis (other components zero): F_max / max_i |(J⁻ᵀ)⁻¹ e_axis|
-        "max_pure_force": force_limit / jnp.max(jnp.abs(J.T), axis=0),
+        "max_pure_force": force_limit / xp.max(xp.abs(J.T), axis=0),
     }
 
 
@@ -79,16 +81,19 @@ class PrrrStatics:
         }
 
 
-_statics_jit = jax.jit(statics_arrays)
+def params_np(design: PrrrDesign) -> PrrrParams:
+    """Kinematic parameters as plain floats (for the numpy path)."""
+    g = design.geometry
+    return PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> PrrrStatics:
     """Statics of ``design``. Exact closed forms: every fidelity gives the same result."""
     del fidelity  # closed form
     a = design.actuator
-    out = _statics_jit(params_of(design), jnp.asarray(a.spring), jnp.asarray(a.force_limit),
-                       jnp.asarray(design.end_effector.mass))
-    out = {k: np.asarray(v) for k, v in out.items()}
+    # numpy path: a single design needs no jit compile (the CLI's start-up budget); the jax
+    # path (same function, xp=jnp) serves batches and gradients and is tested equal.
+    out = statics_arrays(params_np(design), a.spring, a.force_limit, design.end_effector.mass, xp=np)
     finite = all(np.all(np.isfinite(v)) for v in out.values())
     return PrrrStatics(
         jacobian=out["jacobian"],

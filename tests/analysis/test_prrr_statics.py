@@ -99,3 +99,14 @@ def test_batched_statics_equal_single(prrr_paper):
         one = prrr_statics.statics_arrays(params_of(d), jnp.asarray(56270.0), jnp.asarray(1000.0), jnp.asarray(0.66))
         for key in one:
             np.testing.assert_allclose(out[key][i], one[key], rtol=1e-12, atol=1e-12)
+
+
+def test_numpy_single_path_equals_jax_path(prrr_paper):
+    """evaluate() uses numpy (no jit at CLI start-up); the jax path serves batches — same numbers."""
+    r = prrr_statics.evaluate(prrr_paper)
+    a = prrr_paper.actuator
+    out = jax.jit(prrr_statics.statics_arrays)(params_of(prrr_paper), jnp.asarray(a.spring),
+                                               jnp.asarray(a.force_limit), jnp.asarray(prrr_paper.end_effector.mass))
+    np.testing.assert_allclose(r.max_force, out["max_force"], rtol=1e-14)
+    np.testing.assert_allclose(r.effective_mass, out["effective_mass"], rtol=1e-14, atol=1e-15)
+    assert r.condition == pytest.approx(float(out["condition"]), rel=1e-14)
