@@ -281,6 +281,30 @@ def balancing_counterweights(design: MasterDesign, bodies: tuple[BodyMass, ...] 
     return float(mu), float(mf)
 
 
+def counterweights_for_com_offset(design: MasterDesign, com_offset: tuple[float, float]) -> tuple[float, float]:
+    """Counterweight masses (upper, forearm) [kg] at the design's distances that put the CoM offset
+    at ``com_offset`` = (P_x, P_z) [m] (seed 003 eq 10–11); (0, 0) gives perfect balance.
+
+    G1, G2 and M are affine in the two counterweight masses, so G1 − M g P_x = 0 and
+    G2 − M g P_z = 0 is a 2×2 linear system, set up from three evaluations of the general G.
+    Negative masses are returned as they are (the caller decides); analytic mass model only.
+    """
+    import dataclasses
+
+    cw = design.counterweights
+
+    def residual(mu: float, mf: float) -> np.ndarray:
+        d = dataclasses.replace(design, counterweights=dataclasses.replace(cw, upper_mass=mu, forearm_mass=mf))
+        gp = gravity_parameters(model_of(d))
+        Mg = gp.moving_mass * GRAVITY
+        return np.array([gp.G1 - Mg * com_offset[0], gp.G2 - Mg * com_offset[1]])
+
+    r0 = residual(0.0, 0.0)
+    A = np.stack([residual(1.0, 0.0) - r0, residual(0.0, 1.0) - r0], axis=1)
+    mu, mf = np.linalg.solve(A, -r0)
+    return float(mu), float(mf)
+
+
 def _with_counterweights(bodies: tuple[BodyMass, ...], mu: float, mf: float) -> tuple[BodyMass, ...]:
     import dataclasses
 

@@ -24,7 +24,7 @@ from analysis import master_numeric as mn
 from analysis import master_transparency as mt
 from design.master import MasterDesign
 
-_DB3 = 10 ** (3.0 / 20.0)
+_DB3 = np.sqrt(2.0)  # ±3 dB as half/double power, as analysis.master_transparency
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -18,7 +18,7 @@ from analysis import master_transparency as mt
 from analysis.fidelity import Fidelity
 from design.master import MasterDesign
 
-FRACTIONS = tuple(float(x) for x in np.round(np.linspace(1.0, 0.0, 11), 3))
+FRACTIONS = (1.0, 0.99, 0.98, 0.97, 0.95, 0.9, 0.8, 0.6, 0.4, 0.2, 0.0)
 
 
 def counterweight_sweep(design: MasterDesign, fractions: tuple[float, ...] = FRACTIONS, *,

@@ -39,7 +39,7 @@ HOLD_PERIOD_S = 1e-3  # 1 kHz firmware
 AXES = ("x", "z")
 NEAR_AXIS = 0.2  # worst case: poses with the handle closer than 0.2·L5 to the θ1 axis are left out
 F_MIN_HZ, F_MAX_HZ = 1e-3, 500.0
-_DB3 = 10 ** (3.0 / 20.0)  # |G| bound of +3 dB (−3 dB is its inverse)
+_DB3 = np.sqrt(2.0)  # ±3 dB read as half/double power: |G_T| = 1/√2 … √2 (as the closed form)
 
 
 @dataclass(frozen=True, kw_only=True)
