@@ -35,7 +35,7 @@ def test_interference_prepare(benchmark, paper):
 
 def test_analytic_mass_properties(benchmark, paper):
     # a different design every call (β sweep), as inside an optimiser: nothing can be cached
-    designs = [io.apply_overrides(paper, [f"geometry.beta_deg={b:.3f}"]) for b in np.linspace(30, 65, 64)]
+    designs = [io.apply_overrides(paper, [f"geometry.beta_deg={b:.3f}"]) for b in np.linspace(30, 60, 64)]
     state = {"k": 0}
 
     def one():

@@ -52,7 +52,13 @@ def _mjcf(design: Any, p, masses) -> str | None:
         from design import mjcf_master  # owned by the master-dynamics work (issue 5)
     except ImportError:
         return None
-    return mjcf_master.master_mjcf(design, mass_properties=masses)
+    from analysis.master_dynamics import FRAMES, BodyMass
+
+    # our part frames are master_kinematics' link frames; the fixed base is not in that model
+    bodies = tuple(BodyMass(name=pm.name, frame=pm.body, mass=pm.mass, com=tuple(float(x) for x in pm.com),
+                            inertia=tuple(tuple(float(x) for x in row) for row in pm.inertia))
+                   for pm in masses.parts.values() if pm.body in FRAMES)
+    return mjcf_master.master_mjcf(design, mass_properties=bodies)
 
 
 def build_assembly(design: Any, p=None) -> tuple[dict[str, Any], dict[str, np.ndarray]]:

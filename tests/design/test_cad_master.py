@@ -114,6 +114,15 @@ def test_hard_cases(paper, override, match):
 def test_export_master(paper, tmp_path):
     from design.export import export
 
+    import json
+
+    import mujoco
+
     res = export(paper, tmp_path)
     names = {f.name for f in res.files}
     assert {f"{paper.name}.step", "mass_properties.json", "handle.stl"} <= names
+    if f"{paper.name}.xml" in names:  # master MJCF of issue 5, fed with the CAD mass properties
+        data = json.loads((tmp_path / "mass_properties.json").read_text())
+        model = mujoco.MjModel.from_xml_path(str(tmp_path / f"{paper.name}.xml"))
+        moving = sum(b["mass_kg"] for n, b in data["bodies"].items() if n != "base")
+        assert model.body_mass.sum() == pytest.approx(moving, rel=1e-6)
