@@ -151,3 +151,15 @@ def test_save_is_atomic(tmp_path, prrr_paper, monkeypatch):
     with pytest.raises(OSError):
         io.save_design(prrr_paper, target)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_saved_files_get_normal_permissions(tmp_path, prrr_paper):
+    """mkstemp creates 0600 files; atomic writes must give the usual umask-based mode."""
+    import os
+    import stat
+
+    target = tmp_path / "d.toml"
+    io.save_design(prrr_paper, target)
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask
