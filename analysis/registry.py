@@ -32,6 +32,7 @@ class EvaluatorEntry:
 EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
     "prrr": (
         EvaluatorEntry(name="statics", module="analysis.prrr_statics"),
+        EvaluatorEntry(name="structural_stiffness", module="analysis.structural_stiffness"),
         EvaluatorEntry(name="workspace", module="analysis.prrr_workspace"),
     ),
     "master": (

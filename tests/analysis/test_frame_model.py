@@ -1,0 +1,135 @@
+"""Frame model: the Timoshenko element against closed forms, the 3-PRRR frame's invariants."""
+
+import dataclasses
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from analysis import frame_model as fm
+from design import io
+
+E, NU = 68.9e9, 0.33  # aluminium 6061 (design/prrr.py defaults)
+
+
+def _section(b=0.02, t=0.01):
+    return fm.Section(jnp.asarray(b), jnp.asarray(t), jnp.asarray(E), jnp.asarray(NU))
+
+
+@pytest.mark.parametrize("n_elements", [1, 4])
+@pytest.mark.parametrize("direction", [(1.0, 0.0, 0.0), (0.3, -0.5, 0.8)])
+def test_cantilever_equals_timoshenko_closed_form(n_elements, direction):
+    # closed form: δ = PL³/(3EI) + PL/(κGA) (Timoshenko); axial PL/EA; torsion TL/GJ
+    L, b, t = 0.2, 0.02, 0.01
+    sec = _section(b, t)
+    pr = fm.section_properties(sec)
+    zref = np.cross(direction, (0.0, 1.0, 0.0))  # any vector not along the beam
+    C = np.asarray(fm.cantilever_compliance(L, sec, direction=direction, zref=zref, n_elements=n_elements))
+    R, _ = fm.beam_axes(jnp.zeros(3), jnp.asarray(direction) * L, jnp.asarray(zref, dtype=float))
+    R = np.asarray(R)
+    T = np.kron(np.eye(2), R)
+    C_local = T @ C @ T.T  # compliance in the beam's local axes
+    G = float(pr.shear_modulus)
+    kappa = float(pr.shear_coefficient)
+    A = b * t
+    expect_y = fm.closed_form_tip_deflection(1.0, L, E, float(pr.i_z), kappa, G, A)
+    expect_z = fm.closed_form_tip_deflection(1.0, L, E, float(pr.i_y), kappa, G, A)
+    assert C_local[1, 1] == pytest.approx(expect_y, rel=1e-9)
+    assert C_local[2, 2] == pytest.approx(expect_z, rel=1e-9)
+    assert C_local[0, 0] == pytest.approx(L / (E * A), rel=1e-9)
+    assert C_local[3, 3] == pytest.approx(L / (G * float(pr.torsion)), rel=1e-9)
+    # tip rotation per tip force: PL²/(2EI) (shear adds no rotation at the clamped-free ends)
+    assert C_local[5, 1] == pytest.approx(L**2 / (2 * E * float(pr.i_z)), rel=1e-9)
+
+
+def test_shear_term_matters_for_a_stubby_beam():
+    # Euler-Bernoulli alone would be off by the PL/(κGA) term: check it is really included
+    L, b, t = 0.03, 0.02, 0.01
+    sec = _section(b, t)
+    pr = fm.section_properties(sec)
+    C = np.asarray(fm.cantilever_compliance(L, sec, direction=(1.0, 0.0, 0.0), zref=(0.0, 0.0, 1.0)))
+    bending_only = L**3 / (3 * E * float(pr.i_z))
+    assert C[1, 1] / bending_only - 1.0 > 0.05
+
+
+def test_rigid_end_zones_shorten_the_flexible_part():
+    # a beam with rigid end zones a1, a2 = a clamped beam of length L − a1 − a2 plus a rigid arm
+    L, a = 0.1, 0.02
+    sec = _section()
+    K = np.asarray(fm.beam_global_stiffness(jnp.zeros(3), jnp.array([L, 0.0, 0.0]), jnp.array([0.0, 0.0, 1.0]),
+                                            sec, 0.0, a))
+    C = np.linalg.inv(K[6:, 6:])
+    pr = fm.section_properties(sec)
+    Lf = L - a
+    # tip of a rigid arm of length a on a cantilever of length Lf (closed form, Timoshenko)
+    v = fm.closed_form_tip_deflection(1.0, Lf, E, float(pr.i_z), float(pr.shear_coefficient),
+                                      float(pr.shear_modulus), 0.02 * 0.01)
+    v += Lf**2 / (2 * E * float(pr.i_z)) * a * 2 + Lf / (E * float(pr.i_z)) * a**2
+    assert C[1, 1] == pytest.approx(v, rel=1e-9)
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return io.load_preset("prrr-paper")
+
+
+@pytest.fixture(scope="module")
+def paper_frame(paper):
+    return fm.solve_frame(fm.frame_params_of(paper))
+
+
+def test_every_leg_reaches_the_end_effector(paper, paper_frame):
+    assert bool(paper_frame["reachable"])
+    assert paper_frame["nodes"].shape == (3, 5, 3)
+
+
+def test_compliance_symmetric_positive_definite(paper_frame):
+    C = paper_frame["compliance_ee"]
+    assert np.allclose(C, C.T, rtol=0, atol=1e-12 * np.abs(C).max())
+    assert np.all(np.linalg.eigvalsh(C) > 0)
+
+
+def test_three_fold_symmetry(paper, paper_frame):
+    # the structure is invariant under a 120° rotation about z at the home pose
+    C = paper_frame["compliance_ee"][:3, :3]
+    c, s = np.cos(2 * np.pi / 3), np.sin(2 * np.pi / 3)
+    Rz = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    assert np.allclose(Rz @ C @ Rz.T, C, rtol=0, atol=1e-9 * np.abs(C).max())
+
+
+def test_released_joints_softer_than_bonded(paper):
+    fp = fm.frame_params_of(paper)
+    released = fm.solve_frame(fp)["stiffness_load"]
+    bonded = fm.solve_frame(fp, options=fm.FrameOptions(joints=fm.Joints.BONDED))["stiffness_load"]
+    assert np.all(bonded > released)
+
+
+def test_sea_springs_in_series_soften_and_are_bounded_by_the_springs(paper):
+    # springs in series: the structure with SEA springs is softer than both the locked structure
+    # and the spring-only stiffness diag(3k/(2tan²β), ·, 3k) (seed 002 eq 14–15)
+    fp = fm.frame_params_of(paper)
+    locked = fm.solve_frame(fp)["stiffness_load"]
+    sea = fm.solve_frame(fp, options=fm.FrameOptions(sea=True))["stiffness_load"]
+    k, beta = paper.actuator.spring, paper.geometry.beta
+    springs_only = np.array([3 * k / (2 * np.tan(beta) ** 2)] * 2 + [3 * k])
+    assert np.all(sea < locked)
+    assert sea[2] < springs_only[2]
+    # z: the SEA springs and the structure act in series along z at the home pose
+    assert 1 / sea[2] == pytest.approx(1 / locked[2] + 1 / springs_only[2], rel=1e-6)
+
+
+def test_batch_equals_single(paper):
+    designs = [paper, dataclasses.replace(paper, geometry=dataclasses.replace(paper.geometry, beta=np.deg2rad(45)))]
+    batch = fm.solve_frame_batch(fm.stack_frame_params(designs))
+    for i, d in enumerate(designs):
+        single = fm.solve_frame(fm.frame_params_of(d))
+        np.testing.assert_allclose(batch["stiffness_load"][i], single["stiffness_load"], rtol=1e-9)
+        np.testing.assert_allclose(batch["elastic_centre"][i], single["elastic_centre"], rtol=1e-9)
+
+
+def test_both_branches_and_rigid_offsets_are_finite(paper):
+    fp = fm.frame_params_of(paper)
+    for options in (fm.FrameOptions(branch=1), fm.FrameOptions(offsets=fm.Offsets.RIGID),
+                    fm.FrameOptions(joint_zones=False)):
+        out = fm.solve_frame(fp, options=options)
+        assert np.all(np.isfinite(out["stiffness_load"])) and np.all(out["stiffness_load"] > 0)
