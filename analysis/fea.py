@@ -241,7 +241,7 @@ def cantilever_fea(*, length: float, width: float, thickness: float, youngs_modu
 
         @LinearForm
         def traction(v, w):
-            return v.value[1] / area  # unit total force along y
+            return v[1] / area  # unit total force along y
 
         return asm(traction, fb)
 

@@ -237,6 +237,7 @@ def rigid_map(r: jax.Array) -> jax.Array:
     return jnp.concatenate([top, bottom], axis=0)
 
 
+@functools.partial(jax.jit, static_argnames=("n_elements",))
 def cantilever_compliance(length, section: Section, *, direction, zref, n_elements: int = 1) -> jax.Array:
     """6×6 tip compliance [SI] of a clamped prismatic beam along ``direction`` (n equal elements).
 

@@ -1,0 +1,66 @@
+"""Solid FEA (gmsh + scikit-fem P2 + pyamg CG) against Timoshenko's cantilever closed form.
+
+Small meshes only; the finer levels and the 3-PRRR solid are in benchmarks/accuracy_structure.py.
+"""
+
+import math
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from analysis import fea
+from analysis import frame_model as fm
+
+L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33  # aluminium bar, L/b = 10
+
+
+@pytest.fixture(scope="module")
+def closed_form():
+    # Timoshenko: δ/P = L³/(3EI) + L/(κGA), κ = Cowper's rectangle value
+    pr = fm.section_properties(fm.Section(jnp.asarray(B), jnp.asarray(T), jnp.asarray(E), jnp.asarray(NU)))
+    return fm.closed_form_tip_deflection(1.0, L, E, float(pr.i_z), float(pr.shear_coefficient),
+                                         float(pr.shear_modulus), B * T)
+
+
+@pytest.fixture(scope="module")
+def levels():
+    sizes = [T * fea.REFINEMENT_RATIO ** (1 - k) for k in range(3)]  # 14.1, 10, 7.1 mm
+    return [fea.cantilever_fea(length=L, width=B, thickness=T, youngs_modulus=E, poisson_ratio=NU, size=s)
+            for s in sizes]
+
+
+def test_cantilever_fea_within_1_percent_of_timoshenko(levels, closed_form):
+    finest = levels[-1]
+    assert finest.compliance == pytest.approx(closed_form, rel=0.01)
+
+
+def test_cantilever_fea_converges_with_observed_rate(levels, closed_form):
+    c = [r.compliance for r in levels]
+    # compliance is an energy: the FE solution is stiffer and converges monotonically from below
+    assert c[0] < c[1] < c[2] < closed_form * 1.01
+    rich = fea.richardson(*c)
+    # observed order on unstructured meshes: > 1 (theory for P2 energy: up to 4; clamp corners lower it)
+    assert rich.order > 1.0 and math.isfinite(rich.order)
+    assert rich.extrapolated == pytest.approx(closed_form, rel=0.01)
+    assert levels[-1].n_dofs > levels[0].n_dofs
+
+
+def test_rigid_body_modes_span_the_kernel():
+    mesh = fea.cantilever_mesh(length=0.05, width=B, thickness=T, size=0.02)
+    from skfem import Basis, ElementTetP2, ElementVector, MeshTet, asm
+    from skfem.models.elasticity import lame_parameters, linear_elasticity
+
+    basis = Basis(MeshTet(mesh.points, mesh.tets), ElementVector(ElementTetP2()))
+    K = asm(linear_elasticity(*lame_parameters(E, NU)), basis)
+    Bm = fea.rigid_body_modes(basis, centre=(0.01, 0.0, 0.0))
+    assert np.abs(K @ Bm).max() < 1e-6 * abs(K).max() * np.abs(Bm).max()
+
+
+def test_richardson_recovers_a_known_limit():
+    # f(h) = 1 + h² sampled at h, h/r, h/r²: order 2, limit 1 (exact for this model)
+    r = fea.REFINEMENT_RATIO
+    f = [1 + (0.1 / r**k) ** 2 for k in range(3)]
+    rich = fea.richardson(*f)
+    assert rich.order == pytest.approx(2.0, rel=1e-9)
+    assert rich.extrapolated == pytest.approx(1.0, rel=1e-12)
