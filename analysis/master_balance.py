@@ -40,7 +40,8 @@ SINGULAR_MARGIN = np.deg2rad(2.0)  # [rad] poses with φ within this of 0° or 1
 
 #: grid size per axis and zoom levels of the workspace maximisation per fidelity
 _GRID = {Fidelity.DRAFT: (21, 0), Fidelity.STANDARD: (41, 4), Fidelity.FINE: (161, 6)}
-_N_DIRECTIONS = {Fidelity.DRAFT: 90, Fidelity.STANDARD: 180, Fidelity.FINE: 720}
+_N_DIRECTIONS = {Fidelity.DRAFT: 45, Fidelity.STANDARD: 90, Fidelity.FINE: 360}  # over [0°, 180°)
+_REGION_GRID = {Fidelity.DRAFT: 21, Fidelity.STANDARD: 31, Fidelity.FINE: 161}  # region boundary (plot, overlap)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -204,17 +205,26 @@ def evaluate_parameters(design: MasterDesign, gp: md.GravityParameters, *, fidel
     radius = threshold / smax
     A_w = unbalance_maps(L5, L4, Mg, np.asarray(t3s), np.asarray(phs))
     worst = np.linalg.svd(A_w)[2][0]
-    # boundary of the admissible region along directions ψ ∈ [0, 2π)
-    psi = np.linspace(0.0, 2 * np.pi, 2 * _N_DIRECTIONS[fidelity], endpoint=False)
+    # boundary of the admissible region ρ(ψ) = T / max_q |A(q) d(ψ)|; symmetric, ρ(ψ + π) = ρ(ψ)
+    k = _N_DIRECTIONS[fidelity]
+    half = np.linspace(0.0, np.pi, k, endpoint=False)
+    m = _REGION_GRID[fidelity]
     (a0, a1), (b0, b1) = ws.theta3, ws.phi
-    T, Ph = np.meshgrid(np.linspace(a0, a1, n), np.linspace(b0, b1, n), indexing="ij")
-    A = unbalance_maps(L5, L4, Mg, T.ravel(), Ph.ravel())  # (m, 2, 2)
-    D = np.stack([np.cos(psi), np.sin(psi)], 0)  # (2, k)
-    gains = np.max(np.linalg.norm(A @ D, axis=1), axis=0)  # (k,) max_q |A d|
-    radii = threshold / gains
-    radii = np.minimum(radii, np.max(radii))  # finite by construction (gains > 0 off the singular strip)
-    # paper-style ellipse (eq 7/12): axes along the diagonals, semi-axes = region extent there
-    ax = _boundary_at(psi, radii, np.pi / 4), _boundary_at(psi, radii, -np.pi / 4)
+    T, Ph = np.meshgrid(np.linspace(a0, a1, m), np.linspace(b0, b1, m), indexing="ij")
+    A = unbalance_maps(L5, L4, Mg, T.ravel(), Ph.ravel())  # (m², 2, 2)
+    D = np.stack([np.cos(half), np.sin(half)], 0)  # (2, k)
+    gains = np.sqrt(np.max(np.sum((A @ D) ** 2, axis=1), axis=0))  # (k,) max_q |A d|
+    gains = np.maximum(gains, smax * 1e-12)  # finite: max |A d| ≥ 0 can only vanish on a null direction
+    psi = np.concatenate([half, half + np.pi])
+    radii = np.tile(threshold / gains, 2)
+
+    # paper-style ellipse (eq 7/12): axes along the diagonals, semi-axes = exact region extent there
+    def extent(direction: np.ndarray) -> float:
+        g, _, _ = _maximise(lambda T_, P_: np.linalg.norm(unbalance_maps(L5, L4, Mg, T_, P_) @ direction, axis=-1),
+                            ws, n, levels)
+        return float(threshold / max(g, smax * 1e-12))
+
+    ax = (extent(np.array([1.0, 1.0]) / np.sqrt(2)), extent(np.array([1.0, -1.0]) / np.sqrt(2)))
     rho_e = _ellipse_radius(psi, ax[0], ax[1])
     inter = np.sum(np.minimum(radii, rho_e) ** 2)
     union = np.sum(np.maximum(radii, rho_e) ** 2)
@@ -224,11 +234,6 @@ def evaluate_parameters(design: MasterDesign, gp: md.GravityParameters, *, fidel
         worst_direction=(float(worst[0]), float(worst[1])), worst_pose=q_of(t3s, phs), region_angles=psi,
         region_radii=radii, ellipse_axes=(float(ax[0]), float(ax[1])), ellipse_overlap=float(inter / union),
         balancing_masses=masses, status=status, message=message)
-
-
-def _boundary_at(psi: np.ndarray, radii: np.ndarray, angle: float) -> float:
-    ang = np.mod(angle, 2 * np.pi)
-    return float(np.interp(ang, np.append(psi, 2 * np.pi), np.append(radii, radii[0])))
 
 
 def _ellipse_radius(psi: np.ndarray, a: float, b: float) -> np.ndarray:

@@ -106,6 +106,14 @@ def analytic_mass_properties(design: MasterDesign) -> tuple[BodyMass, ...]:
     )
 
 
+def bodies_from_mass_properties(props) -> tuple[BodyMass, ...]:
+    """Bodies from :class:`design.mass_properties.MassProperties` (the CAD engineer's analytic or
+    CAD model; part frames = link frames); parts on the fixed base are dropped."""
+    return tuple(BodyMass(name=pm.name, frame=pm.body, mass=float(pm.mass), com=tuple(float(x) for x in pm.com),
+                          inertia=tuple(tuple(float(x) for x in row) for row in pm.inertia))
+                 for pm in props.parts.values() if pm.body in FRAMES)
+
+
 class MassModel(NamedTuple):
     """Dynamics parameters as a jax pytree [SI]; nb = number of bodies."""
 
@@ -131,7 +139,7 @@ def model_of(design: MasterDesign, bodies: tuple[BodyMass, ...] | None = None, *
         sel[i, FRAMES.index(b.frame)] = 1.0
     a = design.actuators
     return MassModel(
-        kin=mk.params_of(design),
+        kin=mk.MasterParams(*(np.asarray(float(v)) for v in mk.params_of(design))),
         mass=np.asarray([b.mass for b in bodies], dtype=float),
         com=np.asarray([b.com for b in bodies], dtype=float).reshape(-1, 3),
         inertia=np.asarray([b.inertia for b in bodies], dtype=float).reshape(-1, 3, 3),

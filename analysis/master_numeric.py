@@ -34,8 +34,9 @@ def frames(kin, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     elbow = shoulder + L5 * u
     o = np.stack([0 * e_z, shoulder, shoulder, shoulder - d * f, elbow, elbow + L4 * f], 1)
 
-    def rot(x):
-        return np.stack([x, axis, np.cross(x, axis)], -1)
+    def rot(x):  # columns x, a, x × a with a = (s1, −c1, 0)
+        cross = np.stack([x[:, 2] * c1, x[:, 2] * s1, -x[:, 0] * c1 - x[:, 1] * s1], -1)
+        return np.stack([x, axis, cross], -1)
 
     R = np.stack([np.stack([e_rho, -axis, e_z], -1), rot(u), rot(-f), rot(u), rot(f), rot(f)], 1)
     return o, R

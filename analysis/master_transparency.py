@@ -80,11 +80,14 @@ def default_pose(design: MasterDesign) -> np.ndarray:
     return np.array([0.5 * (j.theta1_min + j.theta1_max), 0.5 * np.pi + t3 - ph, t3])
 
 
-def axis_coefficients(model: md.MassModel, q: np.ndarray, amplitude: float = AMPLITUDE_M) -> AxisCoefficients:
+def axis_coefficients(model: md.MassModel, q: np.ndarray, amplitude: float = AMPLITUDE_M, *,
+                      gravity: md.GravityParameters | None = None) -> AxisCoefficients:
     """Apparent mass, damping, gravity stiffness and Coulomb term along x and z at poses q (…, 3).
 
     NumPy fast path (:mod:`analysis.master_numeric`); the gravity stiffness is the central
-    difference of J⁻ᵀG along δq = h·J⁻¹e (h = 1e-5 m, error ~1e-10 relative).
+    difference of J⁻ᵀG along δq = h·J⁻¹e (h = 1e-5 m, error ~1e-10 relative), with G in the
+    eq-4 form whose coefficients come from the general G (:func:`md.gravity_parameters`;
+    the tests check the form against the general ∂V/∂q).
     """
     from analysis import master_numeric as mn
 
@@ -102,9 +105,12 @@ def axis_coefficients(model: md.MassModel, q: np.ndarray, amplitude: float = AMP
     b = np.einsum("nja,j,nja->na", V, np.asarray(model.viscous), V)
     cf = (4.0 / np.pi) * np.einsum("j,nja->na", np.asarray(model.coulomb), np.abs(V)) / amplitude
 
+    gp = md.gravity_parameters(model) if gravity is None else gravity
+
     def gravity_force(qq: np.ndarray) -> np.ndarray:
         Jq = mn.jacobian(model.kin, qq)
-        return np.linalg.solve(np.swapaxes(Jq, -1, -2), mn.gravity_torque(model, qq)[..., None])[..., 0]
+        G = np.stack([np.zeros(len(qq)), gp.G1 * np.cos(qq[:, 1]), gp.G2 * np.sin(qq[:, 2])], -1)
+        return np.linalg.solve(np.swapaxes(Jq, -1, -2), G[..., None])[..., 0]
 
     h = 1e-5
     kg = np.empty_like(lam)
@@ -136,17 +142,18 @@ def transfer(coef: AxisCoefficients, freq_hz: np.ndarray, setup: RenderingSetup 
     return num / setup.spring
 
 
-def bandwidth(coef: AxisCoefficients, setup: RenderingSetup = RenderingSetup(), *, n_grid: int = 200,
-              iterations: int = 40) -> tuple[np.ndarray, np.ndarray]:
+def bandwidth(coef: AxisCoefficients, setup: RenderingSetup = RenderingSetup(), *, n_grid: int = 120,
+              iterations: int = 14) -> tuple[np.ndarray, np.ndarray]:
     """First frequency [Hz] where |G_T| leaves [−3 dB, +3 dB], per entry; and a flag 'left at DC'.
 
-    Log grid from F_MIN_HZ to F_MAX_HZ, then bisection in log f on the first bracketing cell.
+    Log grid from F_MIN_HZ to F_MAX_HZ, then bisection in log f on the first bracketing cell and
+    a final linear interpolation of log|G_T| in the last bracket (relative error < 1e-9).
     Entries that never leave the band below F_MAX_HZ get F_MAX_HZ; entries already outside at
     F_MIN_HZ get 0.
     """
     f = np.geomspace(F_MIN_HZ, F_MAX_HZ, n_grid)
-    out = lambda ff: _outside(transfer(coef, ff, setup))  # noqa: E731
-    o = out(f)  # (…, n)
+    G = np.abs(transfer(coef, f, setup))  # (…, n)
+    o = (G > _DB3) | (G < 1.0 / _DB3)
     first = np.argmax(o, axis=-1)
     never = ~o.any(axis=-1)
     at_dc = o[..., 0]
@@ -157,7 +164,13 @@ def bandwidth(coef: AxisCoefficients, setup: RenderingSetup = RenderingSetup(), 
         om = _outside_pointwise(coef, np.exp(mid), setup)
         hi = np.where(om, mid, hi)
         lo = np.where(om, lo, mid)
-    bw = np.exp(0.5 * (lo + hi))
+    # last bracket: interpolate log|G_T| linearly onto the bound it crosses
+    g_lo = np.log(np.abs(_pointwise(coef, np.exp(lo), setup)))
+    g_hi = np.log(np.abs(_pointwise(coef, np.exp(hi), setup)))
+    bound = np.where(g_hi > 0, np.log(_DB3), -np.log(_DB3))
+    span = np.where(np.abs(g_hi - g_lo) > 0, g_hi - g_lo, 1.0)
+    s = np.clip((bound - g_lo) / span, 0.0, 1.0)
+    bw = np.exp(lo + s * (hi - lo))
     bw = np.where(never, F_MAX_HZ, np.where(at_dc, 0.0, bw))
     return bw, at_dc
 
@@ -168,13 +181,18 @@ def _outside(G: np.ndarray) -> np.ndarray:
 
 
 def _outside_pointwise(coef: AxisCoefficients, f: np.ndarray, setup: RenderingSetup) -> np.ndarray:
+    return _outside(_pointwise(coef, f, setup))
+
+
+def _pointwise(coef: AxisCoefficients, f: np.ndarray, setup: RenderingSetup) -> np.ndarray:
+    """G_T at one frequency per entry (f has the entries' shape)."""
     w = 2 * np.pi * f
     H = hold(w, setup.hold_period)
     c = setup.compensation
     keep = lambda comp: (1.0 - H) if comp else 1.0  # noqa: E731
     num = (setup.spring * H + coef.gravity_stiffness * keep(c.gravity)
            + (1j * w * coef.damping + 1j * coef.coulomb) * keep(c.friction) - w**2 * coef.mass * keep(c.inertia))
-    return _outside(num / setup.spring)
+    return num / setup.spring
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -211,7 +229,8 @@ def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, se
     fidelity = Fidelity(fidelity)
     model = md.model_of(design) if model is None else model
     q0 = default_pose(design) if pose is None else np.asarray(pose, dtype=float)
-    coef = axis_coefficients(model, q0[None], setup.amplitude)
+    gp = md.gravity_parameters(model)
+    coef = axis_coefficients(model, q0[None], setup.amplitude, gravity=gp)
     status, message = Status.OK, ""
     if not bool(coef.valid[0]):
         return MasterTransparency(pose=tuple(map(float, q0)), bandwidth=(0.0, 0.0), apparent_mass=(0.0, 0.0),
@@ -233,7 +252,7 @@ def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, se
         g = design.geometry
         rho = g.upper_arm * np.cos(Q[:, 1]) + g.forearm * np.sin(Q[:, 2])
         Q = Q[rho >= NEAR_AXIS * g.upper_arm]  # near the θ1 axis the turret's apparent mass diverges
-        cw = axis_coefficients(model, Q, setup.amplitude)
+        cw = axis_coefficients(model, Q, setup.amplitude, gravity=gp)
         bws, _ = bandwidth(cw, setup)
         bws = np.where(cw.valid[:, None], bws, np.inf)
         k = np.argmin(bws, axis=0)

@@ -83,3 +83,18 @@ def test_custom_mass_properties_are_used(design):
     heavier = tuple(dataclasses.replace(b, mass=2 * b.mass) if b.name == "handle" else b for b in bodies)
     m = mujoco.MjModel.from_xml_string(master_mjcf(design, heavier))
     np.testing.assert_allclose(m.body_mass[m.body("handle_mass").id], 2 * design.links.handle_mass)
+
+
+def test_cad_mass_model_matches_mujoco_too():
+    # the CAD engineer's geometric mass model (design.mass_properties.analytic) through the same path
+    from design import mass_properties as mp
+
+    d = load_preset("master-paper")
+    bodies = md.bodies_from_mass_properties(mp.analytic(d))
+    m = mujoco.MjModel.from_xml_string(master_mjcf(d, bodies))
+    data = mujoco.MjData(m)
+    model = md.model_of(d, bodies)
+    q = np.array([0.3, 0.4, -0.6])
+    M_mj, G_mj = _reduced(m, data, q)
+    np.testing.assert_allclose(M_mj, mn.mass_matrix(model, q[None])[0], atol=1e-8)
+    np.testing.assert_allclose(G_mj, mn.gravity_torque(model, q[None])[0], atol=1e-7)
