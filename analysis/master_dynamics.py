@@ -35,21 +35,6 @@ import numpy as np
 from analysis import master_kinematics as mk
 from design.master import MasterDesign
 
-def _enable_compilation_cache() -> None:
-    """jit compilation dominates a short CLI call (pitfalls: jax): keep compiled code on disk.
-
-    Directory ``$HAPTICOPT_JAX_CACHE`` or ``~/.cache/hapticopt/jax``; set it to an empty string to
-    switch the cache off.
-    """
-    import os
-
-    path = os.environ.get("HAPTICOPT_JAX_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "hapticopt", "jax"))
-    if path and jax.config.jax_compilation_cache_dir is None:
-        jax.config.update("jax_compilation_cache_dir", path)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
-
-
-_enable_compilation_cache()
 
 GRAVITY = 9.81  # [m/s²], standard value used by every evaluator and the MJCF
 FRAMES = mk.LinkFrames._fields  # ("turret", "upper_arm", "driver_link", "coupler", "forearm", "handle")
