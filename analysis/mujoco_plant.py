@@ -1,0 +1,325 @@
+"""The multibody (MuJoCo) plant of the 3-PRRR for the closed-loop runner.
+
+Implements :class:`analysis.plant.Plant` on the model of :mod:`analysis.mujoco_prrr`: the
+firmware controller (``analysis.firmware``) runs at its period T; its commands are held (zero-
+order hold, or L samples per period with the seed 000 interpolation) over ``T / timestep``
+MuJoCo substeps; the runner reads the plant's sensors and quantises them exactly as for the
+lumped plant. The operator hand is a body (mass m_h on springs k_h and dampers b_h to the
+reference motion, seed 000 eq 1) tied to the handle by a ``<connect>``; its reference is
+updated once per period at the period's midpoint (second-order accurate).
+
+Every run reports constraint health (worst closed-chain violation, platform rotation,
+end-effector vs forward-kinematics closure) and MuJoCo's warnings; a run that leaves the
+tolerance (:data:`VIOLATION_TOL`, :data:`ROTATION_TOL`) or raised a warning is flagged in its
+status and message, never silently reported. A ``BADQACC`` warning (MuJoCo resets the state
+on it) makes the observation non-finite so the runner stops the run as unstable.
+
+Backend choice (:func:`choose_backend`): the lumped plant when the scene's effects allow it
+(it is exact for the rigid translational dynamics), the multibody plant when
+``link_dynamics`` is on, or whichever the caller forces; the reason is reported.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from analysis.fidelity import Fidelity
+from analysis.mujoco_prrr import (
+    SOLVER_BY_FIDELITY,
+    HandSettings,
+    Health,
+    LinkMasses,
+    ModelOptions,
+    Platform,
+    PrrrMj,
+    ZERO_HEALTH,
+    build,
+    set_pose,
+)
+from analysis.plant import Observation, Sensors
+from analysis.scene import Backend, Effect, Resolution, Scene, resolve
+from analysis.status import Status
+from design.errors import InvalidInput
+from design.prrr import PrrrDesign
+
+#: closed-chain tolerances of issue 8 (constraint violation [m], platform rotation [rad])
+VIOLATION_TOL = 1e-5
+ROTATION_TOL = 1e-4
+
+_BADQACC = 1  # index of mjWARN_BADQACC in MjData.warning
+
+
+@dataclass(frozen=True, kw_only=True)
+class BackendChoice:
+    backend: Backend
+    reason: str
+    resolution: Resolution
+
+
+def choose_backend(scene: Scene, *, force: Backend | None = None) -> BackendChoice:
+    """Lumped when the effects allow it, multibody when ``link_dynamics`` is on; ``force`` overrides."""
+    res = resolve(scene, available=frozenset(Backend))
+    if force is None or force == res.backend:
+        return BackendChoice(backend=res.backend, reason=res.reason, resolution=res)
+    if force == Backend.LUMPED and Effect.LINK_DYNAMICS in res.effects:
+        raise InvalidInput(f"scene {scene.name}: backend = lumped cannot simulate link_dynamics "
+                           "(switch effects.link_dynamics off, or use backend = multibody)")
+    reason = f"forced by the caller (the resolver would pick {res.backend}: {res.reason})"
+    return BackendChoice(backend=force, reason=reason,
+                         resolution=dataclasses.replace(res, backend=force, reason=reason))
+
+
+def model_options(scene: Scene, resolution: Resolution, *, fidelity: Fidelity = Fidelity.STANDARD,
+                  platform: Platform = Platform.FREE, link_masses: LinkMasses | None = None) -> ModelOptions:
+    """The MuJoCo model a scene's resolved effects call for."""
+    fx = resolution.effects
+    if scene.output_locked:
+        raise InvalidInput(f"scene {scene.name}: simulation.output_locked tests the SEA force loop alone; "
+                           "it runs on the lumped plant (no linkage moves)")
+    op = scene.operator
+    hand = (HandSettings(mass=op.mass, damping=op.damping, stiffness=op.stiffness)
+            if Effect.OPERATOR in fx else None)
+    if link_masses is None:
+        link_masses = LinkMasses.REAL if Effect.LINK_DYNAMICS in fx else LinkMasses.LUMPED
+    return ModelOptions(
+        link_masses=link_masses, platform=platform,
+        sea_compliance=Effect.SEA_COMPLIANCE in fx, motor_dynamics=Effect.MOTOR_DYNAMICS in fx,
+        viscous_friction=Effect.VISCOUS_FRICTION in fx, coulomb_friction=Effect.COULOMB_FRICTION in fx,
+        gravity=Effect.GRAVITY in fx, hand=hand, solver=SOLVER_BY_FIDELITY[fidelity],
+    )
+
+
+class MujocoPlant:
+    """:class:`analysis.plant.Plant` on the MuJoCo 3-PRRR. Not thread-safe (owns one MjData)."""
+
+    backend = "multibody"
+
+    def __init__(self, design: PrrrDesign, scene: Scene, options: ModelOptions, *, period: float,
+                 interpolation: int = 1) -> None:
+        import mujoco
+
+        self._mujoco = mujoco
+        self.design, self.scene, self.options = design, scene, options
+        self.mj: PrrrMj = build(design, options)
+        self.model = self.mj.model
+        self.data = mujoco.MjData(self.model)
+        dt = options.solver.timestep
+        n = max(1, int(round(period / dt)))
+        L = max(1, interpolation)
+        self.substeps = L * math.ceil(n / L)
+        self.model.opt.timestep = period / self.substeps  # an exact multiple of the period
+        self.period = period
+        self.per_sample = self.substeps // L
+        a = design.actuator
+        self.rigid = options.motor_dynamics and not options.sea_compliance
+        self.ideal = not options.motor_dynamics
+        self.gain = 1.0 if self.ideal else a.efficiency
+        self.spring = a.spring
+        self.J = self.mj.jacobian
+        self.JinvT = np.linalg.inv(self.J).T
+        m = self.model
+        self._eq_rows = 3 * m.neq
+        self._free = options.platform is Platform.FREE
+        self._ee_pos = self.mj.ee_qpos[:3]
+        ee_dof = m.jnt_dofadr[m.body_jntadr[self.mj.ee_body]]
+        self._ee_dof = np.arange(ee_dof, ee_dof + 3)
+        self._slider_dof = np.asarray(self.mj.actuator_joint_dof)
+        mo = scene.motion
+        self._amp = np.asarray(mo.amplitude, dtype=float)
+        self._offset = np.asarray(mo.offset, dtype=float)
+        self._phase = np.asarray(mo.phase, dtype=float)
+        self._w = 2.0 * math.pi * mo.frequency
+        self._hand = options.hand
+        if self._hand is not None:
+            self._hand_spring_adr = np.asarray(self.mj.hand_qpos)  # qpos_spring shares qpos layout
+        self.reset()
+
+    # ----------------------------------------------------------------------------- interface
+    def reset(self) -> None:
+        mj, d = self._mujoco, self.data
+        mj.mj_resetData(self.model, d)
+        p0 = np.asarray(self.scene.initial_offset, dtype=float)
+        set_pose(self.mj, d, p0)
+        self.t = 0.0
+        self.u = np.zeros(3)
+        self.health = ZERO_HEALTH
+        self.bad_qacc = False
+        if self._hand is not None:
+            self._set_reference(0.0)
+            d.qpos[self.mj.hand_qpos] = p0
+        mj.mj_forward(self.model, d)
+
+    def sensors(self) -> Sensors:
+        q = self.data.qpos
+        slider = self.mj.sliders(q) - self.mj.c_e
+        if self.ideal:
+            defl = self.u / self.spring  # the spring carries exactly the commanded force
+        else:
+            defl = self.mj.deflection(q)
+        return Sensors(slider=slider, deflection=defl)
+
+    def advance(self, commands: np.ndarray) -> None:
+        mj, m, d = self._mujoco, self.model, self.data
+        commands = np.atleast_2d(commands)
+        h = self.per_sample * m.opt.timestep
+        for row in commands:
+            self.u = row
+            d.ctrl[:] = self.gain * row
+            if self._hand is not None:
+                self._set_reference(self.t + 0.5 * h)
+            mj.mj_step(m, d, nstep=self.per_sample)
+            self.t += h
+        self._check()
+
+    def observe(self) -> Observation:
+        d = self.data
+        if self.bad_qacc:
+            nan = np.full(3, np.nan)
+            return Observation(position=nan, velocity=nan, hand_force=nan, actuator_force=nan, energy=math.nan)
+        p = d.qpos[self._ee_pos].copy()
+        v = d.qvel[self._ee_dof].copy()
+        if self._hand is not None:
+            h = self._hand
+            ref, dref = self.reference(self.t)
+            qh, vh = d.qpos[self.mj.hand_qpos], d.qvel[self.mj.hand_dof]
+            hand = h.stiffness * (ref - qh) + h.damping * (dref - vh) - h.mass * d.qacc[self.mj.hand_dof]
+        else:
+            hand = np.zeros(3)
+        if self.ideal:
+            f = self.u.copy()
+        elif self.rigid:  # force the transmission delivers to the output: ηF − ξḊ − M_m D̈
+            dof = self._slider_dof
+            xi = self.design.actuator.viscous if self.options.viscous_friction else 0.0
+            f = self.gain * self.u - xi * d.qvel[dof] - self.design.actuator.motor_mass * d.qacc[dof]
+        else:
+            f = self.spring * self.mj.deflection(d.qpos)
+        defl = self.mj.deflection(d.qpos)
+        energy = float(d.energy[1]) + 0.5 * self.spring * float(defl @ defl) if self._energy_on else math.nan
+        return Observation(position=p, velocity=v, hand_force=hand, actuator_force=self.JinvT @ f, energy=energy)
+
+    # ----------------------------------------------------------------------------- internals
+    @property
+    def _energy_on(self) -> bool:
+        return bool(self.model.opt.enableflags & self._mujoco.mjtEnableBit.mjENBL_ENERGY)
+
+    def enable_energy(self) -> None:
+        """Let MuJoCo compute kinetic energy (observation ``energy``); costs ≈ one mass-matrix product."""
+        self.model.opt.enableflags |= self._mujoco.mjtEnableBit.mjENBL_ENERGY
+
+    def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Hand reference x_r(t) and its rate [m, m/s]."""
+        arg = self._w * t + self._phase
+        return self._offset + self._amp * np.sin(arg), self._amp * self._w * np.cos(arg)
+
+    def _set_reference(self, t: float) -> None:
+        ref, dref = self.reference(t)
+        self.model.qpos_spring[self._hand_spring_adr] = ref
+        self.data.qfrc_applied[self.mj.hand_dof] = self._hand.damping * dref
+
+    def _check(self) -> None:
+        d = self.data
+        if d.warning[_BADQACC].number > 0:
+            self.bad_qacc = True
+        n = self._eq_rows
+        viol = float(np.max(np.abs(d.efc_pos[:n]))) if n and d.nefc >= n else 0.0
+        if self._free:
+            quat = d.xquat[self.mj.ee_body]
+            rot = 2.0 * math.atan2(math.sqrt(quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2), abs(quat[0]))
+        else:
+            rot = 0.0
+        sliders = d.xpos[self.mj.carriage_body, 2] - self.mj.carriage_home_z
+        closure = float(np.linalg.norm(d.xpos[self.mj.ee_body] - self.J @ sliders))
+        h = self.health
+        self.health = Health(violation=max(h.violation, viol), rotation=max(h.rotation, rot),
+                             closure=max(h.closure, closure))
+
+    def warnings(self) -> tuple[str, ...]:
+        """Names and counts of the MuJoCo warnings raised since the last reset."""
+        out = []
+        for i, w in enumerate(self.data.warning):
+            if w.number > 0:
+                out.append(f"{self._mujoco.mjtWarning(i).name} x{w.number}")
+        return tuple(out)
+
+
+# ------------------------------------------------------------------------------- closed loop
+@dataclass(frozen=True, kw_only=True)
+class MultibodyResult:
+    """A closed-loop run on the multibody plant: the runner's result + constraint health."""
+
+    loop: Any  # analysis.closed_loop.ClosedLoopResult
+    health: Health
+    warnings: tuple[str, ...]
+    substeps: int
+    timestep: float  # [s]
+    integrator: str
+    platform: str
+    link_masses: str
+    reason: str
+    wall_time: float  # [s]
+    status: Status
+    message: str
+
+    @property
+    def health_ok(self) -> bool:
+        return self.health.violation <= VIOLATION_TOL and self.health.rotation <= ROTATION_TOL
+
+    def metrics(self) -> dict[str, Any]:
+        out = dict(self.loop.metrics())
+        out.update(self.health.metrics())
+        out.update({
+            "backend": "multibody", "backend_reason": self.reason, "constraint_health_ok": self.health_ok,
+            "mujoco_warnings": list(self.warnings), "plant_substeps": self.substeps,
+            "mujoco_timestep_ms": self.timestep * 1e3, "mujoco_integrator": self.integrator,
+            "platform_model": self.platform, "link_masses": self.link_masses, "wall_time_s": self.wall_time,
+        })
+        return out
+
+
+def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
+             platform: Platform = Platform.FREE, link_masses: LinkMasses | None = None,
+             reason: str | None = None) -> MultibodyResult:
+    """Run ``scene`` on ``design`` with the firmware controller in the loop on the MuJoCo plant."""
+    from analysis import closed_loop, firmware
+
+    choice = choose_backend(scene, force=Backend.MULTIBODY)
+    res = choice.resolution
+    # the runner's setup (controller, gains, ticks, energy scale) is backend-independent; it is
+    # built on the scene without link_dynamics, which only the plant needs
+    lumped_scene = dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS})
+    st = closed_loop.setup(design, lumped_scene, fidelity=fidelity)
+    options = model_options(scene, res, fidelity=fidelity, platform=platform, link_masses=link_masses)
+    plant = MujocoPlant(design, scene, options, period=st.period, interpolation=st.cfg.interpolation)
+    plant.enable_energy()
+    st = dataclasses.replace(st, resolution=res, substeps=plant.substeps)
+    controller = firmware.FirmwareController(st.cfg, st.gains)
+    t0 = time.perf_counter()
+    traces = closed_loop.run_with_plant(plant, controller, st)
+    wall = time.perf_counter() - t0
+    loop = closed_loop.metrics_from_traces(traces, st, 0, backend="multibody", wall_time=wall)
+    warns = plant.warnings()
+    status, message = loop.status, loop.message
+    health = plant.health
+    problems = []
+    if health.violation > VIOLATION_TOL:
+        problems.append(f"constraint violation {health.violation * 1e3:.3g} mm > {VIOLATION_TOL * 1e3:g} mm")
+    if health.rotation > ROTATION_TOL:
+        problems.append(f"platform rotation {health.rotation * 1e3:.3g} mrad > {ROTATION_TOL * 1e3:g} mrad")
+    if warns:
+        problems.append("MuJoCo warnings: " + ", ".join(warns))
+    if problems:
+        message = "; ".join(([message] if message else []) + problems)
+        if status == Status.OK:
+            status = Status.FAILED
+    return MultibodyResult(
+        loop=loop, health=health, warnings=warns, substeps=plant.substeps, timestep=float(plant.model.opt.timestep),
+        integrator=options.solver.integrator.value, platform=options.platform.value,
+        link_masses=options.link_masses.value, reason=reason or choice.reason, wall_time=wall,
+        status=status, message=message,
+    )
