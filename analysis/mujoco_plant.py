@@ -38,6 +38,7 @@ from analysis.mujoco_prrr import (
     ModelOptions,
     Platform,
     PrrrMj,
+    SolverSettings,
     ZERO_HEALTH,
     build,
     set_pose,
@@ -284,7 +285,7 @@ class MultibodyResult:
 
 def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
              platform: Platform = Platform.FREE, link_masses: LinkMasses | None = None,
-             reason: str | None = None) -> MultibodyResult:
+             solver: SolverSettings | None = None, reason: str | None = None) -> MultibodyResult:
     """Run ``scene`` on ``design`` with the firmware controller in the loop on the MuJoCo plant."""
     from analysis import closed_loop, firmware
 
@@ -295,6 +296,8 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
     lumped_scene = dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS})
     st = closed_loop.setup(design, lumped_scene, fidelity=fidelity)
     options = model_options(scene, res, fidelity=fidelity, platform=platform, link_masses=link_masses)
+    if solver is not None:
+        options = dataclasses.replace(options, solver=solver)
     plant = MujocoPlant(design, scene, options, period=st.period, interpolation=st.cfg.interpolation)
     plant.enable_energy()
     st = dataclasses.replace(st, resolution=res, substeps=plant.substeps)
@@ -323,3 +326,53 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
         link_masses=options.link_masses.value, reason=reason or choice.reason, wall_time=wall,
         status=status, message=message,
     )
+
+
+# ------------------------------------------------------------------------- stability limits
+def _setup_and_plant(design: PrrrDesign, scene: Scene, backend: Backend, fidelity: Fidelity,
+                     platform: Platform, link_masses: LinkMasses | None):
+    from analysis import closed_loop
+    from analysis.lumped_plant import LumpedPlant
+
+    lumped_scene = dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS})
+    st = closed_loop.setup(design, lumped_scene, fidelity=fidelity)
+    if backend == Backend.LUMPED:
+        return st, LumpedPlant(st.model, st.period, st.substeps)
+    choice = choose_backend(scene, force=Backend.MULTIBODY)
+    options = model_options(scene, choice.resolution, fidelity=fidelity, platform=platform, link_masses=link_masses)
+    plant = MujocoPlant(design, scene, options, period=st.period, interpolation=st.cfg.interpolation)
+    plant.enable_energy()
+    return dataclasses.replace(st, resolution=choice.resolution, substeps=plant.substeps), plant
+
+
+def stiffness_limit(design: PrrrDesign, scene: Scene, *, backend: Backend, axis: int = 0,
+                    bracket: tuple[float, float], iterations: int = 7, fidelity: Fidelity = Fidelity.STANDARD,
+                    platform: Platform = Platform.TRANSLATIONAL,
+                    link_masses: LinkMasses | None = LinkMasses.LUMPED) -> tuple[float, float]:
+    """Largest stable virtual stiffness K_v along ``axis`` [N/m] by bisection (geometric mean).
+
+    Both plants run the same Python loop (:func:`analysis.closed_loop.run_with_plant`) and the
+    same stability classification (the scene's criterion, e.g. ``decay``). Returns the bracket
+    (stable, unstable) after ``iterations`` halvings of its log-width.
+    """
+    from analysis import closed_loop, firmware
+
+    st, plant = _setup_and_plant(design, scene, backend, fidelity, platform, link_masses)
+    lo, hi = bracket
+
+    def stable(K: float) -> bool:
+        stiff = np.array(st.gains.stiffness, dtype=float)
+        stiff[axis] = K
+        gains = st.gains._replace(stiffness=np.asarray(stiff))
+        ctl = firmware.FirmwareController(st.cfg, gains)
+        tr = closed_loop.run_with_plant(plant, ctl, dataclasses.replace(st, gains=gains))
+        ok, _ = closed_loop.classify(tr, st)
+        return bool(ok[0])
+
+    for _ in range(iterations):
+        mid = math.sqrt(lo * hi)
+        if stable(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo, hi
