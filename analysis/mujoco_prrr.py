@@ -17,8 +17,9 @@ Two closures (:class:`Platform`):
   the real one is). Only this model can rotate: it measures the platform rotation that soft
   constraints allow.
 
-Link masses (:class:`LinkMasses`): ``REAL`` gives each link the mass and inertia of its
-aluminium bar + bosses (MuJoCo's inertia from geoms, density from the design) and the platform
+Link masses (:class:`LinkMasses`): ``REAL`` gives each link the mass, centre of mass and inertia
+of issue 3's analytic mass model (``design.mass_properties``, itself tested against the CAD), at
+the CAD's elbow branch, and the platform
 the rest of the equivalent mass M (seed 002 Table 4: M includes the links as a point mass, so
 the moving mass is the same in both modes — what differs is where it sits); ``LUMPED`` puts all
 of M into the end-effector (links get a negligible ``LUMPED_LINK_MASS``).
@@ -57,6 +58,8 @@ from design.prrr import PrrrDesign
 LUMPED_LINK_MASS = 1e-3
 #: output slider (carriage) mass [kg]; the paper's two-mass model has none, MuJoCo needs > 0
 CARRIAGE_MASS = 1e-3
+#: elbow branch of every leg: the CAD's (design.cad_prrr.DEFAULT_BRANCH), so link inertias match
+BRANCH = 1
 #: length along w of the second R3 closure point of the FREE platform [m]
 _AXIS_ARM = 0.04
 
@@ -179,47 +182,65 @@ def _v(x: Any) -> str:
 
 
 def home_pose(design: PrrrDesign) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(sliders (3,), A, B, Q (3 legs, 3), w (3 legs, 3)) at p = 0, elbow branch 0 [m]."""
+    """(sliders (3,), A, B, Q (3 legs, 3), w (3 legs, 3)) at p = 0, the CAD's elbow branch [m]."""
     params = params_of(design)
     ik = inverse_kinematics(params, np.zeros(3))
     if not bool(ik.reachable):
         raise InvalidDesign(f"design {design.name!r}: the home pose p = 0 is not reachable")
-    theta = ik.theta[0]
+    theta = ik.theta[BRANCH]
     pts = leg_chain(params, ik.sliders, theta)
     frames = leg_frames(params.beta)
     return (np.asarray(ik.sliders), np.asarray(pts.a), np.asarray(pts.b), np.asarray(pts.q),
             np.asarray(frames.w))
 
 
+def _real_link_inertials(design: PrrrDesign) -> dict[str, Any]:
+    """Link inertias of issue 3's analytic mass model (``design.mass_properties``, tested against
+    the CAD), moved from the CAD body frames at the home pose into this model's world-aligned body
+    frames: name → (body origin [m] ↦ ``<inertial>`` element)."""
+    from design import cad_prrr
+    from design import mass_properties as mp
+
+    bodies = mp.analytic(design).bodies()
+    frames = cad_prrr.part_frames(design, cad_prrr.solve_pose(design, (0.0, 0.0, 0.0), branch=BRANCH))
+    out: dict[str, Any] = {}
+    for name, pm in bodies.items():
+        if not name.startswith("link"):
+            continue
+        T = frames[name]
+        R = T[:3, :3]
+        com = R @ pm.com + T[:3, 3]
+        inertia = R @ pm.inertia @ R.T
+        full = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
+
+        def element(origin: np.ndarray, com=com, full=full, mass=pm.mass) -> str:
+            return f'<inertial pos="{_v(com - origin)}" mass="{mass:.12g}" fullinertia="{_v(full)}"/>'
+
+        out[name] = element
+    return out
+
+
 def build_xml(design: PrrrDesign, options: ModelOptions, *, ee_mass: float | None = None) -> str:
     """MJCF text of the 3-PRRR for ``options``; ``ee_mass`` [kg] defaults to M − link masses (lumped)."""
     sliders, A, B, Q, W = home_pose(design)
     g = design.geometry
-    s = design.structure
     act = design.actuator
     sol = options.solver
     k = act.spring if options.spring_override is None else options.spring_override
     M = design.end_effector.mass
-    rho = s.density
-    half_w, half_t = s.link_width / 2.0, s.link_thickness / 2.0
-    boss_r, boss_h = s.boss_diameter / 2.0, s.link_thickness / 2.0
 
     def link_geoms(start: np.ndarray, end: np.ndarray, w: np.ndarray, origin: np.ndarray) -> str:
-        """Bar start→end (frame-relative) + a boss at each end; geoms only carry mass (no contact)."""
+        """Lumped link: a negligible point mass mid-way (frame-relative)."""
         a, b = start - origin, end - origin
-        d = (b - a) / max(np.linalg.norm(b - a), 1e-12)
-        side = np.cross(w, d)
-        xax, yax = d, side  # box frame: x along the bar, y in-plane, z along the joint axis
-        if options.link_masses is LinkMasses.LUMPED:
-            return (f'<inertial pos="{_v((a + b) / 2)}" mass="{LUMPED_LINK_MASS:.6g}" '
-                    f'diaginertia="1e-9 1e-9 1e-9"/>')
-        length = float(np.linalg.norm(b - a))
-        out = [f'<geom type="box" pos="{_v((a + b) / 2)}" xyaxes="{_v(xax)} {_v(yax)}" '
-               f'size="{length / 2:.9g} {half_w:.9g} {half_t:.9g}" density="{rho:.6g}"/>']
-        for c in (a, b):
-            out.append(f'<geom type="cylinder" fromto="{_v(c - boss_h * w)} {_v(c + boss_h * w)}" '
-                       f'size="{boss_r:.9g}" density="{rho:.6g}"/>')
-        return "".join(out)
+        return (f'<inertial pos="{_v((a + b) / 2)}" mass="{LUMPED_LINK_MASS:.6g}" '
+                f'diaginertia="1e-9 1e-9 1e-9"/>')
+
+    real_links = _real_link_inertials(design) if options.link_masses is LinkMasses.REAL else {}
+
+    def link1_inertial(i: int, origin: np.ndarray) -> str:
+        if options.link_masses is LinkMasses.REAL:
+            return real_links[f"link1_{i + 1}"](origin)
+        return link_geoms(A[i], B[i], W[i], origin)
 
     legs = []
     tendons: list[str] = []
@@ -230,14 +251,13 @@ def build_xml(design: PrrrDesign, options: ModelOptions, *, ee_mass: float | Non
         bq_in_plane = Q[i] - g.r4 * w
         link2 = link_geoms(B[i], bq_in_plane, w, B[i])
         if options.link_masses is LinkMasses.REAL:
-            link2 += (f'<geom type="cylinder" fromto="{_v(bq_in_plane - B[i])} {_v(Q[i] - B[i])}" '
-                      f'size="{half_t:.9g}" density="{rho:.6g}"/>')
+            link2 = real_links[f"link2_{i + 1}"](B[i])  # issue 3's mass model
         closure_anchor = Q[i] - B[i]
         body_link2 = (f'<body name="link2_{i}" pos="{_v(B[i] - A[i])}">'
                       f'<joint name="r2_{i}" type="hinge" axis="{_v(w)}"{jd}/>{link2}</body>')
         body_link1 = (f'<body name="link1_{i}" pos="0 0 0">'
                       f'<joint name="r1_{i}" type="hinge" axis="{_v(w)}"{jd}/>'
-                      f'{link_geoms(A[i], B[i], w, A[i])}{body_link2}</body>')
+                      f'{link1_inertial(i, A[i])}{body_link2}</body>')
         slider_damp = ""
         if options.viscous_friction and not options.motor_dynamics:
             slider_damp = f' damping="{act.viscous:.9g}"'
@@ -446,7 +466,7 @@ def set_pose(mj: PrrrMj, data: Any, p: np.ndarray) -> None:
     ik = ik_fn(params, np.asarray(p, dtype=float))
     home = ik_fn(params, np.zeros(3))
     dz = np.asarray(ik.sliders) - np.asarray(home.sliders)
-    dth = np.asarray(ik.theta[0]) - np.asarray(home.theta[0])
+    dth = np.asarray(ik.theta[BRANCH]) - np.asarray(home.theta[BRANCH])
     m = mj.model
     data.qpos[:] = m.qpos0
     data.qvel[:] = 0.0

@@ -148,3 +148,26 @@ def test_explicit_integrators_diverge_where_dt_is_too_long():
     assert r.warnings or not r.finite or r.health.violation > 1e-3
     ok = stress_probe(stiff, ModelOptions(solver=STANDARD), duration=0.05)
     assert ok.finite and not ok.warnings
+
+
+def test_real_links_carry_the_cad_mass_model():
+    """REAL link masses, CoMs and inertias are issue 3's analytic mass model (tested against the
+    CAD there), placed at the CAD's home pose: compare in world coordinates."""
+    from design import cad_prrr
+    from design import mass_properties as mp
+
+    mj = build(DESIGN, ModelOptions(link_masses=LinkMasses.REAL))
+    data = mujoco.MjData(mj.model)
+    set_pose(mj, data, np.zeros(3))
+    bodies = mp.analytic(DESIGN).bodies()
+    frames = cad_prrr.part_frames(DESIGN, cad_prrr.solve_pose(DESIGN, (0.0, 0.0, 0.0), branch=cad_prrr.DEFAULT_BRANCH))
+    for leg in cad_prrr.LEGS:
+        for j in (1, 2):
+            name = f"link{j}_{leg}"
+            bid = mujoco.mj_name2id(mj.model, mujoco.mjtObj.mjOBJ_BODY, f"link{j}_{leg - 1}")
+            pm, T = bodies[name], frames[name]
+            assert mj.model.body_mass[bid] == pytest.approx(pm.mass, rel=1e-9)
+            np.testing.assert_allclose(data.xipos[bid], T[:3, :3] @ pm.com + T[:3, 3], atol=1e-9)
+            R = data.ximat[bid].reshape(3, 3)
+            world = R @ np.diag(mj.model.body_inertia[bid]) @ R.T
+            np.testing.assert_allclose(world, T[:3, :3] @ pm.inertia @ T[:3, :3].T, atol=1e-12, rtol=1e-6)
