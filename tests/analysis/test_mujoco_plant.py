@@ -130,3 +130,34 @@ def test_fast_controller_is_the_same_law_bit_for_bit():
         a, b = np.round(rng.normal(0, 2000, 3)), np.round(rng.normal(0, 200, 3))
         np.testing.assert_array_equal(ref.step(a, b), fast.step(a, b))
         np.testing.assert_array_equal(ref.last_force, fast.last_force)
+
+
+def _master_handle_force_at_rest(design, q):
+    """Handle force that holds the master at rest with gravity on, from issue 5's closed-chain
+    MJCF: τ = Rᵀ·qfrc_bias (reduced joints), F = J⁻ᵀ τ."""
+    import mujoco
+
+    from analysis import master_kinematics as mk
+    from design.mjcf_master import REDUCTION, full_qpos, master_mjcf
+
+    model = mujoco.MjModel.from_xml_string(master_mjcf(design, gravity=True))
+    data = mujoco.MjData(model)
+    data.qpos[:] = full_qpos(q)
+    mujoco.mj_forward(model, data)
+    tau = REDUCTION.T @ data.qfrc_bias
+    J = np.asarray(mk.jacobian(mk.params_of(design), np.asarray(q)))
+    return np.linalg.solve(J.T, tau)
+
+
+def test_master_perfect_balance_holds_with_no_handle_force():
+    """master-paper is perfectly balanced (seed 003 eq 4: P = 0): with gravity on, the handle force
+    at rest is ≤ 1e-3 N (issue 8) at poses across the workspace; a CoM 3.6 mm off is not."""
+    from analysis import master_dynamics as md
+
+    design = load_preset("master-paper")
+    for q in ([0.0, 0.3, -0.4], [0.3, 0.8, -0.2], [-0.4, 0.2, -1.0]):
+        assert np.linalg.norm(_master_handle_force_at_rest(design, q)) <= 1e-3
+    mu, mf = md.counterweights_for_com_offset(design, (0.003, -0.002))
+    off = dataclasses.replace(design, counterweights=dataclasses.replace(design.counterweights, upper_mass=mu,
+                                                                          forearm_mass=mf))
+    assert np.linalg.norm(_master_handle_force_at_rest(off, [0.0, 0.3, -0.4])) > 1e-2
