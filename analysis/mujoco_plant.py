@@ -1,8 +1,8 @@
 """The multibody (MuJoCo) plant of the 3-PRRR for the closed-loop runner.
 
 Implements :class:`analysis.plant.Plant` on the model of :mod:`analysis.mujoco_prrr`: the
-firmware controller (``analysis.firmware``) runs at its period T; its commands are held (zero-
-order hold, or L samples per period with the seed 000 interpolation) over ``T / timestep``
+firmware controller (``analysis.firmware``'s law, run through its tested numpy fast path
+``analysis.firmware_numpy``) at its period T; its commands are held (zero-order hold, or L samples per period with the seed 000 interpolation) over ``T / timestep``
 MuJoCo substeps; the runner reads the plant's sensors and quantises them exactly as for the
 lumped plant. The operator hand is a body (mass m_h on springs k_h and dampers b_h to the
 reference motion, seed 000 eq 1) tied to the handle by a ``<connect>``; its reference is
@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from analysis.fidelity import Fidelity
+from analysis.firmware_numpy import NumpyController
 from analysis.mujoco_prrr import (
     SOLVER_BY_FIDELITY,
     HandSettings,
@@ -39,7 +40,6 @@ from analysis.mujoco_prrr import (
     Platform,
     PrrrMj,
     SolverSettings,
-    ZERO_HEALTH,
     build,
     set_pose,
 )
@@ -116,6 +116,7 @@ class MujocoPlant:
         self.substeps = L * math.ceil(n / L)
         self.model.opt.timestep = period / self.substeps  # an exact multiple of the period
         self.period = period
+        self._energy = False
         self.per_sample = self.substeps // L
         a = design.actuator
         self.rigid = options.motor_dynamics and not options.sea_compliance
@@ -127,6 +128,10 @@ class MujocoPlant:
         m = self.model
         self._eq_rows = 3 * m.neq
         self._free = options.platform is Platform.FREE
+        self._ee_body_id = int(self.mj.ee_body)
+        self._carriage_ids = np.asarray(self.mj.carriage_body)
+        self._carriage_home_z = np.asarray(self.mj.carriage_home_z)
+        self._J = np.asarray(self.mj.jacobian)
         self._ee_pos = self.mj.ee_qpos[:3]
         ee_dof = m.jnt_dofadr[m.body_jntadr[self.mj.ee_body]]
         self._ee_dof = np.arange(ee_dof, ee_dof + 3)
@@ -149,7 +154,7 @@ class MujocoPlant:
         set_pose(self.mj, d, p0)
         self.t = 0.0
         self.u = np.zeros(3)
-        self.health = ZERO_HEALTH
+        self._worst = [0.0, 0.0, 0.0]  # violation [m], rotation [rad], closure [m]
         self.bad_qacc = False
         if self._hand is not None:
             self._set_reference(0.0)
@@ -201,17 +206,14 @@ class MujocoPlant:
         else:
             f = self.spring * self.mj.deflection(d.qpos)
         defl = self.mj.deflection(d.qpos)
-        energy = float(d.energy[1]) + 0.5 * self.spring * float(defl @ defl) if self._energy_on else math.nan
+        energy = float(d.energy[1]) + 0.5 * self.spring * float(defl @ defl) if self._energy else math.nan
         return Observation(position=p, velocity=v, hand_force=hand, actuator_force=self.JinvT @ f, energy=energy)
 
     # ----------------------------------------------------------------------------- internals
-    @property
-    def _energy_on(self) -> bool:
-        return bool(self.model.opt.enableflags & self._mujoco.mjtEnableBit.mjENBL_ENERGY)
-
     def enable_energy(self) -> None:
         """Let MuJoCo compute kinetic energy (observation ``energy``); costs ≈ one mass-matrix product."""
         self.model.opt.enableflags |= self._mujoco.mjtEnableBit.mjENBL_ENERGY
+        self._energy = True
 
     def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Hand reference x_r(t) and its rate [m, m/s]."""
@@ -224,21 +226,30 @@ class MujocoPlant:
         self.data.qfrc_applied[self.mj.hand_dof] = self._hand.damping * dref
 
     def _check(self) -> None:
+        """Update the worst constraint health (state at the start of the last substep)."""
         d = self.data
         if d.warning[_BADQACC].number > 0:
             self.bad_qacc = True
         n = self._eq_rows
-        viol = float(np.max(np.abs(d.efc_pos[:n]))) if n and d.nefc >= n else 0.0
-        if self._free:
-            quat = d.xquat[self.mj.ee_body]
-            rot = 2.0 * math.atan2(math.sqrt(quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2), abs(quat[0]))
-        else:
-            rot = 0.0
-        sliders = d.xpos[self.mj.carriage_body, 2] - self.mj.carriage_home_z
-        closure = float(np.linalg.norm(d.xpos[self.mj.ee_body] - self.J @ sliders))
-        h = self.health
-        self.health = Health(violation=max(h.violation, viol), rotation=max(h.rotation, rot),
-                             closure=max(h.closure, closure))
+        viol = float(np.abs(d.efc_pos[:n]).max()) if n and d.nefc >= n else 0.0
+        rot = 0.0
+        if self._free:  # rotation angle from the quaternion's scalar part (resolution ≈ 1e-8 rad)
+            rot = 2.0 * math.acos(min(1.0, abs(float(d.xquat[self._ee_body_id, 0]))))
+        xpos = d.xpos
+        dz = xpos[self._carriage_ids, 2] - self._carriage_home_z
+        closure = float(np.linalg.norm(xpos[self._ee_body_id] - self._J @ dz))
+        w = self._worst
+        if viol > w[0]:
+            w[0] = viol
+        if rot > w[1]:
+            w[1] = rot
+        if closure > w[2]:
+            w[2] = closure
+
+    @property
+    def health(self) -> Health:
+        """Worst closed-chain health since the last reset."""
+        return Health(violation=self._worst[0], rotation=self._worst[1], closure=self._worst[2])
 
     def warnings(self) -> tuple[str, ...]:
         """Names and counts of the MuJoCo warnings raised since the last reset."""
@@ -250,25 +261,6 @@ class MujocoPlant:
 
 
 # ------------------------------------------------------------------------------- closed loop
-def fast_controller(cfg: Any, gains: Any) -> Any:
-    """:class:`analysis.firmware.FirmwareController` whose ``step`` passes the counts to the same
-    compiled law as numpy arrays (jax's C++ dispatch path) instead of ``jnp.asarray`` each tick:
-    measured 1.06 ms → 0.21 ms per tick on the loaded 2-core machine. Same law, same results
-    (tested bit-for-bit in ``tests/analysis/test_mujoco_plant.py``)."""
-    from analysis import firmware
-
-    class _Fast(firmware.FirmwareController):
-        def step(self, slider_counts: np.ndarray, deflection_counts: np.ndarray) -> np.ndarray:
-            if self.state is None:
-                self.reset(slider_counts)
-            self.state, cmd, F = self._step(self.gains, self.state, np.asarray(slider_counts, dtype=np.float64),
-                                            np.asarray(deflection_counts, dtype=np.float64))
-            self.last_force = np.asarray(F)
-            return np.asarray(cmd)
-
-    return _Fast(cfg, gains)
-
-
 @dataclass(frozen=True, kw_only=True)
 class MultibodyResult:
     """A closed-loop run on the multibody plant: the runner's result + constraint health."""
@@ -320,7 +312,7 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
     plant = MujocoPlant(design, scene, options, period=st.period, interpolation=st.cfg.interpolation)
     plant.enable_energy()
     st = dataclasses.replace(st, resolution=res, substeps=plant.substeps)
-    controller = fast_controller(st.cfg, st.gains)
+    controller = NumpyController(st.cfg, st.gains)
     t0 = time.perf_counter()
     traces = closed_loop.run_with_plant(plant, controller, st)
     wall = time.perf_counter() - t0
@@ -383,7 +375,7 @@ def stiffness_limit(design: PrrrDesign, scene: Scene, *, backend: Backend, axis:
         stiff = np.array(st.gains.stiffness, dtype=float)
         stiff[axis] = K
         gains = st.gains._replace(stiffness=np.asarray(stiff))
-        ctl = fast_controller(st.cfg, gains)
+        ctl = NumpyController(st.cfg, gains)
         tr = closed_loop.run_with_plant(plant, ctl, dataclasses.replace(st, gains=gains))
         ok, _ = closed_loop.classify(tr, st)
         return bool(ok[0])
