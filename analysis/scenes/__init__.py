@@ -1,0 +1,1 @@
+"""Bundled closed-loop scenes (TOML package data); see ``analysis.scene`` for the schema."""
