@@ -7,6 +7,7 @@ import typer
 from optim import cli_evaluate
 from optim import cli_export
 from optim import cli_optimise
+from optim import cli_verify
 
 app = typer.Typer(
     name="hapticopt",
@@ -20,6 +21,7 @@ app.command("presets")(cli_evaluate.presets)
 app.command("export")(cli_export.export)
 app.command("optimise")(cli_optimise.optimise)
 app.command("problems")(cli_optimise.problems)
+app.command("verify")(cli_verify.verify)
 
 
 def main() -> None:
