@@ -110,13 +110,15 @@ class FrameParams(NamedTuple):
     joint_zone: jax.Array  # radius of the rigid joint zone (the joint boss) [m]
 
 
-def frame_params_of(design) -> FrameParams:
-    """Frame-model parameters of one :class:`design.prrr.PrrrDesign`."""
+def frame_params_of(design, xp=jnp) -> FrameParams:
+    """Frame-model parameters of one :class:`design.prrr.PrrrDesign` (``xp=np``: numpy arrays)."""
     s = design.structure
-    sec = Section(*(jnp.asarray(float(x)) for x in (s.link_width, s.link_thickness, s.youngs_modulus, s.poisson_ratio)))
-    return FrameParams(kin=params_of(design), r_p=jnp.asarray(float(design.geometry.r_p)), section=sec,
-                       spring=jnp.asarray(float(design.actuator.spring)),
-                       joint_zone=jnp.asarray(0.5 * float(s.boss_diameter)))
+    g = design.geometry
+    kin = PrrrParams(*(xp.asarray(float(x)) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
+    sec = Section(*(xp.asarray(float(x)) for x in (s.link_width, s.link_thickness, s.youngs_modulus, s.poisson_ratio)))
+    return FrameParams(kin=kin, r_p=xp.asarray(float(g.r_p)), section=sec,
+                       spring=xp.asarray(float(design.actuator.spring)),
+                       joint_zone=xp.asarray(0.5 * float(s.boss_diameter)))
 
 
 def stack_frame_params(designs) -> FrameParams:
@@ -135,10 +137,10 @@ class SectionProperties(NamedTuple):
     shear_modulus: jax.Array  # G [Pa]
 
 
-def section_properties(section: Section) -> SectionProperties:
+def section_properties(section: Section, xp=jnp) -> SectionProperties:
     """Rectangle of width b (local y) and thickness t (local z)."""
     b, t, E, nu = section
-    lo, hi = jnp.minimum(b, t), jnp.maximum(b, t)
+    lo, hi = xp.minimum(b, t), xp.maximum(b, t)
     r = lo / hi
     torsion = hi * lo**3 * (1.0 / 3.0 - 0.21 * r * (1.0 - r**4 / 12.0))  # Roark, Table 10.7 case 4
     return SectionProperties(
@@ -174,7 +176,7 @@ _PATTERNS = np.concatenate([_pair_pattern(0, 6)[None], _pair_pattern(3, 9)[None]
                             _bending_patterns((1, 5, 7, 11), 1.0), _bending_patterns((2, 4, 8, 10), -1.0)])
 
 
-def beam_local_stiffness(length: jax.Array, E: jax.Array, props: SectionProperties) -> jax.Array:
+def beam_local_stiffness(length: jax.Array, E: jax.Array, props: SectionProperties, xp=jnp) -> jax.Array:
     """12×12 Timoshenko beam stiffness in local axes (x along the beam).
 
     DOFs [u_x, u_y, u_z, θ_x, θ_y, θ_z] at node 1 then node 2. Exact for end loads: a clamped
@@ -188,72 +190,89 @@ def beam_local_stiffness(length: jax.Array, E: jax.Array, props: SectionProperti
     phi_z = 12.0 * E * props.i_y / (k * G * A * L**2)  # bending in xz (u_z, θ_y)
     cy = E * props.i_z / ((1.0 + phi_y) * L**3)
     cz = E * props.i_y / ((1.0 + phi_z) * L**3)
-    coef = jnp.stack([
+    coef = xp.stack([
         E * A / L, G * props.torsion / L,
         12.0 * cy, 6.0 * L * cy, (4.0 + phi_y) * L**2 * cy, (2.0 - phi_y) * L**2 * cy,
         12.0 * cz, 6.0 * L * cz, (4.0 + phi_z) * L**2 * cz, (2.0 - phi_z) * L**2 * cz,
     ])
-    return jnp.tensordot(coef, _PATTERNS, axes=1)
+    return xp.tensordot(coef, _PATTERNS, axes=1)
 
 
-def beam_axes(x1: jax.Array, x2: jax.Array, zref: jax.Array) -> tuple[jax.Array, jax.Array]:
+def _cross(a, b, xp=jnp):
+    """a × b for 3-vectors (explicit: numpy's cross is slow on tiny arrays)."""
+    return xp.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def beam_axes(x1: jax.Array, x2: jax.Array, zref: jax.Array, xp=jnp) -> tuple[jax.Array, jax.Array]:
     """Rotation R (rows: local x, y, z in global coordinates) and length of the beam x1→x2.
 
     Local z is ``zref`` made normal to the beam axis (the thickness direction); y = z × x.
     """
     d = x2 - x1
-    length = jnp.sqrt(jnp.sum(d**2))
+    length = xp.sqrt(xp.sum(d**2))
     ex = d / length
-    z = zref - jnp.dot(zref, ex) * ex
-    ez = z / jnp.sqrt(jnp.sum(z**2))
-    ey = jnp.cross(ez, ex)
-    return jnp.stack([ex, ey, ez]), length
+    z = zref - xp.sum(zref * ex) * ex
+    ez = z / xp.sqrt(xp.sum(z**2))
+    ey = _cross(ez, ex, xp)
+    return xp.stack([ex, ey, ez]), length
 
 
-def beam_global_stiffness(x1, x2, zref, section: Section, a1=0.0, a2=0.0) -> jax.Array:
+def _blockdiag2(a, b, xp=jnp):
+    za = xp.zeros((a.shape[0], b.shape[1]))
+    zb = xp.zeros((b.shape[0], a.shape[1]))
+    return xp.concatenate([xp.concatenate([a, za], axis=1), xp.concatenate([zb, b], axis=1)], axis=0)
+
+
+def beam_global_stiffness(x1, x2, zref, section: Section, a1=0.0, a2=0.0, xp=jnp) -> jax.Array:
     """12×12 stiffness of the beam x1→x2 [m] in global axes, on the DOFs of x1 and x2.
 
     ``a1``, ``a2`` [m]: rigid end zones (each clipped to 40 % of the length); the flexible
     Timoshenko part spans the rest and is tied to the nodes by rigid maps.
+    ``xp``: the array module (``jax.numpy``, or ``numpy`` for the jit-free single-design path).
     """
-    R, length = beam_axes(x1, x2, zref)
-    a1 = jnp.minimum(a1, 0.4 * length)
-    a2 = jnp.minimum(a2, 0.4 * length)
-    k = beam_local_stiffness(length - a1 - a2, section.youngs_modulus, section_properties(section))
-    T = jnp.kron(jnp.eye(4), R)
-    rig = jnp.zeros((12, 12)).at[:6, :6].set(rigid_map(a1 * R[0])).at[6:, 6:].set(rigid_map(-a2 * R[0]))
-    T = T @ rig
+    R, length = beam_axes(x1, x2, zref, xp)
+    a1 = xp.minimum(a1, 0.4 * length)
+    a2 = xp.minimum(a2, 0.4 * length)
+    k = beam_local_stiffness(length - a1 - a2, section.youngs_modulus, section_properties(section, xp), xp)
+    # T = blockdiag(R, R, R, R) @ blockdiag(rigid(a1 ex), rigid(−a2 ex)) = blockdiag(R M1, R M2),
+    # R·rigid(r) = [[R, −R[r]×], [0, R]]
+    def end(a):
+        top = xp.concatenate([R, -R @ _skew(a * R[0], xp)], axis=1)
+        return xp.concatenate([top, xp.concatenate([xp.zeros((3, 3)), R], axis=1)], axis=0)
+
+    T = _blockdiag2(end(a1), end(-a2), xp)
     return T.T @ k @ T
 
 
-def _skew(r: jax.Array) -> jax.Array:
-    return jnp.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+def _skew(r: jax.Array, xp=jnp) -> jax.Array:
+    z = 0.0 * r[0]
+    return xp.stack([xp.stack([z, -r[2], r[1]]), xp.stack([r[2], z, -r[0]]), xp.stack([-r[1], r[0], z])])
 
 
-def rigid_map(r: jax.Array) -> jax.Array:
+def rigid_map(r: jax.Array, xp=jnp) -> jax.Array:
     """6×6 map of a master node's DOFs to a point offset by ``r`` on a rigid body."""
-    top = jnp.concatenate([jnp.eye(3), -_skew(r)], axis=1)
-    bottom = jnp.concatenate([jnp.zeros((3, 3)), jnp.eye(3)], axis=1)
-    return jnp.concatenate([top, bottom], axis=0)
+    top = xp.concatenate([xp.eye(3), -_skew(r, xp)], axis=1)
+    bottom = xp.concatenate([xp.zeros((3, 3)), xp.eye(3)], axis=1)
+    return xp.concatenate([top, bottom], axis=0)
 
 
-@functools.partial(jax.jit, static_argnames=("n_elements",))
-def cantilever_compliance(length, section: Section, *, direction, zref, n_elements: int = 1) -> jax.Array:
+def cantilever_compliance(length, section: Section, *, direction, zref, n_elements: int = 1) -> np.ndarray:
     """6×6 tip compliance [SI] of a clamped prismatic beam along ``direction`` (n equal elements).
 
-    A plain reference assembly used to check the element against closed forms.
+    A plain reference assembly (numpy path of the element) used to check it against closed forms.
     """
-    direction = jnp.asarray(direction, dtype=float)
-    direction = direction / jnp.linalg.norm(direction)
+    section = Section(*(np.asarray(x, dtype=float) for x in section))
+    direction = np.asarray(direction, dtype=float)
+    direction = direction / np.linalg.norm(direction)
     n = n_elements
-    K = jnp.zeros((6 * (n + 1), 6 * (n + 1)))
+    K = np.zeros((6 * (n + 1), 6 * (n + 1)))
     for e in range(n):
         x1 = direction * length * e / n
         x2 = direction * length * (e + 1) / n
-        Ke = beam_global_stiffness(x1, x2, jnp.asarray(zref, dtype=float), section)
-        K = K.at[6 * e:6 * e + 12, 6 * e:6 * e + 12].add(Ke)
+        K[6 * e:6 * e + 12, 6 * e:6 * e + 12] += beam_global_stiffness(x1, x2, np.asarray(zref, dtype=float),
+                                                                       section, xp=np)
     Kf = K[6:, 6:]
-    return jnp.linalg.inv(Kf)[-6:, -6:]
+    return np.linalg.inv(Kf)[-6:, -6:]
 
 
 # ----------------------------------------------------------------------------- the 3-PRRR frame
@@ -276,72 +295,96 @@ def dof_count(options: FrameOptions = FrameOptions()) -> int:
     return 6 + 3 * (n_leg - 6)
 
 
-def _free(n: int, i: int) -> jax.Array:
-    return jnp.zeros((6, n)).at[:, i:i + 6].set(jnp.eye(6))
+def _free(n: int, i: int, xp=jnp) -> jax.Array:
+    """Selector (6 × n) of the six DOFs starting at ``i`` (a constant)."""
+    out = np.zeros((6, n))
+    out[:, i:i + 6] = np.eye(6)
+    return xp.asarray(out)
 
 
-def _hinge(G: jax.Array, i: int, w: jax.Array) -> jax.Array:
-    return G if i < 0 else G.at[3:6, i].add(w)
+def _hinge(G: jax.Array, i: int, w: jax.Array, xp=jnp) -> jax.Array:
+    """G with the hinge rotation DOF ``i`` added about ``w`` to its rotation rows (i < 0: none)."""
+    if i < 0:
+        return G
+    onehot = np.zeros(G.shape[1])
+    onehot[i] = 1.0
+    return G + xp.concatenate([xp.zeros((3, G.shape[1])), w[:, None] * xp.asarray(onehot)[None, :]], axis=0)
 
 
-def _leg_stiffness(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone, options: FrameOptions):
+def _map(fn, xp, *args):
+    """``jax.vmap(fn)(*args)`` for jax; a loop stacked along axis 0 for numpy (same results)."""
+    if xp is jnp:
+        return jax.vmap(fn)(*args)
+    outs = [fn(*(a[k] for a in args)) for k in range(args[0].shape[0])]
+    if isinstance(outs[0], tuple):
+        return tuple(np.stack(col) for col in zip(*outs))
+    return np.stack(outs)
+
+
+def _leg_stiffness(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp=jnp):
     """Stiffness (n×n) of one leg on its DOFs [P | internal], and the node maps G (5, 6, n)."""
     n, L = _leg_layout(options)
     beam_off = options.offsets == Offsets.BEAM
     Bp = Q - r4 * w
     e4 = (Bp - B) / d4
-    G_P = _free(n, 0)
-    G_S = jnp.zeros((6, n))
+    G_P = _free(n, 0, xp)
+    G_S = np.zeros((6, n))
     if options.sea:
-        G_S = G_S.at[2, L["sea"]].set(1.0)  # the carriage slides in z on the SEA spring
+        G_S[2, L["sea"]] = 1.0  # the carriage slides in z on the SEA spring
+    G_S = xp.asarray(G_S)
     elems = []  # (G1, G2, x1, x2, zref, a1, a2)
     a = zone
     if beam_off:
-        G_Ac = _free(n, L["A"])
+        G_Ac = _free(n, L["A"], xp)
         elems.append((G_S, G_Ac, S, A, w, 0.0 * a, a))  # carriage arm
     else:
-        G_Ac = rigid_map(A - S) @ G_S
-    G_Al = _hinge(G_Ac, L["phi1"], w)  # R1
-    G_Bc = _free(n, L["B"])
+        G_Ac = rigid_map(A - S, xp) @ G_S
+    G_Al = _hinge(G_Ac, L["phi1"], w, xp)  # R1
+    G_Bc = _free(n, L["B"], xp)
     elems.append((G_Al, G_Bc, A, B, w, a, a))  # link d3
-    G_Bl = _hinge(G_Bc, L["phi2"], w)  # R2
+    G_Bl = _hinge(G_Bc, L["phi2"], w, xp)  # R2
     if beam_off:
-        G_Qp = _free(n, L["Qp"])
+        G_Qp = _free(n, L["Qp"], xp)
         elems.append((G_Qp, G_P, Q, p, w, a, a))  # platform arm
     else:
-        G_Qp = rigid_map(Q - p) @ G_P
-    G_Ql = _hinge(G_Qp, L["phi3"], w)  # R3
+        G_Qp = rigid_map(Q - p, xp) @ G_P
+    G_Ql = _hinge(G_Qp, L["phi3"], w, xp)  # R3
     if beam_off:
-        G_Bp = _free(n, L["Bp"])
-        elems.append((G_Bp, G_Ql, Bp, Q, jnp.cross(w, e4), 0.0 * a, a))  # r4 offset along w
+        G_Bp = _free(n, L["Bp"], xp)
+        elems.append((G_Bp, G_Ql, Bp, Q, _cross(w, e4, xp), 0.0 * a, a))  # r4 offset along w
     else:
-        G_Bp = rigid_map(Bp - Q) @ G_Ql  # B' rides rigidly on the link side of R3
+        G_Bp = rigid_map(Bp - Q, xp) @ G_Ql  # B' rides rigidly on the link side of R3
     elems.append((G_Bl, G_Bp, B, Bp, w, a, 0.0 * a))  # link d4
-    Ge = jnp.stack([jnp.concatenate([g1, g2], axis=0) for g1, g2, *_ in elems])  # (E, 12, n)
-    X1, X2, Z, A1, A2 = (jnp.stack([e[k] for e in elems]) for k in (2, 3, 4, 5, 6))
-    Ke = jax.vmap(beam_global_stiffness, in_axes=(0, 0, 0, None, 0, 0))(X1, X2, Z, section, A1, A2)  # (E, 12, 12)
-    K = jnp.einsum("eia,eij,ejb->ab", Ge, Ke, Ge)
+    Ge = xp.stack([xp.concatenate([g1, g2], axis=0) for g1, g2, *_ in elems])  # (E, 12, n)
+    X1, X2, Z, A1, A2 = (xp.stack([e[k] for e in elems]) for k in (2, 3, 4, 5, 6))
+    Ke = _map(lambda x1, x2, z, a1, a2: beam_global_stiffness(x1, x2, z, section, a1, a2, xp), xp,
+              X1, X2, Z, A1, A2)  # (E, 12, 12)
+    K = xp.sum(xp.swapaxes(Ge, -1, -2) @ Ke @ Ge, axis=0)  # Σ_e G_eᵀ K_e G_e
     if options.sea:
-        K = K.at[L["sea"], L["sea"]].add(spring)
+        sel = np.zeros((n, n))
+        sel[L["sea"], L["sea"]] = 1.0
+        K = K + spring * xp.asarray(sel)
     K = 0.5 * (K + K.T)
-    G_nodes = jnp.stack([G_S, G_Ac, G_Bc, G_Bp, G_Qp])
-    return K, G_nodes, jnp.stack([S, A, B, Bp, Q])
+    G_nodes = xp.stack([G_S, G_Ac, G_Bc, G_Bp, G_Qp])
+    return K, G_nodes, xp.stack([S, A, B, Bp, Q])
 
 
-def _cond1(Ks: jax.Array, Ks_inv: jax.Array) -> jax.Array:
+def _cond1(Ks: jax.Array, Ks_inv: jax.Array, xp=jnp) -> jax.Array:
     """1-norm condition number from a matrix and its inverse."""
-    return jnp.max(jnp.sum(jnp.abs(Ks), axis=-2), axis=-1) * jnp.max(jnp.sum(jnp.abs(Ks_inv), axis=-2), axis=-1)
+    return xp.max(xp.sum(xp.abs(Ks), axis=-2), axis=-1) * xp.max(xp.sum(xp.abs(Ks_inv), axis=-2), axis=-1)
 
 
 def frame_arrays(fp: FrameParams, p: jax.Array, load_height: jax.Array, options: FrameOptions,
-                 branch: jax.Array | int | None = None, zones_on: jax.Array | float | None = None) -> dict:
+                 branch: jax.Array | int | None = None, zones_on: jax.Array | float | None = None,
+                 xp=jnp) -> dict:
     """Assemble and solve the frame of one design at end-effector position ``p`` (3,) [m].
 
     Each leg's internal DOFs are condensed statically onto the end-effector node
     (K_P = Σ_legs K_PP − K_Pi K_ii⁻¹ K_iP, Jacobi-scaled solves); the legs are independent
     given P, so they are assembled and condensed in parallel (``vmap`` over the legs).
     ``branch`` and ``zones_on`` (1.0/0.0) override ``options.branch``/``options.joint_zones`` as
-    traced values, so they do not trigger a recompilation.
+    traced values, so they do not trigger a recompilation. ``xp`` is the array module: ``jax.numpy``
+    (jit, vmap over designs, gradients) or ``numpy`` (one design, no compilation; same code).
 
     Returns a dict of arrays [SI]: ``compliance_ee`` (6×6 at P, [u; θ] per [F; M]),
     ``compliance_load`` (3×3 at P + Δz e_z), ``stiffness_load`` (3,), ``elastic_centre``
@@ -353,55 +396,55 @@ def frame_arrays(fp: FrameParams, p: jax.Array, load_height: jax.Array, options:
     and ``recovery`` (3, n−6, 6): internal DOFs of leg i are −recovery[i] @ [u_P; θ_P].
     """
     kin = fp.kin
-    p = jnp.asarray(p, dtype=float)
-    ik = inverse_kinematics(kin, p)
+    p = xp.asarray(p, dtype=float)
+    ik = inverse_kinematics(kin, p, xp=xp)
     branch = options.branch if branch is None else branch
     zones_on = float(options.joint_zones) if zones_on is None else zones_on
-    theta = jnp.take(ik.theta, branch, axis=0)
-    pts = leg_chain(kin, ik.sliders, theta)
-    f = leg_frames(kin.beta)
+    theta = xp.take(ik.theta, branch, axis=0)
+    pts = leg_chain(kin, ik.sliders, theta, xp=xp)
+    f = leg_frames(kin.beta, xp=xp)
     S = ik.sliders[:, None] * _EZ + fp.r_p * f.u
 
     leg = functools.partial(_leg_stiffness, p=p, r4=kin.r4, d4=kin.d4, section=fp.section, spring=fp.spring,
-                            zone=fp.joint_zone * zones_on, options=options)
-    K, G_nodes, nodes = jax.vmap(lambda w, s, a, b, q: leg(w, s, a, b, q))(f.w, S, pts.a, pts.b, pts.q)
+                            zone=fp.joint_zone * zones_on, options=options, xp=xp)
+    K, G_nodes, nodes = _map(lambda w, s, a, b, q: leg(w, s, a, b, q), xp, f.w, S, pts.a, pts.b, pts.q)
     Kpp, Kpi, Kii = K[:, :6, :6], K[:, :6, 6:], K[:, 6:, 6:]
-    d = 1.0 / jnp.sqrt(jnp.abs(jnp.diagonal(Kii, axis1=-2, axis2=-1)))  # (3, n_int)
+    d = 1.0 / xp.sqrt(xp.abs(xp.diagonal(Kii, axis1=-2, axis2=-1)))  # (3, n_int)
     Kii_s = d[:, :, None] * Kii * d[:, None, :]
     n_int = Kii.shape[-1]
-    rhs = jnp.concatenate([jnp.broadcast_to(jnp.eye(n_int), Kii.shape),
-                           d[:, :, None] * jnp.swapaxes(Kpi, -1, -2)], axis=-1)
-    sol = jnp.linalg.solve(Kii_s, rhs)
-    cond_legs = _cond1(Kii_s, sol[:, :, :n_int])
+    rhs = xp.concatenate([xp.broadcast_to(xp.eye(n_int), Kii.shape),
+                           d[:, :, None] * xp.swapaxes(Kpi, -1, -2)], axis=-1)
+    sol = xp.linalg.solve(Kii_s, rhs)
+    cond_legs = _cond1(Kii_s, sol[:, :, :n_int], xp)
     recovery = d[:, :, None] * sol[:, :, n_int:]  # K_ii⁻¹ K_iP
-    KP = jnp.sum(Kpp - Kpi @ recovery, axis=0)
+    KP = xp.sum(Kpp - Kpi @ recovery, axis=0)
     KP = 0.5 * (KP + KP.T)
-    dP = 1.0 / jnp.sqrt(jnp.abs(jnp.diagonal(KP)))
+    dP = 1.0 / xp.sqrt(xp.abs(xp.diagonal(KP)))
     KP_s = dP[:, None] * KP * dP[None, :]
-    KP_s_inv = jnp.linalg.inv(KP_s)
-    cond = jnp.maximum(jnp.max(cond_legs), _cond1(KP_s, KP_s_inv))
+    KP_s_inv = xp.linalg.inv(KP_s)
+    cond = xp.maximum(xp.max(cond_legs), _cond1(KP_s, KP_s_inv, xp))
     C = dP[:, None] * KP_s_inv * dP[None, :]
     C = 0.5 * (C + C.T)
 
     def at_height(h):
-        H = jnp.concatenate([jnp.eye(3), -_skew(h * _EZ)], axis=1)  # u_L = u_P + θ × (h e_z)
+        H = xp.concatenate([xp.eye(3), -_skew(h * xp.asarray(_EZ), xp)], axis=1)  # u_L = u_P + θ × (h e_z)
         return H @ C @ H.T
 
     # elastic centre: rotation per lateral force θ = (C_θu + h C_θθ [e_z]×) F, F ∈ span(e_x, e_y);
     # the h minimising ‖·‖_F (exact decoupling when it exists; also minimises the lateral compliance)
-    E = _skew(_EZ)
+    E = _skew(xp.asarray(_EZ), xp)
     M0 = C[3:, :3][:, :2]
     M1 = (C[3:, 3:] @ E)[:, :2]
-    h_ec = -jnp.sum(M0 * M1) / jnp.sum(M1 * M1)
-    residual = jnp.sqrt(jnp.sum((M0 + h_ec * M1) ** 2) / (jnp.sum(M0**2) + 1e-300))
+    h_ec = -xp.sum(M0 * M1) / xp.sum(M1 * M1)
+    residual = xp.sqrt(xp.sum((M0 + h_ec * M1) ** 2) / (xp.sum(M0**2) + 1e-300))
     C_load = at_height(load_height)
     C_ec = at_height(h_ec)
     return {
         "compliance_ee": C,
         "compliance_load": C_load,
-        "stiffness_load": 1.0 / jnp.diagonal(C_load),
+        "stiffness_load": 1.0 / xp.diagonal(C_load),
         "elastic_centre": h_ec,
-        "stiffness_elastic_centre": 1.0 / jnp.diagonal(C_ec),
+        "stiffness_elastic_centre": 1.0 / xp.diagonal(C_ec),
         "coupling_residual": residual,
         "condition": cond,
         "reachable": ik.reachable,
@@ -440,7 +483,26 @@ def _call(fp, p, load_height, options: FrameOptions, batched: bool, full: bool):
 
 def solve_frame(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float = LOAD_HEIGHT,
                 options: FrameOptions = FrameOptions()) -> dict[str, np.ndarray]:
-    """Frame model of one design (jit-compiled once per ``options``); numpy arrays [SI]."""
+    """Frame model of one design, numpy path (no compilation, ~1 ms); numpy arrays [SI].
+
+    The same :func:`frame_arrays` as the jax path (:func:`solve_frame_jax`, tested equal to
+    1e-12); a numerically singular matrix falls back to the jax path, which returns inf/NaN
+    instead of raising.
+    """
+    if options.branch not in (0, 1):
+        raise ValueError(f"FrameOptions.branch = {options.branch!r}: allowed 0 or 1")
+    fp_np = jax.tree.map(lambda x: np.asarray(x, dtype=float), fp)
+    try:
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            out = frame_arrays(fp_np, np.asarray(p, dtype=float), np.asarray(float(load_height)), options, xp=np)
+    except np.linalg.LinAlgError:
+        return solve_frame_jax(fp, p=p, load_height=load_height, options=options)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def solve_frame_jax(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float = LOAD_HEIGHT,
+                    options: FrameOptions = FrameOptions()) -> dict[str, np.ndarray]:
+    """Frame model of one design, jax path (jit-compiled once per joints/offsets/sea); numpy arrays."""
     out = _call(fp, p, load_height, options, False, True)
     return {k: np.asarray(v) for k, v in out.items()}
 
@@ -462,5 +524,5 @@ __all__ = [
     "COND_LIMIT", "LOAD_HEIGHT", "FrameOptions", "FrameParams", "Joints", "Offsets", "Section",
     "beam_global_stiffness", "beam_local_stiffness", "cantilever_compliance", "closed_form_tip_deflection",
     "dof_count", "frame_arrays", "frame_params_of", "section_properties", "solve_frame",
-    "solve_frame_batch", "stack_frame_params",
+    "solve_frame_batch", "solve_frame_jax", "stack_frame_params",
 ]

@@ -58,27 +58,27 @@ class LegFrames(NamedTuple):
     w: jax.Array
 
 
-def leg_frames(beta: jax.Array) -> LegFrames:
-    """Unit vectors of every leg for inclination ``beta`` [rad]."""
-    c, s = jnp.cos(_GAMMA), jnp.sin(_GAMMA)
-    zero = jnp.zeros(3)
-    u = jnp.stack([c, s, zero], axis=-1)
-    t = jnp.stack([-s, c, zero], axis=-1)
-    ez = jnp.broadcast_to(_EZ, (3, 3))
-    w = -jnp.cos(beta) * u + jnp.sin(beta) * ez
-    v = jnp.sin(beta) * u + jnp.cos(beta) * ez
+def leg_frames(beta: jax.Array, xp=jnp) -> LegFrames:
+    """Unit vectors of every leg for inclination ``beta`` [rad] (``xp``: array module)."""
+    c, s = xp.cos(_GAMMA), xp.sin(_GAMMA)
+    zero = xp.zeros(3)
+    u = xp.stack([c, s, zero], axis=-1)
+    t = xp.stack([-s, c, zero], axis=-1)
+    ez = xp.broadcast_to(_EZ, (3, 3))
+    w = -xp.cos(beta) * u + xp.sin(beta) * ez
+    v = xp.sin(beta) * u + xp.cos(beta) * ez
     return LegFrames(u=u, t=t, v=v, w=w)
 
 
-def r5_of(params: PrrrParams) -> jax.Array:
+def r5_of(params: PrrrParams, xp=jnp) -> jax.Array:
     """r5 = b5·sin β [m] (seed 002 Table 2)."""
-    return params.b5 * jnp.sin(params.beta)
+    return params.b5 * xp.sin(params.beta)
 
 
-def slider_offset(params: PrrrParams) -> jax.Array:
+def slider_offset(params: PrrrParams, xp=jnp) -> jax.Array:
     """c_e of eq (1) [m]: −(b5 + r4)/sin β + r5 + d1·cot β; also the home-pose slider position."""
     b = params.beta
-    return -(params.b5 + params.r4) / jnp.sin(b) + r5_of(params) + params.d1 / jnp.tan(b)
+    return -(params.b5 + params.r4) / xp.sin(b) + r5_of(params, xp=xp) + params.d1 / xp.tan(b)
 
 
 def jacobian_inverse(beta: jax.Array, xp=jnp) -> jax.Array:
@@ -114,50 +114,50 @@ class IkSolution(NamedTuple):
     reach_margin: jax.Array  # (...,) [m] smallest distance to a reach or stroke limit (< 0 outside)
 
 
-def inverse_kinematics(params: PrrrParams, p: jax.Array) -> IkSolution:
+def inverse_kinematics(params: PrrrParams, p: jax.Array, xp=jnp) -> IkSolution:
     """Geometric IK of end-effector positions ``p`` (..., 3) [m] for one design.
 
     Slider positions follow from closing each leg along its joint axis w (the in-plane links
     have no w component): w·(Q − A) = r4. Joint angles from the planar two-link problem in
     the (v, t) plane. Points outside the reach get clipped angles and ``reachable = False``;
-    nothing here returns NaN.
+    nothing here returns NaN. ``xp``: array module (``numpy`` for jit-free single calls).
     """
-    p = jnp.asarray(p)
-    f = leg_frames(params.beta)
-    r5 = r5_of(params)
+    p = xp.asarray(p)
+    f = leg_frames(params.beta, xp=xp)
+    r5 = r5_of(params, xp=xp)
     pe = p[..., None, :]  # (..., 1, 3) against legs (3, 3)
     # R3 axis point Q and R1 offset (without the slider height) per leg
     q = pe - params.b5 * f.w + r5 * _EZ
     a0 = params.d1 * f.u + params.d2 * f.t
     rel = q - a0
-    sliders = (jnp.sum(rel * f.w, axis=-1) - params.r4) / jnp.sin(params.beta)  # w·e_z = sin β
+    sliders = (xp.sum(rel * f.w, axis=-1) - params.r4) / xp.sin(params.beta)  # w·e_z = sin β
     rel = rel - sliders[..., None] * _EZ
-    rho_v = jnp.sum(rel * f.v, axis=-1)
-    rho_t = jnp.sum(rel * f.t, axis=-1)
+    rho_v = xp.sum(rel * f.v, axis=-1)
+    rho_t = xp.sum(rel * f.t, axis=-1)
     rho2 = rho_v**2 + rho_t**2
     d3, d4 = params.d3, params.d4
     c2 = (rho2 - d3**2 - d4**2) / (2.0 * d3 * d4)
-    reach_ok = jnp.abs(c2) <= 1.0 + 1e-12
-    c2 = jnp.clip(c2, -1.0, 1.0)
-    elbow = jnp.arccos(c2)
-    s2 = jnp.sqrt(1.0 - c2**2)  # sin of the elbow angle, ≥ 0
-    rho = jnp.sqrt(rho2)
+    reach_ok = xp.abs(c2) <= 1.0 + 1e-12
+    c2 = xp.clip(c2, -1.0, 1.0)
+    elbow = xp.arccos(c2)
+    s2 = xp.sqrt(1.0 - c2**2)  # sin of the elbow angle, ≥ 0
+    rho = xp.sqrt(rho2)
     # the two branches share every transcendental: θ1 = φ ∓ ψ for θ2 = ±elbow
-    phi = jnp.arctan2(rho_t, rho_v)
-    psi = jnp.arctan2(d4 * s2, d3 + d4 * c2)
+    phi = xp.arctan2(rho_t, rho_v)
+    psi = xp.arctan2(d4 * s2, d3 + d4 * c2)
 
     def branch(th1: jax.Array, th2: jax.Array) -> jax.Array:
-        th1 = jnp.mod(th1 + jnp.pi, 2.0 * jnp.pi) - jnp.pi  # wrap to [−π, π)
-        return jnp.stack([th1, th2, -(th1 + th2)], axis=-1)
+        th1 = xp.mod(th1 + xp.pi, 2.0 * xp.pi) - xp.pi  # wrap to [−π, π)
+        return xp.stack([th1, th2, -(th1 + th2)], axis=-1)
 
-    theta = jnp.stack([branch(phi - psi, elbow), branch(phi + psi, -elbow)], axis=-3)
-    c_e = slider_offset(params)
+    theta = xp.stack([branch(phi - psi, elbow), branch(phi + psi, -elbow)], axis=-3)
+    c_e = slider_offset(params, xp=xp)
     half = params.stroke / 2.0
     s_dev = sliders - c_e
-    stroke_ok = jnp.abs(s_dev) <= half * (1.0 + 1e-12)
-    margin = jnp.minimum(
-        jnp.minimum(rho - jnp.abs(d3 - d4), d3 + d4 - rho),
-        half - jnp.abs(s_dev),
+    stroke_ok = xp.abs(s_dev) <= half * (1.0 + 1e-12)
+    margin = xp.minimum(
+        xp.minimum(rho - xp.abs(d3 - d4), d3 + d4 - rho),
+        half - xp.abs(s_dev),
     )
     return IkSolution(
         sliders=sliders,
@@ -165,8 +165,8 @@ def inverse_kinematics(params: PrrrParams, p: jax.Array) -> IkSolution:
         rho=rho,
         reach_ok=reach_ok,
         stroke_ok=stroke_ok,
-        reachable=jnp.all(reach_ok & stroke_ok, axis=-1),
-        reach_margin=jnp.min(margin, axis=-1),
+        reachable=xp.all(reach_ok & stroke_ok, axis=-1),
+        reach_margin=xp.min(margin, axis=-1),
     )
 
 
@@ -185,23 +185,23 @@ class LegPoints(NamedTuple):
     p: jax.Array  # end-effector centre reached by each leg
 
 
-def leg_chain(params: PrrrParams, sliders: jax.Array, theta: jax.Array) -> LegPoints:
+def leg_chain(params: PrrrParams, sliders: jax.Array, theta: jax.Array, xp=jnp) -> LegPoints:
     """Serial-chain forward kinematics of each leg from its slider and joint angles.
 
     ``sliders`` (..., 3), ``theta`` (..., 3 legs, 3 joints). Each leg's ``p`` must equal the
     end-effector position when the angles come from :func:`inverse_kinematics`.
     """
-    f = leg_frames(params.beta)
-    D = jnp.asarray(sliders)[..., None]
+    f = leg_frames(params.beta, xp=xp)
+    D = xp.asarray(sliders)[..., None]
     th1, th2 = theta[..., 0], theta[..., 1]
 
     def e(angle: jax.Array) -> jax.Array:
-        return jnp.cos(angle)[..., None] * f.v + jnp.sin(angle)[..., None] * f.t
+        return xp.cos(angle)[..., None] * f.v + xp.sin(angle)[..., None] * f.t
 
     a = D * _EZ + params.d1 * f.u + params.d2 * f.t
     b = a + params.d3 * e(th1)
     q = b + params.d4 * e(th1 + th2) + params.r4 * f.w
     # the platform frame is rotated by θ1+θ2+θ3 about w; with θ3 = −(θ1+θ2) it is the base frame
     rot = th1 + th2 + theta[..., 2]
-    offset = params.b5 * f.w - r5_of(params) * jnp.cos(rot)[..., None] * _EZ
+    offset = params.b5 * f.w - r5_of(params, xp=xp) * xp.cos(rot)[..., None] * _EZ
     return LegPoints(a=a, b=b, q=q, p=q + offset)
