@@ -1,0 +1,62 @@
+"""analysis.scene: bundled scenes, validation paths (one-line errors), effect resolution."""
+
+from __future__ import annotations
+
+import pytest
+
+from analysis.scene import Backend, Effect, EnvKind, load_scene, resolve, scene_from_dict, scene_names
+from design.errors import InputFileError, InvalidInput, UnknownName
+
+
+def test_bundled_scenes_load_and_resolve():
+    assert {"free-space", "stiffness-25", "virtual-box", "z-width"} <= set(scene_names())
+    for name in scene_names():
+        sc = load_scene(name)
+        res = resolve(sc)
+        assert res.backend == Backend.LUMPED and res.reason
+    st = load_scene("stiffness-25")
+    assert st.environment.kind == EnvKind.SPRING
+    assert st.environment.stiffness[0] == pytest.approx(25e3)  # issue 6: K_x = 25 N/mm
+    assert st.motion.frequency == 1.0 and st.motion.amplitude[0] == pytest.approx(4e-3)  # seed 002: 1 Hz, 4 mm
+    assert load_scene("virtual-box").environment.half_size == pytest.approx((0.01,) * 3)
+
+
+def test_link_dynamics_needs_multibody_backend():
+    sc = scene_from_dict({"name": "s", "effects": {"link_dynamics": True}})
+    with pytest.raises(InvalidInput, match="link_dynamics requires the multibody backend"):
+        resolve(sc)
+
+
+def test_viscous_dropped_without_motor():
+    sc = scene_from_dict({"name": "s", "effects": {"motor_dynamics": False}})
+    res = resolve(sc)
+    assert Effect.VISCOUS_FRICTION not in res.effects and any("viscous" in n for n in res.notes)
+
+
+@pytest.mark.parametrize("data, match", [
+    ({"name": "s", "duration_s": -1.0}, r"duration_s = -1 is out of range"),
+    ({"name": "s", "controller": {"period_ms": "1"}}, r"controller.period_ms = '1' must be a finite number"),
+    ({"name": "s", "environment": {"kind": "sprng"}}, r"environment.kind = 'sprng' is not known: allowed free"),
+    ({"name": "s", "environment": {"stiffness_N_per_mm": [1, 2]}}, r"must be a list of 3 finite numbers"),
+    ({"name": "s", "effects": {"gravity": 1}}, r"effects.gravity = 1 must be true or false"),
+    ({"name": "s", "effects": {"warp_drive": True}}, r"effects.warp_drive is not a known key"),
+    ({"name": "s", "effects": {"time_delay": True, "time_delay_ms": 1.5}}, r"whole number of controller periods"),
+    ({"name": "s", "environment": {"kind": "free", "stiffness_N_per_mm": [1, 0, 0]}}, r"renders zero impedance"),
+    ({"name": ""}, r"name = '' must be a non-empty string"),
+    ({"name": "s", "simulation": {"measure_axis": "w"}}, r"is not an axis"),
+])
+def test_validation_messages(data, match):
+    with pytest.raises(InvalidInput, match=match) as exc:
+        scene_from_dict(data)
+    assert "\n" not in str(exc.value)
+
+
+def test_unknown_scene_and_missing_file(tmp_path):
+    with pytest.raises(UnknownName, match="scene 'nope' does not exist"):
+        load_scene("nope")
+    with pytest.raises(InputFileError, match="does not exist"):
+        load_scene(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("name = [")
+    with pytest.raises(InputFileError, match="not valid TOML"):
+        load_scene(bad)

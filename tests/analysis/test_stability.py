@@ -1,0 +1,112 @@
+"""analysis.stability: analytic references, and the simulation checked against them (issue 6 acceptance)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from analysis import stability as sb
+from analysis.scene import Effect, load_scene
+from analysis.zwidth import StabilityProbe
+
+
+def test_force_loop_bandwidth_eq8(prrr_paper):
+    # seed digest: eq (8) with Table 4 at K_p = 45 gives 38.5 Hz (DC gain 0.976)
+    assert sb.force_loop_bandwidth(prrr_paper, 45.0) == pytest.approx(38.5, abs=0.05)
+    num, den = sb.force_loop_tf(prrr_paper, 45.0)
+    assert num[0] / den[-1] == pytest.approx(0.976, abs=5e-4)
+
+
+def test_stiffness_limits_eq14(prrr_paper):
+    # seed digest table: k_x = k_y = k/2 = 28.14, k_z = 3k = 168.8 N/mm at β = π/3
+    assert sb.stiffness_limits(prrr_paper) * 1e-3 == pytest.approx([28.135, 28.135, 168.81], rel=1e-4)
+
+
+@pytest.mark.parametrize("kp", [2.0, 45.0, 1e4])
+@pytest.mark.parametrize("axis", [0, 2])
+def test_eigenvalue_limit_matches_routh_hurwitz(prrr_paper, kp, axis):
+    # closed form K < k_a(1 + 1/(ηK_p)) from Routh–Hurwitz of the per-axis quartic (module docstring)
+    assert sb.continuous_stiffness_limit(prrr_paper, kp=kp, axis=axis) == pytest.approx(
+        sb.stiffness_limit_closed_form(prrr_paper, kp, axis), rel=1e-4)  # bisection on a 1e-9 eigenvalue tolerance
+
+
+def test_limit_tends_to_eq15(prrr_paper):
+    k = prrr_paper.actuator.spring
+    big = [sb.stiffness_limit_closed_form(prrr_paper, 1e6, a) for a in range(3)]
+    assert big == pytest.approx([k / 2, k / 2, 3 * k], rel=1e-5)  # seed 002 eq 15, Fig 13a
+
+
+def test_seed000_eq19():
+    # seed 000 parameters (digest): r = 6 mm, R = 150 mm, I_m = 34.7 g·cm², I_l = 4593.75 g·cm²,
+    # B_m = 11.72 g·cm²/ms; eq 19 gives K_e < 2.61 N/mm at T = 1 ms, B_e = 0 (2.67 at B_e = 30 g·cm²/s)
+    I = (34.7 + 4593.75) * 1e-7
+    Bm = 11.72 * 1e-7 / 1e-3
+    r, R = 6e-3, 150e-3
+    lim = sb.seed000_stiffness_limit(inertia=I, damping=Bm, ratio=r * R, T=1e-3)
+    assert lim * 1e-3 == pytest.approx(2.61, abs=0.01)  # [N/mm]
+    with_be = sb.seed000_stiffness_limit(inertia=I, damping=Bm, ratio=r * R, T=1e-3, virtual_damping=30e-7 / (r * R))
+    assert with_be > lim  # the critical stiffness rises with virtual damping (seed 000 conclusion)
+    cubic = sb.seed000_cubic(inertia=I, damping=Bm, ratio=r * R, T=1e-3, stiffness=0.99 * lim)
+    assert sb.hurwitz_cubic(*cubic)
+    assert not sb.hurwitz_cubic(*sb.seed000_cubic(inertia=I, damping=Bm, ratio=r * R, T=1e-3, stiffness=1.01 * lim))
+
+
+def test_sampled_wall_boundary_is_unit_circle_crossing():
+    m, b, T = 1.0, 2.0, 1e-3
+    K = sb.sampled_wall_boundary(mass=m, damping=b, virtual_damping=0.0, T=T)
+    assert K == pytest.approx(2 * b / T, rel=0.01)  # Colgate: b > KT/2 nearly tight for light damping
+    r = lambda k: np.max(np.abs(sb.sampled_wall_poles(mass=m, damping=b, stiffness=k,  # noqa: E731
+                                                      virtual_damping=0.0, T=T)))
+    assert r(0.999 * K) < 1.0 < r(1.001 * K)
+
+
+# ------------------------------------------------------------------ simulation vs analysis
+def _one_dof(prrr_paper):
+    """The 3-PRRR with a rigid transmission is a sampled mass per axis: m = M + M_m/2, b = ξ/2 in x."""
+    d = dataclasses.replace(prrr_paper, actuator=dataclasses.replace(prrr_paper.actuator, viscous=400.0))
+    base = load_scene("z-width")
+    sc = dataclasses.replace(base, duration=2.0,
+                             effects=base.effects - {Effect.SEA_COMPLIANCE, Effect.QUANTIZATION, Effect.SATURATION})
+    m = d.end_effector.mass + d.actuator.motor_mass / 2.0  # J Jᵀ = diag(2, 2, 1/3) at π/3
+    b = d.actuator.viscous / 2.0
+    return d, sc, m, b
+
+
+@pytest.mark.parametrize("B", [0.0, 60.0])
+def test_one_dof_sampled_boundary_within_2pct(prrr_paper, B):
+    d, sc, m, b = _one_dof(prrr_paper)
+    K_exact = sb.sampled_wall_boundary(mass=m, damping=b, virtual_damping=B, T=1e-3)
+    probe = StabilityProbe(d, sc)
+    Ks = K_exact * np.linspace(0.9, 1.1, 21)  # 1 % grid
+    ok = probe(Ks, np.full(len(Ks), B))
+    first_unstable = Ks[np.argmin(ok)]
+    assert ok[0] and not ok[-1]
+    assert ok[: np.argmin(ok)].all()  # one boundary
+    assert abs(first_unstable / K_exact - 1) <= 0.02
+
+
+def test_colgate_passive_points_are_stable(prrr_paper):
+    d, sc, m, b = _one_dof(prrr_paper)
+    rng = np.random.default_rng(6)
+    Ks = rng.uniform(1e3, 2 * b / 1e-3, 400)
+    Bs = rng.uniform(-b, b, 400)
+    keep = np.array([sb.colgate_passive(damping=b, stiffness=k, virtual_damping=v, T=1e-3) for k, v in zip(Ks, Bs)])
+    Ks, Bs = Ks[keep][:60], Bs[keep][:60]
+    assert len(Ks) == 60
+    assert StabilityProbe(d, sc)(Ks, Bs).all()
+
+
+@pytest.mark.parametrize("axis", [0, 2])
+def test_continuous_limit_sweep_within_2pct(prrr_paper, axis):
+    """Sampling off, zero virtual damping: simulated K limit vs eigenvalues over a K_p sweep."""
+    base = load_scene("z-width")
+    sc = dataclasses.replace(base, duration=1.0, initial_offset=tuple(1e-3 * (i == axis) for i in range(3)),
+                             effects=base.effects - {Effect.SAMPLING, Effect.QUANTIZATION, Effect.SATURATION})
+    for kp in (5.0, 45.0, 500.0):
+        K_eig = sb.continuous_stiffness_limit(prrr_paper, kp=kp, axis=axis)
+        ok = StabilityProbe(prrr_paper, sc, axis=axis, kp=kp)(K_eig * np.array([0.98, 1.02]), np.zeros(2))
+        assert ok[0] and not ok[1], kp
+    assert K_eig == pytest.approx(sb.stiffness_limits(prrr_paper)[axis], rel=0.01)  # → k/2, 3k at large K_p
