@@ -188,7 +188,7 @@ def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Arr
     else:  # FORCE: prescribed force reference
         _traced("force")
         t = state.tick * T
-        F = gains.force_amplitude * jnp.sin(gains.force_omega[..., None] * t)
+        F = gains.force_amplitude * jnp.sin(gains.force_omega[..., None] * t) + jnp.zeros_like(p)
     if cfg.friction_compensation:
         _traced("friction_compensation")
         comp = gains.friction_comp * jnp.tanh(v / gains.friction_comp_velocity)

@@ -159,7 +159,7 @@ class _Reader:
             lo_open: bool = False, unit: str = "") -> float:
         v = self._get(key)
         if v is None:
-            return default
+            return default * scale  # defaults are given in the key's unit
         allowed = f"{'<' if lo_open else '≤'} {key} ≤ {hi:g}"
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise InvalidInput(f"{self.where}.{key} = {v!r} must be a finite number: allowed {lo:g} {allowed} {unit}".rstrip())
@@ -187,7 +187,7 @@ class _Reader:
             lo: float = -math.inf, hi: float = math.inf, unit: str = "") -> tuple[float, ...]:
         v = self._get(key)
         if v is None:
-            return default
+            return tuple(float(x) * scale for x in default)
         if (not isinstance(v, list) or len(v) != n
                 or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) for x in v)):
             raise InvalidInput(f"{self.where}.{key} = {v!r} must be a list of {n} finite numbers ({unit or '-'})")
