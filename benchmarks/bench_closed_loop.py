@@ -1,0 +1,85 @@
+"""Closed-loop speed (issue 6 targets: a 3 s scene at 1 kHz on the lumped plant ≥ 200× real time,
+i.e. ≤ 15 ms; a 20 × 20 Z-width map ≤ 30 s). Also: per-tick controller cost and each effect's cost.
+
+Run with ``make bench``; figures are in docs/closed_loop.md (2-core machine).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from analysis import closed_loop as cl
+from analysis import firmware as fw
+from analysis.scene import Effect, load_scene
+from analysis.zwidth import zwidth_map
+from design import io
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return io.load_preset("prrr-paper")
+
+
+def _sim(paper, scene):
+    st = cl.setup(paper, scene)
+    sim = cl.Simulator(st)
+    sim.run()  # compile outside the timing
+    return sim
+
+
+@pytest.mark.parametrize("scene", ["stiffness-25", "free-space", "virtual-box"])
+def test_scene_3s_lumped(benchmark, paper, scene):
+    sim = _sim(paper, load_scene(scene))
+    tr = benchmark(sim.run)
+    assert tr.energy.shape[0] == 3000
+
+
+ALL = load_scene("stiffness-25").effects
+
+
+@pytest.mark.parametrize("off", ["none"] + sorted(e.value for e in ALL))
+def test_effect_cost(benchmark, paper, off):
+    """Each effect switched off in turn from the full stiffness-25 scene (the difference is its cost)."""
+    sc = load_scene("stiffness-25")
+    if off != "none":
+        sc = dataclasses.replace(sc, effects=sc.effects - {Effect(off)})
+    sim = _sim(paper, sc)
+    benchmark(sim.run)
+
+
+def test_controller_per_tick_scan(benchmark, paper):
+    """The control law alone, compiled, 3000 ticks of recorded sensor values (per tick = time / 3000)."""
+    sc = load_scene("stiffness-25")
+    st = cl.setup(paper, sc)
+    cfg, g = st.cfg, st.gains
+    rng = np.random.default_rng(0)
+    enc = jnp.asarray(np.round(rng.normal(0, 100, (3000, 1, 3))))
+    defl = jnp.asarray(np.round(rng.normal(0, 100, (3000, 1, 3))))
+
+    @jax.jit
+    def run(enc, defl):
+        s0 = fw.init_state(cfg, g, enc[0])
+        return jax.lax.scan(lambda s, x: fw.step(cfg, g, s, x[0], x[1])[:2], s0, (enc, defl))[1]
+
+    jax.block_until_ready(run(enc, defl))
+    out = benchmark(lambda: jax.block_until_ready(run(enc, defl)))
+    assert out.shape == (3000, 1, 1, 3)
+
+
+def test_controller_object_step(benchmark, paper):
+    """``FirmwareController.step`` called from Python (one jit dispatch per tick)."""
+    st = cl.setup(paper, load_scene("stiffness-25"))
+    ctl = fw.FirmwareController(st.cfg, st.gains)
+    ctl.step(np.zeros(3), np.zeros(3))
+    benchmark(ctl.step, np.ones(3), np.ones(3))
+
+
+def test_zwidth_map_20x20(benchmark, paper):
+    sc = load_scene("z-width")
+    zw = benchmark.pedantic(zwidth_map, args=(paper, sc), rounds=1, iterations=1)
+    assert zw.stable.shape == (20, 20) and zw.stable.any() and not zw.stable.all()
