@@ -43,6 +43,7 @@ FRICTION_SUBSTEPS = {Fidelity.DRAFT: 1, Fidelity.STANDARD: 1, Fidelity.FINE: 10}
 #: controller ticks per nominal period with sampling off (continuous-time limit)
 OVERSAMPLE = {Fidelity.DRAFT: 10, Fidelity.STANDARD: 20, Fidelity.FINE: 50}
 CHUNK_TICKS = 1000
+UNROLL = 1  # ticks per compiled loop iteration (docs/closed_loop.md)
 SATURATION_WINDOW_S = 0.1
 SATURATION_FRACTION = 0.5
 
@@ -331,7 +332,7 @@ class Simulator:
             return (x_out, cs_out, buf2, u_out, lam_out, ok, stop, k + 1), out
 
         def chunk(gains, carry):
-            return jax.lax.scan(lambda c, _: tick(gains, c, _), carry, None, length=self.chunk)
+            return jax.lax.scan(lambda c, _: tick(gains, c, _), carry, None, length=self.chunk, unroll=UNROLL)
 
         return chunk
 

@@ -110,3 +110,10 @@ def test_continuous_limit_sweep_within_2pct(prrr_paper, axis):
         ok = StabilityProbe(prrr_paper, sc, axis=axis, kp=kp)(K_eig * np.array([0.98, 1.02]), np.zeros(2))
         assert ok[0] and not ok[1], kp
     assert K_eig == pytest.approx(sb.stiffness_limits(prrr_paper)[axis], rel=0.01)  # → k/2, 3k at large K_p
+
+
+def test_evaluator_metrics(prrr_paper):
+    m = sb.evaluate(prrr_paper).metrics()
+    assert m["force_loop_bandwidth_Hz"] == pytest.approx(38.5, abs=0.05)  # eq 8, Table 4
+    # k_a (1 + 1/(ηK_p)) at K_p = 45: 28.14·1.0242 N/mm (eq 14 and the Routh–Hurwitz closed form)
+    assert m["closed_loop_stiffness_limit_N_per_mm"][0] == pytest.approx(28.135 * (1 + 1 / (0.9173 * 45)), rel=1e-4)
