@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -16,9 +18,13 @@ def test_verify_json_metrics(tmp_path):
     scene = tmp_path / "short.toml"
     scene.write_text('name = "short"\nduration_s = 1.0\n[environment]\nkind = "spring"\n'
                      'stiffness_N_per_mm = [25.0, 0, 0]\n[motion]\namplitude_mm = [4.0, 0, 0]\n')
-    res = runner.invoke(app, ["verify", "--preset", "prrr-paper", "--scene", str(scene), "--json"])
+    res = runner.invoke(app, ["verify", "--preset", "prrr-paper", "--scene", str(scene), "--json",
+                              "--plots", str(tmp_path / "plots")])
     assert res.exit_code == 0, res.output
-    m = json.loads(res.stdout)["metrics"]
+    out = json.loads(res.stdout)
+    if importlib.util.find_spec("matplotlib") is not None:  # plots are optional (matplotlib is not a dependency)
+        assert out["plots"] and all(Path(p).is_file() for p in out["plots"])
+    m = out["metrics"]
     assert {"stable", "rendered_stiffness_N_per_mm", "stiffness_error_pct", "residual_force_rms_N", "backend",
             "effects"} <= set(m)
     assert m["stable"] is True and m["backend"] == "lumped"
