@@ -34,7 +34,7 @@ from analysis.fidelity import Fidelity
 from analysis.lumped_plant import (FRICTION_ITERS, LumpedModel, build_model, discretise, observables, sensor_values,
                                    solve_friction)
 from analysis.plant import Plant
-from analysis.scene import Effect, EnvKind, BoxMode, Resolution, Scene, StabilityCriterion, resolve
+from analysis.scene import Backend, BoxMode, Effect, EnvKind, Resolution, Scene, StabilityCriterion, resolve
 from analysis.status import Status
 from design.prrr import PrrrDesign
 
@@ -156,6 +156,7 @@ class ClosedLoopResult:
     backend: str
     effects: tuple[str, ...]
     notes: tuple[str, ...] = ()
+    reason: str = ""  # why this backend (analysis.scene.resolve)
     period: float = 1e-3
     substeps: int = 1
     ticks: int = 0
@@ -180,6 +181,7 @@ class ClosedLoopResult:
             "force_tracking_rms_N": self.force_tracking_rms,
             "wall_penetration_mm": mm(self.wall_penetration, 1e3),
             "backend": self.backend,
+            "backend_reason": self.reason,
             "effects": list(self.effects),
             "controller_period_ms": self.period * 1e3,
             "plant_substeps": self.substeps,
@@ -227,7 +229,7 @@ def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | Non
         stable=stable, unstable_at=t_det, rendered_stiffness=rk, rendered_damping=rb, stiffness_error_pct=err,
         residual_force_rms=res_rms, residual_force_rms_per_axis=res_axis, force_tracking_rms=track,
         wall_penetration=pen, backend=backend or str(st.resolution.backend), effects=tuple(st.resolution.effect_names()),
-        notes=st.resolution.notes, period=st.period, substeps=st.substeps, ticks=st.ticks, wall_time=wall_time,
+        notes=st.resolution.notes, reason=st.resolution.reason, period=st.period, substeps=st.substeps, ticks=st.ticks, wall_time=wall_time,
         status=status, message=message, traces=tr,
     )
 
@@ -375,8 +377,24 @@ class Simulator:
         return Traces(period=self.st.period, stop_tick=np.asarray(carry[6]), **cat)
 
 
-def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD) -> ClosedLoopResult:
-    """Run ``scene`` on ``design`` with the lumped plant and return its metrics."""
+def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
+             backend: Backend | None = None) -> Any:
+    """Run ``scene`` on ``design`` on the backend the resolver picks (or ``backend`` forces).
+
+    Lumped: the fused compiled loop, a :class:`ClosedLoopResult`. Multibody: the firmware in the
+    loop on the MuJoCo plant (:func:`analysis.mujoco_plant.simulate` for the 3-PRRR,
+    :func:`analysis.mujoco_master.simulate` for the master), a result with constraint health.
+    Every result's metrics name the backend and the reason (``backend``, ``backend_reason``).
+    """
+    res = resolve(scene, force=backend)
+    if scene.device == "master":
+        from analysis import mujoco_master
+
+        return mujoco_master.simulate(design, scene, fidelity=fidelity, reason=res.reason)
+    if res.backend == Backend.MULTIBODY:
+        from analysis import mujoco_plant
+
+        return mujoco_plant.simulate(design, scene, fidelity=fidelity, reason=res.reason)
     st = setup(design, scene, fidelity=fidelity)
     t0 = time.perf_counter()
     tr = Simulator(st).run()

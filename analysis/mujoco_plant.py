@@ -64,16 +64,10 @@ class BackendChoice:
 
 
 def choose_backend(scene: Scene, *, force: Backend | None = None) -> BackendChoice:
-    """Lumped when the effects allow it, multibody when ``link_dynamics`` is on; ``force`` overrides."""
-    res = resolve(scene, available=frozenset(Backend))
-    if force is None or force == res.backend:
-        return BackendChoice(backend=res.backend, reason=res.reason, resolution=res)
-    if force == Backend.LUMPED and Effect.LINK_DYNAMICS in res.effects:
-        raise InvalidInput(f"scene {scene.name}: backend = lumped cannot simulate link_dynamics "
-                           "(switch effects.link_dynamics off, or use backend = multibody)")
-    reason = f"forced by the caller (the resolver would pick {res.backend}: {res.reason})"
-    return BackendChoice(backend=force, reason=reason,
-                         resolution=dataclasses.replace(res, backend=force, reason=reason))
+    """Lumped when the effects allow it, multibody when ``link_dynamics`` is on (or the device is
+    the master); ``force`` (else the scene's ``backend`` key) overrides — see :func:`analysis.scene.resolve`."""
+    res = resolve(scene, force=force)
+    return BackendChoice(backend=res.backend, reason=res.reason, resolution=res)
 
 
 def model_options(scene: Scene, resolution: Resolution, *, fidelity: Fidelity = Fidelity.STANDARD,
@@ -281,6 +275,14 @@ class MultibodyResult:
     @property
     def health_ok(self) -> bool:
         return self.health.violation <= VIOLATION_TOL and self.health.rotation <= ROTATION_TOL
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        return self.loop.notes
+
+    @property
+    def traces(self) -> Any:
+        return self.loop.traces
 
     def metrics(self) -> dict[str, Any]:
         out = dict(self.loop.metrics())

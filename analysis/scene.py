@@ -6,8 +6,11 @@ perturbation, and the **effects** switched on. An effect that is off is absent f
 and from the controller (it is not evaluated at all, see ``tests/analysis/test_closed_loop.py``).
 
 :func:`resolve` turns a scene into the effect set actually simulated and the backend that
-can simulate it, with the reason. Only the lumped plant (``analysis.lumped_plant``) exists
-today; ``link_dynamics`` needs the multibody backend and is refused with a clear error.
+can simulate it, with the reason: the lumped plant (``analysis.lumped_plant``) when the effects
+allow it, the multibody MuJoCo plant (``analysis.mujoco_plant``, ``analysis.mujoco_master``) for
+``link_dynamics`` (with or without gravity on the links) and for the surgical master at all.
+A scene (``backend = "lumped" | "multibody"``) or the caller may force a backend; forcing the
+lumped plant onto a scene it cannot simulate is refused with a one-line error, never silently run.
 
 TOML keys carry their unit (``period_ms``, ``stiffness_N_per_mm``); values are stored in SI.
 Every invalid value raises :class:`design.errors.InvalidInput` with a one-line message naming
@@ -42,6 +45,9 @@ class Effect(StrEnum):
     TIME_DELAY = "time_delay"  # commands reach the plant ``time_delay_ms`` late
     LINK_DYNAMICS = "link_dynamics"  # distributed link inertia: needs the multibody backend
 
+
+#: devices a scene can be written for
+DEVICES = ("prrr", "master")
 
 #: effects on when a scene's [effects] table does not mention them
 DEFAULT_EFFECTS: frozenset[Effect] = frozenset(Effect) - {Effect.TIME_DELAY, Effect.LINK_DYNAMICS}
@@ -135,6 +141,8 @@ class Scene:
     stability: StabilityCriterion = StabilityCriterion.DRIVEN
     measure_axis: int = 0  # axis of the rendered-stiffness fit
     zwidth: ZWidthSettings = field(default_factory=ZWidthSettings)
+    device: str = "prrr"  # which device the scene is written for: "prrr" (3-PRRR SEA) or "master"
+    backend: "Backend | None" = None  # forced backend; None = the resolver chooses
 
 
 # ---------------------------------------------------------------------------------------- parsing
@@ -228,6 +236,17 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
     if not isinstance(name, str) or not name.strip():
         raise InvalidInput(f"{source}.name = {name!r} must be a non-empty string")
     description = top._get("description") or ""
+    device = top._get("device") or "prrr"
+    if device not in DEVICES:
+        raise InvalidInput(f"{source}.device = {device!r} is not known: allowed {', '.join(DEVICES)}")
+    backend_key = top._get("backend")
+    if backend_key in (None, "auto"):
+        backend = None
+    else:
+        try:
+            backend = Backend(backend_key)
+        except ValueError:
+            raise InvalidInput(f"{source}.backend = {backend_key!r} is not known: allowed auto, lumped, multibody") from None
     if not isinstance(description, str):
         raise InvalidInput(f"{source}.description = {description!r} must be a string")
     where = f"scene {name}"
@@ -340,7 +359,8 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
     return Scene(name=name, description=description, duration=duration, controller=controller, environment=env,
                  operator=operator, motion=motion, initial_offset=initial, effects=frozenset(effects),
                  time_delay=delay if Effect.TIME_DELAY in effects else 0.0, substeps=substeps,
-                 output_locked=locked, stability=criterion, measure_axis=axis, zwidth=zw)
+                 output_locked=locked, stability=criterion, measure_axis=axis, zwidth=zw, device=device,
+                 backend=backend)
 
 
 def _scene_dir():
@@ -385,8 +405,8 @@ class Backend(StrEnum):
     MULTIBODY = "multibody"  # MuJoCo plant (issue 8)
 
 
-#: backends that can be run today; the multibody plant registers itself here when it exists
-AVAILABLE_BACKENDS: frozenset[Backend] = frozenset({Backend.LUMPED})
+#: backends that can be run (the multibody plant of issue 8 exists)
+AVAILABLE_BACKENDS: frozenset[Backend] = frozenset({Backend.LUMPED, Backend.MULTIBODY})
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -402,19 +422,47 @@ class Resolution:
         return sorted(e.value for e in self.effects)
 
 
-def resolve(scene: Scene, *, available: frozenset[Backend] = AVAILABLE_BACKENDS) -> Resolution:
-    """The resolved effect set and backend of ``scene``; raises :class:`InvalidInput` if none can run it."""
+def multibody_need(scene: Scene) -> str | None:
+    """Why ``scene`` needs the multibody plant (None: the lumped plant is exact for it)."""
+    if scene.device == "master":
+        return ("the surgical master: its serial/parallelogram chain has pose-dependent inertia, gravity and "
+                "Jacobian, which only the multibody plant (design.mjcf_master) models")
+    if Effect.LINK_DYNAMICS in scene.effects and Effect.GRAVITY in scene.effects:
+        return ("link_dynamics and gravity are on: distributed link inertia and the links' weight at their own "
+                "CoMs need the multibody plant")
+    if Effect.LINK_DYNAMICS in scene.effects:
+        return "link_dynamics is on: distributed link inertia needs the multibody plant"
+    return None
+
+
+def resolve(scene: Scene, *, available: frozenset[Backend] = AVAILABLE_BACKENDS,
+            force: Backend | None = None) -> Resolution:
+    """The resolved effect set and backend of ``scene``; raises :class:`InvalidInput` if none can run it.
+
+    ``force`` (or the scene's own ``backend`` key; ``force`` wins) overrides the choice; forcing
+    the lumped plant onto a scene that needs the multibody one is an error, never a silent run.
+    """
     effects = set(scene.effects)
     notes: list[str] = []
-    if Effect.LINK_DYNAMICS in effects:
+    need = multibody_need(scene)
+    force = force if force is not None else scene.backend
+    if need is not None:
+        if force == Backend.LUMPED:
+            what = "the master" if scene.device == "master" else "link_dynamics"
+            raise InvalidInput(f"scene {scene.name}: backend = lumped cannot simulate {what} ({need.split(':')[0]}); "
+                               "use backend = multibody" + ("" if scene.device == "master"
+                                                            else " or switch effects.link_dynamics off"))
         if Backend.MULTIBODY not in available:
-            raise InvalidInput(f"scene {scene.name}: link_dynamics requires the multibody backend (not available yet); "
+            raise InvalidInput(f"scene {scene.name}: link_dynamics requires the multibody backend (not available); "
                                "switch effects.link_dynamics off to use the lumped plant")
-        backend, reason = Backend.MULTIBODY, "link_dynamics is on: distributed link inertia needs the multibody plant"
+        backend, reason = Backend.MULTIBODY, need
     else:
         backend = Backend.LUMPED
         reason = ("no effect needs the multibody backend: the lumped two-mass SEA model (seed 002 eq 6) with the "
                   "constant equivalent mass M_e (eq 7) is exact for the 3-PRRR's rigid translational dynamics")
+        if force == Backend.MULTIBODY:
+            backend = Backend.MULTIBODY
+            reason = f"forced multibody (the resolver would pick lumped: {reason})"
     if Effect.MOTOR_DYNAMICS not in effects and Effect.VISCOUS_FRICTION in effects:
         effects.discard(Effect.VISCOUS_FRICTION)
         notes.append("viscous_friction dropped: it acts on the motor side, absent without motor_dynamics")

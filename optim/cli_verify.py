@@ -47,7 +47,8 @@ def _plot(result: Any, out_dir: Path, name: str) -> list[Path]:
 def verify(
     file: Annotated[Optional[Path], typer.Argument(help="Design TOML file (or use --preset).", show_default=False)] = None,
     preset: Annotated[Optional[str], typer.Option("--preset", help="Bundled preset name.")] = None,
-    scene: Annotated[str, typer.Option("--scene", help="Bundled scene name (free-space, stiffness-25, virtual-box, z-width) or a .toml path.")] = "stiffness-25",
+    scene: Annotated[Optional[str], typer.Option("--scene", help="Bundled scene name (free-space, stiffness-25, stiffness-25-links, virtual-box, z-width; master-transparency, master-wall) or a .toml path [default: stiffness-25, master-wall for a master].", show_default=False)] = None,
+    backend: Annotated[str, typer.Option("--backend", help="auto (the scene resolver picks), lumped or multibody.")] = "auto",
     set_: Annotated[Optional[list[str]], typer.Option("--set", help="Override a design TOML key (repeatable).")] = None,
     fidelity: Annotated[str, typer.Option("--fidelity", help="draft, standard or fine.")] = "standard",
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, scene, metrics, status, message}.")] = False,
@@ -56,22 +57,27 @@ def verify(
     """Simulate the design in closed loop with the firmware controller in a scene."""
     from analysis import closed_loop, zwidth
     from analysis.fidelity import Fidelity
-    from analysis.scene import StabilityCriterion, load_scene
+    from analysis.scene import Backend, StabilityCriterion, load_scene
     from design.errors import InvalidInput
 
     try:
         level = Fidelity(fidelity)
     except ValueError:
         raise InvalidInput(f"--fidelity = {fidelity!r} is not a fidelity level: allowed draft, standard, fine") from None
+    if backend not in ("auto", "lumped", "multibody"):
+        raise InvalidInput(f"--backend = {backend!r} is not a backend: allowed auto, lumped, multibody")
+    force = None if backend == "auto" else Backend(backend)
     design = load_design_arg(file, preset, set_)
-    if design.device != "prrr":
-        raise InvalidInput(f"verify simulates the 3-PRRR SEA device; design {design.name!r} is a {design.device}")
-    sc = load_scene(scene)
-    result = closed_loop.simulate(design, sc, fidelity=level)
+    device = "master" if design.device == "master" else "prrr"
+    sc = load_scene(scene or ("master-wall" if device == "master" else "stiffness-25"))
+    if sc.device != device:
+        raise InvalidInput(f"--scene {sc.name} is written for the {sc.device} device; design {design.name!r} is a "
+                           f"{design.device}: pick a {device} scene")
+    result = closed_loop.simulate(design, sc, fidelity=level, backend=force)
     metrics = result.metrics()
-    metrics["resolution_reason"] = closed_loop.resolve(sc).reason
+    metrics["resolution_reason"] = metrics.get("backend_reason", "")
     metrics["notes"] = list(result.notes)
-    if sc.stability == StabilityCriterion.DECAY:  # a perturbation scene: also map its Z-width
+    if sc.stability == StabilityCriterion.DECAY and metrics["backend"] == "lumped":  # also map its Z-width
         metrics.update(zwidth.zwidth_map(design, sc, fidelity=level).metrics())
     written = _plot(result, plots, sc.name) if plots is not None else []
     if as_json:

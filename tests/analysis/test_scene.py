@@ -13,7 +13,10 @@ def test_bundled_scenes_load_and_resolve():
     for name in scene_names():
         sc = load_scene(name)
         res = resolve(sc)
-        assert res.backend == Backend.LUMPED and res.reason
+        # issue 8: link_dynamics and the master need the multibody plant, everything else is lumped
+        needs_mb = sc.device == "master" or Effect.LINK_DYNAMICS in sc.effects
+        assert res.backend == (Backend.MULTIBODY if needs_mb else Backend.LUMPED) and res.reason
+    assert resolve(load_scene("stiffness-25-links")).backend == Backend.MULTIBODY
     st = load_scene("stiffness-25")
     assert st.environment.kind == EnvKind.SPRING
     assert st.environment.stiffness[0] == pytest.approx(25e3)  # issue 6: K_x = 25 N/mm
@@ -24,7 +27,25 @@ def test_bundled_scenes_load_and_resolve():
 def test_link_dynamics_needs_multibody_backend():
     sc = scene_from_dict({"name": "s", "effects": {"link_dynamics": True}})
     with pytest.raises(InvalidInput, match="link_dynamics requires the multibody backend"):
-        resolve(sc)
+        resolve(sc, available=frozenset({Backend.LUMPED}))
+    res = resolve(sc)
+    assert res.backend == Backend.MULTIBODY and "link_dynamics" in res.reason and "gravity" in res.reason
+    no_g = scene_from_dict({"name": "s", "effects": {"link_dynamics": True, "gravity": False}})
+    assert "gravity" not in resolve(no_g).reason
+
+
+def test_backend_forcing_from_scene_and_caller():
+    """Forcing: multibody on a lumped-capable scene says so; lumped on link_dynamics / the master is refused."""
+    sc = scene_from_dict({"name": "s", "backend": "multibody"})
+    res = resolve(sc)
+    assert res.backend == Backend.MULTIBODY and "forced" in res.reason
+    assert resolve(sc, force=Backend.LUMPED).backend == Backend.LUMPED  # the caller wins
+    with pytest.raises(InvalidInput, match="backend = lumped cannot simulate link_dynamics"):
+        resolve(scene_from_dict({"name": "s", "backend": "lumped", "effects": {"link_dynamics": True}}))
+    with pytest.raises(InvalidInput, match="backend = lumped cannot simulate the master"):
+        resolve(scene_from_dict({"name": "s", "device": "master"}), force=Backend.LUMPED)
+    with pytest.raises(InvalidInput, match="backend = 'mujoco' is not known"):
+        scene_from_dict({"name": "s", "backend": "mujoco"})
 
 
 def test_viscous_dropped_without_motor():
