@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/accuracy_structure.py            # cantilever levels 0..3
     .venv/bin/python benchmarks/accuracy_structure.py --prrr 0    # + 3-PRRR solid at those levels
+    .venv/bin/python benchmarks/accuracy_structure.py --levels --cad -1 0 1   # CAD solid, bonded pins
 
 Cantilever: FEA levels against Timoshenko's closed form and their Richardson extrapolation.
 3-PRRR: the frame model (released and bonded joints) and the bonded-joint solid FEA.
@@ -61,11 +62,53 @@ def prrr(levels: list[int]) -> None:
               f"frame(bonded)/FEA − 1 = {bonded / r.stiffness_load - 1}")
 
 
+def cad(levels: list[int]) -> None:
+    """CAD solid with bonded pins (analysis.fea_cad): levels, Richardson per axis, frame comparison."""
+    import numpy as np
+
+    from analysis import fea_cad
+
+    d = io.load_preset("prrr-paper")
+    rows = []
+    print("| level | size mm | DOFs | CG its (x, y, z) | mesh s | assemble s | AMG setup s | CG s | wall s | "
+          "k_x, k_y, k_z N/mm |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for k in levels:
+        r = fea_cad.cad_fea(d, level=k)
+        t = r.timings_s
+        rows.append(r)
+        print(f"| {k} | {r.size * 1e3:.1f} | {r.n_dofs} | {r.iterations} | {t['mesh']:.1f} | {t['assemble']:.1f} | "
+              f"{t['amg_setup']:.1f} | {t['solve']:.1f} | {r.wall_s:.1f} | "
+              f"{', '.join(f'{x / 1e3:.1f}' for x in r.stiffness_load)} |", flush=True)
+    if len(rows) >= 3:
+        # extrapolate the compliance (the FE quantity that converges monotonically)
+        c = np.array([1.0 / r.stiffness_load for r in rows[-3:]])
+        ks = []
+        for i in range(3):
+            rich = fea.richardson(*c[:, i])
+            ks.append((1.0 / rich.extrapolated, rich.order))
+        print("Richardson (last 3 levels, compliance): k∞ = "
+              + ", ".join(f"{k / 1e3:.1f} N/mm (order {p:.2f})" for k, p in ks))
+        for r in rows:
+            err = [r.stiffness_load[i] / ks[i][0] - 1 for i in range(3)]
+            print(f"level size {r.size * 1e3:.1f} mm: error vs extrapolated " + ", ".join(f"{e:+.2%}" for e in err)
+                  + f" in {r.wall_s:.1f} s")
+    for branch in (1, 0):
+        for joints in (fm.Joints.BONDED, fm.Joints.RELEASED):
+            fr = structural_stiffness(d, options=fm.FrameOptions(joints=joints, branch=branch)).stiffness_load
+            print(f"frame {joints} branch {branch}: {', '.join(f'{x / 1e3:.1f}' for x in fr)} N/mm; "
+                  f"frame/FEA(finest) − 1 = {', '.join(f'{x:+.1%}' for x in fr / rows[-1].stiffness_load - 1)}")
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--levels", type=int, nargs="*", default=[0, 1, 2, 3])
     ap.add_argument("--prrr", type=int, nargs="*", default=None)
+    ap.add_argument("--cad", type=int, nargs="*", default=None)
     args = ap.parse_args()
-    cantilever(args.levels)
+    if args.levels:
+        cantilever(args.levels)
     if args.prrr is not None:
         prrr(args.prrr)
+    if args.cad is not None:
+        cad(args.cad)

@@ -1,0 +1,59 @@
+"""CAD solid FEA (bonded pins): mesh topology only (the solve is in benchmarks/accuracy_structure.py).
+
+One coarse mesh of prrr-paper's posed CAD parts: pins in every revolute joint, rail-slot
+supports found, and the fragment makes one conformal body (every part connected through pins).
+"""
+
+import numpy as np
+import pytest
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from analysis import fea_cad
+from design import io
+
+pytestmark = pytest.mark.slow  # ~10 s: build123d import, CAD build and a coarse gmsh mesh
+
+
+@pytest.fixture(scope="module")
+def cad():
+    return fea_cad.cad_mesh(io.load_preset("prrr-paper"), size=0.03)
+
+
+def test_every_revolute_joint_has_a_pin(cad):
+    mesh, info = cad
+    assert info["n_pins"] == 9  # 3 legs × (R1, R2, R3)
+    for i in (1, 2, 3):
+        for joint in ("r1", "r2", "r3"):
+            assert mesh.node_sets[f"pin_{joint}_{i}"].size > 0
+        for part in ("carriage", "link1", "link2"):
+            assert mesh.node_sets[f"{part}_{i}"].size > 0
+        assert mesh.node_sets[f"support_leg{i}"].size > 0
+    assert mesh.node_sets["platform"].size > 0
+
+
+def test_pins_bond_the_parts_into_one_conformal_body(cad):
+    mesh, _ = cad
+    t = mesh.tets
+    rows = np.concatenate([t[a] for a in range(4) for b in range(4) if a != b])
+    cols = np.concatenate([t[b] for a in range(4) for b in range(4) if a != b])
+    n = mesh.points.shape[1]
+    graph = coo_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+    count, _ = connected_components(graph, directed=False)
+    assert count == 1
+    # a pin shares nodes with both parts of its joint (the bore surfaces are merged)
+    pin = set(mesh.node_sets["pin_r2_1"].tolist())
+    assert pin & set(mesh.node_sets["link1_1"].tolist()) and pin & set(mesh.node_sets["link2_1"].tolist())
+
+
+def test_supports_are_the_rail_slot_faces(cad):
+    # the clamped nodes lie on the slot boundary of carriage 1: |x_loc − r_p| or |y_loc| = slot
+    mesh, info = cad
+    d = io.load_preset("prrr-paper")
+    from design import cad_prrr
+
+    L = cad_prrr.layout(d)
+    T = cad_prrr.part_frames(d, info["pose"])["carriage_1"]
+    loc = (mesh.points[:, mesh.node_sets["support_leg1"]].T - T[:3, 3]) @ T[:3, :3]
+    edge = np.maximum(np.abs(loc[:, 0] - d.geometry.r_p), np.abs(loc[:, 1]))
+    np.testing.assert_allclose(edge, L.slot, atol=1e-6)
