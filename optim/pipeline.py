@@ -136,55 +136,109 @@ def _try_export(design: Any, out_dir: Path) -> StageOutcome:
             break
     if fn is None:
         return StageOutcome(name="export", status="skipped", message="design.export has no export function")
-    before = {p for p in out_dir.rglob("*") if p.is_file()}
     try:
         params = inspect.signature(fn).parameters
         kwargs: dict[str, Any] = {}
         if "render" in params:
             kwargs["render"] = True
-        fn(design, out_dir, **kwargs)
+        result = fn(design, out_dir, **kwargs)
     except Exception as exc:  # noqa: BLE001 - a failed export is reported
         return StageOutcome(name="export", status="failed", message=f"{type(exc).__name__}: {exc}",
                             wall_s=time.perf_counter() - t0)
-    files = sorted(str(p.relative_to(out_dir)) for p in out_dir.rglob("*")
-                   if p.is_file() and p.suffix.lower() in (".step", ".stp", ".stl", ".xml", ".png", ".json")
-                   and (p not in before or p.stat().st_mtime >= time.time() - (time.perf_counter() - t0) - 1)
-                   and p.name not in ("result.json",) and not p.name.startswith("."))
+    written = getattr(result, "files", None)
+    if written is None:  # an exporter that returns nothing: list what it wrote
+        written = [p for p in out_dir.rglob("*") if p.is_file() and p.stat().st_mtime >= time.time()
+                   - (time.perf_counter() - t0) - 1 and p.suffix.lower() in (".step", ".stp", ".stl", ".xml", ".png")]
+    files = sorted(str(Path(p).resolve().relative_to(out_dir.resolve())) for p in written)
     return StageOutcome(name="export", status="ok", wall_s=time.perf_counter() - t0, files=tuple(files))
 
 
-def _find_verifier() -> Callable[..., Any] | None:
-    """The closed-loop runner of issue 6: ``run_scene(design, scene) -> result with .metrics()``."""
-    for module_name, fn_name in (("analysis.closed_loop", "run_scene"), ("analysis.verify", "run_scene"),
-                                 ("analysis.scenes", "run_scene"), ("analysis.simulate", "run_scene")):
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError:
-            continue
-        fn = getattr(module, fn_name, None)
-        if callable(fn):
-            return fn
-    return None
+#: verdict rule where a scene renders a spring: rendered-stiffness error bound (issue 6's acceptance, 10 %)
+STIFFNESS_ERROR_LIMIT_PCT = 10.0
 
 
-def _verify(design: Any, scenes: tuple[str, ...], out_dir: Path) -> tuple[StageOutcome, tuple[Verdict, ...]]:
+def _find_verifier(fidelity: Fidelity) -> Callable[[Any, str], Any] | None:
+    """The closed-loop runner of issue 6 as ``fn(design, scene_name) -> result with .metrics()``."""
+    try:
+        closed_loop = importlib.import_module("analysis.closed_loop")
+    except ModuleNotFoundError as exc:
+        if exc.name != "analysis.closed_loop":
+            raise
+        return None
+    run_scene = getattr(closed_loop, "run_scene", None)
+    if callable(run_scene):
+        return run_scene
+    simulate = getattr(closed_loop, "simulate", None)
+    if not callable(simulate):
+        return None
+    from analysis.scene import load_scene
+
+    def run(design: Any, scene: str) -> Any:
+        return simulate(design, load_scene(scene), fidelity=fidelity)
+
+    return run
+
+
+def verdict_of(metrics: dict[str, Any]) -> tuple[bool, str]:
+    """PASS = stable, and the rendered-stiffness error ≤ :data:`STIFFNESS_ERROR_LIMIT_PCT` where measured."""
+    if not metrics.get("stable", False):
+        return False, "unstable"
+    err = metrics.get("stiffness_error_pct")
+    if isinstance(err, (int, float)) and err > STIFFNESS_ERROR_LIMIT_PCT:
+        return False, f"rendered stiffness error {err:.3g} % > {STIFFNESS_ERROR_LIMIT_PCT:g} %"
+    return True, "stable" + (f", stiffness error {err:.3g} %" if isinstance(err, (int, float)) else "")
+
+
+def _scene_worker(design: Any, scene: str, fidelity: Fidelity, queue: Any, verifier: Any) -> None:
+    """Child process: run one scene, send back (metrics, message) or an error line."""
+    try:
+        fn = verifier or _find_verifier(fidelity)
+        assert fn is not None
+        result = fn(design, scene)
+        queue.put(("ok", _jsonable(result.metrics()), str(getattr(result, "message", ""))))
+    except Exception as exc:  # noqa: BLE001 - sent to the parent as a failed verdict
+        queue.put(("error", {}, f"{type(exc).__name__}: {exc}"))
+
+
+def _run_scene_limited(design: Any, scene: str, fidelity: Fidelity, max_time_s: float, verifier: Any = None
+                       ) -> tuple[str, dict[str, Any], str]:
+    """Run one scene in a child process that is killed after ``max_time_s`` (a hung or very slow
+    simulation must not hold up the pipeline)."""
+    import multiprocessing
+    import queue as queue_mod
+
+    ctx = multiprocessing.get_context("spawn")
+    q = ctx.Queue()
+    proc = ctx.Process(target=_scene_worker, args=(design, scene, fidelity, q, verifier), daemon=True)
+    proc.start()
+    try:
+        return q.get(timeout=max_time_s)
+    except queue_mod.Empty:
+        return "timeout", {}, f"no result within {max_time_s:g} s (verify.max_time_s): the simulation was stopped"
+    finally:
+        if proc.is_alive():
+            proc.kill()
+        proc.join(5)
+        q.close()
+
+
+def _verify(design: Any, scenes: tuple[str, ...], out_dir: Path, fidelity: Fidelity, max_time_s: float,
+            verifier: Callable[[Any, str], Any] | None = None) -> tuple[StageOutcome, tuple[Verdict, ...]]:
     t0 = time.perf_counter()
     if not scenes:
         return StageOutcome(name="verify", status="skipped", message="the problem names no scenes"), ()
-    fn = _find_verifier()
-    if fn is None:
+    if verifier is None and _find_verifier(fidelity) is None:
         return StageOutcome(name="verify", status="skipped",
                             message="the closed-loop runner (issue 6) has not landed yet"), ()
     verdicts = []
     for scene in scenes:
-        try:
-            result = fn(design, scene)
-            metrics = _jsonable(result.metrics())
-            passed = bool(metrics.get("stable", str(getattr(result, "status", "ok")) == "ok"))
-            verdicts.append(Verdict(scene=scene, passed=passed, metrics=metrics,
-                                    message=str(getattr(result, "message", ""))))
-        except Exception as exc:  # noqa: BLE001 - a failed scene is a failed verdict
-            verdicts.append(Verdict(scene=scene, passed=False, metrics={}, message=f"{type(exc).__name__}: {exc}"))
+        kind, metrics, message = _run_scene_limited(design, scene, fidelity, max_time_s, verifier)
+        if kind == "ok":
+            passed, why = verdict_of(metrics)
+            message = "; ".join(m for m in (why, message) if m)
+        else:
+            passed = False
+        verdicts.append(Verdict(scene=scene, passed=passed, metrics=metrics, message=message))
     n_pass = sum(v.passed for v in verdicts)
     return (StageOutcome(name="verify", status=f"{n_pass}/{len(verdicts)} passed", wall_s=time.perf_counter() - t0),
             tuple(verdicts))
@@ -201,8 +255,13 @@ def _constraints_at(problem: Problem, metrics: dict[str, Any]) -> tuple[tuple[st
 
 def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False, scheduler: str = "local",
                  workers: int | None = None, progress: ProgressFn | None = None, export: bool = True,
-                 verify: bool = True, on_stage: Callable[[str], None] | None = None) -> PipelineResult:
-    """Run every stage; returns the result and writes the run directory."""
+                 verify: bool = True, on_stage: Callable[[str], None] | None = None,
+                 verifier: Callable[[Any, str], Any] | None = None) -> PipelineResult:
+    """Run every stage; returns the result and writes the run directory.
+
+    ``verifier(design, scene_name) -> result with .metrics()`` replaces the closed-loop runner
+    of :mod:`analysis.closed_loop` (a module-level function: it runs in a child process).
+    """
     from optim import driver, report
     from optim.executor import make_executor
     from optim.recorder import Recorder
@@ -284,7 +343,8 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     verdicts: tuple[Verdict, ...] = ()
     if verify:
         t = stage("verify")
-        vs, verdicts = _verify(optimum_design, problem.scenes, out)
+        vs, verdicts = _verify(optimum_design, problem.scenes, out, problem.fidelity_verify,
+                                   problem.verify_max_time_s, verifier)
         stages.append(dataclasses.replace(vs, wall_s=time.perf_counter() - t))
 
     t = stage("report")

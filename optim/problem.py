@@ -35,9 +35,11 @@ A problem is a frozen value. The TOML layout (see ``optim/problems/*.toml`` and
     [fidelity]
     optimise = "draft"             # used inside the loop
     final = "fine"                 # the optimum is re-evaluated and checked at this level
+    verify = "standard"            # closed-loop verification of the optimum
 
     [verify]
-    scenes = ["free-space", "virtual-wall"]
+    scenes = ["free-space", "stiffness-25"]
+    max_time_s = 60                # per scene: a slower simulation is stopped, its verdict fails
 
 Every error is one line naming the field, the value and what is allowed
 (:class:`design.errors.InputFileError`, :class:`~design.errors.InvalidInput`,
@@ -259,7 +261,9 @@ class Problem:
     optimiser: OptimiserConfig = OptimiserConfig()
     fidelity_optimise: Fidelity = Fidelity.DRAFT
     fidelity_final: Fidelity = Fidelity.FINE
+    fidelity_verify: Fidelity = Fidelity.STANDARD  # closed-loop verification of the optimum
     scenes: tuple[str, ...] = ()
+    verify_max_time_s: float = 60.0  # per scene; a slower simulation is stopped and fails its verdict
     source_text: str = ""
 
     @property
@@ -391,16 +395,21 @@ def problem_from_dict(data: Mapping[str, Any], *, source: str = "problem", base_
     constraints = _constraints(data.get("constraints", []), source)
     optimiser = _optimiser(_table(data, "optimiser", source, {f.name for f in dataclasses.fields(OptimiserConfig)}),
                            source, bool(constraints))
-    fid = _table(data, "fidelity", source, {"optimise", "final"})
+    fid = _table(data, "fidelity", source, {"optimise", "final", "verify"})
     fidelity_optimise = _enum(Fidelity, fid.get("optimise", "draft"), f"{source}: fidelity.optimise")
     fidelity_final = _enum(Fidelity, fid.get("final", "fine"), f"{source}: fidelity.final")
-    ver = _table(data, "verify", source, {"scenes"})
+    fidelity_verify = _enum(Fidelity, fid.get("verify", "standard"), f"{source}: fidelity.verify")
+    ver = _table(data, "verify", source, {"scenes", "max_time_s"})
+    verify_max_time_s = _number(ver.get("max_time_s", 60.0), f"{source}: verify.max_time_s")
+    if verify_max_time_s <= 0:
+        raise InvalidInput(f"{source}: verify.max_time_s = {verify_max_time_s:g} must be > 0 (s)")
     scenes = ver.get("scenes", [])
     if not isinstance(scenes, list) or not all(isinstance(s, str) for s in scenes):
         raise InvalidInput(f"{source}: verify.scenes = {scenes!r} must be a list of scene names")
     return Problem(name=name.strip(), description=str(description), device=device, base_source=base_source,
                    base=base, variables=variables, objective=objective, constraints=constraints,
                    optimiser=optimiser, fidelity_optimise=fidelity_optimise, fidelity_final=fidelity_final,
+                   fidelity_verify=fidelity_verify, verify_max_time_s=verify_max_time_s,
                    scenes=tuple(scenes), source_text=source_text)
 
 

@@ -38,7 +38,7 @@ def test_problem_file_path_and_fields():
     (v,) = p.variables
     assert (v.key, v.lower, v.upper, v.start) == ("geometry.beta_deg", 10.0, 80.0, 60.0)  # start: prrr-paper β
     assert p.optimiser.algorithm is Algorithm.LN_COBYLA and p.optimiser.starts == 2
-    assert str(p.fidelity_optimise) == "draft" and str(p.fidelity_final) == "fine"
+    assert str(p.fidelity_optimise) == "draft" and str(p.fidelity_final) == "standard"
 
 
 def test_default_bounds_come_from_the_field_metadata():
