@@ -194,3 +194,20 @@ def test_gradient_mode_none_for_derivative_free():
                      fidelity=beta_problem("LN_COBYLA").fidelity_optimise,
                      refs=(MetricRef.parse("jacobian_condition", "o"),), gradient=GradientMode.NONE)
     assert evaluate_point(task).gradients is None
+
+
+def test_master_counterweight_on_unbalance_boundary_beats_balanced():
+    """Seed 003's lesson: with one counterweight free, the optimum sits on the 0.1 N unbalance
+    boundary (active constraint) and has a higher transparency bandwidth than the perfectly
+    balanced design (master-paper is balanced: max_unbalance_force_N ≈ 0)."""
+    from optim.pipeline import evaluate_design, evaluators_for
+    from optim.problem import load_problem
+
+    p = load_problem("master-transparency")
+    base = evaluate_design(p.base, p.fidelity_optimise)
+    assert base.metrics["max_unbalance_force_N"] < 1e-9  # the balanced reference
+    res = driver.run(p, metric_modules=base.modules, only=evaluators_for(p, base))
+    assert res.feasible
+    unbalance = res.best.metrics["max_unbalance_force_N"]
+    assert unbalance == pytest.approx(0.1, rel=p.optimiser.constraint_tol)  # on the boundary: active
+    assert res.best.objective > p.objective.metric.value(base.metrics)  # beats the balanced bandwidth
