@@ -7,9 +7,15 @@ numpy scalars/3-vectors (≈ 20–40 µs per tick); ``tests/analysis/test_firmwa
 against the reference on every bundled scene's structure and on the optional terms (integral,
 interpolation, box outside, force reference). It implements the
 :class:`analysis.firmware.FirmwareController` interface (``reset``, ``step``, ``last_force``).
+
+Without interpolation and outside-box walls (every bundled scene) ``step`` runs a scalar path
+on Python floats (≈ 8 µs per tick instead of ≈ 35 µs for 3-vector numpy operations), the same
+operations in the same order; the generic numpy path stays as ``step_generic`` (both tested).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -40,6 +46,10 @@ class NumpyController:
         self._W = firmware.interpolation_weights(cfg) if cfg.interpolation > 1 else None
         self.last_force = np.zeros(3)
         self._ready = False
+        self.scalar = cfg.interpolation == 1 and not (cfg.env == EnvKind.BOX and cfg.box_mode == BoxMode.OUTSIDE)
+        self._Jl = self._J.tolist()
+        self._Kl, self._Bl, self._anchorl = self._K.tolist(), self._B.tolist(), self._anchor.tolist()
+        self._halfl, self._famp_l = self._half.tolist(), self._famp.tolist()
 
     def reset(self, slider_counts: np.ndarray) -> None:
         p = (np.asarray(slider_counts, dtype=np.float64) * self._res) @ self._JT
@@ -49,9 +59,81 @@ class NumpyController:
         self._integral = np.zeros(3)
         self._history = np.zeros((3, 3))
         self._ready = True
+        self._sp = p.tolist()
+        self._sv = [0.0, 0.0, 0.0]
+        self._si = [0.0, 0.0, 0.0]
 
     def step(self, slider_counts: np.ndarray, deflection_counts: np.ndarray) -> np.ndarray:
         """Commands (L, 3) [N] for this period from the counts read at its start."""
+        if self.scalar:
+            return self._step_scalar(slider_counts, deflection_counts)
+        return self.step_generic(slider_counts, deflection_counts)
+
+    def _step_scalar(self, slider_counts: np.ndarray, deflection_counts: np.ndarray) -> np.ndarray:
+        """:meth:`step_generic` on Python floats (interpolation 1, no outside-box walls)."""
+        cfg = self.cfg
+        if not self._ready:
+            self.reset(slider_counts)
+        T, r, J = cfg.period, self._res, self._Jl
+        sc = [c * r for c in np.asarray(slider_counts, dtype=np.float64).tolist()]
+        p = [sc[0] * J[i][0] + sc[1] * J[i][1] + sc[2] * J[i][2] for i in range(3)]  # (s·res) @ Jᵀ
+        pp, vo = self._sp, self._sv
+        a = cfg.velocity_alpha
+        if a > 0.0:
+            v = [a * vo[i] + (1.0 - a) * ((p[i] - pp[i]) / T) for i in range(3)]
+        else:
+            v = [(p[i] - pp[i]) / T for i in range(3)]
+        env = cfg.env
+        if env == EnvKind.FREE:
+            F = [0.0, 0.0, 0.0]
+        elif env == EnvKind.SPRING:
+            K, B, an = self._Kl, self._Bl, self._anchorl
+            F = [-K[i] * (p[i] - an[i]) - B[i] * v[i] for i in range(3)]
+        elif env == EnvKind.BOX:  # inside
+            an, half, Kb, Bb = self._anchorl, self._halfl, self._Kb, self._Bb
+            F = [0.0, 0.0, 0.0]
+            for i in range(3):
+                dl = p[i] - an[i]
+                depth = abs(dl) - half[i]
+                if depth > 0.0:
+                    sgn = 1.0 if dl > 0.0 else (-1.0 if dl < 0.0 else 0.0)
+                    F[i] = -Kb * sgn * depth - Bb * v[i]
+        else:
+            ph = self._fomega * (self._tick * T)
+            F = [fa * math.sin(ph) for fa in self._famp_l]
+        if cfg.friction_compensation:
+            fc, fcv = self._fc, self._fcv
+            F = [F[0] + fc * math.tanh(v[0] / fcv), F[1] + fc * math.tanh(v[1] / fcv), F[2] + 0.0]
+        if cfg.gravity_compensation:
+            F[2] = F[2] + self._weight
+        f_ref = [F[0] * J[0][j] + F[1] * J[1][j] + F[2] * J[2][j] for j in range(3)]  # F @ J
+        lim = self._limit
+        if cfg.force_loop == ForceLoop.SEA:
+            ks, kp = self._spring, self._kp
+            dc = np.asarray(deflection_counts, dtype=np.float64).tolist()
+            err = [f_ref[j] - ks * (dc[j] * r) for j in range(3)]
+            out = [kp * e for e in err]
+            if cfg.integral:
+                kiT = self._ki * T
+                integ = [self._si[j] + kiT * err[j] for j in range(3)]
+                if cfg.saturation:
+                    integ = [min(max(x, -lim), lim) for x in integ]
+                out = [out[j] + integ[j] for j in range(3)]
+                self._si = integ
+        elif cfg.force_loop == ForceLoop.RIGID:
+            eta = self._eta
+            out = [f / eta for f in f_ref]
+        else:
+            out = f_ref
+        if cfg.saturation:
+            out = [min(max(x, -lim), lim) for x in out]
+        self._tick += 1
+        self._sp, self._sv = p, v
+        self.last_force = np.array(F)
+        return np.array([out])
+
+    def step_generic(self, slider_counts: np.ndarray, deflection_counts: np.ndarray) -> np.ndarray:
+        """Commands (L, 3) [N] for this period from the counts read at its start (numpy 3-vectors)."""
         cfg = self.cfg
         if not self._ready:
             self.reset(slider_counts)

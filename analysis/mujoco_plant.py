@@ -54,6 +54,8 @@ VIOLATION_TOL = 1e-5
 ROTATION_TOL = 1e-4
 
 _BADQACC = 1  # index of mjWARN_BADQACC in MjData.warning
+#: ticks between the vectorised health/instability checks of the fast loop (every tick is checked)
+CHECK_EVERY = 100
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -240,6 +242,201 @@ class MujocoPlant:
         if closure > w[2]:
             w[2] = closure
 
+    # ----------------------------------------------------------------------------- fast loop
+    def run(self, controller: Any, st: Any, *, check_every: int = CHECK_EVERY) -> Any:
+        """The closed loop of :func:`analysis.closed_loop.run_with_plant`, fused around ``mj_step``.
+
+        Same sensors, quantisation, controller calls, delay line, hand reference and stop rule;
+        per tick only raw state is copied into preallocated arrays (qpos, qvel, qacc, kinetic
+        energy, equality residuals ``efc_pos``, platform quaternion, body positions, MuJoCo's
+        clock); observables, energy, constraint health and the instability checks are computed
+        vectorised every ``check_every`` ticks over the whole window (every tick is checked, none is
+        skipped: the first bad tick in the window is found and the traces stop there exactly as in
+        the reference loop; the plant may have run up to ``check_every − 1`` ticks beyond, which
+        nothing reads). Tested equal to the reference loop (``tests/analysis/test_mujoco_plant.py``).
+        """
+        from analysis.closed_loop import Traces
+        from analysis.scene import StabilityCriterion
+
+        mj, m, d = self._mujoco, self.model, self.data
+        if not self._energy:
+            self.enable_energy()
+        step = mj.mj_step
+        N = st.ticks
+        res = float(st.gains.resolution)
+        inv_res = 1.0 / res
+        quantize = st.quantize
+        self.reset()
+        qpos, qvel, qacc, ctrl = d.qpos, d.qvel, d.qacc, d.ctrl
+        sl_idx = self.mj.slider_qpos
+        mo_idx = self.mj.motor_qpos
+        sl0 = int(sl_idx[0]) if np.all(np.diff(sl_idx) == 1) else None
+        mo0 = int(mo_idx[0]) if mo_idx is not None and np.all(np.diff(mo_idx) == 1) else None
+
+        # one product reads both encoders: [slider; motor − slider] / resolution
+        S = np.zeros((6, m.nq))
+        S[np.arange(3), sl_idx] = inv_res
+        if mo_idx is not None:
+            S[np.arange(3, 6), mo_idx] = inv_res
+            S[np.arange(3, 6), sl_idx] = -inv_res
+        rnd = np.round
+
+        def counts() -> tuple[np.ndarray, np.ndarray]:
+            if not self.ideal:
+                y = S @ qpos
+                if quantize:
+                    y = rnd(y)
+                return y[:3], y[3:]
+            sl = qpos[sl0:sl0 + 3] if sl0 is not None else qpos[sl_idx]
+            if self.ideal:
+                de = self.u / self.spring
+            elif mo_idx is None:
+                de = np.zeros(3)
+            else:
+                de = (qpos[mo0:mo0 + 3] if mo0 is not None else qpos[mo_idx]) - sl
+            a, b = sl * inv_res, de * inv_res
+            if quantize:
+                a, b = np.round(a), np.round(b)
+            return a, b
+
+        sc, _ = counts()
+        controller.reset(sc)
+        L = st.cfg.interpolation
+        delay: list[np.ndarray] = [np.zeros((L, 3))] * st.delay_ticks
+        nq, nv = m.nq, m.nv
+        Qp, Qv, Qa = np.zeros((N, nq)), np.zeros((N, nv)), np.zeros((N, nv))
+        KE = np.zeros(N)
+        clock = np.zeros(N)
+        CMD = np.zeros((N, L, 3))  # command samples applied (after the delay line)
+        Fref = np.zeros((N, 3))
+        n_eq = self._eq_rows
+        EF = np.zeros((N, n_eq))
+        hand = self._hand
+        per = self.per_sample
+        h = per * m.opt.timestep
+        w, amp, off, ph = self._w, self._amp, self._offset, self._phase
+        if hand is not None:
+            spr_adr, hd = self._hand_spring_adr, self.mj.hand_dof
+            if np.all(np.diff(spr_adr) == 1) and np.all(np.diff(hd) == 1):  # slices write faster
+                spr_adr, hd = slice(int(spr_adr[0]), int(spr_adr[0]) + 3), slice(int(hd[0]), int(hd[0]) + 3)
+            qs = m.qpos_spring
+            qfa = d.qfrc_applied
+            # reference at every sample midpoint: tick k, sample j → t = k·T + (j + ½)·h
+            tm = (np.arange(N)[:, None] * (L * h) + (np.arange(L)[None, :] + 0.5) * h)[..., None]
+            arg = w * tm + ph
+            REF = off + amp * np.sin(arg)
+            DREF = hand.damping * amp * w * np.cos(arg)
+        gain = self.gain
+        explode = (1e6 if st.scene.stability == StabilityCriterion.DECAY else 1e3) * st.energy_scale
+        K = np.asarray(st.gains.stiffness, dtype=float)
+        stop = -1
+        start = 0
+        ok_eq = n_eq > 0
+        k = 0
+        while k < N:
+            end = min(N, start + check_every)
+            for k in range(start, end):
+                sc, dc = counts()
+                cmd = controller.step(sc, dc)
+                if delay:
+                    delay.append(cmd)
+                    cmd = delay.pop(0)
+                for j in range(L):
+                    row = cmd[j]
+                    ctrl[:] = gain * row
+                    if hand is not None:
+                        qs[spr_adr] = REF[k, j]
+                        qfa[hd] = DREF[k, j]
+                    step(m, d, per)
+                self.u = row
+                Qp[k] = qpos
+                Qv[k] = qvel
+                Qa[k] = qacc
+                KE[k] = d.energy[1]
+                clock[k] = d.time
+                CMD[k] = cmd
+                Fref[k] = controller.last_force
+                if ok_eq:
+                    efc = d.efc_pos
+                    if efc.shape[0] >= n_eq:
+                        EF[k] = efc[:n_eq]
+            bad = self._window_bad(st, Qp, Qv, KE, clock, start, end, K, explode)
+            if bad >= 0:
+                stop = bad
+                break
+            start = end
+            k = end
+        self.t = (N if stop < 0 else stop + 1) * L * h
+        last = N if stop < 0 else stop + 1  # health over every tick run up to and including the stop
+        self._health_from(EF[:last], Qp[:last])
+        if stop >= 0 and clock[stop] < (stop + 0.5) * L * h:
+            self.bad_qacc = True
+        obs = self._observables(Qp, Qv, Qa, KE, CMD[:, -1], K)
+        cmd_max = np.abs(CMD).max(axis=(1, 2))
+        sat = (st.cfg.saturation & (cmd_max >= float(st.gains.motor_limit) * (1 - 1e-12)))[:, None]
+        energy = obs.pop("energy")[:, None]
+        rec = {k2: v[:, None, :] for k2, v in obs.items()}
+        rec["force_reference"] = Fref[:, None, :]
+        if stop >= 0:
+            for arr in (*rec.values(), energy, sat):
+                arr[stop:] = arr[stop - 1] if stop > 0 else 0
+        return Traces(period=st.period, energy=energy, saturated=sat, stop_tick=np.array([stop]), **rec)
+
+    def _observables(self, Qp, Qv, Qa, KE, U, K) -> dict[str, np.ndarray]:
+        """Vectorised :meth:`observe` over recorded ticks (time of tick k's end: (k + 1)·T)."""
+        N = Qp.shape[0]
+        p = Qp[:, self._ee_pos]
+        v = Qv[:, self._ee_dof]
+        if self._hand is not None:
+            hd = self.mj.hand_dof
+            t = (np.arange(N) + 1) * self.period
+            arg = self._w * t[:, None] + self._phase
+            ref = self._offset + self._amp * np.sin(arg)
+            dref = self._amp * self._w * np.cos(arg)
+            hs = self._hand
+            hand = hs.stiffness * (ref - Qp[:, self.mj.hand_qpos]) + hs.damping * (dref - Qv[:, hd]) - hs.mass * Qa[:, hd]
+        else:
+            hand = np.zeros((N, 3))
+        if self.mj.motor_qpos is None:
+            defl = np.zeros((N, 3))
+        else:
+            defl = Qp[:, self.mj.motor_qpos] - Qp[:, self.mj.slider_qpos]
+        if self.ideal:
+            f = U.copy()
+        elif self.rigid:
+            dof = self._slider_dof
+            xi = self.design.actuator.viscous if self.options.viscous_friction else 0.0
+            f = self.gain * U - xi * Qv[:, dof] - self.design.actuator.motor_mass * Qa[:, dof]
+        else:
+            f = self.spring * defl
+        energy = KE + 0.5 * self.spring * np.sum(defl**2, axis=-1) + 0.5 * np.sum(K * p**2, axis=-1)
+        return {"position": p, "velocity": v, "hand_force": hand, "actuator_force": f @ self.JinvT.T,
+                "energy": energy}
+
+    def _window_bad(self, st, Qp, Qv, KE, clock, start, end, K, explode) -> int:
+        """First bad tick in [start, end) by the reference loop's rule (−1: none)."""
+        p = Qp[start:end][:, self._ee_pos]
+        e = KE[start:end] + 0.5 * np.sum(K * p**2, axis=-1)
+        if self.mj.motor_qpos is not None:
+            defl = Qp[start:end][:, self.mj.motor_qpos] - Qp[start:end][:, self.mj.slider_qpos]
+            e = e + 0.5 * self.spring * np.sum(defl**2, axis=-1)
+        T = self.period
+        reset = clock[start:end] < (np.arange(start, end) + 0.5) * T  # MuJoCo auto-reset (BADQACC)
+        bad = reset | ~np.all(np.isfinite(p), axis=-1) | ~(e < explode) | ~np.all(np.abs(p) < 1.0, axis=-1)
+        return int(start + np.argmax(bad)) if bad.any() else -1
+
+    def _health_from(self, EF: np.ndarray, Qp: np.ndarray) -> None:
+        """Worst health over the recorded end-of-tick states (same quantities as :meth:`_check`)."""
+        viol = float(np.abs(EF).max()) if EF.size else 0.0
+        rot = closure = 0.0
+        if Qp.shape[0]:
+            ee = Qp[:, self.mj.ee_qpos]
+            if self._free:  # free joint: position, then the unit quaternion (scalar first)
+                rot = float(2.0 * np.arccos(np.minimum(1.0, np.abs(ee[:, 3]))).max())
+            dz = Qp[:, self.mj.slider_qpos]  # output sliders from home
+            closure = float(np.linalg.norm(ee[:, :3] - dz @ self._J.T, axis=-1).max())
+        self._worst = [viol, rot, closure]
+
     @property
     def health(self) -> Health:
         """Worst closed-chain health since the last reset."""
@@ -316,7 +513,7 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
     st = dataclasses.replace(st, resolution=res, substeps=plant.substeps)
     controller = NumpyController(st.cfg, st.gains)
     t0 = time.perf_counter()
-    traces = closed_loop.run_with_plant(plant, controller, st)
+    traces = plant.run(controller, st)
     wall = time.perf_counter() - t0
     loop = closed_loop.metrics_from_traces(traces, st, 0, backend="multibody", wall_time=wall)
     warns = plant.warnings()
@@ -378,7 +575,8 @@ def stiffness_limit(design: PrrrDesign, scene: Scene, *, backend: Backend, axis:
         stiff[axis] = K
         gains = st.gains._replace(stiffness=np.asarray(stiff))
         ctl = NumpyController(st.cfg, gains)
-        tr = closed_loop.run_with_plant(plant, ctl, dataclasses.replace(st, gains=gains))
+        tr = (plant.run(ctl, dataclasses.replace(st, gains=gains)) if isinstance(plant, MujocoPlant)
+              else closed_loop.run_with_plant(plant, ctl, dataclasses.replace(st, gains=gains)))
         ok, _ = closed_loop.classify(tr, st)
         return bool(ok[0])
 
