@@ -142,6 +142,8 @@ class Scene:
     measure_axis: int = 0  # axis of the rendered-stiffness fit
     zwidth: ZWidthSettings = field(default_factory=ZWidthSettings)
     device: str = "prrr"  # which device the scene is written for: "prrr" (3-PRRR SEA) or "master"
+    sweep_factors: tuple[float, ...] = ()  # master: sine sweep at these × the frequency-domain bandwidth
+    sweep_periods: int = 3  # periods per sweep frequency (the first one settles)
     backend: "Backend | None" = None  # forced backend; None = the resolver chooses
 
 
@@ -329,6 +331,16 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
     locked = s.flag("output_locked", False)
     criterion = s.choice("stability", StabilityCriterion, StabilityCriterion.DRIVEN)
     axis = s.axis("measure_axis", 0)
+    sw = s._get("sweep_factors")
+    if sw is None:
+        sweep: tuple[float, ...] = ()
+    elif (isinstance(sw, list) and 2 <= len(sw) <= 20 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and 0.01 <= x <= 100 for x in sw)):
+        sweep = tuple(sorted(float(x) for x in sw))
+    else:
+        raise InvalidInput(f"{where}: simulation.sweep_factors = {sw!r} must be a list of 2 to 20 numbers in "
+                           "[0.01, 100] (multiples of the frequency-domain bandwidth)")
+    sweep_periods = s.integer("sweep_periods", 3, lo=2, hi=1000)
     s.done()
 
     z = _Reader(data.get("zwidth", {}), f"{where}: zwidth")
@@ -360,7 +372,7 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
                  operator=operator, motion=motion, initial_offset=initial, effects=frozenset(effects),
                  time_delay=delay if Effect.TIME_DELAY in effects else 0.0, substeps=substeps,
                  output_locked=locked, stability=criterion, measure_axis=axis, zwidth=zw, device=device,
-                 backend=backend)
+                 backend=backend, sweep_factors=sweep, sweep_periods=sweep_periods)
 
 
 def _scene_dir():
@@ -468,6 +480,12 @@ def resolve(scene: Scene, *, available: frozenset[Backend] = AVAILABLE_BACKENDS,
         notes.append("viscous_friction dropped: it acts on the motor side, absent without motor_dynamics")
     if Effect.MOTOR_DYNAMICS not in effects and Effect.SEA_COMPLIANCE in effects:
         notes.append("motor_dynamics off: the spring force equals its reference (ideal force source)")
+    if scene.device == "master":
+        for eff, why in ((Effect.SEA_COMPLIANCE, "the master's capstan drives have no series spring"),
+                         (Effect.LINK_DYNAMICS, "the master's links are always multibody")):
+            if eff in effects:
+                effects.discard(eff)
+                notes.append(f"{eff.value} dropped: {why}")
     if scene.output_locked and Effect.OPERATOR in effects:
         effects.discard(Effect.OPERATOR)
         notes.append("operator dropped: the output sliders are locked")

@@ -91,6 +91,9 @@ class MasterActuators:
     viscous: float = param("viscous_Nms_per_rad", "Nms_per_rad", default=1e-4, lo=0.0, hi=1e3,
                            doc="joint viscous friction")
     coulomb: float = param("coulomb_Nm", "Nm", default=0.0, lo=0.0, hi=1e3, doc="joint Coulomb friction")
+    encoder_counts: float = param("encoder_counts_per_rev", "", default=40000.0, lo=1.0, hi=1e9, integer=True,
+                                  doc="joint encoder counts per joint revolution (after the capstan; PHANToM 1.5 "
+                                      "class: 40000 → 0.035 mm at 0.22 m, its 0.03 mm nominal resolution)")
 
 
 @dataclass(frozen=True, kw_only=True)
