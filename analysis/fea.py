@@ -317,12 +317,12 @@ def frame_segments(design, *, p=(0.0, 0.0, 0.0), branch: int = 0) -> list[dict[s
     return out
 
 
-def prrr_mesh(design, *, size: float, p=(0.0, 0.0, 0.0)) -> tuple[TetMesh, list[dict[str, Any]]]:
+def prrr_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int = 0) -> tuple[TetMesh, list[dict[str, Any]]]:
     """Mesh of the frame-equivalent solid (see module docstring); size [m]."""
     s = design.structure
     b, t = s.link_width * 1e3, s.link_thickness * 1e3
     ext = 0.5 * s.boss_diameter * 1e3  # the boss radius: same rigid zone as the frame model
-    segs = frame_segments(design, p=p)
+    segs = frame_segments(design, p=p, branch=branch)
     gmsh = _gmsh_start("prrr")
     vols = []
     for seg in segs:
@@ -379,7 +379,7 @@ def prrr_level_size(design, level: int) -> float:
 
 
 def prrr_fea(design, *, level: int = DEFAULT_PRRR_LEVEL, size: float | None = None, p=(0.0, 0.0, 0.0),
-             load_height: float | None = None, keep_fields: bool = True) -> PrrrFeaResult:
+             load_height: float | None = None, keep_fields: bool = True, branch: int = 0) -> PrrrFeaResult:
     """Stiffness of the frame-equivalent solid at the load point (6 load cases, one AMG hierarchy)."""
     from analysis import frame_model as fm
 
@@ -389,7 +389,7 @@ def prrr_fea(design, *, level: int = DEFAULT_PRRR_LEVEL, size: float | None = No
     s = design.structure
     p = np.asarray(p, dtype=float)
     try:
-        mesh, _ = prrr_mesh(design, size=size, p=p)
+        mesh, _ = prrr_mesh(design, size=size, p=p, branch=branch)
     except Exception as exc:  # gmsh/OCC failures become a status
         return PrrrFeaResult(compliance_ee=np.full((6, 6), np.nan), stiffness_load=np.full(3, np.nan),
                              load_height=h, size=size, n_dofs=0, iterations=(), wall_s=time.perf_counter() - t0,

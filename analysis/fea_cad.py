@@ -17,10 +17,13 @@ platform lug).
 
 Named physical groups: volumes ``carriage_i``, ``link1_i``, ``link2_i``, ``platform``,
 ``pin_r{1,2,3}_i``; surfaces ``support_leg{i}`` (the four faces of carriage i's rail slot,
-clamped). Load: the handle ball of the platform is the rigid region (the hand holds it): the
-unit load cases are forces at the load point P + Δz e_z distributed over the ball's DOFs as
-least-squares-consistent nodal forces, and the ball's rigid motion is fitted by least squares
-(as :func:`analysis.fea.prrr_fea` does for the frame-equivalent solid).
+clamped). Load: a rigid region of the platform carries the unit load cases, forces at the load
+point P + Δz e_z distributed over its DOFs as least-squares-consistent nodal forces; its rigid
+motion is fitted by least squares (as :func:`analysis.fea.prrr_fea` does for the frame-equivalent
+solid). ``rigid="stem"`` (default, comparable with the frame model, whose handle P → P + Δz e_z
+and hub at P are rigid): the stem (the platform's material within the stem radius of the z axis,
+where the three arms meet) and the handle ball. ``rigid="ball"``: the ball only, so the 10 mm
+stem (handle post) bends too — the physical handle, reported separately (docs/structure.md).
 """
 
 from __future__ import annotations
@@ -36,6 +39,8 @@ from analysis.status import Status
 
 #: mesh size [m] of refinement level k: link thickness · 1.5 / √2^k
 LEVEL0_FACTOR = 1.5
+#: level used by ``hapticopt evaluate --fidelity fine`` (the cheapest; docs/structure.md)
+DEFAULT_LEVEL = -1
 
 
 def cad_level_size(design, level: int) -> float:
@@ -43,8 +48,8 @@ def cad_level_size(design, level: int) -> float:
     return LEVEL0_FACTOR * float(design.structure.link_thickness) / fea.REFINEMENT_RATIO**level
 
 
-def _pins(design, pose) -> list[dict[str, Any]]:
-    """Pin cylinders [m]: name, start point, axis vector (length = span), radius."""
+def _pins(design, pose, radius: float | None = None) -> list[dict[str, Any]]:
+    """Pin cylinders [m]: name, start point, axis vector (length = span), radius (default the bore's)."""
     from design import cad_prrr
 
     L = cad_prrr.layout(design)
@@ -58,12 +63,18 @@ def _pins(design, pose) -> list[dict[str, Any]]:
             continue
         lo, hi = spans[kind]
         w = ax.direction / np.linalg.norm(ax.direction)
-        out.append(dict(name=f"pin_{ax.name}", start=ax.point + lo * w, axis=(hi - lo) * w, radius=L.r_bore))
+        out.append(dict(name=f"pin_{ax.name}", start=ax.point + lo * w, axis=(hi - lo) * w,
+                        radius=L.r_bore if radius is None else radius))
     return out
 
 
-def cad_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int | None = None) -> tuple[fea.TetMesh, dict]:
-    """Tetrahedral mesh [m] of the posed CAD parts plus bonded pins; returns (mesh, info)."""
+def cad_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int | None = None,
+             pin_radius: float | None = None) -> tuple[fea.TetMesh, dict]:
+    """Tetrahedral mesh [m] of the posed CAD parts plus bonded pins; returns (mesh, info).
+
+    ``pin_radius`` [m] (diagnostic): None = the bore radius (the physical pin); the boss radius
+    fills each joint's bosses and gaps solid (a "rigid joint zone" like the frame model's).
+    """
     import tempfile
     from pathlib import Path
 
@@ -86,7 +97,7 @@ def cad_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int | None = Non
             export_brep(solid, str(path))
             dimtags = gmsh.model.occ.importShapes(str(path))
             tags[name] = [t for d, t in dimtags if d == 3]
-    for pin in _pins(design, pose):
+    for pin in _pins(design, pose, pin_radius):
         s, a = pin["start"] * 1e3, pin["axis"] * 1e3
         tags[pin["name"]] = [gmsh.model.occ.addCylinder(*s, *a, pin["radius"] * 1e3)]
     objects = [(3, t) for v in tags.values() for t in v]
@@ -106,10 +117,10 @@ def cad_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int | None = Non
     owners: dict[int, str] = {}
     for name, vols in groups_3d.items():
         for t in vols:
-            if t in owners:
+            if t in owners and not (pin_radius is not None and name.startswith("pin_")):
                 gmsh.finalize()
                 raise RuntimeError(f"parts {owners[t]} and {name} overlap (volume {t})")
-            owners[t] = name
+            owners.setdefault(t, name)
     # supports: the rail-slot faces of each carriage (carriage frame: x = u, y = t, z = e_z)
     groups_2d: dict[str, list[int]] = {}
     frames = cad_prrr.part_frames(design, pose)
@@ -131,6 +142,7 @@ def cad_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int | None = Non
     mesh = fea._gmsh_mesh(gmsh, size * 1e3, groups_2d, vols, groups_3d=groups_3d)
     centre = np.asarray(pose.p, dtype=float) + L.ball_z * np.array([0.0, 0.0, 1.0])
     info = dict(pose=pose, ball_centre=centre, ball_radius=0.5 * float(design.end_effector.handle_diameter),
+                stem_radius=0.5 * float(design.structure.stem_diameter),
                 n_pins=sum(1 for n in groups_3d if n.startswith("pin_")), branch=branch)
     return mesh, info
 
@@ -155,7 +167,8 @@ class CadFeaResult:
 
 
 def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0.0), branch: int | None = None,
-            load_height: float | None = None, tol: float = 1e-8, keep_fields: bool = False) -> CadFeaResult:
+            load_height: float | None = None, tol: float = 1e-7, keep_fields: bool = False,
+            pin_radius: float | None = None, rigid: str = "stem") -> CadFeaResult:
     """Stiffness [N/m] of the posed CAD parts with bonded pins, for forces Δz above p (3 load cases)."""
     from analysis import frame_model as fm
 
@@ -163,7 +176,7 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
     h = fm.LOAD_HEIGHT if load_height is None else float(load_height)
     size = cad_level_size(design, level) if size is None else float(size)
     p = np.asarray(p, dtype=float)
-    mesh, info = cad_mesh(design, size=size, p=p, branch=branch)
+    mesh, info = cad_mesh(design, size=size, p=p, branch=branch, pin_radius=pin_radius)
     t_mesh = time.perf_counter() - t0
     hub_nodes = mesh.node_sets["platform"]
     state: dict[str, Any] = {}
@@ -174,6 +187,19 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
         is_platform = np.zeros(mesh.points.shape[1], dtype=bool)
         is_platform[hub_nodes] = True
         in_ball = np.linalg.norm(x - info["ball_centre"][:, None], axis=0) <= info["ball_radius"] * (1 + 1e-9)
+        if rigid == "stem":
+            on_platform = np.zeros(basis.N, dtype=bool)
+            for c in fea._component_dofs(basis):
+                n_vert = mesh.points.shape[1]
+                vert = c[:n_vert]
+                on_platform[vert] = is_platform
+                # edge DOFs: on the platform when both end vertices are (skfem edge order)
+                e = basis.mesh.edges
+                on_platform[c[n_vert:]] = is_platform[e[0]] & is_platform[e[1]]
+            radial = np.hypot(x[0] - p[0], x[1] - p[1])
+            in_ball |= on_platform & (radial <= info["stem_radius"] * (1 + 1e-6))
+        elif rigid != "ball":
+            raise ValueError(f"rigid = {rigid!r}: allowed 'stem' or 'ball'")
         R = fea.rigid_body_modes(basis, centre=p)[in_ball]  # (n_hub, 6)
         G = np.linalg.inv(R.T @ R)
         F = np.zeros((basis.N, 3))

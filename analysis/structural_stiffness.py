@@ -4,9 +4,9 @@ Metrics (seed 002 section 2.3, Table 3): the Cartesian stiffness [x, y, z] for a
 Δz = 58 mm above the end-effector (sliders locked), the elastic centre (height above the
 end-effector on the z axis where a lateral force and the rotation decouple) and the stiffness
 when loaded there. ``draft``/``standard`` fidelity: the Timoshenko frame model
-(:mod:`analysis.frame_model`, ~1 ms). ``fine``: additionally the solid FEA of the frame-equivalent
-solid (:mod:`analysis.fea`; bonded joints), reported next to the frame model with bonded joints,
-which is the model it verifies.
+(:mod:`analysis.frame_model`, numpy path, ~1–6 ms, no compilation). ``fine``: additionally the
+solid FEA of the CAD geometry with bonded pins (:mod:`analysis.fea_cad`, coarsest level, ~1–2 min),
+reported next to the frame model with bonded joints at the CAD's elbow branch, the model it checks.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ class StructuralStiffness:
     coupling_residual: float  # see analysis.frame_model.frame_arrays
     condition: float  # condition estimate of the stiffness matrix
     options: fm.FrameOptions
-    fea: Any = None  # analysis.fea.PrrrFeaResult at fine fidelity
+    fea: Any = None  # analysis.fea_cad.CadFeaResult at fine fidelity
     stiffness_load_frame_bonded: np.ndarray | None = None  # (3,) [N/m] frame with bonded joints (FEA's model)
     status: Status = Status.OK
     message: str = ""
@@ -100,7 +100,8 @@ def structural_stiffness(design: PrrrDesign, *, p=(0.0, 0.0, 0.0), load_height: 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> StructuralStiffness:
     """Structural stiffness at the home pose, load Δz = 58 mm (seed 002 Table 3).
 
-    ``fine`` adds the solid FEA (bonded joints) and the bonded-joint frame model it verifies.
+    ``fine`` adds the solid FEA of the CAD with bonded pins (CAD elbow branch) and the
+    bonded-joint frame model at that branch.
     """
     try:
         result = structural_stiffness(design)
@@ -113,10 +114,16 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> S
                                    message=str(exc))
     if fidelity != Fidelity.FINE:
         return result
-    from analysis import fea  # lazy: gmsh, scikit-fem, pyamg
+    from analysis import fea_cad  # lazy: build123d, gmsh, scikit-fem, pyamg
+    from design.cad_prrr import DEFAULT_BRANCH
 
-    bonded = structural_stiffness(design, options=fm.FrameOptions(joints=fm.Joints.BONDED))
-    fea_result = fea.prrr_fea(design, level=fea.DEFAULT_PRRR_LEVEL)
+    bonded = structural_stiffness(design, options=fm.FrameOptions(joints=fm.Joints.BONDED, branch=DEFAULT_BRANCH))
+    try:
+        fea_result = fea_cad.cad_fea(design, level=fea_cad.DEFAULT_LEVEL, keep_fields=True)
+    except Exception as exc:  # CAD/gmsh failures become a status, the frame metrics stay
+        from dataclasses import replace
+
+        return replace(result, status=Status.FAILED, message=f"CAD FEA failed: {exc}")
     status, message = result.status, result.message
     if fea_result.status != Status.OK:
         status, message = fea_result.status, f"FEA: {fea_result.message}"

@@ -21,10 +21,25 @@ def paper():
 
 
 def test_frame_single(benchmark, paper):
-    fp = fm.frame_params_of(paper)
-    fm.solve_frame(fp)  # compile outside the timing
+    # numpy path (what `hapticopt evaluate` uses): no compilation
+    fp = fm.frame_params_of(paper, xp=np)
     out = benchmark(fm.solve_frame, fp)
     assert np.all(np.isfinite(out["stiffness_load"]))
+
+
+def test_frame_single_jax(benchmark, paper):
+    fp = fm.frame_params_of(paper)
+    fm.solve_frame_jax(fp)  # compile outside the timing
+    out = benchmark(fm.solve_frame_jax, fp)
+    assert np.all(np.isfinite(out["stiffness_load"]))
+
+
+def test_structural_evaluate_cold_numpy(benchmark, paper):
+    # the evaluator end to end on the numpy path (design -> metrics), as the CLI calls it
+    from analysis import structural_stiffness as ss
+
+    out = benchmark(lambda: ss.evaluate(paper).metrics())
+    assert len(out["structural_stiffness_N_per_mm"]) == 3
 
 
 def test_frame_batched_per_design(benchmark, paper):
