@@ -53,7 +53,7 @@ from design.prrr import PrrrDesign
 VIOLATION_TOL = 1e-5
 ROTATION_TOL = 1e-4
 
-_BADQACC = 1  # index of mjWARN_BADQACC in MjData.warning
+_BADQACC = 5  # index of mjWARN_BADQACC in MjData.warning (mujoco 4: mjtWarning; checked in the tests)
 #: ticks between the vectorised health/instability checks of the fast loop (every tick is checked)
 CHECK_EVERY = 100
 

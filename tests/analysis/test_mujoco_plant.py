@@ -86,14 +86,93 @@ def test_stiffness_limit_matches_lumped():
 @pytest.mark.parametrize("name", sorted(scene_names()))
 def test_every_bundled_scene_keeps_the_chains_closed(name):
     """Standard fidelity: violation ≤ 0.01 mm and rotation ≤ 0.1 mrad in every bundled scene,
-    reported with the run (shortened to 0.25 s to fit the test budget)."""
+    reported with the run (shortened to 0.25 s to fit the test budget; the master's sweep scene
+    as a 0.25 s run against its spring: its full sweep is in test_mujoco_master.py)."""
     scene = load_scene(name)
     scene = dataclasses.replace(scene, duration=min(scene.duration, 0.25))
+    if scene.device == "master":
+        from analysis import mujoco_master
+
+        r = mujoco_master.simulate(load_preset("master-paper"), dataclasses.replace(scene, sweep_factors=()))
+        m = r.metrics()
+        assert m["constraint_violation_mm"] <= mujoco_master.VIOLATION_TOL * 1e3
+        assert m["constraint_health_ok"] and not r.warnings and r.status == Status.OK, r.message
+        return
     r = simulate(DESIGN, scene, platform=Platform.FREE)
     m = r.metrics()
     assert m["constraint_violation_mm"] <= VIOLATION_TOL * 1e3
     assert m["ee_rotation_mrad"] <= ROTATION_TOL * 1e3
     assert m["constraint_health_ok"] and not r.warnings
+
+
+@pytest.mark.parametrize("name", ["stiffness-25-links", "virtual-box", "z-width"])
+def test_fused_loop_equals_reference_loop(name):
+    """MujocoPlant.run (records raw state, checks every 100 ticks vectorised) against the plain
+    reference loop closed_loop.run_with_plant on the same plant: same traces (≤ 1e-9), same stop."""
+    from analysis.firmware_numpy import NumpyController
+    from analysis.fidelity import Fidelity
+    from analysis.mujoco_plant import MujocoPlant, model_options
+
+    scene = dataclasses.replace(load_scene(name), duration=0.25)
+    ch = choose_backend(scene, force=Backend.MULTIBODY)
+    st = closed_loop.setup(DESIGN, dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS}),
+                           fidelity=Fidelity.DRAFT)
+    plant = MujocoPlant(DESIGN, scene, model_options(scene, ch.resolution, fidelity=Fidelity.DRAFT,
+                                                     platform=Platform.FREE), period=st.period)
+    plant.enable_energy()
+    ref = closed_loop.run_with_plant(plant, NumpyController(st.cfg, st.gains), st)
+    h_ref = plant.health
+    fast = plant.run(NumpyController(st.cfg, st.gains), st)
+    for k in ("position", "velocity", "hand_force", "actuator_force", "force_reference"):
+        np.testing.assert_allclose(getattr(fast, k), getattr(ref, k), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.energy, ref.energy, rtol=1e-9, atol=1e-12)
+    assert fast.stop_tick[0] == ref.stop_tick[0] and np.array_equal(fast.saturated, ref.saturated)
+    # health: the reference reads body poses before the last substep, the fused loop the end state
+    assert plant.health.violation == pytest.approx(h_ref.violation, rel=1e-6)
+    assert plant.health.closure == pytest.approx(h_ref.closure, rel=0.05, abs=1e-9)
+
+
+def test_fused_loop_stops_where_the_reference_stops():
+    """An unstable wall: the window check finds the same first bad tick as the per-tick check."""
+    from analysis.firmware_numpy import NumpyController
+    from analysis.fidelity import Fidelity
+    from analysis.mujoco_plant import MujocoPlant, model_options
+
+    import mujoco
+
+    from analysis import mujoco_plant
+
+    assert mujoco_plant._BADQACC == int(mujoco.mjtWarning.mjWARN_BADQACC)
+    box = load_scene("virtual-box")  # wall 1000× beyond the limit, no saturation: MuJoCo's BADQACC reset
+    scene = dataclasses.replace(box, environment=dataclasses.replace(box.environment, wall_stiffness=1000 * 28e3),
+                                duration=0.2, effects=box.effects - {Effect.SATURATION})
+    ch = choose_backend(scene, force=Backend.MULTIBODY)
+    st = closed_loop.setup(DESIGN, scene, fidelity=Fidelity.DRAFT)
+    plant = MujocoPlant(DESIGN, scene, model_options(scene, ch.resolution, fidelity=Fidelity.DRAFT), period=st.period)
+    plant.enable_energy()
+    ref = closed_loop.run_with_plant(plant, NumpyController(st.cfg, st.gains), st)
+    fast = plant.run(NumpyController(st.cfg, st.gains), st)
+    assert ref.stop_tick[0] >= 0 and fast.stop_tick[0] == ref.stop_tick[0]
+    assert plant.bad_qacc and any("BADQACC" in w for w in plant.warnings())
+
+
+def test_simulate_dispatches_by_backend():
+    """closed_loop.simulate: lumped when allowed, multibody for link_dynamics (+ gravity), forced on request;
+    the backend and the reason are in the metrics."""
+    from analysis.fidelity import Fidelity
+
+    links = dataclasses.replace(load_scene("stiffness-25-links"), duration=0.2)
+    r = closed_loop.simulate(DESIGN, links, fidelity=Fidelity.DRAFT)
+    m = r.metrics()
+    assert m["backend"] == "multibody" and "link_dynamics" in m["backend_reason"] and m["link_masses"] == "real"
+    assert m["constraint_health_ok"] and "constraint_violation_mm" in m
+    with pytest.raises(InvalidInput, match="backend = lumped cannot simulate link_dynamics"):
+        closed_loop.simulate(DESIGN, links, backend=Backend.LUMPED)
+    base = dataclasses.replace(load_scene("stiffness-25"), duration=0.2)
+    assert closed_loop.simulate(DESIGN, base).metrics()["backend"] == "lumped"
+    forced = closed_loop.simulate(DESIGN, base, fidelity=Fidelity.DRAFT, backend=Backend.MULTIBODY).metrics()
+    assert forced["backend"] == "multibody" and "forced" in forced["backend_reason"]
+    assert forced["link_masses"] == "lumped"
 
 
 def test_soft_solver_is_flagged_not_silently_reported():
