@@ -22,6 +22,12 @@ MODULES = {m: STATICS for m in ("jacobian_condition", "jacobian_condition_froben
                                 "max_pure_force_N", "stiffness_limit_N_per_mm", "effective_mass_kg")}
 
 
+def run(problem, **kw):
+    """driver.run with only the statics evaluator per point (as the pipeline does for these metrics)."""
+    kw.setdefault("only", ("statics",))
+    return driver.run(problem, **kw)
+
+
 def beta_problem(algorithm: str, *, local: str = "LN_BOBYQA", constrained: bool = False, starts: int = 1,
                  seed: int = 0, max_evals: int = 300, metric: str = "jacobian_condition"):
     d = {"name": "beta", "base": "prrr-paper",
@@ -46,7 +52,7 @@ def beta_problem(algorithm: str, *, local: str = "LN_BOBYQA", constrained: bool 
     ("AUGLAG", "LN_BOBYQA", True),  # augmented Lagrangian around a derivative-free method
 ])
 def test_recovers_isotropic_beta(algorithm, local, constrained):
-    res = driver.run(beta_problem(algorithm, local=local, constrained=constrained), metric_modules=MODULES)
+    res = run(beta_problem(algorithm, local=local, constrained=constrained), metric_modules=MODULES)
     assert res.best is not None and res.feasible
     assert abs(res.best.x[0] - BETA_ISO_DEG) <= 0.01
     assert res.best.metrics["jacobian_condition"] == pytest.approx(1.0, abs=1e-6)
@@ -85,7 +91,7 @@ def test_jax_gradients_match_central_differences():
 
 def test_fd_fallback_when_no_jax_twin_is_known():
     # no metric_modules: the driver cannot find jax twins and says it uses finite differences
-    res = driver.run(beta_problem("LD_SLSQP", metric="jacobian_condition_frobenius"))
+    res = run(beta_problem("LD_SLSQP", metric="jacobian_condition_frobenius"))
     assert any("finite differences" in n for n in res.notes)
     assert abs(res.best.x[0] - BETA_ISO_DEG) <= 0.01
 
@@ -104,7 +110,7 @@ def _nan_above_40(task: PointTask):
 def test_nan_and_failures_are_guarded(algorithm):
     p = beta_problem(algorithm)
     p = dataclasses.replace(p, variables=(dataclasses.replace(p.variables[0], start=30.0),))
-    res = driver.run(p, evaluate_fn=_nan_above_40)
+    res = run(p, evaluate_fn=_nan_above_40)
     outcomes = {r.outcome for r in res.history}
     assert Outcome.NONFINITE in outcomes
     assert all(math.isfinite(r.f) and all(math.isfinite(c) for c in r.constraints) for r in res.history)
@@ -116,9 +122,9 @@ def test_nan_and_failures_are_guarded(algorithm):
 def test_nan_at_the_start_is_not_a_silent_success():
     # seed of the pitfall: NaN at the start point makes COBYLA stop there and return normally.
     # Guarded, the run says no valid point was found; a second seeded start escapes the plateau.
-    res = driver.run(beta_problem("LN_COBYLA"), evaluate_fn=_nan_above_40)
+    res = run(beta_problem("LN_COBYLA"), evaluate_fn=_nan_above_40)
     assert res.best is None and res.status == "no_valid_point"
-    res = driver.run(beta_problem("LN_COBYLA", starts=3, seed=2), evaluate_fn=_nan_above_40)
+    res = run(beta_problem("LN_COBYLA", starts=3, seed=2), evaluate_fn=_nan_above_40)
     assert res.status == "converged" and abs(res.best.x[0] - BETA_ISO_DEG) <= 0.01
 
 
@@ -128,7 +134,7 @@ def test_invalid_design_is_a_handled_outcome():
         "variables": [{"key": "structure.bore_diameter_mm", "lower": 2.0, "upper": 40.0}],
         "objective": {"metric": "jacobian_condition"},  # flat in the bore: stops quickly
         "optimiser": {"algorithm": "GN_DIRECT_L", "max_evals": 30}})
-    res = driver.run(p)
+    res = run(p)
     bad = [r for r in res.history if r.outcome is Outcome.INVALID_DESIGN]
     assert bad and all("bore_diameter_mm" in r.message for r in bad)  # bore ≥ boss (24 mm)
     assert res.best.x[0] < 24.0
@@ -141,19 +147,19 @@ def test_statuses_forced_stop_and_roundoff_are_reported():
                 raise exc
         return progress
 
-    res = driver.run(beta_problem("LN_COBYLA"), progress=stop_after(5, nlopt.ForcedStop()))
+    res = run(beta_problem("LN_COBYLA"), progress=stop_after(5, nlopt.ForcedStop()))
     assert res.starts[0].status is StartStatus.FORCED_STOP
     assert res.best is not None and len(res.history) == 5
-    res = driver.run(beta_problem("LN_BOBYQA"), progress=stop_after(3, nlopt.RoundoffLimited()))
+    res = run(beta_problem("LN_BOBYQA"), progress=stop_after(3, nlopt.RoundoffLimited()))
     assert res.starts[0].status is StartStatus.ROUNDOFF_LIMITED and "roundoff" in res.starts[0].message
-    res = driver.run(beta_problem("LN_COBYLA", max_evals=4))
+    res = run(beta_problem("LN_COBYLA", max_evals=4))
     assert res.starts[0].status is StartStatus.MAXEVAL_REACHED and len(res.history) == 4
 
 
 def test_multistart_is_seeded_and_deterministic():
-    a = driver.run(beta_problem("LN_COBYLA", starts=3, seed=11, max_evals=150))
-    b = driver.run(beta_problem("LN_COBYLA", starts=3, seed=11, max_evals=150))
-    c = driver.run(beta_problem("LN_COBYLA", starts=3, seed=12, max_evals=150))
+    a = run(beta_problem("LN_COBYLA", starts=3, seed=11, max_evals=150))
+    b = run(beta_problem("LN_COBYLA", starts=3, seed=11, max_evals=150))
+    c = run(beta_problem("LN_COBYLA", starts=3, seed=12, max_evals=150))
     assert [(r.x, r.f) for r in a.history] == [(r.x, r.f) for r in b.history]
     assert a.starts[0].x0 == (60.0,)  # start 0: the base design
     assert a.starts[1].x0 != c.starts[1].x0
@@ -165,7 +171,7 @@ def test_maximise_flips_the_sign():
                            "variables": [{"key": "geometry.beta_deg", "lower": 20.0, "upper": 70.0}],
                            "objective": {"metric": "max_force_N[0]", "sense": "maximise"},
                            "optimiser": {"algorithm": "LN_BOBYQA", "xtol_rel": 1e-8, "max_evals": 100}})
-    res = driver.run(p)
+    res = run(p)
     # F_x max = 2 F_max / tan β (seed digest) grows as β falls: the optimum is the lower bound
     assert res.best.x[0] == pytest.approx(20.0, abs=1e-6)
     assert res.best.f == -res.best.objective
@@ -177,10 +183,10 @@ def test_penalty_rule_is_deterministic():
         r = evaluate_point(task)
         return dataclasses.replace(r, outcome=Outcome.EVALUATOR_FAILED) if task.x[0] >= 59.0 or 40 < task.x[0] < 50 else r
 
-    res = driver.run(beta_problem("LN_COBYLA", max_evals=40), evaluate_fn=fail_band)
+    res = run(beta_problem("LN_COBYLA", max_evals=40), evaluate_fn=fail_band)
     first = res.history[0]
     assert first.outcome is Outcome.EVALUATOR_FAILED and first.f == driver.FIRST_PENALTY
-    res = driver.run(beta_problem("GN_DIRECT_L", max_evals=60), evaluate_fn=fail_band)
+    res = run(beta_problem("GN_DIRECT_L", max_evals=60), evaluate_fn=fail_band)
     later = [r for r in res.history if r.outcome is not Outcome.OK
              and any(h.outcome is Outcome.OK for h in res.history[: r.index])]
     assert later

@@ -21,6 +21,7 @@ from optim.problem import load_problem
 from optim.recorder import FILENAME, Recorder, point_key
 
 DATA = Path(__file__).parent / "data"
+ONLY = ("statics",)  # the problem's metrics all come from analysis.prrr_statics
 PROBLEM = DATA / "resume-problem.toml"
 
 
@@ -70,7 +71,7 @@ class _Counting:
 
 def test_interrupted_run_resumes_without_repeating(tmp_path):
     problem = load_problem(PROBLEM)
-    full = driver.run(problem)
+    full = driver.run(problem, only=ONLY)
 
     class Crash(BaseException):
         pass
@@ -84,10 +85,10 @@ def test_interrupted_run_resumes_without_repeating(tmp_path):
     first = _Counting()
     with Recorder(tmp_path, fingerprint=problem.fingerprint(), resume=False) as rec:
         with pytest.raises(Crash):
-            driver.run(problem, recorder=rec, evaluate_fn=first, progress=crash_after(37))
+            driver.run(problem, only=ONLY, recorder=rec, evaluate_fn=first, progress=crash_after(37))
     second = _Counting()
     with Recorder(tmp_path, fingerprint=problem.fingerprint(), resume=True) as rec:
-        res = driver.run(problem, recorder=rec, evaluate_fn=second)
+        res = driver.run(problem, only=ONLY, recorder=rec, evaluate_fn=second)
     assert len(first.keys) == 37 and not set(first.keys) & set(second.keys)
     assert res.n_replayed == 37 and res.n_evaluated == full.n_evaluated - 37
     assert [(r.x, r.f) for r in res.history] == [(r.x, r.f) for r in full.history]
@@ -134,6 +135,6 @@ def test_sigkill_mid_run_then_resume(tmp_path):
     assert len(keys) == len(set(keys))  # no evaluation recorded twice
     assert {k for k, s in rows if s == 2}.isdisjoint(recorded)  # the resumed session computed only new points
     assert resumed["n_replayed"] == len(recorded)
-    reference = driver.run(load_problem(PROBLEM))  # uninterrupted, same seed
+    reference = driver.run(load_problem(PROBLEM), only=ONLY)  # uninterrupted, same seed
     assert resumed["history"] == [[list(r.x), r.f] for r in reference.history]
     assert tuple(resumed["best_x"]) == reference.best.x

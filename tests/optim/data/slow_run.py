@@ -14,6 +14,7 @@ from optim.evaluation import evaluate_point
 from optim.problem import load_problem
 from optim.recorder import Recorder
 
+ONLY = ("statics",)  # the problem's metrics all come from analysis.prrr_statics
 PROBLEM = Path(__file__).with_name("resume-problem.toml")
 DELAY = 0.0
 
@@ -31,7 +32,7 @@ def main(argv: list[str]) -> None:
         DELAY = float(argv[argv.index("--delay") + 1])
     problem = load_problem(PROBLEM)
     with Recorder(run_dir, fingerprint=problem.fingerprint(), resume=resume) as rec:
-        res = driver.run(problem, recorder=rec, evaluate_fn=slow_evaluate)
+        res = driver.run(problem, only=ONLY, recorder=rec, evaluate_fn=slow_evaluate)
     print(json.dumps({"best_x": res.best.x, "best_f": res.best.f, "n_evaluated": res.n_evaluated,
                       "n_replayed": res.n_replayed, "history": [[list(r.x), r.f] for r in res.history]}))
 
