@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.closed_loop import OVERSAMPLE, Traces
+from analysis.closed_loop import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces
 from analysis.fidelity import Fidelity
 from analysis.firmware_master import MasterController, MasterFirmwareConfig
 from analysis.mujoco_prrr import SOLVER_BY_FIDELITY, Health, SolverSettings
@@ -393,10 +393,23 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
         sat = np.abs(r["torque"][:end]) >= design.actuators.torque_limit * (1 - 1e-12)
         measures["torque_saturated_fraction"] = float(sat.any(axis=-1).mean()) if end else 0.0
     wall = time.perf_counter() - t0
-    stops = [int(r["stop"][0]) for r in runs]
-    bad = [s for s in stops if s >= 0]
-    stable = not bad
-    unstable_at = None if stable else (bad[0] + 1) * T
+    # unstable: the run stopped (non-finite, runaway, MuJoCo reset), or the torques sat on the limit
+    # for more than half of a 0.1 s window (a saturated limit cycle, e.g. a chattering stiff wall) —
+    # the rules of analysis.closed_loop.classify
+    times = []
+    for r in runs:
+        if r["stop"][0] >= 0:
+            times.append((int(r["stop"][0]) + 1) * T)
+        elif Effect.SATURATION in fx:
+            sat = np.any(np.abs(r["torque"]) >= design.actuators.torque_limit * (1 - 1e-12), axis=-1)
+            W = max(1, int(round(SATURATION_WINDOW_S / T)))
+            nwin = len(sat) // W
+            if nwin:
+                frac = sat[: nwin * W].reshape(nwin, W).mean(axis=1)
+                if np.any(frac > SATURATION_FRACTION):
+                    times.append((int(np.argmax(frac > SATURATION_FRACTION)) + 1) * W * T)
+    stable = not times
+    unstable_at = None if stable else times[0]
     violation = float(max(float(r["violation"].max()) for r in runs))
     warns = plant.warnings()
     status, problems = (Status.OK, []) if stable else (Status.UNSTABLE, [f"unstable: detected at t = {unstable_at:.4g} s"])

@@ -81,3 +81,18 @@ def test_unknown_scene_and_missing_file(tmp_path):
     bad.write_text("name = [")
     with pytest.raises(InputFileError, match="not valid TOML"):
         load_scene(bad)
+
+
+def test_master_scenes_and_sweep_validation():
+    """issue 8: master scenes are multibody, drop the SEA (no series spring) and validate their sweep."""
+    sc = load_scene("master-transparency")
+    assert sc.device == "master" and sc.sweep_factors == (0.85, 0.95, 1.05, 1.15)
+    assert sc.environment.stiffness[0] == pytest.approx(50.0)  # 0.05 N/mm (seed 003)
+    assert not sc.controller.gravity_compensation
+    res = resolve(scene_from_dict({"name": "m", "device": "master"}))
+    assert res.backend == Backend.MULTIBODY and Effect.SEA_COMPLIANCE not in res.effects
+    assert any("series spring" in n for n in res.notes)
+    with pytest.raises(InvalidInput, match="simulation.sweep_factors"):
+        scene_from_dict({"name": "m", "simulation": {"sweep_factors": [1.0]}})
+    with pytest.raises(InvalidInput, match="device = 'robot' is not known"):
+        scene_from_dict({"name": "m", "device": "robot"})

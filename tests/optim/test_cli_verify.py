@@ -49,3 +49,28 @@ def test_verify_link_dynamics_refused_or_multibody(tmp_path):
         assert "link_dynamics requires the multibody backend" in res.output
     else:  # the multibody backend (issue 8) registered itself
         assert json.loads(res.stdout)["metrics"]["backend"] == "multibody"
+
+
+def test_verify_master_wall_and_backend_option(tmp_path):
+    """issue 8: `hapticopt verify --preset master-paper --scene master-wall` runs the master firmware on the
+    MuJoCo master; --backend forces or refuses; a prrr scene on the master is a one-line error."""
+    res = runner.invoke(app, ["verify", "--preset", "master-paper", "--scene", "master-wall", "--fidelity", "draft",
+                              "--json"])
+    assert res.exit_code == 0, res.output
+    m = json.loads(res.stdout)["metrics"]
+    assert m["backend"] == "multibody" and m["device"] == "master" and "master" in m["resolution_reason"]
+    assert m["stable"] and m["constraint_health_ok"] and m["wall_penetration_mm"] > 0
+    for args, match in ((["--preset", "master-paper", "--scene", "master-wall", "--backend", "lumped"],
+                         "backend = lumped cannot simulate the master"),
+                        (["--preset", "master-paper", "--scene", "stiffness-25"], "is written for the prrr device"),
+                        (["--preset", "prrr-paper", "--backend", "mujoco"], "--backend = 'mujoco' is not a backend")):
+        bad = runner.invoke(app, ["verify", *args])
+        assert bad.exit_code == 2 and match in bad.output and bad.output.count("\n") <= 1
+    scene = tmp_path / "short.toml"
+    scene.write_text('name = "short"\nduration_s = 0.1\n[environment]\nkind = "spring"\n'
+                     'stiffness_N_per_mm = [25.0, 0, 0]\n[motion]\namplitude_mm = [4.0, 0, 0]\n')
+    forced = runner.invoke(app, ["verify", "--preset", "prrr-paper", "--scene", str(scene), "--backend", "multibody",
+                                 "--fidelity", "draft", "--json"])
+    assert forced.exit_code == 0, forced.output
+    fm = json.loads(forced.stdout)["metrics"]
+    assert fm["backend"] == "multibody" and "forced" in fm["backend_reason"] and fm["constraint_health_ok"]
