@@ -14,10 +14,12 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
-# The main job: evaluate the reference 3-PRRR and print its metrics.
+# The main job: evaluate and export the reference 3-PRRR, then optimise → export → verify →
+# report the bundled problem (outputs in cad_out/prrr-paper/ and cad_out/prrr-workspace/).
 run: $(STAMP)
 	$(BIN)/hapticopt evaluate --preset prrr-paper
 	$(BIN)/hapticopt export --preset prrr-paper --render
+	$(BIN)/hapticopt optimise prrr-workspace
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
