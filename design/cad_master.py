@@ -26,7 +26,7 @@ import numpy as np
 from design import parts as _parts
 from design.errors import InvalidDesign, InvalidInput
 from design.master import MasterDesign
-from design.parts import PartSpec, Role, bar_with_bosses, capseg, cylinder, frame, sphere, transform
+from design.parts import JointAxis, PartSpec, Role, bar_with_bosses, capseg, cylinder, frame, sphere, transform
 
 MIN_FEATURE = 0.5e-3
 EX, EY, EZ = np.eye(3)
@@ -189,16 +189,6 @@ def part_frames(design: MasterDesign, pose: MasterPose) -> dict[str, np.ndarray]
     out["counterweight_forearm"] = out["driver_link"]
     out["handle"] = out["forearm"]
     return out
-
-
-@dataclass(frozen=True, kw_only=True)
-class JointAxis:
-    name: str
-    parent: str
-    child: str
-    point: np.ndarray
-    direction: np.ndarray
-    reference: float  # joint coordinate at the pose [rad]
 
 
 def joint_axes(design: MasterDesign, pose: MasterPose) -> list[JointAxis]:

@@ -25,7 +25,7 @@ import numpy as np
 from design import cad_units
 from design import parts as _parts
 from design.errors import InvalidDesign
-from design.parts import (PartSpec, Role, bar_with_bosses, box, capseg, cylinder, frame, sphere,
+from design.parts import (JointAxis, PartSpec, Role, bar_with_bosses, box, capseg, cylinder, frame, sphere,
                           transform)
 from design.prrr import GAMMAS, PrrrDesign
 
@@ -319,18 +319,6 @@ def part_frames(design: PrrrDesign, pose: PrrrPose) -> dict[str, np.ndarray]:
         out[f"link2_{i}"] = transform(frame(e12, w), B)
     out["platform"] = transform(np.eye(3), pose.p)
     return out
-
-
-@dataclass(frozen=True, kw_only=True)
-class JointAxis:
-    """A joint of the posed mechanism: a point on its axis and the unit direction [m]."""
-
-    name: str
-    parent: str
-    child: str
-    kind: str  # "slide" or "hinge"
-    point: np.ndarray
-    direction: np.ndarray
 
 
 def joint_axes(design: PrrrDesign, pose: PrrrPose) -> list[JointAxis]:

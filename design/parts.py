@@ -355,3 +355,16 @@ def posed(solids: dict[str, object], frames: dict[str, np.ndarray]) -> dict[str,
         m.label = name
         out[name] = m
     return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class JointAxis:
+    """A joint of a posed mechanism: a point on its axis and the unit direction [m]."""
+
+    name: str
+    parent: str
+    child: str
+    point: np.ndarray
+    direction: np.ndarray
+    kind: str = "hinge"  # "slide" or "hinge"
+    reference: float = 0.0  # joint coordinate at the pose [rad or m]
