@@ -333,6 +333,8 @@ class MujocoPlant:
         start = 0
         ok_eq = n_eq > 0
         k = 0
+        mul = np.multiply
+        energy_buf = d.energy  # a view on MjData's buffer, updated in place by mj_step
         while k < N:
             end = min(N, start + check_every)
             for k in range(start, end):
@@ -343,7 +345,7 @@ class MujocoPlant:
                     cmd = delay.pop(0)
                 for j in range(L):
                     row = cmd[j]
-                    ctrl[:] = gain * row
+                    mul(row, gain, out=ctrl)
                     if hand is not None:
                         qs[spr_adr] = REF[k, j]
                         qfa[hd] = DREF[k, j]
@@ -352,7 +354,7 @@ class MujocoPlant:
                 Qp[k] = qpos
                 Qv[k] = qvel
                 Qa[k] = qacc
-                KE[k] = d.energy[1]
+                KE[k] = energy_buf[1]
                 clock[k] = d.time
                 CMD[k] = cmd
                 Fref[k] = controller.last_force
