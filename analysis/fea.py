@@ -165,8 +165,10 @@ def solve_elasticity(mesh: TetMesh, *, youngs_modulus: float, poisson_ratio: flo
     ``loads(basis) -> (n_dofs, n_cases)`` builds the load vectors on the quadratic basis.
     Quadrature of order 2 (exact for the stiffness of straight-sided P2 tetrahedra: ∇u·∇v is
     quadratic; ~3× faster assembly than skfem's default order 4). One smoothed-aggregation
-    hierarchy (rigid-body modes as B, energy-minimising prolongation smoothing, which cut the
-    CG iterations by ~20 % on the CAD solid, docs/structure.md) serves every load case;
+    hierarchy (rigid-body modes as B, energy-minimising prolongation smoothing, strength
+    threshold 0.02 (P2 stencils otherwise give ~65-node aggregates), one forward Gauss–Seidel
+    sweep before and one backward after (a symmetric V-cycle at half the default cost); together
+    −45 % CG time on the CAD solid, docs/structure.md) serves every load case;
     CG stops at relative residual ``tol`` (the compliance error is ~tol², negligible).
     """
     import pyamg
@@ -194,8 +196,11 @@ def solve_elasticity(mesh: TetMesh, *, youngs_modulus: float, poisson_ratio: flo
     blocked = I.size % 3 == 0 and np.all(I[0::3] % 3 == 0) and np.all(np.diff(I.reshape(-1, 3), axis=1) == 1)
     A_amg = A.tobsr(blocksize=(3, 3)) if blocked else A
     ml = pyamg.smoothed_aggregation_solver(A_amg, B=B, symmetry="hermitian", max_coarse=300,
+                                           strength=("symmetric", {"theta": 0.02}),
                                            smooth=("energy", {"krylov": "cg", "maxiter": 2, "degree": 1,
-                                                              "weighting": "local"}))
+                                                              "weighting": "local"}),
+                                           presmoother=("block_gauss_seidel", {"sweep": "forward"}),
+                                           postsmoother=("block_gauss_seidel", {"sweep": "backward"}))
     M = ml.aspreconditioner(cycle="V")
     t2 = time.perf_counter()
     U = np.zeros_like(F)

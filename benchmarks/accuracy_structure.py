@@ -62,7 +62,7 @@ def prrr(levels: list[int]) -> None:
               f"frame(bonded)/FEA − 1 = {bonded / r.stiffness_load - 1}")
 
 
-def cad(levels: list[int]) -> None:
+def cad(levels: list[int], rigid: str = "stem") -> None:
     """CAD solid with bonded pins (analysis.fea_cad): levels, Richardson per axis, frame comparison."""
     import numpy as np
 
@@ -74,7 +74,7 @@ def cad(levels: list[int]) -> None:
           "k_x, k_y, k_z N/mm |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for k in levels:
-        r = fea_cad.cad_fea(d, level=k)
+        r = fea_cad.cad_fea(d, level=k, rigid=rigid)
         t = r.timings_s
         rows.append(r)
         print(f"| {k} | {r.size * 1e3:.1f} | {r.n_dofs} | {r.iterations} | {t['mesh']:.1f} | {t['assemble']:.1f} | "
@@ -105,10 +105,11 @@ if __name__ == "__main__":
     ap.add_argument("--levels", type=int, nargs="*", default=[0, 1, 2, 3])
     ap.add_argument("--prrr", type=int, nargs="*", default=None)
     ap.add_argument("--cad", type=int, nargs="*", default=None)
+    ap.add_argument("--rigid", default="stem", choices=("stem", "ball"))
     args = ap.parse_args()
     if args.levels:
         cantilever(args.levels)
     if args.prrr is not None:
         prrr(args.prrr)
     if args.cad is not None:
-        cad(args.cad)
+        cad(args.cad, args.rigid)
