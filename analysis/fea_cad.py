@@ -17,10 +17,11 @@ platform lug).
 
 Named physical groups: volumes ``carriage_i``, ``link1_i``, ``link2_i``, ``platform``,
 ``pin_r{1,2,3}_i``; surfaces ``support_leg{i}`` (the four faces of carriage i's rail slot,
-clamped). Load: a rigid region of the platform carries the unit load cases, forces at the load
-point P + Δz e_z distributed over its DOFs as least-squares-consistent nodal forces; its rigid
-motion is fitted by least squares (as :func:`analysis.fea.prrr_fea` does for the frame-equivalent
-solid). ``rigid="stem"`` (default, comparable with the frame model, whose handle P → P + Δz e_z
+clamped). Load: a rigid region of the platform is tied exactly to six master DOFs (a rigid-body
+multi-point constraint, :func:`analysis.fea.solve_with_rigid_region`) that carry the unit load
+cases, forces at the load point P + Δz e_z. (An earlier version spread min-norm nodal forces over
+the region and fitted its rigid motion: those point loads made the stiffness drift with the mesh
+instead of converging, docs/structure.md.) ``rigid="stem"`` (default, comparable with the frame model, whose handle P → P + Δz e_z
 and hub at P are rigid): the stem (the platform's material within the stem radius of the z axis,
 where the three arms meet) and the handle ball. ``rigid="ball"``: the ball only, so the 10 mm
 stem (handle post) bends too — the physical handle, reported separately (docs/structure.md).
@@ -179,39 +180,42 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
     mesh, info = cad_mesh(design, size=size, p=p, branch=branch, pin_radius=pin_radius)
     t_mesh = time.perf_counter() - t0
     hub_nodes = mesh.node_sets["platform"]
-    state: dict[str, Any] = {}
     H = np.concatenate([np.eye(3), -np.array([[0, -h, 0], [h, 0, 0], [0, 0, 0]])], axis=1)  # u_L = H [u_P; θ]
+    is_platform = np.zeros(mesh.points.shape[1], dtype=bool)
+    is_platform[hub_nodes] = True
 
-    def loads(basis):
+    def region(basis):
         x = basis.doflocs
-        is_platform = np.zeros(mesh.points.shape[1], dtype=bool)
-        is_platform[hub_nodes] = True
         in_ball = np.linalg.norm(x - info["ball_centre"][:, None], axis=0) <= info["ball_radius"] * (1 + 1e-9)
         if rigid == "stem":
             on_platform = np.zeros(basis.N, dtype=bool)
+            n_vert = mesh.points.shape[1]
+            e = basis.mesh.edges
             for c in fea._component_dofs(basis):
-                n_vert = mesh.points.shape[1]
-                vert = c[:n_vert]
-                on_platform[vert] = is_platform
-                # edge DOFs: on the platform when both end vertices are (skfem edge order)
-                e = basis.mesh.edges
+                on_platform[c[:n_vert]] = is_platform
+                # edge DOFs: on the platform when both end vertices are
                 on_platform[c[n_vert:]] = is_platform[e[0]] & is_platform[e[1]]
             radial = np.hypot(x[0] - p[0], x[1] - p[1])
             in_ball |= on_platform & (radial <= info["stem_radius"] * (1 + 1e-6))
         elif rigid != "ball":
             raise ValueError(f"rigid = {rigid!r}: allowed 'stem' or 'ball'")
-        R = fea.rigid_body_modes(basis, centre=p)[in_ball]  # (n_hub, 6)
-        G = np.linalg.inv(R.T @ R)
-        F = np.zeros((basis.N, 3))
-        F[in_ball] = R @ G @ H.T  # min-norm nodal forces whose resultant is a unit force at the load point
-        state.update(in_ball=in_ball, fit=H @ G @ R.T)
-        return F
+        # whole DOF locations only (all three components), so the reduced system keeps node blocks
+        loc = np.zeros(basis.N, dtype=bool)
+        for c in fea._component_dofs(basis):
+            loc[c] = in_ball[c]
+        allc = np.ones(basis.N, dtype=bool)
+        comps = fea._component_dofs(basis)
+        both = loc[comps[0]] & loc[comps[1]] & loc[comps[2]]
+        allc[:] = False
+        for c in comps:
+            allc[c] = both
+        return allc
 
     names = [n for n in mesh.node_sets if n.startswith("support")]
     s = design.structure
-    sol = fea.solve_elasticity(mesh, youngs_modulus=s.youngs_modulus, poisson_ratio=s.poisson_ratio, fixed=names,
-                               loads=loads, tol=tol)
-    C = state["fit"] @ sol.displacements[state["in_ball"]]  # (3, 3) load-point displacement per unit force
+    sol = fea.solve_with_rigid_region(mesh, youngs_modulus=s.youngs_modulus, poisson_ratio=s.poisson_ratio,
+                                      fixed=names, region=region, centre=p, wrenches=H.T, tol=tol)
+    C = H @ sol.master  # (3, 3) load-point displacement per unit force at the load point
     C = 0.5 * (C + C.T)
     k = 1.0 / np.diagonal(C)
     disp = None
