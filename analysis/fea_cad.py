@@ -40,8 +40,8 @@ from analysis.status import Status
 
 #: mesh size [m] of refinement level k: link thickness · 1.5 / √2^k
 LEVEL0_FACTOR = 1.5
-#: level used by ``hapticopt evaluate --fidelity fine`` (the cheapest; docs/structure.md)
-DEFAULT_LEVEL = -1
+#: level used by ``hapticopt evaluate --fidelity fine``: within 2 % of the extrapolated value (docs/structure.md)
+DEFAULT_LEVEL = 2
 
 
 def cad_level_size(design, level: int) -> float:

@@ -5,7 +5,7 @@ Metrics (seed 002 section 2.3, Table 3): the Cartesian stiffness [x, y, z] for a
 end-effector on the z axis where a lateral force and the rotation decouple) and the stiffness
 when loaded there. ``draft``/``standard`` fidelity: the Timoshenko frame model
 (:mod:`analysis.frame_model`, numpy path, ~1–6 ms, no compilation). ``fine``: additionally the
-solid FEA of the CAD geometry with bonded pins (:mod:`analysis.fea_cad`, coarsest level, ~1–2 min),
+solid FEA of the CAD geometry with bonded pins (:mod:`analysis.fea_cad`, level 2, ~20–40 s),
 reported next to the frame model with bonded joints at the CAD's elbow branch, the model it checks.
 """
 
