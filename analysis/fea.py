@@ -578,7 +578,7 @@ def plot_structure(design, result, out_dir: Path) -> list[Path]:
         warped = grid.warp_by_vector("u", factor=sc)
         pl = pv.Plotter(off_screen=True, window_size=(900, 700))
         pl.add_mesh(warped, scalars="displacement_um_per_N", show_edges=False)
-        pl.add_text(f"FEA (bonded joints), 1 N along x at Δz = {h * 1e3:g} mm (×{sc:.3g})", font_size=10)
+        pl.add_text(f"CAD FEA (bonded pins), 1 N along x at Δz = {h * 1e3:g} mm (×{sc:.3g})", font_size=10)
         target = out_dir / "structure_fea.png"
         with atomic_path(target) as tmp:
             pl.screenshot(str(tmp))
