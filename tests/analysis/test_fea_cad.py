@@ -1,4 +1,4 @@
-"""CAD solid FEA (bonded pins): mesh topology only (the solve is in benchmarks/accuracy_structure.py).
+"""CAD solid FEA (bonded pins): mesh topology and the frame-vs-FEA acceptance (one coarse solve).
 
 One coarse mesh of prrr-paper's posed CAD parts: pins in every revolute joint, rail-slot
 supports found, and the fragment makes one conformal body (every part connected through pins).
@@ -12,7 +12,7 @@ from scipy.sparse.csgraph import connected_components
 from analysis import fea_cad
 from design import io
 
-pytestmark = pytest.mark.slow  # ~10 s: build123d import, CAD build and a coarse gmsh mesh
+pytestmark = pytest.mark.slow  # ~20 s wall: build123d import, CAD build, two coarse meshes, one solve
 
 
 @pytest.fixture(scope="module")
@@ -57,3 +57,20 @@ def test_supports_are_the_rail_slot_faces(cad):
     loc = (mesh.points[:, mesh.node_sets["support_leg1"]].T - T[:3, 3]) @ T[:3, :3]
     edge = np.maximum(np.abs(loc[:, 0] - d.geometry.r_p), np.abs(loc[:, 1]))
     np.testing.assert_allclose(edge, L.slot, atol=1e-6)
+
+
+def test_frame_matches_cad_fea_with_rigid_joints_within_15_percent():
+    # acceptance "frame vs FEA within 15 % per axis" on the CAD geometry, with the documented
+    # adjustment: pins of the boss radius (joints as stiff as the frame's rigid joint zones assume).
+    # Level 0 (coarsest, stiffer than the converged value by ~5 %); level 2 gives −4.7 %, −4.7 %,
+    # +11.7 % (docs/structure.md, benchmarks/accuracy_structure.py)
+    from analysis import frame_model as fm
+    from analysis.structural_stiffness import structural_stiffness
+    from design.cad_prrr import DEFAULT_BRANCH
+
+    d = io.load_preset("prrr-paper")
+    r = fea_cad.cad_fea(d, level=0, pin_radius=0.5 * d.structure.boss_diameter)
+    frame = structural_stiffness(d, options=fm.FrameOptions(joints=fm.Joints.BONDED, branch=DEFAULT_BRANCH))
+    np.testing.assert_allclose(frame.stiffness_load, r.stiffness_load, rtol=0.15)
+    assert r.stiffness_load[0] == pytest.approx(r.stiffness_load[1], rel=0.02)  # 3-fold symmetry, mesh noise
+    assert r.stiffness_load[2] > 1.5 * r.stiffness_load[0]
