@@ -1,4 +1,8 @@
-"""3-D Timoshenko frame model of the 3-PRRR's closed-loop structure (jax, float64, batched).
+"""3-D Timoshenko frame model of the 3-PRRR's closed-loop structure (float64; numpy or jax).
+
+One core, :func:`frame_arrays`, written against an array module ``xp``: :func:`solve_frame` runs
+it with numpy for a single design (no compilation: the CLI path, ~4 ms), :func:`solve_frame_jax`
+and :func:`solve_frame_batch` with ``jax.numpy`` under jit/vmap (batches, gradients); tested equal.
 
 Each link is a 12-DOF Timoshenko beam (axial, torsion, two bending planes with shear) of the
 rectangular cross-section in ``design.structure``; the three revolute joints of every leg
