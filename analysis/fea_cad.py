@@ -200,16 +200,12 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
         elif rigid != "ball":
             raise ValueError(f"rigid = {rigid!r}: allowed 'stem' or 'ball'")
         # whole DOF locations only (all three components), so the reduced system keeps node blocks
-        loc = np.zeros(basis.N, dtype=bool)
-        for c in fea._component_dofs(basis):
-            loc[c] = in_ball[c]
-        allc = np.ones(basis.N, dtype=bool)
         comps = fea._component_dofs(basis)
-        both = loc[comps[0]] & loc[comps[1]] & loc[comps[2]]
-        allc[:] = False
+        whole = in_ball[comps[0]] & in_ball[comps[1]] & in_ball[comps[2]]
+        out = np.zeros(basis.N, dtype=bool)
         for c in comps:
-            allc[c] = both
-        return allc
+            out[c] = whole
+        return out
 
     names = [n for n in mesh.node_sets if n.startswith("support")]
     s = design.structure
