@@ -30,6 +30,11 @@ are rigid (clipped to 40 % of a beam's length); the rail end S and the d4/r4 cor
 Without them the node-to-node beams ignore the bosses and the overlap of the links at the joints,
 and the bonded frame came out ~30 % softer than the solid FEA (docs/structure.md).
 
+Pin beams (``FrameOptions(pins=True)``, off by default): members in their CAD layers along w
+(``design.cad_prrr.layout``), each revolute joint a Timoshenko pin beam of the bore diameter
+between the layers, the platform arms of the stem section; see :func:`_leg_stiffness_pins` and
+docs/structure.md (with pins the bonded frame is 46 % softer than the CAD FEA, without 95 % stiffer).
+
 Cross-section orientation: the width b (``link_width``) lies in the plane normal to the joint
 axis, the thickness t (``link_thickness``) along the joint axis (local z = w projected normal to
 the beam); for the r4 segment, which runs along w, the width continues the d4 link's direction.
@@ -93,6 +98,7 @@ class FrameOptions:
     sea: bool = False  # SEA springs in series along z between slider and rail (else locked)
     branch: int = 0  # elbow branch of the IK: 0 (θ2 ≥ 0) or 1 (θ2 ≤ 0)
     joint_zones: bool = True  # beam ends within the boss radius of a joint (A, B, Q) or of P are rigid
+    pins: bool = False  # CAD layering: members in their layers along w, joined by pin beams of the bore
 
 
 class Section(NamedTuple):
@@ -112,6 +118,10 @@ class FrameParams(NamedTuple):
     section: Section
     spring: jax.Array  # SEA spring k [N/m] (used with ``FrameOptions(sea=True)``)
     joint_zone: jax.Array  # radius of the rigid joint zone (the joint boss) [m]
+    pin_diameter: jax.Array  # pin (bore) diameter [m] (``FrameOptions(pins=True)``)
+    layer: jax.Array  # layer pitch along the joint axis, link thickness + clearance [m]
+    lug_offset: jax.Array  # platform lug layer above the kinematic R3 point along w, s_lug − r4 [m]
+    stem_radius: jax.Array  # platform stem radius; the platform arms are stem_diameter wide [m]
 
 
 def frame_params_of(design, xp=jnp) -> FrameParams:
@@ -120,9 +130,14 @@ def frame_params_of(design, xp=jnp) -> FrameParams:
     g = design.geometry
     kin = PrrrParams(*(xp.asarray(float(x)) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
     sec = Section(*(xp.asarray(float(x)) for x in (s.link_width, s.link_thickness, s.youngs_modulus, s.poisson_ratio)))
+    layer = float(s.link_thickness) + float(s.clearance)  # design.cad_prrr.layout: s_link2 = T + g
+    s_lug = max(float(g.r4), 2.0 * layer)  # design.cad_prrr.layout: s_lug = max(r4, 2T + 2g)
     return FrameParams(kin=kin, r_p=xp.asarray(float(g.r_p)), section=sec,
                        spring=xp.asarray(float(design.actuator.spring)),
-                       joint_zone=xp.asarray(0.5 * float(s.boss_diameter)))
+                       joint_zone=xp.asarray(0.5 * float(s.boss_diameter)),
+                       pin_diameter=xp.asarray(float(s.bore_diameter)), layer=xp.asarray(layer),
+                       lug_offset=xp.asarray(s_lug - float(g.r4)),
+                       stem_radius=xp.asarray(0.5 * float(s.stem_diameter)))
 
 
 def stack_frame_params(designs) -> FrameParams:
@@ -155,6 +170,14 @@ def section_properties(section: Section, xp=jnp) -> SectionProperties:
         shear_coefficient=10.0 * (1.0 + nu) / (12.0 + 11.0 * nu),  # Cowper (1966), rectangle
         shear_modulus=E / (2.0 * (1.0 + nu)),
     )
+
+
+def circle_properties(diameter: jax.Array, E: jax.Array, nu: jax.Array, xp=jnp) -> SectionProperties:
+    """Solid circle (the pins): A = πd²/4, I = πd⁴/64, J = πd⁴/32, Cowper's κ = 6(1+ν)/(7+6ν)."""
+    i = np.pi * diameter**4 / 64.0
+    return SectionProperties(area=np.pi * diameter**2 / 4.0, i_y=i, i_z=i, torsion=2.0 * i,
+                             shear_coefficient=6.0 * (1.0 + nu) / (7.0 + 6.0 * nu),  # Cowper (1966), circle
+                             shear_modulus=E / (2.0 * (1.0 + nu)))
 
 
 def _bending_patterns(idx: tuple[int, int, int, int], sign: float) -> np.ndarray:
@@ -227,17 +250,20 @@ def _blockdiag2(a, b, xp=jnp):
     return xp.concatenate([xp.concatenate([a, za], axis=1), xp.concatenate([zb, b], axis=1)], axis=0)
 
 
-def beam_global_stiffness(x1, x2, zref, section: Section, a1=0.0, a2=0.0, xp=jnp) -> jax.Array:
+def beam_global_stiffness(x1, x2, zref, section: Section, a1=0.0, a2=0.0, xp=jnp,
+                          props: SectionProperties | None = None) -> jax.Array:
     """12×12 stiffness of the beam x1→x2 [m] in global axes, on the DOFs of x1 and x2.
 
     ``a1``, ``a2`` [m]: rigid end zones (each clipped to 40 % of the length); the flexible
     Timoshenko part spans the rest and is tied to the nodes by rigid maps.
     ``xp``: the array module (``jax.numpy``, or ``numpy`` for the jit-free single-design path).
+    ``props``: section properties overriding the rectangle of ``section`` (E is read from ``section``).
     """
     R, length = beam_axes(x1, x2, zref, xp)
     a1 = xp.minimum(a1, 0.4 * length)
     a2 = xp.minimum(a2, 0.4 * length)
-    k = beam_local_stiffness(length - a1 - a2, section.youngs_modulus, section_properties(section, xp), xp)
+    props = section_properties(section, xp) if props is None else props
+    k = beam_local_stiffness(length - a1 - a2, section.youngs_modulus, props, xp)
     # T = blockdiag(R, R, R, R) @ blockdiag(rigid(a1 ex), rigid(−a2 ex)) = blockdiag(R M1, R M2),
     # R·rigid(r) = [[R, −R[r]×], [0, R]]
     def end(a):
@@ -281,13 +307,19 @@ def cantilever_compliance(length, section: Section, *, direction, zref, n_elemen
 
 # ----------------------------------------------------------------------------- the 3-PRRR frame
 def _leg_layout(options: FrameOptions) -> tuple[int, dict[str, int]]:
-    """Static DOF layout of one leg: [P (6) | internal DOFs]; first index of each block (−1: absent)."""
+    """Static DOF layout of one leg: [P (6) | internal DOFs]; first index of each block (−1: absent).
+
+    With pins, "Ap", "B2", "Q2" are the link-side ends of the R1, R2, R3 pins; "Bp" (the r4 corner)
+    is then absent (the riser rides rigidly on link2's R3 end).
+    """
     hinge = options.joints == Joints.RELEASED
     beam_off = options.offsets == Offsets.BEAM
+    pins = bool(options.pins)
     n, idx = 6, {}
-    for name, size in (("sea", 1 if options.sea else 0), ("A", 6 if beam_off else 0), ("phi1", int(hinge)),
-                       ("B", 6), ("phi2", int(hinge)), ("Bp", 6 if beam_off else 0),
-                       ("Qp", 6 if beam_off else 0), ("phi3", int(hinge))):
+    for name, size in (("sea", 1 if options.sea else 0), ("A", 6 if beam_off else 0), ("Ap", 6 if pins else 0),
+                       ("phi1", int(hinge)), ("B", 6), ("B2", 6 if pins else 0), ("phi2", int(hinge)),
+                       ("Bp", 6 if beam_off and not pins else 0), ("Qp", 6 if beam_off else 0),
+                       ("Q2", 6 if pins else 0), ("phi3", int(hinge))):
         idx[name] = n if size else -1
         n += size
     return n, idx
@@ -325,17 +357,17 @@ def _map(fn, xp, *args):
     return np.stack(outs)
 
 
-def _leg_stiffness(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp=jnp):
+def _leg_stiffness(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp=jnp,
+                   fp: FrameParams | None = None, zones_on=1.0):
     """Stiffness (n×n) of one leg on its DOFs [P | internal], and the node maps G (5, 6, n)."""
+    if options.pins:
+        return _leg_stiffness_pins(w, S, A, B, Q, p, r4, d4, section, spring, zone, options, xp, fp, zones_on)
     n, L = _leg_layout(options)
     beam_off = options.offsets == Offsets.BEAM
     Bp = Q - r4 * w
     e4 = (Bp - B) / d4
     G_P = _free(n, 0, xp)
-    G_S = np.zeros((6, n))
-    if options.sea:
-        G_S[2, L["sea"]] = 1.0  # the carriage slides in z on the SEA spring
-    G_S = xp.asarray(G_S)
+    G_S = _slider_map(n, L, options, xp)
     elems = []  # (G1, G2, x1, x2, zref, a1, a2)
     a = zone
     if beam_off:
@@ -359,18 +391,95 @@ def _leg_stiffness(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone, opt
     else:
         G_Bp = rigid_map(Bp - Q, xp) @ G_Ql  # B' rides rigidly on the link side of R3
     elems.append((G_Bl, G_Bp, B, Bp, w, a, 0.0 * a))  # link d4
-    Ge = xp.stack([xp.concatenate([g1, g2], axis=0) for g1, g2, *_ in elems])  # (E, 12, n)
-    X1, X2, Z, A1, A2 = (xp.stack([e[k] for e in elems]) for k in (2, 3, 4, 5, 6))
-    Ke = _map(lambda x1, x2, z, a1, a2: beam_global_stiffness(x1, x2, z, section, a1, a2, xp), xp,
-              X1, X2, Z, A1, A2)  # (E, 12, 12)
+    link = section_properties(section, xp)
+    K = _assemble(n, L, [e + (link,) for e in elems], section, spring, options, xp)
+    G_nodes = xp.stack([G_S, G_Ac, G_Bc, G_Bp, G_Qp])
+    return K, G_nodes, xp.stack([S, A, B, Bp, Q])
+
+
+def _slider_map(n, L, options: FrameOptions, xp=jnp):
+    G_S = np.zeros((6, n))
+    if options.sea:
+        G_S[2, L["sea"]] = 1.0  # the carriage slides in z on the SEA spring
+    return xp.asarray(G_S)
+
+
+def _assemble(n, L, elems, section: Section, spring, options: FrameOptions, xp=jnp):
+    """K = Σ_e G_eᵀ K_e G_e (+ the SEA spring) of elements (G1, G2, x1, x2, zref, a1, a2, props)."""
+    Ge = xp.stack([xp.concatenate([e[0], e[1]], axis=0) for e in elems])  # (E, 12, n)
+    X1, X2, Z, A1, A2 = (xp.stack([e[k] * xp.ones(()) for e in elems]) for k in (2, 3, 4, 5, 6))
+    PR = tuple(xp.stack([e[7][f] * xp.ones(()) for e in elems]) for f in range(6))
+    Ke = _map(lambda x1, x2, z, a1, a2, *pr: beam_global_stiffness(x1, x2, z, section, a1, a2, xp,
+                                                                   props=SectionProperties(*pr)), xp,
+              X1, X2, Z, A1, A2, *PR)  # (E, 12, 12)
     K = xp.sum(xp.swapaxes(Ge, -1, -2) @ Ke @ Ge, axis=0)  # Σ_e G_eᵀ K_e G_e
     if options.sea:
         sel = np.zeros((n, n))
         sel[L["sea"], L["sea"]] = 1.0
         K = K + spring * xp.asarray(sel)
-    K = 0.5 * (K + K.T)
-    G_nodes = xp.stack([G_S, G_Ac, G_Bc, G_Bp, G_Qp])
-    return K, G_nodes, xp.stack([S, A, B, Bp, Q])
+    return 0.5 * (K + K.T)
+
+
+def _leg_stiffness_pins(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp,
+                        fp: FrameParams, zones_on):
+    """One leg with the CAD's axial layering (``FrameOptions(pins=True)``, design.cad_prrr layers).
+
+    Along w from the plane Π of A, B, B' (λ = link thickness + clearance): carriage clevis at −λ,
+    link1 at 0, link2 at λ, platform lug at s_lug = max(r4, 2λ) (the kinematic Q is at r4).
+    Each revolute joint is a pin beam of the bore diameter along w, length λ, between the two
+    members' layers; its hinge (released joints) is at the pin's link-side end. R3's pin joins
+    the lug (s_lug) to link2's R3 boss at s_lug − λ; the riser between link2's layer and that
+    point (s_lug − 2λ long, 0 for prrr-paper) is the boss column with the pin bonded in it, taken
+    rigid. The platform arm runs from the lug along −v to the stem axis, stem_diameter wide,
+    rigid inside the stem radius (the stem and handle are rigid, like the FEA's rigid region).
+    """
+    n, L = _leg_layout(options)
+    beam_off = options.offsets == Offsets.BEAM
+    lam, s_q = fp.layer, fp.lug_offset  # lug layer above Q: s_lug − r4
+    sb = w[2]  # sin β (w = −cos β u + sin β e_z)
+    a = zone
+    Ac = A - lam * w  # carriage clevis layer
+    B2 = B + lam * w  # link2 layer at R2
+    Bp2 = Q - r4 * w + lam * w  # link2 layer at the r4 corner (its R3 boss)
+    Ql = Q + s_q * w  # platform lug
+    Q2 = Ql - lam * w  # link2's end of the R3 pin
+    v = _cross(w, _cross(_EZ * xp.ones(()), w, xp), xp)  # e_z made normal to w, = v of the leg frame
+    v = v / xp.sqrt(xp.sum(v**2))
+    Pa = Ql - (xp.sqrt(xp.sum((Ql[:2] - p[:2]) ** 2)) / sb) * v  # arm meets the stem axis
+    e1 = (B - A) / xp.sqrt(xp.sum((B - A) ** 2))  # a normal of w (pins are round: any normal)
+    G_P = _free(n, 0, xp)
+    G_S = _slider_map(n, L, options, xp)
+    link = section_properties(section, xp)
+    pin = circle_properties(fp.pin_diameter, section.youngs_modulus, section.poisson_ratio, xp)
+    arm = section_properties(Section(2.0 * fp.stem_radius, section.thickness, section.youngs_modulus,
+                                     section.poisson_ratio), xp)
+    zero = 0.0 * a
+    elems = []  # (G1, G2, x1, x2, zref, a1, a2, props)
+    if beam_off:
+        G_Ac = _free(n, L["A"], xp)
+        elems.append((G_S, G_Ac, S, Ac, w, zero, a, link))  # carriage arm to the clevis layer
+        G_Ql = _free(n, L["Qp"], xp)
+        elems.append((G_Ql, G_P, Ql, Pa, w, a, zones_on * fp.stem_radius / sb, arm))  # platform arm
+    else:
+        G_Ac = rigid_map(Ac - S, xp) @ G_S
+        G_Ql = rigid_map(Ql - p, xp) @ G_P
+    G_Pa = rigid_map(Pa - p, xp) @ G_P
+    if beam_off:  # the arm's stem end rides on the rigid stem
+        elems[-1] = elems[-1][:1] + (G_Pa,) + elems[-1][2:]
+    G_Ap = _free(n, L["Ap"], xp)
+    elems.append((G_Ac, G_Ap, Ac, A, e1, zero, zero, pin))  # R1 pin
+    G_Bc = _free(n, L["B"], xp)
+    elems.append((_hinge(G_Ap, L["phi1"], w, xp), G_Bc, A, B, w, a, a, link))  # link d3
+    G_B2 = _free(n, L["B2"], xp)
+    elems.append((G_Bc, G_B2, B, B2, e1, zero, zero, pin))  # R2 pin
+    G_Q2 = _free(n, L["Q2"], xp)
+    elems.append((G_Ql, G_Q2, Ql, Q2, e1, zero, zero, pin))  # R3 pin
+    G_Q2l = _hinge(G_Q2, L["phi3"], w, xp)
+    G_Bp = rigid_map(Bp2 - Q2, xp) @ G_Q2l  # rigid riser
+    elems.append((_hinge(G_B2, L["phi2"], w, xp), G_Bp, B2, Bp2, w, a, a, link))  # link d4 (R3 boss at Bp2)
+    K = _assemble(n, L, elems, section, spring, options, xp)
+    G_nodes = xp.stack([G_S, G_Ac, G_Bc, G_Bp, G_Ql])
+    return K, G_nodes, xp.stack([S, Ac, B, Bp2, Ql])
 
 
 def _cond1(Ks: jax.Array, Ks_inv: jax.Array, xp=jnp) -> jax.Array:
@@ -410,7 +519,7 @@ def frame_arrays(fp: FrameParams, p: jax.Array, load_height: jax.Array, options:
     S = ik.sliders[:, None] * _EZ + fp.r_p * f.u
 
     leg = functools.partial(_leg_stiffness, p=p, r4=kin.r4, d4=kin.d4, section=fp.section, spring=fp.spring,
-                            zone=fp.joint_zone * zones_on, options=options, xp=xp)
+                            zone=fp.joint_zone * zones_on, options=options, xp=xp, fp=fp, zones_on=zones_on)
     K, G_nodes, nodes = _map(lambda w, s, a, b, q: leg(w, s, a, b, q), xp, f.w, S, pts.a, pts.b, pts.q)
     Kpp, Kpi, Kii = K[:, :6, :6], K[:, :6, 6:], K[:, 6:, 6:]
     d = 1.0 / xp.sqrt(xp.abs(xp.diagonal(Kii, axis1=-2, axis2=-1)))  # (3, n_int)
@@ -463,8 +572,8 @@ _PLOT_ONLY = ("nodes", "node_maps", "recovery")
 
 
 @functools.lru_cache(maxsize=None)
-def _compiled(joints: Joints, offsets: Offsets, sea: bool, batched: bool, full: bool):
-    options = FrameOptions(joints=joints, offsets=offsets, sea=sea)
+def _compiled(joints: Joints, offsets: Offsets, sea: bool, batched: bool, full: bool, pins: bool = False):
+    options = FrameOptions(joints=joints, offsets=offsets, sea=sea, pins=pins)
 
     def fn(fp, p, h, branch, zones_on):
         out = frame_arrays(fp, p, h, options, branch=branch, zones_on=zones_on)
@@ -480,7 +589,8 @@ def _compiled(joints: Joints, offsets: Offsets, sea: bool, batched: bool, full: 
 def _call(fp, p, load_height, options: FrameOptions, batched: bool, full: bool):
     if options.branch not in (0, 1):
         raise ValueError(f"FrameOptions.branch = {options.branch!r}: allowed 0 or 1")
-    fn = _compiled(Joints(options.joints), Offsets(options.offsets), bool(options.sea), batched, full)
+    fn = _compiled(Joints(options.joints), Offsets(options.offsets), bool(options.sea), batched, full,
+                   bool(options.pins))
     return fn(fp, jnp.asarray(p, dtype=float), jnp.asarray(load_height, dtype=float),
               jnp.asarray(options.branch), jnp.asarray(float(options.joint_zones)))
 
@@ -526,7 +636,8 @@ def closed_form_tip_deflection(load: float, length: float, E: float, inertia: fl
 
 __all__ = [
     "COND_LIMIT", "LOAD_HEIGHT", "FrameOptions", "FrameParams", "Joints", "Offsets", "Section",
-    "beam_global_stiffness", "beam_local_stiffness", "cantilever_compliance", "closed_form_tip_deflection",
+    "beam_global_stiffness", "beam_local_stiffness", "cantilever_compliance", "circle_properties",
+    "closed_form_tip_deflection",
     "dof_count", "frame_arrays", "frame_params_of", "section_properties", "solve_frame",
     "solve_frame_batch", "solve_frame_jax", "stack_frame_params",
 ]
