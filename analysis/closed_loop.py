@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import analysis  # noqa: F401  (float64 on)
-from analysis import firmware
+from analysis import firmware, prrr_statics
 from analysis.fidelity import Fidelity
 from analysis.lumped_plant import (FRICTION_ITERS, LumpedModel, build_model, discretise, observables, sensor_values,
                                    solve_friction)
@@ -88,7 +88,7 @@ def setup(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STA
     amp = float(np.linalg.norm(mo.amplitude)) if Effect.OPERATOR in fx else 0.0
     w = 2 * math.pi * mo.frequency
     k_env = max(env.stiffness) + (env.wall_stiffness if env.kind == EnvKind.BOX else 0.0)
-    kx = 1.5 * design.actuator.spring / math.tan(design.geometry.beta) ** 2
+    kx = float(prrr_statics.evaluate(design).stiffness_limit[0])  # eq 14 k_x
     M = design.end_effector.mass
     p0 = np.asarray(scene.initial_offset)
     res_m = design.actuator.encoder_resolution

@@ -31,6 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import analysis  # noqa: F401  (float64 on)
+from analysis.prrr_kinematics import jacobian
 from analysis.scene import BoxMode, Effect, EnvKind, Resolution, Scene
 from design.prrr import PrrrDesign
 
@@ -121,7 +122,7 @@ def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: f
         gravity_compensation=Effect.GRAVITY in fx and cs.gravity_compensation,
         interpolation=cs.interpolation, ar=cs.ar_coefficients, velocity_alpha=alpha,
     )
-    J = np.asarray(jacobian(design.geometry.beta))
+    J = np.asarray(jacobian(design.geometry.beta, xp=np))
     limit = a.force_limit if loop == ForceLoop.IDEAL else a.force_limit / a.efficiency
     f64 = lambda v: jnp.asarray(v, dtype=jnp.float64)  # noqa: E731
     gains = Gains(
@@ -134,12 +135,6 @@ def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: f
         weight=f64(design.end_effector.mass * 9.81),
     )
     return cfg, gains
-
-
-def jacobian(beta: float) -> np.ndarray:
-    T = math.tan(beta)
-    r3 = math.sqrt(3.0)
-    return np.array([[-2 * T, T, T], [0.0, -r3 * T, r3 * T], [1.0, 1.0, 1.0]]) / 3.0
 
 
 def init_state(cfg: FirmwareConfig, gains: Gains, slider_counts: jax.Array) -> State:

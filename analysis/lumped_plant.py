@@ -36,6 +36,7 @@ import numpy as np
 import scipy.linalg
 
 from analysis.plant import Observation, Sensors
+from analysis.prrr_kinematics import jacobian
 from analysis.scene import Effect, Resolution, Scene
 from design.prrr import PrrrDesign
 
@@ -50,10 +51,8 @@ class PlantMode(StrEnum):
 
 
 def jacobian_np(beta: float) -> np.ndarray:
-    """J of seed 002 eq 2 (Ḋ ↦ ṗ) as numpy; same formula as ``analysis.prrr_kinematics.jacobian``."""
-    T = math.tan(beta)
-    r3 = math.sqrt(3.0)
-    return np.array([[-2 * T, T, T], [0.0, -r3 * T, r3 * T], [1.0, 1.0, 1.0]]) / 3.0
+    """J of seed 002 eq 2 (Ḋ ↦ ṗ) as numpy (the kinematics' own formula, no jax dispatch)."""
+    return jacobian(beta, xp=np)
 
 
 @dataclass(frozen=True, kw_only=True)

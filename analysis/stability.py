@@ -27,6 +27,7 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import brentq
 
+from analysis import prrr_statics
 from analysis.fidelity import Fidelity
 from analysis.lumped_plant import jacobian_np
 from analysis.status import Status
@@ -55,9 +56,8 @@ def force_loop_bandwidth(design: PrrrDesign, kp: float) -> float:
 
 # ------------------------------------------------------------------------------ stiffness limits
 def stiffness_limits(design: PrrrDesign) -> np.ndarray:
-    """k_x, k_y, k_z of eq (14) [N/m]: diagonal of J⁻ᵀ (k I) J⁻¹."""
-    Ji = np.linalg.inv(jacobian_np(design.geometry.beta))
-    return np.diag(design.actuator.spring * Ji.T @ Ji).copy()
+    """k_x, k_y, k_z of eq (14) [N/m]: diagonal of J⁻ᵀ (k I) J⁻¹ (from the statics evaluator)."""
+    return prrr_statics.evaluate(design).stiffness_limit.copy()
 
 
 def stiffness_limit_closed_form(design: PrrrDesign, kp: float, axis: int) -> float:
