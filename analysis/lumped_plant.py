@@ -50,11 +50,6 @@ class PlantMode(StrEnum):
     LOCKED = "locked"
 
 
-def jacobian_np(beta: float) -> np.ndarray:
-    """J of seed 002 eq 2 (Ḋ ↦ ṗ) as numpy (the kinematics' own formula, no jax dispatch)."""
-    return jacobian(beta, xp=np)
-
-
 @dataclass(frozen=True, kw_only=True)
 class LumpedModel:
     """Continuous-time linear part ẋ = A x + B_u u + B_λ λ + c and the state layout."""
@@ -91,7 +86,7 @@ def build_model(design: PrrrDesign, scene: Scene, resolution: Resolution) -> Lum
     """The linear model of ``design`` with the effects of ``resolution``."""
     fx = resolution.effects
     a = design.actuator
-    J = jacobian_np(design.geometry.beta)
+    J = jacobian(design.geometry.beta, xp=np)
     JtJ = J.T @ J
     eye = np.eye(3)
     k, Mm, eta = a.spring, a.motor_mass, a.efficiency

@@ -29,7 +29,7 @@ from scipy.optimize import brentq
 
 from analysis import prrr_statics
 from analysis.fidelity import Fidelity
-from analysis.lumped_plant import jacobian_np
+from analysis.prrr_kinematics import jacobian
 from analysis.status import Status
 from design.prrr import PrrrDesign
 
@@ -73,7 +73,7 @@ def continuous_closed_loop(design: PrrrDesign, *, stiffness: np.ndarray, damping
     F = K_p(f_r − k x) + K_i ∫(f_r − k x), f_r = Jᵀ(−K_v p − B_v ṗ), p = J D_e, exact velocity.
     """
     a = design.actuator
-    J = jacobian_np(design.geometry.beta)
+    J = jacobian(design.geometry.beta, xp=np)
     k, Mm, xi, eta, M = a.spring, a.motor_mass, a.viscous, a.efficiency, design.end_effector.mass
     Kv, Bv = np.diag(stiffness), np.diag(damping)
     I, Z = np.eye(3), np.zeros((3, 3))
