@@ -82,6 +82,13 @@ class Joints(StrEnum):
     BONDED = "bonded"  # pins bonded: the joint transmits all six components (for FEA comparison)
 
 
+class PinModel(StrEnum):
+    """How a pin joint between two layered members deforms (``FrameOptions(pins=True)``)."""
+
+    NECK = "neck"  # bosses rigid; the bonded 8 mm neck across the gap: half-space constriction springs
+    BEAM = "beam"  # a Timoshenko pin beam bending freely over the whole layer pitch (an upper bound)
+
+
 class Offsets(StrEnum):
     """How the carriage arm, the r4 offset and the platform arms are modelled."""
 
@@ -98,7 +105,8 @@ class FrameOptions:
     sea: bool = False  # SEA springs in series along z between slider and rail (else locked)
     branch: int = 0  # elbow branch of the IK: 0 (θ2 ≥ 0) or 1 (θ2 ≤ 0)
     joint_zones: bool = True  # beam ends within the boss radius of a joint (A, B, Q) or of P are rigid
-    pins: bool = False  # CAD layering: members in their layers along w, joined by pin beams of the bore
+    pins: bool = False  # CAD layering: members in their layers along w, joined through pins of the bore
+    pin_model: PinModel = PinModel.NECK  # with pins: constriction springs at the gap, or free pin beams
 
 
 class Section(NamedTuple):
@@ -180,6 +188,35 @@ def circle_properties(diameter: jax.Array, E: jax.Array, nu: jax.Array, xp=jnp) 
                              shear_modulus=E / (2.0 * (1.0 + nu)))
 
 
+def neck_stiffness(diameter: jax.Array, gap: jax.Array, E: jax.Array, nu: jax.Array, xp=jnp) -> jax.Array:
+    """Stiffness of a bonded pin joint across its clearance gap: (axial, lateral, rocking, torsion).
+
+    Two solid bosses (pin bonded in its bore: one material) joined by the pin's neck of radius
+    a = d/2 across the gap g. Each boss is an elastic half-space loaded through a rigid circular
+    disc of radius a (Gazetas 1991, Table 1, surface foundation; Johnson, Contact Mechanics §3.x):
+    K_z = 2Ea/(1−ν²), K_h = 8Ga/(2−ν), K_r = 4Ea³/(3(1−ν²)), K_t = 16Ga³/3; the two bosses in
+    series halve each. The neck itself (a Timoshenko stub of length g, ends held parallel) adds
+    g/EA, g³/12EI + g/κGA, g/EI, g/GJ in series. Units: N/m for forces, N·m/rad for moments.
+    """
+    a = 0.5 * diameter
+    G = E / (2.0 * (1.0 + nu))
+    p = circle_properties(diameter, E, nu, xp)
+    half = xp.stack([2.0 * E * a / (1.0 - nu**2), 8.0 * G * a / (2.0 - nu),
+                     4.0 * E * a**3 / (3.0 * (1.0 - nu**2)), 16.0 * G * a**3 / 3.0])
+    stub = xp.stack([gap / (E * p.area), gap**3 / (12.0 * E * p.i_y) + gap / (p.shear_coefficient * G * p.area),
+                     gap / (E * p.i_y), gap / (G * p.torsion)])
+    return 1.0 / (2.0 / half + stub)
+
+
+def _neck_matrix(w: jax.Array, k: jax.Array, xp=jnp) -> jax.Array:
+    """6×6 global stiffness of an axisymmetric joint about axis w with k = (axial, lateral, rocking, torsion)."""
+    ww = w[:, None] * w[None, :]
+    eye = xp.eye(3)
+    kt = k[1] * (eye - ww) + k[0] * ww
+    kr = k[2] * (eye - ww) + k[3] * ww
+    return _blockdiag2(kt, kr, xp)
+
+
 def _bending_patterns(idx: tuple[int, int, int, int], sign: float) -> np.ndarray:
     """Constant 12×12 patterns of one bending plane: coefficients of 12, ±6L, (4+Φ)L², (2−Φ)L²."""
     m12 = np.array([[1, 0, -1, 0], [0, 0, 0, 0], [-1, 0, 1, 0], [0, 0, 0, 0]], float)
@@ -204,7 +241,7 @@ _PATTERNS = np.concatenate([_pair_pattern(0, 6)[None], _pair_pattern(3, 9)[None]
 
 
 def beam_local_stiffness(length: jax.Array, E: jax.Array, props: SectionProperties, xp=jnp) -> jax.Array:
-    """12×12 Timoshenko beam stiffness in local axes (x along the beam).
+    """12×12 Timoshenko beam stiffness in local axes (x along the beam); leading batch axes broadcast.
 
     DOFs [u_x, u_y, u_z, θ_x, θ_y, θ_z] at node 1 then node 2. Exact for end loads: a clamped
     element under a tip force P has δ = PL³/3EI + PL/(κGA) (Przemieniecki, Theory of Matrix
@@ -221,13 +258,15 @@ def beam_local_stiffness(length: jax.Array, E: jax.Array, props: SectionProperti
         E * A / L, G * props.torsion / L,
         12.0 * cy, 6.0 * L * cy, (4.0 + phi_y) * L**2 * cy, (2.0 - phi_y) * L**2 * cy,
         12.0 * cz, 6.0 * L * cz, (4.0 + phi_z) * L**2 * cz, (2.0 - phi_z) * L**2 * cz,
-    ])
-    return xp.tensordot(coef, _PATTERNS, axes=1)
+    ], axis=-1)
+    return (coef @ xp.asarray(_PATTERNS.reshape(10, 144))).reshape(coef.shape[:-1] + (12, 12))
 
 
 def _cross(a, b, xp=jnp):
-    """a × b for 3-vectors (explicit: numpy's cross is slow on tiny arrays)."""
-    return xp.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    """a × b for 3-vectors along the last axis (explicit: numpy's cross is slow on tiny arrays)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return xp.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def beam_axes(x1: jax.Array, x2: jax.Array, zref: jax.Array, xp=jnp) -> tuple[jax.Array, jax.Array]:
@@ -236,23 +275,26 @@ def beam_axes(x1: jax.Array, x2: jax.Array, zref: jax.Array, xp=jnp) -> tuple[ja
     Local z is ``zref`` made normal to the beam axis (the thickness direction); y = z × x.
     """
     d = x2 - x1
-    length = xp.sqrt(xp.sum(d**2))
-    ex = d / length
-    z = zref - xp.sum(zref * ex) * ex
-    ez = z / xp.sqrt(xp.sum(z**2))
+    length = xp.sqrt(xp.sum(d**2, axis=-1))
+    ex = d / length[..., None]
+    z = zref - xp.sum(zref * ex, axis=-1)[..., None] * ex
+    ez = z / xp.sqrt(xp.sum(z**2, axis=-1))[..., None]
     ey = _cross(ez, ex, xp)
-    return xp.stack([ex, ey, ez]), length
+    return xp.stack([ex, ey, ez], axis=-2), length
 
 
 def _blockdiag2(a, b, xp=jnp):
-    za = xp.zeros((a.shape[0], b.shape[1]))
-    zb = xp.zeros((b.shape[0], a.shape[1]))
-    return xp.concatenate([xp.concatenate([a, za], axis=1), xp.concatenate([zb, b], axis=1)], axis=0)
+    """blockdiag(a, b) over the last two axes (leading batch axes shared)."""
+    za = xp.zeros(a.shape[:-1] + (b.shape[-1],))
+    zb = xp.zeros(b.shape[:-1] + (a.shape[-1],))
+    return xp.concatenate([xp.concatenate([a, za], axis=-1), xp.concatenate([zb, b], axis=-1)], axis=-2)
 
 
 def beam_global_stiffness(x1, x2, zref, section: Section, a1=0.0, a2=0.0, xp=jnp,
                           props: SectionProperties | None = None) -> jax.Array:
     """12×12 stiffness of the beam x1→x2 [m] in global axes, on the DOFs of x1 and x2.
+
+    Leading batch axes broadcast (one call assembles all of a leg's elements: the numpy path's speed).
 
     ``a1``, ``a2`` [m]: rigid end zones (each clipped to 40 % of the length); the flexible
     Timoshenko part spans the rest and is tied to the nodes by rigid maps.
@@ -260,30 +302,36 @@ def beam_global_stiffness(x1, x2, zref, section: Section, a1=0.0, a2=0.0, xp=jnp
     ``props``: section properties overriding the rectangle of ``section`` (E is read from ``section``).
     """
     R, length = beam_axes(x1, x2, zref, xp)
-    a1 = xp.minimum(a1, 0.4 * length)
-    a2 = xp.minimum(a2, 0.4 * length)
+    a1 = xp.minimum(xp.asarray(a1), 0.4 * length)
+    a2 = xp.minimum(xp.asarray(a2), 0.4 * length)
     props = section_properties(section, xp) if props is None else props
     k = beam_local_stiffness(length - a1 - a2, section.youngs_modulus, props, xp)
     # T = blockdiag(R, R, R, R) @ blockdiag(rigid(a1 ex), rigid(−a2 ex)) = blockdiag(R M1, R M2),
     # R·rigid(r) = [[R, −R[r]×], [0, R]]
-    def end(a):
-        top = xp.concatenate([R, -R @ _skew(a * R[0], xp)], axis=1)
-        return xp.concatenate([top, xp.concatenate([xp.zeros((3, 3)), R], axis=1)], axis=0)
+    ex = R[..., 0, :]
+    R4 = xp.einsum("ab,...ij->...aibj", xp.asarray(np.eye(4)), R).reshape(R.shape[:-2] + (12, 12))
+    T = R4 @ _blockdiag2(rigid_map(a1[..., None] * ex, xp), rigid_map(-a2[..., None] * ex, xp), xp)
+    return xp.swapaxes(T, -1, -2) @ k @ T
 
-    T = _blockdiag2(end(a1), end(-a2), xp)
-    return T.T @ k @ T
+
+#: Levi-Civita ε_ijk: [r]× = −ε·r, one contraction instead of nine stacked entries (the numpy path's cost)
+_EPS = np.zeros((3, 3, 3))
+for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    _EPS[_i, _j, _k], _EPS[_i, _k, _j] = 1.0, -1.0
+#: rigid_map(r) = I₆ + _RIGID·r (top-right block −[r]× = ε·r)
+_RIGID = np.zeros((6, 6, 3))
+_RIGID[:3, 3:, :] = _EPS
+_EYE6 = np.eye(6)
 
 
 def _skew(r: jax.Array, xp=jnp) -> jax.Array:
-    z = 0.0 * r[0]
-    return xp.stack([xp.stack([z, -r[2], r[1]]), xp.stack([r[2], z, -r[0]]), xp.stack([-r[1], r[0], z])])
+    """[r]× (the cross-product matrix: [r]× a = r × a); leading batch axes broadcast."""
+    return -(r @ xp.asarray(_EPS.reshape(9, 3).T)).reshape(r.shape[:-1] + (3, 3))
 
 
 def rigid_map(r: jax.Array, xp=jnp) -> jax.Array:
-    """6×6 map of a master node's DOFs to a point offset by ``r`` on a rigid body."""
-    top = xp.concatenate([xp.eye(3), -_skew(r, xp)], axis=1)
-    bottom = xp.concatenate([xp.zeros((3, 3)), xp.eye(3)], axis=1)
-    return xp.concatenate([top, bottom], axis=0)
+    """6×6 map of a master node's DOFs to a point offset by ``r`` on a rigid body (batch axes broadcast)."""
+    return xp.asarray(_EYE6) + (r @ xp.asarray(_RIGID.reshape(36, 3).T)).reshape(r.shape[:-1] + (6, 6))
 
 
 def cantilever_compliance(length, section: Section, *, direction, zref, n_elements: int = 1) -> np.ndarray:
@@ -404,15 +452,18 @@ def _slider_map(n, L, options: FrameOptions, xp=jnp):
     return xp.asarray(G_S)
 
 
-def _assemble(n, L, elems, section: Section, spring, options: FrameOptions, xp=jnp):
-    """K = Σ_e G_eᵀ K_e G_e (+ the SEA spring) of elements (G1, G2, x1, x2, zref, a1, a2, props)."""
+def _assemble(n, L, elems, section: Section, spring, options: FrameOptions, xp=jnp, springs=()):
+    """K = Σ_e G_eᵀ K_e G_e (+ the SEA spring) of elements (G1, G2, x1, x2, zref, a1, a2, props).
+
+    ``springs``: (D, K_s) pairs, D the 6×n relative motion across a joint spring of stiffness K_s.
+    """
     Ge = xp.stack([xp.concatenate([e[0], e[1]], axis=0) for e in elems])  # (E, 12, n)
     X1, X2, Z, A1, A2 = (xp.stack([e[k] * xp.ones(()) for e in elems]) for k in (2, 3, 4, 5, 6))
     PR = tuple(xp.stack([e[7][f] * xp.ones(()) for e in elems]) for f in range(6))
-    Ke = _map(lambda x1, x2, z, a1, a2, *pr: beam_global_stiffness(x1, x2, z, section, a1, a2, xp,
-                                                                   props=SectionProperties(*pr)), xp,
-              X1, X2, Z, A1, A2, *PR)  # (E, 12, 12)
+    Ke = beam_global_stiffness(X1, X2, Z, section, A1, A2, xp, props=SectionProperties(*PR))  # (E, 12, 12)
     K = xp.sum(xp.swapaxes(Ge, -1, -2) @ Ke @ Ge, axis=0)  # Σ_e G_eᵀ K_e G_e
+    for D, Ks in springs:
+        K = K + D.T @ Ks @ D
     if options.sea:
         sel = np.zeros((n, n))
         sel[L["sea"], L["sea"]] = 1.0
@@ -466,18 +517,31 @@ def _leg_stiffness_pins(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone
     G_Pa = rigid_map(Pa - p, xp) @ G_P
     if beam_off:  # the arm's stem end rides on the rigid stem
         elems[-1] = elems[-1][:1] + (G_Pa,) + elems[-1][2:]
+    springs = []
+    if options.pin_model == PinModel.NECK:
+        k_neck = neck_stiffness(fp.pin_diameter, fp.layer - section.thickness, section.youngs_modulus,
+                                section.poisson_ratio, xp)
+        K_neck = _neck_matrix(w, k_neck, xp)
+
+    def pin_joint(G1, G2, x1, x2):
+        if options.pin_model == PinModel.BEAM:
+            elems.append((G1, G2, x1, x2, e1, zero, zero, pin))
+        else:  # bosses rigid up to the gap mid-plane, the neck spring there
+            mid = 0.5 * (x1 + x2)
+            springs.append((rigid_map(mid - x2, xp) @ G2 - rigid_map(mid - x1, xp) @ G1, K_neck))
+
     G_Ap = _free(n, L["Ap"], xp)
-    elems.append((G_Ac, G_Ap, Ac, A, e1, zero, zero, pin))  # R1 pin
+    pin_joint(G_Ac, G_Ap, Ac, A)  # R1 pin
     G_Bc = _free(n, L["B"], xp)
     elems.append((_hinge(G_Ap, L["phi1"], w, xp), G_Bc, A, B, w, a, a, link))  # link d3
     G_B2 = _free(n, L["B2"], xp)
-    elems.append((G_Bc, G_B2, B, B2, e1, zero, zero, pin))  # R2 pin
+    pin_joint(G_Bc, G_B2, B, B2)  # R2 pin
     G_Q2 = _free(n, L["Q2"], xp)
-    elems.append((G_Ql, G_Q2, Ql, Q2, e1, zero, zero, pin))  # R3 pin
+    pin_joint(G_Ql, G_Q2, Ql, Q2)  # R3 pin
     G_Q2l = _hinge(G_Q2, L["phi3"], w, xp)
     G_Bp = rigid_map(Bp2 - Q2, xp) @ G_Q2l  # rigid riser
     elems.append((_hinge(G_B2, L["phi2"], w, xp), G_Bp, B2, Bp2, w, a, a, link))  # link d4 (R3 boss at Bp2)
-    K = _assemble(n, L, elems, section, spring, options, xp)
+    K = _assemble(n, L, elems, section, spring, options, xp, springs)
     G_nodes = xp.stack([G_S, G_Ac, G_Bc, G_Bp, G_Ql])
     return K, G_nodes, xp.stack([S, Ac, B, Bp2, Ql])
 
@@ -572,8 +636,9 @@ _PLOT_ONLY = ("nodes", "node_maps", "recovery")
 
 
 @functools.lru_cache(maxsize=None)
-def _compiled(joints: Joints, offsets: Offsets, sea: bool, batched: bool, full: bool, pins: bool = False):
-    options = FrameOptions(joints=joints, offsets=offsets, sea=sea, pins=pins)
+def _compiled(joints: Joints, offsets: Offsets, sea: bool, batched: bool, full: bool, pins: bool = False,
+              pin_model: PinModel = PinModel.NECK):
+    options = FrameOptions(joints=joints, offsets=offsets, sea=sea, pins=pins, pin_model=pin_model)
 
     def fn(fp, p, h, branch, zones_on):
         out = frame_arrays(fp, p, h, options, branch=branch, zones_on=zones_on)
@@ -590,7 +655,7 @@ def _call(fp, p, load_height, options: FrameOptions, batched: bool, full: bool):
     if options.branch not in (0, 1):
         raise ValueError(f"FrameOptions.branch = {options.branch!r}: allowed 0 or 1")
     fn = _compiled(Joints(options.joints), Offsets(options.offsets), bool(options.sea), batched, full,
-                   bool(options.pins))
+                   bool(options.pins), PinModel(options.pin_model))
     return fn(fp, jnp.asarray(p, dtype=float), jnp.asarray(load_height, dtype=float),
               jnp.asarray(options.branch), jnp.asarray(float(options.joint_zones)))
 
