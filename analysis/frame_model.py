@@ -30,10 +30,16 @@ are rigid (clipped to 40 % of a beam's length); the rail end S and the d4/r4 cor
 Without them the node-to-node beams ignore the bosses and the overlap of the links at the joints,
 and the bonded frame came out ~30 % softer than the solid FEA (docs/structure.md).
 
-Pin beams (``FrameOptions(pins=True)``, off by default): members in their CAD layers along w
-(``design.cad_prrr.layout``), each revolute joint a Timoshenko pin beam of the bore diameter
-between the layers, the platform arms of the stem section; see :func:`_leg_stiffness_pins` and
-docs/structure.md (with pins the bonded frame is 46 % softer than the CAD FEA, without 95 % stiffer).
+Pin joints (``FrameOptions.pins``, default on): the members sit in their CAD layers along w
+(``design.cad_prrr.layout``: carriage clevis, link1, link2, platform lug, pitch λ = link thickness
++ clearance) and each revolute joint is the bonded pin across the clearance gap between two
+layers. ``PinModel.NECK`` (default): the bosses are rigid up to the gap mid-plane and the joint is
+a spring there: two half-spaces loaded through the pin's circular section (Gazetas 1991) in series
+with the short neck (:func:`neck_stiffness`); the hinge release is at the pin's link-side end.
+Not tuned: it lands within 8 % of the CAD solid FEA per axis (docs/structure.md), where the plane
+frame without pins (``pins=False``: all members in one plane, joints only rigid zones) is 95–155 %
+stiffer and ``PinModel.BEAM`` (a free pin beam over the whole pitch λ, an upper bound on the
+joint's compliance) 46 % softer. See :func:`_leg_stiffness_pins`.
 
 Cross-section orientation: the width b (``link_width``) lies in the plane normal to the joint
 axis, the thickness t (``link_thickness``) along the joint axis (local z = w projected normal to
@@ -85,7 +91,7 @@ class Joints(StrEnum):
 class PinModel(StrEnum):
     """How a pin joint between two layered members deforms (``FrameOptions(pins=True)``)."""
 
-    NECK = "neck"  # bosses rigid; the bonded 8 mm neck across the gap: half-space constriction springs
+    NECK = "neck"  # bosses rigid; the bonded pin's neck across the gap: half-space constriction springs
     BEAM = "beam"  # a Timoshenko pin beam bending freely over the whole layer pitch (an upper bound)
 
 
@@ -105,7 +111,7 @@ class FrameOptions:
     sea: bool = False  # SEA springs in series along z between slider and rail (else locked)
     branch: int = 0  # elbow branch of the IK: 0 (θ2 ≥ 0) or 1 (θ2 ≤ 0)
     joint_zones: bool = True  # beam ends within the boss radius of a joint (A, B, Q) or of P are rigid
-    pins: bool = False  # CAD layering: members in their layers along w, joined through pins of the bore
+    pins: bool = True  # CAD layering: members in their layers along w, joined through pins of the bore
     pin_model: PinModel = PinModel.NECK  # with pins: constriction springs at the gap, or free pin beams
 
 
@@ -458,12 +464,14 @@ def _assemble(n, L, elems, section: Section, spring, options: FrameOptions, xp=j
     ``springs``: (D, K_s) pairs, D the 6×n relative motion across a joint spring of stiffness K_s.
     """
     Ge = xp.stack([xp.concatenate([e[0], e[1]], axis=0) for e in elems])  # (E, 12, n)
-    X1, X2, Z, A1, A2 = (xp.stack([e[k] * xp.ones(()) for e in elems]) for k in (2, 3, 4, 5, 6))
-    PR = tuple(xp.stack([e[7][f] * xp.ones(()) for e in elems]) for f in range(6))
+    X1, X2, Z, A1, A2 = (xp.stack([e[k] for e in elems]) for k in (2, 3, 4, 5, 6))
+    PR = tuple(xp.stack([e[7][f] for e in elems]) for f in range(6))
     Ke = beam_global_stiffness(X1, X2, Z, section, A1, A2, xp, props=SectionProperties(*PR))  # (E, 12, 12)
     K = xp.sum(xp.swapaxes(Ge, -1, -2) @ Ke @ Ge, axis=0)  # Σ_e G_eᵀ K_e G_e
-    for D, Ks in springs:
-        K = K + D.T @ Ks @ D
+    if springs:
+        D = xp.stack([s[0] for s in springs])  # (S, 6, n)
+        Ks = xp.stack([s[1] for s in springs])
+        K = K + xp.sum(xp.swapaxes(D, -1, -2) @ Ks @ D, axis=0)
     if options.sea:
         sel = np.zeros((n, n))
         sel[L["sea"], L["sea"]] = 1.0
@@ -477,8 +485,10 @@ def _leg_stiffness_pins(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone
 
     Along w from the plane Π of A, B, B' (λ = link thickness + clearance): carriage clevis at −λ,
     link1 at 0, link2 at λ, platform lug at s_lug = max(r4, 2λ) (the kinematic Q is at r4).
-    Each revolute joint is a pin beam of the bore diameter along w, length λ, between the two
-    members' layers; its hinge (released joints) is at the pin's link-side end. R3's pin joins
+    Each revolute joint joins two members' layers λ apart: ``PinModel.NECK``, a neck spring
+    (:func:`neck_stiffness`) at the gap mid-plane, rigidly tied to both layers (the bosses with the
+    pin bonded in them); ``PinModel.BEAM``, a pin beam of the bore diameter along w over the whole
+    λ. The hinge (released joints) is at the pin's link-side end. R3's pin joins
     the lug (s_lug) to link2's R3 boss at s_lug − λ; the riser between link2's layer and that
     point (s_lug − 2λ long, 0 for prrr-paper) is the boss column with the pin bonded in it, taken
     rigid. The platform arm runs from the lug along −v to the stem axis, stem_diameter wide,

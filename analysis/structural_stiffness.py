@@ -4,8 +4,8 @@ Metrics (seed 002 section 2.3, Table 3): the Cartesian stiffness [x, y, z] for a
 Δz = 58 mm above the end-effector (sliders locked), the elastic centre (height above the
 end-effector on the z axis where a lateral force and the rotation decouple) and the stiffness
 when loaded there. ``draft``/``standard`` fidelity: the Timoshenko frame model
-(:mod:`analysis.frame_model`, numpy path, ~1–6 ms, no compilation). ``fine``: additionally the
-solid FEA of the CAD geometry with bonded pins (:mod:`analysis.fea_cad`, level 2, ~20–40 s),
+(:mod:`analysis.frame_model`: pins as bonded necks, numpy path, ~3–5 ms, no compilation).
+``fine``: additionally the solid FEA of the CAD geometry with bonded pins (:mod:`analysis.fea_cad`, level 2, ~20–40 s),
 reported next to the frame model with bonded joints at the CAD's elbow branch, the model it checks.
 """
 
