@@ -165,6 +165,9 @@ class CadFeaResult:
     message: str = ""
     mesh: fea.TetMesh | None = None
     displacement: np.ndarray | None = None  # (3, n_nodes) [m] for a unit x force at the load point
+    #: (3, n_edges) [m] the same field at the edge midpoints (P2 DOFs; edges of skfem's
+    #: MeshTet(mesh.points, mesh.tets)), for the stress (analysis.fea_stress)
+    displacement_edges: np.ndarray | None = None
 
 
 def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0.0), branch: int | None = None,
@@ -214,15 +217,16 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
     C = H @ sol.master  # (3, 3) load-point displacement per unit force at the load point
     C = 0.5 * (C + C.T)
     k = 1.0 / np.diagonal(C)
-    disp = None
+    disp = disp_edges = None
     if keep_fields:
-        comps = fea._component_dofs(sol.basis)
-        u = sol.displacements[:, 0]
-        disp = np.stack([u[comps[c][: mesh.points.shape[1]]] for c in range(3)])
+        from analysis.fea_stress import p2_nodal_values
+
+        disp, disp_edges = p2_nodal_values(sol.basis, sol.displacements[:, 0])
     status, message = Status.OK, ""
     if not np.all(np.isfinite(k)) or np.any(k <= 0):
         status, message = Status.SINGULAR, "CAD FEA stiffness not positive (insufficient supports?)"
     return CadFeaResult(compliance_load=C, stiffness_load=k, load_height=h, size=size, n_dofs=sol.n_dofs,
                         iterations=sol.iterations, wall_s=time.perf_counter() - t0,
                         timings_s={"mesh": t_mesh, **sol.timings_s}, branch=info["branch"], status=status,
-                        message=message, mesh=mesh if keep_fields else None, displacement=disp)
+                        message=message, mesh=mesh if keep_fields else None, displacement=disp,
+                        displacement_edges=disp_edges)
