@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/accuracy_structure.py            # cantilever levels 0..3
     .venv/bin/python benchmarks/accuracy_structure.py --prrr 0    # + 3-PRRR solid at those levels
     .venv/bin/python benchmarks/accuracy_structure.py --levels --cad -1 0 1   # CAD solid, bonded pins
+    .venv/bin/python benchmarks/accuracy_structure.py --levels --beta          # β sweep of the frame model
 
 Cantilever: FEA levels against Timoshenko's closed form and their Richardson extrapolation.
 3-PRRR: the frame model (released and bonded joints) and the bonded-joint solid FEA.
@@ -111,12 +112,41 @@ def cad(levels: list[int], rigid: str = "stem") -> None:
               f"{', '.join(f'{x:+.1%}' for x in fr / reference - 1)} | {ms:.1f} |")
 
 
+def beta_sweep() -> None:
+    """Lateral stiffness of prrr-paper with β varied (docs/structure.md, "β sweep")."""
+    import numpy as np
+
+    d = io.load_preset("prrr-paper")
+    betas = (30, 35, 40, 45, 50, 55, 60, 65, 70)
+    rows = {"k_x at Δz = 58 mm (default)": [], "k_x at the elastic centre": [], "k_x at P (Δz = 0)": [],
+            "elastic centre height [mm]": [], "k_z at Δz = 58 mm": []}
+    variants = {"branch 1": fm.FrameOptions(branch=1), "plane frame (pins=False)": fm.FrameOptions(pins=False),
+                "pin beams (PinModel.BEAM)": fm.FrameOptions(pin_model=fm.PinModel.BEAM),
+                "bonded joints": fm.FrameOptions(joints=fm.Joints.BONDED)}
+    rows.update({f"variant k_x at 58 mm: {name}": [] for name in variants})
+    for b in betas:
+        db = dataclasses.replace(d, geometry=dataclasses.replace(d.geometry, beta=float(np.deg2rad(b))))
+        r = structural_stiffness(db)
+        rows["k_x at Δz = 58 mm (default)"].append(r.stiffness_load[0])
+        rows["k_x at the elastic centre"].append(r.stiffness_elastic_centre[0])
+        rows["k_x at P (Δz = 0)"].append(structural_stiffness(db, load_height=0.0).stiffness_load[0])
+        rows["elastic centre height [mm]"].append(r.elastic_centre * 1e6)  # printed /1e3 below
+        rows["k_z at Δz = 58 mm"].append(r.stiffness_load[2])
+        for name, options in variants.items():
+            rows[f"variant k_x at 58 mm: {name}"].append(structural_stiffness(db, options=options).stiffness_load[0])
+    print("| β | " + " | ".join(f"{b}°" for b in betas) + " |")
+    print("|---|" + "---|" * len(betas))
+    for name, vals in rows.items():
+        print(f"| {name} | " + " | ".join(f"{v / 1e3:.1f}" for v in vals) + " |")
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--levels", type=int, nargs="*", default=[0, 1, 2, 3])
     ap.add_argument("--prrr", type=int, nargs="*", default=None)
     ap.add_argument("--cad", type=int, nargs="*", default=None)
     ap.add_argument("--rigid", default="stem", choices=("stem", "ball"))
+    ap.add_argument("--beta", action="store_true", help="β sweep of the frame model")
     args = ap.parse_args()
     if args.levels:
         cantilever(args.levels)
@@ -124,3 +154,5 @@ if __name__ == "__main__":
         prrr(args.prrr)
     if args.cad is not None:
         cad(args.cad, args.rigid)
+    if args.beta:
+        beta_sweep()
