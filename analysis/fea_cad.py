@@ -172,15 +172,31 @@ class CadFeaResult:
 
 def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0.0), branch: int | None = None,
             load_height: float | None = None, tol: float = 1e-7, keep_fields: bool = False,
-            pin_radius: float | None = None, rigid: str = "stem") -> CadFeaResult:
-    """Stiffness [N/m] of the posed CAD parts with bonded pins, for forces Δz above p (3 load cases)."""
+            pin_radius: float | None = None, rigid: str = "stem", joints: str = "bonded",
+            release_side: str = "frame") -> CadFeaResult:
+    """Stiffness [N/m] of the posed CAD parts, for forces Δz above p (3 load cases).
+
+    ``joints``: "bonded" (pins fused into both parts) or "released" (every revolute joint a
+    frictionless bilateral cylindrical interface on one bore, :mod:`analysis.fea_cad_hinge`;
+    ``release_side`` "frame" or "swapped" picks the bore).
+    """
     from analysis import frame_model as fm
 
+    if joints not in ("bonded", "released"):
+        raise ValueError(f"joints = {joints!r}: allowed 'bonded' or 'released'")
+    if joints == "released" and pin_radius is not None:
+        raise ValueError("pin_radius applies to bonded joints only (a released pin must be the bore's)")
     t0 = time.perf_counter()
     h = fm.LOAD_HEIGHT if load_height is None else float(load_height)
     size = cad_level_size(design, level) if size is None else float(size)
     p = np.asarray(p, dtype=float)
     mesh, info = cad_mesh(design, size=size, p=p, branch=branch, pin_radius=pin_radius)
+    split = None
+    if joints == "released":
+        from analysis import fea_cad_hinge
+
+        split = fea_cad_hinge.split_hinges(mesh, fea_cad_hinge.cad_hinges(design, info["pose"], side=release_side))
+        mesh = split.mesh
     t_mesh = time.perf_counter() - t0
     hub_nodes = mesh.node_sets["platform"]
     H = np.concatenate([np.eye(3), -np.array([[0, -h, 0], [h, 0, 0], [0, 0, 0]])], axis=1)  # u_L = H [u_P; θ]
@@ -212,8 +228,12 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
 
     names = [n for n in mesh.node_sets if n.startswith("support")]
     s = design.structure
-    sol = fea.solve_with_rigid_region(mesh, youngs_modulus=s.youngs_modulus, poisson_ratio=s.poisson_ratio,
-                                      fixed=names, region=region, centre=p, wrenches=H.T, tol=tol)
+    if split is None:
+        sol = fea.solve_with_rigid_region(mesh, youngs_modulus=s.youngs_modulus, poisson_ratio=s.poisson_ratio,
+                                          fixed=names, region=region, centre=p, wrenches=H.T, tol=tol)
+    else:
+        sol = fea_cad_hinge.solve_released(split, youngs_modulus=s.youngs_modulus, poisson_ratio=s.poisson_ratio,
+                                           fixed=names, region=region, centre=p, wrenches=H.T, tol=tol)
     C = H @ sol.master  # (3, 3) load-point displacement per unit force at the load point
     C = 0.5 * (C + C.T)
     k = 1.0 / np.diagonal(C)
