@@ -162,6 +162,7 @@ def test_plot_structure_writes_the_stress_picture(cantilever, tmp_path):
     files = fea.plot_structure(design, replace(frame, fea=field), tmp_path)
     assert [f.name for f in files] == ["structure_frame.png", "structure_fea.png", "structure_fea_stress.png"]
     assert all(f.stat().st_size > 10_000 for f in files)
+    assert files[2].read_bytes() != files[1].read_bytes()  # cell stress, not the displacement picture again
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(f.name for f in files)  # no temp files left
     # without the edge-midpoint values (a P1 field: stress one order less accurate) no stress picture
     files = fea.plot_structure(design, replace(frame, fea=replace(field, displacement_edges=None)), tmp_path / "p1")
