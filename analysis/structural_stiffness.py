@@ -39,6 +39,8 @@ class StructuralStiffness:
     options: fm.FrameOptions
     fea: Any = None  # analysis.fea_cad.CadFeaResult at fine fidelity
     stiffness_load_frame_bonded: np.ndarray | None = None  # (3,) [N/m] frame with bonded joints (FEA's model)
+    fea_max_von_mises: float | None = None  # [Pa per N] largest element von Mises stress, 1 N along x
+    fea_max_von_mises_location: np.ndarray | None = None  # (3,) [m]
     status: Status = Status.OK
     message: str = ""
 
@@ -57,6 +59,9 @@ class StructuralStiffness:
                                                                  for x in self.stiffness_load_frame_bonded]
             out["structural_fea_dofs"] = int(self.fea.n_dofs)
             out["structural_fea_wall_s"] = float(self.fea.wall_s)
+        if self.fea_max_von_mises is not None:
+            out["structural_fea_max_von_mises_MPa_per_N"] = float(self.fea_max_von_mises) * 1e-6
+            out["structural_fea_max_von_mises_at_mm"] = [float(x) * 1e3 for x in self.fea_max_von_mises_location]
         return out
 
 
@@ -129,8 +134,23 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> S
         status, message = fea_result.status, f"FEA: {fea_result.message}"
     from dataclasses import replace
 
+    stress = _max_stress(design, fea_result)
     return replace(result, fea=fea_result, stiffness_load_frame_bonded=bonded.stiffness_load,
+                   fea_max_von_mises=None if stress is None else stress.max_von_mises,
+                   fea_max_von_mises_location=None if stress is None else stress.max_location,
                    status=status, message=message)
+
+
+def _max_stress(design: PrrrDesign, fea_result):
+    """Element von Mises stress of the FEA's 1 N x load case (analysis.fea_stress), or None without the P2 field."""
+    u_edges = getattr(fea_result, "displacement_edges", None)
+    if fea_result.mesh is None or fea_result.displacement is None or u_edges is None:
+        return None
+    from analysis.fea_stress import element_stress
+
+    return element_stress(fea_result.mesh.points, fea_result.mesh.tets, fea_result.displacement, u_edges,
+                          youngs_modulus=design.structure.youngs_modulus,
+                          poisson_ratio=design.structure.poisson_ratio)
 
 
 def stiffness_batch(designs: list[PrrrDesign], *, p=(0.0, 0.0, 0.0), load_height: float = fm.LOAD_HEIGHT,
