@@ -4,6 +4,7 @@
     .venv/bin/python benchmarks/accuracy_structure.py --prrr 0    # + 3-PRRR solid at those levels
     .venv/bin/python benchmarks/accuracy_structure.py --levels --cad -1 0 1   # CAD solid, bonded pins
     .venv/bin/python benchmarks/accuracy_structure.py --levels --beta          # β sweep of the frame model
+    .venv/bin/python benchmarks/accuracy_structure.py --levels --variants 2    # frame vs CAD FEA, design variants
 
 Cantilever: FEA levels against Timoshenko's closed form and their Richardson extrapolation.
 3-PRRR: the frame model (released and bonded joints) and the bonded-joint solid FEA.
@@ -17,7 +18,7 @@ import time
 
 import jax.numpy as jnp
 
-from analysis import fea
+from analysis import fea, fea_cad
 from analysis import frame_model as fm
 from analysis.structural_stiffness import structural_stiffness
 from design import io
@@ -69,7 +70,6 @@ def cad(levels: list[int], rigid: str = "stem") -> None:
     """CAD solid with bonded pins (analysis.fea_cad): levels, Richardson per axis, frame comparison."""
     import numpy as np
 
-    from analysis import fea_cad
 
     d = io.load_preset("prrr-paper")
     rows = []
@@ -112,6 +112,38 @@ def cad(levels: list[int], rigid: str = "stem") -> None:
               f"{', '.join(f'{x:+.1%}' for x in fr / reference - 1)} | {ms:.1f} |")
 
 
+#: designs around prrr-paper for the frame-vs-FEA check beyond one point: (label, section, field, value SI)
+VARIANTS = (("prrr-paper", None, None, None),
+            ("bore 6 mm", "structure", "bore_diameter", 0.006),
+            ("bore 10 mm", "structure", "bore_diameter", 0.010),
+            ("link thickness 8 mm", "structure", "link_thickness", 0.008),
+            ("link width 16 mm", "structure", "link_width", 0.016),
+            ("clearance 1.5 mm", "structure", "clearance", 0.0015),
+            ("β = 45°", "geometry", "beta", 0.7853981633974483))
+
+
+def cad_variants(level: int) -> None:
+    """Frame (default, bonded, CAD branch) vs the CAD FEA at ``level`` over design variants."""
+    import numpy as np
+
+    d0 = io.load_preset("prrr-paper")
+    print(f"| design | CAD FEA level {level}, k_x, k_y, k_z N/mm | frame (necks) | frame/FEA − 1 | plane frame/FEA − 1 "
+          "| FEA wall s |")
+    print("|---|---|---|---|---|---|")
+    for label, section, name, value in VARIANTS:
+        d = d0 if section is None else dataclasses.replace(
+            d0, **{section: dataclasses.replace(getattr(d0, section), **{name: value})})
+        r = fea_cad.cad_fea(d, level=level)
+        bonded = fm.FrameOptions(joints=fm.Joints.BONDED, branch=r.branch)
+        fr = structural_stiffness(d, options=bonded).stiffness_load
+        plane = structural_stiffness(d, options=dataclasses.replace(bonded, pins=False)).stiffness_load
+        fmt = lambda v: ", ".join(f"{x / 1e3:.1f}" for x in v)  # noqa: E731
+        pct = lambda v: ", ".join(f"{x:+.1%}" for x in v)  # noqa: E731
+        print(f"| {label} | {fmt(r.stiffness_load)} | {fmt(fr)} | {pct(fr / r.stiffness_load - 1)} | "
+              f"{pct(plane / r.stiffness_load - 1)} | {r.wall_s:.0f} |", flush=True)
+        assert np.all(np.isfinite(r.stiffness_load))
+
+
 def beta_sweep() -> None:
     """Lateral stiffness of prrr-paper with β varied (docs/structure.md, "β sweep")."""
     import numpy as np
@@ -147,6 +179,8 @@ if __name__ == "__main__":
     ap.add_argument("--cad", type=int, nargs="*", default=None)
     ap.add_argument("--rigid", default="stem", choices=("stem", "ball"))
     ap.add_argument("--beta", action="store_true", help="β sweep of the frame model")
+    ap.add_argument("--variants", type=int, default=None, metavar="LEVEL",
+                    help="frame vs CAD FEA at this level over design variants around prrr-paper")
     args = ap.parse_args()
     if args.levels:
         cantilever(args.levels)
@@ -156,3 +190,5 @@ if __name__ == "__main__":
         cad(args.cad, args.rigid)
     if args.beta:
         beta_sweep()
+    if args.variants is not None:
+        cad_variants(args.variants)
