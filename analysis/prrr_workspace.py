@@ -344,7 +344,8 @@ class PrrrWorkspace:
     footprint_diameter: float  # [m] device envelope in xy
     condition_deviation: float | None = None  # fine only: max relative deviation of the FD cond₂
     condition_points: int = 0  # points of the constancy check
-    interference_removed: float | None = None  # fine only: fraction of sampled volume lost to interference
+    interference_removed: float | None = None  # manifold3d (fine): fraction of sampled volume lost to interference
+    interference_removed_fast: float | None = None  # same fraction from analysis.interference_fast (all levels)
     fidelity: Fidelity = Fidelity.STANDARD
     status: Status = Status.OK
     message: str = ""
@@ -367,8 +368,11 @@ class PrrrWorkspace:
         }
         if self.condition_deviation is not None:
             out["jacobian_condition_deviation"] = self.condition_deviation
-        if self.interference_removed is not None:
-            out["workspace_interference_removed_fraction"] = self.interference_removed
+        removed = self.interference_removed if self.interference_removed is not None else self.interference_removed_fast
+        if removed is not None:  # manifold3d where checked, else the fast model
+            out["workspace_interference_removed_fraction"] = removed
+        if self.interference_removed_fast is not None:
+            out["workspace_interference_removed_fraction_fast"] = self.interference_removed_fast
         return out
 
 
@@ -408,8 +412,13 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     numerical check of the constant Jacobian and link interference.
 
     ``required_diameter`` [m]: the diameter of ``workspace_height_at_diameter_mm``.
-    ``interference``: check link interference (default: the fidelity's setting, fine only).
-    The inscribed-cylinder metrics are always reach-and-stroke; interference reduces the volume.
+    ``interference``: link interference on the 216 poses of :data:`INTERFERENCE_SAMPLING`.
+    ``None`` (default): the fast model (:mod:`analysis.interference_fast`) at every level, and
+    at fine also the manifold3d reference, which then reduces the volume; ``True``: both at any
+    level (manifold3d reduces the volume); ``False``: neither. The fast model never changes the
+    volume: at draft/standard ``workspace_volume_mm3`` stays reach-and-stroke and
+    ``workspace_interference_removed_fraction`` says how much of it collides. The
+    inscribed-cylinder metrics are always reach-and-stroke.
     """
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
@@ -418,6 +427,8 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     if fidelity is Fidelity.FINE:
         dev, n = jacobian_constancy(design)
         result = dataclasses.replace(result, condition_deviation=dev, condition_points=n)
+    if interference is not False and result.status == Status.OK:
+        result = _with_fast_interference(design, result)
     if (smp.interference if interference is None else interference) and result.status == Status.OK:
         result = _with_interference(design, result)
     return result
@@ -445,20 +456,18 @@ def batch_arrays(wp: WorkspaceParams, *, fidelity: Fidelity = Fidelity.STANDARD)
     return [{k: v[i] for k, v in out.items()} for i in range(n)]
 
 
-#: sampling of the interference check at fine fidelity (3·n_phi·n_r·n_z poses, ~20 ms each)
+#: sampling of the interference checks (3·n_phi·n_r·n_z = 216 poses; manifold3d ~20 ms each at
+#: fine, analysis.interference_fast ~30 ms for all of them at every level)
 INTERFERENCE_SAMPLING = dict(n_phi=6, n_r=4, n_z=3)
 
 
-def interference_samples(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Workspace sample points (m, 3) [m], their volume weights (m,) [m³] (polar cells:
-    r·Δr·Δφ·Δz) and whether each pose is free of link interference (``analysis.interference``,
-    the CAD's parts and elbow branch)."""
-    from analysis import interference
-
+def workspace_sample_weights(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> tuple[np.ndarray, np.ndarray]:
+    """Workspace sample points (m, 3) [m] (:func:`sample_points`) and their volume weights (m,)
+    [m³] (polar cells: r·Δr·Δφ·Δz)."""
     wp = workspace_params(design)
     pts = sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)
     if len(pts) == 0:
-        return pts, np.zeros(0), np.zeros(0, dtype=bool)
+        return pts, np.zeros(0)
     wpn = WorkspaceParams(*(np.asarray(v, dtype=float) for v in wp))
     phi = (np.arange(n_phi) + 0.5) * (_THIRD / n_phi)
     _, _, _, lo, hi, holes = _ray_intervals(wpn, phi, np)
@@ -469,9 +478,35 @@ def interference_samples(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) 
     cot = 1.0 / math.tan(design.geometry.beta)
     dz = np.maximum(design.geometry.stroke - cot * (a.max(axis=1) - a.min(axis=1)), 0.0) / n_z
     weights = r * (hi - lo)[k] / n_r * (_THIRD / n_phi) * dz
+    return pts, weights
+
+
+def interference_samples(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Workspace sample points (m, 3) [m], their volume weights (m,) [m³] (polar cells:
+    r·Δr·Δφ·Δz) and whether each pose is free of link interference (``analysis.interference``,
+    the CAD's parts and elbow branch)."""
+    from analysis import interference
+
+    pts, weights = workspace_sample_weights(design, n_phi=n_phi, n_r=n_r, n_z=n_z)
+    if len(pts) == 0:
+        return pts, weights, np.zeros(0, dtype=bool)
     model = interference.prepare(design)
     free = np.array([res.ok for res in interference.check_poses(model, pts, branch=ELBOW_BRANCH)])
     return pts, weights, free
+
+
+def _with_fast_interference(design: PrrrDesign, result: PrrrWorkspace) -> PrrrWorkspace:
+    """Add the fast model's removed fraction (:mod:`analysis.interference_fast`, ~30 ms); the
+    volume is left as it is."""
+    from analysis import interference_fast
+    from design.errors import HapticoptError
+
+    try:
+        removed = interference_fast.removed_fraction(design, **INTERFERENCE_SAMPLING)
+    except HapticoptError as exc:  # the CAD cannot lay this design's parts out
+        return dataclasses.replace(result, message=(result.message + "; " if result.message else "")
+                                   + f"interference not checked: {exc}")
+    return dataclasses.replace(result, interference_removed_fast=removed)
 
 
 def _with_interference(design: PrrrDesign, result: PrrrWorkspace) -> PrrrWorkspace:

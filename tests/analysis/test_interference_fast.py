@@ -1,0 +1,137 @@
+"""Fast interference (convex primitives, separating axes) against the manifold3d reference."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from analysis import interference as itf
+from analysis import interference_fast as F
+from analysis import prrr_workspace as W
+from design import cad_prrr, io
+from design.errors import InvalidDesign
+
+# the optimum of prrr-workspace before the interference constraint (cad_out/prrr-workspace/
+# optimum.toml of that run, docs/workspace_interference.md): it collides more than the paper
+OLD_OPTIMUM = ["geometry.beta_deg=59.0563", "geometry.d2_mm=75.8151", "geometry.d3_mm=75.8225",
+               "geometry.d4_mm=75.8223", "geometry.stroke_mm=184.838", "geometry.r_p_mm=99.5627"]
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return io.load_preset("prrr-paper")
+
+
+def _points(design, **sampling):
+    pts, _ = W.workspace_sample_weights(design, **sampling)
+    return pts
+
+
+def test_pairs_are_the_references(paper):
+    """Same part pairs as analysis.interference: different bodies, not joined."""
+    fast = F.prepare(paper)
+    ref = itf.prepare(paper)
+    names = list(ref.meshes)
+    expected = {frozenset((a, b)) for i, a in enumerate(names) for b in names[i + 1:]
+                if frozenset((a, b)) not in ref.skip}
+    assert {frozenset(p) for p in fast.part_pairs} == expected
+
+
+def test_frames_are_the_cads(paper):
+    pts = _points(paper, n_phi=2, n_r=2, n_z=2)
+    frames, reach = F.part_frames_batch(paper, pts)
+    assert reach.all()
+    for k, p in enumerate(pts):
+        ref = cad_prrr.part_frames(paper, cad_prrr.solve_pose(paper, p))
+        for name, T in ref.items():
+            R, o = frames[name]
+            np.testing.assert_allclose(R[k], T[:3, :3], atol=1e-12)
+            np.testing.assert_allclose(o[k], T[:3, 3], atol=1e-12)
+
+
+@pytest.mark.parametrize("overrides", [[], OLD_OPTIMUM], ids=["prrr-paper", "old-optimum"])
+def test_agrees_with_manifold3d_on_a_pose_set(paper, overrides):
+    """Verdicts on 24 workspace poses. Bound: the measured agreement on the 216 fine poses,
+    1.000 (prrr-paper) and 0.917 (old optimum), benchmarks/accuracy_interference_fast.py; every
+    disagreement is a fast-only collision (conservative), so no reference collision is missed."""
+    d = io.apply_overrides(paper, overrides)
+    pts = _points(d, n_phi=2, n_r=2, n_z=2)
+    fast = F.check_points(F.prepare(d), pts, branch=W.ELBOW_BRANCH)
+    ref = ~np.array([r.ok for r in itf.check_poses(d, pts, branch=W.ELBOW_BRANCH)])
+    assert not np.any(ref & ~fast.collides)  # conservative: every reference collision is found
+    assert (fast.collides == ref).mean() >= (1.0 if not overrides else 0.9)
+    assert ref.any() and (~ref).any()  # the set has both verdicts
+
+
+def test_known_colliding_and_free_poses(paper):
+    m = F.prepare(paper)
+    # home pose: interference-free (tests/analysis/test_interference.py, manifold3d)
+    res = F.check_points(m, np.zeros((1, 3)))
+    assert not res.collides[0] and res.pairs_at(0) == []
+    # inward elbows (branch 0) collide under the platform: link2 × link2 (same reference test)
+    res = F.check_points(m, np.zeros((1, 3)), branch=0)
+    assert {("link2_1", "link2_2"), ("link2_1", "link2_3"), ("link2_2", "link2_3")} <= set(res.pairs_at(0))
+    # rails three times as wide cross the links at home (reference test: rail_1 × link2_1)
+    wide = io.apply_overrides(paper, ["structure.rail_width_mm=60"])
+    res = F.check_points(F.prepare(wide), np.zeros((1, 3)))
+    assert res.collides[0] and ("rail_1", "link2_1") in res.pairs_at(0)
+
+
+def test_box_box_depth_is_exact():
+    """Two unit-free boxes overlapping by 2 mm along x (closed form: depth = 2 mm), and rotated
+    45° about z so that the corner enters by 1 mm (closed form: a√2/2 + b/2 − gap)."""
+    eye = np.eye(3)[None]
+    half = np.array([[0.01, 0.01, 0.01]])
+    k = np.array([0])
+    dep = F._depth(k, eye, half, np.zeros((1, 3)), k, eye, half, np.array([[0.018, 0.0, 0.0]]))
+    assert dep[0] == pytest.approx(0.002, abs=1e-12)
+    c, s = math.cos(math.pi / 4), math.sin(math.pi / 4)
+    Rz = np.array([[[c, -s, 0], [s, c, 0], [0, 0, 1]]])
+    gap = 0.01 * math.sqrt(2) + 0.01 - 0.001
+    dep = F._depth(k, Rz, half, np.zeros((1, 3)), k, eye, half, np.array([[gap, 0.0, 0.0]]))
+    assert dep[0] == pytest.approx(0.001, abs=1e-12)
+
+
+def test_cylinder_rim_near_box_corner_is_separated():
+    """A disc (r 12 mm, 10 mm thick) beside a box corner, 1 mm apart along the diagonal: the
+    frame axes alone do not separate them, the sampled closest-point axes do."""
+    half_box = np.array([[0.01, 0.01, 0.005]])
+    half_cyl = np.array([[0.012, 0.012, 0.005]])
+    corner = np.array([0.01, 0.01, 0.0])
+    centre = corner + (0.012 + 0.001) * np.array([1.0, 1.0, 0.0]) / math.sqrt(2)
+    eye = np.eye(3)[None]
+    dep = F._depth(np.array([0]), eye, half_box, np.zeros((1, 3)), np.array([1]), eye, half_cyl, centre[None])
+    assert dep[0] < 0.0
+    dep = F._depth(np.array([0]), eye, half_box, np.zeros((1, 3)), np.array([1]), eye, half_cyl,
+                   (corner + 0.011 * np.array([1.0, 1.0, 0.0]) / math.sqrt(2))[None])
+    assert dep[0] > 0.0  # 1 mm inside
+
+
+def test_degenerate_designs_stay_finite(paper):
+    # (almost) zero stroke, 1 nm (0 is outside the design's range): a workspace of ~1e-27 m³
+    flat = dataclasses.replace(paper, geometry=dataclasses.replace(paper.geometry, stroke=1e-9))
+    frac = F.removed_fraction(flat, n_phi=2, n_r=2, n_z=2)
+    assert math.isfinite(frac) and 0.0 <= frac <= 1.0
+    # links just long enough for their bosses (the CAD's lower bound): finite verdicts
+    short = io.apply_overrides(paper, ["geometry.d3_mm=25", "geometry.d4_mm=25", "geometry.d2_mm=45"])
+    frac = F.removed_fraction(short, n_phi=2, n_r=2, n_z=2)
+    assert math.isfinite(frac) and 0.0 <= frac <= 1.0
+    # unreachable points are never reported as colliding
+    res = F.check_points(F.prepare(paper), np.array([[0.5, 0.0, 0.0], [0.0, 0.0, 0.0]]))
+    assert not res.reachable[0] and not res.collides[0] and np.isfinite(res.depth).all()
+    # tiny links: the CAD refuses them with a one-line message, and the evaluator says so
+    tiny = io.apply_overrides(paper, ["geometry.d3_mm=5", "geometry.d4_mm=5"])
+    with pytest.raises(InvalidDesign, match="d3_mm"):
+        F.prepare(tiny)
+
+
+def test_workspace_reports_the_fast_fraction_without_changing_the_volume(paper):
+    draft = W.evaluate(paper, fidelity="draft")
+    plain = W.evaluate(paper, fidelity="draft", interference=False)
+    assert draft.volume == plain.volume and draft.cylinder_diameter == plain.cylinder_diameter
+    m = draft.metrics()
+    assert m["workspace_interference_removed_fraction"] == m["workspace_interference_removed_fraction_fast"]
+    assert m["workspace_interference_removed_fraction"] == pytest.approx(
+        F.removed_fraction(paper, **W.INTERFERENCE_SAMPLING), rel=1e-12)
+    assert "workspace_interference_removed_fraction" not in plain.metrics()
