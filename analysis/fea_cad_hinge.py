@@ -310,6 +310,8 @@ def cad_hinges(design, pose, *, side: str = "frame") -> list[Hinge]:
     for pin in fea_cad._pins(design, pose):
         kind, leg = pin["name"].split("_")[1:]
         axis = pin["axis"] / np.linalg.norm(pin["axis"])
-        out.append(Hinge(name=f"{kind}_{leg}", pin=pin["name"], part=f"{RELEASED_PART[side][kind]}_{leg}",
+        part = RELEASED_PART[side][kind]
+        part = part if part == "platform" else f"{part}_{leg}"
+        out.append(Hinge(name=f"{kind}_{leg}", pin=pin["name"], part=part,
                          point=np.asarray(pin["start"], dtype=float), axis=axis, radius=float(pin["radius"])))
     return out

@@ -142,3 +142,22 @@ def test_released_cad_fea_is_softer_than_bonded_and_finite():
     # releasing nine joints must soften every axis, markedly (the hinges carry no moment about w)
     assert np.all(released.stiffness_load < 0.5 * bonded.stiffness_load)
     assert released.stiffness_load[0] == pytest.approx(released.stiffness_load[1], rel=0.03)  # 3-fold symmetry
+
+
+def test_cad_hinges_release_the_bores_the_frame_model_releases():
+    # frame_model._leg_stiffness_pins: hinge at the pin's link-side end — R1 in link1, R2 and R3
+    # in link2; "swapped" releases the other bore (carriage, link1, platform)
+    from design import cad_prrr, io
+
+    d = io.load_preset("prrr-paper")
+    pose = cad_prrr.solve_pose(d)
+    parts = {h.name: h.part for h in fea_cad_hinge.cad_hinges(d, pose)}
+    assert len(parts) == 9
+    assert (parts["r1_1"], parts["r2_2"], parts["r3_3"]) == ("link1_1", "link2_2", "link2_3")
+    swapped = {h.name: h.part for h in fea_cad_hinge.cad_hinges(d, pose, side="swapped")}
+    assert (swapped["r1_1"], swapped["r2_2"], swapped["r3_3"]) == ("carriage_1", "link1_2", "platform")
+    for h in fea_cad_hinge.cad_hinges(d, pose):
+        assert h.radius == pytest.approx(0.5 * d.structure.bore_diameter)
+        assert np.linalg.norm(h.axis) == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="side"):
+        fea_cad_hinge.cad_hinges(d, pose, side="left")
