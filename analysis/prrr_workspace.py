@@ -344,8 +344,7 @@ class PrrrWorkspace:
     footprint_diameter: float  # [m] device envelope in xy
     condition_deviation: float | None = None  # fine only: max relative deviation of the FD cond₂
     condition_points: int = 0  # points of the constancy check
-    interference_removed: float | None = None  # manifold3d (fine): fraction of sampled volume lost to interference
-    interference_removed_fast: float | None = None  # same fraction from analysis.interference_fast (all levels)
+    interference_removed: float | None = None  # fine only: fraction of sampled volume lost to interference
     fidelity: Fidelity = Fidelity.STANDARD
     status: Status = Status.OK
     message: str = ""
@@ -368,11 +367,8 @@ class PrrrWorkspace:
         }
         if self.condition_deviation is not None:
             out["jacobian_condition_deviation"] = self.condition_deviation
-        removed = self.interference_removed if self.interference_removed is not None else self.interference_removed_fast
-        if removed is not None:  # manifold3d where checked, else the fast model
-            out["workspace_interference_removed_fraction"] = removed
-        if self.interference_removed_fast is not None:
-            out["workspace_interference_removed_fraction_fast"] = self.interference_removed_fast
+        if self.interference_removed is not None:
+            out["workspace_interference_removed_fraction"] = self.interference_removed
         return out
 
 
@@ -412,13 +408,10 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     numerical check of the constant Jacobian and link interference.
 
     ``required_diameter`` [m]: the diameter of ``workspace_height_at_diameter_mm``.
-    ``interference``: link interference on the 216 poses of :data:`INTERFERENCE_SAMPLING`.
-    ``None`` (default): the fast model (:mod:`analysis.interference_fast`) at every level, and
-    at fine also the manifold3d reference, which then reduces the volume; ``True``: both at any
-    level (manifold3d reduces the volume); ``False``: neither. The fast model never changes the
-    volume: at draft/standard ``workspace_volume_mm3`` stays reach-and-stroke and
-    ``workspace_interference_removed_fraction`` says how much of it collides. The
-    inscribed-cylinder metrics are always reach-and-stroke.
+    ``interference``: check link interference with the manifold3d reference on the 216 poses of
+    :data:`INTERFERENCE_SAMPLING` (default: the fidelity's setting, fine only); it reduces the
+    volume. The inscribed-cylinder metrics are always reach-and-stroke. The fast model for the
+    optimiser is a separate evaluator, :mod:`analysis.prrr_interference`.
     """
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
@@ -427,8 +420,6 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     if fidelity is Fidelity.FINE:
         dev, n = jacobian_constancy(design)
         result = dataclasses.replace(result, condition_deviation=dev, condition_points=n)
-    if interference is not False and result.status == Status.OK:
-        result = _with_fast_interference(design, result)
     if (smp.interference if interference is None else interference) and result.status == Status.OK:
         result = _with_interference(design, result)
     return result
@@ -493,20 +484,6 @@ def interference_samples(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) 
     model = interference.prepare(design)
     free = np.array([res.ok for res in interference.check_poses(model, pts, branch=ELBOW_BRANCH)])
     return pts, weights, free
-
-
-def _with_fast_interference(design: PrrrDesign, result: PrrrWorkspace) -> PrrrWorkspace:
-    """Add the fast model's removed fraction (:mod:`analysis.interference_fast`, ~30 ms); the
-    volume is left as it is."""
-    from analysis import interference_fast
-    from design.errors import HapticoptError
-
-    try:
-        removed = interference_fast.removed_fraction(design, **INTERFERENCE_SAMPLING)
-    except HapticoptError as exc:  # the CAD cannot lay this design's parts out
-        return dataclasses.replace(result, message=(result.message + "; " if result.message else "")
-                                   + f"interference not checked: {exc}")
-    return dataclasses.replace(result, interference_removed_fast=removed)
 
 
 def _with_interference(design: PrrrDesign, result: PrrrWorkspace) -> PrrrWorkspace:

@@ -34,6 +34,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
         EvaluatorEntry(name="statics", module="analysis.prrr_statics"),
         EvaluatorEntry(name="structural_stiffness", module="analysis.structural_stiffness"),
         EvaluatorEntry(name="workspace", module="analysis.prrr_workspace"),
+        EvaluatorEntry(name="interference", module="analysis.prrr_interference"),
         EvaluatorEntry(name="stability", module="analysis.stability"),
     ),
     "master": (

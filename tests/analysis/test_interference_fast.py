@@ -9,6 +9,7 @@ import pytest
 from analysis import interference as itf
 from analysis import interference_fast as F
 from analysis import prrr_workspace as W
+from analysis.status import Status
 from design import cad_prrr, io
 from design.errors import InvalidDesign
 
@@ -126,12 +127,21 @@ def test_degenerate_designs_stay_finite(paper):
         F.prepare(tiny)
 
 
-def test_workspace_reports_the_fast_fraction_without_changing_the_volume(paper):
-    draft = W.evaluate(paper, fidelity="draft")
-    plain = W.evaluate(paper, fidelity="draft", interference=False)
-    assert draft.volume == plain.volume and draft.cylinder_diameter == plain.cylinder_diameter
-    m = draft.metrics()
-    assert m["workspace_interference_removed_fraction"] == m["workspace_interference_removed_fraction_fast"]
-    assert m["workspace_interference_removed_fraction"] == pytest.approx(
+def test_interference_evaluator_reports_the_fast_fraction_and_workspace_stays_cheap(paper):
+    # the optimiser's metric comes from its own evaluator (analysis.prrr_interference), so a plain
+    # draft workspace evaluation neither runs nor reports it (issue 4's 20 ms draft budget)
+    from analysis import prrr_interference
+    from analysis.registry import evaluate_all
+
+    r = prrr_interference.evaluate(paper, fidelity="draft")
+    assert r.status == Status.OK
+    assert r.metrics()["interference_removed_fraction"] == pytest.approx(
         F.removed_fraction(paper, **W.INTERFERENCE_SAMPLING), rel=1e-12)
-    assert "workspace_interference_removed_fraction" not in plain.metrics()
+    # prrr-paper: 0.46848, the manifold3d value at fine (docs/workspace.md), the problem's bound
+    assert r.removed_fraction == pytest.approx(0.46848, abs=5e-5)
+    assert "workspace_interference_removed_fraction" not in W.evaluate(paper, fidelity="draft").metrics()
+    assert evaluate_all(paper, fidelity="draft", only=("interference",)).statuses["interference"] == Status.OK
+    # links too short to reach: an empty workspace loses nothing (a finite 0, not an error)
+    tiny = io.apply_overrides(paper, ["geometry.d3_mm=5", "geometry.d4_mm=5"])
+    empty = prrr_interference.evaluate(tiny)
+    assert empty.status == Status.OK and empty.removed_fraction == 0.0

@@ -1,0 +1,52 @@
+"""Link interference of the 3-PRRR over its workspace, fast enough for the optimiser.
+
+A separate evaluator (not a part of ``workspace``) so that it runs only where it is asked for: a
+problem that constrains ``interference_removed_fraction`` pulls it in, a plain draft workspace
+evaluation does not pay for it (issue 4's ≤ 20 ms draft budget).
+
+Metric ``interference_removed_fraction``: the share of the sampled workspace volume whose poses
+make two parts collide, from :mod:`analysis.interference_fast` (convex primitives of the CAD part
+tables, separating axes; ~30 ms for the 216 poses of
+:data:`analysis.prrr_workspace.INTERFERENCE_SAMPLING`). The same model at every fidelity: it never
+misses a collision the manifold3d reference (:mod:`analysis.interference`) finds, so a bound on it
+is conservative (docs/workspace_interference.md). At fine fidelity the ``workspace`` evaluator
+also reports the manifold3d value, ``workspace_interference_removed_fraction``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from analysis.fidelity import Fidelity
+from analysis.status import Status
+from design.errors import HapticoptError
+from design.prrr import PrrrDesign
+
+
+@dataclass(frozen=True, kw_only=True)
+class PrrrInterference:
+    """Share of the sampled workspace volume lost to link interference (fast model)."""
+
+    removed_fraction: float  # [-] 0 … 1 (NaN when the check could not run)
+    wall_s: float
+    status: Status = Status.OK
+    message: str = ""
+
+    def metrics(self) -> dict[str, float]:
+        return {"interference_removed_fraction": self.removed_fraction}
+
+
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> PrrrInterference:
+    """Fast interference over the workspace samples (same model and samples at every fidelity)."""
+    from analysis import interference_fast
+    from analysis.prrr_workspace import INTERFERENCE_SAMPLING
+
+    Fidelity(fidelity)
+    t0 = time.perf_counter()
+    try:
+        removed = interference_fast.removed_fraction(design, **INTERFERENCE_SAMPLING)
+    except HapticoptError as exc:  # the CAD cannot lay this design's parts out
+        return PrrrInterference(removed_fraction=float("nan"), wall_s=time.perf_counter() - t0,
+                                status=Status.FAILED, message=f"interference not checked: {exc}")
+    return PrrrInterference(removed_fraction=removed, wall_s=time.perf_counter() - t0)
