@@ -102,8 +102,8 @@ def split_hinges(mesh: fea.TetMesh, hinges: list[Hinge] | tuple[Hinge, ...], *, 
         sub[is_shared] = copy[sub[is_shared]]
         tets[:, part_t] = sub
         new_points.append(allp[:, shared])
-        # node sets: the released part (and any set of its own nodes, e.g. its supports) uses the copies;
-        # the pin's set keeps the originals; a shared node belongs to both sets before the split
+        # node sets: the released part's set takes the copies, the pin's keeps the originals (a shared
+        # node was in both); other sets (supports) keep the originals — reduction() refuses a tie on them
         pset = node_sets[h.part]
         keep = copy[pset] < 0 if pset.size else np.zeros(0, dtype=bool)
         node_sets[h.part] = np.concatenate([pset[keep], copy[pset[~keep]]])
