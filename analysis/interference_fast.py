@@ -34,6 +34,7 @@ Usage::
     model = prepare(design)                        # once per design (part tables, ~ms)
     res = check_points(model, points)              # points (n, 3) [m]; res.collides (n,)
     frac = removed_fraction(design)                # share of the sampled workspace volume lost
+    frac, soft = interference_fractions(design)    # … and its continuous companion (depth ramp)
 """
 
 from __future__ import annotations
@@ -54,6 +55,13 @@ from design.prrr import GAMMAS, PrrrDesign
 #: with the reference are real overlaps of 0.1–0.8 mm depth but < 1 mm³ volume, which the
 #: reference discards as noise)
 DEPTH_TOL = 1e-4
+
+#: depth scale of the continuous companion of the removed fraction [m]: a pose counts
+#: clip(d / OVERLAP_SCALE, 0, 1) of its weight, d its deepest pair overlap. 1 mm spans the band
+#: where the fast model and the manifold3d reference disagree (fast-only collisions 0.17–0.81 mm
+#: deep; the reference's shallowest accepted one 0.72 mm), and every colliding pose of prrr-paper
+#: is deeper (≥ 1.06 mm), so there both fractions are 0.46848 (docs/workspace_interference.md)
+OVERLAP_SCALE = 1e-3
 
 _BOX, _CYL, _SPH = 0, 1, 2
 _KIND = {Kind.BOX: _BOX, Kind.CYLINDER: _CYL, Kind.SPHERE: _SPH}
@@ -292,13 +300,35 @@ def check_points(model: FastModel, points, *, branch: int = cad_prrr.DEFAULT_BRA
                       depth=depth, part_pairs=model.part_pairs)
 
 
-def removed_fraction(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> float:
-    """Share of the sampled workspace volume whose poses collide (the polar-cell weights of
-    :func:`analysis.prrr_workspace.workspace_sample_weights`; 0 for an empty sample)."""
+def overlap_share(res: FastResult, *, scale: float = OVERLAP_SCALE) -> np.ndarray:
+    """Per-pose collision share (n,) in [0, 1]: clip(d / scale, 0, 1) of the deepest part-pair
+    overlap d [m] at the pose (0 where separated or unreachable: ``depth`` is 0 there)."""
+    d = res.depth.max(axis=1) if res.depth.shape[1] else np.zeros(len(res.points))
+    return np.clip(d / scale, 0.0, 1.0)
+
+
+def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int,
+                           scale: float = OVERLAP_SCALE) -> tuple[float, float]:
+    """(removed fraction, overlap fraction) of the sampled workspace volume, from one check of
+    the poses (polar-cell weights w_i of :func:`analysis.prrr_workspace.workspace_sample_weights`):
+
+    * removed = Σ w_i [pose i collides] / Σ w_i — piecewise constant in the design;
+    * overlap = Σ w_i clip(d_i / scale, 0, 1) / Σ w_i, d_i the deepest pair overlap at pose i —
+      its continuous companion (equal to the removed fraction where every colliding pose is at
+      least ``scale`` deep; docs/workspace_interference.md).
+
+    Both 0 for an empty sample."""
     from analysis.prrr_workspace import ELBOW_BRANCH, workspace_sample_weights
 
     pts, w = workspace_sample_weights(design, n_phi=n_phi, n_r=n_r, n_z=n_z)
     if len(pts) == 0 or not w.sum() > 0:
-        return 0.0
+        return 0.0, 0.0
     res = check_points(prepare(design), pts, branch=ELBOW_BRANCH)
-    return float(w[res.collides].sum() / w.sum())
+    total = w.sum()
+    return float(w[res.collides].sum() / total), float(w @ overlap_share(res, scale=scale) / total)
+
+
+def removed_fraction(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> float:
+    """Share of the sampled workspace volume whose poses collide (the polar-cell weights of
+    :func:`analysis.prrr_workspace.workspace_sample_weights`; 0 for an empty sample)."""
+    return interference_fractions(design, n_phi=n_phi, n_r=n_r, n_z=n_z)[0]

@@ -11,6 +11,12 @@ tables, separating axes; ~30 ms for the 216 poses of
 misses a collision the manifold3d reference (:mod:`analysis.interference`) finds, so a bound on it
 is conservative (docs/workspace_interference.md). At fine fidelity the ``workspace`` evaluator
 also reports the manifold3d value, ``workspace_interference_removed_fraction``.
+
+Metric ``interference_overlap_fraction``: its continuous companion from the same pass, each pose
+weighted by clip(d / 1 mm, 0, 1), d its deepest part-pair overlap
+(:data:`analysis.interference_fast.OVERLAP_SCALE`). The removed fraction is a sum of pose weights
+that switch on and off, piecewise constant in the design, which stalls COBYLA; the companion moves
+continuously with the overlap depths (docs/workspace_interference.md).
 """
 
 from __future__ import annotations
@@ -29,12 +35,14 @@ class PrrrInterference:
     """Share of the sampled workspace volume lost to link interference (fast model)."""
 
     removed_fraction: float  # [-] 0 … 1 (NaN when the check could not run)
+    overlap_fraction: float  # [-] 0 … 1, continuous companion (NaN when the check could not run)
     wall_s: float
     status: Status = Status.OK
     message: str = ""
 
     def metrics(self) -> dict[str, float]:
-        return {"interference_removed_fraction": self.removed_fraction}
+        return {"interference_removed_fraction": self.removed_fraction,
+                "interference_overlap_fraction": self.overlap_fraction}
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> PrrrInterference:
@@ -45,8 +53,8 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> P
     Fidelity(fidelity)
     t0 = time.perf_counter()
     try:
-        removed = interference_fast.removed_fraction(design, **INTERFERENCE_SAMPLING)
+        removed, overlap = interference_fast.interference_fractions(design, **INTERFERENCE_SAMPLING)
     except HapticoptError as exc:  # the CAD cannot lay this design's parts out
-        return PrrrInterference(removed_fraction=float("nan"), wall_s=time.perf_counter() - t0,
+        return PrrrInterference(removed_fraction=float("nan"), overlap_fraction=float("nan"), wall_s=time.perf_counter() - t0,
                                 status=Status.FAILED, message=f"interference not checked: {exc}")
-    return PrrrInterference(removed_fraction=removed, wall_s=time.perf_counter() - t0)
+    return PrrrInterference(removed_fraction=removed, overlap_fraction=overlap, wall_s=time.perf_counter() - t0)
