@@ -158,6 +158,46 @@ def rigid_body_modes(basis, centre=(0.0, 0.0, 0.0)) -> np.ndarray:
     return B
 
 
+def assemble_clamped(mesh: TetMesh, *, youngs_modulus: float, poisson_ratio: float, fixed: str | list[str]):
+    """P2 linear-elasticity stiffness of ``mesh`` and the DOFs of its clamped faces.
+
+    Returns (skfem MeshTet, vector P2 basis, K (csr), clamped DOFs D): the faces whose nodes all lie
+    in the ``fixed`` node sets. Quadrature of order 2, exact for straight-sided P2 tetrahedra.
+    """
+    from skfem import Basis, ElementTetP2, ElementVector, MeshTet, asm
+    from skfem.models.elasticity import lame_parameters, linear_elasticity
+
+    m = MeshTet(np.ascontiguousarray(mesh.points), np.ascontiguousarray(mesh.tets))
+    basis = Basis(m, ElementVector(ElementTetP2()), intorder=2)
+    K = asm(linear_elasticity(*lame_parameters(youngs_modulus, poisson_ratio)), basis).tocsr()
+    names = [fixed] if isinstance(fixed, str) else list(fixed)
+    fixed_nodes = np.unique(np.concatenate([mesh.node_sets[n] for n in names]))
+    is_fixed = np.zeros(m.nvertices, dtype=bool)
+    is_fixed[fixed_nodes] = True
+    D = basis.get_dofs(np.nonzero(np.all(is_fixed[m.facets], axis=0))[0]).all()
+    return m, basis, K, D
+
+
+def tip_shear_loads(mesh: TetMesh, area: float):
+    """``loads(basis)`` of a unit total force along y, a uniform traction on the ``tip`` node set's faces."""
+
+    def loads(basis):
+        from skfem import FacetBasis, LinearForm, asm
+
+        m = basis.mesh
+        is_tip = np.zeros(m.nvertices, dtype=bool)
+        is_tip[mesh.node_sets["tip"]] = True
+        fb = FacetBasis(m, basis.elem, facets=np.nonzero(np.all(is_tip[m.facets], axis=0))[0])
+
+        @LinearForm
+        def traction(v, w):
+            return v[1] / area
+
+        return asm(traction, fb)
+
+    return loads
+
+
 def solve_elasticity(mesh: TetMesh, *, youngs_modulus: float, poisson_ratio: float, fixed: str | list[str],
                      loads, tol: float = 1e-7) -> ElasticSolution:
     """Linear elasticity with P2 tetrahedra; ``fixed`` named node sets clamped.
@@ -173,20 +213,11 @@ def solve_elasticity(mesh: TetMesh, *, youngs_modulus: float, poisson_ratio: flo
     """
     import pyamg
     from scipy.sparse.linalg import cg
-    from skfem import Basis, ElementTetP2, ElementVector, MeshTet, asm, condense
-    from skfem.models.elasticity import lame_parameters, linear_elasticity
+    from skfem import condense
 
     t0 = time.perf_counter()
-    m = MeshTet(np.ascontiguousarray(mesh.points), np.ascontiguousarray(mesh.tets))
-    basis = Basis(m, ElementVector(ElementTetP2()), intorder=2)
-    K = asm(linear_elasticity(*lame_parameters(youngs_modulus, poisson_ratio)), basis)
+    _, basis, K, D = assemble_clamped(mesh, youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio, fixed=fixed)
     t1 = time.perf_counter()
-    names = [fixed] if isinstance(fixed, str) else list(fixed)
-    fixed_nodes = np.unique(np.concatenate([mesh.node_sets[n] for n in names]))
-    is_fixed = np.zeros(m.nvertices, dtype=bool)
-    is_fixed[fixed_nodes] = True
-    fixed_facets = np.nonzero(np.all(is_fixed[m.facets], axis=0))[0]
-    D = basis.get_dofs(fixed_facets).all()
     F = np.atleast_2d(np.asarray(loads(basis)).T).T
     A, _, _, I = condense(K, F[:, 0], D=D)
     A = A.tocsr()
@@ -278,18 +309,10 @@ def solve_with_rigid_region(mesh: TetMesh, *, youngs_modulus: float, poisson_rat
     converges monotonically under refinement, unlike a least-squares fit of a loaded node set.
     """
     import scipy.sparse as sp
-    from skfem import Basis, ElementTetP2, ElementVector, MeshTet, asm
-    from skfem.models.elasticity import lame_parameters, linear_elasticity
 
     t0 = time.perf_counter()
-    m = MeshTet(np.ascontiguousarray(mesh.points), np.ascontiguousarray(mesh.tets))
-    basis = Basis(m, ElementVector(ElementTetP2()), intorder=2)
-    K = asm(linear_elasticity(*lame_parameters(youngs_modulus, poisson_ratio)), basis).tocsr()
+    _, basis, K, D = assemble_clamped(mesh, youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio, fixed=fixed)
     t1 = time.perf_counter()
-    fixed_nodes = np.unique(np.concatenate([mesh.node_sets[n] for n in fixed]))
-    is_fixed = np.zeros(m.nvertices, dtype=bool)
-    is_fixed[fixed_nodes] = True
-    D = basis.get_dofs(np.nonzero(np.all(is_fixed[m.facets], axis=0))[0]).all()
     in_region = np.asarray(region(basis), dtype=bool)
     in_region[D] = False
     free = np.ones(basis.N, dtype=bool)
@@ -333,29 +356,10 @@ def cantilever_fea(*, length: float, width: float, thickness: float, youngs_modu
     The deflection is the traction-weighted mean u_y of the tip face (fᵀu / P²), the quantity
     Timoshenko's PL³/3EI + PL/κGA describes.
     """
-    from skfem import FacetBasis, LinearForm, asm
-
     t0 = time.perf_counter()
     mesh = cantilever_mesh(length=length, width=width, thickness=thickness, size=size)
-    area = width * thickness
-
-    def loads(basis):
-        from skfem import MeshTet
-
-        m: MeshTet = basis.mesh
-        is_tip = np.zeros(m.nvertices, dtype=bool)
-        is_tip[mesh.node_sets["tip"]] = True
-        tip = np.nonzero(np.all(is_tip[m.facets], axis=0))[0]
-        fb = FacetBasis(m, basis.elem, facets=tip)
-
-        @LinearForm
-        def traction(v, w):
-            return v[1] / area  # unit total force along y
-
-        return asm(traction, fb)
-
     sol = solve_elasticity(mesh, youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio, fixed="clamp",
-                           loads=loads)
+                           loads=tip_shear_loads(mesh, width * thickness))
     compliance = float(sol.loads[:, 0] @ sol.displacements[:, 0])
     return CantileverResult(compliance=compliance, size=size, n_dofs=sol.n_dofs, iterations=sol.iterations[0],
                             wall_s=time.perf_counter() - t0)

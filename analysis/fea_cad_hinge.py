@@ -271,19 +271,10 @@ def solve_released(split: SplitMesh, *, youngs_modulus: float, poisson_ratio: fl
     ``amg_blocks``: aggregate 3×3 blocks (the s unknowns padded into triples) instead of scalar
     DOFs; scalar aggregation needed fewer CG iterations here (docs/structure_hinge.md).
     """
-    from skfem import Basis, ElementTetP2, ElementVector, MeshTet, asm
-    from skfem.models.elasticity import lame_parameters, linear_elasticity
-
     t0 = time.perf_counter()
-    mesh = split.mesh
-    m = MeshTet(np.ascontiguousarray(mesh.points), np.ascontiguousarray(mesh.tets))
-    basis = Basis(m, ElementVector(ElementTetP2()), intorder=2)
-    K = asm(linear_elasticity(*lame_parameters(youngs_modulus, poisson_ratio)), basis).tocsr()
+    _, basis, K, D = fea.assemble_clamped(split.mesh, youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio,
+                                          fixed=fixed)
     t1 = time.perf_counter()
-    fixed_nodes = np.unique(np.concatenate([mesh.node_sets[n] for n in fixed]))
-    is_fixed = np.zeros(m.nvertices, dtype=bool)
-    is_fixed[fixed_nodes] = True
-    D = basis.get_dofs(np.nonzero(np.all(is_fixed[m.facets], axis=0))[0]).all()
     ties = hinge_ties(basis, split)
     red = reduction(basis, fixed=D, ties=ties, region=region(basis), centre=centre)
     A = reduced_matrix(K, red)

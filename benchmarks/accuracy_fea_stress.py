@@ -10,43 +10,22 @@ times are the median of 5 calls on the machine it runs on.
 from __future__ import annotations
 
 import argparse
-import statistics
 import time
 
 import numpy as np
 
 import analysis  # noqa: F401  (float64 before any jax array exists)
 from analysis import fea, fea_stress
+from timing import median_wall  # benchmarks/timing.py (scripts run from benchmarks/)
 
 L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33
 I_Z, C = T * B**3 / 12.0, B / 2.0
 
 
-def _median_wall(fn, n: int = 5) -> float:
-    ts = []
-    for _ in range(n):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return statistics.median(ts)
-
-
 def cantilever(size: float) -> str:
-    from skfem import FacetBasis, LinearForm, asm
-
     mesh = fea.cantilever_mesh(length=L, width=B, thickness=T, size=size)
 
-    def loads(basis):
-        m = basis.mesh
-        is_tip = np.zeros(m.nvertices, dtype=bool)
-        is_tip[mesh.node_sets["tip"]] = True
-        fb = FacetBasis(m, basis.elem, facets=np.nonzero(np.all(is_tip[m.facets], axis=0))[0])
-
-        @LinearForm
-        def traction(v, w):
-            return v[1] / (B * T)
-
-        return asm(traction, fb)
+    loads = fea.tip_shear_loads(mesh, B * T)  # unit total force along +y
 
     sol = fea.solve_elasticity(mesh, youngs_modulus=E, poisson_ratio=NU, fixed="clamp", loads=loads)
     uv, ue = fea_stress.p2_nodal_values(sol.basis, sol.displacements[:, 0])
@@ -61,8 +40,8 @@ def cantilever(size: float) -> str:
     vx, vy = mesh.points[0][mesh.tets], mesh.points[1][mesh.tets]
     fibre = (np.abs(np.abs(vy) - C) < 1e-9) & (np.abs(vx - 0.5 * L) < 0.1 * L)
     ratio = st.von_mises_vertices[fibre] / ((L - vx[fibre]) * C / I_Z)
-    wall = _median_wall(lambda: fea_stress.element_stress(mesh.points, mesh.tets, uv, ue, youngs_modulus=E,
-                                                          poisson_ratio=NU))
+    wall = median_wall(lambda: fea_stress.element_stress(mesh.points, mesh.tets, uv, ue, youngs_modulus=E,
+                                                          poisson_ratio=NU), 5, warm=False)
     row += [f"{100 * (ratio.min() - 1):+.1f} … {100 * (ratio.max() - 1):+.1f} %",
             f"{st.max_von_mises * 1e-6:.3f} / {st.peak_von_mises * 1e-6:.3f}", f"{wall * 1e3:.0f}"]
     return "| " + " | ".join(row) + " |"
@@ -83,7 +62,7 @@ def prrr(level: int) -> str:
                                          youngs_modulus=s.youngs_modulus, poisson_ratio=s.poisson_ratio)
 
     st = step()
-    wall = _median_wall(step)
+    wall = median_wall(step, 5, warm=False)
     where = [n for n, v in r.mesh.node_sets.items() if np.isin(r.mesh.tets[:, st.max_element], v).all()]
     xm = np.round(st.max_location * 1e3, 1)
     return (f"| {level} | {r.size * 1e3:.2f} | {r.mesh.tets.shape[1]} | {r.n_dofs} | {t_fea:.0f} | "

@@ -11,7 +11,6 @@ Times: median of 7 warm calls on the machine it runs on.
 
 from __future__ import annotations
 
-import statistics
 import time
 from pathlib import Path
 
@@ -21,6 +20,7 @@ from analysis import interference as itf
 from analysis import interference_fast as F
 from analysis import prrr_workspace as W
 from design import cad_prrr, io
+from timing import median_wall  # benchmarks/timing.py (scripts run from benchmarks/)
 
 OLD_OPTIMUM = ["geometry.beta_deg=59.0563", "geometry.d2_mm=75.8151", "geometry.d3_mm=75.8225",
                "geometry.d4_mm=75.8223", "geometry.stroke_mm=184.838", "geometry.r_p_mm=99.5627"]
@@ -50,16 +50,6 @@ def designs() -> list:
     return out
 
 
-def wall(fn, n: int = 7) -> float:
-    fn()
-    ts = []
-    for _ in range(n):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return statistics.median(ts)
-
-
 def main() -> None:
     print("| design | poses | colliding (manifold3d / fast) | same verdict | removed (manifold3d) | "
           "removed (fast) | fast only | manifold3d only | fast [ms] | manifold3d [s] |")
@@ -70,7 +60,7 @@ def main() -> None:
         ref = ~np.array([r.ok for r in itf.check_poses(d, pts, branch=W.ELBOW_BRANCH)])
         t_ref = time.perf_counter() - t0
         fast = F.check_points(F.prepare(d), pts, branch=W.ELBOW_BRANCH).collides
-        t_fast = wall(lambda: F.removed_fraction(d, **W.INTERFERENCE_SAMPLING))
+        t_fast = median_wall(lambda: F.removed_fraction(d, **W.INTERFERENCE_SAMPLING))
         print(f"| {name} | {len(pts)} | {ref.sum()} / {fast.sum()} | {(ref == fast).mean():.3f} | "
               f"{w[ref].sum() / w.sum():.3f} | {w[fast].sum() / w.sum():.3f} | {(fast & ~ref).sum()} | "
               f"{(ref & ~fast).sum()} | {t_fast * 1e3:.1f} | {t_ref:.2f} |")

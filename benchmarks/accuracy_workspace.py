@@ -7,8 +7,6 @@ median of warm calls (jit compiled beforehand) on the machine it runs on.
 from __future__ import annotations
 
 import functools
-import statistics
-import time
 
 import numpy as np
 
@@ -16,16 +14,7 @@ from analysis import master_workspace as M
 from analysis import prrr_workspace as W
 from analysis.fidelity import Fidelity
 from design import io
-
-
-def wall(fn, n: int = 7) -> float:
-    fn()
-    ts = []
-    for _ in range(n):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return statistics.median(ts)
+from timing import median_wall  # benchmarks/timing.py (scripts run from benchmarks/)
 
 
 def prrr_tables() -> list[str]:
@@ -47,11 +36,11 @@ def prrr_tables() -> list[str]:
     for f in Fidelity:
         s = W.SAMPLING[f]
         r = W.evaluate(d, fidelity=f, interference=False)
-        t = wall(functools.partial(W.evaluate, d, fidelity=f, interference=False))
+        t = median_wall(functools.partial(W.evaluate, d, fidelity=f, interference=False))
         out.append(f"| {f} | {s.n_phi} | {s.n_r} | {abs(r.volume - v_ref) / v_ref:.2e} | "
                    f"{abs(r.cylinder_diameter - cyl_ref) * 1e3:.1e} | {abs(r.height_at_required - h_ref) * 1e3:.1e} | "
                    f"{abs(r.footprint_diameter - f_ref) / f_ref:.2e} | {t * 1e3:.2f} |")
-    t_fine = wall(functools.partial(W.evaluate, d, fidelity=Fidelity.FINE), n=1)
+    t_fine = median_wall(functools.partial(W.evaluate, d, fidelity=Fidelity.FINE), n=1)
     out += ["", f"fine with interference (216 poses, manifold3d) and the Jacobian check: {t_fine:.2f} s.", ""]
     out += ["Volume convergence in n_φ (midpoint rule in angle, exact radial integral):", "",
             "| n_φ | rel. error | observed order |", "|---|---|---|"]
@@ -80,7 +69,7 @@ def master_tables() -> list[str]:
     for f in Fidelity:
         s = M.SAMPLING[f]
         r = M.evaluate(d, fidelity=f)
-        t = wall(functools.partial(M.evaluate, d, fidelity=f), n=5)
+        t = median_wall(functools.partial(M.evaluate, d, fidelity=f), n=5)
         out.append(f"| {f} | {s.n_gauss}² | {s.n_box}³ | {abs(r.volume - float(ref['volume'])) / float(ref['volume']):.2e} | "
                    f"{abs(r.global_conditioning_index - float(ref['gci'])):.2e} | {abs(r.coverage - cov_ref):.2e} | "
                    f"{r.condition_max:.4g} | {t * 1e3:.2f} |")

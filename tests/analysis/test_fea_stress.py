@@ -21,21 +21,9 @@ SIZE = T / fea.REFINEMENT_RATIO  # 7.1 mm: ~900 tetrahedra, 6·10³ DOFs, ~2 s
 
 @pytest.fixture(scope="module")
 def cantilever():
-    from skfem import FacetBasis, LinearForm, asm
-
     mesh = fea.cantilever_mesh(length=L, width=B, thickness=T, size=SIZE)
 
-    def loads(basis):
-        m = basis.mesh
-        is_tip = np.zeros(m.nvertices, dtype=bool)
-        is_tip[mesh.node_sets["tip"]] = True
-        fb = FacetBasis(m, basis.elem, facets=np.nonzero(np.all(is_tip[m.facets], axis=0))[0])
-
-        @LinearForm
-        def traction(v, w):
-            return v[1] / (B * T)  # uniform shear, unit total force along +y
-
-        return asm(traction, fb)
+    loads = fea.tip_shear_loads(mesh, B * T)  # unit total force along +y
 
     sol = fea.solve_elasticity(mesh, youngs_modulus=E, poisson_ratio=NU, fixed="clamp", loads=loads)
     uv, ue = fea_stress.p2_nodal_values(sol.basis, sol.displacements[:, 0])
