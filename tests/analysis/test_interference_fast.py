@@ -139,9 +139,62 @@ def test_interference_evaluator_reports_the_fast_fraction_and_workspace_stays_ch
         F.removed_fraction(paper, **W.INTERFERENCE_SAMPLING), rel=1e-12)
     # prrr-paper: 0.46848, the manifold3d value at fine (docs/workspace.md), the problem's bound
     assert r.removed_fraction == pytest.approx(0.46848, abs=5e-5)
+    assert r.metrics()["interference_overlap_fraction"] == pytest.approx(
+        F.interference_fractions(paper, **W.INTERFERENCE_SAMPLING)[1], rel=1e-12)
     assert "workspace_interference_removed_fraction" not in W.evaluate(paper, fidelity="draft").metrics()
     assert evaluate_all(paper, fidelity="draft", only=("interference",)).statuses["interference"] == Status.OK
     # links too short to reach: an empty workspace loses nothing (a finite 0, not an error)
     tiny = io.apply_overrides(paper, ["geometry.d3_mm=5", "geometry.d4_mm=5"])
     empty = prrr_interference.evaluate(tiny)
-    assert empty.status == Status.OK and empty.removed_fraction == 0.0
+    assert empty.status == Status.OK and empty.removed_fraction == 0.0 and empty.overlap_fraction == 0.0
+
+
+def test_overlap_share_is_the_clipped_depth_ramp():
+    """Closed form: clip(d / OVERLAP_SCALE, 0, 1) of the deepest pair at each pose."""
+    depth = np.array([[0.0, 0.0], [0.002, 0.0003], [0.0, 0.0005], [0.0001, 0.00005]])
+    res = F.FastResult(points=np.zeros((4, 3)), reachable=np.ones(4, bool), collides=depth.max(1) > F.DEPTH_TOL,
+                       depth=depth, part_pairs=(("a", "b"), ("c", "d")))
+    np.testing.assert_allclose(F.overlap_share(res, scale=0.001), [0.0, 1.0, 0.5, 0.1], rtol=1e-12)
+
+
+def test_overlap_fraction_equals_removed_fraction_when_depths_are_saturated(paper):
+    """prrr-paper: every colliding pose is deeper than OVERLAP_SCALE (measured ≥ 1.06 mm) and
+    the others are 0, so both fractions are the same sum of weights (0.46848, the problem's
+    bound). The precondition is checked here, not assumed."""
+    pts, w = W.workspace_sample_weights(paper, **W.INTERFERENCE_SAMPLING)
+    dmax = F.check_points(F.prepare(paper), pts, branch=W.ELBOW_BRANCH).depth.max(axis=1)
+    assert np.all((dmax == 0.0) | (dmax >= F.OVERLAP_SCALE)) and (dmax > 0).any() and (dmax == 0).any()
+    removed, overlap = F.interference_fractions(paper, **W.INTERFERENCE_SAMPLING)
+    assert overlap == pytest.approx(removed, rel=1e-12)
+    assert removed == F.removed_fraction(paper, **W.INTERFERENCE_SAMPLING)
+
+
+# the prrr-workspace optimum of the step-constrained run (commit 12e33d8, docs/optimisation.md)
+STEP_OPTIMUM = ["geometry.beta_deg=57.035581000819", "geometry.d2_mm=77.9848002283854",
+                "geometry.d3_mm=73.9316796078444", "geometry.d4_mm=79.3338793692093",
+                "geometry.stroke_mm=180.260544633171", "geometry.r_p_mm=101.546119285948"]
+
+
+def test_overlap_fraction_is_continuous_across_a_jump_of_the_removed_fraction(paper):
+    """β between 56.175° and 56.195° (at that optimum) crosses a jump of the removed fraction
+    (benchmarks/accuracy_interference_overlap.py: 0.0191 at β ≈ 56.1847°). Bisected to ~1e-8°,
+    the step still jumps by ≥ 0.01 while the companion changes by < 1e-9 (measured 4e-16)."""
+    base = io.apply_overrides(paper, STEP_OPTIMUM)
+
+    def fr(beta):
+        return F.interference_fractions(io.apply_overrides(base, [f"geometry.beta_deg={beta!r}"]),
+                                        **W.INTERFERENCE_SAMPLING)
+
+    a, b = 56.175, 56.195
+    fa, fb = fr(a), fr(b)
+    assert abs(fb[0] - fa[0]) > 0.01  # the bracket holds a jump
+    for _ in range(21):
+        m = 0.5 * (a + b)
+        fm = fr(m)
+        if abs(fm[0] - fa[0]) >= abs(fb[0] - fm[0]):
+            b, fb = m, fm
+        else:
+            a, fa = m, fm
+    assert b - a < 1e-7
+    assert abs(fb[0] - fa[0]) >= 0.01
+    assert abs(fb[1] - fa[1]) < 1e-9
