@@ -1,7 +1,7 @@
 """Link interference of the 3-PRRR over its workspace, fast enough for the optimiser.
 
 A separate evaluator (not a part of ``workspace``) so that it runs only where it is asked for: a
-problem that constrains ``interference_removed_fraction`` pulls it in, a plain draft workspace
+problem that constrains ``interference_overlap_fraction`` (or the removed fraction) pulls it in, a plain draft workspace
 evaluation does not pay for it (issue 4's ≤ 20 ms draft budget).
 
 Metric ``interference_removed_fraction``: the share of the sampled workspace volume whose poses
