@@ -566,11 +566,15 @@ def plot_structure(design, result, out_dir: Path) -> list[Path]:
             line = pv.lines_from_points(pts + def_scale * upts)
             pl.add_mesh(line, color=color, line_width=4)
     pl.add_text(f"frame, 1 N along x at Δz = {h * 1e3:g} mm (×{scale:.3g})", font_size=10)
-    target = out_dir / "structure_frame.png"
-    with atomic_path(target) as tmp:
-        pl.screenshot(str(tmp))
-    pl.close()
-    written.append(target)
+
+    def save(plotter, name):
+        target = out_dir / name
+        with atomic_path(target) as tmp:
+            plotter.screenshot(str(tmp))
+        plotter.close()
+        written.append(target)
+
+    save(pl, "structure_frame.png")
     fea_res = getattr(result, "fea", None)
     if fea_res is not None and fea_res.mesh is not None and fea_res.displacement is not None:
         mesh = fea_res.mesh
@@ -583,18 +587,13 @@ def plot_structure(design, result, out_dir: Path) -> list[Path]:
         pl = pv.Plotter(off_screen=True, window_size=(900, 700))
         pl.add_mesh(warped, scalars="displacement_um_per_N", show_edges=False)
         pl.add_text(f"CAD FEA (bonded pins), 1 N along x at Δz = {h * 1e3:g} mm (×{sc:.3g})", font_size=10)
-        target = out_dir / "structure_fea.png"
-        with atomic_path(target) as tmp:
-            pl.screenshot(str(tmp))
-        pl.close()
-        written.append(target)
-        u_edges = getattr(fea_res, "displacement_edges", None)
-        if u_edges is not None:  # von Mises from the P2 field (analysis.fea_stress), per element
-            from analysis.fea_stress import element_stress
+        save(pl, "structure_fea.png")
+        st = getattr(result, "fea_stress", None)  # computed by the evaluator at fine fidelity
+        if st is None:
+            from analysis.structural_stiffness import fea_element_stress
 
-            st = element_stress(mesh.points, mesh.tets, fea_res.displacement, u_edges,
-                                youngs_modulus=design.structure.youngs_modulus,
-                                poisson_ratio=design.structure.poisson_ratio)
+            st = fea_element_stress(design, fea_res)
+        if st is not None:  # von Mises from the P2 field (analysis.fea_stress), per element
             grid.cell_data["von_mises_MPa_per_N"] = st.von_mises * 1e-6
             warped = grid.warp_by_vector("u", factor=sc)
             pl = pv.Plotter(off_screen=True, window_size=(900, 700))
@@ -609,9 +608,5 @@ def plot_structure(design, result, out_dir: Path) -> list[Path]:
             pl.add_text(f"CAD FEA von Mises stress, 1 N along x at Δz = {h * 1e3:g} mm (×{sc:.3g})\n"
                         f"max {st.max_von_mises * 1e-6:.3g} MPa/N (element centroid) at "
                         f"({xm[0]:.1f}, {xm[1]:.1f}, {xm[2]:.1f}) mm", font_size=10)
-            target = out_dir / "structure_fea_stress.png"
-            with atomic_path(target) as tmp:
-                pl.screenshot(str(tmp))
-            pl.close()
-            written.append(target)
+            save(pl, "structure_fea_stress.png")
     return written

@@ -73,7 +73,7 @@ import jax.scipy.linalg
 import numpy as np
 
 import analysis  # noqa: F401  (float64)
-from analysis.prrr_kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames, params_of
+from analysis.prrr_kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames
 
 #: Above this 1-norm condition number (Jacobi-scaled K) a result is reported as ill-conditioned.
 COND_LIMIT = 1e12
@@ -673,8 +673,8 @@ _PLOT_ONLY = ("nodes", "node_maps", "recovery")
 
 
 @functools.lru_cache(maxsize=None)
-def _compiled(joints: Joints, offsets: Offsets, sea: bool, batched: bool, full: bool, pins: bool = False,
-              pin_model: PinModel = PinModel.NECK):
+def _compiled(joints: Joints, offsets: Offsets, sea: bool, batched: bool, full: bool, pins: bool,
+              pin_model: PinModel):
     options = FrameOptions(joints=joints, offsets=offsets, sea=sea, pins=pins, pin_model=pin_model)
 
     def fn(fp, p, h, branch, zones_on):

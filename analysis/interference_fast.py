@@ -46,7 +46,7 @@ import numpy as np
 
 from design import cad_prrr
 from design.parts import Kind, Role
-from design.prrr import GAMMAS, PrrrDesign
+from design.prrr import PrrrDesign
 
 #: a primitive pair collides when its smallest overlap over the candidate axes exceeds this [m]:
 #: above the chord error of the reference's 32-segment circles at the 12 mm bosses,
@@ -158,35 +158,15 @@ def prepare(design: PrrrDesign) -> FastModel:
 def part_frames_batch(design: PrrrDesign, points, *, branch: int = cad_prrr.DEFAULT_BRANCH
                       ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], np.ndarray]:
     """World rotation (n, 3, 3) and origin (n, 3) [m] of every part at ``points`` (n, 3) [m]
-    (:func:`design.cad_prrr.part_frames`, vectorised), and whether each point is reachable."""
+    (:func:`design.cad_prrr.part_frames_batch` after the numpy IK), and whether each point is reachable."""
     from analysis.prrr_kinematics import PrrrParams, inverse_kinematics
 
     g = design.geometry
     p = np.atleast_2d(np.asarray(points, dtype=float))
-    n = len(p)
     prm = PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
     ik = inverse_kinematics(prm, p, xp=np)
     theta = np.asarray(ik.theta)[:, branch]  # (n, 3 legs, 3)
-    ez = np.array([0.0, 0.0, 1.0])
-    eye = np.broadcast_to(np.eye(3), (n, 3, 3))
-    zero = np.zeros((n, 3))
-    out = {"base": (eye, zero)}
-    for k, gamma in enumerate(GAMMAS):
-        i = k + 1
-        u, t, v, w = cad_prrr.leg_vectors(g.beta, gamma)
-        D = np.asarray(ik.sliders)[:, k]
-        th1, th2 = theta[:, k, 0], theta[:, k, 1]
-        e1 = np.cos(th1)[:, None] * v + np.sin(th1)[:, None] * t
-        e12 = np.cos(th1 + th2)[:, None] * v + np.sin(th1 + th2)[:, None] * t
-        A = D[:, None] * ez + g.d1 * u + g.d2 * t
-        B = A + g.d3 * e1
-        out[f"rail_{i}"] = (eye, zero)
-        out[f"carriage_{i}"] = (np.broadcast_to(np.stack([u, t, ez], axis=1), (n, 3, 3)), D[:, None] * ez)
-        # cad_prrr.frame(x, w): columns x, w × x, w (e1, e12 ⟂ w by construction)
-        for name, x, org in ((f"link1_{i}", e1, A), (f"link2_{i}", e12, B)):
-            out[name] = (np.stack([x, np.cross(w, x), np.broadcast_to(w, x.shape)], axis=2), org)
-    out["platform"] = (eye, p)
-    return out, np.asarray(ik.reachable)
+    return cad_prrr.part_frames_batch(design, np.asarray(ik.sliders), theta, p), np.asarray(ik.reachable)
 
 
 def _support(kind, R, half, n):

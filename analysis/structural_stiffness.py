@@ -11,7 +11,7 @@ reported next to the frame model with bonded joints at the CAD's elbow branch, t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -39,8 +39,7 @@ class StructuralStiffness:
     options: fm.FrameOptions
     fea: Any = None  # analysis.fea_cad.CadFeaResult at fine fidelity
     stiffness_load_frame_bonded: np.ndarray | None = None  # (3,) [N/m] frame with bonded joints (FEA's model)
-    fea_max_von_mises: float | None = None  # [Pa per N] largest element von Mises stress, 1 N along x
-    fea_max_von_mises_location: np.ndarray | None = None  # (3,) [m]
+    fea_stress: Any = None  # analysis.fea_stress.ElementStress of the FEA's 1 N x load case (fine)
     status: Status = Status.OK
     message: str = ""
 
@@ -59,9 +58,9 @@ class StructuralStiffness:
                                                                  for x in self.stiffness_load_frame_bonded]
             out["structural_fea_dofs"] = int(self.fea.n_dofs)
             out["structural_fea_wall_s"] = float(self.fea.wall_s)
-        if self.fea_max_von_mises is not None:
-            out["structural_fea_max_von_mises_MPa_per_N"] = float(self.fea_max_von_mises) * 1e-6
-            out["structural_fea_max_von_mises_at_mm"] = [float(x) * 1e3 for x in self.fea_max_von_mises_location]
+        if self.fea_stress is not None:
+            out["structural_fea_max_von_mises_MPa_per_N"] = float(self.fea_stress.max_von_mises) * 1e-6
+            out["structural_fea_max_von_mises_at_mm"] = [float(x) * 1e3 for x in self.fea_stress.max_location]
         return out
 
 
@@ -126,22 +125,15 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> S
     try:
         fea_result = fea_cad.cad_fea(design, level=fea_cad.DEFAULT_LEVEL, keep_fields=True)
     except Exception as exc:  # CAD/gmsh failures become a status, the frame metrics stay
-        from dataclasses import replace
-
         return replace(result, status=Status.FAILED, message=f"CAD FEA failed: {exc}")
     status, message = result.status, result.message
     if fea_result.status != Status.OK:
         status, message = fea_result.status, f"FEA: {fea_result.message}"
-    from dataclasses import replace
-
-    stress = _max_stress(design, fea_result)
     return replace(result, fea=fea_result, stiffness_load_frame_bonded=bonded.stiffness_load,
-                   fea_max_von_mises=None if stress is None else stress.max_von_mises,
-                   fea_max_von_mises_location=None if stress is None else stress.max_location,
-                   status=status, message=message)
+                   fea_stress=fea_element_stress(design, fea_result), status=status, message=message)
 
 
-def _max_stress(design: PrrrDesign, fea_result):
+def fea_element_stress(design: PrrrDesign, fea_result):
     """Element von Mises stress of the FEA's 1 N x load case (analysis.fea_stress), or None without the P2 field."""
     u_edges = getattr(fea_result, "displacement_edges", None)
     if fea_result.mesh is None or fea_result.displacement is None or u_edges is None:

@@ -303,21 +303,34 @@ def solve_pose(design: PrrrDesign, p=(0.0, 0.0, 0.0), *, branch: int = DEFAULT_B
 
 def part_frames(design: PrrrDesign, pose: PrrrPose) -> dict[str, np.ndarray]:
     """4×4 world transform of every part frame at ``pose`` [m]."""
+    posed = part_frames_batch(design, np.asarray(pose.sliders, dtype=float)[None],
+                              np.asarray(pose.theta, dtype=float)[None], np.asarray(pose.p, dtype=float)[None])
+    return {name: transform(R[0], o[0]) for name, (R, o) in posed.items()}
+
+
+def part_frames_batch(design: PrrrDesign, sliders: np.ndarray, theta: np.ndarray, p: np.ndarray
+                      ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """World rotation (n, 3, 3) and origin (n, 3) [m] of every part for n poses: ``sliders``
+    (n, 3) [m], ``theta`` (n, 3 legs, ≥ 2) [rad], end-effector ``p`` (n, 3) [m]. Link frames are
+    ``frame(e, w)``: columns e, w × e, w (e ⟂ w by construction)."""
     g_ = design.geometry
-    out = {"base": np.eye(4)}
-    for i, gamma in zip(LEGS, GAMMAS):
+    n = len(p)
+    eye = np.broadcast_to(np.eye(3), (n, 3, 3))
+    zero = np.zeros((n, 3))
+    out = {"base": (eye, zero)}
+    for k, (i, gamma) in enumerate(zip(LEGS, GAMMAS)):
         u, t, v, w = leg_vectors(g_.beta, gamma)
-        D = float(pose.sliders[i - 1])
-        th1, th2 = pose.theta[i - 1, 0], pose.theta[i - 1, 1]
-        e1 = math.cos(th1) * v + math.sin(th1) * t
-        e12 = math.cos(th1 + th2) * v + math.sin(th1 + th2) * t
-        A = D * EZ + g_.d1 * u + g_.d2 * t
+        D = sliders[:, k]
+        th1, th2 = theta[:, k, 0], theta[:, k, 1]
+        e1 = np.cos(th1)[:, None] * v + np.sin(th1)[:, None] * t
+        e12 = np.cos(th1 + th2)[:, None] * v + np.sin(th1 + th2)[:, None] * t
+        A = D[:, None] * EZ + g_.d1 * u + g_.d2 * t
         B = A + g_.d3 * e1
-        out[f"rail_{i}"] = np.eye(4)
-        out[f"carriage_{i}"] = transform(np.stack([u, t, EZ], axis=1), D * EZ)
-        out[f"link1_{i}"] = transform(frame(e1, w), A)
-        out[f"link2_{i}"] = transform(frame(e12, w), B)
-    out["platform"] = transform(np.eye(3), pose.p)
+        out[f"rail_{i}"] = (eye, zero)
+        out[f"carriage_{i}"] = (np.broadcast_to(np.stack([u, t, EZ], axis=1), (n, 3, 3)), D[:, None] * EZ)
+        for name, x, org in ((f"link1_{i}", e1, A), (f"link2_{i}", e12, B)):
+            out[name] = (np.stack([x, np.cross(w, x), np.broadcast_to(w, x.shape)], axis=2), org)
+    out["platform"] = (eye, np.asarray(p, dtype=float))
     return out
 
 

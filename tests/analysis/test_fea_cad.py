@@ -77,9 +77,9 @@ def test_frame_matches_cad_fea_within_15_percent():
     assert r.stiffness_load[2] > 1.5 * r.stiffness_load[0]
     # the stress metric of `evaluate --fidelity fine`: the hot spot of a 1 N lateral load is a pin
     # (the 8 mm neck across a clearance gap; docs/structure_stress.md: R3 pin neck at level 2)
-    from analysis.structural_stiffness import _max_stress
+    from analysis.structural_stiffness import fea_element_stress
 
-    stress = _max_stress(d, r)
+    stress = fea_element_stress(d, r)
     assert np.isfinite(stress.max_von_mises) and stress.max_von_mises > 0
     corners = set(r.mesh.tets[:, stress.max_element].tolist())
     pins = [name for name, nodes in r.mesh.node_sets.items() if name.startswith("pin_")]
