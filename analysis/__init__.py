@@ -1,20 +1,6 @@
-"""Evaluators, firmware controller, plants and scenes of hapticopt.
+"""Evaluators, firmware controllers, plants and scenes of hapticopt.
 
-jax runs in float64 here: it must be switched on before any jax array exists, so it is done
-on import of this package (every numeric module lives under it).
-
-jit compilation dominates a short CLI call (pitfalls: jax), so compiled code is kept on disk:
-directory ``$HAPTICOPT_JAX_CACHE`` or ``~/.cache/hapticopt/jax``; an empty value switches the
-cache off.
+Shared physics sits here (``fidelity``, ``status``, ``interference``, ``fem/``, ``loop/``), one
+folder per device above it (``prrr/``, ``master/``), and ``registry`` / ``verify`` on top; see
+docs/architecture.md for the import rule.
 """
-
-import os
-
-import jax
-
-jax.config.update("jax_enable_x64", True)
-
-_cache = os.environ.get("HAPTICOPT_JAX_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "hapticopt", "jax"))
-if _cache and jax.config.jax_compilation_cache_dir is None:
-    jax.config.update("jax_compilation_cache_dir", _cache)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)

@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from analysis.status import Status
-from design import cad_units
+from hapticopt.analysis.status import Status
+from hapticopt.design import cad_units
 
 #: overlaps below this volume are tessellation noise, not interference [mm³]
 NOISE_MM3 = 1.0
@@ -94,12 +94,12 @@ class InterferenceModel:
 
 def prepare(design: Any) -> InterferenceModel:
     """Build the interference meshes of a design once (from its part tables)."""
-    from design import parts
+    from hapticopt.design import parts
 
     if design.device == "prrr":
-        from design import cad_prrr as cad
+        from hapticopt.design.prrr import cad
     else:
-        from design import cad_master as cad
+        from hapticopt.design.master import cad
     specs = cad.part_specs(design)
     cache: dict[int, Any] = {}
     meshes = {}
@@ -162,18 +162,18 @@ def _result(p: np.ndarray, collisions: tuple[Collision, ...]) -> InterferenceRes
 def _frames_at(model: InterferenceModel, p, branch: int | None) -> dict[str, np.ndarray]:
     design = model.design
     if design.device == "prrr":
-        from design import cad_prrr
+        from hapticopt.design.prrr import cad as cad_prrr
 
         pose = cad_prrr.solve_pose(design, p, branch=cad_prrr.DEFAULT_BRANCH if branch is None else branch)
         return cad_prrr.part_frames(design, pose)
-    from design import cad_master
+    from hapticopt.design.master import cad as cad_master
 
     return cad_master.part_frames(design, cad_master.solve_pose(design, p))
 
 
 def check_pose(model_or_design: Any, p, *, branch: int | None = None) -> InterferenceResult:
     """Interference at end-effector position ``p`` (3,) [m] (IK branch of the CAD by default)."""
-    from design.errors import InvalidInput
+    from hapticopt.design.errors import InvalidInput
 
     model = model_or_design if isinstance(model_or_design, InterferenceModel) else prepare(model_or_design)
     p = np.asarray(p, dtype=float)
@@ -206,10 +206,10 @@ def joint_limits(model_or_design: Any, p=(0.0, 0.0, 0.0), *, step_deg: float = 2
     model = model_or_design if isinstance(model_or_design, InterferenceModel) else prepare(model_or_design)
     design = model.design
     if design.device != "prrr":
-        from design import cad_master
+        from hapticopt.design.master import cad as cad_master
 
         return cad_master.joint_limits(model, step_deg=step_deg)
-    from design import cad_prrr
+    from hapticopt.design.prrr import cad as cad_prrr
 
     pose = cad_prrr.solve_pose(design, p)
     frames = cad_prrr.part_frames(design, pose)

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from analysis.fidelity import Fidelity
-from analysis.status import Status
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -31,16 +31,16 @@ class EvaluatorEntry:
 #: ``hapticopt evaluate`` and the optimiser.
 EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
     "prrr": (
-        EvaluatorEntry(name="statics", module="analysis.prrr_statics"),
-        EvaluatorEntry(name="structural_stiffness", module="analysis.structural_stiffness"),
-        EvaluatorEntry(name="workspace", module="analysis.prrr_workspace"),
-        EvaluatorEntry(name="interference", module="analysis.prrr_interference"),
-        EvaluatorEntry(name="stability", module="analysis.stability"),
+        EvaluatorEntry(name="statics", module="hapticopt.analysis.prrr.statics"),
+        EvaluatorEntry(name="structural_stiffness", module="hapticopt.analysis.prrr.structure"),
+        EvaluatorEntry(name="workspace", module="hapticopt.analysis.prrr.workspace"),
+        EvaluatorEntry(name="interference", module="hapticopt.analysis.prrr.interference"),
+        EvaluatorEntry(name="stability", module="hapticopt.analysis.prrr.stability"),
     ),
     "master": (
-        EvaluatorEntry(name="workspace", module="analysis.master_workspace"),
-        EvaluatorEntry(name="balance", module="analysis.master_balance"),
-        EvaluatorEntry(name="transparency", module="analysis.master_transparency"),
+        EvaluatorEntry(name="workspace", module="hapticopt.analysis.master.workspace"),
+        EvaluatorEntry(name="balance", module="hapticopt.analysis.master.balance"),
+        EvaluatorEntry(name="transparency", module="hapticopt.analysis.master.transparency"),
     ),
 }
 

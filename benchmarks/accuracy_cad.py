@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import time
 
-import analysis  # noqa: F401
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np
 
-from design import io
-from design import mass_properties as mp
+from hapticopt.design import io
+from hapticopt.design import mass_properties as mp
 
 DESIGNS = {
     "prrr-paper": ("prrr-paper", []),

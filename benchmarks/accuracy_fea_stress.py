@@ -14,8 +14,8 @@ import time
 
 import numpy as np
 
-import analysis  # noqa: F401  (float64 before any jax array exists)
-from analysis import fea, fea_stress
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.fem import solid as fea, stress as fea_stress
 from timing import median_wall  # benchmarks/timing.py (scripts run from benchmarks/)
 
 L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33
@@ -48,8 +48,8 @@ def cantilever(size: float) -> str:
 
 
 def prrr(level: int) -> str:
-    from analysis import fea_cad
-    from design import io
+    from hapticopt.analysis.prrr import fea_cad
+    from hapticopt.design import io
 
     d = io.load_preset("prrr-paper")
     t = time.perf_counter()

@@ -17,8 +17,8 @@ import numpy as np
 
 
 def frame_rows(d) -> list[tuple[str, np.ndarray]]:
-    from analysis import frame_model as fm
-    from design.cad_prrr import DEFAULT_BRANCH
+    from hapticopt.analysis.prrr import frame_model as fm
+    from hapticopt.design.prrr.cad import DEFAULT_BRANCH
 
     fp = fm.frame_params_of(d)
     rows = []
@@ -34,8 +34,9 @@ def frame_rows(d) -> list[tuple[str, np.ndarray]]:
 
 
 def main() -> None:
-    from analysis import fea, fea_cad
-    from design import io
+    from hapticopt.analysis.fem import solid as fea
+    from hapticopt.analysis.prrr import fea_cad
+    from hapticopt.design import io
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--levels", type=int, nargs="+", default=[0, 1, 2])

@@ -16,10 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis import interference as itf
-from analysis import interference_fast as F
-from analysis import prrr_workspace as W
-from design import cad_prrr, io
+from hapticopt.analysis import interference as itf
+from hapticopt.analysis.prrr import interference_fast as F
+from hapticopt.analysis.prrr import workspace as W
+from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design import io
 from timing import median_wall  # benchmarks/timing.py (scripts run from benchmarks/)
 
 OLD_OPTIMUM = ["geometry.beta_deg=59.0563", "geometry.d2_mm=75.8151", "geometry.d3_mm=75.8225",

@@ -16,9 +16,9 @@ import argparse
 
 import numpy as np
 
-from analysis import interference_fast as F
-from analysis import prrr_workspace as W
-from design import io
+from hapticopt.analysis.prrr import interference_fast as F
+from hapticopt.analysis.prrr import workspace as W
+from hapticopt.design import io
 
 # the prrr-workspace optimum with the step constraint (cad_out/prrr-workspace/optimum.toml of the
 # run documented in docs/optimisation.md, commit 12e33d8)

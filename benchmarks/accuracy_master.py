@@ -9,15 +9,15 @@ from __future__ import annotations
 import dataclasses
 import time
 
-import analysis  # noqa: F401
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np
 
-from analysis import master_balance as mb
-from analysis import master_dynamics as md
-from analysis import master_sweep as ms
-from analysis import master_transparency as mt
-from analysis.fidelity import Fidelity
-from design.io import load_preset
+from hapticopt.analysis.master import balance as mb
+from hapticopt.analysis.master import dynamics as md
+from hapticopt.analysis.master import sweep as ms
+from hapticopt.analysis.master import transparency as mt
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design.io import load_preset
 
 
 def timed(f, n: int) -> tuple[float, float, object]:

@@ -10,9 +10,16 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import analysis  # noqa: F401
-from analysis.mujoco_prrr import Integrator, LinkMasses, ModelOptions, Platform, SolverSettings, stress_probe
-from design import io
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.prrr.mujoco_model import (
+    Integrator,
+    LinkMasses,
+    ModelOptions,
+    Platform,
+    SolverSettings,
+    stress_probe,
+)
+from hapticopt.design import io
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "analysis"))
 from test_mujoco_prrr import oscillator_energy  # noqa: E402

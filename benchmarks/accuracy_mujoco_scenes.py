@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import os
 
-import analysis  # noqa: F401
-from analysis import closed_loop
-from analysis.fidelity import Fidelity
-from analysis.scene import Backend, load_scene, scene_names
-from design import io
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.prrr import closed_loop
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.loop.scene import Backend, load_scene, scene_names
+from hapticopt.design import io
 
 
 def main() -> None:

@@ -18,10 +18,11 @@ import time
 
 import jax.numpy as jnp
 
-from analysis import fea, fea_cad
-from analysis import frame_model as fm
-from analysis.structural_stiffness import structural_stiffness
-from design import io
+from hapticopt.analysis.fem import solid as fea
+from hapticopt.analysis.prrr import fea_cad
+from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.analysis.prrr.structure import structural_stiffness
+from hapticopt.design import io
 
 L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33
 
@@ -67,7 +68,7 @@ def prrr(levels: list[int]) -> None:
 
 
 def cad(levels: list[int], rigid: str = "stem") -> None:
-    """CAD solid with bonded pins (analysis.fea_cad): levels, Richardson per axis, frame comparison."""
+    """CAD solid with bonded pins (hapticopt.analysis.prrr.fea_cad): levels, Richardson per axis, frame comparison."""
     import numpy as np
 
 

@@ -10,10 +10,10 @@ import functools
 
 import numpy as np
 
-from analysis import master_workspace as M
-from analysis import prrr_workspace as W
-from analysis.fidelity import Fidelity
-from design import io
+from hapticopt.analysis.master import workspace as M
+from hapticopt.analysis.prrr import workspace as W
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design import io
 from timing import median_wall  # benchmarks/timing.py (scripts run from benchmarks/)
 
 

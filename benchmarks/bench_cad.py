@@ -1,12 +1,12 @@
 """CAD performance targets (issue 3): full export of prrr-paper ≤ 15 s, interference at one
 pose ≤ 50 ms, analytic mass properties ≤ 1 ms per design. Run with `make bench`."""
 
-import analysis  # noqa: F401  (float64 before any jax array exists)
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np
 import pytest
 
-from analysis import interference as itf
-from design import io, mass_properties as mp
+from hapticopt.analysis import interference as itf
+from hapticopt.design import io, mass_properties as mp
 
 
 @pytest.fixture(scope="module")
@@ -15,7 +15,7 @@ def paper():
 
 
 def test_export_prrr_paper(benchmark, paper, tmp_path):
-    from design.export import export
+    from hapticopt.design.export import export
 
     export(paper, tmp_path / "warm")  # imports (build123d, jax) are not part of the target
     benchmark.pedantic(export, args=(paper, tmp_path / "out"), rounds=3, iterations=1)

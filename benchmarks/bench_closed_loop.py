@@ -13,11 +13,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from analysis import closed_loop as cl
-from analysis import firmware as fw
-from analysis.scene import Effect, load_scene
-from analysis.zwidth import zwidth_map
-from design import io
+from hapticopt.analysis.prrr import closed_loop as cl
+from hapticopt.analysis.prrr import firmware as fw
+from hapticopt.analysis.loop.scene import Effect, load_scene
+from hapticopt.analysis.prrr.zwidth import zwidth_map
+from hapticopt.design import io
 
 
 @pytest.fixture(scope="module")

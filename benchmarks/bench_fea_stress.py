@@ -5,11 +5,11 @@ solid at level 2: 1.4·10⁴). The cost does not depend on the field's values, s
 P2 field stands in for a solve. Run with `make bench`; figures in docs/structure_stress.md.
 """
 
-import analysis  # noqa: F401  (float64 before any jax array exists)
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np
 import pytest
 
-from analysis import fea, fea_stress
+from hapticopt.analysis.fem import solid as fea, stress as fea_stress
 
 
 @pytest.fixture(scope="module")

@@ -6,9 +6,9 @@ checked in ≤ 50 ms, part tables and sampling included (manifold3d reference: ~
 
 from __future__ import annotations
 
-from analysis import interference_fast as F
-from analysis import prrr_workspace as W
-from design import io
+from hapticopt.analysis.prrr import interference_fast as F
+from hapticopt.analysis.prrr import workspace as W
+from hapticopt.design import io
 
 PRRR = io.load_preset("prrr-paper")
 

@@ -17,12 +17,12 @@ import time
 import mujoco
 import pytest
 
-import analysis  # noqa: F401
-from analysis.fidelity import Fidelity
-from analysis.mujoco_plant import choose_backend, model_options, simulate
-from analysis.mujoco_prrr import Platform, build, set_pose
-from analysis.scene import Backend, load_scene
-from design import io
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr.mujoco_plant import choose_backend, model_options, simulate
+from hapticopt.analysis.prrr.mujoco_model import Platform, build, set_pose
+from hapticopt.analysis.loop.scene import Backend, load_scene
+from hapticopt.design import io
 
 DESIGN = io.load_preset("prrr-paper")
 
@@ -76,7 +76,7 @@ def test_stiffness_25_translational_platform(benchmark, fidelity):
 
 
 def test_master_wall(benchmark):
-    from analysis import mujoco_master
+    from hapticopt.analysis.master import mujoco_plant as mujoco_master
 
     master = io.load_preset("master-paper")
     scene = load_scene("master-wall")

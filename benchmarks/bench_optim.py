@@ -7,12 +7,12 @@ Figures in docs/optimisation.md.
 
 from __future__ import annotations
 
-import analysis  # noqa: F401
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import pytest
 
-from optim import driver
-from optim.evaluation import Outcome, PointResult, PointTask
-from optim.problem import load_problem, problem_from_dict
+from hapticopt.optim import driver
+from hapticopt.optim.evaluation import Outcome, PointResult, PointTask
+from hapticopt.optim.problem import load_problem, problem_from_dict
 
 N_EVALS = 200
 
@@ -37,7 +37,7 @@ def _overhead_problem():
 
 def test_driver_overhead_per_evaluation(benchmark, tmp_path):
     """Driver + nlopt + guard + history + recorder per point, evaluator excluded (≤ 1 ms)."""
-    from optim.recorder import Recorder
+    from hapticopt.optim.recorder import Recorder
 
     problem = _overhead_problem()
     counter = iter(range(10**6))
@@ -61,7 +61,7 @@ def test_driver_overhead_without_recorder(benchmark):
 
 @pytest.fixture(scope="module")
 def bundled():
-    from optim.pipeline import evaluate_design, evaluators_for
+    from hapticopt.optim.pipeline import evaluate_design, evaluators_for
 
     p = load_problem("prrr-workspace").with_optimiser(max_evals=100, starts=1)
     base = evaluate_design(p.base, p.fidelity_optimise)

@@ -11,13 +11,13 @@ import sys
 import time
 from pathlib import Path
 
-import analysis  # noqa: F401
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from analysis import prrr_kinematics as kin
-from design import io
+from hapticopt.design.prrr import kinematics as kin
+from hapticopt.design import io
 
 N = 1_000_000
 

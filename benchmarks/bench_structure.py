@@ -9,8 +9,8 @@ import jax
 import numpy as np
 import pytest
 
-from analysis import frame_model as fm
-from design import io
+from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.design import io
 
 N_BATCH = 256
 
@@ -36,7 +36,7 @@ def test_frame_single_jax(benchmark, paper):
 
 def test_structural_evaluate_cold_numpy(benchmark, paper):
     # the evaluator end to end on the numpy path (design -> metrics), as the CLI calls it
-    from analysis import structural_stiffness as ss
+    from hapticopt.analysis.prrr import structure as ss
 
     out = benchmark(lambda: ss.evaluate(paper).metrics())
     assert len(out["structural_stiffness_N_per_mm"]) == 3

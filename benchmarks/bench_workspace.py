@@ -13,9 +13,10 @@ import time
 
 import numpy as np
 
-from analysis import master_workspace, prrr_workspace, prrr_statics
-from analysis.fidelity import Fidelity
-from design import io
+from hapticopt.analysis.master import workspace as master_workspace
+from hapticopt.analysis.prrr import workspace as prrr_workspace, statics as prrr_statics
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design import io
 
 PRRR = io.load_preset("prrr-paper")
 MASTER = io.load_preset("master-paper")

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from design import atomic
+from hapticopt.design import atomic
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -35,24 +35,24 @@ class ExportResult:
 
 def _cad(design: Any):
     if design.device == "prrr":
-        from design import cad_prrr
+        from hapticopt.design.prrr import cad as cad_prrr
 
         return cad_prrr
-    from design import cad_master
+    from hapticopt.design.master import cad as cad_master
 
     return cad_master
 
 
 def _mjcf(design: Any, p, masses) -> str | None:
     if design.device == "prrr":
-        from design import mjcf_prrr
+        from hapticopt.design.prrr import mjcf as mjcf_prrr
 
         return mjcf_prrr.prrr_mjcf(design, p=p, mass_properties=masses)
     try:
-        from design import mjcf_master  # owned by the master-dynamics work (issue 5)
+        from hapticopt.design.master import mjcf as mjcf_master  # owned by the master-dynamics work (issue 5)
     except ImportError:
         return None
-    from analysis.master_dynamics import FRAMES, BodyMass
+    from hapticopt.analysis.master.dynamics import FRAMES, BodyMass
 
     # our part frames are master_kinematics' link frames; the fixed base is not in that model
     bodies = tuple(BodyMass(name=pm.name, frame=pm.body, mass=pm.mass, com=tuple(float(x) for x in pm.com),
@@ -73,7 +73,7 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False) ->
     """Write the export set of ``design`` posed at end-effector position ``p`` [m] into ``out_dir``."""
     from build123d import Compound, export_step, export_stl
 
-    from design import mass_properties as mp
+    from hapticopt.design import mass_properties as mp
 
     out_dir = Path(out_dir)
     cad = _cad(design)

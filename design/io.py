@@ -12,10 +12,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Union
 
-from design import master, prrr
-from design.atomic import write_text
-from design.errors import InputFileError, InvalidDesign, UnknownName
-from design.schema import section_from_table, section_to_table, specs
+from hapticopt.design.master import params as master
+from hapticopt.design.prrr import params as prrr
+from hapticopt.design.atomic import write_text
+from hapticopt.design.errors import InputFileError, InvalidDesign, UnknownName
+from hapticopt.design.schema import section_from_table, section_to_table, specs
 
 Design = Union[prrr.PrrrDesign, master.MasterDesign]
 
@@ -107,7 +108,7 @@ def save_design(design: Design, path: str | Path) -> None:
 
 # ---------------------------------------------------------------------------- presets
 def _preset_dir():
-    return resources.files("design.presets")
+    return resources.files("hapticopt.design.presets")
 
 
 def preset_names() -> list[str]:

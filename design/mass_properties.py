@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from design import parts as _parts
+from hapticopt.design import parts as _parts
 
 
 class Method(StrEnum):
@@ -96,10 +96,10 @@ def combine(name: str, body: str, members: list[PartMass]) -> PartMass:
 
 def _specs(design: Any) -> dict[str, _parts.PartSpec]:
     if design.device == "prrr":
-        from design import cad_prrr
+        from hapticopt.design.prrr import cad as cad_prrr
 
         return cad_prrr.part_specs(design)
-    from design import cad_master
+    from hapticopt.design.master import cad as cad_master
 
     return cad_master.part_specs(design)
 
@@ -126,14 +126,14 @@ def analytic(design: Any, *, specs: dict[str, _parts.PartSpec] | None = None) ->
 def from_cad(design: Any, *, solids: dict[str, Any] | None = None,
              specs: dict[str, _parts.PartSpec] | None = None) -> MassProperties:
     """Mass properties from OpenCASCADE's volume integrals of the part solids (in part frames)."""
-    from design import cad_units
+    from hapticopt.design import cad_units
 
     specs = specs if specs is not None else _specs(design)
     if solids is None:
         if design.device == "prrr":
-            from design import cad_prrr as cad
+            from hapticopt.design.prrr import cad
         else:
-            from design import cad_master as cad
+            from hapticopt.design.master import cad
         solids = cad.build_parts(design)
     out: dict[str, PartMass] = {}
     for name, spec in specs.items():

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from design import cad_units
+from hapticopt.design import cad_units
 
 _EX = np.array([1.0, 0.0, 0.0])
 _EY = np.array([0.0, 1.0, 0.0])
@@ -302,7 +302,7 @@ def build_solid(spec: PartSpec):
     Raises :class:`InvalidDesign` if the result is not one valid solid."""
     from build123d import Box, Cylinder, Solid, Sphere
 
-    from design.errors import InvalidDesign
+    from hapticopt.design.errors import InvalidDesign
 
     solids, holes = [], []
     for p in spec.primitives:

@@ -15,8 +15,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from design.errors import InvalidDesign
-from design.units import from_si, pretty, to_si
+from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.units import from_si, pretty, to_si
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -37,10 +37,10 @@ from typing import Any
 import nlopt
 import numpy as np
 
-from optim.evaluation import GradientMode, Outcome, PointResult, PointTask, evaluate_point, jax_twin
-from optim.executor import InlineExecutor, worker_count
-from optim.problem import Algorithm, Constraint, MetricRef, Problem, Sense
-from optim.recorder import Recorder, point_key
+from hapticopt.optim.evaluation import GradientMode, Outcome, PointResult, PointTask, evaluate_point, jax_twin
+from hapticopt.optim.executor import InlineExecutor, worker_count
+from hapticopt.optim.problem import Algorithm, MetricRef, Problem, Sense
+from hapticopt.optim.recorder import Recorder, point_key
 
 #: metric -> smooth metric with the same minimiser, used where a gradient is needed
 SMOOTH_SURROGATES: dict[str, str] = {"jacobian_condition": "jacobian_condition_frobenius"}

@@ -26,13 +26,13 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
-import analysis  # noqa: F401  (jax float64 before any array exists)
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np
 
-from analysis.fidelity import Fidelity
-from design.errors import InvalidDesign
-from design.units import TO_SI
-from optim.problem import MetricRef, Variable, design_at
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.units import TO_SI
+from hapticopt.optim.problem import MetricRef, Variable, design_at
 
 
 class Outcome(StrEnum):
@@ -90,7 +90,7 @@ def _jsonable(value: Any) -> Any:
 def run_evaluators(design: Any, fidelity: Fidelity, only: tuple[str, ...] | None
                    ) -> tuple[dict[str, Any], dict[str, str], dict[str, float], str]:
     """metrics, statuses, timings, failure message ('' if none). Exceptions become values."""
-    from analysis.registry import EVALUATORS
+    from hapticopt.analysis.registry import EVALUATORS
 
     metrics: dict[str, Any] = {}
     statuses: dict[str, str] = {}
@@ -154,7 +154,7 @@ def evaluate_point(task: PointTask) -> PointResult:
 # ------------------------------------------------------------------------------------ jax twins
 def _si(design: Any, values: Mapping[str, Any], key: str) -> Any:
     """The field ``section.toml_key`` of ``design`` in SI, overridden by ``values`` (edge units)."""
-    from design.schema import specs
+    from hapticopt.design.schema import specs
 
     section, tkey = key.split(".")
     sec = getattr(design, section)
@@ -167,9 +167,9 @@ def _si(design: Any, values: Mapping[str, Any], key: str) -> Any:
 
 
 def _prrr_statics_jax(design: Any, values: Mapping[str, Any]) -> dict[str, Any]:
-    """Differentiable twin of :func:`analysis.prrr_statics.evaluate` (same names and units)."""
-    from analysis.prrr_kinematics import PrrrParams
-    from analysis.prrr_statics import statics_arrays
+    """Differentiable twin of :func:`hapticopt.analysis.prrr.statics.evaluate` (same names and units)."""
+    from hapticopt.design.prrr.kinematics import PrrrParams
+    from hapticopt.analysis.prrr.statics import statics_arrays
 
     g = "geometry."
     params = PrrrParams(*(_si(design, values, g + k) for k in
@@ -188,7 +188,7 @@ def _prrr_statics_jax(design: Any, values: Mapping[str, Any]) -> dict[str, Any]:
 
 #: evaluator module -> jax twin, for evaluators that do not define ``jax_metrics`` themselves
 JAX_ADAPTERS: dict[str, Callable[[Any, Mapping[str, Any]], Mapping[str, Any]]] = {
-    "analysis.prrr_statics": _prrr_statics_jax,
+    "hapticopt.analysis.prrr.statics": _prrr_statics_jax,
 }
 
 

@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from typing import Any
 
-from design.errors import InvalidInput
+from hapticopt.design.errors import InvalidInput
 
 
 class InlineExecutor(Executor):

@@ -22,12 +22,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from analysis.fidelity import Fidelity
-from design import io
-from design.atomic import write_text
-from optim.driver import EvalRecord, ProgressFn, RunResult
-from optim.evaluation import _jsonable
-from optim.problem import Problem, check_metrics
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design import io
+from hapticopt.design.atomic import write_text
+from hapticopt.optim.driver import EvalRecord, ProgressFn, RunResult
+from hapticopt.optim.evaluation import _jsonable
+from hapticopt.optim.problem import Problem, check_metrics
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -78,7 +78,7 @@ class PipelineResult:
 
 def evaluate_design(design: Any, fidelity: Fidelity) -> DesignEvaluation:
     """Every registered evaluator on ``design``; failures are recorded, not raised."""
-    from analysis.registry import EVALUATORS
+    from hapticopt.analysis.registry import EVALUATORS
 
     metrics: dict[str, Any] = {}
     modules: dict[str, str] = {}
@@ -106,10 +106,10 @@ def evaluate_design(design: Any, fidelity: Fidelity) -> DesignEvaluation:
 
 def evaluators_for(problem: Problem, evaluation: DesignEvaluation) -> tuple[str, ...]:
     """Names of the evaluators that produce the problem's metrics (the only ones run per point)."""
-    from analysis.registry import EVALUATORS
+    from hapticopt.analysis.registry import EVALUATORS
 
     needed_modules = {evaluation.modules[r.name] for r in problem.metric_refs() if r.name in evaluation.modules}
-    from optim.driver import SMOOTH_SURROGATES
+    from hapticopt.optim.driver import SMOOTH_SURROGATES
 
     for r in problem.metric_refs():
         sur = SMOOTH_SURROGATES.get(r.name)
@@ -120,12 +120,12 @@ def evaluators_for(problem: Problem, evaluation: DesignEvaluation) -> tuple[str,
 
 # ------------------------------------------------------------------------------ stages
 def _try_export(design: Any, out_dir: Path) -> StageOutcome:
-    """Call :mod:`design.export` (issue 3) when it exists."""
+    """Call :mod:`hapticopt.design.export` (issue 3) when it exists."""
     t0 = time.perf_counter()
     try:
-        export = importlib.import_module("design.export")
+        export = importlib.import_module("hapticopt.design.export")
     except ModuleNotFoundError as exc:
-        if exc.name not in ("design.export",):
+        if exc.name not in ("hapticopt.design.export",):
             raise
         return StageOutcome(name="export", status="skipped", message="design/export.py has not landed yet")
     fn = None
@@ -135,7 +135,7 @@ def _try_export(design: Any, out_dir: Path) -> StageOutcome:
             fn = cand
             break
     if fn is None:
-        return StageOutcome(name="export", status="skipped", message="design.export has no export function")
+        return StageOutcome(name="export", status="skipped", message="hapticopt.design.export has no export function")
     try:
         params = inspect.signature(fn).parameters
         kwargs: dict[str, Any] = {}
@@ -160,9 +160,9 @@ STIFFNESS_ERROR_LIMIT_PCT = 10.0
 def _find_verifier(fidelity: Fidelity) -> Callable[[Any, str], Any] | None:
     """The closed-loop runner of issue 6 as ``fn(design, scene_name) -> result with .metrics()``."""
     try:
-        closed_loop = importlib.import_module("analysis.closed_loop")
+        closed_loop = importlib.import_module("hapticopt.analysis.prrr.closed_loop")
     except ModuleNotFoundError as exc:
-        if exc.name != "analysis.closed_loop":
+        if exc.name != "hapticopt.analysis.prrr.closed_loop":
             raise
         return None
     run_scene = getattr(closed_loop, "run_scene", None)
@@ -171,7 +171,7 @@ def _find_verifier(fidelity: Fidelity) -> Callable[[Any, str], Any] | None:
     simulate = getattr(closed_loop, "simulate", None)
     if not callable(simulate):
         return None
-    from analysis.scene import load_scene
+    from hapticopt.analysis.loop.scene import load_scene
 
     def run(design: Any, scene: str) -> Any:
         return simulate(design, load_scene(scene), fidelity=fidelity)
@@ -262,9 +262,9 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     ``verifier(design, scene_name) -> result with .metrics()`` replaces the closed-loop runner
     of :mod:`analysis.closed_loop` (a module-level function: it runs in a child process).
     """
-    from optim import driver, report
-    from optim.executor import make_executor
-    from optim.recorder import Recorder
+    from hapticopt.optim import driver, report
+    from hapticopt.optim.executor import make_executor
+    from hapticopt.optim.recorder import Recorder
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -317,7 +317,7 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     t = stage("plots")
     plot_files: list[str] = []
     try:
-        from analysis.registry import EVALUATORS
+        from hapticopt.analysis.registry import EVALUATORS
 
         for entry in EVALUATORS[problem.device]:
             module = entry.load()

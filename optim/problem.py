@@ -60,11 +60,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from analysis.fidelity import Fidelity
-from design import io
-from design.errors import InputFileError, InvalidDesign, InvalidInput, UnknownName
-from design.schema import specs
-from design.units import from_si, pretty, to_si
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design import io
+from hapticopt.design.errors import InputFileError, InvalidDesign, InvalidInput, UnknownName
+from hapticopt.design.schema import specs
+from hapticopt.design.units import from_si, pretty, to_si
 
 _TOP_KEYS = {"name", "description", "device", "base", "base_file", "variables", "objective", "constraints",
              "optimiser", "fidelity", "verify"}
@@ -308,7 +308,7 @@ def design_at(base: Any, variables: Sequence[Variable], x: Sequence[float]) -> A
 
 # ------------------------------------------------------------------------------------ loading
 def _problem_dir():
-    return resources.files("optim.problems")
+    return resources.files("hapticopt.optim.problems")
 
 
 def problem_names() -> list[str]:

@@ -17,8 +17,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from design.errors import InvalidInput
-from optim.evaluation import Outcome, PointResult
+from hapticopt.design.errors import InvalidInput
+from hapticopt.optim.evaluation import Outcome, PointResult
 
 FILENAME = "evaluations.sqlite"
 

@@ -16,11 +16,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from design.atomic import write_text
-from design.units import from_si, pretty
+from hapticopt.design.atomic import write_text
+from hapticopt.design.units import from_si, pretty
 
 if TYPE_CHECKING:
-    from optim.pipeline import PipelineResult
+    from hapticopt.optim.pipeline import PipelineResult
 
 #: a constraint whose normalised margin is within this is reported as active
 ACTIVE_TOL = 1e-3
@@ -165,7 +165,7 @@ def write(p: "PipelineResult", *, extra_stage: tuple[str, float] | None = None) 
     prob = p.problem
     write_text(out / "convergence.svg", convergence_svg(p.run.history, sense_max=prob.objective.sense.value == "maximise"))
     if extra_stage is not None:
-        from optim.pipeline import StageOutcome
+        from hapticopt.optim.pipeline import StageOutcome
 
         name, t0 = extra_stage
         p = dataclasses.replace(p, stages=p.stages + (StageOutcome(name=name, status="ok",

@@ -1,6 +1,6 @@
 """Shared test fixtures. jax float64 is switched on by importing ``analysis``."""
 
-import analysis  # noqa: F401  (float64 before any jax array exists)
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import pytest
 from hypothesis import settings
 
@@ -10,13 +10,13 @@ settings.load_profile("ci")
 
 @pytest.fixture(scope="session")
 def prrr_paper():
-    from design import io
+    from hapticopt.design import io
 
     return io.load_preset("prrr-paper")
 
 
 @pytest.fixture(scope="session")
 def master_paper():
-    from design import io
+    from hapticopt.design import io
 
     return io.load_preset("master-paper")

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from optim.cli import app
+from hapticopt.optim.cli import app
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 runner = CliRunner()

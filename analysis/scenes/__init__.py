@@ -1,1 +1,1 @@
-"""Bundled closed-loop scenes (TOML package data); see ``analysis.scene`` for the schema."""
+"""Bundled closed-loop scenes (TOML package data); see ``hapticopt.analysis.loop.scene`` for the schema."""

@@ -1,1 +1,1 @@
-"""Bundled optimisation problems (TOML), loaded with :func:`optim.problem.load_problem`."""
+"""Bundled optimisation problems (TOML), loaded with :func:`hapticopt.optim.problem.load_problem`."""

@@ -8,10 +8,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from analysis import closed_loop as cl
-from analysis import firmware, stability
-from analysis.lumped_plant import LumpedPlant
-from analysis.scene import Effect, load_scene, scene_from_dict
+from hapticopt.analysis.prrr import closed_loop as cl
+from hapticopt.analysis.prrr import firmware, stability
+from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
+from hapticopt.analysis.loop.scene import Effect, load_scene, scene_from_dict
 
 
 def _drop(scene, *effects):
@@ -88,7 +88,7 @@ def test_sampling_off_converges_to_continuous_time(prrr_paper):
     """With sampling and quantisation off, the rendered stiffness converges as the controller rate rises."""
     sc = _drop(dataclasses.replace(load_scene("stiffness-25"), duration=1.5), Effect.SAMPLING, Effect.QUANTIZATION,
                Effect.COULOMB_FRICTION)
-    from analysis.fidelity import Fidelity
+    from hapticopt.analysis.fidelity import Fidelity
     ks = [cl.simulate(prrr_paper, sc, fidelity=f).rendered_stiffness for f in (Fidelity.DRAFT, Fidelity.STANDARD,
                                                                                 Fidelity.FINE)]
     # oversampling 10, 20, 50: differences shrink (first-order hold error)

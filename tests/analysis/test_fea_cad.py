@@ -9,8 +9,8 @@ import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from analysis import fea_cad
-from design import io
+from hapticopt.analysis.prrr import fea_cad
+from hapticopt.design import io
 
 pytestmark = pytest.mark.slow  # ~20 s wall: build123d import, CAD build, two coarse meshes, one solve
 
@@ -50,7 +50,7 @@ def test_supports_are_the_rail_slot_faces(cad):
     # the clamped nodes lie on the slot boundary of carriage 1: |x_loc − r_p| or |y_loc| = slot
     mesh, info = cad
     d = io.load_preset("prrr-paper")
-    from design import cad_prrr
+    from hapticopt.design.prrr import cad as cad_prrr
 
     L = cad_prrr.layout(d)
     T = cad_prrr.part_frames(d, info["pose"])["carriage_1"]
@@ -65,9 +65,9 @@ def test_frame_matches_cad_fea_within_15_percent():
     # joints. Level 0 (coarsest) is ~5 % stiffer than the extrapolated value, so the frame reads
     # −12 %, −12 %, −8 % here; against the Richardson value −7.5 %, −7.2 %, −2.6 %
     # (docs/structure.md, benchmarks/accuracy_structure.py --cad 1 2 3)
-    from analysis import frame_model as fm
-    from analysis.structural_stiffness import structural_stiffness
-    from design.cad_prrr import DEFAULT_BRANCH
+    from hapticopt.analysis.prrr import frame_model as fm
+    from hapticopt.analysis.prrr.structure import structural_stiffness
+    from hapticopt.design.prrr.cad import DEFAULT_BRANCH
 
     d = io.load_preset("prrr-paper")
     r = fea_cad.cad_fea(d, level=0, keep_fields=True)
@@ -77,7 +77,7 @@ def test_frame_matches_cad_fea_within_15_percent():
     assert r.stiffness_load[2] > 1.5 * r.stiffness_load[0]
     # the stress metric of `evaluate --fidelity fine`: the hot spot of a 1 N lateral load is a pin
     # (the 8 mm neck across a clearance gap; docs/structure_stress.md: R3 pin neck at level 2)
-    from analysis.structural_stiffness import fea_element_stress
+    from hapticopt.analysis.prrr.structure import fea_element_stress
 
     stress = fea_element_stress(d, r)
     assert np.isfinite(stress.max_von_mises) and stress.max_von_mises > 0

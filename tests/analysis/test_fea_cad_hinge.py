@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.sparse.linalg import eigsh, lsqr
 
-from analysis import fea, fea_cad_hinge
+from hapticopt.analysis.fem import solid as fea, hinge as fea_cad_hinge
 
 E, NU = 2.0e11, 0.3
 R_BORE = 4e-3  # bore / pin radius [m]
@@ -130,9 +130,9 @@ def test_tied_locations_are_vertex_and_edge_midpoint_pairs(unit_model):
 def test_released_cad_fea_is_softer_than_bonded_and_finite():
     # size 30 mm (coarser than level 0) and CG to 1e-5 (compliance error ~1e-10): a smoke test of
     # the whole pipeline; the measured levels are in docs/structure_hinge.md
-    from analysis import fea_cad
-    from analysis.status import Status
-    from design import io
+    from hapticopt.analysis.prrr import fea_cad
+    from hapticopt.analysis.status import Status
+    from hapticopt.design import io
 
     d = io.load_preset("prrr-paper")
     bonded = fea_cad.cad_fea(d, size=0.03, tol=1e-5)
@@ -147,7 +147,8 @@ def test_released_cad_fea_is_softer_than_bonded_and_finite():
 def test_cad_hinges_release_the_bores_the_frame_model_releases():
     # frame_model._leg_stiffness_pins: hinge at the pin's link-side end — R1 in link1, R2 and R3
     # in link2; "swapped" releases the other bore (carriage, link1, platform)
-    from design import cad_prrr, io
+    from hapticopt.design.prrr import cad as cad_prrr
+    from hapticopt.design import io
 
     d = io.load_preset("prrr-paper")
     pose = cad_prrr.solve_pose(d)

@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from analysis import fea, fea_stress
+from hapticopt.analysis.fem import solid as fea, stress as fea_stress
 
 L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33  # as tests/analysis/test_fea.py
 I_Z, C = T * B**3 / 12.0, B / 2.0
@@ -134,10 +134,10 @@ def test_plot_structure_writes_the_stress_picture(cantilever, tmp_path):
     # the place of the CAD solid's, which takes minutes to mesh and solve on 2 cores)
     if not _offscreen_rendering():
         pytest.skip("pyvista off-screen rendering unavailable")
-    from analysis import fea_cad
-    from analysis import frame_model as fm
-    from analysis import structural_stiffness as ss
-    from design.io import load_preset
+    from hapticopt.analysis.prrr import fea_cad
+    from hapticopt.analysis.prrr import frame_model as fm
+    from hapticopt.analysis.prrr import structure as ss
+    from hapticopt.design.io import load_preset
 
     mesh, _, uv, ue, st = cantilever
     design = load_preset("prrr-paper")

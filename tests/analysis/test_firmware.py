@@ -1,4 +1,4 @@
-"""analysis.firmware: the control law term by term (closed forms), batching, the object API."""
+"""hapticopt.analysis.prrr.firmware: the control law term by term (closed forms), batching, the object API."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from analysis import firmware as fw
-from analysis.scene import BoxMode, EnvKind, load_scene, resolve
+from hapticopt.analysis.prrr import firmware as fw
+from hapticopt.analysis.loop.scene import BoxMode, EnvKind, load_scene, resolve
 
 
 def _law(prrr_paper, scene_name="stiffness-25", **cfg_changes):

@@ -9,11 +9,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import analysis  # noqa: F401
-from analysis import closed_loop, firmware
-from analysis.firmware_numpy import NumpyController
-from analysis.scene import BoxMode, EnvKind, load_scene, scene_names
-from design.io import load_preset
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.prrr import closed_loop, firmware
+from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+from hapticopt.analysis.loop.scene import BoxMode, EnvKind, load_scene, scene_names
+from hapticopt.design.io import load_preset
 
 DESIGN = load_preset("prrr-paper")
 

@@ -5,8 +5,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from analysis import frame_model as fm
-from design import io
+from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.design import io
 
 E, NU = 68.9e9, 0.33  # aluminium 6061 (design/prrr.py defaults)
 

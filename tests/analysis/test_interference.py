@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from analysis import interference as itf
-from analysis.status import Status
-from design import io
+from hapticopt.analysis import interference as itf
+from hapticopt.analysis.status import Status
+from hapticopt.design import io
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +44,7 @@ def test_many_poses_and_unreachable(paper_model):
 
 def test_overlap_volume_is_exact_for_boxes():
     # two unit boxes overlapping by half: 0.5 m³ = 5e8 mm³ (closed form)
-    from design import parts
+    from hapticopt.design import parts
 
     class Model:
         pass

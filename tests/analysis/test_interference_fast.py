@@ -6,12 +6,13 @@ import math
 import numpy as np
 import pytest
 
-from analysis import interference as itf
-from analysis import interference_fast as F
-from analysis import prrr_workspace as W
-from analysis.status import Status
-from design import cad_prrr, io
-from design.errors import InvalidDesign
+from hapticopt.analysis import interference as itf
+from hapticopt.analysis.prrr import interference_fast as F
+from hapticopt.analysis.prrr import workspace as W
+from hapticopt.analysis.status import Status
+from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design import io
+from hapticopt.design.errors import InvalidDesign
 
 # the optimum of prrr-workspace before the interference constraint (cad_out/prrr-workspace/
 # optimum.toml of that run, docs/workspace_interference.md): it collides more than the paper
@@ -30,7 +31,7 @@ def _points(design, **sampling):
 
 
 def test_pairs_are_the_references(paper):
-    """Same part pairs as analysis.interference: different bodies, not joined."""
+    """Same part pairs as hapticopt.analysis.interference: different bodies, not joined."""
     fast = F.prepare(paper)
     ref = itf.prepare(paper)
     names = list(ref.meshes)
@@ -130,8 +131,8 @@ def test_degenerate_designs_stay_finite(paper):
 def test_interference_evaluator_reports_the_fast_fraction_and_workspace_stays_cheap(paper):
     # the optimiser's metric comes from its own evaluator (analysis.prrr_interference), so a plain
     # draft workspace evaluation neither runs nor reports it (issue 4's 20 ms draft budget)
-    from analysis import prrr_interference
-    from analysis.registry import evaluate_all
+    from hapticopt.analysis.prrr import interference as prrr_interference
+    from hapticopt.analysis.registry import evaluate_all
 
     r = prrr_interference.evaluate(paper, fidelity="draft")
     assert r.status == Status.OK

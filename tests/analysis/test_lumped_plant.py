@@ -1,4 +1,4 @@
-"""analysis.lumped_plant: exact linear part, statics, Coulomb stick-slip, the Plant protocol."""
+"""hapticopt.analysis.prrr.lumped_plant: exact linear part, statics, Coulomb stick-slip, the Plant protocol."""
 
 from __future__ import annotations
 
@@ -7,9 +7,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from analysis.lumped_plant import LumpedPlant, PlantMode, build_model, discretise, solve_friction
-from analysis.plant import Plant
-from analysis.scene import Effect, load_scene, resolve
+from hapticopt.analysis.prrr.lumped_plant import (
+    LumpedPlant,
+    PlantMode,
+    build_model,
+    discretise,
+    solve_friction,
+)
+from hapticopt.analysis.loop.plant import Plant
+from hapticopt.analysis.loop.scene import Effect, load_scene, resolve
 
 
 def _model(prrr_paper, scene):

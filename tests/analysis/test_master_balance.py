@@ -1,19 +1,19 @@
-"""Tests of analysis.master_balance (seed 003 unbalance force and unbalance radius)."""
+"""Tests of hapticopt.analysis.master.balance (seed 003 unbalance force and unbalance radius)."""
 
 from __future__ import annotations
 
 import dataclasses
 
-import analysis  # noqa: F401  (float64)
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np
 import pytest
 
-from analysis import master_balance as mb
-from analysis import master_dynamics as md
-from analysis import master_kinematics as mk
-from analysis.fidelity import Fidelity
-from analysis.status import Status
-from design.io import load_preset
+from hapticopt.analysis.master import balance as mb
+from hapticopt.analysis.master import dynamics as md
+from hapticopt.design.master import kinematics as mk
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
+from hapticopt.design.io import load_preset
 
 
 @pytest.fixture(scope="module")

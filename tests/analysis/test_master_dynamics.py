@@ -1,19 +1,19 @@
-"""Tests of analysis.master_dynamics (jax reference) and analysis.master_numeric (NumPy fast path)."""
+"""Tests of hapticopt.analysis.master.dynamics (jax reference) and hapticopt.analysis.master.dynamics_numpy (NumPy fast path)."""
 
 from __future__ import annotations
 
 import dataclasses
 
-import analysis  # noqa: F401  (float64)
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from analysis import master_dynamics as md
-from analysis import master_kinematics as mk
-from analysis import master_numeric as mn
-from design.errors import InvalidDesign
-from design.io import load_preset
+from hapticopt.analysis.master import dynamics as md
+from hapticopt.design.master import kinematics as mk
+from hapticopt.analysis.master import dynamics_numpy as mn
+from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.io import load_preset
 
 
 @pytest.fixture(scope="module")

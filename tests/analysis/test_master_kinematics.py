@@ -1,8 +1,8 @@
-"""Tests of analysis.master_kinematics (PHANToM-type master of seed 003)."""
+"""Tests of hapticopt.design.master.kinematics (PHANToM-type master of seed 003)."""
 
 from __future__ import annotations
 
-import analysis  # noqa: F401  (float64)
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from analysis import master_kinematics as mk
-from design.io import load_preset
+from hapticopt.design.master import kinematics as mk
+from hapticopt.design.io import load_preset
 
 
 @pytest.fixture(scope="module")

@@ -1,19 +1,19 @@
-"""Tests of analysis.master_transparency (seed 003 eq 13–15) and the MuJoCo sweep of analysis.master_sweep."""
+"""Tests of hapticopt.analysis.master.transparency (seed 003 eq 13–15) and the MuJoCo sweep of hapticopt.analysis.master.sweep."""
 
 from __future__ import annotations
 
 import dataclasses
 
-import analysis  # noqa: F401  (float64)
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np
 import pytest
 
-from analysis import master_dynamics as md
-from analysis import master_transparency as mt
-from analysis import master_tradeoff
-from analysis.fidelity import Fidelity
-from analysis.status import Status
-from design.io import load_preset
+from hapticopt.analysis.master import dynamics as md
+from hapticopt.analysis.master import transparency as mt
+from hapticopt.analysis.master import tradeoff as master_tradeoff
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
+from hapticopt.design.io import load_preset
 
 
 @pytest.fixture(scope="module")
@@ -99,7 +99,7 @@ def test_worst_case_over_workspace_is_at_most_the_pose_value(design):
 @pytest.mark.slow
 def test_mujoco_sine_sweep_agrees_with_frequency_domain(design):
     # acceptance: time domain (MuJoCo, 1 kHz hold) within 5 % of the frequency-domain bandwidth
-    from analysis import master_sweep
+    from hapticopt.analysis.master import sweep as master_sweep
 
     r = master_sweep.sweep(design, "z", factors=(0.9, 1.1))
     assert r.relative_error < 0.05

@@ -1,4 +1,4 @@
-"""Tests of analysis.master_workspace (surgical master: volume, coverage, κ field, GCI)."""
+"""Tests of hapticopt.analysis.master.workspace (surgical master: volume, coverage, κ field, GCI)."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from analysis import master_kinematics as mk
-from analysis import master_workspace as M
-from analysis.fidelity import Fidelity
-from analysis.status import Status
-from design import io
-from design.master import MasterDesign
+from hapticopt.design.master import kinematics as mk
+from hapticopt.analysis.master import workspace as M
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
+from hapticopt.design import io
+from hapticopt.design.master.params import MasterDesign
 
 
 @pytest.fixture(scope="module")

@@ -8,16 +8,16 @@ import math
 import numpy as np
 import pytest
 
-import analysis  # noqa: F401
-from analysis import closed_loop
-from analysis.fidelity import Fidelity
-from analysis.firmware_master import MasterController, MasterFirmwareConfig, forward
-from analysis.mujoco_master import simulate, start_pose
-from analysis.mujoco_prrr import Integrator, SolverSettings
-from analysis.scene import Backend, EnvKind, load_scene
-from analysis.status import Status
-from design.errors import InvalidInput
-from design.io import load_preset
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.prrr import closed_loop
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.master.firmware import MasterController, MasterFirmwareConfig, forward
+from hapticopt.analysis.master.mujoco_plant import simulate, start_pose
+from hapticopt.analysis.prrr.mujoco_model import Integrator, SolverSettings
+from hapticopt.analysis.loop.scene import Backend, EnvKind, load_scene
+from hapticopt.analysis.status import Status
+from hapticopt.design.errors import InvalidInput
+from hapticopt.design.io import load_preset
 
 MASTER = load_preset("master-paper")
 
@@ -38,9 +38,9 @@ def test_firmware_kinematics_match_mujoco_and_numeric_jacobian():
     analysis.master_numeric.jacobian at poses across the workspace."""
     import mujoco
 
-    from analysis import master_dynamics as md
-    from analysis import master_numeric as mn
-    from design.mjcf_master import full_qpos, master_mjcf
+    from hapticopt.analysis.master import dynamics as md
+    from hapticopt.analysis.master import dynamics_numpy as mn
+    from hapticopt.design.master.mjcf import full_qpos, master_mjcf
 
     model = mujoco.MjModel.from_xml_string(master_mjcf(MASTER))
     data = mujoco.MjData(model)
@@ -109,7 +109,7 @@ def test_master_soft_solver_is_flagged():
 def test_master_stiff_wall_and_spring_are_unstable_not_nan():
     """Hard cases: a 1000 N/mm wall at 1 kHz chatters on the torque limit (saturated limit cycle);
     a 1000 N/mm spring without saturation diverges. Both end with a status, no NaN in the metrics."""
-    from analysis.scene import Effect
+    from hapticopt.analysis.loop.scene import Effect
 
     sc = load_scene("master-wall")
     env = dataclasses.replace(sc.environment, wall_stiffness=1e6)

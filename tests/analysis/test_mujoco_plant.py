@@ -7,22 +7,22 @@ import dataclasses
 import numpy as np
 import pytest
 
-import analysis  # noqa: F401
-from analysis import closed_loop, firmware
-from analysis.lumped_plant import LumpedPlant
-from analysis.mujoco_plant import (
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.prrr import closed_loop, firmware
+from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
+from hapticopt.analysis.prrr.mujoco_plant import (
     ROTATION_TOL,
     VIOLATION_TOL,
     choose_backend,
     simulate,
     stiffness_limit,
 )
-from analysis.mujoco_prrr import LinkMasses, Platform, SolverSettings
-from analysis.plant import Plant
-from analysis.scene import Backend, Effect, load_scene, scene_names
-from analysis.status import Status
-from design.errors import InvalidInput
-from design.io import load_preset
+from hapticopt.analysis.prrr.mujoco_model import LinkMasses, Platform, SolverSettings
+from hapticopt.analysis.loop.plant import Plant
+from hapticopt.analysis.loop.scene import Backend, Effect, load_scene, scene_names
+from hapticopt.analysis.status import Status
+from hapticopt.design.errors import InvalidInput
+from hapticopt.design.io import load_preset
 
 DESIGN = load_preset("prrr-paper")
 
@@ -91,7 +91,7 @@ def test_every_bundled_scene_keeps_the_chains_closed(name):
     scene = load_scene(name)
     scene = dataclasses.replace(scene, duration=min(scene.duration, 0.25))
     if scene.device == "master":
-        from analysis import mujoco_master
+        from hapticopt.analysis.master import mujoco_plant as mujoco_master
 
         r = mujoco_master.simulate(load_preset("master-paper"), dataclasses.replace(scene, sweep_factors=()))
         m = r.metrics()
@@ -109,9 +109,9 @@ def test_every_bundled_scene_keeps_the_chains_closed(name):
 def test_fused_loop_equals_reference_loop(name):
     """MujocoPlant.run (records raw state, checks every 100 ticks vectorised) against the plain
     reference loop closed_loop.run_with_plant on the same plant: same traces (≤ 1e-9), same stop."""
-    from analysis.firmware_numpy import NumpyController
-    from analysis.fidelity import Fidelity
-    from analysis.mujoco_plant import MujocoPlant, model_options
+    from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+    from hapticopt.analysis.fidelity import Fidelity
+    from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant, model_options
 
     scene = dataclasses.replace(load_scene(name), duration=0.25)
     ch = choose_backend(scene, force=Backend.MULTIBODY)
@@ -134,13 +134,13 @@ def test_fused_loop_equals_reference_loop(name):
 
 def test_fused_loop_stops_where_the_reference_stops():
     """An unstable wall: the window check finds the same first bad tick as the per-tick check."""
-    from analysis.firmware_numpy import NumpyController
-    from analysis.fidelity import Fidelity
-    from analysis.mujoco_plant import MujocoPlant, model_options
+    from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+    from hapticopt.analysis.fidelity import Fidelity
+    from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant, model_options
 
     import mujoco
 
-    from analysis import mujoco_plant
+    from hapticopt.analysis.prrr import mujoco_plant
 
     assert mujoco_plant._BADQACC == int(mujoco.mjtWarning.mjWARN_BADQACC)
     box = load_scene("virtual-box")  # wall 1000× beyond the limit, no saturation: MuJoCo's BADQACC reset
@@ -159,7 +159,7 @@ def test_fused_loop_stops_where_the_reference_stops():
 def test_simulate_dispatches_by_backend():
     """closed_loop.simulate: lumped when allowed, multibody for link_dynamics (+ gravity), forced on request;
     the backend and the reason are in the metrics."""
-    from analysis.fidelity import Fidelity
+    from hapticopt.analysis.fidelity import Fidelity
 
     links = dataclasses.replace(load_scene("stiffness-25-links"), duration=0.2)
     r = closed_loop.simulate(DESIGN, links, fidelity=Fidelity.DRAFT)
@@ -204,8 +204,8 @@ def _master_handle_force_at_rest(design, q):
     MJCF: τ = Rᵀ·qfrc_bias (reduced joints), F = J⁻ᵀ τ."""
     import mujoco
 
-    from analysis import master_kinematics as mk
-    from design.mjcf_master import REDUCTION, full_qpos, master_mjcf
+    from hapticopt.design.master import kinematics as mk
+    from hapticopt.design.master.mjcf import REDUCTION, full_qpos, master_mjcf
 
     model = mujoco.MjModel.from_xml_string(master_mjcf(design, gravity=True))
     data = mujoco.MjData(model)
@@ -219,7 +219,7 @@ def _master_handle_force_at_rest(design, q):
 def test_master_perfect_balance_holds_with_no_handle_force():
     """master-paper is perfectly balanced (seed 003 eq 4: P = 0): with gravity on, the handle force
     at rest is ≤ 1e-3 N (issue 8) at poses across the workspace; a CoM 3.6 mm off is not."""
-    from analysis import master_dynamics as md
+    from hapticopt.analysis.master import dynamics as md
 
     design = load_preset("master-paper")
     for q in ([0.0, 0.3, -0.4], [0.3, 0.8, -0.2], [-0.4, 0.2, -1.0]):

@@ -8,9 +8,9 @@ import mujoco
 import numpy as np
 import pytest
 
-import analysis  # noqa: F401
-from analysis.fidelity import Fidelity
-from analysis.mujoco_prrr import (
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr.mujoco_model import (
     LUMPED_LINK_MASS,
     SOLVER_BY_FIDELITY,
     Integrator,
@@ -23,8 +23,8 @@ from analysis.mujoco_prrr import (
     set_pose,
     stress_probe,
 )
-from design.errors import InvalidDesign, InvalidInput
-from design.io import load_preset
+from hapticopt.design.errors import InvalidDesign, InvalidInput
+from hapticopt.design.io import load_preset
 
 DESIGN = load_preset("prrr-paper")
 STANDARD = SOLVER_BY_FIDELITY[Fidelity.STANDARD]
@@ -153,8 +153,8 @@ def test_explicit_integrators_diverge_where_dt_is_too_long():
 def test_real_links_carry_the_cad_mass_model():
     """REAL link masses, CoMs and inertias are issue 3's analytic mass model (tested against the
     CAD there), placed at the CAD's home pose: compare in world coordinates."""
-    from design import cad_prrr
-    from design import mass_properties as mp
+    from hapticopt.design.prrr import cad as cad_prrr
+    from hapticopt.design import mass_properties as mp
 
     mj = build(DESIGN, ModelOptions(link_masses=LinkMasses.REAL))
     data = mujoco.MjData(mj.model)

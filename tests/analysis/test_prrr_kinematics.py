@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from analysis import prrr_kinematics as kin
-from design.prrr import PrrrDesign, PrrrGeometry
+from hapticopt.design.prrr import kinematics as kin
+from hapticopt.design.prrr.params import PrrrDesign, PrrrGeometry
 
 MM = 1e-3
 

@@ -9,10 +9,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from analysis import prrr_statics
-from analysis.prrr_kinematics import params_of
-from analysis.status import Status
-from design import io
+from hapticopt.analysis.prrr import statics as prrr_statics
+from hapticopt.design.prrr.kinematics import params_of
+from hapticopt.analysis.status import Status
+from hapticopt.design import io
 
 
 def test_prrr_paper_max_force_is_table_1(prrr_paper):
@@ -90,7 +90,7 @@ def test_frobenius_condition_gradient_matches_finite_difference():
 
 def test_batched_statics_equal_single(prrr_paper):
     designs = [io.apply_overrides(prrr_paper, [f"geometry.beta_deg={b}"]) for b in (20, 35, 50, 65)]
-    from analysis.prrr_kinematics import stack_params
+    from hapticopt.design.prrr.kinematics import stack_params
 
     P = stack_params(designs)
     n = len(designs)

@@ -1,4 +1,4 @@
-"""Tests of analysis.prrr_workspace (3-PRRR reach ∩ stroke workspace)."""
+"""Tests of hapticopt.analysis.prrr.workspace (3-PRRR reach ∩ stroke workspace)."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from analysis import prrr_workspace as W
-from analysis.fidelity import Fidelity
-from analysis.prrr_kinematics import inverse_kinematics, leg_chain, params_of
-from analysis.status import Status
-from design import io
-from design.prrr import PrrrDesign
+from hapticopt.analysis.prrr import workspace as W
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design.prrr.kinematics import inverse_kinematics, leg_chain, params_of
+from hapticopt.analysis.status import Status
+from hapticopt.design import io
+from hapticopt.design.prrr.params import PrrrDesign
 
 
 @pytest.fixture(scope="module")
@@ -204,7 +204,7 @@ def test_plot_writes_png(paper: PrrrDesign, tmp_path) -> None:
 
 
 def test_elbow_branch_is_the_cads() -> None:
-    from design import cad_prrr
+    from hapticopt.design.prrr import cad as cad_prrr
 
     assert W.ELBOW_BRANCH == cad_prrr.DEFAULT_BRANCH
 

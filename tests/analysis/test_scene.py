@@ -1,11 +1,19 @@
-"""analysis.scene: bundled scenes, validation paths (one-line errors), effect resolution."""
+"""hapticopt.analysis.loop.scene: bundled scenes, validation paths (one-line errors), effect resolution."""
 
 from __future__ import annotations
 
 import pytest
 
-from analysis.scene import Backend, Effect, EnvKind, load_scene, resolve, scene_from_dict, scene_names
-from design.errors import InputFileError, InvalidInput, UnknownName
+from hapticopt.analysis.loop.scene import (
+    Backend,
+    Effect,
+    EnvKind,
+    load_scene,
+    resolve,
+    scene_from_dict,
+    scene_names,
+)
+from hapticopt.design.errors import InputFileError, InvalidInput, UnknownName
 
 
 def test_bundled_scenes_load_and_resolve():

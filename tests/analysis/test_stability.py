@@ -1,16 +1,15 @@
-"""analysis.stability: analytic references, and the simulation checked against them (issue 6 acceptance)."""
+"""hapticopt.analysis.prrr.stability: analytic references, and the simulation checked against them (issue 6 acceptance)."""
 
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 import pytest
 
-from analysis import stability as sb
-from analysis.scene import Effect, load_scene
-from analysis.zwidth import StabilityProbe
+from hapticopt.analysis.prrr import stability as sb
+from hapticopt.analysis.loop.scene import Effect, load_scene
+from hapticopt.analysis.prrr.zwidth import StabilityProbe
 
 
 def test_force_loop_bandwidth_eq8(prrr_paper):

@@ -5,12 +5,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from analysis import frame_model as fm
-from analysis import structural_stiffness as ss
-from analysis.registry import evaluate_all
-from analysis.status import Status
-from design import io
-from design.errors import InvalidInput
+from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.analysis.prrr import structure as ss
+from hapticopt.analysis.registry import evaluate_all
+from hapticopt.analysis.status import Status
+from hapticopt.design import io
+from hapticopt.design.errors import InvalidInput
 
 
 @pytest.fixture(scope="module")

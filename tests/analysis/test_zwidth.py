@@ -1,4 +1,4 @@
-"""analysis.zwidth: the batched Z-width map and the bisected boundary."""
+"""hapticopt.analysis.prrr.zwidth: the batched Z-width map and the bisected boundary."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import dataclasses
 
 import numpy as np
 
-from analysis import stability as sb
-from analysis.scene import Effect, ZWidthSettings, load_scene
-from analysis.zwidth import StabilityProbe, bisect_boundary, zwidth_map
+from hapticopt.analysis.prrr import stability as sb
+from hapticopt.analysis.loop.scene import Effect, ZWidthSettings, load_scene
+from hapticopt.analysis.prrr.zwidth import StabilityProbe, bisect_boundary, zwidth_map
 
 
 def test_map_is_monotone_in_stiffness(prrr_paper):

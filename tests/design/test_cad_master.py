@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from design import cad_master, io, mass_properties as mp
-from design.errors import InvalidDesign, InvalidInput
+from hapticopt.design.master import cad as cad_master
+from hapticopt.design import io, mass_properties as mp
+from hapticopt.design.errors import InvalidDesign, InvalidInput
 
 
 @pytest.fixture(scope="module")
@@ -85,7 +86,7 @@ def test_cad_joint_axes_are_the_kinematic_axes(paper, solids, q):
 
 
 def test_home_pose_and_workspace_poses_are_interference_free(paper):
-    from analysis import interference as itf
+    from hapticopt.analysis import interference as itf
 
     model = itf.prepare(paper)
     for q in [(0.0, 0.0, 0.0), (0.5, 0.3, -0.5), (0.0, 1.2, 0.2)]:
@@ -112,7 +113,7 @@ def test_hard_cases(paper, override, match):
 
 
 def test_export_master(paper, tmp_path):
-    from design.export import export
+    from hapticopt.design.export import export
 
     import json
 

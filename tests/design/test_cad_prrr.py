@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from design import cad_prrr, io
-from design.errors import InvalidDesign, InvalidInput
+from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design import io
+from hapticopt.design.errors import InvalidDesign, InvalidInput
 
 
 @pytest.fixture(scope="module")

@@ -8,9 +8,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from design import export as ex
-from design import io
-from design.mass_properties import from_cad
+from hapticopt.design import export as ex
+from hapticopt.design import io
+from hapticopt.design.mass_properties import from_cad
 
 PARTS = {"base", "platform"} | {f"{k}_{i}" for k in ("rail", "carriage", "link1", "link2") for i in (1, 2, 3)}
 
@@ -28,7 +28,7 @@ def exported(paper, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def cad_volumes_mm3(paper):
-    from design import cad_prrr
+    from hapticopt.design.prrr import cad as cad_prrr
 
     return {n: s.volume for n, s in cad_prrr.build_parts(paper).items()}
 
@@ -116,7 +116,7 @@ def test_a_failing_writer_leaves_no_partial_file(paper, tmp_path, monkeypatch):
 
 
 def test_invalid_design_writes_nothing(paper, tmp_path):
-    from design.errors import InvalidDesign
+    from hapticopt.design.errors import InvalidDesign
 
     bad = io.apply_overrides(paper, ["structure.bore_diameter_mm=23.8"])
     with pytest.raises(InvalidDesign, match="bore_diameter_mm"):
@@ -127,7 +127,7 @@ def test_invalid_design_writes_nothing(paper, tmp_path):
 def test_cli_export_and_errors(tmp_path):
     from typer.testing import CliRunner
 
-    from optim.cli import app
+    from hapticopt.optim.cli import app
 
     runner = CliRunner()
     res = runner.invoke(app, ["export", "--preset", "prrr-paper", "--out", str(tmp_path / "o"), "--pose", "0,0,10"])

@@ -1,4 +1,4 @@
-"""design.io: TOML load/save, presets, --set overrides and every invalid-input path."""
+"""hapticopt.design.io: TOML load/save, presets, --set overrides and every invalid-input path."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from design import io
-from design.errors import InputFileError, InvalidDesign, UnknownName
+from hapticopt.design import io
+from hapticopt.design.errors import InputFileError, InvalidDesign, UnknownName
 
 
 def test_presets_listed():
@@ -140,7 +140,7 @@ def test_master_joint_range_order(master_paper):
 
 def test_save_is_atomic(tmp_path, prrr_paper, monkeypatch):
     """A failure while writing leaves neither a partial target nor a temp file."""
-    import design.atomic as atomic
+    from hapticopt.design import atomic as atomic
 
     target = tmp_path / "d.toml"
 

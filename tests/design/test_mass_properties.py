@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from design import cad_prrr, io, mass_properties as mp, parts
+from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design import io, mass_properties as mp, parts
 
 
 @pytest.fixture(scope="module", params=["prrr-paper", "prrr-isotropic-slim"])

@@ -1,4 +1,4 @@
-"""Tests of design.master (the surgical-master design description) and its preset."""
+"""Tests of hapticopt.design.master.params (the surgical-master design description) and its preset."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import dataclasses
 
 import pytest
 
-from design import io
-from design.errors import InvalidDesign
-from design.master import MasterDesign, MasterJoints
+from hapticopt.design import io
+from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.master.params import MasterDesign, MasterJoints
 
 
 def test_preset_loads_and_round_trips(tmp_path):

@@ -1,19 +1,19 @@
-"""Tests of design.mjcf_master: the MuJoCo model agrees with analysis.master_dynamics."""
+"""Tests of hapticopt.design.master.mjcf: the MuJoCo model agrees with hapticopt.analysis.master.dynamics."""
 
 from __future__ import annotations
 
 import dataclasses
 
-import analysis  # noqa: F401  (float64)
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import mujoco
 import numpy as np
 import pytest
 
-from analysis import master_dynamics as md
-from analysis import master_kinematics as mk
-from analysis import master_numeric as mn
-from design.io import load_preset
-from design.mjcf_master import REDUCTION, full_qpos, master_mjcf
+from hapticopt.analysis.master import dynamics as md
+from hapticopt.design.master import kinematics as mk
+from hapticopt.analysis.master import dynamics_numpy as mn
+from hapticopt.design.io import load_preset
+from hapticopt.design.master.mjcf import REDUCTION, full_qpos, master_mjcf
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +87,7 @@ def test_custom_mass_properties_are_used(design):
 
 def test_cad_mass_model_matches_mujoco_too():
     # the CAD engineer's geometric mass model (design.mass_properties.analytic) through the same path
-    from design import mass_properties as mp
+    from hapticopt.design import mass_properties as mp
 
     d = load_preset("master-paper")
     bodies = md.bodies_from_mass_properties(mp.analytic(d))

@@ -4,8 +4,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from design import io, mass_properties as mp
-from design.mjcf_prrr import MjcfOptions, closure_errors, prrr_mjcf
+from hapticopt.design import io, mass_properties as mp
+from hapticopt.design.prrr.mjcf import MjcfOptions, closure_errors, prrr_mjcf
 
 
 @pytest.fixture(scope="module")

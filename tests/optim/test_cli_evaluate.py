@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from optim.cli import app
+from hapticopt.optim.cli import app
 
 runner = CliRunner()
 
@@ -47,7 +47,7 @@ def test_table_output_names_metrics_with_units():
 
 
 def test_evaluate_design_file(tmp_path: Path):
-    from design import io
+    from hapticopt.design import io
 
     path = tmp_path / "mine.toml"
     io.save_design(io.apply_overrides(io.load_preset("prrr-paper"), ["name=mine"]), path)

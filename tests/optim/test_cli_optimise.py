@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from optim.cli import app
+from hapticopt.optim.cli import app
 
 runner = CliRunner()
 DATA = Path(__file__).parent / "data"

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from optim.cli import app
+from hapticopt.optim.cli import app
 
 runner = CliRunner()
 

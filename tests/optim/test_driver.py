@@ -10,14 +10,21 @@ import nlopt
 import numpy as np
 import pytest
 
-from optim import driver
-from optim.driver import StartStatus
-from optim.evaluation import GradientMode, Outcome, PointTask, evaluate_point, fd_gradients, jax_gradients
-from optim.problem import MetricRef, problem_from_dict
+from hapticopt.optim import driver
+from hapticopt.optim.driver import StartStatus
+from hapticopt.optim.evaluation import (
+    GradientMode,
+    Outcome,
+    PointTask,
+    evaluate_point,
+    fd_gradients,
+    jax_gradients,
+)
+from hapticopt.optim.problem import MetricRef, problem_from_dict
 
 #: seed 002 / seed digest: cond(J) = 1 at the isotropic angle β* = atan(1/√2) = 35.264°
 BETA_ISO_DEG = math.degrees(math.atan(1.0 / math.sqrt(2.0)))
-STATICS = "analysis.prrr_statics"
+STATICS = "hapticopt.analysis.prrr.statics"
 MODULES = {m: STATICS for m in ("jacobian_condition", "jacobian_condition_frobenius", "max_force_N",
                                 "max_pure_force_N", "stiffness_limit_N_per_mm", "effective_mass_kg")}
 
@@ -206,8 +213,8 @@ def test_master_counterweight_on_unbalance_boundary_beats_balanced():
     """Seed 003's lesson: with one counterweight free, the optimum sits on the 0.1 N unbalance
     boundary (active constraint) and has a higher transparency bandwidth than the perfectly
     balanced design (master-paper is balanced: max_unbalance_force_N ≈ 0)."""
-    from optim.pipeline import evaluate_design, evaluators_for
-    from optim.problem import load_problem
+    from hapticopt.optim.pipeline import evaluate_design, evaluators_for
+    from hapticopt.optim.problem import load_problem
 
     p = load_problem("master-transparency")
     base = evaluate_design(p.base, p.fidelity_optimise)

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from design.errors import InvalidInput
-from optim import driver
-from optim.executor import InlineExecutor, make_executor, worker_count
-from optim.problem import load_problem
+from hapticopt.design.errors import InvalidInput
+from hapticopt.optim import driver
+from hapticopt.optim.executor import InlineExecutor, make_executor, worker_count
+from hapticopt.optim.problem import load_problem
 
 ONLY = ("statics",)  # the problem's metrics all come from analysis.prrr_statics
 PROBLEM = Path(__file__).parent / "data" / "resume-problem.toml"

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from optim.pipeline import run_pipeline
-from optim.problem import load_problem
+from hapticopt.optim.pipeline import run_pipeline
+from hapticopt.optim.problem import load_problem
 
 DATA = Path(__file__).parent / "data"
 BETA_ISO_DEG = math.degrees(math.atan(1.0 / math.sqrt(2.0)))  # seed 002 isotropic angle
@@ -33,7 +33,7 @@ def test_pipeline_writes_the_run_directory(beta_run):
     assert abs(result["best_x"]["geometry.beta_deg"] - BETA_ISO_DEG) <= 0.01
     assert result["feasible_at_final_fidelity"] and result["improved_on_baseline"]
     assert [s["stage"] for s in result["stages"]][:3] == ["baseline", "optimise", "final"]
-    from design import io
+    from hapticopt.design import io
 
     opt = io.load_design(out / "optimum.toml")
     assert math.degrees(opt.geometry.beta) == pytest.approx(result["best_x"]["geometry.beta_deg"], abs=1e-9)
@@ -61,14 +61,14 @@ def test_final_fidelity_constraint_check(beta_run):
 
 
 def test_export_and_verify_stages_call_the_landed_modules(tmp_path, monkeypatch):
-    """The pipeline calls design.export and the closed-loop runner when they exist (stand-ins here)."""
+    """The pipeline calls hapticopt.design.export and the closed-loop runner when they exist (stand-ins here)."""
     calls = {}
 
     def export_design(design, out_dir):
         calls["export"] = design.name
         (Path(out_dir) / f"{design.name}.step").write_text("ISO-10303-21;")
 
-    monkeypatch.setitem(sys.modules, "design.export", types.SimpleNamespace(export_design=export_design))
+    monkeypatch.setitem(sys.modules, "hapticopt.design.export", types.SimpleNamespace(export_design=export_design))
     monkeypatch.syspath_prepend(str(DATA))  # the stand-in runner must import in the child process
     import fake_verifier
 
@@ -94,7 +94,7 @@ def test_export_and_verify_stages_call_the_landed_modules(tmp_path, monkeypatch)
 def test_bundled_prrr_problem_improves_on_the_paper_design(tmp_path):
     import dataclasses
 
-    from analysis.fidelity import Fidelity
+    from hapticopt.analysis.fidelity import Fidelity
 
     # standard instead of fine for the final check: fine adds the CAD solid FEA (minutes; make run does it)
     problem = dataclasses.replace(load_problem("prrr-workspace"), fidelity_final=Fidelity.STANDARD)

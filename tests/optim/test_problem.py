@@ -7,8 +7,17 @@ from pathlib import Path
 
 import pytest
 
-from design.errors import InputFileError, InvalidInput, UnknownName
-from optim.problem import Algorithm, MetricRef, Op, Sense, check_metrics, load_problem, problem_from_dict, problem_names
+from hapticopt.design.errors import InputFileError, InvalidInput, UnknownName
+from hapticopt.optim.problem import (
+    Algorithm,
+    MetricRef,
+    Op,
+    Sense,
+    check_metrics,
+    load_problem,
+    problem_from_dict,
+    problem_names,
+)
 
 DATA = Path(__file__).parent / "data"
 
@@ -113,7 +122,7 @@ def test_unknown_problem_name_and_bad_toml(tmp_path):
 
 
 def test_base_file_relative_to_problem(tmp_path):
-    from design import io
+    from hapticopt.design import io
 
     io.save_design(io.load_preset("prrr-paper"), tmp_path / "mine.toml")
     d = base_problem()

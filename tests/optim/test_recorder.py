@@ -14,11 +14,11 @@ from pathlib import Path
 
 import pytest
 
-from design.errors import InvalidInput
-from optim import driver
-from optim.evaluation import Outcome, PointResult, evaluate_point
-from optim.problem import load_problem
-from optim.recorder import FILENAME, Recorder, point_key
+from hapticopt.design.errors import InvalidInput
+from hapticopt.optim import driver
+from hapticopt.optim.evaluation import Outcome, PointResult, evaluate_point
+from hapticopt.optim.problem import load_problem
+from hapticopt.optim.recorder import FILENAME, Recorder, point_key
 
 DATA = Path(__file__).parent / "data"
 ONLY = ("statics",)  # the problem's metrics all come from analysis.prrr_statics

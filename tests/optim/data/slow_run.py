@@ -8,11 +8,11 @@ import sys
 import time
 from pathlib import Path
 
-import analysis  # noqa: F401
-from optim import driver
-from optim.evaluation import evaluate_point
-from optim.problem import load_problem
-from optim.recorder import Recorder
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.optim import driver
+from hapticopt.optim.evaluation import evaluate_point
+from hapticopt.optim.problem import load_problem
+from hapticopt.optim.recorder import Recorder
 
 ONLY = ("statics",)  # the problem's metrics all come from analysis.prrr_statics
 PROBLEM = Path(__file__).with_name("resume-problem.toml")

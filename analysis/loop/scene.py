@@ -1,0 +1,503 @@
+"""Closed-loop scenes: what to simulate, read from TOML, and which physics (effects) it calls for.
+
+A scene names the duration, the controller settings, the virtual environment, the operator
+(a mass-spring-damper hand, seed 000 eq 1, driven by a reference motion) or an initial
+perturbation, and the **effects** switched on. An effect that is off is absent from the plant
+and from the controller (it is not evaluated at all, see ``tests/analysis/test_closed_loop.py``).
+
+:func:`resolve` turns a scene into the effect set actually simulated and the backend that
+can simulate it, with the reason: the lumped plant (``analysis.lumped_plant``) when the effects
+allow it, the multibody MuJoCo plant (``analysis.mujoco_plant``, ``analysis.mujoco_master``) for
+``link_dynamics`` (with or without gravity on the links) and for the surgical master at all.
+A scene (``backend = "lumped" | "multibody"``) or the caller may force a backend; forcing the
+lumped plant onto a scene it cannot simulate is refused with a one-line error, never silently run.
+
+TOML keys carry their unit (``period_ms``, ``stiffness_N_per_mm``); values are stored in SI.
+Every invalid value raises :class:`design.errors.InvalidInput` with a one-line message naming
+the scene, the key, the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from enum import StrEnum
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from hapticopt.design.errors import InputFileError, InvalidInput, UnknownName
+
+
+class Effect(StrEnum):
+    """Physics a scene can switch on or off."""
+
+    SEA_COMPLIANCE = "sea_compliance"  # the series spring k; off: rigid transmission
+    MOTOR_DYNAMICS = "motor_dynamics"  # motor-side mass M_m and the force loop; off: ideal force source
+    COULOMB_FRICTION = "coulomb_friction"  # stick-slip friction of the output sliders (+ its compensation)
+    VISCOUS_FRICTION = "viscous_friction"  # screw viscous friction ξ (motor side)
+    GRAVITY = "gravity"  # weight of the end-effector mass M (+ its compensation)
+    SAMPLING = "sampling"  # controller at period T with zero-order hold; off: continuous-time limit
+    QUANTIZATION = "quantization"  # encoder and spring-deflection counts are integers
+    SATURATION = "saturation"  # motor-force limit
+    OPERATOR = "operator"  # mass-spring-damper hand driven by the reference motion
+    TIME_DELAY = "time_delay"  # commands reach the plant ``time_delay_ms`` late
+    LINK_DYNAMICS = "link_dynamics"  # distributed link inertia: needs the multibody backend
+
+
+#: devices a scene can be written for
+DEVICES = ("prrr", "master")
+
+#: effects on when a scene's [effects] table does not mention them
+DEFAULT_EFFECTS: frozenset[Effect] = frozenset(Effect) - {Effect.TIME_DELAY, Effect.LINK_DYNAMICS}
+
+
+class EnvKind(StrEnum):
+    FREE = "free"  # zero impedance
+    SPRING = "spring"  # F_r = −K_v (p − anchor) − B_v ṗ
+    BOX = "box"  # virtual box of eq 13
+    FORCE = "force"  # prescribed end-effector force F_r(t) = A sin(2πft) (force-loop tests)
+
+
+class BoxMode(StrEnum):
+    INSIDE = "inside"  # keep the end-effector inside: walls act on every axis beyond its wall
+    OUTSIDE = "outside"  # keep it out: acts when all axes are within, along the shallowest axis
+
+
+class StabilityCriterion(StrEnum):
+    DRIVEN = "driven"  # energy explodes beyond the scene's energy scale, or state runs away
+    DECAY = "decay"  # + the energy of the last window exceeds the window before (growth)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ControllerSettings:
+    period: float = 1e-3  # T [s]
+    force_gain: float = 45.0  # K_p [-] (seed 002 Table 4 experiments)
+    integral_gain: float = 0.0  # K_i [1/s]
+    velocity_filter: float = 100.0  # first-order low-pass cut-off of the velocity estimate [Hz]; 0 = plain difference
+    friction_compensation: float = 0.0  # [N] added in x and y along the estimated velocity (seed 002: 3 N)
+    friction_compensation_velocity: float = 2e-3  # [m/s] width of the tanh sign used by the compensation
+    gravity_compensation: bool = True
+    interpolation: int = 1  # output samples per period (seed 000 eq 23); 1 = off
+    ar_coefficients: tuple[float, ...] = (2.0, -1.0)  # f_{i+1} = Σ a_j f_{i−j}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Environment:
+    kind: EnvKind = EnvKind.FREE
+    stiffness: tuple[float, float, float] = (0.0, 0.0, 0.0)  # K_v [N/m]
+    damping: tuple[float, float, float] = (0.0, 0.0, 0.0)  # B_v [N·s/m]
+    anchor: tuple[float, float, float] = (0.0, 0.0, 0.0)  # p_r [m]
+    half_size: tuple[float, float, float] = (0.01, 0.01, 0.01)  # box half-sizes [m]
+    wall_stiffness: float = 25e3  # K_b [N/m]
+    wall_damping: float = 0.0  # B_b [N·s/m]
+    box_mode: BoxMode = BoxMode.INSIDE
+    force_amplitude: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N]
+    force_frequency: float = 1.0  # [Hz]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Operator:
+    """Hand impedance Z_h = m_h s + b_h + k_h/s (seed 000 eq 1)."""
+
+    mass: float = 0.3  # [kg]
+    damping: float = 50.0  # [N·s/m]
+    stiffness: float = 20e3  # [N/m]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Motion:
+    """Reference motion of the hand: offset + amplitude·sin(2πft + phase), per axis."""
+
+    amplitude: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [m]
+    frequency: float = 1.0  # [Hz]
+    phase: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [rad]
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [m]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ZWidthSettings:
+    axis: int = 0  # 0 = x, 1 = y, 2 = z
+    stiffness_range: tuple[float, float] = (1e3, 100e3)  # [N/m]
+    damping_range: tuple[float, float] = (0.0, 2000.0)  # [N·s/m]
+    points: int = 20
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scene:
+    name: str
+    description: str = ""
+    duration: float = 3.0  # [s]
+    controller: ControllerSettings = field(default_factory=ControllerSettings)
+    environment: Environment = field(default_factory=Environment)
+    operator: Operator = field(default_factory=Operator)
+    motion: Motion = field(default_factory=Motion)
+    initial_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # end-effector start [m]
+    effects: frozenset[Effect] = DEFAULT_EFFECTS
+    time_delay: float = 0.0  # [s], used when Effect.TIME_DELAY is on
+    substeps: int = 0  # plant substeps per controller period; 0 = by fidelity
+    output_locked: bool = False  # clamp the output sliders (force-loop tests, eq 8)
+    stability: StabilityCriterion = StabilityCriterion.DRIVEN
+    measure_axis: int = 0  # axis of the rendered-stiffness fit
+    zwidth: ZWidthSettings = field(default_factory=ZWidthSettings)
+    device: str = "prrr"  # which device the scene is written for: "prrr" (3-PRRR SEA) or "master"
+    sweep_factors: tuple[float, ...] = ()  # master: sine sweep at these × the frequency-domain bandwidth
+    sweep_periods: int = 3  # periods per sweep frequency (the first one settles)
+    backend: "Backend | None" = None  # forced backend; None = the resolver chooses
+
+
+# ---------------------------------------------------------------------------------------- parsing
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+class _Reader:
+    """Reads one TOML table with one-line errors; remembers the keys it consumed."""
+
+    def __init__(self, table: Any, where: str) -> None:
+        if not isinstance(table, dict):
+            raise InvalidInput(f"{where} must be a table, got {table!r}")
+        self.table = table
+        self.where = where
+        self.used: set[str] = set()
+
+    def _get(self, key: str) -> Any:
+        self.used.add(key)
+        return self.table.get(key)
+
+    def num(self, key: str, default: float, *, scale: float = 1.0, lo: float = -math.inf, hi: float = math.inf,
+            lo_open: bool = False, unit: str = "") -> float:
+        v = self._get(key)
+        if v is None:
+            return default * scale  # defaults are given in the key's unit
+        allowed = f"{'<' if lo_open else '≤'} {key} ≤ {hi:g}"
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise InvalidInput(f"{self.where}.{key} = {v!r} must be a finite number: allowed {lo:g} {allowed} {unit}".rstrip())
+        if v < lo or v > hi or (lo_open and v == lo):
+            raise InvalidInput(f"{self.where}.{key} = {v:g} is out of range: allowed {lo:g} {allowed} {unit}".rstrip())
+        return float(v) * scale
+
+    def integer(self, key: str, default: int, *, lo: int, hi: int) -> int:
+        v = self._get(key)
+        if v is None:
+            return default
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise InvalidInput(f"{self.where}.{key} = {v!r} must be a whole number: allowed {lo} ≤ {key} ≤ {hi}")
+        return v
+
+    def flag(self, key: str, default: bool) -> bool:
+        v = self._get(key)
+        if v is None:
+            return default
+        if not isinstance(v, bool):
+            raise InvalidInput(f"{self.where}.{key} = {v!r} must be true or false")
+        return v
+
+    def vec(self, key: str, default: tuple[float, ...], *, n: int = 3, scale: float = 1.0,
+            lo: float = -math.inf, hi: float = math.inf, unit: str = "") -> tuple[float, ...]:
+        v = self._get(key)
+        if v is None:
+            return tuple(float(x) * scale for x in default)
+        if (not isinstance(v, list) or len(v) != n
+                or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) for x in v)):
+            raise InvalidInput(f"{self.where}.{key} = {v!r} must be a list of {n} finite numbers ({unit or '-'})")
+        for x in v:
+            if x < lo or x > hi:
+                raise InvalidInput(f"{self.where}.{key} = {v!r} is out of range: allowed {lo:g} ≤ each ≤ {hi:g} {unit}".rstrip())
+        return tuple(float(x) * scale for x in v)
+
+    def choice(self, key: str, enum: type[StrEnum], default: StrEnum) -> Any:
+        v = self._get(key)
+        if v is None:
+            return default
+        try:
+            return enum(v)
+        except ValueError:
+            allowed = ", ".join(e.value for e in enum)
+            raise InvalidInput(f"{self.where}.{key} = {v!r} is not known: allowed {allowed}") from None
+
+    def axis(self, key: str, default: int) -> int:
+        v = self._get(key)
+        if v is None:
+            return default
+        if v not in _AXES:
+            raise InvalidInput(f"{self.where}.{key} = {v!r} is not an axis: allowed x, y, z")
+        return _AXES[v]
+
+    def done(self) -> None:
+        extra = sorted(set(self.table) - self.used)
+        if extra:
+            allowed = ", ".join(sorted(self.used))
+            raise InvalidInput(f"{self.where}.{extra[0]} is not a known key: allowed {allowed}")
+
+
+def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
+    """Build a :class:`Scene` from a TOML-shaped mapping (edge units). Raises :class:`InvalidInput`."""
+    top = _Reader(data, source)
+    name = top._get("name")
+    if not isinstance(name, str) or not name.strip():
+        raise InvalidInput(f"{source}.name = {name!r} must be a non-empty string")
+    description = top._get("description") or ""
+    device = top._get("device") or "prrr"
+    if device not in DEVICES:
+        raise InvalidInput(f"{source}.device = {device!r} is not known: allowed {', '.join(DEVICES)}")
+    backend_key = top._get("backend")
+    if backend_key in (None, "auto"):
+        backend = None
+    else:
+        try:
+            backend = Backend(backend_key)
+        except ValueError:
+            raise InvalidInput(f"{source}.backend = {backend_key!r} is not known: allowed auto, lumped, multibody") from None
+    if not isinstance(description, str):
+        raise InvalidInput(f"{source}.description = {description!r} must be a string")
+    where = f"scene {name}"
+    top.where = where
+    duration = top.num("duration_s", 3.0, lo=0.0, hi=3600.0, lo_open=True, unit="s")
+
+    c = _Reader(data.get("controller", {}), f"{where}: controller")
+    top.used.add("controller")
+    ar = c._get("ar_coefficients")
+    if ar is None:
+        ar_t: tuple[float, ...] = (2.0, -1.0)
+    elif (isinstance(ar, list) and 1 <= len(ar) <= 3
+          and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in ar)):
+        ar_t = tuple(float(x) for x in ar)
+    else:
+        raise InvalidInput(f"{where}: controller.ar_coefficients = {ar!r} must be a list of 1 to 3 finite numbers")
+    controller = ControllerSettings(
+        period=c.num("period_ms", 1.0, scale=1e-3, lo=0.0, hi=100.0, lo_open=True, unit="ms"),
+        force_gain=c.num("force_gain", 45.0, lo=0.0, hi=1e9, unit="(N motor force per N spring-force error)"),
+        integral_gain=c.num("integral_gain_per_s", 0.0, lo=0.0, hi=1e9, unit="1/s"),
+        velocity_filter=c.num("velocity_filter_Hz", 100.0, lo=0.0, hi=1e7, unit="Hz"),
+        friction_compensation=c.num("friction_compensation_N", 0.0, lo=0.0, hi=1e4, unit="N"),
+        friction_compensation_velocity=c.num("friction_compensation_velocity_mm_per_s", 2.0, scale=1e-3,
+                                             lo=0.0, hi=1e4, lo_open=True, unit="mm/s"),
+        gravity_compensation=c.flag("gravity_compensation", True),
+        interpolation=c.integer("interpolation", 1, lo=1, hi=64),
+        ar_coefficients=ar_t,
+    )
+    c.done()
+
+    e = _Reader(data.get("environment", {}), f"{where}: environment")
+    top.used.add("environment")
+    env = Environment(
+        kind=e.choice("kind", EnvKind, EnvKind.FREE),
+        stiffness=e.vec("stiffness_N_per_mm", (0.0,) * 3, scale=1e3, lo=0.0, hi=1e9, unit="N/mm"),
+        damping=e.vec("damping_Ns_per_m", (0.0,) * 3, lo=-1e9, hi=1e9, unit="N·s/m"),
+        anchor=e.vec("anchor_mm", (0.0,) * 3, scale=1e-3, lo=-1e3, hi=1e3, unit="mm"),
+        half_size=e.vec("half_size_mm", (10.0,) * 3, scale=1e-3, lo=0.0, hi=1e3, unit="mm"),
+        wall_stiffness=e.num("wall_stiffness_N_per_mm", 25.0, scale=1e3, lo=0.0, hi=1e9, unit="N/mm"),
+        wall_damping=e.num("wall_damping_Ns_per_m", 0.0, lo=-1e9, hi=1e9, unit="N·s/m"),
+        box_mode=e.choice("box_mode", BoxMode, BoxMode.INSIDE),
+        force_amplitude=e.vec("force_amplitude_N", (0.0,) * 3, lo=-1e6, hi=1e6, unit="N"),
+        force_frequency=e.num("force_frequency_Hz", 1.0, lo=0.0, hi=1e5, unit="Hz"),
+    )
+    e.done()
+
+    o = _Reader(data.get("operator", {}), f"{where}: operator")
+    top.used.add("operator")
+    operator = Operator(
+        mass=o.num("mass_kg", 0.3, lo=0.0, hi=100.0, unit="kg"),
+        damping=o.num("damping_Ns_per_m", 50.0, lo=0.0, hi=1e7, unit="N·s/m"),
+        stiffness=o.num("stiffness_N_per_mm", 20.0, scale=1e3, lo=0.0, hi=1e7, unit="N/mm"),
+    )
+    o.done()
+
+    m = _Reader(data.get("motion", {}), f"{where}: motion")
+    top.used.add("motion")
+    motion = Motion(
+        amplitude=m.vec("amplitude_mm", (0.0,) * 3, scale=1e-3, lo=0.0, hi=500.0, unit="mm"),
+        frequency=m.num("frequency_Hz", 1.0, lo=0.0, hi=1e4, unit="Hz"),
+        phase=m.vec("phase_deg", (0.0,) * 3, scale=math.pi / 180.0, lo=-360.0, hi=360.0, unit="deg"),
+        offset=m.vec("offset_mm", (0.0,) * 3, scale=1e-3, lo=-500.0, hi=500.0, unit="mm"),
+    )
+    m.done()
+
+    i = _Reader(data.get("initial", {}), f"{where}: initial")
+    top.used.add("initial")
+    initial = i.vec("offset_mm", (0.0,) * 3, scale=1e-3, lo=-500.0, hi=500.0, unit="mm")
+    i.done()
+
+    ef = _Reader(data.get("effects", {}), f"{where}: effects")
+    top.used.add("effects")
+    effects = {eff for eff in Effect if ef.flag(eff.value, eff in DEFAULT_EFFECTS)}
+    delay = ef.num("time_delay_ms", 0.0, scale=1e-3, lo=0.0, hi=1e4, unit="ms")
+    ef.done()
+
+    s = _Reader(data.get("simulation", {}), f"{where}: simulation")
+    top.used.add("simulation")
+    substeps = s.integer("substeps", 0, lo=0, hi=10000)
+    locked = s.flag("output_locked", False)
+    criterion = s.choice("stability", StabilityCriterion, StabilityCriterion.DRIVEN)
+    axis = s.axis("measure_axis", 0)
+    sw = s._get("sweep_factors")
+    if sw is None:
+        sweep: tuple[float, ...] = ()
+    elif (isinstance(sw, list) and 2 <= len(sw) <= 20 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and 0.01 <= x <= 100 for x in sw)):
+        sweep = tuple(sorted(float(x) for x in sw))
+    else:
+        raise InvalidInput(f"{where}: simulation.sweep_factors = {sw!r} must be a list of 2 to 20 numbers in "
+                           "[0.01, 100] (multiples of the frequency-domain bandwidth)")
+    sweep_periods = s.integer("sweep_periods", 3, lo=2, hi=1000)
+    s.done()
+
+    z = _Reader(data.get("zwidth", {}), f"{where}: zwidth")
+    top.used.add("zwidth")
+    zw = ZWidthSettings(
+        axis=z.axis("axis", 0),
+        stiffness_range=z.vec("stiffness_N_per_mm", (1.0, 100.0), n=2, scale=1e3, lo=0.0, hi=1e9, unit="N/mm"),
+        damping_range=z.vec("damping_Ns_per_m", (0.0, 2000.0), n=2, lo=-1e9, hi=1e9, unit="N·s/m"),
+        points=z.integer("points", 20, lo=2, hi=1000),
+    )
+    z.done()
+    top.done()
+
+    if Effect.TIME_DELAY in effects:
+        ticks = delay / controller.period
+        if delay <= 0.0 or abs(ticks - round(ticks)) > 1e-6 * max(1.0, ticks):
+            raise InvalidInput(f"{where}: effects.time_delay_ms = {delay * 1e3:g} must be a positive whole number of "
+                               f"controller periods ({controller.period * 1e3:g} ms) when time_delay is on")
+    if substeps and substeps % controller.interpolation:
+        raise InvalidInput(f"{where}: simulation.substeps = {substeps} must be a multiple of "
+                           f"controller.interpolation = {controller.interpolation}")
+    if zw.stiffness_range[0] >= zw.stiffness_range[1] or zw.damping_range[0] > zw.damping_range[1]:
+        raise InvalidInput(f"{where}: zwidth ranges must be increasing, got stiffness {zw.stiffness_range} N/m, "
+                           f"damping {zw.damping_range} N·s/m")
+    if env.kind == EnvKind.FREE and (any(env.stiffness) or any(env.damping)):
+        raise InvalidInput(f"{where}: environment.kind = \"free\" renders zero impedance: remove stiffness_N_per_mm "
+                           "and damping_Ns_per_m or use kind = \"spring\"")
+    return Scene(name=name, description=description, duration=duration, controller=controller, environment=env,
+                 operator=operator, motion=motion, initial_offset=initial, effects=frozenset(effects),
+                 time_delay=delay if Effect.TIME_DELAY in effects else 0.0, substeps=substeps,
+                 output_locked=locked, stability=criterion, measure_axis=axis, zwidth=zw, device=device,
+                 backend=backend, sweep_factors=sweep, sweep_periods=sweep_periods)
+
+
+def _scene_dir():
+    return resources.files("hapticopt.analysis.scenes")
+
+
+def scene_names() -> list[str]:
+    """Names of the bundled scenes."""
+    return sorted(p.name[: -len(".toml")] for p in _scene_dir().iterdir() if p.name.endswith(".toml"))
+
+
+def load_scene(name_or_path: str | Path) -> Scene:
+    """A bundled scene by name, or a scene TOML file by path."""
+    text: str
+    source: str
+    path = Path(name_or_path)
+    if str(name_or_path) in scene_names():
+        text = (_scene_dir() / f"{name_or_path}.toml").read_text(encoding="utf-8")
+        source = f"scene {name_or_path}"
+    elif path.suffix == ".toml" or path.exists():
+        if not path.is_file():
+            raise InputFileError(f"scene file {str(path)!r} does not exist: give a .toml path or a bundled scene "
+                                 f"({', '.join(scene_names())})")
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputFileError(f"scene file {str(path)!r} cannot be read: {exc}") from None
+        source = path.name
+    else:
+        raise UnknownName(f"scene {str(name_or_path)!r} does not exist: allowed scenes are {', '.join(scene_names())} "
+                          "or a path to a .toml file")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputFileError(f"{source} is not valid TOML: {exc}") from None
+    return scene_from_dict(data, source=source)
+
+
+# --------------------------------------------------------------------------------------- resolving
+class Backend(StrEnum):
+    LUMPED = "lumped"  # analysis.lumped_plant: two-mass SEA per leg + constant M_e (eq 6, 7)
+    MULTIBODY = "multibody"  # MuJoCo plant (issue 8)
+
+
+#: backends that can be run (the multibody plant of issue 8 exists)
+AVAILABLE_BACKENDS: frozenset[Backend] = frozenset({Backend.LUMPED, Backend.MULTIBODY})
+
+
+@dataclass(frozen=True, kw_only=True)
+class Resolution:
+    """The effects actually simulated and the backend that simulates them."""
+
+    effects: frozenset[Effect]
+    backend: Backend
+    reason: str
+    notes: tuple[str, ...] = ()  # effects dropped because nothing they act on is present
+
+    def effect_names(self) -> list[str]:
+        return sorted(e.value for e in self.effects)
+
+
+def multibody_need(scene: Scene) -> str | None:
+    """Why ``scene`` needs the multibody plant (None: the lumped plant is exact for it)."""
+    if scene.device == "master":
+        return ("the surgical master: its serial/parallelogram chain has pose-dependent inertia, gravity and "
+                "Jacobian, which only the multibody plant (hapticopt.design.master.mjcf) models")
+    if Effect.LINK_DYNAMICS in scene.effects and Effect.GRAVITY in scene.effects:
+        return ("link_dynamics and gravity are on: distributed link inertia and the links' weight at their own "
+                "CoMs need the multibody plant")
+    if Effect.LINK_DYNAMICS in scene.effects:
+        return "link_dynamics is on: distributed link inertia needs the multibody plant"
+    return None
+
+
+def resolve(scene: Scene, *, available: frozenset[Backend] = AVAILABLE_BACKENDS,
+            force: Backend | None = None) -> Resolution:
+    """The resolved effect set and backend of ``scene``; raises :class:`InvalidInput` if none can run it.
+
+    ``force`` (or the scene's own ``backend`` key; ``force`` wins) overrides the choice; forcing
+    the lumped plant onto a scene that needs the multibody one is an error, never a silent run.
+    """
+    effects = set(scene.effects)
+    notes: list[str] = []
+    need = multibody_need(scene)
+    force = force if force is not None else scene.backend
+    if need is not None:
+        if force == Backend.LUMPED:
+            what = "the master" if scene.device == "master" else "link_dynamics"
+            raise InvalidInput(f"scene {scene.name}: backend = lumped cannot simulate {what} ({need.split(':')[0]}); "
+                               "use backend = multibody" + ("" if scene.device == "master"
+                                                            else " or switch effects.link_dynamics off"))
+        if Backend.MULTIBODY not in available:
+            raise InvalidInput(f"scene {scene.name}: link_dynamics requires the multibody backend (not available); "
+                               "switch effects.link_dynamics off to use the lumped plant")
+        backend, reason = Backend.MULTIBODY, need
+    else:
+        backend = Backend.LUMPED
+        reason = ("no effect needs the multibody backend: the lumped two-mass SEA model (seed 002 eq 6) with the "
+                  "constant equivalent mass M_e (eq 7) is exact for the 3-PRRR's rigid translational dynamics")
+        if force == Backend.MULTIBODY:
+            backend = Backend.MULTIBODY
+            reason = f"forced multibody (the resolver would pick lumped: {reason})"
+    if Effect.MOTOR_DYNAMICS not in effects and Effect.VISCOUS_FRICTION in effects:
+        effects.discard(Effect.VISCOUS_FRICTION)
+        notes.append("viscous_friction dropped: it acts on the motor side, absent without motor_dynamics")
+    if Effect.MOTOR_DYNAMICS not in effects and Effect.SEA_COMPLIANCE in effects:
+        notes.append("motor_dynamics off: the spring force equals its reference (ideal force source)")
+    if scene.device == "master":
+        for eff, why in ((Effect.SEA_COMPLIANCE, "the master's capstan drives have no series spring"),
+                         (Effect.LINK_DYNAMICS, "the master's links are always multibody")):
+            if eff in effects:
+                effects.discard(eff)
+                notes.append(f"{eff.value} dropped: {why}")
+    if scene.output_locked and Effect.OPERATOR in effects:
+        effects.discard(Effect.OPERATOR)
+        notes.append("operator dropped: the output sliders are locked")
+    if scene.output_locked and Effect.COULOMB_FRICTION in effects:
+        effects.discard(Effect.COULOMB_FRICTION)
+        notes.append("coulomb_friction dropped: the output sliders are locked")
+    if scene.output_locked and Effect.GRAVITY in effects:
+        effects.discard(Effect.GRAVITY)
+        notes.append("gravity dropped: the output sliders are locked")
+    if scene.output_locked and Effect.MOTOR_DYNAMICS not in effects:
+        raise InvalidInput(f"scene {scene.name}: simulation.output_locked = true needs motor_dynamics and "
+                           "sea_compliance on (it tests the SEA force loop)")
+    if scene.output_locked and Effect.SEA_COMPLIANCE not in effects:
+        raise InvalidInput(f"scene {scene.name}: simulation.output_locked = true needs sea_compliance on")
+    return Resolution(effects=frozenset(effects), backend=backend, reason=reason, notes=tuple(notes))

@@ -1,0 +1,111 @@
+"""Firmware of the surgical master (seed 003): joint-torque impedance control τ = Jᵀ F at 1 kHz.
+
+The counterpart of :mod:`analysis.firmware` / :mod:`analysis.firmware_numpy` for device B, with
+the same ``reset(counts)`` / ``step(counts) -> commands`` idea. It sees only the three joint
+encoder counts (θ1, θ2, θ3, counted from the calibration pose ``q0`` it was homed at, at
+``encoder_counts_per_rev``); from them it computes the handle position p(q) and the Jacobian
+(the master's closed-form forward kinematics, :mod:`analysis.master_kinematics` conventions), the
+velocity by a filtered backward difference, the virtual environment's force F (a spring
+F = −K(p − p_r) − B ṗ, or walls of a box around p_r: −K_b·depth − B_b ṗ on every axis beyond its
+wall) and the joint torques τ = Jᵀ F (+ the model's gravity torque G(q) when gravity
+compensation is on), clipped to the motor torque limit when saturation is on. The plant holds τ
+for the period (zero-order hold).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from hapticopt.analysis.loop.scene import EnvKind
+
+_TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True, kw_only=True)
+class MasterFirmwareConfig:
+    """Everything the master firmware knows [SI]."""
+
+    period: float  # T [s]
+    counts_per_rev: float
+    q0: tuple[float, float, float]  # calibration pose (θ1, θ2, θ3) [rad]
+    upper_arm: float  # L5 [m]
+    forearm: float  # L4 [m]
+    shoulder_height: float  # h [m]
+    env: EnvKind
+    anchor: tuple[float, float, float]  # p_r [m] (world)
+    stiffness: tuple[float, float, float]  # K [N/m]
+    damping: tuple[float, float, float]  # B [N·s/m]
+    half_size: tuple[float, float, float]  # box half-sizes [m]
+    wall_stiffness: float  # K_b [N/m]
+    wall_damping: float  # B_b [N·s/m]
+    velocity_alpha: float  # first-order filter pole e^{−2π f_c T}; 0 = plain difference
+    torque_limit: float  # [N·m]
+    saturation: bool
+    quantized: bool  # counts are integers (informational; the plant rounds)
+    gravity_compensation: bool
+    gravity_g1: float = 0.0  # G(q) = (0, G1 cos θ2, G2 sin θ3) [N·m] (analysis.master_dynamics.gravity_parameters)
+    gravity_g2: float = 0.0
+
+
+def forward(cfg: MasterFirmwareConfig, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Handle position p(q) [m] and Jacobian ∂p/∂q (3×3) of the master (reduced joints θ1, θ2, θ3)."""
+    t1, t2, t3 = (float(x) for x in q)
+    L5, L4 = cfg.upper_arm, cfg.forearm
+    c1, s1, c2, s2, c3, s3 = math.cos(t1), math.sin(t1), math.cos(t2), math.sin(t2), math.cos(t3), math.sin(t3)
+    rho = L5 * c2 + L4 * s3
+    p = np.array([rho * c1, rho * s1, cfg.shoulder_height + L5 * s2 - L4 * c3])
+    J = np.array([[-rho * s1, -L5 * s2 * c1, L4 * c3 * c1],
+                  [rho * c1, -L5 * s2 * s1, L4 * c3 * s1],
+                  [0.0, L5 * c2, L4 * s3]])
+    return p, J
+
+
+class MasterController:
+    """The master's firmware: ``step(encoder_counts (3,)) -> torques (1, 3)`` [N·m]."""
+
+    def __init__(self, cfg: MasterFirmwareConfig) -> None:
+        self.cfg = cfg
+        self.period = cfg.period
+        self._scale = _TWO_PI / cfg.counts_per_rev
+        self._q0 = np.asarray(cfg.q0, dtype=float)
+        self._K, self._B = np.asarray(cfg.stiffness), np.asarray(cfg.damping)
+        self._anchor, self._half = np.asarray(cfg.anchor), np.asarray(cfg.half_size)
+        self.last_force = np.zeros(3)
+        self._ready = False
+
+    def joint_angles(self, counts: np.ndarray) -> np.ndarray:
+        return self._q0 + np.asarray(counts, dtype=float) * self._scale
+
+    def reset(self, counts: np.ndarray) -> None:
+        self._p_prev, _ = forward(self.cfg, self.joint_angles(counts))
+        self._v = np.zeros(3)
+        self._ready = True
+
+    def step(self, counts: np.ndarray) -> np.ndarray:
+        cfg = self.cfg
+        if not self._ready:
+            self.reset(counts)
+        q = self.joint_angles(counts)
+        p, J = forward(cfg, q)
+        diff = (p - self._p_prev) / cfg.period
+        a = cfg.velocity_alpha
+        v = a * self._v + (1.0 - a) * diff if a > 0.0 else diff
+        delta = p - self._anchor
+        if cfg.env == EnvKind.SPRING:
+            F = -self._K * delta - self._B * v
+        elif cfg.env == EnvKind.BOX:
+            depth = np.abs(delta) - self._half
+            F = np.where(depth > 0.0, -cfg.wall_stiffness * np.sign(delta) * depth - cfg.wall_damping * v, 0.0)
+        else:
+            F = np.zeros(3)
+        tau = F @ J  # Jᵀ F
+        if cfg.gravity_compensation:
+            tau = tau + np.array([0.0, cfg.gravity_g1 * math.cos(q[1]), cfg.gravity_g2 * math.sin(q[2])])
+        if cfg.saturation:
+            tau = np.clip(tau, -cfg.torque_limit, cfg.torque_limit)
+        self._p_prev, self._v = p, v
+        self.last_force = F
+        return tau[None, :]

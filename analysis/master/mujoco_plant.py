@@ -1,0 +1,432 @@
+"""The surgical master (seed 003) in closed loop: its firmware against the MuJoCo multibody plant.
+
+Plant: the MJCF of :func:`design.mjcf_master.master_mjcf` (turret, upper arm, driver link,
+parallelogram coupler closed by an equality ``connect``, forearm, handle, counterweights, joint
+motors) with the scene's effects applied after compiling: gravity on/off, joint viscous friction
+(``viscous_friction``), Coulomb friction (``coulomb_friction``, MuJoCo ``frictionloss``), rotor
+inertia (``motor_dynamics``, joint armature), the motor torque limit (``saturation``). The
+solver settings are the 3-PRRR plant's per fidelity (:data:`analysis.mujoco_prrr.SOLVER_BY_FIDELITY`:
+integrator, timestep, solref = 2·dt, solimp 0.9999) — the parallelogram closure is held to the
+same tolerance (≤ 0.01 mm, reported with every run and flagged when exceeded).
+
+The operator hand (``operator`` effect) is a body of mass m_h on three slides with springs k_h and
+dampers b_h towards the reference motion x_r(t) = x0 + offset + A sin(2πft + φ) (seed 000 eq 1),
+tied to the handle by a ``connect``; the reference is updated once per controller period at its
+midpoint, as for the 3-PRRR plant. The force of the hand on the handle is
+k_h(x_r − x_h) + b_h(ẋ_r − ẋ_h) − m_h ẍ_h.
+
+The firmware (:class:`analysis.firmware_master.MasterController`) sees only the joint encoder
+counts (rounded when ``quantization`` is on) and its torques are held for the period (ZOH, 1 kHz).
+
+Scenes (``device = "master"``): a virtual spring or box (walls) around the start handle position
+x0 + ``environment.anchor_mm``. With ``simulation.sweep_factors`` the scene is a sine sweep: one run
+per frequency f = factor × the frequency-domain transparency bandwidth of
+:mod:`analysis.master_transparency` (same pose, spring, amplitude, hold); the gain is the ratio of
+the fundamentals of the force the hand feels, −F_hand·e, and of the ideal force −K e·(x − x_r),
+over whole periods after the first; the bandwidth is the ±3 dB crossing (log interpolation, as
+:mod:`analysis.master_sweep`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hapticopt.analysis.prrr.closed_loop import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.master.firmware import MasterController, MasterFirmwareConfig
+from hapticopt.analysis.prrr.mujoco_model import SOLVER_BY_FIDELITY, Health, SolverSettings
+from hapticopt.analysis.loop.scene import Effect, EnvKind, Resolution, Scene, resolve
+from hapticopt.analysis.status import Status
+from hapticopt.design.errors import InvalidInput
+from hapticopt.design.master.params import MasterDesign
+
+VIOLATION_TOL = 1e-5  # [m] parallelogram closure (issue 8: 0.01 mm)
+RUNAWAY = 0.5  # [m] handle further than this from its start: unstable
+_AXIS_NAMES = ("x", "y", "z")
+
+
+def _v(x: Any) -> str:
+    return " ".join(f"{float(c):.12g}" for c in np.ravel(x))
+
+
+def master_xml(design: MasterDesign, res: Resolution, scene: Scene, solver: SolverSettings, x0: np.ndarray) -> str:
+    """The master MJCF with the fidelity's solver settings and (operator on) the hand body."""
+    from hapticopt.design.master.mjcf import master_mjcf
+
+    xml = master_mjcf(design, gravity=Effect.GRAVITY in res.effects, timestep=solver.timestep)
+    sol = f'solref="{_v(solver.solref)}" solimp="{_v(solver.solimp)}"'
+    xml = xml.replace('integrator="implicitfast"', f'integrator="{solver.integrator.value}"')
+    assert 'solref="0.002 1"' in xml
+    xml = xml.replace('solref="0.002 1"', sol)
+    if Effect.OPERATOR in res.effects:
+        op = scene.operator
+        joints = "".join(f'\n      <joint name="hand_{a}" type="slide" axis="{ax}" stiffness="{op.stiffness:.12g}" '
+                         f'damping="{op.damping:.12g}"/>' for a, ax in zip("xyz", ("1 0 0", "0 1 0", "0 0 1")))
+        mass = max(op.mass, 1e-6)
+        hand = (f'    <body name="hand" pos="{_v(x0)}" gravcomp="1">{joints}\n'
+                f'      <inertial pos="0 0 0" mass="{mass:.12g}" diaginertia="1e-6 1e-6 1e-6"/>\n'
+                f'      <site name="hand_site" pos="0 0 0"/>\n    </body>\n')
+        xml = xml.replace("  </worldbody>", hand + "  </worldbody>")
+        xml = xml.replace("  </equality>", f'    <connect name="hand" site1="hand_site" site2="handle" {sol}/>\n'
+                                           "  </equality>")
+    return xml
+
+
+def start_pose(design: MasterDesign) -> np.ndarray:
+    """Calibration / start pose of the master scenes: the middle of the θ3 and φ ranges (issue 5)."""
+    from hapticopt.analysis.master.transparency import default_pose
+
+    return default_pose(design)
+
+
+class MasterPlant:
+    """The MuJoCo master with the hand; advanced a controller period at a time."""
+
+    backend = "multibody"
+
+    def __init__(self, design: MasterDesign, scene: Scene, res: Resolution, *, period: float,
+                 fidelity: Fidelity = Fidelity.STANDARD, solver: SolverSettings | None = None) -> None:
+        import mujoco
+
+        from hapticopt.design.master.mjcf import full_qpos
+
+        self._mujoco = mujoco
+        self.design, self.scene, self.res = design, scene, res
+        self.solver = solver or SOLVER_BY_FIDELITY[fidelity]
+        self.q0 = start_pose(design)
+        # the handle's start position from the arm alone (the hand body is placed there)
+        arm = mujoco.MjModel.from_xml_string(_arm_only(design, res, scene, self.solver))
+        ad = mujoco.MjData(arm)
+        ad.qpos[:] = full_qpos(self.q0)
+        mujoco.mj_forward(arm, ad)
+        self.x0 = ad.site_xpos[arm.site("handle").id].copy()
+        self.model = m = mujoco.MjModel.from_xml_string(master_xml(design, res, scene, self.solver, self.x0))
+        self.data = mujoco.MjData(m)
+        fx = res.effects
+        act = [m.joint(n).dofadr[0] for n in ("theta1", "theta2", "theta3")]
+        self.act_qpos = np.array([m.joint(n).qposadr[0] for n in ("theta1", "theta2", "theta3")])
+        if Effect.VISCOUS_FRICTION not in fx:
+            m.dof_damping[act] = 0.0
+        if Effect.COULOMB_FRICTION not in fx:
+            m.dof_frictionloss[act] = 0.0
+        if Effect.MOTOR_DYNAMICS not in fx:
+            m.dof_armature[act] = 0.0
+        if Effect.SATURATION not in fx:
+            m.actuator_ctrllimited[:] = 0
+        self.substeps = max(1, int(round(period / self.solver.timestep)))
+        m.opt.timestep = period / self.substeps
+        self.period = period
+        self.hand = Effect.OPERATOR in fx
+        if self.hand:
+            self.hand_qpos = np.array([m.joint(f"hand_{a}").qposadr[0] for a in "xyz"])
+            self.hand_dof = np.array([m.joint(f"hand_{a}").dofadr[0] for a in "xyz"])
+        self.site = m.site("handle").id
+        self.n_closure = 3  # the parallelogram connect's rows come first
+        self._full_q0 = full_qpos(self.q0)
+
+    def reset(self) -> None:
+        mj, d = self._mujoco, self.data
+        mj.mj_resetData(self.model, d)
+        d.qpos[:len(self._full_q0)] = self._full_q0
+        mj.mj_forward(self.model, d)
+
+    def warnings(self) -> tuple[str, ...]:
+        return tuple(f"{self._mujoco.mjtWarning(i).name} x{w.number}" for i, w in enumerate(self.data.warning)
+                     if w.number > 0)
+
+    def run(self, controller: MasterController, *, ticks: int, frequency: float, quantize: bool,
+            delay_ticks: int = 0) -> dict[str, np.ndarray]:
+        """Closed loop for ``ticks`` periods with the hand reference at ``frequency`` [Hz]; raw records."""
+        mj, m, d = self._mujoco, self.model, self.data
+        self.reset()
+        scale = controller.cfg.counts_per_rev / (2.0 * math.pi)
+        qa = self.act_qpos
+        q0 = self.q0
+
+        def counts() -> np.ndarray:
+            c = (d.qpos[qa] - q0) * scale
+            return np.round(c) if quantize else c
+
+        controller.reset(counts())
+        mo = self.scene.motion
+        w = 2.0 * math.pi * frequency
+        amp, off, ph = np.asarray(mo.amplitude), np.asarray(mo.offset), np.asarray(mo.phase)
+        T = self.period
+        N = ticks
+        P, V, FH, TAU, FREF = (np.zeros((N, 3)) for _ in range(5))
+        EF = np.zeros(N)
+        clock = np.zeros(N)
+        delay = [np.zeros((1, 3))] * delay_ticks
+        if self.hand:
+            op = self.scene.operator
+            hq, hd = self.hand_qpos, self.hand_dof
+            tm = (np.arange(N) + 0.5) * T
+            REF = off + amp * np.sin(w * tm[:, None] + ph)
+            DREF = op.damping * amp * w * np.cos(w * tm[:, None] + ph)
+            HQ, HV, HA = (np.zeros((N, 3)) for _ in range(3))
+        stop = -1
+        n = self.n_closure
+        for k in range(N):
+            cmd = controller.step(counts())
+            if delay:
+                delay.append(cmd)
+                cmd = delay.pop(0)
+            d.ctrl[:] = cmd[0]
+            if self.hand:
+                m.qpos_spring[hq] = REF[k]
+                d.qfrc_applied[hd] = DREF[k]
+            mj.mj_step(m, d, nstep=self.substeps)
+            P[k] = d.site_xpos[self.site]
+            V[k] = d.qvel[hd] if self.hand else 0.0
+            TAU[k] = cmd[0]
+            FREF[k] = controller.last_force
+            if d.efc_pos.shape[0] >= n:
+                EF[k] = np.abs(d.efc_pos[:n]).max()
+            clock[k] = d.time
+            if self.hand:
+                HQ[k], HV[k], HA[k] = d.qpos[hq], d.qvel[hd], d.qacc[hd]
+            if k % 100 == 99 or k == N - 1:
+                lo = max(0, k - 99)
+                bad = (~np.all(np.isfinite(P[lo:k + 1]), axis=-1)
+                       | np.any(np.abs(P[lo:k + 1] - self.x0) > RUNAWAY, axis=-1)
+                       | (clock[lo:k + 1] < (np.arange(lo, k + 1) + 0.5) * T))
+                if bad.any():
+                    stop = lo + int(np.argmax(bad))
+                    break
+        if self.hand:
+            op = self.scene.operator
+            t = (np.arange(N) + 1) * T
+            ref = off + amp * np.sin(w * t[:, None] + ph)
+            dref = amp * w * np.cos(w * t[:, None] + ph)
+            FH = op.stiffness * (ref - HQ) + op.damping * (dref - HV) - op.mass * HA
+            V = HV  # the hand is tied to the handle: its velocity is the handle's
+        out = {"position": P, "velocity": V, "hand_force": FH, "torque": TAU, "force_reference": FREF,
+               "violation": EF, "stop": np.array([stop]), "reference": off + amp * np.sin(w * ((np.arange(N) + 1) * T)[:, None] + ph)}
+        if stop >= 0:
+            for key in ("position", "velocity", "hand_force", "torque", "force_reference"):
+                out[key][stop:] = out[key][stop - 1] if stop > 0 else 0.0
+        return out
+
+
+def _arm_only(design: MasterDesign, res: Resolution, scene: Scene, solver: SolverSettings) -> str:
+    from hapticopt.design.master.mjcf import master_mjcf
+
+    return master_mjcf(design, gravity=Effect.GRAVITY in res.effects, timestep=solver.timestep)
+
+
+def controller_for(design: MasterDesign, scene: Scene, res: Resolution, x0: np.ndarray, q0: np.ndarray,
+                   period: float) -> MasterController:
+    from hapticopt.analysis.master import dynamics as md
+
+    env = scene.environment
+    if env.kind not in (EnvKind.SPRING, EnvKind.BOX, EnvKind.FREE):
+        raise InvalidInput(f"scene {scene.name}: environment.kind = {env.kind.value!r} is not rendered by the master "
+                           "firmware: allowed free, spring, box")
+    if env.kind == EnvKind.BOX and env.box_mode.value != "inside":
+        raise InvalidInput(f"scene {scene.name}: environment.box_mode = {env.box_mode.value!r}: the master renders "
+                           "walls around the handle (box_mode = \"inside\") only")
+    fx = res.effects
+    c = scene.controller
+    g1 = g2 = 0.0
+    gcomp = c.gravity_compensation and Effect.GRAVITY in fx
+    if gcomp:
+        gp = md.gravity_parameters(md.model_of(design))
+        g1, g2 = float(gp.G1), float(gp.G2)
+    g = design.geometry
+    cfg = MasterFirmwareConfig(
+        period=period, counts_per_rev=design.actuators.encoder_counts, q0=tuple(map(float, q0)),
+        upper_arm=g.upper_arm, forearm=g.forearm, shoulder_height=g.shoulder_height, env=env.kind,
+        anchor=tuple(map(float, x0 + np.asarray(env.anchor))), stiffness=env.stiffness, damping=env.damping,
+        half_size=env.half_size, wall_stiffness=env.wall_stiffness, wall_damping=env.wall_damping,
+        velocity_alpha=math.exp(-2 * math.pi * c.velocity_filter * period) if c.velocity_filter > 0 else 0.0,
+        torque_limit=design.actuators.torque_limit, saturation=Effect.SATURATION in fx,
+        quantized=Effect.QUANTIZATION in fx, gravity_compensation=gcomp, gravity_g1=g1, gravity_g2=g2)
+    return MasterController(cfg)
+
+
+# ------------------------------------------------------------------------------------ results
+@dataclass(frozen=True, kw_only=True)
+class MasterResult:
+    """A master scene run: metrics, parallelogram health, backend and reason."""
+
+    scene: str
+    stable: bool
+    unstable_at: float | None
+    measures: dict[str, Any]
+    violation: float  # worst parallelogram closure residual [m]
+    warnings: tuple[str, ...]
+    effects: tuple[str, ...]
+    notes: tuple[str, ...]
+    reason: str
+    substeps: int
+    timestep: float
+    integrator: str
+    period: float
+    wall_time: float
+    status: Status
+    message: str
+    traces: Traces | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def health(self) -> Health:
+        return Health(violation=self.violation, rotation=0.0, closure=self.violation)
+
+    @property
+    def health_ok(self) -> bool:
+        return self.violation <= VIOLATION_TOL
+
+    def metrics(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"stable": self.stable, "unstable_at_s": self.unstable_at}
+        out.update(self.measures)
+        out.update({
+            "backend": "multibody", "backend_reason": self.reason, "device": "master", "effects": list(self.effects),
+            "constraint_violation_mm": self.violation * 1e3, "constraint_health_ok": self.health_ok,
+            "mujoco_warnings": list(self.warnings), "controller_period_ms": self.period * 1e3,
+            "plant_substeps": self.substeps, "mujoco_timestep_ms": self.timestep * 1e3,
+            "mujoco_integrator": self.integrator, "wall_time_s": self.wall_time,
+        })
+        return out
+
+
+def _fundamental(x: np.ndarray, t: np.ndarray, w: float) -> complex:
+    return complex(np.sum(x * np.exp(-1j * w * t)))
+
+
+def _fit(A: np.ndarray, y: np.ndarray) -> np.ndarray:
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    return coef
+
+
+def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD, reason: str | None = None,
+             solver: SolverSettings | None = None) -> MasterResult:
+    """Run a master scene with the master firmware in the loop on the MuJoCo plant."""
+    from hapticopt.analysis.master import dynamics as md
+    from hapticopt.analysis.master import transparency as mt
+    from hapticopt.analysis.master.sweep import _crossing
+
+    if getattr(design, "device", None) != "master":
+        raise InvalidInput(f"scene {scene.name} is a master scene; design {getattr(design, 'name', '?')!r} is a "
+                           f"{getattr(design, 'device', '?')}")
+    res = resolve(scene)
+    fx = res.effects
+    T = scene.controller.period if Effect.SAMPLING in fx else scene.controller.period / OVERSAMPLE[fidelity]
+    if Effect.OPERATOR not in fx:
+        raise InvalidInput(f"scene {scene.name}: master scenes need the operator effect (the hand moves the handle)")
+    t0 = time.perf_counter()
+    plant = MasterPlant(design, scene, res, period=T, fidelity=fidelity, solver=solver)
+    ctl = controller_for(design, scene, res, plant.x0, plant.q0, T)
+    delay = int(round(scene.time_delay / T)) if Effect.TIME_DELAY in fx else 0
+    ax = scene.measure_axis
+    e = np.eye(3)[ax]
+    measures: dict[str, Any] = {}
+    runs = []
+    if scene.sweep_factors:
+        if scene.environment.kind != EnvKind.SPRING:
+            raise InvalidInput(f"scene {scene.name}: a sweep (simulation.sweep_factors) renders a virtual spring: "
+                               "set environment.kind = \"spring\"")
+        if ax == 1:
+            raise InvalidInput(f"scene {scene.name}: simulation.measure_axis = \"y\": the transparency sweep runs along "
+                               "x or z (hapticopt.analysis.master.transparency)")
+        K = scene.environment.stiffness[ax]
+        amp = float(np.linalg.norm(scene.motion.amplitude))
+        setup = mt.RenderingSetup(spring=K, amplitude=amp, hold_period=T if Effect.SAMPLING in fx else 0.0,
+                                  compensation=mt.Compensation(gravity=ctl.cfg.gravity_compensation))
+        pred = mt.evaluate(design, setup=setup, pose=plant.q0, model=md.model_of(design))
+        predicted = float(pred.bandwidth[mt.AXES.index(_AXIS_NAMES[ax])])
+        freqs = predicted * np.asarray(scene.sweep_factors)
+        gains = []
+        for f in freqs:
+            n = int(round(scene.sweep_periods / f / T))
+            r = plant.run(ctl, ticks=n, frequency=float(f), quantize=Effect.QUANTIZATION in fx, delay_ticks=delay)
+            runs.append(r)
+            if r["stop"][0] >= 0:
+                gains.append(math.nan)
+                continue
+            per = int(round(1.0 / f / T))
+            t = (np.arange(n) + 1) * T
+            sl = slice(per, per * scene.sweep_periods)
+            w = 2 * math.pi * f
+            fh = -r["hand_force"][sl] @ e
+            fd = -K * ((r["position"][sl] - ctl.cfg.anchor) @ e)
+            gains.append(abs(_fundamental(fh, t[sl], w) / _fundamental(fd, t[sl], w)))
+        g = np.asarray(gains)
+        bw = _crossing(freqs, g) if np.all(np.isfinite(g)) else math.nan
+        measures.update({
+            "sweep_frequencies_Hz": [float(x) for x in freqs], "transparency_gain": [float(x) for x in g],
+            "transparency_bandwidth_Hz": bw, "predicted_bandwidth_Hz": predicted,
+            "bandwidth_error_pct": abs(bw - predicted) / predicted * 100 if predicted > 0 else None,
+            "sweep_axis": _AXIS_NAMES[ax],
+        })
+    else:
+        r = plant.run(ctl, ticks=max(1, int(round(scene.duration / T))), frequency=scene.motion.frequency,
+                      quantize=Effect.QUANTIZATION in fx, delay_ticks=delay)
+        runs.append(r)
+        n = r["position"].shape[0]
+        stop = int(r["stop"][0])
+        end = n if stop < 0 else stop
+        start = min(int(round(min(0.5, scene.duration / 3) / T)), max(0, end - 2))
+        p, v, fh = r["position"][start:end], r["velocity"][start:end], r["hand_force"][start:end]
+        anchor = np.asarray(ctl.cfg.anchor)
+        if end - start >= 3:
+            measures["handle_force_rms_N"] = float(np.sqrt(np.mean(np.sum(fh**2, -1))))
+            measures["handle_force_peak_N"] = float(np.max(np.linalg.norm(fh, axis=-1)))
+        env = scene.environment
+        if env.kind == EnvKind.BOX and end - start >= 3:
+            depth = np.abs(p - anchor) - np.asarray(env.half_size)
+            measures["wall_penetration_mm"] = float(max(0.0, depth.max()) * 1e3)
+            into = depth[:, ax] > 0.0
+            if into.sum() >= 10:  # F_hand = K_b·depth·sgn + B v + c on the samples inside the wall
+                sgn = np.sign(p[into, ax] - anchor[ax])
+                coef = _fit(np.stack([depth[into, ax] * sgn, v[into, ax], np.ones(into.sum())], -1), fh[into, ax])
+                measures["rendered_wall_stiffness_N_per_mm"] = float(coef[0]) * 1e-3
+                measures["wall_stiffness_error_pct"] = abs(coef[0] - env.wall_stiffness) / env.wall_stiffness * 100
+        elif env.kind == EnvKind.SPRING and end - start >= 3 and np.ptp(p[:, ax]) > 0:
+            coef = _fit(np.stack([p[:, ax] - anchor[ax], v[:, ax], np.ones(len(p))], -1), fh[:, ax])
+            measures["rendered_stiffness_N_per_mm"] = float(coef[0]) * 1e-3
+            target = env.stiffness[ax]
+            measures["stiffness_error_pct"] = abs(coef[0] - target) / target * 100 if target > 0 else None
+        sat = np.abs(r["torque"][:end]) >= design.actuators.torque_limit * (1 - 1e-12)
+        measures["torque_saturated_fraction"] = float(sat.any(axis=-1).mean()) if end else 0.0
+    wall = time.perf_counter() - t0
+    # unstable: the run stopped (non-finite, runaway, MuJoCo reset), or the torques sat on the limit
+    # for more than half of a 0.1 s window (a saturated limit cycle, e.g. a chattering stiff wall) —
+    # the rules of analysis.closed_loop.classify
+    times = []
+    for r in runs:
+        if r["stop"][0] >= 0:
+            times.append((int(r["stop"][0]) + 1) * T)
+        elif Effect.SATURATION in fx:
+            sat = np.any(np.abs(r["torque"]) >= design.actuators.torque_limit * (1 - 1e-12), axis=-1)
+            W = max(1, int(round(SATURATION_WINDOW_S / T)))
+            nwin = len(sat) // W
+            if nwin:
+                frac = sat[: nwin * W].reshape(nwin, W).mean(axis=1)
+                if np.any(frac > SATURATION_FRACTION):
+                    times.append((int(np.argmax(frac > SATURATION_FRACTION)) + 1) * W * T)
+    stable = not times
+    unstable_at = None if stable else times[0]
+    violation = float(max(float(r["violation"].max()) for r in runs))
+    warns = plant.warnings()
+    status, problems = (Status.OK, []) if stable else (Status.UNSTABLE, [f"unstable: detected at t = {unstable_at:.4g} s"])
+    if violation > VIOLATION_TOL:
+        problems.append(f"parallelogram closure violation {violation * 1e3:.3g} mm > {VIOLATION_TOL * 1e3:g} mm")
+    if warns:
+        problems.append("MuJoCo warnings: " + ", ".join(warns))
+    if problems and status == Status.OK:
+        status = Status.FAILED
+    last = runs[0]
+    N = last["position"].shape[0]
+    traces = Traces(period=T, energy=np.zeros((N, 1)), saturated=np.zeros((N, 1), dtype=bool),
+                    stop_tick=last["stop"], position=last["position"][:, None], hand_force=last["hand_force"][:, None],
+                    actuator_force=last["force_reference"][:, None], force_reference=last["force_reference"][:, None],
+                    velocity=last["velocity"][:, None])
+    return MasterResult(
+        scene=scene.name, stable=stable, unstable_at=unstable_at, measures=measures, violation=violation,
+        warnings=warns, effects=tuple(res.effect_names()), notes=res.notes, reason=reason or res.reason,
+        substeps=plant.substeps, timestep=float(plant.model.opt.timestep), integrator=plant.solver.integrator.value,
+        period=T, wall_time=wall, status=status, message="; ".join(problems), traces=traces)

@@ -1,0 +1,275 @@
+"""Transparency of the surgical master rendering a virtual spring: G_T(jω) = F_H/F_D and its bandwidth.
+
+Seed 003 eq 13–15: G_T = F_H/F_D with the hand's velocity equal to the ideal one, per axis
+(x and z); the transparency bandwidth is the first frequency where |G_T| leaves 0 ± 3 dB.
+
+Model (linearised about a pose q0; the hand imposes δx = e·X·sin ωt along the axis e):
+the motors render F_D = −K δx by open-loop impedance control τ = Jᵀ F_D, sampled and held at
+the firmware period T (zero-order hold H(jω) = e^{−jωT/2}·sinc(ωT/2) on the fundamental). The
+arm obeys M q̈ + B q̇ + f_c + G(q) = τ + Jᵀ F_hand, so the force the hand feels is
+
+    F_H = H·F_D − J⁻ᵀ(M q̈ + B q̇ + f_c + G)   and along e, with q̇ = J⁻¹ ẋ, q̈ ≈ J⁻¹ ẍ:
+    G_T(jω) = [K·H + k_g + jω b + j c_f − ω² λ] / K,
+
+λ = (J⁻¹e)ᵀ M (J⁻¹e) the apparent mass [kg], b = (J⁻¹e)ᵀ B (J⁻¹e) [N·s/m], k_g = e·∂(J⁻ᵀG)/∂x·e
+the gravity stiffness [N/m] (the constant gravity force is not part of the oscillation),
+c_f = (4/π) Σ_j F_c,j |(J⁻¹e)_j| / X the describing function of Coulomb friction [N] at the
+amplitude X. Compensation (none by default) adds the model's gravity, friction and/or inertia
+torques through the same hold, i.e. multiplies the compensated terms by (1 − H).
+
+Closed form (no compensation, no friction, no gravity, T → 0, point mass m): G_T = 1 − m ω²/K,
+which leaves −3 dB at ω = √((1 − 1/√2) K/m) (see tests/analysis/test_master_transparency.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hapticopt.analysis.master import dynamics as md
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
+from hapticopt.design.master.params import MasterDesign
+
+SPRING_N_PER_M = 50.0  # 0.05 N/mm, seed 003's ideal force
+AMPLITUDE_M = 7.5e-3  # 7.5 mm, seed 003's hand motion
+HOLD_PERIOD_S = 1e-3  # 1 kHz firmware
+AXES = ("x", "z")
+NEAR_AXIS = 0.2  # worst case: poses with the handle closer than 0.2·L5 to the θ1 axis are left out
+F_MIN_HZ, F_MAX_HZ = 1e-3, 500.0
+_DB3 = np.sqrt(2.0)  # ±3 dB read as half/double power: |G_T| = 1/√2 … √2 (as the closed form)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Compensation:
+    """Which model-based torques the controller adds to τ = Jᵀ F_D (seed 003: none of gravity)."""
+
+    gravity: bool = False
+    friction: bool = False
+    inertia: bool = False
+
+
+@dataclass(frozen=True, kw_only=True)
+class RenderingSetup:
+    """Virtual spring and firmware of the transparency test [SI]."""
+
+    spring: float = SPRING_N_PER_M  # K [N/m]
+    amplitude: float = AMPLITUDE_M  # X [m], for the Coulomb describing function
+    hold_period: float = HOLD_PERIOD_S  # T [s]; 0 = continuous
+    compensation: Compensation = field(default_factory=Compensation)
+
+
+@dataclass(frozen=True, kw_only=True)
+class AxisCoefficients:
+    """Linearised apparent dynamics along each axis, arrays (…, 2 axes) [SI]."""
+
+    mass: np.ndarray  # λ [kg]
+    damping: np.ndarray  # b [N·s/m]
+    gravity_stiffness: np.ndarray  # k_g [N/m]
+    coulomb: np.ndarray  # (4/π)·Σ F_c |v_j| / X [N]
+    valid: np.ndarray  # bool: J invertible at the pose
+
+
+def default_pose(design: MasterDesign) -> np.ndarray:
+    """The pose at the middle of the θ3 and φ ranges with θ1 = 0 [rad]."""
+    j = design.joints
+    t3 = 0.5 * (j.theta3_min + j.theta3_max)
+    ph = 0.5 * (j.parallelogram_min + j.parallelogram_max)
+    return np.array([0.5 * (j.theta1_min + j.theta1_max), 0.5 * np.pi + t3 - ph, t3])
+
+
+def axis_coefficients(model: md.MassModel, q: np.ndarray, amplitude: float = AMPLITUDE_M, *,
+                      gravity: md.GravityParameters | None = None) -> AxisCoefficients:
+    """Apparent mass, damping, gravity stiffness and Coulomb term along x and z at poses q (…, 3).
+
+    NumPy fast path (:mod:`analysis.master_numeric`); the gravity stiffness is the central
+    difference of J⁻ᵀG along δq = h·J⁻¹e (h = 1e-5 m, error ~1e-10 relative), with G in the
+    eq-4 form whose coefficients come from the general G (:func:`md.gravity_parameters`;
+    the tests check the form against the general ∂V/∂q).
+    """
+    from hapticopt.analysis.master import dynamics_numpy as mn
+
+    q = np.asarray(q, dtype=float)
+    flat = q.reshape(-1, 3)
+    E = np.eye(3)[[0, 2]].T  # (3, 2): x and z
+    J = mn.jacobian(model.kin, flat)
+    det = np.linalg.det(J)
+    L = float(model.kin.upper_arm) * float(model.kin.forearm)
+    valid = np.abs(det) > 1e-6 * L * float(model.kin.upper_arm)
+    Jsafe = np.where(valid[:, None, None], J, np.eye(3))
+    V = np.linalg.solve(Jsafe, np.broadcast_to(E, Jsafe.shape[:-2] + (3, 2)))  # (n, 3, 2)
+    M = mn.mass_matrix(model, flat)
+    lam = np.einsum("nja,njk,nka->na", V, M, V)
+    b = np.einsum("nja,j,nja->na", V, np.asarray(model.viscous), V)
+    cf = (4.0 / np.pi) * np.einsum("j,nja->na", np.asarray(model.coulomb), np.abs(V)) / amplitude
+
+    gp = md.gravity_parameters(model) if gravity is None else gravity
+
+    def gravity_force(qq: np.ndarray) -> np.ndarray:
+        Jq = mn.jacobian(model.kin, qq)
+        G = np.stack([np.zeros(len(qq)), gp.G1 * np.cos(qq[:, 1]), gp.G2 * np.sin(qq[:, 2])], -1)
+        return np.linalg.solve(np.swapaxes(Jq, -1, -2), G[..., None])[..., 0]
+
+    h = 1e-5
+    kg = np.empty_like(lam)
+    for a in range(2):
+        dq = h * V[:, :, a]
+        dF = (gravity_force(flat + dq) - gravity_force(flat - dq)) / (2 * h)
+        kg[:, a] = dF @ E[:, a]  # k_g = e·∂(J⁻ᵀG)/∂x·e (enters G_T with a + sign, module docstring)
+    shape = q.shape[:-1] + (2,)
+    clean = lambda x: np.where(valid[:, None], x, 0.0).reshape(shape)  # noqa: E731
+    return AxisCoefficients(mass=clean(lam), damping=clean(b), gravity_stiffness=clean(kg),
+                            coulomb=clean(cf), valid=valid.reshape(shape[:-1]))
+
+
+def hold(omega: np.ndarray, period: float) -> np.ndarray:
+    """Zero-order hold on the fundamental: e^{−jωT/2}·sinc(ωT/2) (1 at T = 0)."""
+    x = 0.5 * omega * period
+    return np.exp(-1j * x) * np.sinc(x / np.pi)
+
+
+def transfer(coef: AxisCoefficients, freq_hz: np.ndarray, setup: RenderingSetup = RenderingSetup()) -> np.ndarray:
+    """G_T(j2πf) for every coefficient entry (…) and frequency (f,) → (…, f) complex."""
+    w = 2 * np.pi * np.asarray(freq_hz, dtype=float)
+    H = hold(w, setup.hold_period)
+    c = setup.compensation
+    keep = lambda comp: (1.0 - H) if comp else 1.0  # noqa: E731
+    lam, b, kg, cf = (x[..., None] for x in (coef.mass, coef.damping, coef.gravity_stiffness, coef.coulomb))
+    num = (setup.spring * H + kg * keep(c.gravity) + (1j * w * b + 1j * cf) * keep(c.friction)
+           - w**2 * lam * keep(c.inertia))
+    return num / setup.spring
+
+
+def bandwidth(coef: AxisCoefficients, setup: RenderingSetup = RenderingSetup(), *, n_grid: int = 120,
+              iterations: int = 14) -> tuple[np.ndarray, np.ndarray]:
+    """First frequency [Hz] where |G_T| leaves [−3 dB, +3 dB], per entry; and a flag 'left at DC'.
+
+    Log grid from F_MIN_HZ to F_MAX_HZ, then bisection in log f on the first bracketing cell and
+    a final linear interpolation of log|G_T| in the last bracket (relative error < 1e-9).
+    Entries that never leave the band below F_MAX_HZ get F_MAX_HZ; entries already outside at
+    F_MIN_HZ get 0.
+    """
+    f = np.geomspace(F_MIN_HZ, F_MAX_HZ, n_grid)
+    G = np.abs(transfer(coef, f, setup))  # (…, n)
+    o = (G > _DB3) | (G < 1.0 / _DB3)
+    first = np.argmax(o, axis=-1)
+    never = ~o.any(axis=-1)
+    at_dc = o[..., 0]
+    lo = np.log(f[np.maximum(first - 1, 0)])
+    hi = np.log(f[first])
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        om = _outside_pointwise(coef, np.exp(mid), setup)
+        hi = np.where(om, mid, hi)
+        lo = np.where(om, lo, mid)
+    # last bracket: interpolate log|G_T| linearly onto the bound it crosses
+    g_lo = np.log(np.abs(_pointwise(coef, np.exp(lo), setup)))
+    g_hi = np.log(np.abs(_pointwise(coef, np.exp(hi), setup)))
+    bound = np.where(g_hi > 0, np.log(_DB3), -np.log(_DB3))
+    span = np.where(np.abs(g_hi - g_lo) > 0, g_hi - g_lo, 1.0)
+    s = np.clip((bound - g_lo) / span, 0.0, 1.0)
+    bw = np.exp(lo + s * (hi - lo))
+    bw = np.where(never, F_MAX_HZ, np.where(at_dc, 0.0, bw))
+    return bw, at_dc
+
+
+def _outside(G: np.ndarray) -> np.ndarray:
+    m = np.abs(G)
+    return (m > _DB3) | (m < 1.0 / _DB3)
+
+
+def _outside_pointwise(coef: AxisCoefficients, f: np.ndarray, setup: RenderingSetup) -> np.ndarray:
+    return _outside(_pointwise(coef, f, setup))
+
+
+def _pointwise(coef: AxisCoefficients, f: np.ndarray, setup: RenderingSetup) -> np.ndarray:
+    """G_T at one frequency per entry (f has the entries' shape)."""
+    w = 2 * np.pi * f
+    H = hold(w, setup.hold_period)
+    c = setup.compensation
+    keep = lambda comp: (1.0 - H) if comp else 1.0  # noqa: E731
+    num = (setup.spring * H + coef.gravity_stiffness * keep(c.gravity)
+           + (1j * w * coef.damping + 1j * coef.coulomb) * keep(c.friction) - w**2 * coef.mass * keep(c.inertia))
+    return num / setup.spring
+
+
+@dataclass(frozen=True, kw_only=True)
+class MasterTransparency:
+    """Transparency bandwidth of one design [SI]."""
+
+    pose: tuple[float, float, float]  # q [rad]
+    bandwidth: tuple[float, float]  # [Hz] x, z at the pose
+    apparent_mass: tuple[float, float]  # λ [kg] x, z at the pose
+    gravity_stiffness: tuple[float, float]  # [N/m]
+    worst_bandwidth: tuple[float, float] | None  # [Hz] min over the workspace (fine fidelity)
+    worst_pose: tuple[tuple[float, float, float], tuple[float, float, float]] | None
+    setup: RenderingSetup
+    coefficients: AxisCoefficients = field(repr=False)
+    status: Status = Status.OK
+    message: str = ""
+
+    def metrics(self) -> dict[str, object]:
+        out: dict[str, object] = {
+            "transparency_bandwidth_Hz": [float(x) for x in self.bandwidth],
+            "apparent_mass_kg": [float(x) for x in self.apparent_mass],
+        }
+        if self.worst_bandwidth is not None:
+            out["transparency_bandwidth_worst_Hz"] = [float(x) for x in self.worst_bandwidth]
+        return out
+
+
+def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, setup: RenderingSetup = RenderingSetup(),
+             pose: np.ndarray | None = None, model: md.MassModel | None = None) -> MasterTransparency:
+    """Transparency bandwidth along x and z at ``pose`` (default :func:`default_pose`); at fine
+    fidelity also the worst case over a grid of the joint-range workspace."""
+    from hapticopt.analysis.master import balance as mb
+
+    fidelity = Fidelity(fidelity)
+    model = md.model_of(design) if model is None else model
+    q0 = default_pose(design) if pose is None else np.asarray(pose, dtype=float)
+    gp = md.gravity_parameters(model)
+    coef = axis_coefficients(model, q0[None], setup.amplitude, gravity=gp)
+    status, message = Status.OK, ""
+    if not bool(coef.valid[0]):
+        return MasterTransparency(pose=tuple(map(float, q0)), bandwidth=(0.0, 0.0), apparent_mass=(0.0, 0.0),
+                                  gravity_stiffness=(0.0, 0.0), worst_bandwidth=None, worst_pose=None, setup=setup,
+                                  coefficients=coef, status=Status.SINGULAR,
+                                  message="the pose is singular (cos(θ2 − θ3) = 0 or handle on the θ1 axis)")
+    bw, dc = bandwidth(coef, setup)
+    if dc.any():
+        status, message = Status.UNSTABLE, "|G_T| is outside ±3 dB already at DC (gravity stiffness too large)"
+    worst = worst_pose = None
+    if fidelity is Fidelity.FINE:
+        ws = mb.workspace_of(design)
+        j = design.joints
+        t1 = np.linspace(j.theta1_min, j.theta1_max, 5)
+        t3 = np.linspace(*ws.theta3, 15)
+        ph = np.linspace(*ws.phi, 15)
+        T1, T3, PH = np.meshgrid(t1, t3, ph, indexing="ij")
+        Q = np.stack([T1, 0.5 * np.pi + T3 - PH, T3], -1).reshape(-1, 3)
+        g = design.geometry
+        rho = g.upper_arm * np.cos(Q[:, 1]) + g.forearm * np.sin(Q[:, 2])
+        Q = Q[rho >= NEAR_AXIS * g.upper_arm]  # near the θ1 axis the turret's apparent mass diverges
+        cw = axis_coefficients(model, Q, setup.amplitude, gravity=gp)
+        bws, _ = bandwidth(cw, setup)
+        bws = np.where(cw.valid[:, None], bws, np.inf)
+        k = np.argmin(bws, axis=0)
+        worst = (float(bws[k[0], 0]), float(bws[k[1], 1]))
+        worst_pose = (tuple(map(float, Q[k[0]])), tuple(map(float, Q[k[1]])))
+        if ws.clipped:
+            status = Status.SINGULAR
+            message = "the φ range reaches the parallelogram singularity: poses within 2° of it are excluded"
+    return MasterTransparency(
+        pose=tuple(map(float, q0)), bandwidth=(float(bw[0, 0]), float(bw[0, 1])),
+        apparent_mass=(float(coef.mass[0, 0]), float(coef.mass[0, 1])),
+        gravity_stiffness=(float(coef.gravity_stiffness[0, 0]), float(coef.gravity_stiffness[0, 1])),
+        worst_bandwidth=worst, worst_pose=worst_pose, setup=setup, coefficients=coef, status=status, message=message)
+
+
+def plot(design: MasterDesign, result: MasterTransparency, out_dir: Path) -> list[Path]:
+    """|G_T(f)| curves along x and z at the pose."""
+    from hapticopt.analysis.master import plots as master_plots
+
+    return master_plots.transparency_plots(design, result, Path(out_dir))

@@ -1,0 +1,461 @@
+"""Closed-loop runner: the firmware controller against a plant, in a scene, with its effects.
+
+Per controller tick: the plant's sensors are read (quantised to counts when ``quantization`` is
+on), the firmware computes its commands, they pass an optional delay line (``time_delay``) and
+the plant advances one period with them held (zero-order hold; L samples when the seed 000
+interpolation is on). With ``sampling`` off the controller runs at T/oversample (fidelity), the
+continuous-time limit (tested to converge to the eigenvalue analysis, ``tests``).
+
+The lumped plant runs fused with the controller in one compiled loop (``jax.lax.scan`` over
+chunks of ticks, batched over any number of controller gains: the Z-width map is one batched
+run). Other plants implement :class:`analysis.plant.Plant` and run in :func:`run_with_plant`
+(plain Python loop), whose traces feed the same :func:`metrics_from_traces`.
+
+Instability is detected early and the run stops cleanly (the state freezes at the last finite
+values, the time is reported): non-finite or runaway state, energy beyond 10³ (driven) / 10⁶
+(decay) times the scene's energy scale, sustained motor-force saturation (a saturated limit
+cycle), and for decay scenes energy growth between the last two windows.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.prrr import firmware, statics as prrr_statics
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr.lumped_plant import (
+    FRICTION_ITERS,
+    LumpedModel,
+    build_model,
+    discretise,
+    observables,
+    sensor_values,
+    solve_friction,
+)
+from hapticopt.analysis.loop.plant import Plant
+from hapticopt.analysis.loop.scene import (
+    Backend,
+    BoxMode,
+    Effect,
+    EnvKind,
+    Resolution,
+    Scene,
+    StabilityCriterion,
+    resolve,
+)
+from hapticopt.analysis.status import Status
+from hapticopt.design.prrr.params import PrrrDesign
+
+#: plant substeps per controller period when Coulomb friction is on (linear parts are exact at 1)
+FRICTION_SUBSTEPS = {Fidelity.DRAFT: 1, Fidelity.STANDARD: 1, Fidelity.FINE: 10}  # docs/closed_loop.md: 1 is within 0.1 %
+#: controller ticks per nominal period with sampling off (continuous-time limit)
+OVERSAMPLE = {Fidelity.DRAFT: 10, Fidelity.STANDARD: 20, Fidelity.FINE: 50}
+CHUNK_TICKS = 1000
+UNROLL = 1  # ticks per compiled loop iteration (docs/closed_loop.md)
+SATURATION_WINDOW_S = 0.1
+SATURATION_FRACTION = 0.5
+
+
+@dataclass(frozen=True, kw_only=True)
+class Setup:
+    """Everything a run needs, resolved from (design, scene, fidelity)."""
+
+    design: PrrrDesign
+    scene: Scene
+    resolution: Resolution
+    model: LumpedModel
+    cfg: firmware.FirmwareConfig
+    gains: firmware.Gains
+    period: float  # controller period actually used [s]
+    ticks: int
+    substeps: int
+    delay_ticks: int
+    quantize: bool
+    energy_scale: float  # [J]
+    energy_floor: float  # [J] below this, growth is noise (quantisation)
+
+
+def setup(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD) -> Setup:
+    """Resolve the scene and build the plant model and the controller."""
+    res = resolve(scene)
+    fx = res.effects
+    T = scene.controller.period
+    L = scene.controller.interpolation
+    if Effect.SAMPLING in fx:
+        period = T
+        base = scene.substeps or (FRICTION_SUBSTEPS[fidelity] if Effect.COULOMB_FRICTION in fx else 1)
+    else:
+        period = T / OVERSAMPLE[fidelity]
+        base = scene.substeps or 1
+    substeps = L * math.ceil(base / L)
+    model = build_model(design, scene, res)
+    cfg, gains = firmware.build(design, scene, res, period=period)
+    ticks = max(1, int(round(scene.duration / period)))
+    delay = int(round(scene.time_delay / period)) if Effect.TIME_DELAY in fx else 0
+    env, op, mo = scene.environment, scene.operator, scene.motion
+    amp = float(np.linalg.norm(mo.amplitude)) if Effect.OPERATOR in fx else 0.0
+    w = 2 * math.pi * mo.frequency
+    k_env = max(env.stiffness) + (env.wall_stiffness if env.kind == EnvKind.BOX else 0.0)
+    kx = float(prrr_statics.evaluate(design).stiffness_limit[0])  # eq 14 k_x
+    M = design.end_effector.mass
+    p0 = np.asarray(scene.initial_offset)
+    res_m = design.actuator.encoder_resolution
+    quantum = 0.5 * design.actuator.spring * res_m**2
+    scale = (0.5 * (op.stiffness + k_env) * amp**2 + 0.5 * (M + op.mass) * (w * amp) ** 2
+             + 0.5 * float(np.linalg.norm(env.force_amplitude)) ** 2 / kx
+             + 0.5 * (M * 9.81) ** 2 / kx + 0.5 * float(np.dot(env.stiffness, p0**2))
+             + 0.5 * design.actuator.spring * (100 * res_m) ** 2)
+    return Setup(design=design, scene=scene, resolution=res, model=model, cfg=cfg, gains=gains, period=period,
+                 ticks=ticks, substeps=substeps, delay_ticks=delay, quantize=Effect.QUANTIZATION in fx,
+                 energy_scale=scale, energy_floor=100 * quantum if Effect.QUANTIZATION in fx else 0.0)
+
+
+# ------------------------------------------------------------------------------- traces & metrics
+@dataclass(frozen=True, kw_only=True)
+class Traces:
+    """Per-tick records, leading axes (ticks, batch)."""
+
+    period: float
+    energy: np.ndarray  # (N, B) [J]
+    saturated: np.ndarray  # (N, B) bool
+    stop_tick: np.ndarray  # (B,) int, −1 = ran to the end
+    position: np.ndarray | None = None  # (N, B, 3) [m]
+    hand_force: np.ndarray | None = None  # (N, B, 3) [N]
+    actuator_force: np.ndarray | None = None  # (N, B, 3) [N]
+    force_reference: np.ndarray | None = None  # (N, B, 3) [N]
+    velocity: np.ndarray | None = None  # (N, B, 3) [m/s]
+
+
+def classify(tr: Traces, st: Setup) -> tuple[np.ndarray, np.ndarray]:
+    """(stable (B,), time the instability was detected (B,) [s], NaN where stable)."""
+    N, B = tr.energy.shape
+    t_det = np.where(tr.stop_tick >= 0, (tr.stop_tick + 1) * tr.period, np.inf)
+    W = max(1, int(round(SATURATION_WINDOW_S / tr.period)))
+    if tr.saturated.any() and N >= W:
+        nwin = N // W
+        frac = tr.saturated[: nwin * W].reshape(nwin, W, B).mean(axis=1)
+        hit = frac > SATURATION_FRACTION
+        first = np.where(hit.any(axis=0), hit.argmax(axis=0), -1)
+        t_sat = np.where(first >= 0, (first + 1) * W * tr.period, np.inf)
+        t_det = np.minimum(t_det, t_sat)
+    if st.scene.stability == StabilityCriterion.DECAY and N >= 8:
+        W = N // 8
+        last = tr.energy[N - W:].max(axis=0)
+        prev = tr.energy[N - 2 * W: N - W].max(axis=0)
+        growing = (last > prev) & (last > st.energy_floor) & (tr.stop_tick < 0)
+        t_det = np.where(growing, np.minimum(t_det, N * tr.period), t_det)
+    stable = ~np.isfinite(t_det)
+    return stable, np.where(stable, np.nan, t_det)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ClosedLoopResult:
+    """Outcome of one closed-loop run (batch element)."""
+
+    stable: bool
+    unstable_at: float | None  # [s]
+    rendered_stiffness: float | None  # [N/m] along the measure axis
+    rendered_damping: float | None  # [N·s/m]
+    stiffness_error_pct: float | None
+    residual_force_rms: float | None  # [N], |F_hand|
+    residual_force_rms_per_axis: tuple[float, float, float] | None
+    force_tracking_rms: float | None  # [N]
+    wall_penetration: float | None  # [m]
+    backend: str
+    effects: tuple[str, ...]
+    notes: tuple[str, ...] = ()
+    reason: str = ""  # why this backend (analysis.scene.resolve)
+    period: float = 1e-3
+    substeps: int = 1
+    ticks: int = 0
+    wall_time: float = 0.0
+    status: Status = Status.OK
+    message: str = ""
+    traces: Traces | None = field(default=None, repr=False, compare=False)
+
+    def metrics(self) -> dict[str, Any]:
+        def mm(v: float | None, f: float) -> float | None:
+            return None if v is None else float(v) * f
+
+        return {
+            "stable": bool(self.stable),
+            "unstable_at_s": self.unstable_at,
+            "rendered_stiffness_N_per_mm": mm(self.rendered_stiffness, 1e-3),
+            "rendered_damping_Ns_per_m": mm(self.rendered_damping, 1.0),
+            "stiffness_error_pct": self.stiffness_error_pct,
+            "residual_force_rms_N": self.residual_force_rms,
+            "residual_force_rms_per_axis_N": (None if self.residual_force_rms_per_axis is None
+                                              else [float(x) for x in self.residual_force_rms_per_axis]),
+            "force_tracking_rms_N": self.force_tracking_rms,
+            "wall_penetration_mm": mm(self.wall_penetration, 1e3),
+            "backend": self.backend,
+            "backend_reason": self.reason,
+            "effects": list(self.effects),
+            "controller_period_ms": self.period * 1e3,
+            "plant_substeps": self.substeps,
+            "ticks": self.ticks,
+            "wall_time_s": self.wall_time,
+        }
+
+
+def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | None = None,
+                        wall_time: float = 0.0) -> ClosedLoopResult:
+    """Metrics of batch element ``b`` (the settled part: after the first third of the run or 0.5 s)."""
+    stable_all, t_all = classify(tr, st)
+    stable, t_det = bool(stable_all[b]), (None if stable_all[b] else float(t_all[b]))
+    sc, fx = st.scene, st.resolution.effects
+    N = tr.energy.shape[0]
+    end = N if tr.stop_tick[b] < 0 else int(tr.stop_tick[b])
+    start = min(int(round(min(0.5, sc.duration / 3) / tr.period)), max(0, end - 2))
+    sl = slice(start, end)
+    rk = rb = err = res_rms = track = pen = None
+    res_axis = None
+    if tr.position is not None and end - start >= 3 and stable:
+        p, v, Fh = tr.position[sl, b], tr.velocity[sl, b], tr.hand_force[sl, b]
+        ax = sc.measure_axis
+        if Effect.OPERATOR in fx:
+            res_rms = float(np.sqrt(np.mean(np.sum(Fh**2, axis=-1))))
+            res_axis = tuple(float(x) for x in np.sqrt(np.mean(Fh**2, axis=0)))
+            if sc.environment.kind == EnvKind.SPRING and np.ptp(p[:, ax]) > 0:
+                A = np.stack([p[:, ax], v[:, ax], np.ones(len(p))], axis=-1)
+                coef, *_ = np.linalg.lstsq(A, Fh[:, ax], rcond=None)
+                rk, rb = float(coef[0]), float(coef[1])
+                target = sc.environment.stiffness[ax]
+                err = abs(rk - target) / target * 100.0 if target > 0 else None
+        track = float(np.sqrt(np.mean(np.sum((tr.actuator_force[sl, b] - tr.force_reference[sl, b]) ** 2, axis=-1))))
+        if sc.environment.kind == EnvKind.BOX:
+            env = sc.environment
+            depth = np.abs(tr.position[:end, b] - np.asarray(env.anchor)) - np.asarray(env.half_size)
+            if env.box_mode == BoxMode.INSIDE:
+                pen = float(max(0.0, depth.max()))
+            else:
+                inside = np.all(depth < 0, axis=-1)
+                pen = float((-depth.max(axis=-1))[inside].max()) if inside.any() else 0.0
+    status = Status.OK if stable else Status.UNSTABLE
+    message = "" if stable else f"unstable: detected at t = {t_det:.4g} s; the run stopped cleanly"
+    return ClosedLoopResult(
+        stable=stable, unstable_at=t_det, rendered_stiffness=rk, rendered_damping=rb, stiffness_error_pct=err,
+        residual_force_rms=res_rms, residual_force_rms_per_axis=res_axis, force_tracking_rms=track,
+        wall_penetration=pen, backend=backend or str(st.resolution.backend), effects=tuple(st.resolution.effect_names()),
+        notes=st.resolution.notes, reason=st.resolution.reason, period=st.period, substeps=st.substeps, ticks=st.ticks, wall_time=wall_time,
+        status=status, message=message, traces=tr,
+    )
+
+
+# ------------------------------------------------------------------------------ the fused runner
+def observation_matrix(m: LumpedModel) -> tuple[np.ndarray, np.ndarray]:
+    """(O, o0) with [p, ṗ, F_hand, F_act] = [x, u, λ] O + o0, from :func:`lumped_plant.observables`."""
+    n = m.n
+
+    def at(z: np.ndarray) -> np.ndarray:
+        return np.concatenate(observables(m, z[:n], z[n:n + 3], z[n + 3:])[:4])
+
+    o0 = at(np.zeros(n + 6))
+    O = np.stack([at(e) - o0 for e in np.eye(n + 6)])
+    return O, o0
+
+
+class Simulator:
+    """Compiled closed loop of one :class:`Setup` on the lumped plant, batched over gains.
+
+    ``run(gains)`` takes :class:`analysis.firmware.Gains` whose entries may carry a leading batch
+    axis (e.g. stiffness (B, 3)); the plant matrices are compiled in as constants.
+    """
+
+    def __init__(self, st: Setup, *, record: bool = True, chunk: int = CHUNK_TICKS) -> None:
+        self.st = st
+        self.record = record
+        self.chunk = min(chunk, st.ticks)
+        self.disc = discretise(st.model, st.period / st.substeps)
+        self._chunk_fn = jax.jit(self._make_chunk())
+
+    def _make_chunk(self):
+        st, m, d, cfg = self.st, self.model, self.disc, self.st.cfg
+        AdT, BudT, BldT, cd = (jnp.asarray(a) for a in (d.Ad.T, d.Bud.T, d.Bld.T, d.cd))
+        n_sub, L = st.substeps, cfg.interpolation
+        per = n_sub // L
+        friction = m.coulomb > 0.0
+        G = d.Bld[m.out_vel] if friction else None
+        quantize, record = st.quantize, self.record
+        J = m.J
+        pos_rows = [s for s in (m.out_pos, m.motor_pos) if s is not None]
+        # every recorded observable is affine in [x, u, λ]: one matrix product per tick
+        O, o0 = (jnp.asarray(a) for a in observation_matrix(m))
+
+        def advance(x, lam, applied):
+            def sub(j, carry):
+                x, lam = carry
+                u = applied[:, j // per] if L > 1 else applied[:, 0]
+                xf = x @ AdT + u @ BudT + cd
+                if friction:
+                    lam = solve_friction(jnp, xf[:, m.out_vel], G, m.coulomb, lam, FRICTION_ITERS)
+                    xf = xf + lam @ BldT
+                return xf, lam
+
+            if n_sub == 1:
+                return sub(0, (x, lam))
+            return jax.lax.fori_loop(0, n_sub, sub, (x, lam))
+
+        def tick(gains, carry, _):
+            x, cs, buf, u_last, lam, alive, stop, k = carry
+            slider, defl = sensor_values(m, x, u_last, xp=jnp)
+            sc, dc = slider / gains.resolution, defl / gains.resolution
+            if quantize:
+                sc, dc = jnp.round(sc), jnp.round(dc)
+            cs2, cmd, F = firmware.step(cfg, gains, cs, sc, dc)
+            if st.delay_ticks:
+                applied = buf[0]
+                buf2 = jnp.concatenate([buf[1:], cmd[None]], axis=0)
+            else:
+                applied, buf2 = cmd, buf
+            x2, lam2 = advance(x, lam, applied)
+            u_end = applied[:, -1]
+            energy = 0.5 * jnp.einsum("bi,ij,bj->b", x2, m.Q, x2)
+            if m.out_pos is not None:
+                p = x2[:, m.out_pos] @ J.T
+                energy = energy + 0.5 * jnp.sum(gains.stiffness * p**2, axis=-1)
+            finite = jnp.all(jnp.isfinite(x2), axis=-1)
+            runaway = jnp.zeros_like(finite)
+            for s in pos_rows:
+                runaway = runaway | jnp.any(jnp.abs(x2[:, s]) > 1.0, axis=-1)
+            bad = ~finite | runaway | ~(energy < self.explode)
+            ok = alive & ~bad
+            keep = lambda new, old: jnp.where(ok.reshape(ok.shape + (1,) * (new.ndim - 1)), new, old)  # noqa: E731
+            x_out = keep(x2, x)
+            # the controller state needs no freeze: with the plant frozen its inputs are constant, so it
+            # stays finite (the integral grows at most linearly) and its commands no longer reach anything
+            cs_out = cs2
+            lam_out = keep(lam2, lam)
+            u_out = keep(u_end, u_last)
+            stop = jnp.where(alive & bad, k, stop)
+            if cfg.saturation:
+                sat = jnp.any(jnp.abs(cmd) >= gains.motor_limit * (1 - 1e-12), axis=(-2, -1)) & ok
+            else:
+                sat = jnp.zeros_like(ok)
+            out = {"energy": jnp.where(ok, energy, 0.0), "saturated": sat}
+            if record:
+                y = jnp.concatenate([x_out, u_out, lam_out], axis=-1) @ O + o0
+                out.update(position=y[:, 0:3], velocity=y[:, 3:6], hand_force=y[:, 6:9], actuator_force=y[:, 9:12],
+                           force_reference=F)
+            return (x_out, cs_out, buf2, u_out, lam_out, ok, stop, k + 1), out
+
+        def chunk(gains, carry):
+            return jax.lax.scan(lambda c, _: tick(gains, c, _), carry, None, length=self.chunk, unroll=UNROLL)
+
+        return chunk
+
+    @property
+    def model(self) -> LumpedModel:
+        return self.st.model
+
+    @property
+    def explode(self) -> float:
+        factor = 1e6 if self.st.scene.stability == StabilityCriterion.DECAY else 1e3
+        return factor * self.st.energy_scale
+
+    def initial_carry(self, gains: firmware.Gains, batch: int):
+        st, m = self.st, self.st.model
+        x = jnp.tile(jnp.asarray(m.x0), (batch, 1))
+        u0 = jnp.zeros((batch, 3))
+        slider, _ = sensor_values(m, x, u0, xp=jnp)
+        sc = slider / gains.resolution
+        if st.quantize:
+            sc = jnp.round(sc)
+        cs = firmware.init_state(st.cfg, gains, sc)
+        L = st.cfg.interpolation
+        buf = jnp.zeros((st.delay_ticks, batch, L, 3)) if st.delay_ticks else jnp.zeros((0,))
+        return (x, cs, buf, u0, jnp.zeros((batch, 3)), jnp.ones(batch, dtype=bool),
+                jnp.full(batch, -1), jnp.asarray(0))
+
+    def run(self, gains: firmware.Gains | None = None, batch: int = 1) -> Traces:
+        """Run the scene's duration; stops between chunks once every batch element is unstable."""
+        gains = self.st.gains if gains is None else gains
+        carry = self.initial_carry(gains, batch)
+        outs = []
+        n_chunks = math.ceil(self.st.ticks / self.chunk)
+        for _ in range(n_chunks):
+            carry, out = self._chunk_fn(gains, carry)
+            outs.append(out)
+            if not bool(jnp.any(carry[5])):
+                break
+        cat = {k: np.concatenate([np.asarray(o[k]) for o in outs])[: self.st.ticks] for k in outs[0]}
+        N = cat["energy"].shape[0]
+        if N < self.st.ticks:  # stopped early: hold the last values (the run stopped cleanly)
+            cat = {k: np.concatenate([v, np.repeat(v[-1:], self.st.ticks - N, axis=0)]) for k, v in cat.items()}
+        return Traces(period=self.st.period, stop_tick=np.asarray(carry[6]), **cat)
+
+
+def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
+             backend: Backend | None = None) -> Any:
+    """Run ``scene`` on ``design`` on the backend the resolver picks (or ``backend`` forces).
+
+    Lumped: the fused compiled loop, a :class:`ClosedLoopResult`. Multibody: the firmware in the
+    loop on the MuJoCo plant (:func:`analysis.mujoco_plant.simulate` for the 3-PRRR,
+    :func:`analysis.mujoco_master.simulate` for the master), a result with constraint health.
+    Every result's metrics name the backend and the reason (``backend``, ``backend_reason``).
+    """
+    res = resolve(scene, force=backend)
+    if scene.device == "master":
+        from hapticopt.analysis.master import mujoco_plant as mujoco_master
+
+        return mujoco_master.simulate(design, scene, fidelity=fidelity, reason=res.reason)
+    if res.backend == Backend.MULTIBODY:
+        from hapticopt.analysis.prrr import mujoco_plant
+
+        return mujoco_plant.simulate(design, scene, fidelity=fidelity, reason=res.reason)
+    st = setup(design, scene, fidelity=fidelity)
+    t0 = time.perf_counter()
+    tr = Simulator(st).run()
+    return metrics_from_traces(tr, st, 0, wall_time=time.perf_counter() - t0)
+
+
+def batch_gains(gains: firmware.Gains, **fields: Any) -> firmware.Gains:
+    """``gains`` with some entries replaced by batched arrays (leading axis = batch)."""
+    return gains._replace(**{k: jnp.asarray(v, dtype=jnp.float64) for k, v in fields.items()})
+
+
+# ---------------------------------------------------------------------------- generic plant loop
+def run_with_plant(plant: Plant, controller: firmware.FirmwareController, st: Setup) -> Traces:
+    """Plain Python closed loop for any :class:`hapticopt.analysis.loop.plant.Plant` (the reference path)."""
+    res = float(st.gains.resolution)
+    N = st.ticks
+    q = np.round if st.quantize else (lambda a: a)
+    plant.reset()
+    s = plant.sensors()
+    controller.reset(q(s.slider / res))
+    delay: list[np.ndarray] = [np.zeros((st.cfg.interpolation, 3))] * st.delay_ticks
+    rec = {k: np.zeros((N, 1, 3)) for k in ("position", "velocity", "hand_force", "actuator_force", "force_reference")}
+    energy = np.zeros((N, 1))
+    sat = np.zeros((N, 1), dtype=bool)
+    stop = -1
+    limit = float(st.gains.motor_limit)
+    explode = (1e6 if st.scene.stability == StabilityCriterion.DECAY else 1e3) * st.energy_scale
+    for k in range(N):
+        s = plant.sensors()
+        cmd = controller.step(q(s.slider / res), q(s.deflection / res))
+        if st.delay_ticks:
+            delay.append(cmd)
+            cmd = delay.pop(0)
+        plant.advance(cmd)
+        o = plant.observe()
+        e = o.energy + 0.5 * float(np.dot(np.asarray(st.gains.stiffness), o.position**2))
+        if not (np.all(np.isfinite(o.position)) and e < explode and np.all(np.abs(o.position) < 1.0)):
+            stop = k
+            break
+        sat[k, 0] = st.cfg.saturation and bool(np.any(np.abs(cmd) >= limit * (1 - 1e-12)))
+        energy[k, 0] = e
+        for name, val in (("position", o.position), ("velocity", o.velocity), ("hand_force", o.hand_force),
+                          ("actuator_force", o.actuator_force), ("force_reference", controller.last_force)):
+            rec[name][k, 0] = val
+    if stop >= 0:
+        for arr in (*rec.values(), energy, sat):
+            arr[stop:] = arr[stop - 1] if stop > 0 else 0
+    return Traces(period=st.period, energy=energy, saturated=sat, stop_tick=np.array([stop]), **rec)

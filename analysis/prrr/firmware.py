@@ -1,0 +1,253 @@
+"""The firmware controller of the 3-PRRR (seed 002 eq 9–13), one fixed period T per step.
+
+It sees only what the device's firmware sees: slider encoder counts and spring-deflection
+counts (integers when quantisation is on). Per tick:
+
+1. p = J · (counts · resolution)                         (eq 1, positions from home)
+2. ṗ̂: first-order low-passed difference (cut-off f_c; plain backward difference if f_c = 0)
+3. F_r = −K_v (p − p_r) − B_v ṗ̂ (diagonal), or the virtual box of eq 13 (inside / outside),
+   + friction compensation F_fc·tanh(ṗ̂/v_ε) in x and y, + weight compensation in z
+4. f_r = Jᵀ F_r                                           (spring-force references per leg)
+5. per-SEA force loop F = K_p (f_r − k x̂) + K_i ∫(f_r − k x̂) (rigid: F = f_r/η; ideal: F = f_r)
+6. optional seed 000 prediction f_{i+1} = Σ a_j f_{i−j} and cubic B-spline (eq 23) giving L
+   output samples per period
+7. motor-force saturation |F| ≤ F_max/η (anti-windup: the integral is clamped too)
+
+The law is a pure function :func:`step` on arrays (jax, compiled once per structure, batched
+over any leading axis: the Z-width map runs hundreds of controllers in one call). Structure
+(which terms exist) is static in :class:`FirmwareConfig`: a term that is off is not traced, so
+it costs nothing. :class:`FirmwareController` wraps it as an object with ``step(sensors)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.design.prrr.kinematics import jacobian
+from hapticopt.analysis.loop.scene import BoxMode, Effect, EnvKind, Resolution, Scene
+from hapticopt.design.prrr.params import PrrrDesign
+
+#: cubic uniform B-spline basis of seed 000 eq (23)
+BSPLINE = np.array([[-1.0, 3.0, -3.0, 1.0], [3.0, -6.0, 3.0, 0.0], [-3.0, 0.0, 3.0, 0.0], [1.0, 4.0, 1.0, 0.0]]) / 6.0
+
+#: instrumentation: how often each optional term was traced into a compiled controller
+#: (tests use it to show that an effect that is off is never evaluated)
+TRACE_COUNTS: dict[str, int] = {}
+
+
+def _traced(name: str) -> None:
+    TRACE_COUNTS[name] = TRACE_COUNTS.get(name, 0) + 1
+
+
+class ForceLoop(StrEnum):
+    SEA = "sea"  # P(I) loop on the measured spring force
+    RIGID = "rigid"  # no spring to measure: F = f_r / η
+    IDEAL = "ideal"  # no motor dynamics: the command is the spring force
+
+
+@dataclass(frozen=True, kw_only=True)
+class FirmwareConfig:
+    """Structure of the control law (static: hashable, one compiled step per value)."""
+
+    period: float  # T [s]
+    env: EnvKind = EnvKind.SPRING
+    box_mode: BoxMode = BoxMode.INSIDE
+    force_loop: ForceLoop = ForceLoop.SEA
+    integral: bool = False
+    saturation: bool = True
+    friction_compensation: bool = False
+    gravity_compensation: bool = False
+    interpolation: int = 1
+    ar: tuple[float, ...] = (2.0, -1.0)
+    velocity_alpha: float = 0.0  # low-pass pole of the velocity estimate, exp(−2π f_c T)
+
+
+class Gains(NamedTuple):
+    """Numbers of the control law [SI]; every entry may carry leading batch axes."""
+
+    J: jax.Array  # (3, 3)
+    resolution: jax.Array  # [m/count]
+    spring: jax.Array  # k [N/m]
+    efficiency: jax.Array  # η
+    stiffness: jax.Array  # (…, 3) K_v [N/m]
+    damping: jax.Array  # (…, 3) B_v [N·s/m]
+    anchor: jax.Array  # (3,) [m]
+    half_size: jax.Array  # (3,) [m]
+    wall_stiffness: jax.Array  # [N/m]
+    wall_damping: jax.Array  # [N·s/m]
+    force_amplitude: jax.Array  # (…, 3) [N]
+    force_omega: jax.Array  # (…,) [rad/s]
+    kp: jax.Array  # (…,) K_p
+    ki: jax.Array  # (…,) K_i [1/s]
+    motor_limit: jax.Array  # [N]
+    friction_comp: jax.Array  # [N]
+    friction_comp_velocity: jax.Array  # [m/s]
+    weight: jax.Array  # M g [N]
+
+
+class State(NamedTuple):
+    tick: jax.Array  # () int
+    p_prev: jax.Array  # (…, 3) [m]
+    velocity: jax.Array  # (…, 3) [m/s]
+    integral: jax.Array  # (…, 3) [N]
+    history: jax.Array  # (…, 3, 3) last three outputs f_{i−2}, f_{i−1}, f_i (interpolation)
+
+
+def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: float | None = None
+          ) -> tuple[FirmwareConfig, Gains]:
+    """Controller structure and gains for ``design`` in ``scene`` (period defaults to the scene's T)."""
+    fx = resolution.effects
+    cs, env, a = scene.controller, scene.environment, design.actuator
+    T = cs.period if period is None else period
+    if scene.output_locked or (Effect.MOTOR_DYNAMICS in fx and Effect.SEA_COMPLIANCE in fx):
+        loop = ForceLoop.SEA
+    elif Effect.MOTOR_DYNAMICS not in fx:
+        loop = ForceLoop.IDEAL
+    else:
+        loop = ForceLoop.RIGID
+    alpha = math.exp(-2.0 * math.pi * cs.velocity_filter * T) if cs.velocity_filter > 0 else 0.0
+    cfg = FirmwareConfig(
+        period=T, env=env.kind, box_mode=env.box_mode, force_loop=loop,
+        integral=loop == ForceLoop.SEA and cs.integral_gain > 0,
+        saturation=Effect.SATURATION in fx,
+        friction_compensation=Effect.COULOMB_FRICTION in fx and cs.friction_compensation > 0,
+        gravity_compensation=Effect.GRAVITY in fx and cs.gravity_compensation,
+        interpolation=cs.interpolation, ar=cs.ar_coefficients, velocity_alpha=alpha,
+    )
+    J = np.asarray(jacobian(design.geometry.beta, xp=np))
+    limit = a.force_limit if loop == ForceLoop.IDEAL else a.force_limit / a.efficiency
+    f64 = lambda v: jnp.asarray(v, dtype=jnp.float64)  # noqa: E731
+    gains = Gains(
+        J=f64(J), resolution=f64(a.encoder_resolution), spring=f64(a.spring), efficiency=f64(a.efficiency),
+        stiffness=f64(env.stiffness), damping=f64(env.damping), anchor=f64(env.anchor), half_size=f64(env.half_size),
+        wall_stiffness=f64(env.wall_stiffness), wall_damping=f64(env.wall_damping),
+        force_amplitude=f64(env.force_amplitude), force_omega=f64(2.0 * math.pi * env.force_frequency),
+        kp=f64(cs.force_gain), ki=f64(cs.integral_gain), motor_limit=f64(limit),
+        friction_comp=f64(cs.friction_compensation), friction_comp_velocity=f64(cs.friction_compensation_velocity),
+        weight=f64(design.end_effector.mass * 9.81),
+    )
+    return cfg, gains
+
+
+def init_state(cfg: FirmwareConfig, gains: Gains, slider_counts: jax.Array) -> State:
+    """State at power-up: the first reading is the previous position; nothing integrated."""
+    p = (slider_counts * gains.resolution) @ gains.J.T
+    zeros = jnp.zeros_like(p)
+    return State(tick=jnp.asarray(0), p_prev=p, velocity=zeros, integral=zeros,
+                 history=jnp.zeros(p.shape[:-1] + (3, 3)))
+
+
+def interpolation_weights(cfg: FirmwareConfig) -> np.ndarray:
+    """(L, 4) weights of [f_{i−2}, f_{i−1}, f_i, f̂_{i+1}] for the L output samples (eq 23)."""
+    L = cfg.interpolation
+    u = np.arange(L) / L
+    U = np.stack([u**3, u**2, u, np.ones(L)], axis=-1)
+    return U @ BSPLINE
+
+
+def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Array, deflection_counts: jax.Array
+         ) -> tuple[State, jax.Array, jax.Array]:
+    """One control period. Returns (new state, commands (…, L, 3) [N], F_r (…, 3) [N])."""
+    T = cfg.period
+    p = (slider_counts * gains.resolution) @ gains.J.T
+    diff = (p - state.p_prev) / T
+    if cfg.velocity_alpha > 0.0:
+        v = cfg.velocity_alpha * state.velocity + (1.0 - cfg.velocity_alpha) * diff
+    else:
+        v = diff
+    delta = p - gains.anchor
+    if cfg.env == EnvKind.FREE:
+        F = jnp.zeros_like(p)
+    elif cfg.env == EnvKind.SPRING:
+        _traced("spring")
+        F = -gains.stiffness * delta - gains.damping * v
+    elif cfg.env == EnvKind.BOX:
+        _traced("box")
+        depth = jnp.abs(delta) - gains.half_size  # > 0: beyond the wall on that axis
+        sgn = jnp.sign(delta)
+        if cfg.box_mode == BoxMode.INSIDE:  # eq 13, inside: every axis beyond its wall pushes back
+            F = jnp.where(depth > 0.0, -gains.wall_stiffness * sgn * depth - gains.wall_damping * v, 0.0)
+        else:  # outside: all axes within → push out along the shallowest axis
+            inside = jnp.all(depth < 0.0, axis=-1, keepdims=True)
+            axis = jnp.argmax(depth, axis=-1)[..., None]
+            pick = jnp.arange(3) == axis
+            F = jnp.where(inside & pick, gains.wall_stiffness * sgn * (-depth) - gains.wall_damping * v, 0.0)
+    else:  # FORCE: prescribed force reference
+        _traced("force")
+        t = state.tick * T
+        F = gains.force_amplitude * jnp.sin(gains.force_omega[..., None] * t) + jnp.zeros_like(p)
+    if cfg.friction_compensation:
+        _traced("friction_compensation")
+        comp = gains.friction_comp * jnp.tanh(v / gains.friction_comp_velocity)
+        F = F + comp * jnp.array([1.0, 1.0, 0.0])
+    if cfg.gravity_compensation:
+        _traced("gravity_compensation")
+        F = F + gains.weight * jnp.array([0.0, 0.0, 1.0])
+    f_ref = F @ gains.J  # Jᵀ F_r, per leg
+    integral = state.integral
+    if cfg.force_loop == ForceLoop.SEA:
+        _traced("force_loop")
+        err = f_ref - gains.spring * (deflection_counts * gains.resolution)
+        out = gains.kp[..., None] * err
+        if cfg.integral:
+            _traced("integral")
+            integral = integral + gains.ki[..., None] * T * err
+            if cfg.saturation:
+                integral = jnp.clip(integral, -gains.motor_limit, gains.motor_limit)
+            out = out + integral
+    elif cfg.force_loop == ForceLoop.RIGID:
+        out = f_ref / gains.efficiency
+    else:
+        out = f_ref
+    history = state.history
+    if cfg.interpolation > 1:
+        _traced("interpolation")
+        history = jnp.concatenate([history[..., 1:, :], out[..., None, :]], axis=-2)
+        pred = sum(a * history[..., 2 - j, :] for j, a in enumerate(cfg.ar))
+        ctrl = jnp.concatenate([history, pred[..., None, :]], axis=-2)  # (…, 4, 3)
+        W = jnp.asarray(interpolation_weights(cfg))
+        cmd = jnp.einsum("lj,...jk->...lk", W, ctrl)
+    else:
+        cmd = out[..., None, :]
+    if cfg.saturation:
+        _traced("saturation")
+        cmd = jnp.clip(cmd, -gains.motor_limit, gains.motor_limit)
+    new = State(tick=state.tick + 1, p_prev=p, velocity=v, integral=integral, history=history)
+    return new, cmd, F
+
+
+class FirmwareController:
+    """The control law as an object: fixed period, ``step(sensors) -> commands``.
+
+    ``sensors`` are counts (slider encoder, spring deflection), each shape (3,). The step is
+    compiled once; per-call cost is the jit dispatch (the runner fuses it into its compiled loop
+    instead, see ``analysis.closed_loop``).
+    """
+
+    def __init__(self, cfg: FirmwareConfig, gains: Gains) -> None:
+        self.cfg = cfg
+        self.gains = gains
+        self.period = cfg.period
+        self._step = jax.jit(lambda g, s, a, b: step(cfg, g, s, a, b))
+        self.state: State | None = None
+        self.last_force: np.ndarray = np.zeros(3)
+
+    def reset(self, slider_counts: np.ndarray) -> None:
+        self.state = init_state(self.cfg, self.gains, jnp.asarray(slider_counts, dtype=jnp.float64))
+
+    def step(self, slider_counts: np.ndarray, deflection_counts: np.ndarray) -> np.ndarray:
+        """Commands (L, 3) [N] for this period from the counts read at its start."""
+        if self.state is None:
+            self.reset(slider_counts)
+        self.state, cmd, F = self._step(self.gains, self.state, jnp.asarray(slider_counts, dtype=jnp.float64),
+                                        jnp.asarray(deflection_counts, dtype=jnp.float64))
+        self.last_force = np.asarray(F)
+        return np.asarray(cmd)

@@ -1,0 +1,745 @@
+"""3-D Timoshenko frame model of the 3-PRRR's closed-loop structure (float64; numpy or jax).
+
+One core, :func:`frame_arrays`, written against an array module ``xp``: :func:`solve_frame` runs
+it with numpy for a single design (no compilation: the CLI path, ~4 ms), :func:`solve_frame_jax`
+and :func:`solve_frame_batch` with ``jax.numpy`` under jit/vmap (batches, gradients); tested equal.
+
+Each link is a 12-DOF Timoshenko beam (axial, torsion, two bending planes with shear) of the
+rectangular cross-section in ``design.structure``; the three revolute joints of every leg
+release the rotation about their axis w_i; the sliders are locked (optionally with the SEA
+spring in series along z). The model is assembled at any pose from the leg points of
+:func:`analysis.prrr_kinematics.leg_chain`, condensed onto the end-effector node and turned
+into the Cartesian stiffness for a load applied Δz above the end-effector.
+
+Structure of one leg i (points in the seed-digest leg construction; S is the rail point):
+
+    S = D_i e_z + r_p u_i  (slider carriage on the rail; clamped, or sliding in z on the SEA spring)
+    S → A      carriage arm (d1/d2 offset)              beam, or rigid (``Offsets.RIGID``)
+    A   R1     hinge about w_i
+    A → B      link d3                                   beam
+    B   R2     hinge about w_i
+    B → B'     link d4 (in-plane part), B' = Q − r4 w_i  beam
+    B' → Q     r4 offset along the joint axis            beam, or rigid
+    Q   R3     hinge about w_i
+    Q → P      platform arm, Q − P = b5 cos β u_i        beam, or rigid
+    P          end-effector node (shared by the three legs); the handle P → P + Δz e_z is rigid
+
+Joint zones (``FrameOptions.joint_zones``, default on): the beam ends within the joint boss radius
+(``structure.boss_diameter / 2``) of a joint axis point (A, B, Q) or of the end-effector hub P
+are rigid (clipped to 40 % of a beam's length); the rail end S and the d4/r4 corner B' have none.
+Without them the node-to-node beams ignore the bosses and the overlap of the links at the joints,
+and the bonded frame came out ~30 % softer than the solid FEA (docs/structure.md).
+
+Pin joints (``FrameOptions.pins``, default on): the members sit in their CAD layers along w
+(``design.cad_prrr.layout``: carriage clevis, link1, link2, platform lug, pitch λ = link thickness
++ clearance) and each revolute joint is the bonded pin across the clearance gap between two
+layers. ``PinModel.NECK`` (default): the bosses are rigid up to the gap mid-plane and the joint is
+a spring there: two half-spaces loaded through the pin's circular section (Gazetas 1991) in series
+with the short neck (:func:`neck_stiffness`); the hinge release is at the pin's link-side end.
+Not tuned: it lands within 8 % of the CAD solid FEA per axis (docs/structure.md), where the plane
+frame without pins (``pins=False``: all members in one plane, joints only rigid zones) is 95–155 %
+stiffer and ``PinModel.BEAM`` (a free pin beam over the whole pitch λ, an upper bound on the
+joint's compliance) 46 % softer. See :func:`_leg_stiffness_pins`.
+
+Cross-section orientation: the width b (``link_width``) lies in the plane normal to the joint
+axis, the thickness t (``link_thickness``) along the joint axis (local z = w projected normal to
+the beam); for the r4 segment, which runs along w, the width continues the d4 link's direction.
+Every beam (including the offsets when they are beams) has the link section. Torsion constant
+of the rectangle: Roark's J = b t³[1/3 − 0.21 (t/b)(1 − t⁴/12b⁴)] (b ≥ t); shear coefficient of
+the rectangle: Cowper's κ = 10(1+ν)/(12+11ν).
+
+Joints are exact kinematic releases, not penalty springs: the link side of a hinge carries the
+DOFs of its master node plus one hinge rotation φ about w (θ_link = θ_master + φ w); rigid
+offsets are rigid-body maps (u_s = u_m + θ_m × r). Every node's six DOFs are a linear map G
+(6 × N) of the N free DOFs, and K = Σ_e G_eᵀ K_e G_e.
+
+Outputs (SI): 6×6 compliance at P, the 3×3 compliance and the per-axis stiffness
+k_i = 1 / C_ii (force along axis i, displacement along i) at the load point P + Δz e_z, the
+elastic centre (the height h above P that least-squares decouples rotation from a lateral
+force, equivalently where the lateral compliance is smallest), the stiffness there, and a
+1-norm condition number of the Jacobi-scaled stiffness matrix.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import jax.scipy.linalg
+import numpy as np
+
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames
+
+#: Above this 1-norm condition number (Jacobi-scaled K) a result is reported as ill-conditioned.
+COND_LIMIT = 1e12
+#: Default load height above the end-effector [m] (seed 002 Table 3: Δz = 58 mm).
+LOAD_HEIGHT = 0.058
+_EZ = np.array([0.0, 0.0, 1.0])
+
+
+class Joints(StrEnum):
+    """How the revolute joints are modelled."""
+
+    RELEASED = "released"  # rotation about the joint axis free (the mechanism)
+    BONDED = "bonded"  # pins bonded: the joint transmits all six components (for FEA comparison)
+
+
+class PinModel(StrEnum):
+    """How a pin joint between two layered members deforms (``FrameOptions(pins=True)``)."""
+
+    NECK = "neck"  # bosses rigid; the bonded pin's neck across the gap: half-space constriction springs
+    BEAM = "beam"  # a Timoshenko pin beam bending freely over the whole layer pitch (an upper bound)
+
+
+class Offsets(StrEnum):
+    """How the carriage arm, the r4 offset and the platform arms are modelled."""
+
+    BEAM = "beam"  # beams of the link cross-section
+    RIGID = "rigid"  # rigid links
+
+
+@dataclass(frozen=True, kw_only=True)
+class FrameOptions:
+    """Static modelling choices (they change the topology, so they are jit-static)."""
+
+    joints: Joints = Joints.RELEASED
+    offsets: Offsets = Offsets.BEAM
+    sea: bool = False  # SEA springs in series along z between slider and rail (else locked)
+    branch: int = 0  # elbow branch of the IK: 0 (θ2 ≥ 0) or 1 (θ2 ≤ 0)
+    joint_zones: bool = True  # beam ends within the boss radius of a joint (A, B, Q) or of P are rigid
+    pins: bool = True  # CAD layering: members in their layers along w, joined through pins of the bore
+    pin_model: PinModel = PinModel.NECK  # with pins: constriction springs at the gap, or free pin beams
+
+
+class Section(NamedTuple):
+    """Rectangular cross-section and isotropic material [SI]; scalars or a batch (n,)."""
+
+    width: jax.Array  # in-plane width b [m]
+    thickness: jax.Array  # thickness t along the joint axis [m]
+    youngs_modulus: jax.Array  # E [Pa]
+    poisson_ratio: jax.Array  # ν [-]
+
+
+class FrameParams(NamedTuple):
+    """Everything the frame model reads from a design [SI] (a jax pytree, batchable)."""
+
+    kin: PrrrParams
+    r_p: jax.Array  # rail radius [m]
+    section: Section
+    spring: jax.Array  # SEA spring k [N/m] (used with ``FrameOptions(sea=True)``)
+    joint_zone: jax.Array  # radius of the rigid joint zone (the joint boss) [m]
+    pin_diameter: jax.Array  # pin (bore) diameter [m] (``FrameOptions(pins=True)``)
+    layer: jax.Array  # layer pitch along the joint axis, link thickness + clearance [m]
+    lug_offset: jax.Array  # platform lug layer above the kinematic R3 point along w, s_lug − r4 [m]
+    stem_radius: jax.Array  # platform stem radius; the platform arms are stem_diameter wide [m]
+
+
+def frame_params_of(design, xp=jnp) -> FrameParams:
+    """Frame-model parameters of one :class:`hapticopt.design.prrr.params.PrrrDesign` (``xp=np``: numpy arrays)."""
+    s = design.structure
+    g = design.geometry
+    kin = PrrrParams(*(xp.asarray(float(x)) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
+    sec = Section(*(xp.asarray(float(x)) for x in (s.link_width, s.link_thickness, s.youngs_modulus, s.poisson_ratio)))
+    layer = float(s.link_thickness) + float(s.clearance)  # design.cad_prrr.layout: s_link2 = T + g
+    s_lug = max(float(g.r4), 2.0 * layer)  # design.cad_prrr.layout: s_lug = max(r4, 2T + 2g)
+    return FrameParams(kin=kin, r_p=xp.asarray(float(g.r_p)), section=sec,
+                       spring=xp.asarray(float(design.actuator.spring)),
+                       joint_zone=xp.asarray(0.5 * float(s.boss_diameter)),
+                       pin_diameter=xp.asarray(float(s.bore_diameter)), layer=xp.asarray(layer),
+                       lug_offset=xp.asarray(s_lug - float(g.r4)),
+                       stem_radius=xp.asarray(0.5 * float(s.stem_diameter)))
+
+
+def stack_frame_params(designs) -> FrameParams:
+    """Parameters of many designs stacked along a leading batch axis."""
+    each = [frame_params_of(d) for d in designs]
+    return jax.tree.map(lambda *xs: jnp.stack(xs), *each)
+
+
+# ----------------------------------------------------------------------------- beam element
+class SectionProperties(NamedTuple):
+    area: jax.Array  # A [m²]
+    i_y: jax.Array  # second moment about local y (bending in the local xz plane) [m⁴]
+    i_z: jax.Array  # second moment about local z (bending in the local xy plane) [m⁴]
+    torsion: jax.Array  # Saint-Venant torsion constant J [m⁴]
+    shear_coefficient: jax.Array  # κ [-]
+    shear_modulus: jax.Array  # G [Pa]
+
+
+def section_properties(section: Section, xp=jnp) -> SectionProperties:
+    """Rectangle of width b (local y) and thickness t (local z)."""
+    b, t, E, nu = section
+    lo, hi = xp.minimum(b, t), xp.maximum(b, t)
+    r = lo / hi
+    torsion = hi * lo**3 * (1.0 / 3.0 - 0.21 * r * (1.0 - r**4 / 12.0))  # Roark, Table 10.7 case 4
+    return SectionProperties(
+        area=b * t,
+        i_y=b * t**3 / 12.0,
+        i_z=t * b**3 / 12.0,
+        torsion=torsion,
+        shear_coefficient=10.0 * (1.0 + nu) / (12.0 + 11.0 * nu),  # Cowper (1966), rectangle
+        shear_modulus=E / (2.0 * (1.0 + nu)),
+    )
+
+
+def circle_properties(diameter: jax.Array, E: jax.Array, nu: jax.Array, xp=jnp) -> SectionProperties:
+    """Solid circle (the pins): A = πd²/4, I = πd⁴/64, J = πd⁴/32, Cowper's κ = 6(1+ν)/(7+6ν)."""
+    i = np.pi * diameter**4 / 64.0
+    return SectionProperties(area=np.pi * diameter**2 / 4.0, i_y=i, i_z=i, torsion=2.0 * i,
+                             shear_coefficient=6.0 * (1.0 + nu) / (7.0 + 6.0 * nu),  # Cowper (1966), circle
+                             shear_modulus=E / (2.0 * (1.0 + nu)))
+
+
+def neck_stiffness(diameter: jax.Array, gap: jax.Array, E: jax.Array, nu: jax.Array, xp=jnp) -> jax.Array:
+    """Stiffness of a bonded pin joint across its clearance gap: (axial, lateral, rocking, torsion).
+
+    Two solid bosses (pin bonded in its bore: one material) joined by the pin's neck of radius
+    a = d/2 across the gap g. Each boss is an elastic half-space loaded through a rigid circular
+    disc of radius a (Gazetas 1991, Table 1, surface foundation; Johnson, Contact Mechanics §3.x):
+    K_z = 2Ea/(1−ν²), K_h = 8Ga/(2−ν), K_r = 4Ea³/(3(1−ν²)), K_t = 16Ga³/3; the two bosses in
+    series halve each. The neck itself (a Timoshenko stub of length g, ends held parallel) adds
+    g/EA, g³/12EI + g/κGA, g/EI, g/GJ in series. Units: N/m for forces, N·m/rad for moments.
+    """
+    a = 0.5 * diameter
+    G = E / (2.0 * (1.0 + nu))
+    p = circle_properties(diameter, E, nu, xp)
+    half = xp.stack([2.0 * E * a / (1.0 - nu**2), 8.0 * G * a / (2.0 - nu),
+                     4.0 * E * a**3 / (3.0 * (1.0 - nu**2)), 16.0 * G * a**3 / 3.0])
+    stub = xp.stack([gap / (E * p.area), gap**3 / (12.0 * E * p.i_y) + gap / (p.shear_coefficient * G * p.area),
+                     gap / (E * p.i_y), gap / (G * p.torsion)])
+    return 1.0 / (2.0 / half + stub)
+
+
+def _neck_matrix(w: jax.Array, k: jax.Array, xp=jnp) -> jax.Array:
+    """6×6 global stiffness of an axisymmetric joint about axis w with k = (axial, lateral, rocking, torsion)."""
+    ww = w[:, None] * w[None, :]
+    eye = xp.eye(3)
+    kt = k[1] * (eye - ww) + k[0] * ww
+    kr = k[2] * (eye - ww) + k[3] * ww
+    return _blockdiag2(kt, kr, xp)
+
+
+def _bending_patterns(idx: tuple[int, int, int, int], sign: float) -> np.ndarray:
+    """Constant 12×12 patterns of one bending plane: coefficients of 12, ±6L, (4+Φ)L², (2−Φ)L²."""
+    m12 = np.array([[1, 0, -1, 0], [0, 0, 0, 0], [-1, 0, 1, 0], [0, 0, 0, 0]], float)
+    ms = sign * np.array([[0, 1, 0, 1], [1, 0, -1, 0], [0, -1, 0, -1], [1, 0, -1, 0]], float)
+    ma = np.array([[0, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, 0], [0, 0, 0, 1]], float)
+    mb = np.array([[0, 0, 0, 0], [0, 0, 0, 1], [0, 0, 0, 0], [0, 1, 0, 0]], float)
+    out = np.zeros((4, 12, 12))
+    for k, m in enumerate((m12, ms, ma, mb)):
+        out[k][np.ix_(idx, idx)] = m
+    return out
+
+
+def _pair_pattern(i: int, j: int) -> np.ndarray:
+    out = np.zeros((12, 12))
+    out[np.ix_((i, j), (i, j))] = [[1.0, -1.0], [-1.0, 1.0]]
+    return out
+
+
+#: (10, 12, 12): axial, torsion, then the 4 patterns of bending in xy (u_y, θ_z), then in xz (u_z, θ_y)
+_PATTERNS = np.concatenate([_pair_pattern(0, 6)[None], _pair_pattern(3, 9)[None],
+                            _bending_patterns((1, 5, 7, 11), 1.0), _bending_patterns((2, 4, 8, 10), -1.0)])
+
+
+def beam_local_stiffness(length: jax.Array, E: jax.Array, props: SectionProperties, xp=jnp) -> jax.Array:
+    """12×12 Timoshenko beam stiffness in local axes (x along the beam); leading batch axes broadcast.
+
+    DOFs [u_x, u_y, u_z, θ_x, θ_y, θ_z] at node 1 then node 2. Exact for end loads: a clamped
+    element under a tip force P has δ = PL³/3EI + PL/(κGA) (Przemieniecki, Theory of Matrix
+    Structural Analysis, §5.6).
+    """
+    L = length
+    G, k = props.shear_modulus, props.shear_coefficient
+    A = props.area
+    phi_y = 12.0 * E * props.i_z / (k * G * A * L**2)  # bending in xy (u_y, θ_z)
+    phi_z = 12.0 * E * props.i_y / (k * G * A * L**2)  # bending in xz (u_z, θ_y)
+    cy = E * props.i_z / ((1.0 + phi_y) * L**3)
+    cz = E * props.i_y / ((1.0 + phi_z) * L**3)
+    coef = xp.stack([
+        E * A / L, G * props.torsion / L,
+        12.0 * cy, 6.0 * L * cy, (4.0 + phi_y) * L**2 * cy, (2.0 - phi_y) * L**2 * cy,
+        12.0 * cz, 6.0 * L * cz, (4.0 + phi_z) * L**2 * cz, (2.0 - phi_z) * L**2 * cz,
+    ], axis=-1)
+    return (coef @ xp.asarray(_PATTERNS.reshape(10, 144))).reshape(coef.shape[:-1] + (12, 12))
+
+
+def _cross(a, b, xp=jnp):
+    """a × b for 3-vectors along the last axis (explicit: numpy's cross is slow on tiny arrays)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return xp.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def beam_axes(x1: jax.Array, x2: jax.Array, zref: jax.Array, xp=jnp) -> tuple[jax.Array, jax.Array]:
+    """Rotation R (rows: local x, y, z in global coordinates) and length of the beam x1→x2.
+
+    Local z is ``zref`` made normal to the beam axis (the thickness direction); y = z × x.
+    """
+    d = x2 - x1
+    length = xp.sqrt(xp.sum(d**2, axis=-1))
+    ex = d / length[..., None]
+    z = zref - xp.sum(zref * ex, axis=-1)[..., None] * ex
+    ez = z / xp.sqrt(xp.sum(z**2, axis=-1))[..., None]
+    ey = _cross(ez, ex, xp)
+    return xp.stack([ex, ey, ez], axis=-2), length
+
+
+def _blockdiag2(a, b, xp=jnp):
+    """blockdiag(a, b) over the last two axes (leading batch axes shared)."""
+    za = xp.zeros(a.shape[:-1] + (b.shape[-1],))
+    zb = xp.zeros(b.shape[:-1] + (a.shape[-1],))
+    return xp.concatenate([xp.concatenate([a, za], axis=-1), xp.concatenate([zb, b], axis=-1)], axis=-2)
+
+
+def beam_global_stiffness(x1, x2, zref, section: Section, a1=0.0, a2=0.0, xp=jnp,
+                          props: SectionProperties | None = None) -> jax.Array:
+    """12×12 stiffness of the beam x1→x2 [m] in global axes, on the DOFs of x1 and x2.
+
+    Leading batch axes broadcast (one call assembles all of a leg's elements: the numpy path's speed).
+
+    ``a1``, ``a2`` [m]: rigid end zones (each clipped to 40 % of the length); the flexible
+    Timoshenko part spans the rest and is tied to the nodes by rigid maps.
+    ``xp``: the array module (``jax.numpy``, or ``numpy`` for the jit-free single-design path).
+    ``props``: section properties overriding the rectangle of ``section`` (E is read from ``section``).
+    """
+    R, length = beam_axes(x1, x2, zref, xp)
+    a1 = xp.minimum(xp.asarray(a1), 0.4 * length)
+    a2 = xp.minimum(xp.asarray(a2), 0.4 * length)
+    props = section_properties(section, xp) if props is None else props
+    k = beam_local_stiffness(length - a1 - a2, section.youngs_modulus, props, xp)
+    # T = blockdiag(R, R, R, R) @ blockdiag(rigid(a1 ex), rigid(−a2 ex)) = blockdiag(R M1, R M2),
+    # R·rigid(r) = [[R, −R[r]×], [0, R]]
+    ex = R[..., 0, :]
+    R4 = xp.einsum("ab,...ij->...aibj", xp.asarray(np.eye(4)), R).reshape(R.shape[:-2] + (12, 12))
+    T = R4 @ _blockdiag2(rigid_map(a1[..., None] * ex, xp), rigid_map(-a2[..., None] * ex, xp), xp)
+    return xp.swapaxes(T, -1, -2) @ k @ T
+
+
+#: Levi-Civita ε_ijk: [r]× = −ε·r, one contraction instead of nine stacked entries (the numpy path's cost)
+_EPS = np.zeros((3, 3, 3))
+for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    _EPS[_i, _j, _k], _EPS[_i, _k, _j] = 1.0, -1.0
+#: rigid_map(r) = I₆ + _RIGID·r (top-right block −[r]× = ε·r)
+_RIGID = np.zeros((6, 6, 3))
+_RIGID[:3, 3:, :] = _EPS
+_EYE6 = np.eye(6)
+
+
+def _skew(r: jax.Array, xp=jnp) -> jax.Array:
+    """[r]× (the cross-product matrix: [r]× a = r × a); leading batch axes broadcast."""
+    return -(r @ xp.asarray(_EPS.reshape(9, 3).T)).reshape(r.shape[:-1] + (3, 3))
+
+
+def rigid_map(r: jax.Array, xp=jnp) -> jax.Array:
+    """6×6 map of a master node's DOFs to a point offset by ``r`` on a rigid body (batch axes broadcast)."""
+    return xp.asarray(_EYE6) + (r @ xp.asarray(_RIGID.reshape(36, 3).T)).reshape(r.shape[:-1] + (6, 6))
+
+
+def cantilever_compliance(length, section: Section, *, direction, zref, n_elements: int = 1) -> np.ndarray:
+    """6×6 tip compliance [SI] of a clamped prismatic beam along ``direction`` (n equal elements).
+
+    A plain reference assembly (numpy path of the element) used to check it against closed forms.
+    """
+    section = Section(*(np.asarray(x, dtype=float) for x in section))
+    direction = np.asarray(direction, dtype=float)
+    direction = direction / np.linalg.norm(direction)
+    n = n_elements
+    K = np.zeros((6 * (n + 1), 6 * (n + 1)))
+    for e in range(n):
+        x1 = direction * length * e / n
+        x2 = direction * length * (e + 1) / n
+        K[6 * e:6 * e + 12, 6 * e:6 * e + 12] += beam_global_stiffness(x1, x2, np.asarray(zref, dtype=float),
+                                                                       section, xp=np)
+    Kf = K[6:, 6:]
+    return np.linalg.inv(Kf)[-6:, -6:]
+
+
+# ----------------------------------------------------------------------------- the 3-PRRR frame
+def _leg_layout(options: FrameOptions) -> tuple[int, dict[str, int]]:
+    """Static DOF layout of one leg: [P (6) | internal DOFs]; first index of each block (−1: absent).
+
+    With pins, "Ap", "B2", "Q2" are the link-side ends of the R1, R2, R3 pins; "Bp" (the r4 corner)
+    is then absent (the riser rides rigidly on link2's R3 end).
+    """
+    hinge = options.joints == Joints.RELEASED
+    beam_off = options.offsets == Offsets.BEAM
+    pins = bool(options.pins)
+    n, idx = 6, {}
+    for name, size in (("sea", 1 if options.sea else 0), ("A", 6 if beam_off else 0), ("Ap", 6 if pins else 0),
+                       ("phi1", int(hinge)), ("B", 6), ("B2", 6 if pins else 0), ("phi2", int(hinge)),
+                       ("Bp", 6 if beam_off and not pins else 0), ("Qp", 6 if beam_off else 0),
+                       ("Q2", 6 if pins else 0), ("phi3", int(hinge))):
+        idx[name] = n if size else -1
+        n += size
+    return n, idx
+
+
+def dof_count(options: FrameOptions = FrameOptions()) -> int:
+    """Number of free DOFs of the assembled frame (end-effector node + three legs' internal DOFs)."""
+    n_leg = _leg_layout(options)[0]
+    return 6 + 3 * (n_leg - 6)
+
+
+def _free(n: int, i: int, xp=jnp) -> jax.Array:
+    """Selector (6 × n) of the six DOFs starting at ``i`` (a constant)."""
+    out = np.zeros((6, n))
+    out[:, i:i + 6] = np.eye(6)
+    return xp.asarray(out)
+
+
+def _hinge(G: jax.Array, i: int, w: jax.Array, xp=jnp) -> jax.Array:
+    """G with the hinge rotation DOF ``i`` added about ``w`` to its rotation rows (i < 0: none)."""
+    if i < 0:
+        return G
+    onehot = np.zeros(G.shape[1])
+    onehot[i] = 1.0
+    return G + xp.concatenate([xp.zeros((3, G.shape[1])), w[:, None] * xp.asarray(onehot)[None, :]], axis=0)
+
+
+def _map(fn, xp, *args):
+    """``jax.vmap(fn)(*args)`` for jax; a loop stacked along axis 0 for numpy (same results)."""
+    if xp is jnp:
+        return jax.vmap(fn)(*args)
+    outs = [fn(*(a[k] for a in args)) for k in range(args[0].shape[0])]
+    if isinstance(outs[0], tuple):
+        return tuple(np.stack(col) for col in zip(*outs))
+    return np.stack(outs)
+
+
+def _leg_stiffness(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp=jnp,
+                   fp: FrameParams | None = None, zones_on=1.0):
+    """Stiffness (n×n) of one leg on its DOFs [P | internal], and the node maps G (5, 6, n)."""
+    if options.pins:
+        return _leg_stiffness_pins(w, S, A, B, Q, p, r4, d4, section, spring, zone, options, xp, fp, zones_on)
+    n, L = _leg_layout(options)
+    beam_off = options.offsets == Offsets.BEAM
+    Bp = Q - r4 * w
+    e4 = (Bp - B) / d4
+    G_P = _free(n, 0, xp)
+    G_S = _slider_map(n, L, options, xp)
+    elems = []  # (G1, G2, x1, x2, zref, a1, a2)
+    a = zone
+    if beam_off:
+        G_Ac = _free(n, L["A"], xp)
+        elems.append((G_S, G_Ac, S, A, w, 0.0 * a, a))  # carriage arm
+    else:
+        G_Ac = rigid_map(A - S, xp) @ G_S
+    G_Al = _hinge(G_Ac, L["phi1"], w, xp)  # R1
+    G_Bc = _free(n, L["B"], xp)
+    elems.append((G_Al, G_Bc, A, B, w, a, a))  # link d3
+    G_Bl = _hinge(G_Bc, L["phi2"], w, xp)  # R2
+    if beam_off:
+        G_Qp = _free(n, L["Qp"], xp)
+        elems.append((G_Qp, G_P, Q, p, w, a, a))  # platform arm
+    else:
+        G_Qp = rigid_map(Q - p, xp) @ G_P
+    G_Ql = _hinge(G_Qp, L["phi3"], w, xp)  # R3
+    if beam_off:
+        G_Bp = _free(n, L["Bp"], xp)
+        elems.append((G_Bp, G_Ql, Bp, Q, _cross(w, e4, xp), 0.0 * a, a))  # r4 offset along w
+    else:
+        G_Bp = rigid_map(Bp - Q, xp) @ G_Ql  # B' rides rigidly on the link side of R3
+    elems.append((G_Bl, G_Bp, B, Bp, w, a, 0.0 * a))  # link d4
+    link = section_properties(section, xp)
+    K = _assemble(n, L, [e + (link,) for e in elems], section, spring, options, xp)
+    G_nodes = xp.stack([G_S, G_Ac, G_Bc, G_Bp, G_Qp])
+    return K, G_nodes, xp.stack([S, A, B, Bp, Q])
+
+
+def _slider_map(n, L, options: FrameOptions, xp=jnp):
+    G_S = np.zeros((6, n))
+    if options.sea:
+        G_S[2, L["sea"]] = 1.0  # the carriage slides in z on the SEA spring
+    return xp.asarray(G_S)
+
+
+def _assemble(n, L, elems, section: Section, spring, options: FrameOptions, xp=jnp, springs=()):
+    """K = Σ_e G_eᵀ K_e G_e (+ the SEA spring) of elements (G1, G2, x1, x2, zref, a1, a2, props).
+
+    ``springs``: (D, K_s) pairs, D the 6×n relative motion across a joint spring of stiffness K_s.
+    """
+    Ge = xp.stack([xp.concatenate([e[0], e[1]], axis=0) for e in elems])  # (E, 12, n)
+    X1, X2, Z, A1, A2 = (xp.stack([e[k] for e in elems]) for k in (2, 3, 4, 5, 6))
+    PR = tuple(xp.stack([e[7][f] for e in elems]) for f in range(6))
+    Ke = beam_global_stiffness(X1, X2, Z, section, A1, A2, xp, props=SectionProperties(*PR))  # (E, 12, 12)
+    K = xp.sum(xp.swapaxes(Ge, -1, -2) @ Ke @ Ge, axis=0)  # Σ_e G_eᵀ K_e G_e
+    if springs:
+        D = xp.stack([s[0] for s in springs])  # (S, 6, n)
+        Ks = xp.stack([s[1] for s in springs])
+        K = K + xp.sum(xp.swapaxes(D, -1, -2) @ Ks @ D, axis=0)
+    if options.sea:
+        sel = np.zeros((n, n))
+        sel[L["sea"], L["sea"]] = 1.0
+        K = K + spring * xp.asarray(sel)
+    return 0.5 * (K + K.T)
+
+
+def _leg_stiffness_pins(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp,
+                        fp: FrameParams, zones_on):
+    """One leg with the CAD's axial layering (``FrameOptions(pins=True)``, design.cad_prrr layers).
+
+    Along w from the plane Π of A, B, B' (λ = link thickness + clearance): carriage clevis at −λ,
+    link1 at 0, link2 at λ, platform lug at s_lug = max(r4, 2λ) (the kinematic Q is at r4).
+    Each revolute joint joins two members' layers λ apart: ``PinModel.NECK``, a neck spring
+    (:func:`neck_stiffness`) at the gap mid-plane, rigidly tied to both layers (the bosses with the
+    pin bonded in them); ``PinModel.BEAM``, a pin beam of the bore diameter along w over the whole
+    λ. The hinge (released joints) is at the pin's link-side end. R3's pin joins
+    the lug (s_lug) to link2's R3 boss at s_lug − λ; the riser between link2's layer and that
+    point (s_lug − 2λ long, 0 for prrr-paper) is the boss column with the pin bonded in it, taken
+    rigid. The platform arm runs from the lug along −v to the stem axis, stem_diameter wide,
+    rigid inside the stem radius (the stem and handle are rigid, like the FEA's rigid region).
+    """
+    n, L = _leg_layout(options)
+    beam_off = options.offsets == Offsets.BEAM
+    lam, s_q = fp.layer, fp.lug_offset  # lug layer above Q: s_lug − r4
+    sb = w[2]  # sin β (w = −cos β u + sin β e_z)
+    a = zone
+    Ac = A - lam * w  # carriage clevis layer
+    B2 = B + lam * w  # link2 layer at R2
+    Bp2 = Q - r4 * w + lam * w  # link2 layer at the r4 corner (its R3 boss)
+    Ql = Q + s_q * w  # platform lug
+    Q2 = Ql - lam * w  # link2's end of the R3 pin
+    v = _cross(w, _cross(_EZ * xp.ones(()), w, xp), xp)  # e_z made normal to w, = v of the leg frame
+    v = v / xp.sqrt(xp.sum(v**2))
+    Pa = Ql - (xp.sqrt(xp.sum((Ql[:2] - p[:2]) ** 2)) / sb) * v  # arm meets the stem axis
+    e1 = (B - A) / xp.sqrt(xp.sum((B - A) ** 2))  # a normal of w (pins are round: any normal)
+    G_P = _free(n, 0, xp)
+    G_S = _slider_map(n, L, options, xp)
+    link = section_properties(section, xp)
+    pin = circle_properties(fp.pin_diameter, section.youngs_modulus, section.poisson_ratio, xp)
+    arm = section_properties(Section(2.0 * fp.stem_radius, section.thickness, section.youngs_modulus,
+                                     section.poisson_ratio), xp)
+    zero = 0.0 * a
+    elems = []  # (G1, G2, x1, x2, zref, a1, a2, props)
+    if beam_off:
+        G_Ac = _free(n, L["A"], xp)
+        elems.append((G_S, G_Ac, S, Ac, w, zero, a, link))  # carriage arm to the clevis layer
+        G_Ql = _free(n, L["Qp"], xp)
+        elems.append((G_Ql, G_P, Ql, Pa, w, a, zones_on * fp.stem_radius / sb, arm))  # platform arm
+    else:
+        G_Ac = rigid_map(Ac - S, xp) @ G_S
+        G_Ql = rigid_map(Ql - p, xp) @ G_P
+    G_Pa = rigid_map(Pa - p, xp) @ G_P
+    if beam_off:  # the arm's stem end rides on the rigid stem
+        elems[-1] = elems[-1][:1] + (G_Pa,) + elems[-1][2:]
+    springs = []
+    if options.pin_model == PinModel.NECK:
+        k_neck = neck_stiffness(fp.pin_diameter, fp.layer - section.thickness, section.youngs_modulus,
+                                section.poisson_ratio, xp)
+        K_neck = _neck_matrix(w, k_neck, xp)
+
+    def pin_joint(G1, G2, x1, x2):
+        if options.pin_model == PinModel.BEAM:
+            elems.append((G1, G2, x1, x2, e1, zero, zero, pin))
+        else:  # bosses rigid up to the gap mid-plane, the neck spring there
+            mid = 0.5 * (x1 + x2)
+            springs.append((rigid_map(mid - x2, xp) @ G2 - rigid_map(mid - x1, xp) @ G1, K_neck))
+
+    G_Ap = _free(n, L["Ap"], xp)
+    pin_joint(G_Ac, G_Ap, Ac, A)  # R1 pin
+    G_Bc = _free(n, L["B"], xp)
+    elems.append((_hinge(G_Ap, L["phi1"], w, xp), G_Bc, A, B, w, a, a, link))  # link d3
+    G_B2 = _free(n, L["B2"], xp)
+    pin_joint(G_Bc, G_B2, B, B2)  # R2 pin
+    G_Q2 = _free(n, L["Q2"], xp)
+    pin_joint(G_Ql, G_Q2, Ql, Q2)  # R3 pin
+    G_Q2l = _hinge(G_Q2, L["phi3"], w, xp)
+    G_Bp = rigid_map(Bp2 - Q2, xp) @ G_Q2l  # rigid riser
+    elems.append((_hinge(G_B2, L["phi2"], w, xp), G_Bp, B2, Bp2, w, a, a, link))  # link d4 (R3 boss at Bp2)
+    K = _assemble(n, L, elems, section, spring, options, xp, springs)
+    G_nodes = xp.stack([G_S, G_Ac, G_Bc, G_Bp, G_Ql])
+    return K, G_nodes, xp.stack([S, Ac, B, Bp2, Ql])
+
+
+def _factorised(A: jax.Array, xp=jnp):
+    """``B ↦ A⁻¹ B`` for a stack of matrices, factorising once on the jax path (LU), where the
+    three solves of :func:`_inverse_norm1` would otherwise each refactorise; numpy's tiny solves
+    are dominated by call overhead, so it calls ``solve`` directly."""
+    if xp is np:
+        return lambda B: np.linalg.solve(A, B)
+    lu = jax.scipy.linalg.lu_factor(A)
+    return lambda B: jax.scipy.linalg.lu_solve(lu, B)
+
+
+def _inverse_norm1(solve, y: jax.Array, xp=jnp) -> jax.Array:
+    """Hager's estimate of ‖A⁻¹‖₁ (Higham 1988, LAPACK xLACON, two steps) for symmetric A.
+
+    ``y`` = A⁻¹ (1/n)·1, the first step (solved together with the condensation's right-hand
+    sides). A lower bound, in practice within a small factor of the truth: enough to flag a
+    condition number of 1e12, at 2 extra solves instead of the n of an explicit inverse.
+    """
+    n = y.shape[-1]
+    xi = xp.where(y >= 0.0, 1.0, -1.0)
+    z = solve(xi[..., None])[..., 0]  # A⁻ᵀ ξ = A⁻¹ ξ
+    j = xp.argmax(xp.abs(z), axis=-1)
+    e_j = (xp.arange(n)[None, :] == j[:, None]).astype(float)
+    y2 = solve(e_j[..., None])[..., 0]
+    return xp.maximum(xp.sum(xp.abs(y), axis=-1), xp.sum(xp.abs(y2), axis=-1))
+
+
+def _cond1(Ks: jax.Array, Ks_inv: jax.Array, xp=jnp) -> jax.Array:
+    """1-norm condition number from a matrix and its inverse."""
+    return xp.max(xp.sum(xp.abs(Ks), axis=-2), axis=-1) * xp.max(xp.sum(xp.abs(Ks_inv), axis=-2), axis=-1)
+
+
+def frame_arrays(fp: FrameParams, p: jax.Array, load_height: jax.Array, options: FrameOptions,
+                 branch: jax.Array | int | None = None, zones_on: jax.Array | float | None = None,
+                 xp=jnp) -> dict:
+    """Assemble and solve the frame of one design at end-effector position ``p`` (3,) [m].
+
+    Each leg's internal DOFs are condensed statically onto the end-effector node
+    (K_P = Σ_legs K_PP − K_Pi K_ii⁻¹ K_iP, Jacobi-scaled solves); the legs are independent
+    given P, so they are assembled and condensed in parallel (``vmap`` over the legs).
+    ``branch`` and ``zones_on`` (1.0/0.0) override ``options.branch``/``options.joint_zones`` as
+    traced values, so they do not trigger a recompilation. ``xp`` is the array module: ``jax.numpy``
+    (jit, vmap over designs, gradients) or ``numpy`` (one design, no compilation; same code).
+
+    Returns a dict of arrays [SI]: ``compliance_ee`` (6×6 at P, [u; θ] per [F; M]),
+    ``compliance_load`` (3×3 at P + Δz e_z), ``stiffness_load`` (3,), ``elastic_centre``
+    (height above P [m]), ``stiffness_elastic_centre`` (3,), ``coupling_residual`` (rotation per
+    lateral force left at the elastic centre over that at P, Frobenius norms; 0 = exact
+    decoupling), ``condition`` (estimate: the largest 1-norm condition number of the
+    Jacobi-scaled leg-internal (Hager's estimate) and condensed (exact) matrices), ``reachable``, ``reach_margin`` [m];
+    and, for plots, ``nodes`` (3, 5, 3) [m] (S, A, B, B', Q per leg), ``node_maps`` (3, 5, 6, n)
+    and ``recovery`` (3, n−6, 6): internal DOFs of leg i are −recovery[i] @ [u_P; θ_P].
+    """
+    kin = fp.kin
+    p = xp.asarray(p, dtype=float)
+    ik = inverse_kinematics(kin, p, xp=xp)
+    branch = options.branch if branch is None else branch
+    zones_on = float(options.joint_zones) if zones_on is None else zones_on
+    theta = xp.take(ik.theta, branch, axis=0)
+    pts = leg_chain(kin, ik.sliders, theta, xp=xp)
+    f = leg_frames(kin.beta, xp=xp)
+    S = ik.sliders[:, None] * _EZ + fp.r_p * f.u
+
+    leg = functools.partial(_leg_stiffness, p=p, r4=kin.r4, d4=kin.d4, section=fp.section, spring=fp.spring,
+                            zone=fp.joint_zone * zones_on, options=options, xp=xp, fp=fp, zones_on=zones_on)
+    K, G_nodes, nodes = _map(lambda w, s, a, b, q: leg(w, s, a, b, q), xp, f.w, S, pts.a, pts.b, pts.q)
+    Kpp, Kpi, Kii = K[:, :6, :6], K[:, :6, 6:], K[:, 6:, 6:]
+    d = 1.0 / xp.sqrt(xp.abs(xp.diagonal(Kii, axis1=-2, axis2=-1)))  # (3, n_int)
+    Kii_s = d[:, :, None] * Kii * d[:, None, :]
+    n_int = Kii.shape[-1]
+    solve = _factorised(Kii_s, xp)
+    probe = xp.ones((3, n_int, 1)) / n_int
+    sol = solve(xp.concatenate([d[:, :, None] * xp.swapaxes(Kpi, -1, -2), probe], axis=-1))
+    recovery = d[:, :, None] * sol[:, :, :6]  # K_ii⁻¹ K_iP
+    cond_legs = xp.max(xp.sum(xp.abs(Kii_s), axis=-2), axis=-1) * _inverse_norm1(solve, sol[:, :, 6], xp)
+    KP = xp.sum(Kpp - Kpi @ recovery, axis=0)
+    KP = 0.5 * (KP + KP.T)
+    dP = 1.0 / xp.sqrt(xp.abs(xp.diagonal(KP)))
+    KP_s = dP[:, None] * KP * dP[None, :]
+    KP_s_inv = xp.linalg.inv(KP_s)
+    cond = xp.maximum(xp.max(cond_legs), _cond1(KP_s, KP_s_inv, xp))
+    C = dP[:, None] * KP_s_inv * dP[None, :]
+    C = 0.5 * (C + C.T)
+
+    def at_height(h):
+        H = xp.concatenate([xp.eye(3), -_skew(h * xp.asarray(_EZ), xp)], axis=1)  # u_L = u_P + θ × (h e_z)
+        return H @ C @ H.T
+
+    # elastic centre: rotation per lateral force θ = (C_θu + h C_θθ [e_z]×) F, F ∈ span(e_x, e_y);
+    # the h minimising ‖·‖_F (exact decoupling when it exists; also minimises the lateral compliance)
+    E = _skew(xp.asarray(_EZ), xp)
+    M0 = C[3:, :3][:, :2]
+    M1 = (C[3:, 3:] @ E)[:, :2]
+    h_ec = -xp.sum(M0 * M1) / xp.sum(M1 * M1)
+    residual = xp.sqrt(xp.sum((M0 + h_ec * M1) ** 2) / (xp.sum(M0**2) + 1e-300))
+    C_load = at_height(load_height)
+    C_ec = at_height(h_ec)
+    return {
+        "compliance_ee": C,
+        "compliance_load": C_load,
+        "stiffness_load": 1.0 / xp.diagonal(C_load),
+        "elastic_centre": h_ec,
+        "stiffness_elastic_centre": 1.0 / xp.diagonal(C_ec),
+        "coupling_residual": residual,
+        "condition": cond,
+        "reachable": ik.reachable,
+        "reach_margin": ik.reach_margin,
+        "nodes": nodes,
+        "node_maps": G_nodes,
+        "recovery": recovery,
+    }
+
+
+_PLOT_ONLY = ("nodes", "node_maps", "recovery")
+
+
+@functools.lru_cache(maxsize=None)
+def _compiled(joints: Joints, offsets: Offsets, sea: bool, batched: bool, full: bool, pins: bool,
+              pin_model: PinModel):
+    options = FrameOptions(joints=joints, offsets=offsets, sea=sea, pins=pins, pin_model=pin_model)
+
+    def fn(fp, p, h, branch, zones_on):
+        out = frame_arrays(fp, p, h, options, branch=branch, zones_on=zones_on)
+        if not full:
+            out = {k: v for k, v in out.items() if k not in _PLOT_ONLY}
+        return out
+
+    if batched:
+        fn = jax.vmap(fn, in_axes=(0, None, None, None, None))
+    return jax.jit(fn)
+
+
+def _call(fp, p, load_height, options: FrameOptions, batched: bool, full: bool):
+    if options.branch not in (0, 1):
+        raise ValueError(f"FrameOptions.branch = {options.branch!r}: allowed 0 or 1")
+    fn = _compiled(Joints(options.joints), Offsets(options.offsets), bool(options.sea), batched, full,
+                   bool(options.pins), PinModel(options.pin_model))
+    return fn(fp, jnp.asarray(p, dtype=float), jnp.asarray(load_height, dtype=float),
+              jnp.asarray(options.branch), jnp.asarray(float(options.joint_zones)))
+
+
+def solve_frame(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float = LOAD_HEIGHT,
+                options: FrameOptions = FrameOptions()) -> dict[str, np.ndarray]:
+    """Frame model of one design, numpy path (no compilation, ~1 ms); numpy arrays [SI].
+
+    The same :func:`frame_arrays` as the jax path (:func:`solve_frame_jax`, tested equal to
+    1e-12); a numerically singular matrix falls back to the jax path, which returns inf/NaN
+    instead of raising.
+    """
+    if options.branch not in (0, 1):
+        raise ValueError(f"FrameOptions.branch = {options.branch!r}: allowed 0 or 1")
+    fp_np = jax.tree.map(lambda x: np.asarray(x, dtype=float), fp)
+    try:
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            out = frame_arrays(fp_np, np.asarray(p, dtype=float), np.asarray(float(load_height)), options, xp=np)
+    except np.linalg.LinAlgError:
+        return solve_frame_jax(fp, p=p, load_height=load_height, options=options)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def solve_frame_jax(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float = LOAD_HEIGHT,
+                    options: FrameOptions = FrameOptions()) -> dict[str, np.ndarray]:
+    """Frame model of one design, jax path (jit-compiled once per joints/offsets/sea); numpy arrays."""
+    out = _call(fp, p, load_height, options, False, True)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def solve_frame_batch(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float = LOAD_HEIGHT,
+                      options: FrameOptions = FrameOptions()) -> dict[str, np.ndarray]:
+    """Frame model of a batch of designs (``fp`` with a leading axis n); arrays with leading n."""
+    out = _call(fp, p, load_height, options, True, False)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def closed_form_tip_deflection(load: float, length: float, E: float, inertia: float, kappa: float,
+                               G: float, area: float) -> float:
+    """Timoshenko cantilever tip deflection [m]: PL³/(3EI) + PL/(κGA)."""
+    return load * length**3 / (3.0 * E * inertia) + load * length / (kappa * G * area)
+
+
+__all__ = [
+    "COND_LIMIT", "LOAD_HEIGHT", "FrameOptions", "FrameParams", "Joints", "Offsets", "Section",
+    "beam_global_stiffness", "beam_local_stiffness", "cantilever_compliance", "circle_properties",
+    "closed_form_tip_deflection",
+    "dof_count", "frame_arrays", "frame_params_of", "section_properties", "solve_frame",
+    "solve_frame_batch", "solve_frame_jax", "stack_frame_params",
+]

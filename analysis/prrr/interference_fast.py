@@ -1,0 +1,314 @@
+"""Fast 3-PRRR link interference: convex primitives and separating axes, vectorised over poses.
+
+The reference is :mod:`analysis.interference` (manifold3d meshes of the CAD parts, one exact
+boolean per candidate pair, ~20 ms a pose). This module tests the same part pairs, built from
+the same part tables (:func:`design.cad_prrr.part_specs`), without meshes:
+
+* **Shapes.** Every SOLID primitive of a part table is used as it is — box, cylinder, sphere —
+  in its own frame; a part is the union of its primitives. HOLEs (pin bores, the carriage's
+  rail slot) are ignored, so parts are *filled*: material is only ever added (conservative).
+  OVERLAP primitives are mass-model bookkeeping and are not material.
+* **Pairs.** The reference's rule: every pair of parts on different rigid bodies that are not
+  joined by a joint (:func:`design.cad_prrr.neighbours`).
+* **Test.** Two convex primitives are disjoint iff some axis separates their projections
+  (separating-axis theorem). The projection half-width of a primitive on a unit axis n is its
+  support: box Σ_k |n·e_k| h_k; cylinder h|n·a| + r√(1 − (n·a)²); sphere r. Candidate axes per
+  primitive pair: the 3 + 3 frame axes, their 9 cross products (the complete set for two boxes,
+  so box–box is exact), the centre–centre direction, and for each cylinder the radial direction
+  towards the other centre and its rim-point direction. Any separating axis proves
+  separation, so a missing axis can only report a collision that is not there: the test is
+  conservative for every shape, exact for box–box, exact for sphere–sphere.
+* **Depth.** The smallest overlap over the candidate axes is an upper bound on the penetration
+  depth [m] (exact for box–box). The reference ignores overlaps below
+  :data:`analysis.interference.NOISE_MM3` (1 mm³); here a pair collides when that depth
+  exceeds :data:`DEPTH_TOL` (0.1 mm). Shallow corner contacts (depth 0.1–0.8 mm, < 1 mm³) are
+  therefore collisions here and noise there: the fast model is the stricter of the two.
+* **Speed.** World-axis-aligned bounds of every primitive (exact support extents) over all
+  (pose, primitive pair) first; the 16 cheap axes on the survivors, the 40 sampled axes only
+  on curved pairs still overlapping, each one numpy pass. Poses come from the numpy
+  inverse kinematics (:func:`analysis.prrr_kinematics.inverse_kinematics`, ``xp=numpy``), in the
+  CAD's elbow branch.
+
+Usage::
+
+    model = prepare(design)                        # once per design (part tables, ~ms)
+    res = check_points(model, points)              # points (n, 3) [m]; res.collides (n,)
+    frac = removed_fraction(design)                # share of the sampled workspace volume lost
+    frac, soft = interference_fractions(design)    # … and its continuous companion (depth ramp)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design.parts import Kind, Role
+from hapticopt.design.prrr.params import PrrrDesign
+
+#: a primitive pair collides when its smallest overlap over the candidate axes exceeds this [m]:
+#: above the chord error of the reference's 32-segment circles at the 12 mm bosses,
+#: 12·(1 − cos(π/32)) = 0.058 mm, so contacts the reference's meshes cannot resolve are not
+#: reported; every deeper overlap is (docs/workspace_interference.md: the only disagreements
+#: with the reference are real overlaps of 0.1–0.8 mm depth but < 1 mm³ volume, which the
+#: reference discards as noise)
+DEPTH_TOL = 1e-4
+
+#: depth scale of the continuous companion of the removed fraction [m]: a pose counts
+#: clip(d / OVERLAP_SCALE, 0, 1) of its weight, d its deepest pair overlap. 1 mm spans the band
+#: where the fast model and the manifold3d reference disagree (fast-only collisions 0.17–0.81 mm
+#: deep; the reference's shallowest accepted one 0.72 mm), and every colliding pose of prrr-paper
+#: is deeper (≥ 1.06 mm), so there both fractions are 0.46848 (docs/workspace_interference.md)
+OVERLAP_SCALE = 1e-3
+
+_BOX, _CYL, _SPH = 0, 1, 2
+_KIND = {Kind.BOX: _BOX, Kind.CYLINDER: _CYL, Kind.SPHERE: _SPH}
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class FastModel:
+    """Per-design precomputation: the SOLID primitives of every part (part frame, SI), the
+    primitive pairs to test (from the part pairs that can collide)."""
+
+    design: PrrrDesign
+    part_names: tuple[str, ...]
+    part_pairs: tuple[tuple[str, str], ...]  # tested part pairs (as the reference)
+    prim_part: np.ndarray  # (P,) index into part_names
+    kind: np.ndarray  # (P,) 0 box, 1 cylinder, 2 sphere
+    R: np.ndarray  # (P, 3, 3) primitive axes in the part frame (columns)
+    o: np.ndarray  # (P, 3) primitive centre in the part frame [m]
+    half: np.ndarray  # (P, 3) box: half extents; cylinder: (r, r, h/2); sphere: (r, r, r) [m]
+    pair_a: np.ndarray  # (K,) primitive index
+    pair_b: np.ndarray  # (K,) primitive index
+    pair_part: np.ndarray  # (K,) index into part_pairs
+
+
+@dataclass(frozen=True, kw_only=True)
+class FastResult:
+    """Interference at ``n`` poses: per pose whether any pair collides, and the per-part-pair
+    upper bound on the penetration depth (0 where separated) [m]."""
+
+    points: np.ndarray  # (n, 3) [m]
+    reachable: np.ndarray  # (n,) bool
+    collides: np.ndarray  # (n,) bool (False where unreachable)
+    depth: np.ndarray  # (n, n_part_pairs) [m]
+    part_pairs: tuple[tuple[str, str], ...]
+
+    def pairs_at(self, k: int) -> list[tuple[str, str]]:
+        """Colliding part pairs at pose ``k``."""
+        return [self.part_pairs[j] for j in np.flatnonzero(self.depth[k] > DEPTH_TOL)]
+
+
+def _skip_pairs(specs: dict[str, Any]) -> set[frozenset]:
+    """The reference's skip rule (:func:`analysis.interference.prepare`): joined parts and
+    parts of one rigid body."""
+    skip = set(cad_prrr.neighbours())
+    names = list(specs)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            if specs[a].body == specs[b].body:
+                skip.add(frozenset((a, b)))
+    return skip
+
+
+def prepare(design: PrrrDesign) -> FastModel:
+    """Primitive tables of every part of ``design`` (raises :class:`InvalidDesign` where the CAD
+    cannot lay the parts out)."""
+    specs = cad_prrr.part_specs(design)
+    names = tuple(specs)
+    prim_part, kind, R, o, half = [], [], [], [], []
+    first = {}
+    for j, name in enumerate(names):
+        first[name] = len(kind)
+        for p in specs[name].primitives:
+            if p.role != Role.SOLID:
+                continue
+            a, b, c = p.dims
+            k = _KIND[p.kind]
+            h = {_BOX: (a / 2, b / 2, c / 2), _CYL: (a, a, b / 2), _SPH: (a, a, a)}[k]
+            prim_part.append(j)
+            kind.append(k)
+            R.append(np.asarray(p.R, dtype=float))
+            o.append(np.asarray(p.o, dtype=float))
+            half.append(h)
+    prim_part = np.asarray(prim_part)
+    half = np.asarray(half, dtype=float)
+    kind = np.asarray(kind)
+    skip = _skip_pairs(specs)
+    part_pairs, pa, pb, pp = [], [], [], []
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            if frozenset((a, b)) in skip:
+                continue
+            ia, ib = np.flatnonzero(prim_part == i), np.flatnonzero(prim_part == names.index(b))
+            if len(ia) == 0 or len(ib) == 0:
+                continue
+            aa, bb = np.meshgrid(ia, ib, indexing="ij")
+            pa.append(aa.ravel())
+            pb.append(bb.ravel())
+            pp.append(np.full(aa.size, len(part_pairs)))
+            part_pairs.append((a, b))
+    return FastModel(design=design, part_names=names, part_pairs=tuple(part_pairs), prim_part=prim_part,
+                     kind=kind, R=np.asarray(R), o=np.asarray(o), half=half,
+                     pair_a=np.concatenate(pa), pair_b=np.concatenate(pb), pair_part=np.concatenate(pp))
+
+
+def part_frames_batch(design: PrrrDesign, points, *, branch: int = cad_prrr.DEFAULT_BRANCH
+                      ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], np.ndarray]:
+    """World rotation (n, 3, 3) and origin (n, 3) [m] of every part at ``points`` (n, 3) [m]
+    (:func:`design.cad_prrr.part_frames_batch` after the numpy IK), and whether each point is reachable."""
+    from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
+
+    g = design.geometry
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    prm = PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
+    ik = inverse_kinematics(prm, p, xp=np)
+    theta = np.asarray(ik.theta)[:, branch]  # (n, 3 legs, 3)
+    return cad_prrr.part_frames_batch(design, np.asarray(ik.sliders), theta, p), np.asarray(ik.reachable)
+
+
+def _support(kind, R, half, n):
+    """Projection half-width of primitives on unit axes: R (m, 3, 3), half (m, 3), n (m, A, 3)."""
+    loc = np.abs(n @ R)  # |components of n along the primitive axes|
+    box = (loc @ half[:, :, None])[..., 0]
+    az = loc[..., 2]
+    cyl = half[:, 2, None] * az + half[:, 0, None] * np.sqrt(np.clip(1.0 - az * az, 0.0, None))
+    k = kind[:, None]
+    return np.where(k == _BOX, box, np.where(k == _CYL, cyl, half[:, 0, None]))
+
+
+def _unit(x):
+    nrm = np.sqrt(np.sum(x * x, axis=-1, keepdims=True))
+    return np.where(nrm > 1e-12, x / np.where(nrm > 1e-12, nrm, 1.0), 0.0)
+
+
+def _overlap(kind_a, Ra, ha, kind_b, Rb, hb, d, axes):
+    """Smallest overlap [m] of the two projections over ``axes`` (m, A, 3) (zero axes ignored);
+    ``d`` (m, 3) is the centre-to-centre vector."""
+    valid = np.sum(axes * axes, axis=-1) > 0.25
+    gap = np.abs((axes @ d[:, :, None])[..., 0])
+    overlap = _support(kind_a, Ra, ha, axes) + _support(kind_b, Rb, hb, axes) - gap
+    return np.min(np.where(valid, overlap, np.inf), axis=1)
+
+
+#: surface samples whose closest-point directions serve as extra candidate axes: box corners
+#: and edge midpoints; cylinder rims (both end circles) at this many angles
+_RIM_SAMPLES = 12
+
+
+def _surface_samples(kind, R, half, c):
+    """Points (m, S, 3) on the surface of each primitive where curved contacts happen: box
+    corners and edge midpoints (20), cylinder rim points (2·_RIM_SAMPLES, padded by repetition),
+    sphere centre (repeated)."""
+    sgn = np.array([[i, j, k] for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
+                    if (i != 0) + (j != 0) + (k != 0) >= 2], dtype=float)  # 8 corners + 12 edge midpoints
+    box = c[:, None] + (sgn[None] * half[:, None]) @ np.swapaxes(R, 1, 2)
+    ang = 2.0 * np.pi * np.arange(_RIM_SAMPLES) / _RIM_SAMPLES
+    ring = np.stack([np.cos(ang), np.sin(ang)], axis=1)  # (Q, 2)
+    loc = np.concatenate([np.concatenate([ring, np.full((_RIM_SAMPLES, 1), z)], axis=1) for z in (-1.0, 1.0)])
+    loc = np.concatenate([loc, loc[: len(sgn) - len(loc)]]) if len(loc) < len(sgn) else loc[: len(sgn)]
+    cyl = c[:, None] + (loc[None] * half[:, None]) @ np.swapaxes(R, 1, 2)
+    k = kind[:, None, None]
+    return np.where(k == _BOX, box, np.where(k == _CYL, cyl, c[:, None]))
+
+
+def _closest(kind, R, half, c, x):
+    """Closest point (m, S, 3) of each primitive to points ``x`` (m, S, 3) (x itself if inside)."""
+    loc = (x - c[:, None]) @ R  # local coordinates
+    box = np.clip(loc, -half[:, None], half[:, None])
+    rad = np.linalg.norm(loc[..., :2], axis=-1, keepdims=True)
+    scale = np.minimum(1.0, half[:, None, :1] / np.where(rad > 0, rad, 1.0))
+    cyl = np.concatenate([loc[..., :2] * scale, np.clip(loc[..., 2:], -half[:, None, 2:], half[:, None, 2:])], axis=-1)
+    dist = np.linalg.norm(loc, axis=-1, keepdims=True)
+    sph = loc * np.minimum(1.0, half[:, None, :1] / np.where(dist > 0, dist, 1.0))
+    k = kind[:, None, None]
+    near = np.where(k == _BOX, box, np.where(k == _CYL, cyl, sph))
+    return c[:, None] + near @ np.swapaxes(R, 1, 2)
+
+
+def _depth(kind_a, Ra, ha, ca, kind_b, Rb, hb, cb):
+    """Smallest overlap [m] of the projections over the candidate axes (≤ 0: separated).
+
+    Axes: both frames (6), their cross products (9), centre to centre (1), and the directions
+    from surface samples of each primitive to their closest points on the other (2·20). The
+    cheap axes go first; the sampled ones only for the pairs they leave overlapping."""
+    m = len(ca)
+    d = cb - ca
+    RaT, RbT = np.swapaxes(Ra, 1, 2), np.swapaxes(Rb, 1, 2)
+    cross = np.cross(RaT[:, :, None, :], RbT[:, None, :, :]).reshape(m, 9, 3)
+    axes = np.concatenate([RaT, RbT, _unit(cross), _unit(d)[:, None]], axis=1)
+    out = _overlap(kind_a, Ra, ha, kind_b, Rb, hb, d, axes)
+    curved = (out > 0.0) & ((kind_a != _BOX) | (kind_b != _BOX))  # box–box: the 15 axes are complete
+    if np.any(curved):
+        i = np.flatnonzero(curved)
+        sa = _surface_samples(kind_a[i], Ra[i], ha[i], ca[i])
+        sb = _surface_samples(kind_b[i], Rb[i], hb[i], cb[i])
+        extra = np.concatenate([_unit(_closest(kind_b[i], Rb[i], hb[i], cb[i], sa) - sa),
+                                _unit(sb - _closest(kind_a[i], Ra[i], ha[i], ca[i], sb))], axis=1)
+        out[i] = np.minimum(out[i], _overlap(kind_a[i], Ra[i], ha[i], kind_b[i], Rb[i], hb[i], d[i], extra))
+    return out
+
+
+def check_points(model: FastModel, points, *, branch: int = cad_prrr.DEFAULT_BRANCH) -> FastResult:
+    """Interference of the tested part pairs at end-effector points (n, 3) [m]."""
+    pts = np.atleast_2d(np.asarray(points, dtype=float))
+    n = len(pts)
+    frames, reachable = part_frames_batch(model.design, pts, branch=branch)
+    Rp = np.stack([frames[name][0] for name in model.part_names], axis=1)  # (n, parts, 3, 3)
+    tp = np.stack([frames[name][1] for name in model.part_names], axis=1)  # (n, parts, 3)
+    Rpp = Rp[:, model.prim_part]
+    Rw = Rpp @ model.R  # (n, P, 3, 3)
+    cw = (Rpp @ model.o[:, :, None])[..., 0] + tp[:, model.prim_part]
+    ia, ib = model.pair_a, model.pair_b
+    # broad phase: world-axis-aligned boxes of every primitive (exact extents of box, cylinder, sphere)
+    P = len(model.kind)
+    ext = _support(np.tile(model.kind, n), Rw.reshape(-1, 3, 3), np.tile(model.half, (n, 1)),
+                   np.broadcast_to(np.eye(3), (n * P, 3, 3))).reshape(n, P, 3)
+    lo, hi = cw - ext, cw + ext
+    near = np.all((lo[:, ia] <= hi[:, ib]) & (lo[:, ib] <= hi[:, ia]), axis=-1)  # (n, K)
+    near &= reachable[:, None]
+    pose, k = np.nonzero(near)
+    depth = np.zeros((n, len(model.part_pairs)))
+    if len(pose):
+        a, b = ia[k], ib[k]
+        dep = _depth(model.kind[a], Rw[pose, a], model.half[a], cw[pose, a],
+                     model.kind[b], Rw[pose, b], model.half[b], cw[pose, b])
+        np.maximum.at(depth, (pose, model.pair_part[k]), np.maximum(dep, 0.0))
+    return FastResult(points=pts, reachable=reachable, collides=np.any(depth > DEPTH_TOL, axis=1),
+                      depth=depth, part_pairs=model.part_pairs)
+
+
+def overlap_share(res: FastResult, *, scale: float = OVERLAP_SCALE) -> np.ndarray:
+    """Per-pose collision share (n,) in [0, 1]: clip(d / scale, 0, 1) of the deepest part-pair
+    overlap d [m] at the pose (0 where separated or unreachable: ``depth`` is 0 there)."""
+    d = res.depth.max(axis=1) if res.depth.shape[1] else np.zeros(len(res.points))
+    return np.clip(d / scale, 0.0, 1.0)
+
+
+def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int,
+                           scale: float = OVERLAP_SCALE) -> tuple[float, float]:
+    """(removed fraction, overlap fraction) of the sampled workspace volume, from one check of
+    the poses (polar-cell weights w_i of :func:`analysis.prrr_workspace.workspace_sample_weights`):
+
+    * removed = Σ w_i [pose i collides] / Σ w_i — piecewise constant in the design;
+    * overlap = Σ w_i clip(d_i / scale, 0, 1) / Σ w_i, d_i the deepest pair overlap at pose i —
+      its continuous companion (equal to the removed fraction where every colliding pose is at
+      least ``scale`` deep; docs/workspace_interference.md).
+
+    Both 0 for an empty sample."""
+    from hapticopt.analysis.prrr.workspace import ELBOW_BRANCH, workspace_sample_weights
+
+    pts, w = workspace_sample_weights(design, n_phi=n_phi, n_r=n_r, n_z=n_z)
+    if len(pts) == 0 or not w.sum() > 0:
+        return 0.0, 0.0
+    res = check_points(prepare(design), pts, branch=ELBOW_BRANCH)
+    total = w.sum()
+    return float(w[res.collides].sum() / total), float(w @ overlap_share(res, scale=scale) / total)
+
+
+def removed_fraction(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> float:
+    """Share of the sampled workspace volume whose poses collide (the polar-cell weights of
+    :func:`analysis.prrr_workspace.workspace_sample_weights`; 0 for an empty sample)."""
+    return interference_fractions(design, n_phi=n_phi, n_r=n_r, n_z=n_z)[0]

@@ -1,0 +1,591 @@
+"""The multibody (MuJoCo) plant of the 3-PRRR for the closed-loop runner.
+
+Implements :class:`analysis.plant.Plant` on the model of :mod:`analysis.mujoco_prrr`: the
+firmware controller (``analysis.firmware``'s law, run through its tested numpy fast path
+``analysis.firmware_numpy``) at its period T; its commands are held (zero-order hold, or L samples per period with the seed 000 interpolation) over ``T / timestep``
+MuJoCo substeps; the runner reads the plant's sensors and quantises them exactly as for the
+lumped plant. The operator hand is a body (mass m_h on springs k_h and dampers b_h to the
+reference motion, seed 000 eq 1) tied to the handle by a ``<connect>``; its reference is
+updated once per period at the period's midpoint (second-order accurate).
+
+Every run reports constraint health (worst closed-chain violation, platform rotation,
+end-effector vs forward-kinematics closure) and MuJoCo's warnings; a run that leaves the
+tolerance (:data:`VIOLATION_TOL`, :data:`ROTATION_TOL`) or raised a warning is flagged in its
+status and message, never silently reported. A ``BADQACC`` warning (MuJoCo resets the state
+on it) makes the observation non-finite so the runner stops the run as unstable.
+
+Backend choice (:func:`choose_backend`): the lumped plant when the scene's effects allow it
+(it is exact for the rigid translational dynamics), the multibody plant when
+``link_dynamics`` is on, or whichever the caller forces; the reason is reported.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+from hapticopt.analysis.prrr.mujoco_model import (
+    SOLVER_BY_FIDELITY,
+    HandSettings,
+    Health,
+    LinkMasses,
+    ModelOptions,
+    Platform,
+    PrrrMj,
+    SolverSettings,
+    build,
+    set_pose,
+)
+from hapticopt.analysis.loop.plant import Observation, Sensors
+from hapticopt.analysis.loop.scene import Backend, Effect, Resolution, Scene, resolve
+from hapticopt.analysis.status import Status
+from hapticopt.design.errors import InvalidInput
+from hapticopt.design.prrr.params import PrrrDesign
+
+#: closed-chain tolerances of issue 8 (constraint violation [m], platform rotation [rad])
+VIOLATION_TOL = 1e-5
+ROTATION_TOL = 1e-4
+
+_BADQACC = 5  # index of mjWARN_BADQACC in MjData.warning (mujoco 4: mjtWarning; checked in the tests)
+#: ticks between the vectorised health/instability checks of the fast loop (every tick is checked)
+CHECK_EVERY = 100
+
+
+@dataclass(frozen=True, kw_only=True)
+class BackendChoice:
+    backend: Backend
+    reason: str
+    resolution: Resolution
+
+
+def choose_backend(scene: Scene, *, force: Backend | None = None) -> BackendChoice:
+    """Lumped when the effects allow it, multibody when ``link_dynamics`` is on (or the device is
+    the master); ``force`` (else the scene's ``backend`` key) overrides — see :func:`analysis.scene.resolve`."""
+    res = resolve(scene, force=force)
+    return BackendChoice(backend=res.backend, reason=res.reason, resolution=res)
+
+
+def model_options(scene: Scene, resolution: Resolution, *, fidelity: Fidelity = Fidelity.STANDARD,
+                  platform: Platform = Platform.FREE, link_masses: LinkMasses | None = None) -> ModelOptions:
+    """The MuJoCo model a scene's resolved effects call for."""
+    fx = resolution.effects
+    if scene.output_locked:
+        raise InvalidInput(f"scene {scene.name}: simulation.output_locked tests the SEA force loop alone; "
+                           "it runs on the lumped plant (no linkage moves)")
+    op = scene.operator
+    hand = (HandSettings(mass=op.mass, damping=op.damping, stiffness=op.stiffness)
+            if Effect.OPERATOR in fx else None)
+    if link_masses is None:
+        link_masses = LinkMasses.REAL if Effect.LINK_DYNAMICS in fx else LinkMasses.LUMPED
+    return ModelOptions(
+        link_masses=link_masses, platform=platform,
+        sea_compliance=Effect.SEA_COMPLIANCE in fx, motor_dynamics=Effect.MOTOR_DYNAMICS in fx,
+        viscous_friction=Effect.VISCOUS_FRICTION in fx, coulomb_friction=Effect.COULOMB_FRICTION in fx,
+        gravity=Effect.GRAVITY in fx, hand=hand, solver=SOLVER_BY_FIDELITY[fidelity],
+    )
+
+
+class MujocoPlant:
+    """:class:`hapticopt.analysis.loop.plant.Plant` on the MuJoCo 3-PRRR. Not thread-safe (owns one MjData)."""
+
+    backend = "multibody"
+
+    def __init__(self, design: PrrrDesign, scene: Scene, options: ModelOptions, *, period: float,
+                 interpolation: int = 1) -> None:
+        import mujoco
+
+        self._mujoco = mujoco
+        self.design, self.scene, self.options = design, scene, options
+        self.mj: PrrrMj = build(design, options)
+        self.model = self.mj.model
+        self.data = mujoco.MjData(self.model)
+        dt = options.solver.timestep
+        n = max(1, int(round(period / dt)))
+        L = max(1, interpolation)
+        self.substeps = L * math.ceil(n / L)
+        self.model.opt.timestep = period / self.substeps  # an exact multiple of the period
+        self.period = period
+        self._energy = False
+        self.per_sample = self.substeps // L
+        a = design.actuator
+        self.rigid = options.motor_dynamics and not options.sea_compliance
+        self.ideal = not options.motor_dynamics
+        self.gain = 1.0 if self.ideal else a.efficiency
+        self.spring = a.spring
+        self.J = self.mj.jacobian
+        self.JinvT = np.linalg.inv(self.J).T
+        m = self.model
+        self._eq_rows = 3 * m.neq
+        self._free = options.platform is Platform.FREE
+        self._ee_body_id = int(self.mj.ee_body)
+        self._carriage_ids = np.asarray(self.mj.carriage_body)
+        self._carriage_home_z = np.asarray(self.mj.carriage_home_z)
+        self._J = np.asarray(self.mj.jacobian)
+        self._ee_pos = self.mj.ee_qpos[:3]
+        ee_dof = m.jnt_dofadr[m.body_jntadr[self.mj.ee_body]]
+        self._ee_dof = np.arange(ee_dof, ee_dof + 3)
+        self._slider_dof = np.asarray(self.mj.actuator_joint_dof)
+        mo = scene.motion
+        self._amp = np.asarray(mo.amplitude, dtype=float)
+        self._offset = np.asarray(mo.offset, dtype=float)
+        self._phase = np.asarray(mo.phase, dtype=float)
+        self._w = 2.0 * math.pi * mo.frequency
+        self._hand = options.hand
+        if self._hand is not None:
+            self._hand_spring_adr = np.asarray(self.mj.hand_qpos)  # qpos_spring shares qpos layout
+        self.reset()
+
+    # ----------------------------------------------------------------------------- interface
+    def reset(self) -> None:
+        mj, d = self._mujoco, self.data
+        mj.mj_resetData(self.model, d)
+        p0 = np.asarray(self.scene.initial_offset, dtype=float)
+        set_pose(self.mj, d, p0)
+        self.t = 0.0
+        self.u = np.zeros(3)
+        self._worst = [0.0, 0.0, 0.0]  # violation [m], rotation [rad], closure [m]
+        self.bad_qacc = False
+        if self._hand is not None:
+            self._set_reference(0.0)
+            d.qpos[self.mj.hand_qpos] = p0
+        mj.mj_forward(self.model, d)
+
+    def sensors(self) -> Sensors:
+        q = self.data.qpos
+        slider = self.mj.sliders(q) - self.mj.c_e
+        if self.ideal:
+            defl = self.u / self.spring  # the spring carries exactly the commanded force
+        else:
+            defl = self.mj.deflection(q)
+        return Sensors(slider=slider, deflection=defl)
+
+    def advance(self, commands: np.ndarray) -> None:
+        mj, m, d = self._mujoco, self.model, self.data
+        commands = np.atleast_2d(commands)
+        h = self.per_sample * m.opt.timestep
+        for row in commands:
+            self.u = row
+            d.ctrl[:] = self.gain * row
+            if self._hand is not None:
+                self._set_reference(self.t + 0.5 * h)
+            mj.mj_step(m, d, nstep=self.per_sample)
+            self.t += h
+        self._check()
+
+    def observe(self) -> Observation:
+        d = self.data
+        if self.bad_qacc:
+            nan = np.full(3, np.nan)
+            return Observation(position=nan, velocity=nan, hand_force=nan, actuator_force=nan, energy=math.nan)
+        p = d.qpos[self._ee_pos].copy()
+        v = d.qvel[self._ee_dof].copy()
+        if self._hand is not None:
+            h = self._hand
+            ref, dref = self.reference(self.t)
+            qh, vh = d.qpos[self.mj.hand_qpos], d.qvel[self.mj.hand_dof]
+            hand = h.stiffness * (ref - qh) + h.damping * (dref - vh) - h.mass * d.qacc[self.mj.hand_dof]
+        else:
+            hand = np.zeros(3)
+        if self.ideal:
+            f = self.u.copy()
+        elif self.rigid:  # force the transmission delivers to the output: ηF − ξḊ − M_m D̈
+            dof = self._slider_dof
+            xi = self.design.actuator.viscous if self.options.viscous_friction else 0.0
+            f = self.gain * self.u - xi * d.qvel[dof] - self.design.actuator.motor_mass * d.qacc[dof]
+        else:
+            f = self.spring * self.mj.deflection(d.qpos)
+        defl = self.mj.deflection(d.qpos)
+        energy = float(d.energy[1]) + 0.5 * self.spring * float(defl @ defl) if self._energy else math.nan
+        return Observation(position=p, velocity=v, hand_force=hand, actuator_force=self.JinvT @ f, energy=energy)
+
+    # ----------------------------------------------------------------------------- internals
+    def enable_energy(self) -> None:
+        """Let MuJoCo compute kinetic energy (observation ``energy``); costs ≈ one mass-matrix product."""
+        self.model.opt.enableflags |= self._mujoco.mjtEnableBit.mjENBL_ENERGY
+        self._energy = True
+
+    def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Hand reference x_r(t) and its rate [m, m/s]."""
+        arg = self._w * t + self._phase
+        return self._offset + self._amp * np.sin(arg), self._amp * self._w * np.cos(arg)
+
+    def _set_reference(self, t: float) -> None:
+        ref, dref = self.reference(t)
+        self.model.qpos_spring[self._hand_spring_adr] = ref
+        self.data.qfrc_applied[self.mj.hand_dof] = self._hand.damping * dref
+
+    def _check(self) -> None:
+        """Update the worst constraint health (state at the start of the last substep)."""
+        d = self.data
+        if d.warning[_BADQACC].number > 0:
+            self.bad_qacc = True
+        n = self._eq_rows
+        viol = float(np.abs(d.efc_pos[:n]).max()) if n and d.nefc >= n else 0.0
+        rot = 0.0
+        if self._free:  # rotation angle from the quaternion's scalar part (resolution ≈ 1e-8 rad)
+            rot = 2.0 * math.acos(min(1.0, abs(float(d.xquat[self._ee_body_id, 0]))))
+        xpos = d.xpos
+        dz = xpos[self._carriage_ids, 2] - self._carriage_home_z
+        closure = float(np.linalg.norm(xpos[self._ee_body_id] - self._J @ dz))
+        w = self._worst
+        if viol > w[0]:
+            w[0] = viol
+        if rot > w[1]:
+            w[1] = rot
+        if closure > w[2]:
+            w[2] = closure
+
+    # ----------------------------------------------------------------------------- fast loop
+    def run(self, controller: Any, st: Any, *, check_every: int = CHECK_EVERY) -> Any:
+        """The closed loop of :func:`analysis.closed_loop.run_with_plant`, fused around ``mj_step``.
+
+        Same sensors, quantisation, controller calls, delay line, hand reference and stop rule;
+        per tick only raw state is copied into preallocated arrays (qpos, qvel, qacc, kinetic
+        energy, equality residuals ``efc_pos``, platform quaternion, body positions, MuJoCo's
+        clock); observables, energy, constraint health and the instability checks are computed
+        vectorised every ``check_every`` ticks over the whole window (every tick is checked, none is
+        skipped: the first bad tick in the window is found and the traces stop there exactly as in
+        the reference loop; the plant may have run up to ``check_every − 1`` ticks beyond, which
+        nothing reads). Tested equal to the reference loop (``tests/analysis/test_mujoco_plant.py``).
+        """
+        from hapticopt.analysis.prrr.closed_loop import Traces
+        from hapticopt.analysis.loop.scene import StabilityCriterion
+
+        mj, m, d = self._mujoco, self.model, self.data
+        if not self._energy:
+            self.enable_energy()
+        step = mj.mj_step
+        N = st.ticks
+        res = float(st.gains.resolution)
+        inv_res = 1.0 / res
+        quantize = st.quantize
+        self.reset()
+        qpos, qvel, qacc, ctrl = d.qpos, d.qvel, d.qacc, d.ctrl
+        sl_idx = self.mj.slider_qpos
+        mo_idx = self.mj.motor_qpos
+        sl0 = int(sl_idx[0]) if np.all(np.diff(sl_idx) == 1) else None
+        mo0 = int(mo_idx[0]) if mo_idx is not None and np.all(np.diff(mo_idx) == 1) else None
+
+        # one product reads both encoders: [slider; motor − slider] / resolution
+        S = np.zeros((6, m.nq))
+        S[np.arange(3), sl_idx] = inv_res
+        if mo_idx is not None:
+            S[np.arange(3, 6), mo_idx] = inv_res
+            S[np.arange(3, 6), sl_idx] = -inv_res
+        rnd = np.round
+
+        def counts() -> tuple[np.ndarray, np.ndarray]:
+            if not self.ideal:
+                y = S @ qpos
+                if quantize:
+                    y = rnd(y)
+                return y[:3], y[3:]
+            sl = qpos[sl0:sl0 + 3] if sl0 is not None else qpos[sl_idx]
+            if self.ideal:
+                de = self.u / self.spring
+            elif mo_idx is None:
+                de = np.zeros(3)
+            else:
+                de = (qpos[mo0:mo0 + 3] if mo0 is not None else qpos[mo_idx]) - sl
+            a, b = sl * inv_res, de * inv_res
+            if quantize:
+                a, b = np.round(a), np.round(b)
+            return a, b
+
+        sc, _ = counts()
+        controller.reset(sc)
+        L = st.cfg.interpolation
+        delay: list[np.ndarray] = [np.zeros((L, 3))] * st.delay_ticks
+        nq, nv = m.nq, m.nv
+        Qp, Qv, Qa = np.zeros((N, nq)), np.zeros((N, nv)), np.zeros((N, nv))
+        KE = np.zeros(N)
+        clock = np.zeros(N)
+        CMD = np.zeros((N, L, 3))  # command samples applied (after the delay line)
+        Fref = np.zeros((N, 3))
+        n_eq = self._eq_rows
+        EF = np.zeros((N, n_eq))
+        hand = self._hand
+        per = self.per_sample
+        h = per * m.opt.timestep
+        w, amp, off, ph = self._w, self._amp, self._offset, self._phase
+        if hand is not None:
+            spr_adr, hd = self._hand_spring_adr, self.mj.hand_dof
+            if np.all(np.diff(spr_adr) == 1) and np.all(np.diff(hd) == 1):  # slices write faster
+                spr_adr, hd = slice(int(spr_adr[0]), int(spr_adr[0]) + 3), slice(int(hd[0]), int(hd[0]) + 3)
+            qs = m.qpos_spring
+            qfa = d.qfrc_applied
+            # reference at every sample midpoint: tick k, sample j → t = k·T + (j + ½)·h
+            tm = (np.arange(N)[:, None] * (L * h) + (np.arange(L)[None, :] + 0.5) * h)[..., None]
+            arg = w * tm + ph
+            REF = off + amp * np.sin(arg)
+            DREF = hand.damping * amp * w * np.cos(arg)
+        gain = self.gain
+        explode = (1e6 if st.scene.stability == StabilityCriterion.DECAY else 1e3) * st.energy_scale
+        K = np.asarray(st.gains.stiffness, dtype=float)
+        stop = -1
+        start = 0
+        ok_eq = n_eq > 0
+        k = 0
+        mul = np.multiply
+        energy_buf = d.energy  # a view on MjData's buffer, updated in place by mj_step
+        while k < N:
+            end = min(N, start + check_every)
+            for k in range(start, end):
+                sc, dc = counts()
+                cmd = controller.step(sc, dc)
+                if delay:
+                    delay.append(cmd)
+                    cmd = delay.pop(0)
+                for j in range(L):
+                    row = cmd[j]
+                    mul(row, gain, out=ctrl)
+                    if hand is not None:
+                        qs[spr_adr] = REF[k, j]
+                        qfa[hd] = DREF[k, j]
+                    step(m, d, per)
+                self.u = row
+                Qp[k] = qpos
+                Qv[k] = qvel
+                Qa[k] = qacc
+                KE[k] = energy_buf[1]
+                clock[k] = d.time
+                CMD[k] = cmd
+                Fref[k] = controller.last_force
+                if ok_eq:
+                    efc = d.efc_pos
+                    if efc.shape[0] >= n_eq:
+                        EF[k] = efc[:n_eq]
+            bad = self._window_bad(st, Qp, Qv, KE, clock, start, end, K, explode)
+            if bad >= 0:
+                stop = bad
+                break
+            start = end
+            k = end
+        self.t = (N if stop < 0 else stop + 1) * L * h
+        last = N if stop < 0 else stop + 1  # health over every tick run up to and including the stop
+        self._health_from(EF[:last], Qp[:last])
+        if stop >= 0 and clock[stop] < (stop + 0.5) * L * h:
+            self.bad_qacc = True
+        obs = self._observables(Qp, Qv, Qa, KE, CMD[:, -1], K)
+        cmd_max = np.abs(CMD).max(axis=(1, 2))
+        sat = (st.cfg.saturation & (cmd_max >= float(st.gains.motor_limit) * (1 - 1e-12)))[:, None]
+        energy = obs.pop("energy")[:, None]
+        rec = {k2: v[:, None, :] for k2, v in obs.items()}
+        rec["force_reference"] = Fref[:, None, :]
+        if stop >= 0:
+            for arr in (*rec.values(), energy, sat):
+                arr[stop:] = arr[stop - 1] if stop > 0 else 0
+        return Traces(period=st.period, energy=energy, saturated=sat, stop_tick=np.array([stop]), **rec)
+
+    def _observables(self, Qp, Qv, Qa, KE, U, K) -> dict[str, np.ndarray]:
+        """Vectorised :meth:`observe` over recorded ticks (time of tick k's end: (k + 1)·T)."""
+        N = Qp.shape[0]
+        p = Qp[:, self._ee_pos]
+        v = Qv[:, self._ee_dof]
+        if self._hand is not None:
+            hd = self.mj.hand_dof
+            t = (np.arange(N) + 1) * self.period
+            arg = self._w * t[:, None] + self._phase
+            ref = self._offset + self._amp * np.sin(arg)
+            dref = self._amp * self._w * np.cos(arg)
+            hs = self._hand
+            hand = hs.stiffness * (ref - Qp[:, self.mj.hand_qpos]) + hs.damping * (dref - Qv[:, hd]) - hs.mass * Qa[:, hd]
+        else:
+            hand = np.zeros((N, 3))
+        if self.mj.motor_qpos is None:
+            defl = np.zeros((N, 3))
+        else:
+            defl = Qp[:, self.mj.motor_qpos] - Qp[:, self.mj.slider_qpos]
+        if self.ideal:
+            f = U.copy()
+        elif self.rigid:
+            dof = self._slider_dof
+            xi = self.design.actuator.viscous if self.options.viscous_friction else 0.0
+            f = self.gain * U - xi * Qv[:, dof] - self.design.actuator.motor_mass * Qa[:, dof]
+        else:
+            f = self.spring * defl
+        energy = KE + 0.5 * self.spring * np.sum(defl**2, axis=-1) + 0.5 * np.sum(K * p**2, axis=-1)
+        return {"position": p, "velocity": v, "hand_force": hand, "actuator_force": f @ self.JinvT.T,
+                "energy": energy}
+
+    def _window_bad(self, st, Qp, Qv, KE, clock, start, end, K, explode) -> int:
+        """First bad tick in [start, end) by the reference loop's rule (−1: none)."""
+        p = Qp[start:end][:, self._ee_pos]
+        e = KE[start:end] + 0.5 * np.sum(K * p**2, axis=-1)
+        if self.mj.motor_qpos is not None:
+            defl = Qp[start:end][:, self.mj.motor_qpos] - Qp[start:end][:, self.mj.slider_qpos]
+            e = e + 0.5 * self.spring * np.sum(defl**2, axis=-1)
+        T = self.period
+        reset = clock[start:end] < (np.arange(start, end) + 0.5) * T  # MuJoCo auto-reset (BADQACC)
+        bad = reset | ~np.all(np.isfinite(p), axis=-1) | ~(e < explode) | ~np.all(np.abs(p) < 1.0, axis=-1)
+        return int(start + np.argmax(bad)) if bad.any() else -1
+
+    def _health_from(self, EF: np.ndarray, Qp: np.ndarray) -> None:
+        """Worst health over the recorded end-of-tick states (same quantities as :meth:`_check`)."""
+        viol = float(np.abs(EF).max()) if EF.size else 0.0
+        rot = closure = 0.0
+        if Qp.shape[0]:
+            ee = Qp[:, self.mj.ee_qpos]
+            if self._free:  # free joint: position, then the unit quaternion (scalar first)
+                rot = float(2.0 * np.arccos(np.minimum(1.0, np.abs(ee[:, 3]))).max())
+            dz = Qp[:, self.mj.slider_qpos]  # output sliders from home
+            closure = float(np.linalg.norm(ee[:, :3] - dz @ self._J.T, axis=-1).max())
+        self._worst = [viol, rot, closure]
+
+    @property
+    def health(self) -> Health:
+        """Worst closed-chain health since the last reset."""
+        return Health(violation=self._worst[0], rotation=self._worst[1], closure=self._worst[2])
+
+    def warnings(self) -> tuple[str, ...]:
+        """Names and counts of the MuJoCo warnings raised since the last reset."""
+        out = []
+        for i, w in enumerate(self.data.warning):
+            if w.number > 0:
+                out.append(f"{self._mujoco.mjtWarning(i).name} x{w.number}")
+        return tuple(out)
+
+
+# ------------------------------------------------------------------------------- closed loop
+@dataclass(frozen=True, kw_only=True)
+class MultibodyResult:
+    """A closed-loop run on the multibody plant: the runner's result + constraint health."""
+
+    loop: Any  # analysis.closed_loop.ClosedLoopResult
+    health: Health
+    warnings: tuple[str, ...]
+    substeps: int
+    timestep: float  # [s]
+    integrator: str
+    platform: str
+    link_masses: str
+    reason: str
+    wall_time: float  # [s]
+    status: Status
+    message: str
+
+    @property
+    def health_ok(self) -> bool:
+        return self.health.violation <= VIOLATION_TOL and self.health.rotation <= ROTATION_TOL
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        return self.loop.notes
+
+    @property
+    def traces(self) -> Any:
+        return self.loop.traces
+
+    def metrics(self) -> dict[str, Any]:
+        out = dict(self.loop.metrics())
+        out.update(self.health.metrics())
+        out.update({
+            "backend": "multibody", "backend_reason": self.reason, "constraint_health_ok": self.health_ok,
+            "mujoco_warnings": list(self.warnings), "plant_substeps": self.substeps,
+            "mujoco_timestep_ms": self.timestep * 1e3, "mujoco_integrator": self.integrator,
+            "platform_model": self.platform, "link_masses": self.link_masses, "wall_time_s": self.wall_time,
+        })
+        return out
+
+
+def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
+             platform: Platform = Platform.FREE, link_masses: LinkMasses | None = None,
+             solver: SolverSettings | None = None, reason: str | None = None) -> MultibodyResult:
+    """Run ``scene`` on ``design`` with the firmware controller in the loop on the MuJoCo plant."""
+    from hapticopt.analysis.prrr import closed_loop
+
+    choice = choose_backend(scene, force=Backend.MULTIBODY)
+    res = choice.resolution
+    # the runner's setup (controller, gains, ticks, energy scale) is backend-independent; it is
+    # built on the scene without link_dynamics, which only the plant needs
+    lumped_scene = dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS})
+    st = closed_loop.setup(design, lumped_scene, fidelity=fidelity)
+    options = model_options(scene, res, fidelity=fidelity, platform=platform, link_masses=link_masses)
+    if solver is not None:
+        options = dataclasses.replace(options, solver=solver)
+    plant = MujocoPlant(design, scene, options, period=st.period, interpolation=st.cfg.interpolation)
+    plant.enable_energy()
+    st = dataclasses.replace(st, resolution=res, substeps=plant.substeps)
+    controller = NumpyController(st.cfg, st.gains)
+    t0 = time.perf_counter()
+    traces = plant.run(controller, st)
+    wall = time.perf_counter() - t0
+    loop = closed_loop.metrics_from_traces(traces, st, 0, backend="multibody", wall_time=wall)
+    warns = plant.warnings()
+    status, message = loop.status, loop.message
+    health = plant.health
+    problems = []
+    if health.violation > VIOLATION_TOL:
+        problems.append(f"constraint violation {health.violation * 1e3:.3g} mm > {VIOLATION_TOL * 1e3:g} mm")
+    if health.rotation > ROTATION_TOL:
+        problems.append(f"platform rotation {health.rotation * 1e3:.3g} mrad > {ROTATION_TOL * 1e3:g} mrad")
+    if warns:
+        problems.append("MuJoCo warnings: " + ", ".join(warns))
+    if problems:
+        message = "; ".join(([message] if message else []) + problems)
+        if status == Status.OK:
+            status = Status.FAILED
+    return MultibodyResult(
+        loop=loop, health=health, warnings=warns, substeps=plant.substeps, timestep=float(plant.model.opt.timestep),
+        integrator=options.solver.integrator.value, platform=options.platform.value,
+        link_masses=options.link_masses.value, reason=reason or choice.reason, wall_time=wall,
+        status=status, message=message,
+    )
+
+
+# ------------------------------------------------------------------------- stability limits
+def _setup_and_plant(design: PrrrDesign, scene: Scene, backend: Backend, fidelity: Fidelity,
+                     platform: Platform, link_masses: LinkMasses | None):
+    from hapticopt.analysis.prrr import closed_loop
+    from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
+
+    lumped_scene = dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS})
+    st = closed_loop.setup(design, lumped_scene, fidelity=fidelity)
+    if backend == Backend.LUMPED:
+        return st, LumpedPlant(st.model, st.period, st.substeps)
+    choice = choose_backend(scene, force=Backend.MULTIBODY)
+    options = model_options(scene, choice.resolution, fidelity=fidelity, platform=platform, link_masses=link_masses)
+    plant = MujocoPlant(design, scene, options, period=st.period, interpolation=st.cfg.interpolation)
+    plant.enable_energy()
+    return dataclasses.replace(st, resolution=choice.resolution, substeps=plant.substeps), plant
+
+
+def stiffness_limit(design: PrrrDesign, scene: Scene, *, backend: Backend, axis: int = 0,
+                    bracket: tuple[float, float], iterations: int = 7, fidelity: Fidelity = Fidelity.STANDARD,
+                    platform: Platform = Platform.TRANSLATIONAL,
+                    link_masses: LinkMasses | None = LinkMasses.LUMPED) -> tuple[float, float]:
+    """Largest stable virtual stiffness K_v along ``axis`` [N/m] by bisection (geometric mean).
+
+    Both plants run the same Python loop (:func:`analysis.closed_loop.run_with_plant`) and the
+    same stability classification (the scene's criterion, e.g. ``decay``). Returns the bracket
+    (stable, unstable) after ``iterations`` halvings of its log-width.
+    """
+    from hapticopt.analysis.prrr import closed_loop
+
+    st, plant = _setup_and_plant(design, scene, backend, fidelity, platform, link_masses)
+    lo, hi = bracket
+
+    def stable(K: float) -> bool:
+        stiff = np.array(st.gains.stiffness, dtype=float)
+        stiff[axis] = K
+        gains = st.gains._replace(stiffness=np.asarray(stiff))
+        ctl = NumpyController(st.cfg, gains)
+        tr = (plant.run(ctl, dataclasses.replace(st, gains=gains)) if isinstance(plant, MujocoPlant)
+              else closed_loop.run_with_plant(plant, ctl, dataclasses.replace(st, gains=gains)))
+        ok, _ = closed_loop.classify(tr, st)
+        return bool(ok[0])
+
+    for _ in range(iterations):
+        mid = math.sqrt(lo * hi)
+        if stable(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo, hi

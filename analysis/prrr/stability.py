@@ -1,0 +1,227 @@
+"""Analytic stability references the closed-loop simulation is checked against.
+
+* SEA force loop with the output locked, seed 002 eq (8):
+  f/f_r = η k K_p / (M_m s² + ξ s + k(1 + ηK_p)); bandwidth = −3 dB below the DC gain
+  (38.5 Hz at K_p = 45 with Table 4).
+* End-effector stiffness limits, eq (14)–(15): diag(k_x, k_y, k_z) = J⁻ᵀ(kI)J⁻¹.
+* Eigenvalues of the linearised continuous closed loop (two-mass SEA plant of eq 6 + P(I) force
+  loop + virtual spring/damper). Because the rows of J are orthogonal, J Jᵀ is diagonal and
+  the loop decouples per Cartesian axis; Routh–Hurwitz of the per-axis quartic
+  mM s⁴ + ξM s³ + (cM + mk) s² + ξk s + ηK_p k K with c = k(1 + ηK_p) (zero virtual damping)
+  gives the closed form K < k_a (1 + 1/(ηK_p)) → k_a as K_p → ∞ (k_a = k/2, k/2, 3k at β = π/3:
+  Fig 13a / eq 15 of seed 002). Both the eigenvalue bisection and the closed form are here.
+* Seed 000's Hurwitz conditions for any cubic a3 s³ + a2 s² + a1 s + a0 (eq 17–18, 21–22).
+* The exact discrete-time boundary of a sampled virtual wall: mass m with physical damping b,
+  zero-order hold at T, virtual spring K and damper B on a (filtered) backward-difference
+  velocity; the roots of the closed loop's characteristic polynomial (eigenvalues of its
+  transition matrix) leave the unit circle at the boundary. Colgate's passivity condition
+  b > KT/2 + |B| lies inside it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+from scipy.optimize import brentq
+
+from hapticopt.analysis.prrr import statics as prrr_statics
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design.prrr.kinematics import jacobian
+from hapticopt.analysis.status import Status
+from hapticopt.design.prrr.params import PrrrDesign
+
+
+# --------------------------------------------------------------------------------- SEA force loop
+def force_loop_tf(design: PrrrDesign, kp: float) -> tuple[np.ndarray, np.ndarray]:
+    """(numerator, denominator) polynomial coefficients in s of eq (8), highest power first."""
+    a = design.actuator
+    num = np.array([a.efficiency * a.spring * kp])
+    den = np.array([a.motor_mass, a.viscous, a.spring * (1.0 + a.efficiency * kp)])
+    return num, den
+
+
+def force_loop_bandwidth(design: PrrrDesign, kp: float) -> float:
+    """−3 dB bandwidth of eq (8) relative to its DC gain [Hz]."""
+    num, den = force_loop_tf(design, kp)
+    mag = lambda w: abs(np.polyval(num, 1j * w) / np.polyval(den, 1j * w))  # noqa: E731
+    target = mag(0.0) / math.sqrt(2.0)
+    hi = 1.0
+    while mag(hi) > target:
+        hi *= 2.0
+    return brentq(lambda w: mag(w) - target, 0.0, hi, xtol=1e-12) / (2.0 * math.pi)
+
+
+# ------------------------------------------------------------------------------ stiffness limits
+def stiffness_limits(design: PrrrDesign) -> np.ndarray:
+    """k_x, k_y, k_z of eq (14) [N/m]: diagonal of J⁻ᵀ (k I) J⁻¹ (from the statics evaluator)."""
+    return prrr_statics.evaluate(design).stiffness_limit.copy()
+
+
+def stiffness_limit_closed_form(design: PrrrDesign, kp: float, axis: int) -> float:
+    """Continuous-time K limit with zero virtual damping: k_a (1 + 1/(η K_p)) [N/m] (Routh–Hurwitz)."""
+    return float(stiffness_limits(design)[axis] * (1.0 + 1.0 / (design.actuator.efficiency * kp)))
+
+
+def continuous_closed_loop(design: PrrrDesign, *, stiffness: np.ndarray, damping: np.ndarray, kp: float,
+                           ki: float = 0.0) -> np.ndarray:
+    """State matrix of the linearised continuous closed loop (FULL plant, no operator).
+
+    States [D, D_e, Ḋ, Ḋ_e] (+ the force-loop integrals when ``ki`` > 0); control
+    F = K_p(f_r − k x) + K_i ∫(f_r − k x), f_r = Jᵀ(−K_v p − B_v ṗ), p = J D_e, exact velocity.
+    """
+    a = design.actuator
+    J = jacobian(design.geometry.beta, xp=np)
+    k, Mm, xi, eta, M = a.spring, a.motor_mass, a.viscous, a.efficiency, design.end_effector.mass
+    Kv, Bv = np.diag(stiffness), np.diag(damping)
+    I, Z = np.eye(3), np.zeros((3, 3))
+    # f_r − k x as a linear function of [D, D_e, Ḋ, Ḋ_e]
+    err = np.hstack([-k * I, k * I - J.T @ Kv @ J, Z, -J.T @ Bv @ J])
+    Minv_out = np.linalg.inv(M * J.T @ J)
+    n = 12 + (3 if ki > 0 else 0)
+    A = np.zeros((n, n))
+    A[0:6, 6:12] = np.eye(6)
+    # motor: M_m D̈ = η F − ξ Ḋ − k (D − D_e)
+    A[6:9, :12] = (eta * kp * err + np.hstack([-k * I, k * I, -xi * I, Z])) / Mm
+    # output: M_e D̈_e = k (D − D_e)
+    A[9:12, 0:3] = Minv_out @ (k * I)
+    A[9:12, 3:6] = -Minv_out @ (k * I)
+    if ki > 0:
+        A[6:9, 12:15] = eta * I / Mm
+        A[12:15, :12] = ki * err
+    return A
+
+
+def max_real_eigenvalue(A: np.ndarray) -> float:
+    return float(np.max(np.linalg.eigvals(A).real))
+
+
+def continuous_stiffness_limit(design: PrrrDesign, *, kp: float, axis: int, damping: float = 0.0,
+                               rtol: float = 1e-9) -> float:
+    """Largest stable K_v on ``axis`` by bisection on the eigenvalues of :func:`continuous_closed_loop` [N/m]."""
+
+    def stable(K: float) -> bool:
+        Kv, Bv = np.zeros(3), np.zeros(3)
+        Kv[axis], Bv[axis] = K, damping
+        lam = np.linalg.eigvals(continuous_closed_loop(design, stiffness=Kv, damping=Bv, kp=kp))
+        # the two free axes keep rigid-body modes at λ = 0 (round-off ±1e-12): not an instability
+        return float(np.max(lam.real)) < 1e-9 * float(np.max(np.abs(lam)))
+
+    lo, hi = 0.0, stiffness_limits(design)[axis]
+    while stable(hi):
+        lo, hi = hi, 2.0 * hi
+        if hi > 1e15:
+            return math.inf
+    while hi - lo > rtol * hi:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+# -------------------------------------------------------------------------------- seed 000 cubic
+def hurwitz_cubic(a3: float, a2: float, a1: float, a0: float) -> bool:
+    """Routh–Hurwitz for a3 s³ + a2 s² + a1 s + a0 (seed 000 eq 17): all a > 0 and a2 a1 > a3 a0."""
+    return a3 > 0 and a2 > 0 and a1 > 0 and a0 > 0 and a2 * a1 > a3 * a0
+
+
+def seed000_cubic(*, inertia: float, damping: float, ratio: float, T: float, stiffness: float,
+                  virtual_damping: float = 0.0, hand_stiffness: float = 0.0, R: float = 1.0) -> tuple[float, ...]:
+    """Coefficients of seed 000 eq (15) (operator term eq 20–22 when ``hand_stiffness`` > 0).
+
+    T I s³ + (2I + T B_m) s² + (2(B_m + rR B_e) + R k_h T) s + 2 rR K_e + 2R k_h, with
+    I = I_m + I_l, ``ratio`` = rR.
+    """
+    I, Bm = inertia, damping
+    return (T * I, 2 * I + T * Bm, 2 * (Bm + ratio * virtual_damping) + R * hand_stiffness * T,
+            2 * ratio * stiffness + 2 * R * hand_stiffness)
+
+
+def seed000_stiffness_limit(*, inertia: float, damping: float, ratio: float, T: float,
+                            virtual_damping: float = 0.0) -> float:
+    """Eq (18)–(19): K_e < (2I + T B_m)(B_m + rR B_e) / (rR T I)."""
+    I, Bm = inertia, damping
+    return (2 * I + T * Bm) * (Bm + ratio * virtual_damping) / (ratio * T * I)
+
+
+# ------------------------------------------------------------------------- sampled virtual wall
+def sampled_wall_matrix(*, mass: float, damping: float, stiffness: float, virtual_damping: float, T: float,
+                        alpha: float = 0.0) -> np.ndarray:
+    """Transition matrix of the sampled wall, state [x, ẋ, x_prev, v_prev].
+
+    Plant m ẍ + b ẋ = u, exact zero-order hold at T; u_k = −K x_k − B v_k with
+    v_k = α v_{k−1} + (1 − α)(x_k − x_{k−1})/T (α = 0: Colgate's backward difference).
+    """
+    Ac = np.array([[0.0, 1.0], [0.0, -damping / mass]])
+    aug = np.zeros((3, 3))
+    aug[:2, :2] = Ac
+    aug[1, 2] = 1.0 / mass
+    E = scipy.linalg.expm(aug * T)
+    Ad, Bd = E[:2, :2], E[:2, 2]
+    # v_k and u_k as rows over [x, ẋ, x_prev, v_prev]
+    v_row = np.array([(1 - alpha) / T, 0.0, -(1 - alpha) / T, alpha])
+    u_row = -stiffness * np.array([1.0, 0.0, 0.0, 0.0]) - virtual_damping * v_row
+    Phi = np.zeros((4, 4))
+    Phi[:2, :2] = Ad
+    Phi[:2] += np.outer(Bd, u_row)
+    Phi[2, 0] = 1.0
+    Phi[3] = v_row
+    return Phi
+
+
+def sampled_wall_poles(**kw) -> np.ndarray:
+    """Closed-loop poles in z (roots of the characteristic polynomial det(zI − Φ))."""
+    return np.roots(np.poly(sampled_wall_matrix(**kw)))
+
+
+def sampled_wall_boundary(*, mass: float, damping: float, virtual_damping: float, T: float, alpha: float = 0.0,
+                          rtol: float = 1e-10) -> float:
+    """Largest stable K of the sampled wall [N/m] (spectral radius < 1), by bisection."""
+
+    def stable(K: float) -> bool:
+        Phi = sampled_wall_matrix(mass=mass, damping=damping, stiffness=K, virtual_damping=virtual_damping,
+                                  T=T, alpha=alpha)
+        return float(np.max(np.abs(np.linalg.eigvals(Phi)))) < 1.0
+
+    lo, hi = 0.0, max(2.0 * damping / T, 1.0)
+    if not stable(lo + 1e-12 * hi):
+        return 0.0
+    while stable(hi):
+        lo, hi = hi, 2.0 * hi
+    while hi - lo > rtol * hi:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def colgate_passive(*, damping: float, stiffness: float, virtual_damping: float, T: float) -> bool:
+    """Colgate & Schenkel's passivity condition b > KT/2 + |B|."""
+    return damping > stiffness * T / 2.0 + abs(virtual_damping)
+
+
+# ------------------------------------------------------------------------------------- evaluator
+@dataclass(frozen=True, kw_only=True)
+class StabilityResult:
+    force_gain: float
+    force_loop_bandwidth: float  # [Hz]
+    stiffness_limits: np.ndarray  # (3,) [N/m], eq 14
+    continuous_limits: np.ndarray  # (3,) [N/m] at the force gain, zero virtual damping
+    status: Status = Status.OK
+    message: str = ""
+
+    def metrics(self) -> dict[str, object]:
+        return {
+            "force_loop_bandwidth_Hz": float(self.force_loop_bandwidth),
+            "closed_loop_stiffness_limit_N_per_mm": [float(x) * 1e-3 for x in self.continuous_limits],
+        }
+
+
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, kp: float = 45.0) -> StabilityResult:
+    """Force-loop bandwidth and closed-loop stiffness limits of ``design`` at K_p (seed 002's 45)."""
+    del fidelity  # closed forms
+    return StabilityResult(
+        force_gain=kp, force_loop_bandwidth=force_loop_bandwidth(design, kp),
+        stiffness_limits=stiffness_limits(design),
+        continuous_limits=np.array([stiffness_limit_closed_form(design, kp, a) for a in range(3)]),
+    )

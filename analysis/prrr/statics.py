@@ -1,0 +1,110 @@
+"""3-PRRR statics from the constant Jacobian: condition, equivalent mass, force and stiffness limits.
+
+Closed forms of seed 002 (eq 2, 4, 7, 14–15, corrected as in the seed digest). The Jacobian is
+constant over the workspace, so these hold everywhere; fidelity does not change them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design.prrr.kinematics import PrrrParams, jacobian, jacobian_inverse
+from hapticopt.analysis.status import Status
+from hapticopt.design.prrr.params import PrrrDesign
+
+
+def condition_2norm(J: jax.Array, xp=jnp) -> jax.Array:
+    """cond₂(J) = σ_max/σ_min. Has a kink where singular values coincide: no gradients through it."""
+    s = xp.linalg.svd(J, compute_uv=False)
+    return s[..., 0] / s[..., -1]
+
+
+def condition_frobenius(J: jax.Array, xp=jnp) -> jax.Array:
+    """Smooth condition number ‖J‖_F‖J⁻¹‖_F / 3 (= 1 exactly where cond₂ = 1); use for gradients."""
+    Ji = xp.linalg.inv(J)
+    return xp.sqrt(xp.sum(J**2, axis=(-2, -1)) * xp.sum(Ji**2, axis=(-2, -1))) / 3.0
+
+
+def statics_arrays(params: PrrrParams, spring: jax.Array, force_limit: jax.Array, mass: jax.Array,
+                   xp=jnp) -> dict:
+    """All statics quantities in SI for one design (vmap over a leading batch for many).
+
+    ``spring`` k [N/m], ``force_limit`` F_max per actuator [N], ``mass`` M [kg]. ``xp`` is the
+    array module: ``jax.numpy`` (default; jit/vmap/grad) or ``numpy`` (single design, no compile).
+    """
+    J = jacobian(params.beta, xp=xp)
+    Ji = jacobian_inverse(params.beta, xp=xp)
+    stiffness = spring * Ji.T @ Ji  # eq 14: J⁻ᵀ (k I) J⁻¹ [N/m]
+    return {
+        "jacobian": J,
+        "condition": condition_2norm(J, xp=xp),
+        "condition_frobenius": condition_frobenius(J, xp=xp),
+        "effective_mass": mass * J.T @ J,  # eq 7: Jᵀ diag(M,M,M) J [kg], slider space
+        "stiffness_matrix": stiffness,
+        "stiffness_limit": xp.diagonal(stiffness),
+        # eq 4, F = J⁻ᵀ f with |f_i| ≤ F_max: per-axis maximum over the force box
+        "max_force": force_limit * xp.sum(xp.abs(Ji), axis=0),
+        # a pure force along one axis (other components zero): F_max / max_i |(J⁻ᵀ)⁻¹ e_axis|
+        "max_pure_force": force_limit / xp.max(xp.abs(J.T), axis=0),
+    }
+
+
+@dataclass(frozen=True, kw_only=True)
+class PrrrStatics:
+    """Statics of one 3-PRRR design [SI]."""
+
+    jacobian: np.ndarray  # (3, 3), Ḋ ↦ ṗ
+    condition: float  # cond₂(J)
+    condition_frobenius: float
+    effective_mass: np.ndarray  # (3, 3) [kg], eq 7
+    stiffness_matrix: np.ndarray  # (3, 3) [N/m], eq 14
+    stiffness_limit: np.ndarray  # (3,) [N/m], k_x, k_y, k_z
+    max_force: np.ndarray  # (3,) [N], per-axis maxima (other components free)
+    max_pure_force: np.ndarray  # (3,) [N], pure-axis force limits
+    status: Status = Status.OK
+    message: str = ""
+
+    def metrics(self) -> dict[str, object]:
+        """Engineering-unit metrics (names carry their units)."""
+        return {
+            "jacobian_condition": float(self.condition),
+            "jacobian_condition_frobenius": float(self.condition_frobenius),
+            "max_force_N": [float(x) for x in self.max_force],
+            "max_pure_force_N": [float(x) for x in self.max_pure_force],
+            "stiffness_limit_N_per_mm": [float(x) * 1e-3 for x in self.stiffness_limit],
+            "effective_mass_kg": [[float(x) for x in row] for row in self.effective_mass],
+        }
+
+
+def params_np(design: PrrrDesign) -> PrrrParams:
+    """Kinematic parameters as plain floats (for the numpy path)."""
+    g = design.geometry
+    return PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
+
+
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> PrrrStatics:
+    """Statics of ``design``. Exact closed forms: every fidelity gives the same result."""
+    del fidelity  # closed form
+    a = design.actuator
+    # numpy path: a single design needs no jit compile (the CLI's start-up budget); the jax
+    # path (same function, xp=jnp) serves batches and gradients and is tested equal.
+    out = statics_arrays(params_np(design), a.spring, a.force_limit, design.end_effector.mass, xp=np)
+    finite = all(np.all(np.isfinite(v)) for v in out.values())
+    return PrrrStatics(
+        jacobian=out["jacobian"],
+        condition=float(out["condition"]),
+        condition_frobenius=float(out["condition_frobenius"]),
+        effective_mass=out["effective_mass"],
+        stiffness_matrix=out["stiffness_matrix"],
+        stiffness_limit=out["stiffness_limit"],
+        max_force=out["max_force"],
+        max_pure_force=out["max_pure_force"],
+        status=Status.OK if finite else Status.SINGULAR,
+        message="" if finite else "Jacobian is numerically singular at this β",
+    )

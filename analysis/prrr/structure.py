@@ -1,0 +1,166 @@
+"""Structural stiffness of the 3-PRRR: frame model in the loop, solid FEA to verify.
+
+Metrics (seed 002 section 2.3, Table 3): the Cartesian stiffness [x, y, z] for a force applied
+Δz = 58 mm above the end-effector (sliders locked), the elastic centre (height above the
+end-effector on the z axis where a lateral force and the rotation decouple) and the stiffness
+when loaded there. ``draft``/``standard`` fidelity: the Timoshenko frame model
+(:mod:`analysis.frame_model`: pins as bonded necks, numpy path, ~3–5 ms, no compilation).
+``fine``: additionally the solid FEA of the CAD geometry with bonded pins (:mod:`analysis.fea_cad`, level 2, ~20–40 s),
+reported next to the frame model with bonded joints at the CAD's elbow branch, the model it checks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
+from hapticopt.design.errors import InvalidInput
+from hapticopt.design.prrr.params import PrrrDesign
+
+
+@dataclass(frozen=True, kw_only=True)
+class StructuralStiffness:
+    """Structural stiffness of one design at one pose [SI]."""
+
+    pose: np.ndarray  # end-effector position (3,) [m]
+    load_height: float  # Δz of the load point above the end-effector [m]
+    stiffness_load: np.ndarray  # (3,) [N/m] k_i = 1/C_ii at the load point
+    elastic_centre: float  # height of the elastic centre above the end-effector [m]
+    stiffness_elastic_centre: np.ndarray  # (3,) [N/m]
+    compliance_ee: np.ndarray  # (6, 6) compliance at the end-effector [SI]
+    coupling_residual: float  # see analysis.frame_model.frame_arrays
+    condition: float  # condition estimate of the stiffness matrix
+    options: fm.FrameOptions
+    fea: Any = None  # analysis.fea_cad.CadFeaResult at fine fidelity
+    stiffness_load_frame_bonded: np.ndarray | None = None  # (3,) [N/m] frame with bonded joints (FEA's model)
+    fea_stress: Any = None  # analysis.fea_stress.ElementStress of the FEA's 1 N x load case (fine)
+    status: Status = Status.OK
+    message: str = ""
+
+    def metrics(self) -> dict[str, object]:
+        """Engineering-unit metrics (names carry their units)."""
+        out: dict[str, object] = {
+            "structural_stiffness_N_per_mm": [float(x) * 1e-3 for x in self.stiffness_load],
+            "elastic_centre_mm": float(self.elastic_centre) * 1e3,
+            "structural_stiffness_at_elastic_centre_N_per_mm": [float(x) * 1e-3 for x in self.stiffness_elastic_centre],
+            "structural_load_height_mm": float(self.load_height) * 1e3,
+            "structural_condition": float(self.condition),
+        }
+        if self.fea is not None:
+            out["structural_stiffness_fea_bonded_N_per_mm"] = [float(x) * 1e-3 for x in self.fea.stiffness_load]
+            out["structural_stiffness_frame_bonded_N_per_mm"] = [float(x) * 1e-3
+                                                                 for x in self.stiffness_load_frame_bonded]
+            out["structural_fea_dofs"] = int(self.fea.n_dofs)
+            out["structural_fea_wall_s"] = float(self.fea.wall_s)
+        if self.fea_stress is not None:
+            out["structural_fea_max_von_mises_MPa_per_N"] = float(self.fea_stress.max_von_mises) * 1e-6
+            out["structural_fea_max_von_mises_at_mm"] = [float(x) * 1e3 for x in self.fea_stress.max_location]
+        return out
+
+
+def _status(out: dict[str, np.ndarray]) -> tuple[Status, str]:
+    values = [out[k] for k in ("stiffness_load", "stiffness_elastic_centre", "elastic_centre", "compliance_ee")]
+    cond = float(out["condition"])
+    if not all(np.all(np.isfinite(v)) for v in values) or not np.isfinite(cond):
+        return Status.SINGULAR, "frame stiffness matrix is singular (non-finite compliance)"
+    if cond > fm.COND_LIMIT:
+        return Status.SINGULAR, (f"frame stiffness matrix is ill-conditioned (condition ≈ {cond:.2g} > "
+                                 f"{fm.COND_LIMIT:.0e}): results unreliable")
+    if np.any(np.diagonal(out["compliance_ee"]) <= 0.0):
+        return Status.SINGULAR, "frame stiffness matrix is not positive definite"
+    return Status.OK, ""
+
+
+def structural_stiffness(design: PrrrDesign, *, p=(0.0, 0.0, 0.0), load_height: float = fm.LOAD_HEIGHT,
+                         options: fm.FrameOptions = fm.FrameOptions()) -> StructuralStiffness:
+    """Frame-model stiffness of ``design`` at end-effector position ``p`` [m].
+
+    Raises :class:`InvalidInput` if ``p`` is outside the reach or the slider stroke, or if
+    ``load_height`` is not finite. An ill-conditioned or singular stiffness matrix is a value:
+    status ``SINGULAR`` with the condition estimate in the message.
+    """
+    if not np.isfinite(load_height):
+        raise InvalidInput(f"load_height = {load_height!r} m is not finite: allowed any finite height (m)")
+    p = np.asarray(p, dtype=float)
+    out = fm.solve_frame(fm.frame_params_of(design), p=p, load_height=load_height, options=options)
+    if not bool(out["reachable"]):
+        raise InvalidInput(
+            f"pose p_mm = ({', '.join(f'{x * 1e3:g}' for x in p)}) is outside the reach or slider stroke of "
+            f"design {design.name!r} (margin {float(out['reach_margin']) * 1e3:.3g} mm): allowed margin ≥ 0 mm")
+    status, message = _status(out)
+    return StructuralStiffness(
+        pose=p, load_height=float(load_height), stiffness_load=out["stiffness_load"],
+        elastic_centre=float(out["elastic_centre"]), stiffness_elastic_centre=out["stiffness_elastic_centre"],
+        compliance_ee=out["compliance_ee"], coupling_residual=float(out["coupling_residual"]),
+        condition=float(out["condition"]), options=options, status=status, message=message)
+
+
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> StructuralStiffness:
+    """Structural stiffness at the home pose, load Δz = 58 mm (seed 002 Table 3).
+
+    ``fine`` adds the solid FEA of the CAD with bonded pins (CAD elbow branch) and the
+    bonded-joint frame model at that branch.
+    """
+    try:
+        result = structural_stiffness(design)
+    except InvalidInput as exc:
+        nan3 = np.full(3, np.nan)
+        return StructuralStiffness(pose=np.zeros(3), load_height=fm.LOAD_HEIGHT, stiffness_load=nan3,
+                                   elastic_centre=float("nan"), stiffness_elastic_centre=nan3,
+                                   compliance_ee=np.full((6, 6), np.nan), coupling_residual=float("nan"),
+                                   condition=float("nan"), options=fm.FrameOptions(), status=Status.FAILED,
+                                   message=str(exc))
+    if fidelity != Fidelity.FINE:
+        return result
+    from hapticopt.analysis.prrr import fea_cad  # lazy: build123d, gmsh, scikit-fem, pyamg
+    from hapticopt.design.prrr.cad import DEFAULT_BRANCH
+
+    bonded = structural_stiffness(design, options=fm.FrameOptions(joints=fm.Joints.BONDED, branch=DEFAULT_BRANCH))
+    try:
+        fea_result = fea_cad.cad_fea(design, level=fea_cad.DEFAULT_LEVEL, keep_fields=True)
+    except Exception as exc:  # CAD/gmsh failures become a status, the frame metrics stay
+        return replace(result, status=Status.FAILED, message=f"CAD FEA failed: {exc}")
+    status, message = result.status, result.message
+    if fea_result.status != Status.OK:
+        status, message = fea_result.status, f"FEA: {fea_result.message}"
+    return replace(result, fea=fea_result, stiffness_load_frame_bonded=bonded.stiffness_load,
+                   fea_stress=fea_element_stress(design, fea_result), status=status, message=message)
+
+
+def fea_element_stress(design: PrrrDesign, fea_result):
+    """Element von Mises stress of the FEA's 1 N x load case (analysis.fea_stress), or None without the P2 field."""
+    u_edges = getattr(fea_result, "displacement_edges", None)
+    if fea_result.mesh is None or fea_result.displacement is None or u_edges is None:
+        return None
+    from hapticopt.analysis.fem.stress import element_stress
+
+    return element_stress(fea_result.mesh.points, fea_result.mesh.tets, fea_result.displacement, u_edges,
+                          youngs_modulus=design.structure.youngs_modulus,
+                          poisson_ratio=design.structure.poisson_ratio)
+
+
+def stiffness_batch(designs: list[PrrrDesign], *, p=(0.0, 0.0, 0.0), load_height: float = fm.LOAD_HEIGHT,
+                    options: fm.FrameOptions = fm.FrameOptions()) -> dict[str, np.ndarray]:
+    """Frame model of many designs in one vectorised call (for the optimiser).
+
+    Returns arrays with a leading axis n [SI]: ``stiffness_load`` (n, 3) [N/m],
+    ``elastic_centre`` (n,) [m], ``stiffness_elastic_centre`` (n, 3), ``condition`` (n,),
+    ``reachable`` (n,) bool, ``ok`` (n,) bool (reachable, finite and well-conditioned).
+    """
+    out = fm.solve_frame_batch(fm.stack_frame_params(designs), p=p, load_height=load_height, options=options)
+    finite = np.all(np.isfinite(out["stiffness_load"]), axis=-1) & np.isfinite(out["condition"])
+    out["ok"] = out["reachable"] & finite & (out["condition"] <= fm.COND_LIMIT)
+    return out
+
+
+def plot(design: PrrrDesign, result: StructuralStiffness, out_dir: Path) -> list[Path]:
+    """Deformed frame (and, at fine fidelity, the FEA displacement/stress field) as PNG files."""
+    from hapticopt.analysis.fem import solid as fea
+
+    return fea.plot_structure(design, result, Path(out_dir))

@@ -1,0 +1,539 @@
+"""3-PRRR workspace: volume, largest inscribed vertical cylinder, footprint, Jacobian constancy.
+
+Structure exploited (seed 002, seed digest "A leg geometry consistent with eq (1)"):
+
+* **Stroke.** Slider i sits at D_i = c_e + z − cot β · (u_i·p) (eq 1 with the constant J), so
+  |D_i − c_e| ≤ L/2 is a pair of planes per leg. At a point (x, y) the reachable z form the
+  interval [−L/2 + cot β·max_i a_i, L/2 + cot β·min_i a_i], a_i = u_i·(x, y): its height is
+  h(x, y) = L − cot β (max_i a_i − min_i a_i), piecewise linear in (x, y).
+* **Planar reach.** The in-plane R1→R3 vector of leg i is
+  ρ = ((a_i − c_u)/sin β, b_i − d2), c_u = d1 − (b5 + r4) cos β, b_i = t_i·(x, y); it does
+  not depend on z. Reach |d3 − d4| ≤ |ρ| ≤ d3 + d4 is an elliptic annulus in (x, y).
+* **Joint limits.** The only joint whose range changes the reachable set of a translational
+  leg by itself is the elbow θ2: |ρ|² = d3² + d4² + 2 d3 d4 cos θ2, so an elbow range
+  θ2 ∈ [θ2_min, θ2_max] (absolute value) shrinks the annulus radii. The design gives no joint
+  limits (seed 002 does not; the default is the full range 0…π), so ``WorkspaceParams``
+  carries the annulus radii and callers may pass tighter ones.
+
+So the workspace is {(x, y) reached by every leg} × z-interval(x, y), and
+
+* **volume** = ∫∫ max(h, 0) dA over the reach region. Along every ray from the z axis the
+  reach region is a union of r-intervals with closed-form ends (roots of one quadratic per
+  leg and annulus edge) and h is linear in r, so the radial integral is exact; the angle is
+  integrated by the midpoint rule over one third of the circle (the region has 3-fold
+  symmetry). The angular integrand has kinks, so the error falls as O(n_φ⁻²) (measured: see
+  ``docs/workspace.md``).
+* **largest inscribed cylinder**: a vertical cylinder of radius R centred on the z axis has
+  height H(R) = L − 2R cot β (a disc of radius R spreads max_i a_i − min_i a_i by 2R) as long
+  as the disc lies in the reach region, i.e. R ≤ R_reach, the distance from the z axis to the
+  edge of the annulus (one leg suffices: every leg sees the same annulus in its own frame).
+  "Largest" means **largest volume** πR²H(R): R* = min(R_reach, L tan β / 3). Centring on the
+  z axis is optimal for H at any R, and, when the reach region is convex (d3 = d4 or the axis
+  outside every hole), also for R (the feasible centres form a convex 3-fold-symmetric set,
+  which contains its centroid, the axis). R_reach is computed exactly (sampled start, Newton
+  on the ellipse parameter).
+* **footprint**: the device envelope in xy, the larger of the fixed parts' circle (base plate,
+  carriage and SEA block as built by ``design.cad_prrr``) and the links' swept extent (the
+  R1, R2, R3 joint bosses over the sampled reach region, in the CAD's elbow branch).
+* **Jacobian constancy**: the IK slider map is differentiated by central differences at
+  sampled workspace points; the largest relative deviation of cond₂ from the analytic
+  cond₂(J) is reported.
+
+All fidelity levels share these closed forms; they differ in the number of rays (volume
+accuracy), the radial samples of the footprint, and (fine only) link interference.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, jacobian
+from hapticopt.analysis.prrr.statics import condition_2norm
+from hapticopt.analysis.status import Status
+from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
+
+_GAMMA = np.asarray(GAMMAS)
+_THIRD = 2.0 * math.pi / 3.0
+
+def base_envelope(design: PrrrDesign) -> float:
+    """Radius [m] of the fixed parts' envelope in xy, as built by ``design.cad_prrr``: the base
+    plate, and the carriage/SEA block (radially r_p − … to r_p + rail_width/2 + clearance +
+    sea_envelope, tangentially ±(rail_width/2 + clearance + carriage_wall)), whose outer corner
+    is the farthest point."""
+    g, s = design.geometry, design.structure
+    half_slot = s.rail_width / 2.0 + s.clearance
+    return max(s.base_radius, math.hypot(g.r_p + half_slot + s.sea_envelope, half_slot + s.carriage_wall))
+
+
+#: Elbow branch used for the links' swept extent: the CAD's assembly mode
+#: (``design.cad_prrr.DEFAULT_BRANCH``: branch 1 of the IK, elbows outwards, θ2 ≤ 0).
+ELBOW_BRANCH = 1
+
+#: Default required cylinder diameter for ``workspace_height_at_diameter_mm`` [m]
+#: (seed 002 Table 1: workspace φ140 × 89 mm).
+DEFAULT_REQUIRED_DIAMETER = 0.140
+
+
+@dataclass(frozen=True, kw_only=True)
+class Sampling:
+    """Static sampling of one fidelity level (shapes are static for jit)."""
+
+    n_phi: int  # rays over one third of the circle (volume quadrature)
+    n_r: int  # radial samples per ray (footprint, Jacobian check)
+    interference: bool  # remove poses with link interference (needs analysis.interference)
+
+
+SAMPLING: dict[Fidelity, Sampling] = {
+    Fidelity.DRAFT: Sampling(n_phi=48, n_r=8, interference=False),
+    Fidelity.STANDARD: Sampling(n_phi=192, n_r=16, interference=False),
+    Fidelity.FINE: Sampling(n_phi=1536, n_r=32, interference=True),
+}
+
+_N_ELLIPSE = 64  # start samples for the distance to the annulus edge
+_NEWTON = 8
+_FD_STEP = 1e-4  # [m] central-difference step of the Jacobian check (the map is affine)
+
+
+class WorkspaceParams(NamedTuple):
+    """Parameters of the workspace computation [SI]; scalars, or ``(n,)`` for a batch."""
+
+    beta: jax.Array
+    d1: jax.Array
+    d2: jax.Array
+    d3: jax.Array
+    d4: jax.Array
+    r4: jax.Array
+    b5: jax.Array
+    stroke: jax.Array
+    rho_min: jax.Array  # inner reach radius |ρ| (|d3 − d4| without elbow limits)
+    rho_max: jax.Array  # outer reach radius (d3 + d4 without elbow limits)
+    rail_envelope: jax.Array  # radius of the base plate / carriage / SEA envelope [m]
+    boss_radius: jax.Array  # joint boss radius [m]
+    required_radius: jax.Array  # radius of the required cylinder [m]
+
+
+def workspace_params(design: PrrrDesign, *, required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
+                     rho_min: float | None = None, rho_max: float | None = None) -> WorkspaceParams:
+    """Workspace parameters of one design; ``rho_min``/``rho_max`` override the reach annulus
+    (e.g. from elbow limits: |ρ|² = d3² + d4² + 2 d3 d4 cos θ2)."""
+    g, s = design.geometry, design.structure
+    lo = abs(g.d3 - g.d4) if rho_min is None else rho_min
+    hi = g.d3 + g.d4 if rho_max is None else rho_max
+    vals = (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke, lo, hi,
+            base_envelope(design), s.boss_diameter / 2.0, required_diameter / 2.0)
+    return WorkspaceParams(*(np.float64(v) for v in vals))
+
+
+def stack(params: list[WorkspaceParams]) -> WorkspaceParams:
+    """Stack many parameter sets along a leading batch axis (jax arrays, for ``jax.vmap``)."""
+    return WorkspaceParams(*(jnp.asarray(np.array(col, dtype=np.float64)) for col in zip(*params)))
+
+
+def _kin_params(wp: WorkspaceParams) -> PrrrParams:
+    return PrrrParams(beta=wp.beta, d1=wp.d1, d2=wp.d2, d3=wp.d3, d4=wp.d4, r4=wp.r4, b5=wp.b5, stroke=wp.stroke)
+
+
+def _c_u(wp: WorkspaceParams, xp):
+    """u-coordinate of the reach-ellipse centre in every leg's frame [m]."""
+    return wp.d1 - (wp.b5 + wp.r4) * xp.cos(wp.beta)
+
+
+def _edge_distance(wp: WorkspaceParams, rho, xp):
+    """Distance from the z axis to the ellipse |ρ| = rho (leg frame: centre (c_u, d2),
+    semi-axes rho·sin β along u and rho along t). Sampled start, then safeguarded Newton on
+    the ellipse angle (analytic derivatives)."""
+    s, cu, d2 = xp.sin(wp.beta), _c_u(wp, xp), wp.d2
+    ax, bx = rho * s, rho
+
+    def f(th):
+        return (cu + ax * xp.cos(th)) ** 2 + (d2 + bx * xp.sin(th)) ** 2
+
+    th = xp.linspace(0.0, 2.0 * math.pi, _N_ELLIPSE, endpoint=False)
+    th0 = th[xp.argmin(f(th))]
+    step_max = 2.0 * math.pi / _N_ELLIPSE
+    t = th0
+    for _ in range(_NEWTON):  # fixed count: unrolled under jit
+        c, sn = xp.cos(t), xp.sin(t)
+        x, y = cu + ax * c, d2 + bx * sn
+        g1 = 2.0 * (-x * ax * sn + y * bx * c)
+        g2 = 2.0 * ((ax * sn) ** 2 - x * ax * c + (bx * c) ** 2 - y * bx * sn)
+        ok = g2 > 0.0
+        step = xp.where(ok, g1 / xp.where(ok, g2, 1.0), 0.0)
+        t = t - xp.clip(step, -step_max, step_max)
+    return xp.sqrt(xp.minimum(f(t), f(th0)))
+
+
+def _ray_intervals(wp: WorkspaceParams, phi, xp):
+    """Reach ∩ stroke along rays at angles ``phi`` (n,): sorted breakpoints (n, 8), the
+    inclusion flag of each of the 7 segments between them, the stroke spread g (n,), the
+    outer interval [lo, hi] (n,) and the holes."""
+    s = xp.sin(wp.beta)
+    cu = _c_u(wp, xp)
+    psi = phi[:, None] - _GAMMA[None, :]  # (n, 3 legs)
+    c, sn = xp.cos(psi), xp.sin(psi)
+    A = c**2 / s**2 + sn**2
+    Bh = c * cu / s**2 + sn * wp.d2
+    C = cu**2 / s**2 + wp.d2**2
+
+    def roots(rho):
+        disc = Bh**2 - A * (C - rho**2)
+        sq = xp.sqrt(xp.maximum(disc, 0.0))
+        return (Bh - sq) / A, (Bh + sq) / A, disc >= 0.0
+
+    olo, ohi, ook = roots(wp.rho_max)
+    ilo, ihi, iok = roots(wp.rho_min)
+    g = xp.max(c, axis=1) - xp.min(c, axis=1)  # spread of u_i·(cos φ, sin φ), in [1.5, √3]
+    r_stroke = wp.stroke * xp.tan(wp.beta) / g
+    lo = xp.maximum(0.0, xp.max(olo, axis=1))
+    hi = xp.minimum(r_stroke, xp.min(ohi, axis=1))
+    hi = xp.where(xp.all(ook, axis=1), xp.maximum(hi, lo), lo)
+    ilo = xp.where(iok, ilo, 0.0)
+    ihi = xp.where(iok, ihi, 0.0)
+    bps = xp.concatenate([lo[:, None], hi[:, None],
+                          xp.clip(ilo, lo[:, None], hi[:, None]),
+                          xp.clip(ihi, lo[:, None], hi[:, None])], axis=1)
+    bps = xp.sort(bps, axis=1)
+    mid = 0.5 * (bps[:, :-1] + bps[:, 1:])  # (n, 7)
+    holes = (ilo, ihi, iok)
+    return bps, ~_in_hole(mid, holes, xp), g, lo, hi, holes
+
+
+def _in_hole(r, holes, xp):
+    """Whether radii ``r`` (n, m) on each ray lie strictly inside a leg's inner reach hole."""
+    ilo, ihi, iok = holes
+    return xp.any(iok[:, None, :] & (ilo[:, None, :] < r[..., None]) & (r[..., None] < ihi[:, None, :]), axis=-1)
+
+
+def workspace_core(wp: WorkspaceParams, *, n_phi: int, n_r: int, xp=np) -> dict:
+    """All workspace quantities of one design in SI.
+
+    Pure and written against an array namespace ``xp``: numpy for one design (no jit compile
+    on the CLI path), ``jax.numpy`` under ``jax.vmap``/``jax.jit`` for batches. Same
+    operations in the same order, so both agree to rounding.
+    """
+    cot = 1.0 / xp.tan(wp.beta)
+    L = wp.stroke
+    s = xp.sin(wp.beta)
+    dphi = _THIRD / n_phi
+    phi = (xp.arange(n_phi) + 0.5) * dphi
+    bps, keep, g, lo, hi, holes = _ray_intervals(wp, phi, xp)
+    a, b = bps[:, :-1], bps[:, 1:]
+    radial = L * (b**2 - a**2) / 2.0 - cot * g[:, None] * (b**3 - a**3) / 3.0
+    volume = 3.0 * dphi * xp.sum(xp.where(keep, radial, 0.0))
+
+    # largest inscribed vertical cylinder about the z axis (max volume πR²(L − 2R cot β))
+    cu = _c_u(wp, xp)
+    rho0_2 = (cu / s) ** 2 + wp.d2**2  # |ρ|² of the axis point
+    axis_in = (rho0_2 <= wp.rho_max**2) & (rho0_2 >= wp.rho_min**2)
+    r_reach = xp.minimum(_edge_distance(wp, wp.rho_max, xp), _edge_distance(wp, wp.rho_min, xp))
+    r_reach = xp.where(axis_in, r_reach, 0.0)
+    r_cyl = xp.minimum(r_reach, L * xp.tan(wp.beta) / 3.0)
+    h_cyl = xp.where(r_cyl > 0.0, L - 2.0 * r_cyl * cot, 0.0)
+    h_req = xp.where(wp.required_radius <= r_reach, xp.maximum(L - 2.0 * wp.required_radius * cot, 0.0), 0.0)
+
+    # links' swept extent over n_r radii per ray spanning [lo, hi] (reach region in xy)
+    frac = xp.linspace(0.0, 1.0, n_r)
+    r = lo[:, None] + frac[None, :] * (hi - lo)[:, None]  # (n_phi, n_r)
+    mask = (hi > lo)[:, None] & ~_in_hole(r, holes, xp)
+    gam = _GAMMA
+    ca, sa = xp.cos(phi[:, None, None] - gam), xp.sin(phi[:, None, None] - gam)  # (n_phi, 1, 3)
+    rv = (r[..., None] * ca - cu) / s  # in-plane R1→R3 vector per leg, (n_phi, n_r, 3)
+    rt = r[..., None] * sa - wp.d2
+    c2 = (rv**2 + rt**2 - wp.d3**2 - wp.d4**2) / (2.0 * wp.d3 * wp.d4)
+    th2 = (1.0 - 2.0 * ELBOW_BRANCH) * xp.arccos(xp.clip(c2, -1.0, 1.0))
+    th1 = xp.arctan2(rt, rv) - xp.arctan2(wp.d4 * xp.sin(th2), wp.d3 + wp.d4 * xp.cos(th2))
+    # xy of the R2 axis point B in leg coordinates (u, t): A + d3·(cos θ1 sin β, sin θ1)
+    bu, bt = wp.d1 + wp.d3 * xp.cos(th1) * s, wp.d2 + wp.d3 * xp.sin(th1)
+    qu = bu + wp.d4 * xp.cos(th1 + th2) * s - wp.r4 * xp.cos(wp.beta)
+    qt = bt + wp.d4 * xp.sin(th1 + th2)
+    radius = xp.maximum(xp.sqrt(bu**2 + bt**2), xp.sqrt(qu**2 + qt**2))
+    link_extent = xp.max(xp.where(mask[..., None], radius, 0.0))
+    link_extent = xp.maximum(link_extent, xp.sqrt(wp.d1**2 + wp.d2**2)) + wp.boss_radius
+    footprint = 2.0 * xp.maximum(wp.rail_envelope, link_extent)
+
+    # tangent roots leave rounding-sized slivers (~1e-23 m³): below 1e-12 L ρ_max² counts as empty
+    empty = ~(volume > 1e-12 * L * wp.rho_max**2)
+    return {
+        "volume": xp.maximum(volume, 0.0),
+        "reach_radius": r_reach,
+        "cylinder_radius": r_cyl,
+        "cylinder_height": h_cyl,
+        "height_at_required": h_req,
+        "footprint_diameter": footprint,
+        "link_extent": link_extent,
+        "empty": empty,
+    }
+
+
+@functools.cache
+def _batched(n_phi: int, n_r: int):
+    fn = functools.partial(workspace_core, n_phi=n_phi, n_r=n_r, xp=jnp)
+    return jax.jit(jax.vmap(fn))
+
+
+def sample_points(wp: WorkspaceParams, *, n_phi: int, n_r: int, n_z: int) -> np.ndarray:
+    """Points of the reach ∩ stroke workspace [m], (m, 3): ``n_r`` radii on each of ``n_phi``
+    rays per third of the circle (rotated copies fill the other two thirds), ``n_z`` heights
+    spanning each column's z interval (inset by 1 % so every point is strictly inside)."""
+    wpn = WorkspaceParams(*(np.asarray(v, dtype=float) for v in wp))
+    phi = (np.arange(n_phi) + 0.5) * (_THIRD / n_phi)
+    _, _, _, lo, hi, holes = _ray_intervals(wpn, phi, np)
+    frac = (np.arange(n_r) + 0.5) / n_r
+    r = lo[:, None] + frac[None, :] * (hi - lo)[:, None]
+    mask = (hi > lo)[:, None] & ~_in_hole(r, holes, np)
+    phis = np.concatenate([phi, phi + _THIRD, phi - _THIRD])
+    r3 = np.concatenate([r, r, r])
+    m3 = np.concatenate([mask, mask, mask])
+    x, y = r3 * np.cos(phis)[:, None], r3 * np.sin(phis)[:, None]
+    a = x[..., None] * np.cos(_GAMMA) + y[..., None] * np.sin(_GAMMA)
+    cot = 1.0 / np.tan(float(wpn.beta))
+    z0 = -wpn.stroke / 2.0 + cot * a.max(axis=-1)
+    z1 = wpn.stroke / 2.0 + cot * a.min(axis=-1)
+    ok = m3 & (z1 > z0)
+    tz = 0.01 + 0.98 * (np.arange(n_z) + 0.5) / n_z
+    z = z0[ok][:, None] + tz[None, :] * (z1 - z0)[ok][:, None]
+    xy = np.stack([x[ok], y[ok]], axis=-1)
+    xyz = np.concatenate([np.repeat(xy, n_z, axis=0), z.reshape(-1, 1)], axis=1)
+    return xyz
+
+
+@jax.jit
+def _fd_condition(kp: PrrrParams, pts: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """cond₂ of the central-difference Jacobian of the IK slider map at ``pts`` (m, 3), and
+    the analytic cond₂(J)."""
+    eye = jnp.eye(3) * _FD_STEP
+    plus = inverse_kinematics(kp, pts[:, None, :] + eye).sliders  # (m, 3 directions, 3 legs)
+    minus = inverse_kinematics(kp, pts[:, None, :] - eye).sliders
+    jinv = jnp.swapaxes((plus - minus) / (2.0 * _FD_STEP), -1, -2)  # rows legs, columns directions
+    return condition_2norm(jinv), condition_2norm(jacobian(kp.beta))  # cond(J⁻¹) = cond(J)
+
+
+def jacobian_constancy(design: PrrrDesign, *, n_phi: int = 24, n_r: int = 6, n_z: int = 3) -> tuple[float, int]:
+    """Largest relative deviation of the finite-difference cond₂ from the analytic one over
+    sampled workspace points (uses the geometric IK of :mod:`analysis.prrr_kinematics`, not
+    the closed forms of this module), and the number of points."""
+    wp = workspace_params(design)
+    pts = sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)
+    if len(pts) == 0:
+        return 0.0, 0
+    cond_fd, cond = _fd_condition(_kin_params(wp), jnp.asarray(pts))
+    dev = np.abs(np.asarray(cond_fd) - float(cond)) / float(cond)
+    return float(dev.max()), len(pts)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PrrrWorkspace:
+    """Workspace of one 3-PRRR design [SI]."""
+
+    volume: float  # [m³] reach ∩ stroke (∩ no interference where interference_removed is set)
+    reach_radius: float  # [m] distance from the z axis to the reach edge
+    cylinder_diameter: float  # [m] largest-volume vertical cylinder on the z axis
+    cylinder_height: float  # [m]
+    required_diameter: float  # [m]
+    height_at_required: float  # [m] height of a cylinder of the required diameter (0 if it does not fit)
+    footprint_diameter: float  # [m] device envelope in xy
+    condition_deviation: float | None = None  # fine only: max relative deviation of the FD cond₂
+    condition_points: int = 0  # points of the constancy check
+    interference_removed: float | None = None  # fine only: fraction of sampled volume lost to interference
+    fidelity: Fidelity = Fidelity.STANDARD
+    status: Status = Status.OK
+    message: str = ""
+
+    @property
+    def footprint_ratio(self) -> float:
+        """Inscribed-cylinder diameter over footprint diameter (seed 002: φ140 / φ260)."""
+        return self.cylinder_diameter / self.footprint_diameter if self.footprint_diameter > 0 else 0.0
+
+    def metrics(self) -> dict[str, object]:
+        """Engineering-unit metrics (names carry their units)."""
+        out: dict[str, object] = {
+            "workspace_volume_mm3": self.volume * 1e9,
+            "workspace_cylinder_diameter_mm": self.cylinder_diameter * 1e3,
+            "workspace_cylinder_height_mm": self.cylinder_height * 1e3,
+            "workspace_height_at_diameter_mm": self.height_at_required * 1e3,
+            "workspace_required_diameter_mm": self.required_diameter * 1e3,
+            "footprint_diameter_mm": self.footprint_diameter * 1e3,
+            "workspace_footprint_ratio": self.footprint_ratio,
+        }
+        if self.condition_deviation is not None:
+            out["jacobian_condition_deviation"] = self.condition_deviation
+        if self.interference_removed is not None:
+            out["workspace_interference_removed_fraction"] = self.interference_removed
+        return out
+
+
+def _result(arrays: dict, required_radius: float, fidelity: Fidelity) -> PrrrWorkspace:
+    vals = {k: float(np.asarray(v)) for k, v in arrays.items()}
+    if not all(math.isfinite(v) for v in vals.values()):  # never report NaN: zero and say so
+        return PrrrWorkspace(volume=0.0, reach_radius=0.0, cylinder_diameter=0.0, cylinder_height=0.0,
+                             required_diameter=2.0 * required_radius, height_at_required=0.0,
+                             footprint_diameter=0.0, fidelity=fidelity, status=Status.FAILED,
+                             message="workspace computation gave a non-finite value")
+    empty = bool(vals["empty"])
+    status, message = Status.OK, ""
+    if empty:
+        status, message = Status.EMPTY, "no point is reached by every leg within the slider stroke"
+    elif vals["height_at_required"] <= 0.0:
+        message = (f"a cylinder of diameter {2e3 * required_radius:g} mm does not fit "
+                   f"(reach radius {vals['reach_radius'] * 1e3:.4g} mm)")
+    zero = 0.0 if empty else 1.0
+    return PrrrWorkspace(
+        volume=zero * vals["volume"],
+        reach_radius=zero * vals["reach_radius"],
+        cylinder_diameter=zero * 2.0 * vals["cylinder_radius"],
+        cylinder_height=zero * vals["cylinder_height"],
+        required_diameter=2.0 * required_radius,
+        height_at_required=zero * vals["height_at_required"],
+        footprint_diameter=vals["footprint_diameter"],
+        fidelity=fidelity,
+        status=status,
+        message=message,
+    )
+
+
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
+             required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
+             interference: bool | None = None) -> PrrrWorkspace:
+    """Workspace of ``design``: reach and stroke at every level; at fine fidelity also the
+    numerical check of the constant Jacobian and link interference.
+
+    ``required_diameter`` [m]: the diameter of ``workspace_height_at_diameter_mm``.
+    ``interference``: check link interference with the manifold3d reference on the 216 poses of
+    :data:`INTERFERENCE_SAMPLING` (default: the fidelity's setting, fine only); it reduces the
+    volume. The inscribed-cylinder metrics are always reach-and-stroke. The fast model for the
+    optimiser is a separate evaluator, :mod:`analysis.prrr_interference`.
+    """
+    fidelity = Fidelity(fidelity)
+    smp = SAMPLING[fidelity]
+    wp = workspace_params(design, required_diameter=required_diameter)
+    result = _result(workspace_core(wp, n_phi=smp.n_phi, n_r=smp.n_r, xp=np), required_diameter / 2.0, fidelity)
+    if fidelity is Fidelity.FINE:
+        dev, n = jacobian_constancy(design)
+        result = dataclasses.replace(result, condition_deviation=dev, condition_points=n)
+    if (smp.interference if interference is None else interference) and result.status == Status.OK:
+        result = _with_interference(design, result)
+    return result
+
+
+def evaluate_batch(designs: list[PrrrDesign], *, fidelity: Fidelity = Fidelity.STANDARD,
+                   required_diameter: float = DEFAULT_REQUIRED_DIAMETER) -> list[PrrrWorkspace]:
+    """Reach-and-stroke workspace of many designs in one vmapped, jitted call (the fine-level
+    Jacobian check and interference are not batched). Agrees with :func:`evaluate` to
+    rounding on every batched metric."""
+    fidelity = Fidelity(fidelity)
+    if not designs:
+        return []
+    wp = stack([workspace_params(d, required_diameter=required_diameter) for d in designs])
+    return [_result(r, required_diameter / 2.0, fidelity) for r in batch_arrays(wp, fidelity=fidelity)]
+
+
+def batch_arrays(wp: WorkspaceParams, *, fidelity: Fidelity = Fidelity.STANDARD) -> list[dict[str, np.ndarray]]:
+    """Per-design SI arrays of a stacked batch ``wp`` (leading axis n); compiled once per
+    fidelity and batch size."""
+    smp = SAMPLING[Fidelity(fidelity)]
+    out = _batched(smp.n_phi, smp.n_r)(wp)
+    out = {k: np.asarray(v) for k, v in out.items()}
+    n = out["volume"].shape[0]
+    return [{k: v[i] for k, v in out.items()} for i in range(n)]
+
+
+#: sampling of the interference checks (3·n_phi·n_r·n_z = 216 poses; manifold3d ~20 ms each at
+#: fine, analysis.interference_fast ~30 ms for all of them at every level)
+INTERFERENCE_SAMPLING = dict(n_phi=6, n_r=4, n_z=3)
+
+
+def workspace_sample_weights(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> tuple[np.ndarray, np.ndarray]:
+    """Workspace sample points (m, 3) [m] (:func:`sample_points`) and their volume weights (m,)
+    [m³] (polar cells: r·Δr·Δφ·Δz)."""
+    wp = workspace_params(design)
+    pts = sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)
+    if len(pts) == 0:
+        return pts, np.zeros(0)
+    wpn = WorkspaceParams(*(np.asarray(v, dtype=float) for v in wp))
+    phi = (np.arange(n_phi) + 0.5) * (_THIRD / n_phi)
+    _, _, _, lo, hi, holes = _ray_intervals(wpn, phi, np)
+    r = np.hypot(pts[:, 0], pts[:, 1])
+    ang = np.mod(np.arctan2(pts[:, 1], pts[:, 0]), _THIRD)
+    k = np.clip((ang / (_THIRD / n_phi)).astype(int), 0, n_phi - 1)
+    a = pts[:, :2] @ np.stack([np.cos(_GAMMA), np.sin(_GAMMA)])
+    cot = 1.0 / math.tan(design.geometry.beta)
+    dz = np.maximum(design.geometry.stroke - cot * (a.max(axis=1) - a.min(axis=1)), 0.0) / n_z
+    weights = r * (hi - lo)[k] / n_r * (_THIRD / n_phi) * dz
+    return pts, weights
+
+
+def interference_samples(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Workspace sample points (m, 3) [m], their volume weights (m,) [m³] (polar cells:
+    r·Δr·Δφ·Δz) and whether each pose is free of link interference (``analysis.interference``,
+    the CAD's parts and elbow branch)."""
+    from hapticopt.analysis import interference
+
+    pts, weights = workspace_sample_weights(design, n_phi=n_phi, n_r=n_r, n_z=n_z)
+    if len(pts) == 0:
+        return pts, weights, np.zeros(0, dtype=bool)
+    model = interference.prepare(design)
+    free = np.array([res.ok for res in interference.check_poses(model, pts, branch=ELBOW_BRANCH)])
+    return pts, weights, free
+
+
+def _with_interference(design: PrrrDesign, result: PrrrWorkspace) -> PrrrWorkspace:
+    """Remove the sampled share of the volume whose poses have link interference. The result is
+    a subset of the reach-only workspace by construction (poses are only removed)."""
+    from hapticopt.design.errors import HapticoptError
+
+    try:
+        _, w, free = interference_samples(design, **INTERFERENCE_SAMPLING)
+    except HapticoptError as exc:  # the CAD cannot build this design's parts
+        return dataclasses.replace(result, message=f"interference not checked: {exc}")
+    removed = float(w[~free].sum() / w.sum()) if w.sum() > 0 else 0.0
+    message = result.message
+    if removed > 0:
+        message = (message + "; " if message else "") + \
+            f"link interference at {int((~free).sum())} of {len(free)} sampled poses"
+    return dataclasses.replace(result, volume=result.volume * (1.0 - removed), interference_removed=removed,
+                               message=message)
+
+
+def cylinder_z_range(design: PrrrDesign, result: PrrrWorkspace) -> tuple[float, float]:
+    """z extent [m] of the inscribed cylinder (home pose at z = 0): ±(L/2 − R cot β)."""
+    g = design.geometry
+    half = g.stroke / 2.0 - result.cylinder_diameter / 2.0 / math.tan(g.beta)
+    return -half, half
+
+
+def plot(design: PrrrDesign, result: PrrrWorkspace, out_dir: Path) -> list[Path]:
+    """Off-screen pyvista picture of sampled workspace points and the inscribed cylinder."""
+    import pyvista as pv
+
+    from hapticopt.design.atomic import atomic_path
+
+    pts = sample_points(workspace_params(design), n_phi=40, n_r=12, n_z=6)
+    target = Path(out_dir) / f"{design.name}_workspace.png"
+    pl = pv.Plotter(off_screen=True, window_size=(900, 700))
+    if len(pts):
+        pl.add_points(pv.PolyData(pts * 1e3), scalars=pts[:, 2] * 1e3, point_size=5, opacity=0.5,
+                      render_points_as_spheres=True, scalar_bar_args={"title": "z [mm]"})
+    if result.cylinder_diameter > 0:
+        z0, z1 = cylinder_z_range(design, result)
+        cyl = pv.Cylinder(center=(0.0, 0.0, (z0 + z1) * 500.0), direction=(0.0, 0.0, 1.0),
+                          radius=result.cylinder_diameter * 500.0, height=(z1 - z0) * 1e3, resolution=96)
+        pl.add_mesh(cyl, color="orange", opacity=0.55)
+    pl.add_axes()
+    pl.show_bounds(xtitle="x [mm]", ytitle="y [mm]", ztitle="z [mm]")
+    pl.add_text(f"{design.name}: V = {result.volume * 1e9:.4g} mm³, inscribed cylinder "
+                f"φ{result.cylinder_diameter * 1e3:.1f} × {result.cylinder_height * 1e3:.1f} mm", font_size=10)
+    with atomic_path(target) as tmp:
+        pl.screenshot(str(tmp))
+    pl.close()
+    return [target]

@@ -1,0 +1,251 @@
+"""Parametric CAD of the PHANToM-type surgical master (seed 003).
+
+Frames come from :func:`analysis.master_kinematics.link_frames` (x along the link, y along the
+joint axis a, origin on the proximal joint), so every bore lies on its kinematic axis.
+
+Parts (name → body): ``base`` (plate below z = 0) → base; ``turret`` (drum on the θ1 axis and
+a column carrying the shoulder axis) → turret; ``upper_arm`` (S→E, rear extension to the m2
+counterweight) and ``counterweight_upper`` → upper_arm; ``driver_link`` (θ3 driver, S along −f,
+extended to the m4 counterweight) and ``counterweight_forearm`` → driver_link; ``coupler``
+(driver tip → forearm rear, parallel to the upper arm) → coupler; ``forearm`` (rear pivot −d to
+the handle) and ``handle`` (ball at the handle centre p) → forearm.
+
+Layers along the joint axis a (k·(T + g), T = link thickness, g = clearance): forearm 0 (the
+kinematic plane, so the handle ball is centred on p), upper arm 1, coupler 1 (parallel to the
+upper arm at distance d·sin φ, never touching it), driver 2, turret column 3. Counterweights are
+steel discs on the side of their link, sized from their mass (seed 003: m2 at r2x, m4 at r4z).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from hapticopt.design import parts as _parts
+from hapticopt.design.errors import InvalidDesign, InvalidInput
+from hapticopt.design.master.params import MasterDesign
+from hapticopt.design.parts import (
+    JointAxis,
+    PartSpec,
+    Role,
+    bar_with_bosses,
+    cylinder,
+    frame,
+    sphere,
+    transform,
+)
+
+MIN_FEATURE = 0.5e-3
+EX, EY, EZ = np.eye(3)
+
+
+@dataclass(frozen=True, kw_only=True)
+class MasterPose:
+    p: np.ndarray  # handle centre (3,) [m]
+    q: np.ndarray  # joint angles (θ1, θ2, θ3) [rad]
+
+
+def _layer(design: MasterDesign, k: int) -> float:
+    s = design.structure
+    return k * (s.link_thickness + s.clearance)
+
+
+def _cw_radius(design: MasterDesign, mass: float) -> float:
+    s = design.structure
+    return math.sqrt(mass / (s.counterweight_density * math.pi * s.counterweight_length))
+
+
+def _check(design: MasterDesign) -> None:
+    s, g = design.structure, design.geometry
+    for key, val in (("link_thickness_mm", s.link_thickness), ("link_width_mm", s.link_width),
+                     ("clearance_mm", s.clearance), ("base_thickness_mm", s.base_thickness)):
+        if val < MIN_FEATURE:
+            raise InvalidDesign(f"structure.{key} = {val * 1e3:g} is too thin for the CAD: allowed ≥ "
+                                f"{MIN_FEATURE * 1e3:g} (mm)")
+    R, r = s.boss_diameter / 2, s.bore_diameter / 2
+    if R - r < MIN_FEATURE:
+        raise InvalidDesign(f"structure.bore_diameter_mm = {2 * r * 1e3:g} leaves a boss wall of {(R - r) * 1e3:g} mm: "
+                            f"allowed ≤ structure.boss_diameter_mm − {2 * MIN_FEATURE * 1e3:g} (mm)")
+    for key, L in (("upper_arm_mm", g.upper_arm), ("forearm_mm", g.forearm), ("driver_link_mm", g.driver_link)):
+        if L < 2 * R + MIN_FEATURE:
+            raise InvalidDesign(f"geometry.{key} = {L * 1e3:g} is too short for two bosses of "
+                                f"structure.boss_diameter_mm = {2 * R * 1e3:g}: allowed ≥ {(2 * R + MIN_FEATURE) * 1e3:g} (mm)")
+    drum = 2 * s.turret_radius + s.clearance
+    if g.shoulder_height < drum + R + MIN_FEATURE:
+        raise InvalidDesign(f"geometry.shoulder_height_mm = {g.shoulder_height * 1e3:g} leaves no room for the "
+                            f"turret drum of structure.turret_radius_mm = {s.turret_radius * 1e3:g}: allowed ≥ "
+                            f"{(drum + R + MIN_FEATURE) * 1e3:g} (mm)")
+    if s.handle_diameter / 2 <= min(s.link_width, s.link_thickness) / 2 + MIN_FEATURE:
+        raise InvalidDesign(f"structure.handle_diameter_mm = {s.handle_diameter * 1e3:g} must exceed the link "
+                            f"cross-section min(link_width, link_thickness) + {2 * MIN_FEATURE * 1e3:g} (mm)")
+
+
+def part_specs(design: MasterDesign) -> dict[str, PartSpec]:
+    """Every part in its body's frame (see module docstring), SI."""
+    _check(design)
+    s, g, cw = design.structure, design.geometry, design.counterweights
+    T, W, R, r = s.link_thickness, s.link_width, s.boss_diameter / 2, s.bore_diameter / 2
+    rho, rho_cw, ell = s.density, s.counterweight_density, s.counterweight_length
+    kw = dict(width=W, thickness=T, boss_radius=R, bore_radius=r)
+    # link frames: x along the link, y = a (joint axis), z = x × y; layers are along y
+    F = frame(EX, EY)  # rotation taking bar-local (x, y, z=layer axis) to link (x, −z, y)
+    out: dict[str, PartSpec] = {}
+
+    def spec(name: str, body: str, prims, density=rho) -> None:
+        out[name] = PartSpec(name=name, body=body, density=density, primitives=tuple(prims))
+
+    # base plate (world frame), top face at z = 0
+    spec("base", "base", [cylinder((0, 0, -s.base_thickness / 2), EZ, s.base_radius, s.base_thickness)])
+    # turret (turret frame: x = e_ρ, y = −a, z up): drum and column to the shoulder
+    h = g.shoulder_height
+    drum_h = 2 * s.turret_radius
+    turret = [cylinder((0, 0, s.clearance + drum_h / 2), EZ, s.turret_radius, drum_h)]
+    col = frame(-EZ, -EY)  # bar x down from S, layer axis along a = −y_turret
+    top = s.clearance + drum_h
+    turret += bar_with_bosses(col, (0, 0, h), 0.0, h - top, z=_layer(design, 3), bosses=(0.0,), **kw)
+    spec("turret", "turret", turret)
+    # upper arm: S → E, rear extension to the counterweight
+    x0 = -cw.upper_distance if cw.upper_distance >= R + MIN_FEATURE else 0.0
+    spec("upper_arm", "upper_arm", bar_with_bosses(F, np.zeros(3), x0, g.upper_arm, z=_layer(design, 1),
+                                                  bosses=(0.0, g.upper_arm), **kw))
+    if cw.upper_mass > 0:
+        rc = _cw_radius(design, cw.upper_mass)
+        spec("counterweight_upper", "upper_arm",
+             [cylinder((-cw.upper_distance, _layer(design, 1) - T / 2 - ell / 2, 0), EY, rc, ell)], rho_cw)
+    # driver link: S along −f to the coupler pivot (d) and on to its counterweight
+    d = g.driver_link
+    x1 = cw.forearm_distance if cw.forearm_distance >= d + R + MIN_FEATURE else d
+    spec("driver_link", "driver_link", bar_with_bosses(F, np.zeros(3), 0.0, x1, z=_layer(design, 2),
+                                                      bosses=(0.0, d), **kw))
+    if cw.forearm_mass > 0:
+        rc = _cw_radius(design, cw.forearm_mass)
+        spec("counterweight_forearm", "driver_link",
+             [cylinder((cw.forearm_distance, _layer(design, 2) + T / 2 + ell / 2, 0), EY, rc, ell)], rho_cw)
+    # coupler: driver tip → forearm rear, parallel to the upper arm
+    spec("coupler", "coupler", bar_with_bosses(F, np.zeros(3), 0.0, g.upper_arm, z=_layer(design, 1),
+                                              bosses=(0.0, g.upper_arm), **kw))
+    # forearm: rear pivot (−d) → elbow (0) → handle; in the kinematic plane
+    rh = s.handle_diameter / 2
+    gap = 3e-3
+    L4 = g.forearm
+    spec("forearm", "forearm", bar_with_bosses(F, np.zeros(3), -d, L4 - rh - gap, z=0.0, bosses=(-d, 0.0), **kw))
+    # handle ball at p with a stub to the forearm end (forearm frame)
+    rs = min(W, T) / 2
+    stub = rh + gap
+    inside = math.sqrt(rh * rh - rs * rs)
+    spec("handle", "forearm", [sphere((L4, 0, 0), rh), cylinder((L4 - stub / 2, 0, 0), EX, rs, stub),
+                               cylinder((L4 - inside / 2, 0, 0), EX, rs, inside, role=Role.OVERLAP)])
+    return out
+
+
+def neighbours() -> frozenset[frozenset[str]]:
+    """Parts joined by a joint (never reported as colliding with each other)."""
+    pairs = [("base", "turret"), ("turret", "upper_arm"), ("turret", "driver_link"), ("upper_arm", "driver_link"),
+             ("upper_arm", "forearm"), ("driver_link", "coupler"), ("coupler", "forearm"),
+             ("counterweight_upper", "upper_arm"), ("counterweight_forearm", "driver_link"), ("handle", "forearm")]
+    return frozenset(frozenset(p) for p in pairs)
+
+
+# ---------------------------------------------------------------------------- pose
+def home_q(design: MasterDesign) -> np.ndarray:
+    """Home joint angles: θ1 = 0, upper arm horizontal, forearm vertical (φ = 90°) [rad]."""
+    return np.zeros(3)
+
+
+def home_point(design: MasterDesign) -> np.ndarray:
+    """Handle centre at :func:`home_q` [m]."""
+    from hapticopt.design.master.kinematics import forward_kinematics, params_of
+
+    return np.asarray(forward_kinematics(params_of(design), home_q(design)))
+
+
+def pose_from_q(design: MasterDesign, q) -> MasterPose:
+    from hapticopt.design.master.kinematics import forward_kinematics, params_of
+
+    q = np.asarray(q, dtype=float)
+    return MasterPose(p=np.asarray(forward_kinematics(params_of(design), q)), q=q)
+
+
+def solve_pose(design: MasterDesign, p) -> MasterPose:
+    """Joint angles reaching the handle position ``p`` [m]; raises :class:`InvalidInput` outside
+    the reach or the joint ranges."""
+    from hapticopt.design.master.kinematics import inverse_kinematics, params_of
+
+    p = np.asarray(p, dtype=float)
+    ik = inverse_kinematics(params_of(design), p)
+    where = f"pose = ({', '.join(f'{x * 1e3:g}' for x in p)}) mm"
+    if not bool(ik.reachable):
+        raise InvalidInput(f"{where} is not reachable by {design.name} (arm reach |L5 − L4| … L5 + L4)")
+    if not bool(ik.in_range):
+        raise InvalidInput(f"{where} is outside the joint ranges of {design.name} (joints.* limits)")
+    return MasterPose(p=p, q=np.asarray(ik.q))
+
+
+def part_frames(design: MasterDesign, pose: MasterPose) -> dict[str, np.ndarray]:
+    """4×4 world transform of every part's frame at ``pose`` [m]."""
+    from hapticopt.design.master.kinematics import link_frames, params_of
+
+    lf = link_frames(params_of(design), pose.q)
+
+    def T(fr) -> np.ndarray:
+        return transform(np.asarray(fr.rotation), np.asarray(fr.origin))
+
+    out = {"base": np.eye(4), "turret": T(lf.turret), "upper_arm": T(lf.upper_arm),
+           "driver_link": T(lf.driver_link), "coupler": T(lf.coupler), "forearm": T(lf.forearm)}
+    out["counterweight_upper"] = out["upper_arm"]
+    out["counterweight_forearm"] = out["driver_link"]
+    out["handle"] = out["forearm"]
+    return out
+
+
+def joint_axes(design: MasterDesign, pose: MasterPose) -> list[JointAxis]:
+    """Joint axes from the kinematics (points and directions, m)."""
+    from hapticopt.design.master.kinematics import link_frames, params_of
+
+    lf = link_frames(params_of(design), pose.q)
+    a = np.asarray(lf.upper_arm.rotation)[:, 1]
+    S = np.asarray(lf.upper_arm.origin)
+    E = np.asarray(lf.forearm.origin)
+    C = np.asarray(lf.coupler.origin)
+    f = np.asarray(lf.forearm.rotation)[:, 0]
+    t1, t2, t3 = (float(x) for x in pose.q)
+    phi = math.pi / 2 - t2 + t3
+    return [
+        JointAxis(name="theta1", parent="base", child="turret", point=np.zeros(3), direction=EZ.copy(), reference=t1),
+        JointAxis(name="theta2", parent="turret", child="upper_arm", point=S, direction=a, reference=t2),
+        JointAxis(name="theta3", parent="turret", child="driver_link", point=S, direction=a, reference=t3),
+        JointAxis(name="elbow", parent="upper_arm", child="forearm", point=E, direction=a, reference=phi),
+        JointAxis(name="driver_coupler", parent="driver_link", child="coupler", point=C, direction=a,
+                  reference=t2 - t3),
+        JointAxis(name="coupler_forearm", parent="coupler", child="forearm", point=E - design.geometry.driver_link * f,
+                  direction=a, reference=phi),
+    ]
+
+
+def joint_limits(model, *, step_deg: float = 2.0, q=None) -> list:
+    """Collision-free ranges of θ2 (upper arm vs turret), θ3 (driver vs turret) and the elbow
+    (forearm vs upper arm) from the pose ``q`` (home by default); see
+    :func:`analysis.interference.sweep_joint`."""
+    from hapticopt.analysis.interference import sweep_joint
+
+    design = model.design
+    pose = pose_from_q(design, home_q(design) if q is None else q)
+    frames = part_frames(design, pose)
+    out = []
+    for ax in joint_axes(design, pose):
+        if ax.name in ("theta2", "theta3", "elbow"):
+            out.append(sweep_joint(model, frames, ax.parent, ax.child, ax.point, ax.direction, ax.reference,
+                                   name=ax.name, step_deg=step_deg))
+    return out
+
+
+# ---------------------------------------------------------------------------- build123d
+def build_parts(design: MasterDesign) -> dict[str, object]:
+    """Every part as a build123d solid in its body's frame (mm)."""
+    return _parts.build_all(part_specs(design))
+
+
+def posed(solids: dict[str, object], frames: dict[str, np.ndarray]) -> dict[str, object]:
+    return _parts.posed(solids, frames)

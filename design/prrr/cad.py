@@ -1,0 +1,380 @@
+"""Parametric CAD of the 3-PRRR (seed 002): part tables, posed frames, build123d solids.
+
+Parts (names used in STEP, STL, MJCF and interference reports):
+``base``; per leg i = 1, 2, 3: ``rail_i`` (fixed, square bar at r_p·u_i), ``carriage_i`` (block
+sliding on the rail, containing the SEA housing envelope, with a bracket carrying the R1
+clevis), ``link1_i`` (R1–R2, length d3), ``link2_i`` (R2–R3, length d4, its R3 boss raised
+along the axis to carry the r4 offset); ``platform`` (three R3 lugs, arms, stem, handle ball).
+
+Axial layering (along each leg's joint direction w, measured from the plane Π through the R1
+point A of seed 002's leg construction, T = link thickness, g = clearance):
+carriage clevis [−3T/2−g, −T/2−g], link1 [−T/2, T/2], link2 [T/2+g, 3T/2+g], platform lug
+centred at s3 = max(r4, 2T+2g). Every joint axis is the kinematic axis of
+:mod:`analysis.prrr_kinematics` (tested), so neighbouring parts never share volume.
+
+All geometry is SI here; build123d receives mm through :mod:`design.cad_units`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from hapticopt.design import parts as _parts
+from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.parts import (
+    JointAxis,
+    PartSpec,
+    Role,
+    bar_with_bosses,
+    box,
+    cylinder,
+    frame,
+    sphere,
+    transform,
+)
+from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
+
+#: smallest wall or feature the CAD accepts [m] (below this OCCT produces slivers)
+MIN_FEATURE = 0.5e-3
+LEGS = (1, 2, 3)
+EZ = np.array([0.0, 0.0, 1.0])
+
+
+def leg_vectors(beta: float, gamma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(u, t, v, w) of one leg, seed 002 leg construction (see hapticopt.design.prrr.kinematics)."""
+    c, s, cb, sb = math.cos(gamma), math.sin(gamma), math.cos(beta), math.sin(beta)
+    u = np.array([c, s, 0.0])
+    t = np.array([-s, c, 0.0])  # e_z × u
+    w = np.array([-cb * c, -cb * s, sb])
+    v = np.array([sb * c, sb * s, cb])
+    return u, t, v, w
+
+
+@dataclass(frozen=True, kw_only=True)
+class PrrrLayout:
+    """Derived CAD dimensions [m] (all from the design; see module docstring)."""
+
+    T: float  # link thickness (axial)
+    W: float  # link width
+    R_boss: float
+    r_bore: float
+    g: float
+    s_clevis: float  # clevis layer centre (axial, from Π)
+    s_link2: float
+    s_lug: float  # platform lug centre
+    block_x: tuple[float, float]  # carriage block, carriage frame
+    block_y: float  # half width
+    block_z: tuple[float, float]
+    slot: float  # half size of the rail slot
+    bracket_end: np.ndarray  # carriage frame
+    lug_rho: float  # radial position of the lug centre (platform frame)
+    arm_length: float  # lug centre to the stem axis
+    stem_bottom: float
+    ball_z: float
+    z_base_top: float
+    z_rail_top: float
+
+
+def _need(cond: bool, message) -> None:
+    """Raise :class:`InvalidDesign` with ``message()`` unless ``cond`` (message built lazily)."""
+    if not cond:
+        raise InvalidDesign(message())
+
+
+def _mm(x: float) -> str:
+    return f"{x * 1e3:g}"
+
+
+def layout(design: PrrrDesign) -> PrrrLayout:
+    """Derived dimensions, after the buildability rules; raises :class:`InvalidDesign` naming
+    the parameter when a part would be degenerate (zero-thickness wall, disconnected bracket…)."""
+    g_, s_, e_ = design.geometry, design.structure, design.end_effector
+    beta = g_.beta
+    T, W, g = s_.link_thickness, s_.link_width, s_.clearance
+    R, r = s_.boss_diameter / 2, s_.bore_diameter / 2
+    deg = math.degrees(beta)
+    # --- cross-sections and walls
+    for key, val in (("link_thickness_mm", T), ("link_width_mm", W), ("clearance_mm", g),
+                     ("carriage_wall_mm", s_.carriage_wall), ("base_thickness_mm", s_.base_thickness)):
+        _need(val >= MIN_FEATURE, lambda: f"structure.{key} = {_mm(val)} is too thin for the CAD: allowed ≥ {_mm(MIN_FEATURE)} (mm)")
+    _need(R - r >= MIN_FEATURE,
+          lambda: f"structure.bore_diameter_mm = {_mm(2 * r)} leaves a boss wall of {_mm(R - r)} mm: allowed ≤ "
+          f"structure.boss_diameter_mm − {_mm(2 * MIN_FEATURE)} = {_mm(2 * R - 2 * MIN_FEATURE)} (mm)")
+    for key, L in (("d3_mm", g_.d3), ("d4_mm", g_.d4)):
+        _need(L >= 2 * R + MIN_FEATURE,
+              lambda: f"geometry.{key} = {_mm(L)} is too short for two bosses of structure.boss_diameter_mm = {_mm(2 * R)}: "
+              f"allowed ≥ {_mm(2 * R + MIN_FEATURE)} (mm)")
+    _need(e_.handle_diameter > s_.stem_diameter + 2 * MIN_FEATURE,
+          lambda: f"end_effector.handle_diameter_mm = {_mm(e_.handle_diameter)} must exceed structure.stem_diameter_mm "
+          f"= {_mm(s_.stem_diameter)} + {_mm(2 * MIN_FEATURE)} (mm)")
+    s_clevis, s_link2 = -(T + g), T + g
+    s_lug = max(g_.r4, 2 * T + 2 * g)
+    # --- carriage block (carriage frame: x = u, y = t, z = e_z, origin on the axis at height D)
+    half_slot = s_.rail_width / 2 + g
+    x_in = g_.r_p - half_slot - s_.carriage_wall
+    x_out = g_.r_p + half_slot + s_.sea_envelope
+    _need(x_in > 0.0, lambda: f"structure.carriage_wall_mm = {_mm(s_.carriage_wall)}: the carriage crosses the z axis "
+          f"(allowed < geometry.r_p_mm − rail_width/2 − clearance = {_mm(g_.r_p - half_slot)} mm)")
+    u, t, v, w = leg_vectors(beta, 0.0)
+    A = np.array([g_.d1, g_.d2, 0.0])
+    Ac = A + s_clevis * w
+    # bracket end: on the clevis plane, in the middle of the inner wall, at y = 0
+    xe = x_in + s_.carriage_wall / 2
+    ze = Ac[2] + (xe - Ac[0]) * math.cos(beta) / math.sin(beta)
+    bracket_end = np.array([xe, 0.0, ze])
+    reach = W / 2 + T
+    hz = s_.carriage_height / 2
+    _need(abs(ze) <= 4 * hz + 1e-12,
+          lambda: f"geometry.beta_deg = {deg:g}: the R1 bracket would meet the carriage {_mm(abs(ze))} mm off its centre "
+          f"(allowed ≤ 2·structure.carriage_height_mm = {_mm(4 * hz)} mm); raise beta or d1/d2")
+    block_z = (min(-hz, ze - reach), max(hz, ze + reach))
+    _need(np.linalg.norm(bracket_end - Ac) >= R + MIN_FEATURE,
+          lambda: f"geometry.d2_mm = {_mm(g_.d2)}: the R1 clevis sits inside the carriage block; move it out (d1, d2)")
+    # --- platform (frame at p): lug centres at radius rho, arms along −v to the stem axis
+    lug_rho = (g_.b5 - (s_lug - g_.r4)) * math.cos(beta)
+    arm_length = lug_rho / math.sin(beta)
+    Rs = s_.stem_diameter / 2
+    _need(lug_rho - R * math.sin(beta) - T / 2 * math.cos(beta) >= Rs + MIN_FEATURE,
+          lambda: f"geometry.b5_mm = {_mm(g_.b5)} (with beta_deg = {deg:g}): the R3 lugs at radius {_mm(lug_rho)} mm "
+          f"run into the stem of structure.stem_diameter_mm = {_mm(2 * Rs)}; raise b5 or reduce the stem/boss")
+    _need(arm_length <= 10 * (g_.b5 + g_.r4),
+          lambda: f"geometry.beta_deg = {deg:g} is too flat for the platform: arms of {_mm(arm_length)} mm (allowed ≥ "
+          f"{math.degrees(math.asin(min(1.0, lug_rho / (10 * (g_.b5 + g_.r4))))):.3g} deg)")
+    lug_z = (s_lug - g_.r4) * math.sin(beta)
+    stem_bottom = lug_z - lug_rho * math.cos(beta) / math.sin(beta) - T
+    lug_top = lug_z + T / 2 * math.sin(beta) + R * math.cos(beta)
+    ball_z = lug_top + e_.handle_diameter / 2 + 2e-3
+    # --- base and rails from the carriage's lowest/highest point over the stroke
+    c_e, half = g_.c_e, g_.stroke / 2
+    carriage_lo = min(block_z[0], Ac[2] - T / 2 * math.sin(beta) - R * math.cos(beta))
+    carriage_hi = max(block_z[1], Ac[2] + T / 2 * math.sin(beta) + R * math.cos(beta))
+    z_base_top = c_e - half + carriage_lo - s_.base_clearance
+    z_rail_top = c_e + half + carriage_hi + s_.base_clearance
+    return PrrrLayout(T=T, W=W, R_boss=R, r_bore=r, g=g, s_clevis=s_clevis, s_link2=s_link2, s_lug=s_lug,
+                      block_x=(x_in, x_out), block_y=half_slot + s_.carriage_wall, block_z=block_z,
+                      slot=half_slot, bracket_end=bracket_end, lug_rho=lug_rho, arm_length=arm_length,
+                      stem_bottom=stem_bottom, ball_z=ball_z, z_base_top=z_base_top, z_rail_top=z_rail_top)
+
+
+# ---------------------------------------------------------------------------- part tables
+def _carriage(design: PrrrDesign, L: PrrrLayout) -> list:
+    g_ = design.geometry
+    u, t, v, w = leg_vectors(g_.beta, 0.0)
+    I = np.eye(3)
+    (x0, x1), hy, (z0, z1) = L.block_x, L.block_y, L.block_z
+    prims = [
+        box(((x0 + x1) / 2, 0.0, (z0 + z1) / 2), I, x1 - x0, 2 * hy, z1 - z0),
+        box((g_.r_p, 0.0, (z0 + z1) / 2), I, 2 * L.slot, 2 * L.slot, z1 - z0, role=Role.HOLE),
+    ]
+    A = np.array([g_.d1, g_.d2, 0.0])
+    Ac = A + L.s_clevis * w
+    d = L.bracket_end - Ac
+    length = float(np.linalg.norm(d))
+    Rb = frame(d, w)
+    # analytic bar: from the clevis centre to where its axis enters the block
+    s_in = _ray_box_entry(Ac, d / length, np.array([x0, -hy, z0]), np.array([x1, hy, z1]))
+    bar = bar_with_bosses(Rb, Ac, 0.0, length, width=L.W, thickness=L.T, z=0.0, bosses=(0.0,),
+                          boss_radius=L.R_boss, bore_radius=L.r_bore)
+    # the part of the bar inside the block is counted by the block: subtract it analytically
+    inside = box(Ac + (s_in + length) / 2 * Rb[:, 0], Rb, length - s_in, L.W, L.T, role=Role.OVERLAP)
+    return prims + bar + [inside]
+
+
+def _ray_box_entry(o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
+    with np.errstate(divide="ignore"):
+        t1, t2 = (lo - o) / d, (hi - o) / d
+    return float(np.max(np.minimum(t1, t2)))
+
+
+def _link1(design: PrrrDesign, L: PrrrLayout) -> list:
+    d3 = design.geometry.d3
+    return bar_with_bosses(np.eye(3), np.zeros(3), 0.0, d3, width=L.W, thickness=L.T, z=0.0, bosses=(0.0, d3),
+                           boss_radius=L.R_boss, bore_radius=L.r_bore)
+
+
+def _link2(design: PrrrDesign, L: PrrrLayout) -> list:
+    d4 = design.geometry.d4
+    prims = bar_with_bosses(np.eye(3), np.zeros(3), 0.0, d4, width=L.W, thickness=L.T, z=L.s_link2,
+                            bosses=(0.0, d4), boss_radius=L.R_boss, bore_radius=L.r_bore)
+    top = L.s_link2 + L.T / 2
+    riser = L.s_lug - L.T / 2 - L.g - top  # R3 boss raised to meet the platform lug
+    if riser > MIN_FEATURE:
+        c = np.array([d4, 0.0, top + riser / 2])
+        prims += [cylinder(c, EZ, L.R_boss, riser), cylinder(c, EZ, L.r_bore, riser, role=Role.HOLE)]
+    return prims
+
+
+def _platform(design: PrrrDesign, L: PrrrLayout) -> list:
+    g_, s_ = design.geometry, design.structure
+    prims = []
+    Rs = s_.stem_diameter / 2
+    for gamma in GAMMAS:
+        u, t, v, w = leg_vectors(g_.beta, gamma)
+        c = g_.b5 * math.cos(g_.beta) * u + (L.s_lug - g_.r4) * w
+        Ra = frame(-v, w)
+        # arm from the lug axis to the stem axis, width = stem diameter, analytic up to the stem surface
+        prims += bar_with_bosses(Ra, c, 0.0, L.arm_length, width=2 * Rs, thickness=L.T, z=0.0, bosses=(0.0,),
+                                 boss_radius=L.R_boss, bore_radius=L.r_bore)
+        s_in = (L.lug_rho - Rs) / math.sin(g_.beta)
+        prims.append(box(c + (s_in + L.arm_length) / 2 * Ra[:, 0], Ra, L.arm_length - s_in, 2 * Rs, L.T,
+                         role=Role.OVERLAP))
+    rb = design.end_effector.handle_diameter / 2
+    cap = math.sqrt(rb * rb - Rs * Rs)
+    h = L.ball_z - L.stem_bottom
+    prims.append(cylinder((0.0, 0.0, L.stem_bottom + h / 2), EZ, Rs, h))
+    prims.append(cylinder((0.0, 0.0, L.ball_z - cap / 2), EZ, Rs, cap, role=Role.OVERLAP))
+    prims.append(sphere((0.0, 0.0, L.ball_z), rb))
+    return prims
+
+
+def _rail(design: PrrrDesign, L: PrrrLayout, gamma: float) -> list:
+    rw = design.structure.rail_width
+    u = np.array([math.cos(gamma), math.sin(gamma), 0.0])
+    h = L.z_rail_top - L.z_base_top
+    c = design.geometry.r_p * u + (L.z_base_top + h / 2) * EZ
+    return [box(c, frame(u, EZ), rw, rw, h)]
+
+
+def _base(design: PrrrDesign, L: PrrrLayout) -> list:
+    tb = design.structure.base_thickness
+    return [cylinder((0.0, 0.0, L.z_base_top - tb / 2), EZ, design.structure.base_radius, tb)]
+
+
+def part_specs(design: PrrrDesign) -> dict[str, PartSpec]:
+    """Every part in its own frame (see :func:`part_frames`), SI."""
+    L = layout(design)
+    rho = design.structure.density
+    out: dict[str, PartSpec] = {"base": PartSpec(name="base", body="base", density=rho,
+                                                 primitives=tuple(_base(design, L)))}
+    carriage, link1, link2 = (tuple(f(design, L)) for f in (_carriage, _link1, _link2))
+    for i, gamma in zip(LEGS, GAMMAS):
+        out[f"rail_{i}"] = PartSpec(name=f"rail_{i}", body="base", density=rho,
+                                    primitives=tuple(_rail(design, L, gamma)))
+    for i in LEGS:
+        out[f"carriage_{i}"] = PartSpec(name=f"carriage_{i}", body=f"carriage_{i}", density=rho, primitives=carriage)
+        out[f"link1_{i}"] = PartSpec(name=f"link1_{i}", body=f"link1_{i}", density=rho, primitives=link1)
+        out[f"link2_{i}"] = PartSpec(name=f"link2_{i}", body=f"link2_{i}", density=rho, primitives=link2)
+    out["platform"] = PartSpec(name="platform", body="platform", density=rho, primitives=tuple(_platform(design, L)))
+    return out
+
+
+#: parts joined by a joint or rigidly (never reported as colliding with each other)
+def neighbours() -> frozenset[frozenset[str]]:
+    pairs = set()
+    for i in LEGS:
+        pairs |= {frozenset(("base", f"rail_{i}")), frozenset((f"rail_{i}", f"carriage_{i}")),
+                  frozenset((f"carriage_{i}", f"link1_{i}")), frozenset((f"link1_{i}", f"link2_{i}")),
+                  frozenset((f"link2_{i}", "platform"))}
+        for j in LEGS:
+            if j != i:
+                pairs.add(frozenset((f"rail_{i}", f"rail_{j}")))
+    return frozenset(pairs)
+
+
+# ---------------------------------------------------------------------------- pose
+@dataclass(frozen=True, kw_only=True)
+class PrrrPose:
+    """A posed configuration: end-effector point, slider positions, joint angles, IK branch."""
+
+    p: np.ndarray  # (3,) [m]
+    sliders: np.ndarray  # (3,) [m]
+    theta: np.ndarray  # (3 legs, 3) [rad]
+    branch: int
+
+
+#: default elbow branch of the CAD. Branch 0 (θ2 ≥ 0) puts the elbows inwards and down, where
+#: the three link2 collide under the platform (2 mm³ each at home, ``analysis.interference``);
+#: branch 1 puts them outwards and up, interference-free at home.
+DEFAULT_BRANCH = 1
+
+
+def home_point(design: PrrrDesign) -> np.ndarray:
+    """The home pose p = 0 (sliders at c_e, seed 002 eq 1) [m]."""
+    return np.zeros(3)
+
+
+def solve_pose(design: PrrrDesign, p=(0.0, 0.0, 0.0), *, branch: int = DEFAULT_BRANCH) -> PrrrPose:
+    """Inverse kinematics at ``p`` [m]; raises :class:`InvalidInput` when p is not reachable."""
+    from hapticopt.design.prrr.kinematics import inverse_kinematics, params_of
+    from hapticopt.design.errors import InvalidInput
+
+    p = np.asarray(p, dtype=float)
+    ik = inverse_kinematics(params_of(design), p)
+    if not bool(ik.reachable):
+        raise InvalidInput(f"pose = ({', '.join(f'{x * 1e3:g}' for x in p)}) mm is not reachable by {design.name}: "
+                           f"reach margin {float(ik.reach_margin) * 1e3:.3g} mm (inside the workspace it is ≥ 0)")
+    return PrrrPose(p=p, sliders=np.asarray(ik.sliders), theta=np.asarray(ik.theta)[branch], branch=branch)
+
+
+def part_frames(design: PrrrDesign, pose: PrrrPose) -> dict[str, np.ndarray]:
+    """4×4 world transform of every part frame at ``pose`` [m]."""
+    posed = part_frames_batch(design, np.asarray(pose.sliders, dtype=float)[None],
+                              np.asarray(pose.theta, dtype=float)[None], np.asarray(pose.p, dtype=float)[None])
+    return {name: transform(R[0], o[0]) for name, (R, o) in posed.items()}
+
+
+def part_frames_batch(design: PrrrDesign, sliders: np.ndarray, theta: np.ndarray, p: np.ndarray
+                      ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """World rotation (n, 3, 3) and origin (n, 3) [m] of every part for n poses: ``sliders``
+    (n, 3) [m], ``theta`` (n, 3 legs, ≥ 2) [rad], end-effector ``p`` (n, 3) [m]. Link frames are
+    ``frame(e, w)``: columns e, w × e, w (e ⟂ w by construction)."""
+    g_ = design.geometry
+    n = len(p)
+    eye = np.broadcast_to(np.eye(3), (n, 3, 3))
+    zero = np.zeros((n, 3))
+    out = {"base": (eye, zero)}
+    for k, (i, gamma) in enumerate(zip(LEGS, GAMMAS)):
+        u, t, v, w = leg_vectors(g_.beta, gamma)
+        D = sliders[:, k]
+        th1, th2 = theta[:, k, 0], theta[:, k, 1]
+        e1 = np.cos(th1)[:, None] * v + np.sin(th1)[:, None] * t
+        e12 = np.cos(th1 + th2)[:, None] * v + np.sin(th1 + th2)[:, None] * t
+        A = D[:, None] * EZ + g_.d1 * u + g_.d2 * t
+        B = A + g_.d3 * e1
+        out[f"rail_{i}"] = (eye, zero)
+        out[f"carriage_{i}"] = (np.broadcast_to(np.stack([u, t, EZ], axis=1), (n, 3, 3)), D[:, None] * EZ)
+        for name, x, org in ((f"link1_{i}", e1, A), (f"link2_{i}", e12, B)):
+            out[name] = (np.stack([x, np.cross(w, x), np.broadcast_to(w, x.shape)], axis=2), org)
+    out["platform"] = (eye, np.asarray(p, dtype=float))
+    return out
+
+
+def joint_axes(design: PrrrDesign, pose: PrrrPose) -> list[JointAxis]:
+    """Joint axes from the kinematics (:func:`hapticopt.design.prrr.kinematics.leg_chain`)."""
+    from hapticopt.design.prrr.kinematics import leg_chain, leg_frames, params_of
+
+    prm = params_of(design)
+    pts = leg_chain(prm, pose.sliders, pose.theta)
+    W = np.asarray(leg_frames(prm.beta).w)
+    out = []
+    for k, i in enumerate(LEGS):
+        w = W[k]
+        out.append(JointAxis(name=f"slider_{i}", parent="base", child=f"carriage_{i}", kind="slide",
+                             point=np.array([0.0, 0.0, pose.sliders[k]]) + design.geometry.r_p * np.array(
+                                 [math.cos(GAMMAS[k]), math.sin(GAMMAS[k]), 0.0]), direction=EZ.copy()))
+        out.append(JointAxis(name=f"r1_{i}", parent=f"carriage_{i}", child=f"link1_{i}", kind="hinge",
+                             point=np.asarray(pts.a[k]), direction=w))
+        out.append(JointAxis(name=f"r2_{i}", parent=f"link1_{i}", child=f"link2_{i}", kind="hinge",
+                             point=np.asarray(pts.b[k]), direction=w))
+        out.append(JointAxis(name=f"r3_{i}", parent=f"link2_{i}", child="platform", kind="hinge",
+                             point=np.asarray(pts.q[k]), direction=w))
+    return out
+
+
+# ---------------------------------------------------------------------------- build123d
+def build_solid(spec: PartSpec):
+    """One part as a build123d solid in its own frame (mm); see :func:`hapticopt.design.parts.build_solid`."""
+    return _parts.build_solid(spec)
+
+
+def build_parts(design: PrrrDesign) -> dict[str, object]:
+    """Every part as a build123d solid in its own frame (mm); identical legs are built once."""
+    return _parts.build_all(part_specs(design))
+
+
+def posed(solids: dict[str, object], frames: dict[str, np.ndarray]) -> dict[str, object]:
+    """Parts moved to their posed frames (mm), labels kept."""
+    return _parts.posed(solids, frames)

@@ -1,0 +1,208 @@
+"""3-PRRR kinematics: geometric inverse kinematics, forward kinematics, the constant Jacobian.
+
+Vectorised with jax (float64). Leg geometry as in the seed digest (seed 002, eq 1–2):
+per leg i, u = (cos γ, sin γ, 0), t = e_z × u, w = −cos β u + sin β e_z (R-axis direction),
+v = sin β u + cos β e_z; R1 on A = D e_z + d1 u + d2 t; R2 on B = A + d3 e(θ1);
+R3 on Q = B + d4 e(θ1+θ2) + r4 w, e(a) = cos a v + sin a t; end-effector
+p = Q + b5 w − r5 e_z; θ3 = −(θ1 + θ2) (the platform only translates).
+
+Shapes: a point ``p`` is ``(..., 3)`` [m]; slider positions ``D`` are ``(..., 3)`` [m], one per
+leg; joint angles ``theta`` are ``(..., 3 legs, 3 joints)`` [rad].
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
+
+_GAMMA = np.asarray(GAMMAS)
+_EZ = np.array([0.0, 0.0, 1.0])
+
+
+class PrrrParams(NamedTuple):
+    """Kinematic parameters as a jax pytree [SI]; each entry a scalar or a batch ``(n,)``."""
+
+    beta: jax.Array
+    d1: jax.Array
+    d2: jax.Array
+    d3: jax.Array
+    d4: jax.Array
+    r4: jax.Array
+    b5: jax.Array
+    stroke: jax.Array
+
+
+def params_of(design: PrrrDesign) -> PrrrParams:
+    """Kinematic parameters of one design."""
+    g = design.geometry
+    return PrrrParams(*(jnp.asarray(float(x)) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
+
+
+def stack_params(designs: list[PrrrDesign]) -> PrrrParams:
+    """Parameters of many designs stacked along a leading batch axis (for ``jax.vmap``)."""
+    each = [params_of(d) for d in designs]
+    return PrrrParams(*(jnp.stack(col) for col in zip(*each)))
+
+
+class LegFrames(NamedTuple):
+    """Per-leg unit vectors, each ``(3 legs, 3)``."""
+
+    u: jax.Array
+    t: jax.Array
+    v: jax.Array
+    w: jax.Array
+
+
+def leg_frames(beta: jax.Array, xp=jnp) -> LegFrames:
+    """Unit vectors of every leg for inclination ``beta`` [rad] (``xp``: array module)."""
+    c, s = xp.cos(_GAMMA), xp.sin(_GAMMA)
+    zero = xp.zeros(3)
+    u = xp.stack([c, s, zero], axis=-1)
+    t = xp.stack([-s, c, zero], axis=-1)
+    ez = xp.broadcast_to(_EZ, (3, 3))
+    w = -xp.cos(beta) * u + xp.sin(beta) * ez
+    v = xp.sin(beta) * u + xp.cos(beta) * ez
+    return LegFrames(u=u, t=t, v=v, w=w)
+
+
+def r5_of(params: PrrrParams, xp=jnp) -> jax.Array:
+    """r5 = b5·sin β [m] (seed 002 Table 2)."""
+    return params.b5 * xp.sin(params.beta)
+
+
+def slider_offset(params: PrrrParams, xp=jnp) -> jax.Array:
+    """c_e of eq (1) [m]: −(b5 + r4)/sin β + r5 + d1·cot β; also the home-pose slider position."""
+    b = params.beta
+    return -(params.b5 + params.r4) / xp.sin(b) + r5_of(params, xp=xp) + params.d1 / xp.tan(b)
+
+
+def jacobian_inverse(beta: jax.Array, xp=jnp) -> jax.Array:
+    """J⁻¹ (3×3), rows [−cos γ_i / tan β, −sin γ_i / tan β, 1] (seed 002 eq 1).
+
+    ``xp`` is the array module (``jax.numpy`` default, ``numpy`` for jit-free single calls).
+    """
+    T = xp.tan(beta)
+    return xp.stack([-xp.cos(_GAMMA) / T, -xp.sin(_GAMMA) / T, xp.ones(3)], axis=-1)
+
+
+def jacobian(beta: jax.Array, xp=jnp) -> jax.Array:
+    """Analytic J (3×3), Ḋ ↦ ṗ: (1/3)[[−2T, T, T], [0, −√3T, √3T], [1, 1, 1]] (seed 002 eq 2)."""
+    T = xp.tan(beta)
+    r3 = xp.sqrt(3.0)
+    one = xp.ones_like(T)
+    return xp.stack([
+        xp.stack([-2.0 * T, T, T]),
+        xp.stack([0.0 * T, -r3 * T, r3 * T]),
+        xp.stack([one, one, one]),
+    ]) / 3.0
+
+
+class IkSolution(NamedTuple):
+    """Inverse kinematics of points ``p`` (..., 3) for both elbow branches."""
+
+    sliders: jax.Array  # (..., 3) slider positions D_i [m]
+    theta: jax.Array  # (..., 2 branches, 3 legs, 3 joints) [rad]; branch 0: θ2 ≥ 0, branch 1: θ2 ≤ 0
+    rho: jax.Array  # (..., 3) in-plane R1→R3 distance per leg [m]
+    reach_ok: jax.Array  # (..., 3) bool: |d3 − d4| ≤ |ρ| ≤ d3 + d4
+    stroke_ok: jax.Array  # (..., 3) bool: slider inside its stroke
+    reachable: jax.Array  # (...,) bool: every leg reaches and every slider is in stroke
+    reach_margin: jax.Array  # (...,) [m] smallest distance to a reach or stroke limit (< 0 outside)
+
+
+def inverse_kinematics(params: PrrrParams, p: jax.Array, xp=jnp) -> IkSolution:
+    """Geometric IK of end-effector positions ``p`` (..., 3) [m] for one design.
+
+    Slider positions follow from closing each leg along its joint axis w (the in-plane links
+    have no w component): w·(Q − A) = r4. Joint angles from the planar two-link problem in
+    the (v, t) plane. Points outside the reach get clipped angles and ``reachable = False``;
+    nothing here returns NaN. ``xp``: array module (``numpy`` for jit-free single calls).
+    """
+    p = xp.asarray(p)
+    f = leg_frames(params.beta, xp=xp)
+    r5 = r5_of(params, xp=xp)
+    pe = p[..., None, :]  # (..., 1, 3) against legs (3, 3)
+    # R3 axis point Q and R1 offset (without the slider height) per leg
+    q = pe - params.b5 * f.w + r5 * _EZ
+    a0 = params.d1 * f.u + params.d2 * f.t
+    rel = q - a0
+    sliders = (xp.sum(rel * f.w, axis=-1) - params.r4) / xp.sin(params.beta)  # w·e_z = sin β
+    rel = rel - sliders[..., None] * _EZ
+    rho_v = xp.sum(rel * f.v, axis=-1)
+    rho_t = xp.sum(rel * f.t, axis=-1)
+    rho2 = rho_v**2 + rho_t**2
+    d3, d4 = params.d3, params.d4
+    c2 = (rho2 - d3**2 - d4**2) / (2.0 * d3 * d4)
+    reach_ok = xp.abs(c2) <= 1.0 + 1e-12
+    c2 = xp.clip(c2, -1.0, 1.0)
+    elbow = xp.arccos(c2)
+    s2 = xp.sqrt(1.0 - c2**2)  # sin of the elbow angle, ≥ 0
+    rho = xp.sqrt(rho2)
+    # the two branches share every transcendental: θ1 = φ ∓ ψ for θ2 = ±elbow
+    phi = xp.arctan2(rho_t, rho_v)
+    psi = xp.arctan2(d4 * s2, d3 + d4 * c2)
+
+    def branch(th1: jax.Array, th2: jax.Array) -> jax.Array:
+        th1 = xp.mod(th1 + xp.pi, 2.0 * xp.pi) - xp.pi  # wrap to [−π, π)
+        return xp.stack([th1, th2, -(th1 + th2)], axis=-1)
+
+    theta = xp.stack([branch(phi - psi, elbow), branch(phi + psi, -elbow)], axis=-3)
+    c_e = slider_offset(params, xp=xp)
+    half = params.stroke / 2.0
+    s_dev = sliders - c_e
+    stroke_ok = xp.abs(s_dev) <= half * (1.0 + 1e-12)
+    margin = xp.minimum(
+        xp.minimum(rho - xp.abs(d3 - d4), d3 + d4 - rho),
+        half - xp.abs(s_dev),
+    )
+    return IkSolution(
+        sliders=sliders,
+        theta=theta,
+        rho=rho,
+        reach_ok=reach_ok,
+        stroke_ok=stroke_ok,
+        reachable=xp.all(reach_ok & stroke_ok, axis=-1),
+        reach_margin=xp.min(margin, axis=-1),
+    )
+
+
+def forward_kinematics(params: PrrrParams, sliders: jax.Array) -> jax.Array:
+    """End-effector position [m] from slider positions ``D`` (..., 3): p = J(D − c_e·1) (eq 1)."""
+    J = jacobian(params.beta)
+    return (jnp.asarray(sliders) - slider_offset(params)[..., None]) @ J.T
+
+
+class LegPoints(NamedTuple):
+    """Joint-axis points of every leg along its serial chain, each (..., 3 legs, 3) [m]."""
+
+    a: jax.Array  # on the R1 axis
+    b: jax.Array  # on the R2 axis
+    q: jax.Array  # on the R3 axis
+    p: jax.Array  # end-effector centre reached by each leg
+
+
+def leg_chain(params: PrrrParams, sliders: jax.Array, theta: jax.Array, xp=jnp) -> LegPoints:
+    """Serial-chain forward kinematics of each leg from its slider and joint angles.
+
+    ``sliders`` (..., 3), ``theta`` (..., 3 legs, 3 joints). Each leg's ``p`` must equal the
+    end-effector position when the angles come from :func:`inverse_kinematics`.
+    """
+    f = leg_frames(params.beta, xp=xp)
+    D = xp.asarray(sliders)[..., None]
+    th1, th2 = theta[..., 0], theta[..., 1]
+
+    def e(angle: jax.Array) -> jax.Array:
+        return xp.cos(angle)[..., None] * f.v + xp.sin(angle)[..., None] * f.t
+
+    a = D * _EZ + params.d1 * f.u + params.d2 * f.t
+    b = a + params.d3 * e(th1)
+    q = b + params.d4 * e(th1 + th2) + params.r4 * f.w
+    # the platform frame is rotated by θ1+θ2+θ3 about w; with θ3 = −(θ1+θ2) it is the base frame
+    rot = th1 + th2 + theta[..., 2]
+    offset = params.b5 * f.w - r5_of(params, xp=xp) * xp.cos(rot)[..., None] * _EZ
+    return LegPoints(a=a, b=b, q=q, p=q + offset)

@@ -1,0 +1,33 @@
+"""The ``hapticopt`` command line. Each subcommand lives in its own ``optim.cli_*`` module."""
+
+from __future__ import annotations
+
+import typer
+
+from hapticopt.optim.cli import evaluate as cli_evaluate
+from hapticopt.optim.cli import export as cli_export
+from hapticopt.optim.cli import optimise as cli_optimise
+from hapticopt.optim.cli import verify as cli_verify
+
+app = typer.Typer(
+    name="hapticopt",
+    help="Design optimisation of haptic mechanisms: describe, evaluate, optimise, export, verify.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+app.command("evaluate")(cli_evaluate.evaluate)
+app.command("presets")(cli_evaluate.presets)
+app.command("export")(cli_export.export)
+app.command("optimise")(cli_optimise.optimise)
+app.command("problems")(cli_optimise.problems)
+app.command("verify")(cli_verify.verify)
+
+
+def main() -> None:
+    """Console-script entry point (the ``__main__`` guard that Dask's LocalCluster needs)."""
+    app()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,94 @@
+"""``hapticopt evaluate`` and ``hapticopt presets``."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Annotated, Any, Optional
+
+import typer
+
+from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_fmt(v) for v in value) + "]"
+    return str(value)
+
+
+@one_line_errors
+def evaluate(
+    file: Annotated[Optional[Path], typer.Argument(help="Design TOML file (or use --preset).", show_default=False)] = None,
+    preset: Annotated[Optional[str], typer.Option("--preset", help="Bundled preset name (see `hapticopt presets`).")] = None,
+    set_: Annotated[Optional[list[str]], typer.Option("--set", help="Override a TOML key, e.g. --set geometry.beta_deg=50 (repeatable).")] = None,
+    fidelity: Annotated[str, typer.Option("--fidelity", help="draft, standard or fine.")] = "standard",
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, metrics, status, timings_s}.")] = False,
+    plots: Annotated[Optional[Path], typer.Option("--plots", help="Write pictures of the evaluators' results to this directory.")] = None,
+    sweep: Annotated[Optional[str], typer.Option("--sweep", help="Parameter sweep (master: counterweight); writes a plot and a CSV table to --plots DIR or the current directory.")] = None,
+) -> None:
+    """Evaluate a design and print its metrics (units in the metric names)."""
+    t_start = time.perf_counter()
+    from hapticopt.analysis.fidelity import Fidelity
+    from hapticopt.analysis.registry import evaluate_all, write_plots
+    from hapticopt.design import io
+    from hapticopt.design.errors import InvalidInput
+
+    try:
+        level = Fidelity(fidelity)
+    except ValueError:
+        raise InvalidInput(f"--fidelity = {fidelity!r} is not a fidelity level: allowed draft, standard, fine") from None
+    t_import = time.perf_counter()
+    design = load_design_arg(file, preset, set_)
+    evaluation = evaluate_all(design, fidelity=level)
+    timings = {"imports": t_import - t_start, **evaluation.timings_s}
+    written = write_plots(design, evaluation, plots) if plots is not None else []
+    if sweep is not None:
+        from hapticopt.optim.cli.sweep import run_sweep
+
+        written += run_sweep(design, sweep, plots if plots is not None else Path("."), level)
+    timings["total"] = time.perf_counter() - t_start
+    metrics = evaluation.metrics()
+    status = {k: str(v) for k, v in evaluation.statuses.items()}
+    if as_json:
+        payload = {
+            "design": io.design_to_dict(design),
+            "fidelity": str(level),
+            "metrics": metrics,
+            "status": status,
+            "messages": {k: v for k, v in evaluation.messages.items() if v},
+            "timings_s": timings,
+            "plots": [str(p) for p in written],
+        }
+        typer.echo(json.dumps(payload, indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    table = Table(title=f"{design.name} ({design.device}, {level} fidelity)")
+    table.add_column("metric")
+    table.add_column("value", overflow="fold")
+    for name, value in metrics.items():
+        table.add_row(name, _fmt(value))
+    console.print(table)
+    for name, st in status.items():
+        message = evaluation.messages.get(name, "")
+        console.print(f"{name}: {st}" + (f" — {message}" if message else ""))
+    for path in written:
+        console.print(f"wrote {path}")
+    console.print("timings_s: " + ", ".join(f"{k} {v:.3f}" for k, v in timings.items()))
+
+
+def presets() -> None:
+    """List the bundled design presets."""
+    from hapticopt.design import io
+
+    for name in io.preset_names():
+        design = io.load_preset(name)
+        typer.echo(f"{name:16s} {design.device:7s} {design.description}")

@@ -1,0 +1,86 @@
+"""``hapticopt optimise PROBLEM`` and ``hapticopt problems``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from hapticopt.optim.cli.common import one_line_errors
+
+
+@one_line_errors
+def optimise(
+    problem: Annotated[str, typer.Argument(help="Bundled problem name (see `hapticopt problems`) or a problem TOML file.",
+                                           show_default=False)],
+    out: Annotated[Optional[Path], typer.Option("--out", help="Run directory (default cad_out/<problem-name>/).")] = None,
+    resume: Annotated[bool, typer.Option("--resume", help="Continue the run in --out: recorded evaluations are replayed, not recomputed.")] = False,
+    max_evals: Annotated[Optional[int], typer.Option("--max-evals", help="Total evaluation budget (overrides the problem's).")] = None,
+    scheduler: Annotated[str, typer.Option("--scheduler", help="local (process pool), inline, or a Dask scheduler address tcp://HOST:PORT.")] = "local",
+    workers: Annotated[Optional[int], typer.Option("--workers", help="Processes of the local pool (default: min(4, CPUs)).")] = None,
+    export: Annotated[bool, typer.Option("--export/--no-export", help="Export STEP/STL/MJCF of the optimum.")] = True,
+    verify: Annotated[bool, typer.Option("--verify/--no-verify", help="Verify the optimum in closed loop on the problem's scenes.")] = True,
+    quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
+) -> None:
+    """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report."""
+    from hapticopt.design.errors import InvalidInput
+    from hapticopt.optim.problem import load_problem
+
+    prob = load_problem(problem)
+    if max_evals is not None:
+        if max_evals < prob.optimiser.starts:
+            raise InvalidInput(f"--max-evals = {max_evals} must be at least the number of starts ({prob.optimiser.starts})")
+        prob = prob.with_optimiser(max_evals=max_evals)
+    if workers is not None and workers < 1:
+        raise InvalidInput(f"--workers = {workers} must be ≥ 1")
+    out_dir = out if out is not None else Path("cad_out") / prob.name
+
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from hapticopt.optim.pipeline import run_pipeline
+
+    console = Console(stderr=True, quiet=quiet)
+    sense_max = prob.objective.sense.value == "maximise"
+    with Progress(TextColumn("[bold]{task.fields[stage]}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  TextColumn("{task.description}"), console=console, transient=False, disable=quiet) as progress:
+        task = progress.add_task("", total=prob.optimiser.max_evals, stage="baseline")
+
+        def on_point(rec, best, n_evaluated):  # called from the driver (any thread)
+            if best is None:
+                desc = "no valid point yet"
+            else:
+                obj = best.objective
+                feas = "feasible" if best.max_violation <= prob.optimiser.constraint_tol else \
+                    f"infeasible (violation {100 * best.max_violation:.2g} %)"
+                desc = f"best {prob.objective.metric.text} = {obj:.6g} ({feas})"
+            progress.update(task, completed=min(rec.index + 1, prob.optimiser.max_evals), description=desc)
+
+        def on_stage(name):
+            progress.update(task, stage=name)
+
+        result = run_pipeline(prob, out_dir=out_dir, resume=resume, scheduler=scheduler, workers=workers,
+                              progress=on_point, export=export, verify=verify, on_stage=on_stage)
+        progress.update(task, stage="done")
+    obj = prob.objective.metric
+    b, o = obj.value(result.baseline.metrics), obj.value(result.optimum.metrics)
+    typer.echo(f"{prob.name}: {result.run.status}; {obj.text} baseline {b:.6g} -> optimum {o:.6g} "
+               f"({'improved' if result.improved else 'not improved'}); constraints at {prob.fidelity_final} fidelity "
+               f"{'satisfied' if result.feasible_final else 'NOT satisfied'}; "
+               f"{result.run.n_evaluated} evaluated, {result.run.n_replayed} replayed")
+    for v in result.verdicts:
+        typer.echo(f"  verify {v.scene}: {'PASS' if v.passed else 'FAIL'} {v.message}")
+    for s in result.stages:
+        if s.status in ("skipped", "failed"):
+            typer.echo(f"  {s.name}: {s.status} — {s.message}")
+    typer.echo(f"report: {out_dir / 'report.html'}")
+
+
+def problems() -> None:
+    """List the bundled optimisation problems."""
+    from hapticopt.optim.problem import load_problem, problem_names
+
+    for name in problem_names():
+        p = load_problem(name)
+        typer.echo(f"{name:22s} {p.device:7s} {p.description}")
