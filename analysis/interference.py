@@ -24,6 +24,10 @@ import numpy as np
 
 from hapticopt.analysis.status import Status
 from hapticopt.design import cad_units
+from hapticopt.design import parts
+from hapticopt.design.errors import InvalidInput
+from hapticopt.design.master import cad as cad_master
+from hapticopt.design.prrr import cad as cad_prrr
 
 #: overlaps below this volume are tessellation noise, not interference [mm³]
 NOISE_MM3 = 1.0
@@ -92,14 +96,13 @@ class InterferenceModel:
     bodies: dict[str, str] = field(default_factory=dict)
 
 
+def _cad(design: Any):
+    return {"prrr": cad_prrr, "master": cad_master}[design.device]
+
+
 def prepare(design: Any) -> InterferenceModel:
     """Build the interference meshes of a design once (from its part tables)."""
-    from hapticopt.design import parts
-
-    if design.device == "prrr":
-        from hapticopt.design.prrr import cad
-    else:
-        from hapticopt.design.master import cad
+    cad = _cad(design)
     specs = cad.part_specs(design)
     cache: dict[int, Any] = {}
     meshes = {}
@@ -162,18 +165,13 @@ def _result(p: np.ndarray, collisions: tuple[Collision, ...]) -> InterferenceRes
 def _frames_at(model: InterferenceModel, p, branch: int | None) -> dict[str, np.ndarray]:
     design = model.design
     if design.device == "prrr":
-        from hapticopt.design.prrr import cad as cad_prrr
-
         pose = cad_prrr.solve_pose(design, p, branch=cad_prrr.DEFAULT_BRANCH if branch is None else branch)
         return cad_prrr.part_frames(design, pose)
-    from hapticopt.design.master import cad as cad_master
-
     return cad_master.part_frames(design, cad_master.solve_pose(design, p))
 
 
 def check_pose(model_or_design: Any, p, *, branch: int | None = None) -> InterferenceResult:
     """Interference at end-effector position ``p`` (3,) [m] (IK branch of the CAD by default)."""
-    from hapticopt.design.errors import InvalidInput
 
     model = model_or_design if isinstance(model_or_design, InterferenceModel) else prepare(model_or_design)
     p = np.asarray(p, dtype=float)
@@ -206,11 +204,7 @@ def joint_limits(model_or_design: Any, p=(0.0, 0.0, 0.0), *, step_deg: float = 2
     model = model_or_design if isinstance(model_or_design, InterferenceModel) else prepare(model_or_design)
     design = model.design
     if design.device != "prrr":
-        from hapticopt.design.master import cad as cad_master
-
-        return cad_master.joint_limits(model, step_deg=step_deg)
-    from hapticopt.design.prrr import cad as cad_prrr
-
+        return _master_joint_limits(model, step_deg=step_deg)
     pose = cad_prrr.solve_pose(design, p)
     frames = cad_prrr.part_frames(design, pose)
     out = []
@@ -260,3 +254,18 @@ def sweep_joint(model: InterferenceModel, frames: dict[str, np.ndarray], parent:
     lo = -math.pi if lo is None else lo
     return JointLimit(joint=name, parent=parent, child=child, reference=reference, lo=reference + lo,
                       hi=reference + hi, free=free)
+
+
+def _master_joint_limits(model: InterferenceModel, *, step_deg: float = 2.0, q=None) -> list[JointLimit]:
+    """Collision-free ranges of θ2 (upper arm vs turret), θ3 (driver vs turret) and the elbow
+    (forearm vs upper arm) from the pose ``q`` (home by default); see
+    :func:`sweep_joint`."""
+    design = model.design
+    pose = cad_master.pose_from_q(design, cad_master.home_q(design) if q is None else q)
+    frames = cad_master.part_frames(design, pose)
+    out = []
+    for ax in cad_master.joint_axes(design, pose):
+        if ax.name in ("theta2", "theta3", "elbow"):
+            out.append(sweep_joint(model, frames, ax.parent, ax.child, ax.point, ax.direction, ax.reference,
+                                   name=ax.name, step_deg=step_deg))
+    return out

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import os
 
+from hapticopt.analysis import verify
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
-from hapticopt.analysis.prrr import closed_loop
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop.scene import Backend, load_scene, scene_names
 from hapticopt.design import io
@@ -26,7 +26,7 @@ def main() -> None:
         sc = load_scene(name)
         design = master if sc.device == "master" else prrr
         for fid in (Fidelity.DRAFT, Fidelity.STANDARD):
-            r = closed_loop.simulate(design, sc, fidelity=fid, backend=Backend.MULTIBODY)
+            r = verify.simulate(design, sc, fidelity=fid, backend=Backend.MULTIBODY)
             m = r.metrics()
             key = ""
             for k in ("bandwidth_error_pct", "rendered_wall_stiffness_N_per_mm", "rendered_stiffness_N_per_mm",
@@ -39,8 +39,8 @@ def main() -> None:
             print(f"| {name} | {fid.value} | {m['backend']} | {r.status} | {m['constraint_violation_mm']:.3g} | "
                   f"{m.get('ee_rotation_mrad', 0.0):.3g} | {m['constraint_health_ok']} | {key} | {m['wall_time_s']:.2f} |",
                   flush=True)
-    lumped = closed_loop.simulate(prrr, load_scene("stiffness-25")).metrics()
-    links = closed_loop.simulate(prrr, load_scene("stiffness-25-links")).metrics()
+    lumped = verify.simulate(prrr, load_scene("stiffness-25")).metrics()
+    links = verify.simulate(prrr, load_scene("stiffness-25-links")).metrics()
     print(f"stiffness-25 lumped: K {lumped['rendered_stiffness_N_per_mm']:.4f} N/mm, residual "
           f"{lumped['residual_force_rms_N']:.3f} N; stiffness-25-links multibody: K "
           f"{links['rendered_stiffness_N_per_mm']:.4f} N/mm, residual {links['residual_force_rms_N']:.3f} N")

@@ -19,6 +19,7 @@ import time
 import jax.numpy as jnp
 
 from hapticopt.analysis.fem import solid as fea
+from hapticopt.analysis.prrr import fea_frame
 from hapticopt.analysis.prrr import fea_cad
 from hapticopt.analysis.prrr import frame_model as fm
 from hapticopt.analysis.prrr.structure import structural_stiffness
@@ -61,7 +62,7 @@ def prrr(levels: list[int]) -> None:
               f"{time.perf_counter() - t0:.2f} s (incl. compile)")
     bonded = structural_stiffness(d, options=fm.FrameOptions(joints=fm.Joints.BONDED, pins=False)).stiffness_load
     for k in levels:
-        r = fea.prrr_fea(d, level=k, keep_fields=False)
+        r = fea_frame.prrr_fea(d, level=k, keep_fields=False)
         print(f"FEA level {k}: size {r.size * 1e3:.1f} mm, {r.n_dofs} DOFs, CG its {r.iterations}, "
               f"{r.wall_s:.1f} s {r.timings_s}; k = {r.stiffness_load / 1e3} N/mm; "
               f"frame(bonded)/FEA − 1 = {bonded / r.stiffness_load - 1}")

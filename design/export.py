@@ -23,6 +23,12 @@ from typing import Any
 import numpy as np
 
 from hapticopt.design import atomic
+from hapticopt.design import mass_properties as mp
+from hapticopt.design.master import cad as cad_master
+from hapticopt.design.master import mjcf as mjcf_master
+from hapticopt.design.master.mass import bodies_from_mass_properties
+from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design.prrr import mjcf as mjcf_prrr
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -34,31 +40,14 @@ class ExportResult:
 
 
 def _cad(design: Any):
+    return {"prrr": cad_prrr, "master": cad_master}[design.device]
+
+
+def _mjcf(design: Any, p, masses) -> str:
     if design.device == "prrr":
-        from hapticopt.design.prrr import cad as cad_prrr
-
-        return cad_prrr
-    from hapticopt.design.master import cad as cad_master
-
-    return cad_master
-
-
-def _mjcf(design: Any, p, masses) -> str | None:
-    if design.device == "prrr":
-        from hapticopt.design.prrr import mjcf as mjcf_prrr
-
         return mjcf_prrr.prrr_mjcf(design, p=p, mass_properties=masses)
-    try:
-        from hapticopt.design.master import mjcf as mjcf_master  # owned by the master-dynamics work (issue 5)
-    except ImportError:
-        return None
-    from hapticopt.analysis.master.dynamics import FRAMES, BodyMass
-
-    # our part frames are master_kinematics' link frames; the fixed base is not in that model
-    bodies = tuple(BodyMass(name=pm.name, frame=pm.body, mass=pm.mass, com=tuple(float(x) for x in pm.com),
-                            inertia=tuple(tuple(float(x) for x in row) for row in pm.inertia))
-                   for pm in masses.parts.values() if pm.body in FRAMES)
-    return mjcf_master.master_mjcf(design, mass_properties=bodies)
+    # our part frames are the master's link frames; the fixed base is not in that model
+    return mjcf_master.master_mjcf(design, mass_properties=bodies_from_mass_properties(masses))
 
 
 def build_assembly(design: Any, p=None) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
@@ -72,8 +61,6 @@ def build_assembly(design: Any, p=None) -> tuple[dict[str, Any], dict[str, np.nd
 def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False) -> ExportResult:
     """Write the export set of ``design`` posed at end-effector position ``p`` [m] into ``out_dir``."""
     from build123d import Compound, export_step, export_stl
-
-    from hapticopt.design import mass_properties as mp
 
     out_dir = Path(out_dir)
     cad = _cad(design)
@@ -105,10 +92,9 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False) ->
             export_stl(solid, tmp, tolerance=0.01, angular_tolerance=0.1)
         files.append(target)
     timings["stl"] = time.perf_counter() - t
-    if mjcf is not None:
-        target = out_dir / f"{design.name}.xml"
-        atomic.write_text(target, mjcf)
-        files.append(target)
+    target = out_dir / f"{design.name}.xml"
+    atomic.write_text(target, mjcf)
+    files.append(target)
     target = out_dir / "mass_properties.json"
     atomic.write_text(target, masses.to_json())
     files.append(target)
@@ -137,3 +123,8 @@ def render_png(stl_files: list[Path], target: Path, *, title: str = "") -> None:
     with atomic.atomic_path(target) as tmp:
         plotter.screenshot(str(tmp))
     plotter.close()
+
+
+def mass_properties(design: Any, *, method: mp.Method = mp.Method.ANALYTIC) -> mp.MassProperties:
+    """Mass properties of any device's parts: closed forms (default) or the CAD's volume integrals."""
+    return _cad(design).mass_properties(design, method=method)

@@ -8,7 +8,7 @@ Two sources of the same numbers:
 * :func:`from_cad` — OpenCASCADE's volume integrals of the build123d solids (the reference).
 
 Every quantity is SI and expressed in the part's own frame (the frame of the body that carries
-it; see :func:`design.cad_prrr.part_frames`); inertia is about the centre of mass.
+it; see :func:`hapticopt.design.prrr.cad.part_frames`); inertia is about the centre of mass.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from hapticopt.design import cad_units
 from hapticopt.design import parts as _parts
 
 
@@ -94,19 +95,12 @@ def combine(name: str, body: str, members: list[PartMass]) -> PartMass:
                     volume=float(sum(p.volume for p in members)))
 
 
-def _specs(design: Any) -> dict[str, _parts.PartSpec]:
-    if design.device == "prrr":
-        from hapticopt.design.prrr import cad as cad_prrr
+def analytic(design: Any, *, specs: dict[str, _parts.PartSpec]) -> MassProperties:
+    """Closed-form mass properties from the part tables (no solids built).
 
-        return cad_prrr.part_specs(design)
-    from hapticopt.design.master import cad as cad_master
-
-    return cad_master.part_specs(design)
-
-
-def analytic(design: Any, *, specs: dict[str, _parts.PartSpec] | None = None) -> MassProperties:
-    """Closed-form mass properties from the part tables (no solids built)."""
-    specs = specs if specs is not None else _specs(design)
+    ``specs`` is the device's part table (``design.<device>.cad.part_specs``); each device's
+    ``cad.mass_properties(design)`` calls this with its own.
+    """
     unique: dict[int, int] = {}
     groups = []
     for spec in specs.values():
@@ -123,18 +117,8 @@ def analytic(design: Any, *, specs: dict[str, _parts.PartSpec] | None = None) ->
     return MassProperties(design=design.name, method=Method.ANALYTIC, parts=out)
 
 
-def from_cad(design: Any, *, solids: dict[str, Any] | None = None,
-             specs: dict[str, _parts.PartSpec] | None = None) -> MassProperties:
+def from_cad(design: Any, *, solids: dict[str, Any], specs: dict[str, _parts.PartSpec]) -> MassProperties:
     """Mass properties from OpenCASCADE's volume integrals of the part solids (in part frames)."""
-    from hapticopt.design import cad_units
-
-    specs = specs if specs is not None else _specs(design)
-    if solids is None:
-        if design.device == "prrr":
-            from hapticopt.design.prrr import cad
-        else:
-            from hapticopt.design.master import cad
-        solids = cad.build_parts(design)
     out: dict[str, PartMass] = {}
     for name, spec in specs.items():
         s = solids[name]

@@ -24,6 +24,8 @@ import math
 import numpy as np
 
 from hapticopt.design import cad_units
+from hapticopt.design.errors import InvalidDesign
+import copy
 
 _EX = np.array([1.0, 0.0, 0.0])
 _EY = np.array([0.0, 1.0, 0.0])
@@ -302,7 +304,6 @@ def build_solid(spec: PartSpec):
     Raises :class:`InvalidDesign` if the result is not one valid solid."""
     from build123d import Box, Cylinder, Solid, Sphere
 
-    from hapticopt.design.errors import InvalidDesign
 
     solids, holes = [], []
     for p in spec.primitives:
@@ -333,7 +334,6 @@ def build_solid(spec: PartSpec):
 def build_all(specs: dict[str, PartSpec]) -> dict[str, object]:
     """Every part's solid (own frame, mm). Parts sharing a primitive table are built once and
     copied: STEP keeps one name per shared shape, so each part gets its own shape."""
-    import copy
 
     cache: dict[int, object] = {}
     out = {}

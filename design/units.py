@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import math
 
+#: standard acceleration of gravity [m/s²]; the one value every evaluator, plant and MJCF uses
+GRAVITY = 9.81
+
 #: unit label -> factor that converts a value in that unit to SI.
 TO_SI: dict[str, float] = {
     "": 1.0,

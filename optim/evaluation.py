@@ -20,7 +20,6 @@ from __future__ import annotations
 import functools
 import math
 import time
-import traceback
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -30,9 +29,14 @@ from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax a
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.registry import evaluate_all
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.units import TO_SI
 from hapticopt.optim.problem import MetricRef, Variable, design_at
+from hapticopt.design.schema import specs
+from hapticopt.design.prrr.kinematics import PrrrParams
+from hapticopt.analysis.prrr.statics import statics_arrays
+import importlib
 
 
 class Outcome(StrEnum):
@@ -73,46 +77,12 @@ class PointResult:
     timings_s: dict[str, float] = field(default_factory=dict)
 
 
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, (bool, str)) or value is None:
-        return value
-    if isinstance(value, (int, float, np.integer, np.floating)):
-        return float(value) if not isinstance(value, (int, np.integer)) else int(value)
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    return str(value)
-
-
 def run_evaluators(design: Any, fidelity: Fidelity, only: tuple[str, ...] | None
                    ) -> tuple[dict[str, Any], dict[str, str], dict[str, float], str]:
-    """metrics, statuses, timings, failure message ('' if none). Exceptions become values."""
-    from hapticopt.analysis.registry import EVALUATORS
-
-    metrics: dict[str, Any] = {}
-    statuses: dict[str, str] = {}
-    timings: dict[str, float] = {}
-    failures: list[str] = []
-    for entry in EVALUATORS[design.device]:
-        if only is not None and entry.name not in only:
-            continue
-        t0 = time.perf_counter()
-        try:
-            result = entry.load().evaluate(design, fidelity=fidelity)
-            metrics.update(_jsonable(result.metrics()))
-            statuses[entry.name] = str(result.status)
-            if str(result.status) == "failed":
-                failures.append(f"{entry.name}: {result.message or 'failed'}")
-        except Exception as exc:  # an evaluator failure is a handled outcome
-            statuses[entry.name] = "failed"
-            last = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
-            where = f" ({last.filename.rsplit('/', 1)[-1]}:{last.lineno})" if last else ""
-            failures.append(f"{entry.name}: {type(exc).__name__}: {exc}{where}")
-        timings[entry.name] = time.perf_counter() - t0
-    return metrics, statuses, timings, "; ".join(failures)
+    """metrics, statuses, timings, failure message ('' if none): the registry's one loop, flattened
+    to plain values for the record (exceptions are already statuses there)."""
+    ev = evaluate_all(design, fidelity=fidelity, only=only)
+    return ev.metrics(), {k: str(v) for k, v in ev.statuses.items()}, dict(ev.timings_s), ev.failures()
 
 
 def evaluate_point(task: PointTask) -> PointResult:
@@ -154,7 +124,6 @@ def evaluate_point(task: PointTask) -> PointResult:
 # ------------------------------------------------------------------------------------ jax twins
 def _si(design: Any, values: Mapping[str, Any], key: str) -> Any:
     """The field ``section.toml_key`` of ``design`` in SI, overridden by ``values`` (edge units)."""
-    from hapticopt.design.schema import specs
 
     section, tkey = key.split(".")
     sec = getattr(design, section)
@@ -168,8 +137,6 @@ def _si(design: Any, values: Mapping[str, Any], key: str) -> Any:
 
 def _prrr_statics_jax(design: Any, values: Mapping[str, Any]) -> dict[str, Any]:
     """Differentiable twin of :func:`hapticopt.analysis.prrr.statics.evaluate` (same names and units)."""
-    from hapticopt.design.prrr.kinematics import PrrrParams
-    from hapticopt.analysis.prrr.statics import statics_arrays
 
     g = "geometry."
     params = PrrrParams(*(_si(design, values, g + k) for k in
@@ -193,7 +160,6 @@ JAX_ADAPTERS: dict[str, Callable[[Any, Mapping[str, Any]], Mapping[str, Any]]] =
 
 
 def jax_twin(module_name: str) -> Callable[[Any, Mapping[str, Any]], Mapping[str, Any]] | None:
-    import importlib
 
     module = importlib.import_module(module_name)
     fn = getattr(module, "jax_metrics", None)

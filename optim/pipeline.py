@@ -2,114 +2,49 @@
 
 ``run_pipeline(problem, out_dir=…)`` writes into ``out_dir``: ``evaluations.sqlite`` (the
 recorder), ``optimum.toml`` (the optimised design), ``result.json``, the export files
-(STEP/STL/MJCF/PNG from :mod:`design.export`), evaluator and verification pictures under
-``plots/``, ``convergence.svg``, ``report.md`` and ``report.html``. Stage wall times are
-measured and reported. A stage whose module has not landed (export, closed-loop
-verification) is reported as *skipped* with the reason — never silently.
+(STEP/STL/MJCF/PNG from :mod:`hapticopt.design.export`), evaluator and verification pictures
+under ``plots/``, ``convergence.svg``, ``report.md`` and ``report.html``. Stage wall times are
+measured and reported; a stage that fails is reported with its reason, never silently.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import importlib
-import inspect
 import json
 import math
 import time
-import traceback
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design import io
 from hapticopt.design.atomic import write_text
-from hapticopt.optim.driver import EvalRecord, ProgressFn, RunResult
-from hapticopt.optim.evaluation import _jsonable
+from hapticopt.optim.driver import EvalRecord, ProgressFn
 from hapticopt.optim.problem import Problem, check_metrics
-
-
-@dataclass(frozen=True, kw_only=True)
-class DesignEvaluation:
-    """All evaluators on one design at one fidelity."""
-
-    fidelity: Fidelity
-    metrics: dict[str, Any]
-    modules: dict[str, str]  # metric -> evaluator module
-    statuses: dict[str, str]
-    messages: dict[str, str]
-    timings_s: dict[str, float]
-    results: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
-
-
-@dataclass(frozen=True, kw_only=True)
-class StageOutcome:
-    name: str
-    status: str  # "ok", "skipped", "failed", or a verdict summary
-    message: str = ""
-    wall_s: float = 0.0
-    files: tuple[str, ...] = ()  # relative to the run dir
-
-
-@dataclass(frozen=True, kw_only=True)
-class Verdict:
-    scene: str
-    passed: bool
-    metrics: dict[str, Any]
-    message: str = ""
-
-
-@dataclass(frozen=True, kw_only=True)
-class PipelineResult:
-    problem: Problem
-    out_dir: Path
-    run: RunResult
-    baseline: DesignEvaluation  # base design at the final fidelity
-    optimum_design: Any
-    optimum: DesignEvaluation  # best design at the final fidelity
-    constraints_final: tuple[tuple[str, float, bool], ...]  # (text, metric value, satisfied) at final fidelity
-    feasible_final: bool
-    improved: bool
-    verdicts: tuple[Verdict, ...]
-    stages: tuple[StageOutcome, ...]
-    files: dict[str, str]  # role -> path relative to out_dir
+from hapticopt.analysis.registry import EVALUATORS, describe_failure, evaluate_all, jsonable
+from hapticopt.optim.driver import SMOOTH_SURROGATES
+from hapticopt.analysis.loop.scene import load_scene
+import multiprocessing
+import queue as queue_mod
+from hapticopt.optim.recorder import Recorder
+from hapticopt.optim.executor import make_executor
+from hapticopt.optim import driver, report
+from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, Verdict
 
 
 def evaluate_design(design: Any, fidelity: Fidelity) -> DesignEvaluation:
-    """Every registered evaluator on ``design``; failures are recorded, not raised."""
-    from hapticopt.analysis.registry import EVALUATORS
-
-    metrics: dict[str, Any] = {}
-    modules: dict[str, str] = {}
-    statuses: dict[str, str] = {}
-    messages: dict[str, str] = {}
-    timings: dict[str, float] = {}
-    results: dict[str, Any] = {}
-    for entry in EVALUATORS[design.device]:
-        t0 = time.perf_counter()
-        try:
-            result = entry.load().evaluate(design, fidelity=fidelity)
-            m = _jsonable(result.metrics())
-            metrics.update(m)
-            modules.update({k: entry.module for k in m})
-            statuses[entry.name] = str(result.status)
-            messages[entry.name] = result.message
-            results[entry.name] = result
-        except Exception as exc:  # noqa: BLE001 - reported in the report, not a crash
-            statuses[entry.name] = "failed"
-            messages[entry.name] = f"{type(exc).__name__}: {exc}"
-        timings[entry.name] = time.perf_counter() - t0
-    return DesignEvaluation(fidelity=fidelity, metrics=metrics, modules=modules, statuses=statuses,
-                            messages=messages, timings_s=timings, results=results)
+    """Every registered evaluator on ``design`` (the registry's one loop and failure policy)."""
+    ev = evaluate_all(design, fidelity=fidelity)
+    return DesignEvaluation(fidelity=fidelity, metrics=ev.metrics(), modules=dict(ev.sources),
+                            statuses={k: str(v) for k, v in ev.statuses.items()}, messages=dict(ev.messages),
+                            timings_s=dict(ev.timings_s), results=dict(ev.results))
 
 
 def evaluators_for(problem: Problem, evaluation: DesignEvaluation) -> tuple[str, ...]:
     """Names of the evaluators that produce the problem's metrics (the only ones run per point)."""
-    from hapticopt.analysis.registry import EVALUATORS
 
     needed_modules = {evaluation.modules[r.name] for r in problem.metric_refs() if r.name in evaluation.modules}
-    from hapticopt.optim.driver import SMOOTH_SURROGATES
 
     for r in problem.metric_refs():
         sur = SMOOTH_SURROGATES.get(r.name)
@@ -119,37 +54,13 @@ def evaluators_for(problem: Problem, evaluation: DesignEvaluation) -> tuple[str,
 
 
 # ------------------------------------------------------------------------------ stages
-def _try_export(design: Any, out_dir: Path) -> StageOutcome:
-    """Call :mod:`hapticopt.design.export` (issue 3) when it exists."""
+def _export(design: Any, out_dir: Path) -> StageOutcome:
+    """STEP, STLs, MJCF, mass properties and the render of ``design`` into ``out_dir``."""
+    from hapticopt.design import export as design_export
+
     t0 = time.perf_counter()
-    try:
-        export = importlib.import_module("hapticopt.design.export")
-    except ModuleNotFoundError as exc:
-        if exc.name not in ("hapticopt.design.export",):
-            raise
-        return StageOutcome(name="export", status="skipped", message="design/export.py has not landed yet")
-    fn = None
-    for name in ("export_design", "export_all", "export"):
-        cand = getattr(export, name, None)
-        if callable(cand):
-            fn = cand
-            break
-    if fn is None:
-        return StageOutcome(name="export", status="skipped", message="hapticopt.design.export has no export function")
-    try:
-        params = inspect.signature(fn).parameters
-        kwargs: dict[str, Any] = {}
-        if "render" in params:
-            kwargs["render"] = True
-        result = fn(design, out_dir, **kwargs)
-    except Exception as exc:  # noqa: BLE001 - a failed export is reported
-        return StageOutcome(name="export", status="failed", message=f"{type(exc).__name__}: {exc}",
-                            wall_s=time.perf_counter() - t0)
-    written = getattr(result, "files", None)
-    if written is None:  # an exporter that returns nothing: list what it wrote
-        written = [p for p in out_dir.rglob("*") if p.is_file() and p.stat().st_mtime >= time.time()
-                   - (time.perf_counter() - t0) - 1 and p.suffix.lower() in (".step", ".stp", ".stl", ".xml", ".png")]
-    files = sorted(str(Path(p).resolve().relative_to(out_dir.resolve())) for p in written)
+    result = design_export.export(design, out_dir, render=True)
+    files = sorted(str(Path(p).resolve().relative_to(out_dir.resolve())) for p in result.files)
     return StageOutcome(name="export", status="ok", wall_s=time.perf_counter() - t0, files=tuple(files))
 
 
@@ -157,26 +68,11 @@ def _try_export(design: Any, out_dir: Path) -> StageOutcome:
 STIFFNESS_ERROR_LIMIT_PCT = 10.0
 
 
-def _find_verifier(fidelity: Fidelity) -> Callable[[Any, str], Any] | None:
-    """The closed-loop runner of issue 6 as ``fn(design, scene_name) -> result with .metrics()``."""
-    try:
-        closed_loop = importlib.import_module("hapticopt.analysis.prrr.closed_loop")
-    except ModuleNotFoundError as exc:
-        if exc.name != "hapticopt.analysis.prrr.closed_loop":
-            raise
-        return None
-    run_scene = getattr(closed_loop, "run_scene", None)
-    if callable(run_scene):
-        return run_scene
-    simulate = getattr(closed_loop, "simulate", None)
-    if not callable(simulate):
-        return None
-    from hapticopt.analysis.loop.scene import load_scene
+def run_scene(design: Any, scene: str, fidelity: Fidelity) -> Any:
+    """The closed-loop verification of ``design`` in the bundled or file scene ``scene``."""
+    from hapticopt.analysis import verify as closed_loop_verify
 
-    def run(design: Any, scene: str) -> Any:
-        return simulate(design, load_scene(scene), fidelity=fidelity)
-
-    return run
+    return closed_loop_verify.simulate(design, load_scene(scene), fidelity=fidelity)
 
 
 def verdict_of(metrics: dict[str, Any]) -> tuple[bool, str]:
@@ -192,10 +88,8 @@ def verdict_of(metrics: dict[str, Any]) -> tuple[bool, str]:
 def _scene_worker(design: Any, scene: str, fidelity: Fidelity, queue: Any, verifier: Any) -> None:
     """Child process: run one scene, send back (metrics, message) or an error line."""
     try:
-        fn = verifier or _find_verifier(fidelity)
-        assert fn is not None
-        result = fn(design, scene)
-        queue.put(("ok", _jsonable(result.metrics()), str(getattr(result, "message", ""))))
+        result = verifier(design, scene) if verifier is not None else run_scene(design, scene, fidelity)
+        queue.put(("ok", jsonable(result.metrics()), str(getattr(result, "message", ""))))
     except Exception as exc:  # noqa: BLE001 - sent to the parent as a failed verdict
         queue.put(("error", {}, f"{type(exc).__name__}: {exc}"))
 
@@ -204,8 +98,6 @@ def _run_scene_limited(design: Any, scene: str, fidelity: Fidelity, max_time_s: 
                        ) -> tuple[str, dict[str, Any], str]:
     """Run one scene in a child process that is killed after ``max_time_s`` (a hung or very slow
     simulation must not hold up the pipeline)."""
-    import multiprocessing
-    import queue as queue_mod
 
     ctx = multiprocessing.get_context("spawn")
     q = ctx.Queue()
@@ -227,9 +119,6 @@ def _verify(design: Any, scenes: tuple[str, ...], out_dir: Path, fidelity: Fidel
     t0 = time.perf_counter()
     if not scenes:
         return StageOutcome(name="verify", status="skipped", message="the problem names no scenes"), ()
-    if verifier is None and _find_verifier(fidelity) is None:
-        return StageOutcome(name="verify", status="skipped",
-                            message="the closed-loop runner (issue 6) has not landed yet"), ()
     verdicts = []
     for scene in scenes:
         kind, metrics, message = _run_scene_limited(design, scene, fidelity, max_time_s, verifier)
@@ -260,11 +149,8 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     """Run every stage; returns the result and writes the run directory.
 
     ``verifier(design, scene_name) -> result with .metrics()`` replaces the closed-loop runner
-    of :mod:`analysis.closed_loop` (a module-level function: it runs in a child process).
+    :func:`run_scene` (a module-level function: it runs in a child process).
     """
-    from hapticopt.optim import driver, report
-    from hapticopt.optim.executor import make_executor
-    from hapticopt.optim.recorder import Recorder
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -316,29 +202,24 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
 
     t = stage("plots")
     plot_files: list[str] = []
-    try:
-        from hapticopt.analysis.registry import EVALUATORS
-
-        for entry in EVALUATORS[problem.device]:
-            module = entry.load()
-            if hasattr(module, "plot") and entry.name in optimum.results:
-                try:
-                    for p in module.plot(optimum_design, optimum.results[entry.name], out / "plots"):
-                        plot_files.append(str(Path(p).resolve().relative_to(out.resolve())))
-                except Exception as exc:  # noqa: BLE001
-                    stages.append(StageOutcome(name=f"plot {entry.name}", status="failed",
-                                               message=f"{type(exc).__name__}: {exc}"))
-    finally:
-        stages.append(StageOutcome(name="plots", status="ok", wall_s=time.perf_counter() - t,
-                                   files=tuple(plot_files)))
+    (out / "plots").mkdir(exist_ok=True)
+    for entry in EVALUATORS[problem.device]:
+        plotter = entry.plotter()
+        if plotter is None or entry.name not in optimum.results:
+            continue
+        try:
+            for path in plotter(optimum_design, optimum.results[entry.name], out / "plots"):
+                plot_files.append(str(Path(path).resolve().relative_to(out.resolve())))
+        except Exception as exc:  # noqa: BLE001 - a picture that fails is reported, the run goes on
+            stages.append(StageOutcome(name=f"plot {entry.name}", status="failed", message=describe_failure(exc)))
+    stages.append(StageOutcome(name="plots", status="ok", wall_s=time.perf_counter() - t, files=tuple(plot_files)))
 
     if export:
         t = stage("export")
         try:
-            ex = _try_export(optimum_design, out)
-        except Exception as exc:  # noqa: BLE001
-            ex = StageOutcome(name="export", status="failed", message=f"{type(exc).__name__}: {exc} "
-                              f"{traceback.format_exc(limit=1).splitlines()[-1]}")
+            ex = _export(optimum_design, out)
+        except Exception as exc:  # noqa: BLE001 - a failed export is reported in the report
+            ex = StageOutcome(name="export", status="failed", message=describe_failure(exc))
         stages.append(dataclasses.replace(ex, wall_s=time.perf_counter() - t))
     verdicts: tuple[Verdict, ...] = ()
     if verify:

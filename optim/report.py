@@ -14,13 +14,11 @@ import math
 import statistics
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from hapticopt.design.atomic import write_text
 from hapticopt.design.units import from_si, pretty
-
-if TYPE_CHECKING:
-    from hapticopt.optim.pipeline import PipelineResult
+from hapticopt.optim.results import PipelineResult, StageOutcome
 
 #: a constraint whose normalised margin is within this is reported as active
 ACTIVE_TOL = 1e-3
@@ -165,7 +163,6 @@ def write(p: "PipelineResult", *, extra_stage: tuple[str, float] | None = None) 
     prob = p.problem
     write_text(out / "convergence.svg", convergence_svg(p.run.history, sense_max=prob.objective.sense.value == "maximise"))
     if extra_stage is not None:
-        from hapticopt.optim.pipeline import StageOutcome
 
         name, t0 = extra_stage
         p = dataclasses.replace(p, stages=p.stages + (StageOutcome(name=name, status="ok",

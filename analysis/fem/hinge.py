@@ -34,10 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticopt.analysis.fem import solid as fea
+import scipy.sparse as sp
 
-#: released part per joint kind: the frame model's hinge at the pin's link-side end (frame_model.py)
-RELEASED_PART = {"frame": {"r1": "link1", "r2": "link2", "r3": "link2"},
-                 "swapped": {"r1": "carriage", "r2": "link1", "r3": "platform"}}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -189,7 +187,6 @@ def reduction(basis, *, fixed: np.ndarray, ties: Ties | None, region: np.ndarray
               centre=(0.0, 0.0, 0.0)) -> Reduction:
     """The elimination map of supports (``fixed`` DOFs, u = 0), hinge ties and an optional rigid
     ``region`` (bool per DOF, moving rigidly with six master DOFs about ``centre``)."""
-    import scipy.sparse as sp
 
     N = basis.N
     modes = fea.rigid_body_modes(basis, centre=centre)
@@ -240,7 +237,6 @@ def reduction(basis, *, fixed: np.ndarray, ties: Ties | None, region: np.ndarray
 
 def reduced_matrix(K, red: Reduction):
     """K_red = Tᵀ K T (symmetrised); padding unknowns get a unit diagonal scaled like K."""
-    import scipy.sparse as sp
 
     A = (red.T.T @ K @ red.T).tocsr()
     A = 0.5 * (A + A.T)
@@ -283,26 +279,9 @@ def solve_released(split: SplitMesh, *, youngs_modulus: float, poisson_ratio: fl
     I = red.free
     blocked = I.size % 3 == 0 and np.all(I[0::3] % 3 == 0) and np.all(np.diff(I.reshape(-1, 3), axis=1) == 1)
     t2 = time.perf_counter()
-    X, its, res, t_setup = fea._amg_cg(A, red.B, rhs, blocked=bool(blocked) and amg_blocks, tol=tol)
+    X, its, res, t_setup = fea.amg_cg(A, red.B, rhs, blocked=bool(blocked) and amg_blocks, tol=tol)
     t3 = time.perf_counter()
     return ReleasedSolution(basis=basis, displacements=np.asarray(red.T @ X), master=X[n_head:], n_dofs=int(A.shape[0]),
                             n_ties=red.n_ties, iterations=tuple(its), residuals=tuple(res),
                             timings_s={"assemble": t1 - t0, "reduce": t2 - t1, "amg_setup": t_setup,
                                        "solve": t3 - t2 - t_setup})
-
-
-def cad_hinges(design, pose, *, side: str = "frame") -> list[Hinge]:
-    """The nine released joints of the posed 3-PRRR CAD (pins of :func:`hapticopt.analysis.prrr.fea_cad._pins`)."""
-    from hapticopt.analysis.prrr import fea_cad
-
-    if side not in RELEASED_PART:
-        raise ValueError(f"side = {side!r}: allowed {sorted(RELEASED_PART)}")
-    out = []
-    for pin in fea_cad._pins(design, pose):
-        kind, leg = pin["name"].split("_")[1:]
-        axis = pin["axis"] / np.linalg.norm(pin["axis"])
-        part = RELEASED_PART[side][kind]
-        part = part if part == "platform" else f"{part}_{leg}"
-        out.append(Hinge(name=f"{kind}_{leg}", pin=pin["name"], part=part,
-                         point=np.asarray(pin["start"], dtype=float), axis=axis, radius=float(pin["radius"])))
-    return out

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from hapticopt.design.errors import InputFileError, InvalidInput, UnknownName
+from hapticopt.analysis.loop.operator import Operator
 
 
 class Effect(StrEnum):
@@ -95,15 +96,6 @@ class Environment:
     box_mode: BoxMode = BoxMode.INSIDE
     force_amplitude: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N]
     force_frequency: float = 1.0  # [Hz]
-
-
-@dataclass(frozen=True, kw_only=True)
-class Operator:
-    """Hand impedance Z_h = m_h s + b_h + k_h/s (seed 000 eq 1)."""
-
-    mass: float = 0.3  # [kg]
-    damping: float = 50.0  # [N·s/m]
-    stiffness: float = 20e3  # [N/m]
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -26,7 +26,6 @@ ever inf or NaN.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -34,6 +33,8 @@ from hapticopt.analysis.master import dynamics as md
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design.master.params import MasterDesign
+from hapticopt.design.units import GRAVITY
+from hapticopt.design.master import kinematics as mk
 
 FORCE_JND_N = 0.1  # [N] seed 003: 10 % JND of the 1 N mean surgical force
 SINGULAR_MARGIN = np.deg2rad(2.0)  # [rad] poses with φ within this of 0° or 180° are excluded
@@ -149,7 +150,6 @@ def force_field(design: MasterDesign, q: np.ndarray, model: md.MassModel | None 
     from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
     import jax.numpy as jnp
 
-    from hapticopt.design.master import kinematics as mk
 
     model = md.model_of(design) if model is None else model
     q = jnp.asarray(q, dtype=float)
@@ -178,7 +178,7 @@ def evaluate_parameters(design: MasterDesign, gp: md.GravityParameters, *, fidel
         status = Status.SINGULAR
         message = (f"the φ range reaches the parallelogram singularity (cos(θ2 − θ3) = 0): poses within "
                    f"{np.rad2deg(SINGULAR_MARGIN):g}° of it are excluded")
-    Mg = gp.moving_mass * md.GRAVITY
+    Mg = gp.moving_mass * GRAVITY
     P = np.asarray(gp.com_offset)
     try:
         masses = md.balancing_counterweights(design)
@@ -242,10 +242,3 @@ def _ellipse_radius(psi: np.ndarray, a: float, b: float) -> np.ndarray:
     u = np.cos(psi - np.pi / 4)
     v = np.sin(psi - np.pi / 4)
     return 1.0 / np.sqrt((u / a) ** 2 + (v / b) ** 2)
-
-
-def plot(design: MasterDesign, result: MasterBalance, out_dir: Path) -> list[Path]:
-    """Unbalance-force map over the workspace and the admissible CoM region with the unbalance circle."""
-    from hapticopt.analysis.master import plots as master_plots
-
-    return master_plots.balance_plots(design, result, Path(out_dir))

@@ -36,14 +36,18 @@ from typing import Any
 
 import numpy as np
 
-from hapticopt.analysis.prrr.closed_loop import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces
+from hapticopt.analysis.loop.traces import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.master.firmware import MasterController, MasterFirmwareConfig
-from hapticopt.analysis.prrr.mujoco_model import SOLVER_BY_FIDELITY, Health, SolverSettings
+from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
 from hapticopt.analysis.loop.scene import Effect, EnvKind, Resolution, Scene, resolve
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.master.params import MasterDesign
+from hapticopt.analysis.master.transparency import default_pose
+from hapticopt.analysis.master import dynamics as md
+from hapticopt.analysis.master import transparency as mt
+from hapticopt.analysis.master.sweep import _crossing
 
 VIOLATION_TOL = 1e-5  # [m] parallelogram closure (issue 8: 0.01 mm)
 RUNAWAY = 0.5  # [m] handle further than this from its start: unstable
@@ -79,7 +83,6 @@ def master_xml(design: MasterDesign, res: Resolution, scene: Scene, solver: Solv
 
 def start_pose(design: MasterDesign) -> np.ndarray:
     """Calibration / start pose of the master scenes: the middle of the θ3 and φ ranges (issue 5)."""
-    from hapticopt.analysis.master.transparency import default_pose
 
     return default_pose(design)
 
@@ -221,7 +224,6 @@ def _arm_only(design: MasterDesign, res: Resolution, scene: Scene, solver: Solve
 
 def controller_for(design: MasterDesign, scene: Scene, res: Resolution, x0: np.ndarray, q0: np.ndarray,
                    period: float) -> MasterController:
-    from hapticopt.analysis.master import dynamics as md
 
     env = scene.environment
     if env.kind not in (EnvKind.SPRING, EnvKind.BOX, EnvKind.FREE):
@@ -305,9 +307,6 @@ def _fit(A: np.ndarray, y: np.ndarray) -> np.ndarray:
 def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD, reason: str | None = None,
              solver: SolverSettings | None = None) -> MasterResult:
     """Run a master scene with the master firmware in the loop on the MuJoCo plant."""
-    from hapticopt.analysis.master import dynamics as md
-    from hapticopt.analysis.master import transparency as mt
-    from hapticopt.analysis.master.sweep import _crossing
 
     if getattr(design, "device", None) != "master":
         raise InvalidInput(f"scene {scene.name} is a master scene; design {getattr(design, 'name', '?')!r} is a "

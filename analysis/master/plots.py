@@ -1,6 +1,6 @@
 """Pictures of the master's balance and transparency results (pyvista off-screen; no matplotlib,
 which is not a dependency: pyvista's 2-D charts cover line plots and it is already installed).
-Only the CLI calls these, through each evaluator's ``plot``.
+Only ``--plots`` and the pipeline's report call these, through the registry; evaluators never draw.
 """
 
 from __future__ import annotations
@@ -9,7 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
+from hapticopt.analysis.master import balance as mb
+from hapticopt.analysis.master import transparency as mt
+from hapticopt.analysis.master import workspace as mw
 from hapticopt.design.atomic import atomic_path
+from hapticopt.design.master import kinematics as mk
+from hapticopt.design.units import GRAVITY
 
 
 def _save(plotter, target: Path) -> Path:
@@ -31,8 +36,6 @@ def balance_plots(design, result, out_dir: Path) -> list[Path]:
     """Unbalance-force map over the workspace (x–z plane) and the admissible CoM region."""
     import pyvista as pv
 
-    from hapticopt.analysis.master import balance as mb
-
     out_dir.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     # --- force map: the design's own CoM offset, or the worst direction on the circle if balanced
@@ -45,7 +48,7 @@ def balance_plots(design, result, out_dir: Path) -> list[Path]:
     n = 60
     T3, PH = np.meshgrid(np.linspace(*ws.theta3, n), np.linspace(*ws.phi, n), indexing="ij")
     A = mb.unbalance_maps(design.geometry.upper_arm, design.geometry.forearm,
-                          max(result.moving_mass, 0.0) * 9.81, T3, PH)
+                          max(result.moving_mass, 0.0) * GRAVITY, T3, PH)
     F = np.linalg.norm(A @ P, axis=-1)
     t2 = 0.5 * np.pi + T3 - PH
     g = design.geometry
@@ -81,8 +84,6 @@ def transparency_plots(design, result, out_dir: Path) -> list[Path]:
     """|G_T(f)| along x and z at the evaluated pose, with the ±3 dB band."""
     import pyvista as pv
 
-    from hapticopt.analysis.master import transparency as mt
-
     out_dir.mkdir(parents=True, exist_ok=True)
     f = np.geomspace(0.05, 50.0, 300)
     G = np.abs(mt.transfer(result.coefficients, f, result.setup))[0]  # (2 axes, f)
@@ -107,3 +108,35 @@ def sweep_plot(rows: list[dict], out: Path) -> Path:
     chart.line(s, [r["transparency_bandwidth_z_Hz"] for r in rows], color="r", width=2.0, label="bandwidth z [Hz]")
     chart.line(s[[0, -1]], [0.1, 0.1], color="gray", style="--", label="0.1 N JND")
     return _save(_chart_plotter(chart), out)
+
+
+def workspace_plots(design, result, out_dir: Path) -> list[Path]:
+    """Off-screen pyvista picture: workspace points coloured by 1/κ₂, and the required box."""
+    import pyvista as pv
+
+    prm = mk.params_of(design)
+    n = 14
+    t1 = np.linspace(float(prm.theta1_min), float(prm.theta1_max), n)
+    t3 = np.linspace(float(prm.theta3_min), float(prm.theta3_max), n)
+    ph = np.linspace(float(prm.parallelogram_min), float(prm.parallelogram_max), n)
+    T1, T3, PH = np.meshgrid(t1, t3, ph, indexing="ij")
+    q = np.asarray(mk.q_from_theta3_phi(T1, T3, PH)).reshape(-1, 3)
+    p = np.asarray(mk.forward_kinematics(prm, q)) * 1e3
+    inv_kappa = 1.0 / mw.condition_field(design, q)
+    target = Path(out_dir) / f"{design.name}_workspace.png"
+    pl = pv.Plotter(off_screen=True, window_size=(900, 700))
+    pl.add_points(pv.PolyData(p), scalars=inv_kappa, point_size=5, render_points_as_spheres=True,
+                  scalar_bar_args={"title": "1/κ₂"})
+    if result.volume > 0:
+        c = np.asarray(result.box_centre) * 1e3
+        b = np.asarray(result.box) * 1e3
+        bounds = [c[0] - b[0] / 2, c[0] + b[0] / 2, c[1] - b[1] / 2, c[1] + b[1] / 2, c[2] - b[2] / 2, c[2] + b[2] / 2]
+        pl.add_mesh(pv.Box(bounds=bounds), style="wireframe", color="red", line_width=2)
+    pl.add_axes()
+    pl.show_bounds(xtitle="x [mm]", ytitle="y [mm]", ztitle="z [mm]")
+    pl.add_text(f"{design.name}: coverage {result.coverage:.3f}, GCI {result.global_conditioning_index:.3f}",
+                font_size=10)
+    with atomic_path(target) as tmp:
+        pl.screenshot(str(tmp))
+    pl.close()
+    return [target]

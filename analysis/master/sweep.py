@@ -23,6 +23,7 @@ import numpy as np
 from hapticopt.analysis.master import dynamics_numpy as mn
 from hapticopt.analysis.master import transparency as mt
 from hapticopt.design.master.params import MasterDesign
+from hapticopt.analysis.master import dynamics as md
 
 _DB3 = np.sqrt(2.0)  # ±3 dB as half/double power, as analysis.master_transparency
 
@@ -104,7 +105,6 @@ def sweep(design: MasterDesign, axis: str = "x", *, pose: np.ndarray | None = No
     """Sine sweep along ``axis`` ('x' or 'z') around the frequency-domain bandwidth."""
     import mujoco
 
-    from hapticopt.analysis.master import dynamics as md
     from hapticopt.design.master.mjcf import master_mjcf
 
     a = mt.AXES.index(axis)

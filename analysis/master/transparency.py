@@ -24,7 +24,6 @@ which leaves −3 dB at ω = √((1 − 1/√2) K/m) (see tests/analysis/test_ma
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -32,6 +31,8 @@ from hapticopt.analysis.master import dynamics as md
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design.master.params import MasterDesign
+from hapticopt.analysis.master import dynamics_numpy as mn
+from hapticopt.analysis.master import balance as mb
 
 SPRING_N_PER_M = 50.0  # 0.05 N/mm, seed 003's ideal force
 AMPLITUDE_M = 7.5e-3  # 7.5 mm, seed 003's hand motion
@@ -89,7 +90,6 @@ def axis_coefficients(model: md.MassModel, q: np.ndarray, amplitude: float = AMP
     eq-4 form whose coefficients come from the general G (:func:`md.gravity_parameters`;
     the tests check the form against the general ∂V/∂q).
     """
-    from hapticopt.analysis.master import dynamics_numpy as mn
 
     q = np.asarray(q, dtype=float)
     flat = q.reshape(-1, 3)
@@ -224,7 +224,6 @@ def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, se
              pose: np.ndarray | None = None, model: md.MassModel | None = None) -> MasterTransparency:
     """Transparency bandwidth along x and z at ``pose`` (default :func:`default_pose`); at fine
     fidelity also the worst case over a grid of the joint-range workspace."""
-    from hapticopt.analysis.master import balance as mb
 
     fidelity = Fidelity(fidelity)
     model = md.model_of(design) if model is None else model
@@ -266,10 +265,3 @@ def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, se
         apparent_mass=(float(coef.mass[0, 0]), float(coef.mass[0, 1])),
         gravity_stiffness=(float(coef.gravity_stiffness[0, 0]), float(coef.gravity_stiffness[0, 1])),
         worst_bandwidth=worst, worst_pose=worst_pose, setup=setup, coefficients=coef, status=status, message=message)
-
-
-def plot(design: MasterDesign, result: MasterTransparency, out_dir: Path) -> list[Path]:
-    """|G_T(f)| curves along x and z at the pose."""
-    from hapticopt.analysis.master import plots as master_plots
-
-    return master_plots.transparency_plots(design, result, Path(out_dir))

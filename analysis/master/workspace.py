@@ -35,7 +35,6 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import jax
@@ -280,40 +279,6 @@ def condition_field(design: MasterDesign, q: jax.Array) -> np.ndarray:
     s = np.asarray(jnp.linalg.svd(mk.jacobian(mk.params_of(design), jnp.asarray(q)), compute_uv=False))
     with np.errstate(divide="ignore"):
         return np.where(s[..., -1] > 0, s[..., 0] / np.maximum(s[..., -1], 1e-300), np.inf)
-
-
-def plot(design: MasterDesign, result: MasterWorkspace, out_dir: Path) -> list[Path]:
-    """Off-screen pyvista picture: workspace points coloured by 1/κ₂, and the required box."""
-    import pyvista as pv
-
-    from hapticopt.design.atomic import atomic_path
-
-    prm = mk.params_of(design)
-    n = 14
-    t1 = np.linspace(float(prm.theta1_min), float(prm.theta1_max), n)
-    t3 = np.linspace(float(prm.theta3_min), float(prm.theta3_max), n)
-    ph = np.linspace(float(prm.parallelogram_min), float(prm.parallelogram_max), n)
-    T1, T3, PH = np.meshgrid(t1, t3, ph, indexing="ij")
-    q = np.asarray(mk.q_from_theta3_phi(T1, T3, PH)).reshape(-1, 3)
-    p = np.asarray(mk.forward_kinematics(prm, q)) * 1e3
-    inv_kappa = 1.0 / condition_field(design, q)
-    target = Path(out_dir) / f"{design.name}_workspace.png"
-    pl = pv.Plotter(off_screen=True, window_size=(900, 700))
-    pl.add_points(pv.PolyData(p), scalars=inv_kappa, point_size=5, render_points_as_spheres=True,
-                  scalar_bar_args={"title": "1/κ₂"})
-    if result.volume > 0:
-        c = np.asarray(result.box_centre) * 1e3
-        b = np.asarray(result.box) * 1e3
-        bounds = [c[0] - b[0] / 2, c[0] + b[0] / 2, c[1] - b[1] / 2, c[1] + b[1] / 2, c[2] - b[2] / 2, c[2] + b[2] / 2]
-        pl.add_mesh(pv.Box(bounds=bounds), style="wireframe", color="red", line_width=2)
-    pl.add_axes()
-    pl.show_bounds(xtitle="x [mm]", ytitle="y [mm]", ztitle="z [mm]")
-    pl.add_text(f"{design.name}: coverage {result.coverage:.3f}, GCI {result.global_conditioning_index:.3f}",
-                font_size=10)
-    with atomic_path(target) as tmp:
-        pl.screenshot(str(tmp))
-    pl.close()
-    return [target]
 
 
 def characteristic_length(design: MasterDesign) -> float:

@@ -42,7 +42,6 @@ from hapticopt.analysis.prrr.lumped_plant import (
 )
 from hapticopt.analysis.loop.plant import Plant
 from hapticopt.analysis.loop.scene import (
-    Backend,
     BoxMode,
     Effect,
     EnvKind,
@@ -53,15 +52,13 @@ from hapticopt.analysis.loop.scene import (
 )
 from hapticopt.analysis.status import Status
 from hapticopt.design.prrr.params import PrrrDesign
+from hapticopt.design.units import GRAVITY
+from hapticopt.analysis.loop.traces import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces
 
 #: plant substeps per controller period when Coulomb friction is on (linear parts are exact at 1)
 FRICTION_SUBSTEPS = {Fidelity.DRAFT: 1, Fidelity.STANDARD: 1, Fidelity.FINE: 10}  # docs/closed_loop.md: 1 is within 0.1 %
-#: controller ticks per nominal period with sampling off (continuous-time limit)
-OVERSAMPLE = {Fidelity.DRAFT: 10, Fidelity.STANDARD: 20, Fidelity.FINE: 50}
 CHUNK_TICKS = 1000
 UNROLL = 1  # ticks per compiled loop iteration (docs/closed_loop.md)
-SATURATION_WINDOW_S = 0.1
-SATURATION_FRACTION = 0.5
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -111,27 +108,11 @@ def setup(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STA
     quantum = 0.5 * design.actuator.spring * res_m**2
     scale = (0.5 * (op.stiffness + k_env) * amp**2 + 0.5 * (M + op.mass) * (w * amp) ** 2
              + 0.5 * float(np.linalg.norm(env.force_amplitude)) ** 2 / kx
-             + 0.5 * (M * 9.81) ** 2 / kx + 0.5 * float(np.dot(env.stiffness, p0**2))
+             + 0.5 * (M * GRAVITY) ** 2 / kx + 0.5 * float(np.dot(env.stiffness, p0**2))
              + 0.5 * design.actuator.spring * (100 * res_m) ** 2)
     return Setup(design=design, scene=scene, resolution=res, model=model, cfg=cfg, gains=gains, period=period,
                  ticks=ticks, substeps=substeps, delay_ticks=delay, quantize=Effect.QUANTIZATION in fx,
                  energy_scale=scale, energy_floor=100 * quantum if Effect.QUANTIZATION in fx else 0.0)
-
-
-# ------------------------------------------------------------------------------- traces & metrics
-@dataclass(frozen=True, kw_only=True)
-class Traces:
-    """Per-tick records, leading axes (ticks, batch)."""
-
-    period: float
-    energy: np.ndarray  # (N, B) [J]
-    saturated: np.ndarray  # (N, B) bool
-    stop_tick: np.ndarray  # (B,) int, −1 = ran to the end
-    position: np.ndarray | None = None  # (N, B, 3) [m]
-    hand_force: np.ndarray | None = None  # (N, B, 3) [N]
-    actuator_force: np.ndarray | None = None  # (N, B, 3) [N]
-    force_reference: np.ndarray | None = None  # (N, B, 3) [N]
-    velocity: np.ndarray | None = None  # (N, B, 3) [m/s]
 
 
 def classify(tr: Traces, st: Setup) -> tuple[np.ndarray, np.ndarray]:
@@ -393,30 +374,6 @@ class Simulator:
         return Traces(period=self.st.period, stop_tick=np.asarray(carry[6]), **cat)
 
 
-def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
-             backend: Backend | None = None) -> Any:
-    """Run ``scene`` on ``design`` on the backend the resolver picks (or ``backend`` forces).
-
-    Lumped: the fused compiled loop, a :class:`ClosedLoopResult`. Multibody: the firmware in the
-    loop on the MuJoCo plant (:func:`analysis.mujoco_plant.simulate` for the 3-PRRR,
-    :func:`analysis.mujoco_master.simulate` for the master), a result with constraint health.
-    Every result's metrics name the backend and the reason (``backend``, ``backend_reason``).
-    """
-    res = resolve(scene, force=backend)
-    if scene.device == "master":
-        from hapticopt.analysis.master import mujoco_plant as mujoco_master
-
-        return mujoco_master.simulate(design, scene, fidelity=fidelity, reason=res.reason)
-    if res.backend == Backend.MULTIBODY:
-        from hapticopt.analysis.prrr import mujoco_plant
-
-        return mujoco_plant.simulate(design, scene, fidelity=fidelity, reason=res.reason)
-    st = setup(design, scene, fidelity=fidelity)
-    t0 = time.perf_counter()
-    tr = Simulator(st).run()
-    return metrics_from_traces(tr, st, 0, wall_time=time.perf_counter() - t0)
-
-
 def batch_gains(gains: firmware.Gains, **fields: Any) -> firmware.Gains:
     """``gains`` with some entries replaced by batched arrays (leading axis = batch)."""
     return gains._replace(**{k: jnp.asarray(v, dtype=jnp.float64) for k, v in fields.items()})
@@ -459,3 +416,11 @@ def run_with_plant(plant: Plant, controller: firmware.FirmwareController, st: Se
         for arr in (*rec.values(), energy, sat):
             arr[stop:] = arr[stop - 1] if stop > 0 else 0
     return Traces(period=st.period, energy=energy, saturated=sat, stop_tick=np.array([stop]), **rec)
+
+
+def simulate_lumped(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD) -> ClosedLoopResult:
+    """The scene on the lumped SEA plant, fused with the firmware in one compiled loop."""
+    st = setup(design, scene, fidelity=fidelity)
+    t0 = time.perf_counter()
+    tr = Simulator(st).run()
+    return metrics_from_traces(tr, st, 0, wall_time=time.perf_counter() - t0)

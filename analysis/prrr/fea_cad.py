@@ -35,8 +35,14 @@ from typing import Any
 
 import numpy as np
 
+from hapticopt.analysis.fem import hinge as fea_cad_hinge
 from hapticopt.analysis.fem import solid as fea
 from hapticopt.analysis.status import Status
+import tempfile
+from pathlib import Path
+from hapticopt.design import parts as _parts
+from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.analysis.fem.stress import p2_nodal_values
 
 #: mesh size [m] of refinement level k: link thickness · 1.5 / √2^k
 LEVEL0_FACTOR = 1.5
@@ -76,8 +82,6 @@ def cad_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int | None = Non
     ``pin_radius`` [m] (diagnostic): None = the bore radius (the physical pin); the boss radius
     fills each joint's bosses and gaps solid (a "rigid joint zone" like the frame model's).
     """
-    import tempfile
-    from pathlib import Path
 
     from build123d import export_brep
 
@@ -86,11 +90,10 @@ def cad_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int | None = Non
     branch = cad_prrr.DEFAULT_BRANCH if branch is None else branch
     pose = cad_prrr.solve_pose(design, p, branch=branch)
     specs = {k: v for k, v in cad_prrr.part_specs(design).items() if not (k == "base" or k.startswith("rail_"))}
-    from hapticopt.design import parts as _parts
 
     solids = _parts.posed(_parts.build_all(specs), cad_prrr.part_frames(design, pose))
     L = cad_prrr.layout(design)
-    gmsh = fea._gmsh_start("prrr_cad")
+    gmsh = fea.gmsh_start("prrr_cad")
     tags: dict[str, list[int]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for name, solid in solids.items():
@@ -140,7 +143,7 @@ def cad_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int | None = Non
             raise RuntimeError(f"found {len(faces)} rail-slot faces on carriage_{i} (expected 4)")
         groups_2d[f"support_leg{i}"] = faces
     vols = sorted(owners)
-    mesh = fea._gmsh_mesh(gmsh, size * 1e3, groups_2d, vols, groups_3d=groups_3d)
+    mesh = fea.gmsh_mesh(gmsh, size * 1e3, groups_2d, vols, groups_3d=groups_3d)
     centre = np.asarray(pose.p, dtype=float) + L.ball_z * np.array([0.0, 0.0, 1.0])
     info = dict(pose=pose, ball_centre=centre, ball_radius=0.5 * float(design.end_effector.handle_diameter),
                 stem_radius=0.5 * float(design.structure.stem_diameter),
@@ -180,7 +183,6 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
     frictionless bilateral cylindrical interface on one bore, :mod:`analysis.fea_cad_hinge`;
     ``release_side`` "frame" or "swapped" picks the bore).
     """
-    from hapticopt.analysis.prrr import frame_model as fm
 
     if joints not in ("bonded", "released"):
         raise ValueError(f"joints = {joints!r}: allowed 'bonded' or 'released'")
@@ -193,9 +195,7 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
     mesh, info = cad_mesh(design, size=size, p=p, branch=branch, pin_radius=pin_radius)
     split = None
     if joints == "released":
-        from hapticopt.analysis.fem import hinge as fea_cad_hinge
-
-        split = fea_cad_hinge.split_hinges(mesh, fea_cad_hinge.cad_hinges(design, info["pose"], side=release_side))
+        split = fea_cad_hinge.split_hinges(mesh, cad_hinges(design, info["pose"], side=release_side))
         mesh = split.mesh
     t_mesh = time.perf_counter() - t0
     hub_nodes = mesh.node_sets["platform"]
@@ -210,7 +210,7 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
             on_platform = np.zeros(basis.N, dtype=bool)
             n_vert = mesh.points.shape[1]
             e = basis.mesh.edges
-            for c in fea._component_dofs(basis):
+            for c in fea.component_dofs(basis):
                 on_platform[c[:n_vert]] = is_platform
                 # edge DOFs: on the platform when both end vertices are
                 on_platform[c[n_vert:]] = is_platform[e[0]] & is_platform[e[1]]
@@ -219,7 +219,7 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
         elif rigid != "ball":
             raise ValueError(f"rigid = {rigid!r}: allowed 'stem' or 'ball'")
         # whole DOF locations only (all three components), so the reduced system keeps node blocks
-        comps = fea._component_dofs(basis)
+        comps = fea.component_dofs(basis)
         whole = in_ball[comps[0]] & in_ball[comps[1]] & in_ball[comps[2]]
         out = np.zeros(basis.N, dtype=bool)
         for c in comps:
@@ -239,7 +239,6 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
     k = 1.0 / np.diagonal(C)
     disp = disp_edges = None
     if keep_fields:
-        from hapticopt.analysis.fem.stress import p2_nodal_values
 
         disp, disp_edges = p2_nodal_values(sol.basis, sol.displacements[:, 0])
     status, message = Status.OK, ""
@@ -250,3 +249,23 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
                         timings_s={"mesh": t_mesh, **sol.timings_s}, branch=info["branch"], status=status,
                         message=message, mesh=mesh if keep_fields else None, displacement=disp,
                         displacement_edges=disp_edges)
+
+
+#: released part per joint kind: the frame model's hinge at the pin's link-side end (frame_model.py)
+RELEASED_PART = {"frame": {"r1": "link1", "r2": "link2", "r3": "link2"},
+                 "swapped": {"r1": "carriage", "r2": "link1", "r3": "platform"}}
+
+
+def cad_hinges(design, pose, *, side: str = "frame") -> list[fea_cad_hinge.Hinge]:
+    """The nine released joints of the posed 3-PRRR CAD (pins of :func:`_pins`)."""
+    if side not in RELEASED_PART:
+        raise ValueError(f"side = {side!r}: allowed {sorted(RELEASED_PART)}")
+    out = []
+    for pin in _pins(design, pose):
+        kind, leg = pin["name"].split("_")[1:]
+        axis = pin["axis"] / np.linalg.norm(pin["axis"])
+        part = RELEASED_PART[side][kind]
+        part = part if part == "platform" else f"{part}_{leg}"
+        out.append(fea_cad_hinge.Hinge(name=f"{kind}_{leg}", pin=pin["name"], part=part,
+                         point=np.asarray(pin["start"], dtype=float), axis=axis, radius=float(pin["radius"])))
+    return out

@@ -34,6 +34,7 @@ from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax a
 from hapticopt.design.prrr.kinematics import jacobian
 from hapticopt.analysis.loop.scene import BoxMode, Effect, EnvKind, Resolution, Scene
 from hapticopt.design.prrr.params import PrrrDesign
+from hapticopt.design.units import GRAVITY
 
 #: cubic uniform B-spline basis of seed 000 eq (23)
 BSPLINE = np.array([[-1.0, 3.0, -3.0, 1.0], [3.0, -6.0, 3.0, 0.0], [-3.0, 0.0, 3.0, 0.0], [1.0, 4.0, 1.0, 0.0]]) / 6.0
@@ -132,7 +133,7 @@ def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: f
         force_amplitude=f64(env.force_amplitude), force_omega=f64(2.0 * math.pi * env.force_frequency),
         kp=f64(cs.force_gain), ki=f64(cs.integral_gain), motor_limit=f64(limit),
         friction_comp=f64(cs.friction_compensation), friction_comp_velocity=f64(cs.friction_compensation_velocity),
-        weight=f64(design.end_effector.mass * 9.81),
+        weight=f64(design.end_effector.mass * GRAVITY),
     )
     return cfg, gains
 

@@ -28,6 +28,8 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import HapticoptError
 from hapticopt.design.prrr.params import PrrrDesign
+from hapticopt.analysis.prrr import interference_fast
+from hapticopt.analysis.prrr.workspace import INTERFERENCE_SAMPLING
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -47,8 +49,6 @@ class PrrrInterference:
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> PrrrInterference:
     """Fast interference over the workspace samples (same model and samples at every fidelity)."""
-    from hapticopt.analysis.prrr import interference_fast
-    from hapticopt.analysis.prrr.workspace import INTERFERENCE_SAMPLING
 
     Fidelity(fidelity)
     t0 = time.perf_counter()

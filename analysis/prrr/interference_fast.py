@@ -47,6 +47,8 @@ import numpy as np
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.parts import Kind, Role
 from hapticopt.design.prrr.params import PrrrDesign
+from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
+from hapticopt.analysis.prrr.workspace import ELBOW_BRANCH, workspace_sample_weights
 
 #: a primitive pair collides when its smallest overlap over the candidate axes exceeds this [m]:
 #: above the chord error of the reference's 32-segment circles at the 12 mm bosses,
@@ -159,7 +161,6 @@ def part_frames_batch(design: PrrrDesign, points, *, branch: int = cad_prrr.DEFA
                       ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], np.ndarray]:
     """World rotation (n, 3, 3) and origin (n, 3) [m] of every part at ``points`` (n, 3) [m]
     (:func:`design.cad_prrr.part_frames_batch` after the numpy IK), and whether each point is reachable."""
-    from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
 
     g = design.geometry
     p = np.atleast_2d(np.asarray(points, dtype=float))
@@ -298,7 +299,6 @@ def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int
       least ``scale`` deep; docs/workspace_interference.md).
 
     Both 0 for an empty sample."""
-    from hapticopt.analysis.prrr.workspace import ELBOW_BRANCH, workspace_sample_weights
 
     pts, w = workspace_sample_weights(design, n_phi=n_phi, n_r=n_r, n_z=n_z)
     if len(pts) == 0 or not w.sum() > 0:

@@ -39,8 +39,8 @@ from hapticopt.analysis.loop.plant import Observation, Sensors
 from hapticopt.design.prrr.kinematics import jacobian
 from hapticopt.analysis.loop.scene import Effect, Resolution, Scene
 from hapticopt.design.prrr.params import PrrrDesign
+from hapticopt.design.units import GRAVITY
 
-G_ACC = 9.81  # [m/s²]
 
 
 class PlantMode(StrEnum):
@@ -105,7 +105,7 @@ def build_model(design: PrrrDesign, scene: Scene, resolution: Resolution) -> Lum
         mode = PlantMode.FULL
     Mout = (M + mh) * JtJ
     Khand, Chand = kh * JtJ, bh * JtJ
-    weight = np.array([0.0, 0.0, -M * G_ACC]) if Effect.GRAVITY in fx else np.zeros(3)
+    weight = np.array([0.0, 0.0, -M * GRAVITY]) if Effect.GRAVITY in fx else np.zeros(3)
     bias_out = J.T @ (kh * offset + weight)
     Z = np.zeros((3, 3))
     if mode == PlantMode.FULL:

@@ -18,7 +18,7 @@ Two closures (:class:`Platform`):
   constraints allow.
 
 Link masses (:class:`LinkMasses`): ``REAL`` gives each link the mass, centre of mass and inertia
-of issue 3's analytic mass model (``design.mass_properties``, itself tested against the CAD), at
+of the analytic mass model (``hapticopt.design.mass_properties``, itself tested against the CAD), at
 the CAD's elbow branch, and the platform
 the rest of the equivalent mass M (seed 002 Table 4: M includes the links as a point mass, so
 the moving mass is the same in both modes — what differs is where it sits); ``LUMPED`` puts all
@@ -40,7 +40,6 @@ from typing import Any
 
 import numpy as np
 
-from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.prrr.kinematics import (
     inverse_kinematics,
     jacobian,
@@ -49,8 +48,15 @@ from hapticopt.design.prrr.kinematics import (
     params_of,
     slider_offset,
 )
-from hapticopt.design.errors import InvalidDesign, InvalidInput
+from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.prrr.params import PrrrDesign
+from hapticopt.design.units import GRAVITY
+from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, ZERO_HEALTH, Health, Integrator, SolverSettings  # noqa: F401
+from hapticopt.analysis.loop.operator import Operator
+from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design.prrr.kinematics import inverse_kinematics as ik_fn
+import time as _time
+import dataclasses
 
 #: mass of a link [kg] when link masses are lumped into the end-effector (0.15 % of M each; at
 #: 1e-4 kg the links' fast constraint modes dissipate 3 % of the energy in 10 periods, measured
@@ -74,50 +80,6 @@ class Platform(StrEnum):
     FREE = "free"
 
 
-class Integrator(StrEnum):
-    EULER = "Euler"
-    IMPLICITFAST = "implicitfast"
-    IMPLICIT = "implicit"
-    RK4 = "RK4"
-
-
-@dataclass(frozen=True, kw_only=True)
-class SolverSettings:
-    """MuJoCo solver settings: part of the fidelity level.
-
-    ``solref`` = (time constant [s], damping ratio) of the equality constraints; MuJoCo clamps
-    the time constant to ≥ 2·timestep. ``solimp`` = (d0, d_width, width [m], midpoint, power).
-    """
-
-    timestep: float = 1e-4
-    integrator: Integrator = Integrator.RK4
-    solref: tuple[float, float] = (2e-4, 1.0)
-    solimp: tuple[float, float, float, float, float] = (0.9999, 0.9999, 0.001, 0.5, 2.0)
-    iterations: int = 50
-    tolerance: float = 1e-12
-
-    def __post_init__(self) -> None:
-        if not (0.0 < self.timestep <= 0.01):
-            raise InvalidInput(f"solver timestep = {self.timestep!r} s must be in (0, 0.01]")
-        if not (0.0 < self.solimp[0] < 1.0 and 0.0 < self.solimp[1] < 1.0):
-            raise InvalidInput(f"solver solimp = {self.solimp!r}: d0 and d_width must be in (0, 1)")
-
-
-#: Solver settings per fidelity (chosen from the measured table in docs/multibody.md).
-SOLVER_BY_FIDELITY: dict[Fidelity, SolverSettings] = {
-    Fidelity.DRAFT: SolverSettings(timestep=2.5e-4, integrator=Integrator.EULER, solref=(5e-4, 1.0)),
-    Fidelity.STANDARD: SolverSettings(timestep=1e-4, integrator=Integrator.EULER, solref=(2e-4, 1.0)),
-    Fidelity.FINE: SolverSettings(timestep=2.5e-5, integrator=Integrator.RK4, solref=(5e-5, 1.0)),
-}
-
-
-@dataclass(frozen=True, kw_only=True)
-class HandSettings:
-    """Operator hand (seed 000 eq 1): mass on springs/dampers to the reference, tied to the handle."""
-
-    mass: float = 0.3  # [kg]
-    damping: float = 50.0  # [N·s/m]
-    stiffness: float = 20e3  # [N/m]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -132,7 +94,7 @@ class ModelOptions:
     coulomb_friction: bool = False  # frictionloss on the output slider
     gravity: bool = False
     joint_damping: float = 0.0  # R-joint viscous damping [N·m·s/rad]
-    hand: HandSettings | None = None  # operator hand body coupled to the handle
+    hand: Operator | None = None  # operator hand body coupled to the handle
     spring_override: float | None = None  # SEA spring [N/m] instead of the design's
     solver: SolverSettings = field(default_factory=SolverSettings)
 
@@ -195,13 +157,10 @@ def home_pose(design: PrrrDesign) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
 
 
 def _real_link_inertials(design: PrrrDesign) -> dict[str, Any]:
-    """Link inertias of issue 3's analytic mass model (``design.mass_properties``, tested against
+    """Link inertias of the analytic mass model (``hapticopt.design.mass_properties``, tested against
     the CAD), moved from the CAD body frames at the home pose into this model's world-aligned body
     frames: name → (body origin [m] ↦ ``<inertial>`` element)."""
-    from hapticopt.design.prrr import cad as cad_prrr
-    from hapticopt.design import mass_properties as mp
-
-    bodies = mp.analytic(design).bodies()
+    bodies = cad_prrr.mass_properties(design).bodies()
     frames = cad_prrr.part_frames(design, cad_prrr.solve_pose(design, (0.0, 0.0, 0.0), branch=BRANCH))
     out: dict[str, Any] = {}
     for name, pm in bodies.items():
@@ -334,7 +293,7 @@ def _assemble(design: PrrrDesign, options: ModelOptions, legs: list, tendons: li
     return f"""<mujoco model="{design.name}">
   <compiler angle="radian" inertiafromgeom="auto" autolimits="true"/>
   <option timestep="{sol.timestep:.9g}" integrator="{sol.integrator.value}" iterations="{sol.iterations}"
-          tolerance="{sol.tolerance:.3g}" gravity="0 0 -9.81" cone="pyramidal" jacobian="dense">
+          tolerance="{sol.tolerance:.3g}" gravity="0 0 {-GRAVITY:g}" cone="pyramidal" jacobian="dense">
     <flag {' '.join(flags)}/>
   </option>
   <default>
@@ -411,27 +370,6 @@ def build(design: PrrrDesign, options: ModelOptions | None = None) -> PrrrMj:
     )
 
 
-# --------------------------------------------------------------------------- constraint health
-@dataclass(frozen=True, kw_only=True)
-class Health:
-    """Closed-chain health of one state (or the worst over a run)."""
-
-    violation: float  # largest equality-constraint residual [m]
-    rotation: float  # end-effector rotation angle [rad]
-    closure: float  # |p_ee − J(D_e − c_e)|: end-effector vs forward kinematics of the sliders [m]
-
-    def worst(self, other: "Health") -> "Health":
-        return Health(violation=max(self.violation, other.violation),
-                      rotation=max(self.rotation, other.rotation),
-                      closure=max(self.closure, other.closure))
-
-    def metrics(self) -> dict[str, float]:
-        return {"constraint_violation_mm": self.violation * 1e3,
-                "ee_rotation_mrad": self.rotation * 1e3,
-                "closure_error_mm": self.closure * 1e3}
-
-
-ZERO_HEALTH = Health(violation=0.0, rotation=0.0, closure=0.0)
 
 
 def ee_position(mj: PrrrMj, data: Any) -> np.ndarray:
@@ -460,7 +398,6 @@ def set_pose(mj: PrrrMj, data: Any, p: np.ndarray) -> None:
     """Place the mechanism exactly at end-effector position ``p`` [m] (IK, branch 0), at rest."""
     import mujoco
 
-    from hapticopt.design.prrr.kinematics import inverse_kinematics as ik_fn
 
     params = params_of(mj.design)
     ik = ik_fn(params, np.asarray(p, dtype=float))
@@ -486,7 +423,6 @@ def set_pose(mj: PrrrMj, data: Any, p: np.ndarray) -> None:
     mujoco.mj_forward(m, data)
 
 
-
 # --------------------------------------------------------------------------- accuracy probe
 @dataclass(frozen=True, kw_only=True)
 class ProbeResult:
@@ -508,12 +444,11 @@ def stress_probe(design: PrrrDesign, options: ModelOptions, *, duration: float =
     sliders are pushed by ±``force`` [N] (what a 25 N/mm wall at 4 mm asks for), updated every
     ``period`` [s] as a controller would. Returns the worst violation, rotation and closure.
     """
-    import time as _time
 
     import mujoco
 
     if options.hand is None:
-        options = _replace(options, hand=HandSettings())
+        options = _replace(options, hand=Operator())
     mj = build(design, options)
     m = mj.model
     data = mujoco.MjData(m)
@@ -530,7 +465,7 @@ def stress_probe(design: PrrrDesign, options: ModelOptions, *, duration: float =
         t = (n + 0.5) * period
         ref = amplitude * np.sin(2 * np.pi * freq * t)
         m.qpos_spring[spring_adr] = ref
-        data.qfrc_applied[mj.hand_dof] = HandSettings().damping * amplitude * 2 * np.pi * freq * np.cos(2 * np.pi * freq * t)
+        data.qfrc_applied[mj.hand_dof] = Operator().damping * amplitude * 2 * np.pi * freq * np.cos(2 * np.pi * freq * t)
         data.ctrl[:] = force * np.sin(2 * np.pi * fforce * t)
         mujoco.mj_step(m, data, nstep=n_sub)
         if not np.all(np.isfinite(data.qpos)):
@@ -544,6 +479,5 @@ def stress_probe(design: PrrrDesign, options: ModelOptions, *, duration: float =
 
 
 def _replace(obj: Any, **kw: Any) -> Any:
-    import dataclasses
 
     return dataclasses.replace(obj, **kw)

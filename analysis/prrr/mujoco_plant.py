@@ -31,23 +31,18 @@ import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr.firmware_numpy import NumpyController
-from hapticopt.analysis.prrr.mujoco_model import (
-    SOLVER_BY_FIDELITY,
-    HandSettings,
-    Health,
-    LinkMasses,
-    ModelOptions,
-    Platform,
-    PrrrMj,
-    SolverSettings,
-    build,
-    set_pose,
-)
+from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
+from hapticopt.analysis.loop.operator import Operator
+from hapticopt.analysis.prrr.mujoco_model import LinkMasses, ModelOptions, Platform, PrrrMj, build, set_pose
 from hapticopt.analysis.loop.plant import Observation, Sensors
 from hapticopt.analysis.loop.scene import Backend, Effect, Resolution, Scene, resolve
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
+from hapticopt.analysis.prrr import closed_loop
+from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
+from hapticopt.analysis.prrr.closed_loop import Traces
+from hapticopt.analysis.loop.scene import StabilityCriterion
 
 #: closed-chain tolerances of issue 8 (constraint violation [m], platform rotation [rad])
 VIOLATION_TOL = 1e-5
@@ -80,7 +75,7 @@ def model_options(scene: Scene, resolution: Resolution, *, fidelity: Fidelity = 
         raise InvalidInput(f"scene {scene.name}: simulation.output_locked tests the SEA force loop alone; "
                            "it runs on the lumped plant (no linkage moves)")
     op = scene.operator
-    hand = (HandSettings(mass=op.mass, damping=op.damping, stiffness=op.stiffness)
+    hand = (Operator(mass=op.mass, damping=op.damping, stiffness=op.stiffness)
             if Effect.OPERATOR in fx else None)
     if link_masses is None:
         link_masses = LinkMasses.REAL if Effect.LINK_DYNAMICS in fx else LinkMasses.LUMPED
@@ -255,8 +250,6 @@ class MujocoPlant:
         the reference loop; the plant may have run up to ``check_every − 1`` ticks beyond, which
         nothing reads). Tested equal to the reference loop (``tests/analysis/test_mujoco_plant.py``).
         """
-        from hapticopt.analysis.prrr.closed_loop import Traces
-        from hapticopt.analysis.loop.scene import StabilityCriterion
 
         mj, m, d = self._mujoco, self.model, self.data
         if not self._energy:
@@ -499,7 +492,6 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
              platform: Platform = Platform.FREE, link_masses: LinkMasses | None = None,
              solver: SolverSettings | None = None, reason: str | None = None) -> MultibodyResult:
     """Run ``scene`` on ``design`` with the firmware controller in the loop on the MuJoCo plant."""
-    from hapticopt.analysis.prrr import closed_loop
 
     choice = choose_backend(scene, force=Backend.MULTIBODY)
     res = choice.resolution
@@ -543,8 +535,6 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
 # ------------------------------------------------------------------------- stability limits
 def _setup_and_plant(design: PrrrDesign, scene: Scene, backend: Backend, fidelity: Fidelity,
                      platform: Platform, link_masses: LinkMasses | None):
-    from hapticopt.analysis.prrr import closed_loop
-    from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
 
     lumped_scene = dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS})
     st = closed_loop.setup(design, lumped_scene, fidelity=fidelity)
@@ -567,7 +557,6 @@ def stiffness_limit(design: PrrrDesign, scene: Scene, *, backend: Backend, axis:
     same stability classification (the scene's criterion, e.g. ``decay``). Returns the bracket
     (stable, unstable) after ``iterations`` halvings of its log-width.
     """
-    from hapticopt.analysis.prrr import closed_loop
 
     st, plant = _setup_and_plant(design, scene, backend, fidelity, platform, link_masses)
     lo, hi = bracket

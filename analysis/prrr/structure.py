@@ -12,7 +12,6 @@ reported next to the frame model with bonded joints at the CAD's elbow branch, t
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -22,6 +21,7 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
+from hapticopt.analysis.fem.stress import element_stress
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -138,7 +138,6 @@ def fea_element_stress(design: PrrrDesign, fea_result):
     u_edges = getattr(fea_result, "displacement_edges", None)
     if fea_result.mesh is None or fea_result.displacement is None or u_edges is None:
         return None
-    from hapticopt.analysis.fem.stress import element_stress
 
     return element_stress(fea_result.mesh.points, fea_result.mesh.tets, fea_result.displacement, u_edges,
                           youngs_modulus=design.structure.youngs_modulus,
@@ -157,10 +156,3 @@ def stiffness_batch(designs: list[PrrrDesign], *, p=(0.0, 0.0, 0.0), load_height
     finite = np.all(np.isfinite(out["stiffness_load"]), axis=-1) & np.isfinite(out["condition"])
     out["ok"] = out["reachable"] & finite & (out["condition"] <= fm.COND_LIMIT)
     return out
-
-
-def plot(design: PrrrDesign, result: StructuralStiffness, out_dir: Path) -> list[Path]:
-    """Deformed frame (and, at fine fidelity, the FEA displacement/stress field) as PNG files."""
-    from hapticopt.analysis.fem import solid as fea
-
-    return fea.plot_structure(design, result, Path(out_dir))

@@ -49,7 +49,6 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import NamedTuple
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
@@ -62,6 +61,8 @@ from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, jac
 from hapticopt.analysis.prrr.statics import condition_2norm
 from hapticopt.analysis.status import Status
 from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
+from hapticopt.design.errors import HapticoptError
+from hapticopt.analysis import interference
 
 _GAMMA = np.asarray(GAMMAS)
 _THIRD = 2.0 * math.pi / 3.0
@@ -477,7 +478,6 @@ def interference_samples(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) 
     """Workspace sample points (m, 3) [m], their volume weights (m,) [m³] (polar cells:
     r·Δr·Δφ·Δz) and whether each pose is free of link interference (``analysis.interference``,
     the CAD's parts and elbow branch)."""
-    from hapticopt.analysis import interference
 
     pts, weights = workspace_sample_weights(design, n_phi=n_phi, n_r=n_r, n_z=n_z)
     if len(pts) == 0:
@@ -490,7 +490,6 @@ def interference_samples(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) 
 def _with_interference(design: PrrrDesign, result: PrrrWorkspace) -> PrrrWorkspace:
     """Remove the sampled share of the volume whose poses have link interference. The result is
     a subset of the reach-only workspace by construction (poses are only removed)."""
-    from hapticopt.design.errors import HapticoptError
 
     try:
         _, w, free = interference_samples(design, **INTERFERENCE_SAMPLING)
@@ -510,30 +509,3 @@ def cylinder_z_range(design: PrrrDesign, result: PrrrWorkspace) -> tuple[float, 
     g = design.geometry
     half = g.stroke / 2.0 - result.cylinder_diameter / 2.0 / math.tan(g.beta)
     return -half, half
-
-
-def plot(design: PrrrDesign, result: PrrrWorkspace, out_dir: Path) -> list[Path]:
-    """Off-screen pyvista picture of sampled workspace points and the inscribed cylinder."""
-    import pyvista as pv
-
-    from hapticopt.design.atomic import atomic_path
-
-    pts = sample_points(workspace_params(design), n_phi=40, n_r=12, n_z=6)
-    target = Path(out_dir) / f"{design.name}_workspace.png"
-    pl = pv.Plotter(off_screen=True, window_size=(900, 700))
-    if len(pts):
-        pl.add_points(pv.PolyData(pts * 1e3), scalars=pts[:, 2] * 1e3, point_size=5, opacity=0.5,
-                      render_points_as_spheres=True, scalar_bar_args={"title": "z [mm]"})
-    if result.cylinder_diameter > 0:
-        z0, z1 = cylinder_z_range(design, result)
-        cyl = pv.Cylinder(center=(0.0, 0.0, (z0 + z1) * 500.0), direction=(0.0, 0.0, 1.0),
-                          radius=result.cylinder_diameter * 500.0, height=(z1 - z0) * 1e3, resolution=96)
-        pl.add_mesh(cyl, color="orange", opacity=0.55)
-    pl.add_axes()
-    pl.show_bounds(xtitle="x [mm]", ytitle="y [mm]", ztitle="z [mm]")
-    pl.add_text(f"{design.name}: V = {result.volume * 1e9:.4g} mm³, inscribed cylinder "
-                f"φ{result.cylinder_diameter * 1e3:.1f} × {result.cylinder_height * 1e3:.1f} mm", font_size=10)
-    with atomic_path(target) as tmp:
-        pl.screenshot(str(tmp))
-    pl.close()
-    return [target]

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hapticopt.design import mass_properties as _mp
 from hapticopt.design import parts as _parts
 from hapticopt.design.errors import InvalidDesign, InvalidInput
 from hapticopt.design.master.params import MasterDesign
@@ -36,6 +37,9 @@ from hapticopt.design.parts import (
     sphere,
     transform,
 )
+from hapticopt.design.master.kinematics import forward_kinematics, params_of
+from hapticopt.design.master.kinematics import inverse_kinematics
+from hapticopt.design.master.kinematics import link_frames
 
 MIN_FEATURE = 0.5e-3
 EX, EY, EZ = np.eye(3)
@@ -156,13 +160,11 @@ def home_q(design: MasterDesign) -> np.ndarray:
 
 def home_point(design: MasterDesign) -> np.ndarray:
     """Handle centre at :func:`home_q` [m]."""
-    from hapticopt.design.master.kinematics import forward_kinematics, params_of
 
     return np.asarray(forward_kinematics(params_of(design), home_q(design)))
 
 
 def pose_from_q(design: MasterDesign, q) -> MasterPose:
-    from hapticopt.design.master.kinematics import forward_kinematics, params_of
 
     q = np.asarray(q, dtype=float)
     return MasterPose(p=np.asarray(forward_kinematics(params_of(design), q)), q=q)
@@ -171,7 +173,6 @@ def pose_from_q(design: MasterDesign, q) -> MasterPose:
 def solve_pose(design: MasterDesign, p) -> MasterPose:
     """Joint angles reaching the handle position ``p`` [m]; raises :class:`InvalidInput` outside
     the reach or the joint ranges."""
-    from hapticopt.design.master.kinematics import inverse_kinematics, params_of
 
     p = np.asarray(p, dtype=float)
     ik = inverse_kinematics(params_of(design), p)
@@ -185,7 +186,6 @@ def solve_pose(design: MasterDesign, p) -> MasterPose:
 
 def part_frames(design: MasterDesign, pose: MasterPose) -> dict[str, np.ndarray]:
     """4×4 world transform of every part's frame at ``pose`` [m]."""
-    from hapticopt.design.master.kinematics import link_frames, params_of
 
     lf = link_frames(params_of(design), pose.q)
 
@@ -202,7 +202,6 @@ def part_frames(design: MasterDesign, pose: MasterPose) -> dict[str, np.ndarray]
 
 def joint_axes(design: MasterDesign, pose: MasterPose) -> list[JointAxis]:
     """Joint axes from the kinematics (points and directions, m)."""
-    from hapticopt.design.master.kinematics import link_frames, params_of
 
     lf = link_frames(params_of(design), pose.q)
     a = np.asarray(lf.upper_arm.rotation)[:, 1]
@@ -224,23 +223,6 @@ def joint_axes(design: MasterDesign, pose: MasterPose) -> list[JointAxis]:
     ]
 
 
-def joint_limits(model, *, step_deg: float = 2.0, q=None) -> list:
-    """Collision-free ranges of θ2 (upper arm vs turret), θ3 (driver vs turret) and the elbow
-    (forearm vs upper arm) from the pose ``q`` (home by default); see
-    :func:`analysis.interference.sweep_joint`."""
-    from hapticopt.analysis.interference import sweep_joint
-
-    design = model.design
-    pose = pose_from_q(design, home_q(design) if q is None else q)
-    frames = part_frames(design, pose)
-    out = []
-    for ax in joint_axes(design, pose):
-        if ax.name in ("theta2", "theta3", "elbow"):
-            out.append(sweep_joint(model, frames, ax.parent, ax.child, ax.point, ax.direction, ax.reference,
-                                   name=ax.name, step_deg=step_deg))
-    return out
-
-
 # ---------------------------------------------------------------------------- build123d
 def build_parts(design: MasterDesign) -> dict[str, object]:
     """Every part as a build123d solid in its body's frame (mm)."""
@@ -249,3 +231,11 @@ def build_parts(design: MasterDesign) -> dict[str, object]:
 
 def posed(solids: dict[str, object], frames: dict[str, np.ndarray]) -> dict[str, object]:
     return _parts.posed(solids, frames)
+
+
+def mass_properties(design, *, method: _mp.Method = _mp.Method.ANALYTIC, solids=None) -> _mp.MassProperties:
+    """Mass properties of every part: closed forms (default) or OpenCASCADE's integrals of the solids."""
+    specs = part_specs(design)
+    if method == _mp.Method.ANALYTIC:
+        return _mp.analytic(design, specs=specs)
+    return _mp.from_cad(design, solids=solids if solids is not None else build_parts(design), specs=specs)

@@ -21,6 +21,8 @@ from typing import Any
 import numpy as np
 
 from hapticopt.design.master.params import MasterDesign
+from hapticopt.design.master.mass import analytic_mass_properties
+from hapticopt.design.units import GRAVITY
 
 #: reduced → full joint velocities, rows [theta1, theta2, forearm_rel, theta3, coupler_rel]
 REDUCTION = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 1.0], [0.0, 0.0, 1.0], [0.0, 1.0, -1.0]])
@@ -66,8 +68,6 @@ def _part(body: Any, indent: str) -> str:
 def master_mjcf(design: MasterDesign, mass_properties: Any = None, *, gravity: bool = True,
                 timestep: float = 5e-4) -> str:
     """MJCF text of ``design``'s master arm (SI units, radians)."""
-    from hapticopt.analysis.master.dynamics import GRAVITY, analytic_mass_properties
-
     bodies = analytic_mass_properties(design) if mass_properties is None else tuple(mass_properties)
     by_frame: dict[str, list[Any]] = {}
     for b in bodies:

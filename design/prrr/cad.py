@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hapticopt.design import mass_properties as _mp
 from hapticopt.design import parts as _parts
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.parts import (
@@ -36,6 +37,9 @@ from hapticopt.design.parts import (
     transform,
 )
 from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
+from hapticopt.design.prrr.kinematics import inverse_kinematics, params_of
+from hapticopt.design.errors import InvalidInput
+from hapticopt.design.prrr.kinematics import leg_chain, leg_frames
 
 #: smallest wall or feature the CAD accepts [m] (below this OCCT produces slivers)
 MIN_FEATURE = 0.5e-3
@@ -298,8 +302,6 @@ def home_point(design: PrrrDesign) -> np.ndarray:
 
 def solve_pose(design: PrrrDesign, p=(0.0, 0.0, 0.0), *, branch: int = DEFAULT_BRANCH) -> PrrrPose:
     """Inverse kinematics at ``p`` [m]; raises :class:`InvalidInput` when p is not reachable."""
-    from hapticopt.design.prrr.kinematics import inverse_kinematics, params_of
-    from hapticopt.design.errors import InvalidInput
 
     p = np.asarray(p, dtype=float)
     ik = inverse_kinematics(params_of(design), p)
@@ -344,7 +346,6 @@ def part_frames_batch(design: PrrrDesign, sliders: np.ndarray, theta: np.ndarray
 
 def joint_axes(design: PrrrDesign, pose: PrrrPose) -> list[JointAxis]:
     """Joint axes from the kinematics (:func:`hapticopt.design.prrr.kinematics.leg_chain`)."""
-    from hapticopt.design.prrr.kinematics import leg_chain, leg_frames, params_of
 
     prm = params_of(design)
     pts = leg_chain(prm, pose.sliders, pose.theta)
@@ -378,3 +379,11 @@ def build_parts(design: PrrrDesign) -> dict[str, object]:
 def posed(solids: dict[str, object], frames: dict[str, np.ndarray]) -> dict[str, object]:
     """Parts moved to their posed frames (mm), labels kept."""
     return _parts.posed(solids, frames)
+
+
+def mass_properties(design, *, method: _mp.Method = _mp.Method.ANALYTIC, solids=None) -> _mp.MassProperties:
+    """Mass properties of every part: closed forms (default) or OpenCASCADE's integrals of the solids."""
+    specs = part_specs(design)
+    if method == _mp.Method.ANALYTIC:
+        return _mp.analytic(design, specs=specs)
+    return _mp.from_cad(design, solids=solids if solids is not None else build_parts(design), specs=specs)

@@ -23,6 +23,7 @@ from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.mass_properties import MassProperties, PartMass
 from hapticopt.design.parts import Kind, Role
 from hapticopt.design.prrr.params import PrrrDesign
+from hapticopt.design.units import GRAVITY
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -100,10 +101,8 @@ def _geoms(spec, contacts: bool, rgba: str) -> list[str]:
 def prrr_mjcf(design: PrrrDesign, *, p=(0.0, 0.0, 0.0), branch: int = cad_prrr.DEFAULT_BRANCH,
               mass_properties: MassProperties | None = None, options: MjcfOptions = MjcfOptions()) -> str:
     """MJCF text of the 3-PRRR posed at end-effector position ``p`` [m]."""
-    from hapticopt.design import mass_properties as mp
-
     specs = cad_prrr.part_specs(design)
-    masses = mass_properties if mass_properties is not None else mp.analytic(design, specs=specs)
+    masses = mass_properties if mass_properties is not None else cad_prrr.mass_properties(design)
     bodies = masses.bodies()
     pose = cad_prrr.solve_pose(design, p, branch=branch)
     frames = cad_prrr.part_frames(design, pose)
@@ -118,7 +117,7 @@ def prrr_mjcf(design: PrrrDesign, *, p=(0.0, 0.0, 0.0), branch: int = cad_prrr.D
         flags.append('contact="disable"')
     lines = [f'<mujoco model={quoteattr(design.name)}>',
              '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
-             f'  <option timestep="{o.timestep:.6g}" integrator="{o.integrator}" gravity="0 0 -9.81">'
+             f'  <option timestep="{o.timestep:.6g}" integrator="{o.integrator}" gravity="0 0 {-GRAVITY:g}">'
              + (f'<flag {" ".join(flags)}/>' if flags else "") + '</option>',
              '  <worldbody>']
     ind = "    "

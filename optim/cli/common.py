@@ -11,6 +11,7 @@ from typing import Any, TypeVar
 import typer
 
 from hapticopt.design.errors import HapticoptError, InvalidInput
+from hapticopt.design import io
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -38,7 +39,6 @@ def one_line_errors(func: F) -> F:
 
 def load_design_arg(file: Path | None, preset: str | None, assignments: list[str] | None) -> Any:
     """The design named by FILE or --preset (exactly one), with --set overrides applied."""
-    from hapticopt.design import io
 
     if (file is None) == (preset is None):
         raise InvalidInput("give exactly one of FILE or --preset NAME (see `hapticopt presets`)")

@@ -10,6 +10,13 @@ from typing import Annotated, Any, Optional
 import typer
 
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.registry import evaluate_all, write_plots
+from hapticopt.design import io
+from hapticopt.design.errors import InvalidInput
+from rich.console import Console
+from rich.table import Table
+from hapticopt.optim.cli.sweep import run_sweep
 
 
 def _fmt(value: Any) -> str:
@@ -34,10 +41,6 @@ def evaluate(
 ) -> None:
     """Evaluate a design and print its metrics (units in the metric names)."""
     t_start = time.perf_counter()
-    from hapticopt.analysis.fidelity import Fidelity
-    from hapticopt.analysis.registry import evaluate_all, write_plots
-    from hapticopt.design import io
-    from hapticopt.design.errors import InvalidInput
 
     try:
         level = Fidelity(fidelity)
@@ -49,7 +52,6 @@ def evaluate(
     timings = {"imports": t_import - t_start, **evaluation.timings_s}
     written = write_plots(design, evaluation, plots) if plots is not None else []
     if sweep is not None:
-        from hapticopt.optim.cli.sweep import run_sweep
 
         written += run_sweep(design, sweep, plots if plots is not None else Path("."), level)
     timings["total"] = time.perf_counter() - t_start
@@ -67,8 +69,6 @@ def evaluate(
         }
         typer.echo(json.dumps(payload, indent=2))
         return
-    from rich.console import Console
-    from rich.table import Table
 
     console = Console()
     table = Table(title=f"{design.name} ({design.device}, {level} fidelity)")
@@ -87,7 +87,6 @@ def evaluate(
 
 def presets() -> None:
     """List the bundled design presets."""
-    from hapticopt.design import io
 
     for name in io.preset_names():
         design = io.load_preset(name)

@@ -9,15 +9,16 @@ from typing import Annotated, Optional
 import typer
 
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+import math
+import numpy as np
+from hapticopt.design.errors import InvalidInput
+from hapticopt.analysis import interference
 
 
 def parse_pose_mm(text: str):
     """``"X,Y,Z"`` in mm -> (3,) array [m]; raises :class:`InvalidInput`."""
-    import math
 
-    import numpy as np
 
-    from hapticopt.design.errors import InvalidInput
 
     parts = [s.strip() for s in text.split(",")]
     try:
@@ -42,7 +43,6 @@ def export(
     t0 = time.perf_counter()
     design = load_design_arg(file, preset, set_)
     p = parse_pose_mm(pose) if pose is not None else None
-    from hapticopt.analysis import interference
     from hapticopt.design.export import export as run_export
 
     out_dir = out if out is not None else Path("cad_out") / design.name

@@ -8,6 +8,11 @@ from typing import Annotated, Optional
 import typer
 
 from hapticopt.optim.cli.common import one_line_errors
+from hapticopt.design.errors import InvalidInput
+from hapticopt.optim.problem import load_problem
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from hapticopt.optim.problem import problem_names
 
 
 @one_line_errors
@@ -24,8 +29,6 @@ def optimise(
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
 ) -> None:
     """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report."""
-    from hapticopt.design.errors import InvalidInput
-    from hapticopt.optim.problem import load_problem
 
     prob = load_problem(problem)
     if max_evals is not None:
@@ -36,8 +39,6 @@ def optimise(
         raise InvalidInput(f"--workers = {workers} must be ≥ 1")
     out_dir = out if out is not None else Path("cad_out") / prob.name
 
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from hapticopt.optim.pipeline import run_pipeline
 
@@ -79,7 +80,6 @@ def optimise(
 
 def problems() -> None:
     """List the bundled optimisation problems."""
-    from hapticopt.optim.problem import load_problem, problem_names
 
     for name in problem_names():
         p = load_problem(name)

@@ -6,6 +6,9 @@ from pathlib import Path
 from typing import Any
 
 from hapticopt.design.errors import InvalidInput
+from rich.console import Console
+from rich.table import Table
+from hapticopt.design.atomic import write_text
 
 SWEEPS = {"master": ("counterweight",)}
 
@@ -16,11 +19,8 @@ def run_sweep(design: Any, name: str, out_dir: Path, fidelity: Any) -> list[Path
     if name not in allowed:
         raise InvalidInput(f"--sweep = {name!r} is not a sweep for a {design.device} design: "
                            f"allowed {', '.join(allowed) if allowed else 'none'}")
-    from rich.console import Console
-    from rich.table import Table
 
     from hapticopt.analysis.master import plots as master_plots, tradeoff as master_tradeoff
-    from hapticopt.design.atomic import write_text
 
     rows = master_tradeoff.counterweight_sweep(design, fidelity=fidelity)
     out_dir = Path(out_dir)

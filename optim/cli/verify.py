@@ -8,7 +8,14 @@ from typing import Annotated, Any, Optional
 
 import typer
 
+from hapticopt.analysis import verify as closed_loop_verify
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+import numpy as np
+from hapticopt.design.atomic import atomic_path
+from hapticopt.analysis.prrr import zwidth
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.loop.scene import Backend, StabilityCriterion, load_scene
+from hapticopt.design.errors import InvalidInput
 
 
 def _plot(result: Any, out_dir: Path, name: str) -> list[Path]:
@@ -20,9 +27,7 @@ def _plot(result: Any, out_dir: Path, name: str) -> list[Path]:
         import matplotlib.pyplot as plt
     except ImportError:
         return []
-    import numpy as np
 
-    from hapticopt.design.atomic import atomic_path
 
     tr = result.traces
     if tr is None or tr.position is None:
@@ -55,10 +60,6 @@ def verify(
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write pictures of the run to this directory.")] = None,
 ) -> None:
     """Simulate the design in closed loop with the firmware controller in a scene."""
-    from hapticopt.analysis.prrr import closed_loop, zwidth
-    from hapticopt.analysis.fidelity import Fidelity
-    from hapticopt.analysis.loop.scene import Backend, StabilityCriterion, load_scene
-    from hapticopt.design.errors import InvalidInput
 
     try:
         level = Fidelity(fidelity)
@@ -73,7 +74,7 @@ def verify(
     if sc.device != device:
         raise InvalidInput(f"--scene {sc.name} is written for the {sc.device} device; design {design.name!r} is a "
                            f"{design.device}: pick a {device} scene")
-    result = closed_loop.simulate(design, sc, fidelity=level, backend=force)
+    result = closed_loop_verify.simulate(design, sc, fidelity=level, backend=force)
     metrics = result.metrics()
     metrics["resolution_reason"] = metrics.get("backend_reason", "")
     metrics["notes"] = list(result.notes)

@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from hapticopt.analysis import verify
 from hapticopt.analysis.prrr import closed_loop as cl
 from hapticopt.analysis.prrr import firmware, stability
 from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
@@ -19,7 +20,7 @@ def _drop(scene, *effects):
 
 
 def test_stiffness_25_rendered_within_10pct(prrr_paper):
-    r = cl.simulate(prrr_paper, load_scene("stiffness-25"))
+    r = verify.simulate(prrr_paper, load_scene("stiffness-25"))
     m = r.metrics()
     assert m["stable"] and m["backend"] == "lumped" and "coulomb_friction" in m["effects"]
     assert m["stiffness_error_pct"] <= 10.0  # issue 6 (seed 002 measured 6.6 %)
@@ -28,8 +29,8 @@ def test_stiffness_25_rendered_within_10pct(prrr_paper):
 
 def test_free_space_residual_with_and_without_friction(prrr_paper):
     sc = dataclasses.replace(load_scene("free-space"), duration=1.5)
-    with_f = cl.simulate(prrr_paper, sc).metrics()
-    without = cl.simulate(prrr_paper, _drop(sc, Effect.COULOMB_FRICTION)).metrics()
+    with_f = verify.simulate(prrr_paper, sc).metrics()
+    without = verify.simulate(prrr_paper, _drop(sc, Effect.COULOMB_FRICTION)).metrics()
     assert with_f["stable"] and without["stable"]
     # without friction the hand only feels inertia and the force-loop error: well below the friction case
     assert 0 < without["residual_force_rms_N"] < with_f["residual_force_rms_N"]
@@ -72,7 +73,7 @@ def test_off_effect_is_not_evaluated(prrr_paper):
     """Instrumentation: terms of switched-off effects are never traced into the compiled loop."""
     sc = dataclasses.replace(load_scene("free-space"), duration=0.01)
     firmware.TRACE_COUNTS.clear()
-    cl.simulate(prrr_paper, _drop(sc, Effect.COULOMB_FRICTION, Effect.GRAVITY, Effect.SATURATION))
+    verify.simulate(prrr_paper, _drop(sc, Effect.COULOMB_FRICTION, Effect.GRAVITY, Effect.SATURATION))
     assert not {"friction_compensation", "gravity_compensation", "saturation"} & set(firmware.TRACE_COUNTS)
     assert firmware.TRACE_COUNTS.get("force_loop", 0) > 0
     firmware.TRACE_COUNTS.clear()
@@ -80,7 +81,7 @@ def test_off_effect_is_not_evaluated(prrr_paper):
     assert st.model.coulomb == 3.0  # on: the friction LCP is solved every substep
     st_off = cl.setup(prrr_paper, _drop(sc, Effect.COULOMB_FRICTION))
     assert st_off.model.coulomb == 0.0  # off: no friction solve is compiled in
-    cl.simulate(prrr_paper, sc)
+    verify.simulate(prrr_paper, sc)
     assert {"friction_compensation", "gravity_compensation", "saturation"} <= set(firmware.TRACE_COUNTS)
 
 
@@ -89,7 +90,7 @@ def test_sampling_off_converges_to_continuous_time(prrr_paper):
     sc = _drop(dataclasses.replace(load_scene("stiffness-25"), duration=1.5), Effect.SAMPLING, Effect.QUANTIZATION,
                Effect.COULOMB_FRICTION)
     from hapticopt.analysis.fidelity import Fidelity
-    ks = [cl.simulate(prrr_paper, sc, fidelity=f).rendered_stiffness for f in (Fidelity.DRAFT, Fidelity.STANDARD,
+    ks = [verify.simulate(prrr_paper, sc, fidelity=f).rendered_stiffness for f in (Fidelity.DRAFT, Fidelity.STANDARD,
                                                                                 Fidelity.FINE)]
     # oversampling 10, 20, 50: differences shrink (first-order hold error)
     assert abs(ks[2] - ks[1]) < abs(ks[1] - ks[0])
@@ -111,7 +112,7 @@ def test_hard_cases_detected_not_crashed(prrr_paper, case):
         data["controller"] = {"period_ms": 1e-4}
         data["duration_s"] = 0.005
     sc = scene_from_dict(data)
-    r = cl.simulate(prrr_paper, sc)
+    r = verify.simulate(prrr_paper, sc)
     tr = r.traces
     assert np.all(np.isfinite(tr.position)) and np.all(np.isfinite(tr.energy))
     if case == "tiny_T":
@@ -125,8 +126,8 @@ def test_hard_cases_detected_not_crashed(prrr_paper, case):
 def test_time_delay_and_interpolation_run(prrr_paper):
     sc = dataclasses.replace(load_scene("stiffness-25"), duration=1.0, time_delay=2e-3,
                              effects=load_scene("stiffness-25").effects | {Effect.TIME_DELAY})
-    r = cl.simulate(prrr_paper, sc)
+    r = verify.simulate(prrr_paper, sc)
     assert r.stable and "time_delay" in r.metrics()["effects"]
     ctl = dataclasses.replace(sc.controller, interpolation=4)
-    r2 = cl.simulate(prrr_paper, dataclasses.replace(sc, controller=ctl))
+    r2 = verify.simulate(prrr_paper, dataclasses.replace(sc, controller=ctl))
     assert r2.stable and r2.substeps % 4 == 0

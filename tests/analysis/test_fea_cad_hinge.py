@@ -11,6 +11,7 @@ import pytest
 from scipy.sparse.linalg import eigsh, lsqr
 
 from hapticopt.analysis.fem import solid as fea, hinge as fea_cad_hinge
+from hapticopt.analysis.prrr import fea_cad
 
 E, NU = 2.0e11, 0.3
 R_BORE = 4e-3  # bore / pin radius [m]
@@ -20,7 +21,7 @@ AXIS = np.array([0.0, 0.0, 1.0])
 
 
 def _two_plates_and_pin(size: float = 3e-3) -> fea.TetMesh:
-    gmsh = fea._gmsh_start("hinge_unit")
+    gmsh = fea.gmsh_start("hinge_unit")
     occ = gmsh.model.occ
     mm = 1e3
     tags = {}
@@ -35,7 +36,7 @@ def _two_plates_and_pin(size: float = 3e-3) -> fea.TetMesh:
     occ.synchronize()
     groups = {name: [t for d, t in out_map[k] if d == 3] for k, name in enumerate(tags)}
     vols = sorted({t for v in groups.values() for t in v})
-    return fea._gmsh_mesh(gmsh, size * mm, {}, vols, groups_3d=groups)
+    return fea.gmsh_mesh(gmsh, size * mm, {}, vols, groups_3d=groups)
 
 
 def _stiffness(mesh: fea.TetMesh):
@@ -91,7 +92,7 @@ def test_released_joint_adds_exactly_one_zero_energy_mode(unit_model):
     # that mode is the hinge: the link turns about the pin axis, pin and clevis stay, s = ω r
     n = red.free.size
     on_link = np.zeros(basis.N, dtype=bool)
-    comps = fea._component_dofs(basis)
+    comps = fea.component_dofs(basis)
     link_nodes = np.zeros(split.mesh.points.shape[1], dtype=bool)
     link_nodes[split.mesh.node_sets["link"]] = True
     e = basis.mesh.edges
@@ -152,13 +153,13 @@ def test_cad_hinges_release_the_bores_the_frame_model_releases():
 
     d = io.load_preset("prrr-paper")
     pose = cad_prrr.solve_pose(d)
-    parts = {h.name: h.part for h in fea_cad_hinge.cad_hinges(d, pose)}
+    parts = {h.name: h.part for h in fea_cad.cad_hinges(d, pose)}
     assert len(parts) == 9
     assert (parts["r1_1"], parts["r2_2"], parts["r3_3"]) == ("link1_1", "link2_2", "link2_3")
-    swapped = {h.name: h.part for h in fea_cad_hinge.cad_hinges(d, pose, side="swapped")}
+    swapped = {h.name: h.part for h in fea_cad.cad_hinges(d, pose, side="swapped")}
     assert (swapped["r1_1"], swapped["r2_2"], swapped["r3_3"]) == ("carriage_1", "link1_2", "platform")
-    for h in fea_cad_hinge.cad_hinges(d, pose):
+    for h in fea_cad.cad_hinges(d, pose):
         assert h.radius == pytest.approx(0.5 * d.structure.bore_diameter)
         assert np.linalg.norm(h.axis) == pytest.approx(1.0)
     with pytest.raises(ValueError, match="side"):
-        fea_cad_hinge.cad_hinges(d, pose, side="left")
+        fea_cad.cad_hinges(d, pose, side="left")

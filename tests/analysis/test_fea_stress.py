@@ -12,6 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from hapticopt.analysis.prrr import plots as prrr_plots
 from hapticopt.analysis.fem import solid as fea, stress as fea_stress
 
 L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33  # as tests/analysis/test_fea.py
@@ -130,7 +131,7 @@ def _offscreen_rendering() -> bool:
 
 
 def test_plot_structure_writes_the_stress_picture(cantilever, tmp_path):
-    # plot_structure on a frame result carrying an FEA field (the cantilever's real P2 solution in
+    # structure_plots on a frame result carrying an FEA field (the cantilever's real P2 solution in
     # the place of the CAD solid's, which takes minutes to mesh and solve on 2 cores)
     if not _offscreen_rendering():
         pytest.skip("pyvista off-screen rendering unavailable")
@@ -147,12 +148,12 @@ def test_plot_structure_writes_the_stress_picture(cantilever, tmp_path):
     field = fea_cad.CadFeaResult(compliance_load=nan33, stiffness_load=np.full(3, np.nan), load_height=0.058,
                                  size=SIZE, n_dofs=0, iterations=(), wall_s=0.0, timings_s={}, branch=0,
                                  mesh=mesh, displacement=uv, displacement_edges=ue)
-    files = fea.plot_structure(design, replace(frame, fea=field), tmp_path)
+    files = prrr_plots.structure_plots(design, replace(frame, fea=field), tmp_path)
     assert [f.name for f in files] == ["structure_frame.png", "structure_fea.png", "structure_fea_stress.png"]
     assert all(f.stat().st_size > 10_000 for f in files)
     assert files[2].read_bytes() != files[1].read_bytes()  # cell stress, not the displacement picture again
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(f.name for f in files)  # no temp files left
     # without the edge-midpoint values (a P1 field: stress one order less accurate) no stress picture
-    files = fea.plot_structure(design, replace(frame, fea=replace(field, displacement_edges=None)), tmp_path / "p1")
+    files = prrr_plots.structure_plots(design, replace(frame, fea=replace(field, displacement_edges=None)), tmp_path / "p1")
     assert [f.name for f in files] == ["structure_frame.png", "structure_fea.png"]
     assert st.order == 2

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
+from hapticopt.analysis import verify
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
-from hapticopt.analysis.prrr import closed_loop
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.master.firmware import MasterController, MasterFirmwareConfig, forward
 from hapticopt.analysis.master.mujoco_plant import simulate, start_pose
@@ -126,9 +126,9 @@ def test_master_stiff_wall_and_spring_are_unstable_not_nan():
 
 def test_master_dispatch_and_refusals():
     wall = dataclasses.replace(load_scene("master-wall"), duration=0.1)
-    r = closed_loop.simulate(MASTER, wall, fidelity=Fidelity.DRAFT)
+    r = verify.simulate(MASTER, wall, fidelity=Fidelity.DRAFT)
     assert r.metrics()["device"] == "master" and r.metrics()["backend"] == "multibody"
     with pytest.raises(InvalidInput, match="backend = lumped cannot simulate the master"):
-        closed_loop.simulate(MASTER, wall, backend=Backend.LUMPED)
+        verify.simulate(MASTER, wall, backend=Backend.LUMPED)
     with pytest.raises(InvalidInput, match="is a prrr"):
         simulate(load_preset("prrr-paper"), wall)

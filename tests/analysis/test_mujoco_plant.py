@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from hapticopt.analysis import verify
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.prrr import closed_loop, firmware
 from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
@@ -162,15 +163,15 @@ def test_simulate_dispatches_by_backend():
     from hapticopt.analysis.fidelity import Fidelity
 
     links = dataclasses.replace(load_scene("stiffness-25-links"), duration=0.2)
-    r = closed_loop.simulate(DESIGN, links, fidelity=Fidelity.DRAFT)
+    r = verify.simulate(DESIGN, links, fidelity=Fidelity.DRAFT)
     m = r.metrics()
     assert m["backend"] == "multibody" and "link_dynamics" in m["backend_reason"] and m["link_masses"] == "real"
     assert m["constraint_health_ok"] and "constraint_violation_mm" in m
     with pytest.raises(InvalidInput, match="backend = lumped cannot simulate link_dynamics"):
-        closed_loop.simulate(DESIGN, links, backend=Backend.LUMPED)
+        verify.simulate(DESIGN, links, backend=Backend.LUMPED)
     base = dataclasses.replace(load_scene("stiffness-25"), duration=0.2)
-    assert closed_loop.simulate(DESIGN, base).metrics()["backend"] == "lumped"
-    forced = closed_loop.simulate(DESIGN, base, fidelity=Fidelity.DRAFT, backend=Backend.MULTIBODY).metrics()
+    assert verify.simulate(DESIGN, base).metrics()["backend"] == "lumped"
+    forced = verify.simulate(DESIGN, base, fidelity=Fidelity.DRAFT, backend=Backend.MULTIBODY).metrics()
     assert forced["backend"] == "multibody" and "forced" in forced["backend_reason"]
     assert forced["link_masses"] == "lumped"
 

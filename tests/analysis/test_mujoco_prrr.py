@@ -8,6 +8,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from hapticopt.design import export as design_export
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr.mujoco_model import (
@@ -154,12 +155,11 @@ def test_real_links_carry_the_cad_mass_model():
     """REAL link masses, CoMs and inertias are issue 3's analytic mass model (tested against the
     CAD there), placed at the CAD's home pose: compare in world coordinates."""
     from hapticopt.design.prrr import cad as cad_prrr
-    from hapticopt.design import mass_properties as mp
 
     mj = build(DESIGN, ModelOptions(link_masses=LinkMasses.REAL))
     data = mujoco.MjData(mj.model)
     set_pose(mj, data, np.zeros(3))
-    bodies = mp.analytic(DESIGN).bodies()
+    bodies = design_export.mass_properties(DESIGN).bodies()
     frames = cad_prrr.part_frames(DESIGN, cad_prrr.solve_pose(DESIGN, (0.0, 0.0, 0.0), branch=cad_prrr.DEFAULT_BRANCH))
     for leg in cad_prrr.LEGS:
         for j in (1, 2):

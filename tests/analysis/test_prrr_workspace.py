@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from hapticopt.analysis.prrr import plots as prrr_plots
 from hapticopt.analysis.prrr import workspace as W
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.prrr.kinematics import inverse_kinematics, leg_chain, params_of
@@ -198,7 +199,7 @@ def test_batch_equals_single(paper: PrrrDesign) -> None:
 
 def test_plot_writes_png(paper: PrrrDesign, tmp_path) -> None:
     r = W.evaluate(paper, fidelity=Fidelity.DRAFT)
-    files = W.plot(paper, r, tmp_path)
+    files = prrr_plots.workspace_plots(paper, r, tmp_path)
     assert [f.name for f in files] == ["prrr-paper_workspace.png"]
     assert files[0].stat().st_size > 10_000
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from hapticopt.design import export as design_export
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import mujoco
 import numpy as np
@@ -87,10 +88,9 @@ def test_custom_mass_properties_are_used(design):
 
 def test_cad_mass_model_matches_mujoco_too():
     # the CAD engineer's geometric mass model (design.mass_properties.analytic) through the same path
-    from hapticopt.design import mass_properties as mp
 
     d = load_preset("master-paper")
-    bodies = md.bodies_from_mass_properties(mp.analytic(d))
+    bodies = md.bodies_from_mass_properties(design_export.mass_properties(d))
     m = mujoco.MjModel.from_xml_string(master_mjcf(d, bodies))
     data = mujoco.MjData(m)
     model = md.model_of(d, bodies)

@@ -4,7 +4,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from hapticopt.design import io, mass_properties as mp
+from hapticopt.design import export as design_export
+from hapticopt.design import io
 from hapticopt.design.prrr.mjcf import MjcfOptions, closure_errors, prrr_mjcf
 
 
@@ -21,7 +22,7 @@ def _full_inertia(model, b):
 
 
 def test_masses_and_inertias_match_the_mass_properties(paper):
-    masses = mp.analytic(paper)
+    masses = design_export.mass_properties(paper)
     model = mujoco.MjModel.from_xml_string(prrr_mjcf(paper, mass_properties=masses))
     assert model.body_mass.sum() == pytest.approx(masses.total_mass, rel=1e-9)
     for name, pm in masses.bodies().items():

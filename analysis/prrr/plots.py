@@ -1,0 +1,111 @@
+"""Pictures of the 3-PRRR's evaluator results (pyvista, off screen). Only ``--plots`` and the
+pipeline's report call these, through the registry; evaluators never draw.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.analysis.prrr import workspace as W
+from hapticopt.analysis.prrr.structure import fea_element_stress
+from hapticopt.design.atomic import atomic_path
+from hapticopt.design.prrr.params import PrrrDesign
+
+
+def workspace_plots(design: PrrrDesign, result, out_dir: Path) -> list[Path]:
+    """Off-screen pyvista picture of sampled workspace points and the inscribed cylinder."""
+    import pyvista as pv
+
+    pts = W.sample_points(W.workspace_params(design), n_phi=40, n_r=12, n_z=6)
+    target = Path(out_dir) / f"{design.name}_workspace.png"
+    pl = pv.Plotter(off_screen=True, window_size=(900, 700))
+    if len(pts):
+        pl.add_points(pv.PolyData(pts * 1e3), scalars=pts[:, 2] * 1e3, point_size=5, opacity=0.5,
+                      render_points_as_spheres=True, scalar_bar_args={"title": "z [mm]"})
+    if result.cylinder_diameter > 0:
+        z0, z1 = W.cylinder_z_range(design, result)
+        cyl = pv.Cylinder(center=(0.0, 0.0, (z0 + z1) * 500.0), direction=(0.0, 0.0, 1.0),
+                          radius=result.cylinder_diameter * 500.0, height=(z1 - z0) * 1e3, resolution=96)
+        pl.add_mesh(cyl, color="orange", opacity=0.55)
+    pl.add_axes()
+    pl.show_bounds(xtitle="x [mm]", ytitle="y [mm]", ztitle="z [mm]")
+    pl.add_text(f"{design.name}: V = {result.volume * 1e9:.4g} mm³, inscribed cylinder "
+                f"φ{result.cylinder_diameter * 1e3:.1f} × {result.cylinder_height * 1e3:.1f} mm", font_size=10)
+    with atomic_path(target) as tmp:
+        pl.screenshot(str(tmp))
+    pl.close()
+    return [target]
+
+
+# ----------------------------------------------------------------------------- plots
+def structure_plots(design: PrrrDesign, result, out_dir: Path) -> list[Path]:
+    """PNG of the deformed frame under a lateral load; at fine fidelity also the FEA field."""
+    import pyvista as pv
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    opts = result.options
+    full = fm.solve_frame(fm.frame_params_of(design), p=result.pose, load_height=result.load_height, options=opts)
+    h = result.load_height
+    H = np.concatenate([np.eye(3), -np.array([[0, -h, 0], [h, 0, 0], [0, 0, 0]])], axis=1)
+    wrench = H.T @ np.array([1.0, 0.0, 0.0])  # 1 N along x at the load point
+    uP = full["compliance_ee"] @ wrench
+    nodes, maps, rec = full["nodes"], full["node_maps"], full["recovery"]
+    span = float(np.ptp(nodes.reshape(-1, 3), axis=0).max())
+    scale = 0.1 * span / max(float(np.abs(uP[:3]).max()), 1e-30)
+    pl = pv.Plotter(off_screen=True, window_size=(900, 700))
+    for i in range(3):
+        x_leg = np.concatenate([uP, -rec[i] @ uP])
+        u_nodes = np.einsum("kij,j->ki", maps[i], x_leg)[:, :3]
+        pts = np.vstack([nodes[i], result.pose[None]])
+        upts = np.vstack([u_nodes, uP[None, :3]])
+        for def_scale, color in ((0.0, "lightgray"), (scale, "crimson")):
+            line = pv.lines_from_points(pts + def_scale * upts)
+            pl.add_mesh(line, color=color, line_width=4)
+    pl.add_text(f"frame, 1 N along x at Δz = {h * 1e3:g} mm (×{scale:.3g})", font_size=10)
+
+    def save(plotter, name):
+        target = out_dir / name
+        with atomic_path(target) as tmp:
+            plotter.screenshot(str(tmp))
+        plotter.close()
+        written.append(target)
+
+    save(pl, "structure_frame.png")
+    fea_res = getattr(result, "fea", None)
+    if fea_res is not None and fea_res.mesh is not None and fea_res.displacement is not None:
+        mesh = fea_res.mesh
+        cells = np.hstack([np.full((mesh.tets.shape[1], 1), 4), mesh.tets.T]).ravel()
+        grid = pv.UnstructuredGrid(cells, np.full(mesh.tets.shape[1], pv.CellType.TETRA), mesh.points.T.copy())
+        grid.point_data["displacement_um_per_N"] = np.linalg.norm(fea_res.displacement, axis=0) * 1e6
+        grid.point_data["u"] = fea_res.displacement.T
+        sc = 0.1 * span / max(float(np.abs(fea_res.displacement).max()), 1e-30)
+        warped = grid.warp_by_vector("u", factor=sc)
+        pl = pv.Plotter(off_screen=True, window_size=(900, 700))
+        pl.add_mesh(warped, scalars="displacement_um_per_N", show_edges=False)
+        pl.add_text(f"CAD FEA (bonded pins), 1 N along x at Δz = {h * 1e3:g} mm (×{sc:.3g})", font_size=10)
+        save(pl, "structure_fea.png")
+        st = getattr(result, "fea_stress", None)  # computed by the evaluator at fine fidelity
+        if st is None:
+            st = fea_element_stress(design, fea_res)
+        if st is not None:  # von Mises from the P2 field (analysis.fea_stress), per element
+            grid.cell_data["von_mises_MPa_per_N"] = st.von_mises * 1e-6
+            warped = grid.warp_by_vector("u", factor=sc)
+            pl = pv.Plotter(off_screen=True, window_size=(900, 700))
+            # the peak sits in a few pin elements: colours up to the 99th percentile, above in magenta
+            top = float(np.percentile(st.von_mises, 99.0)) * 1e-6
+            pl.add_mesh(warped, scalars="von_mises_MPa_per_N", preference="cell", show_edges=False,
+                        clim=(0.0, top), above_color="magenta",
+                        scalar_bar_args={"title": "von Mises [MPa per N]", "above_label": "> 99 %"})
+            pl.add_point_labels(warped.cell_centers().points[st.max_element][None], ["max"], point_size=12,
+                                point_color="black", render_points_as_spheres=True, always_visible=True)
+            xm = st.max_location * 1e3
+            pl.add_text(f"CAD FEA von Mises stress, 1 N along x at Δz = {h * 1e3:g} mm (×{sc:.3g})\n"
+                        f"max {st.max_von_mises * 1e-6:.3g} MPa/N (element centroid) at "
+                        f"({xm[0]:.1f}, {xm[1]:.1f}, {xm[2]:.1f}) mm", font_size=10)
+            save(pl, "structure_fea_stress.png")
+    return written

@@ -1,0 +1,33 @@
+"""Closed-loop verification of any device: the firmware against the plant a scene calls for.
+
+:func:`simulate` asks the resolver (:func:`hapticopt.analysis.loop.scene.resolve`) which plant
+models the scene's effects and runs it: the 3-PRRR's lumped SEA plant fused with its firmware
+(:func:`hapticopt.analysis.prrr.closed_loop.simulate_lumped`), the 3-PRRR's MuJoCo plant
+(:func:`hapticopt.analysis.prrr.mujoco_plant.simulate`) or the master's MuJoCo plant
+(:func:`hapticopt.analysis.master.mujoco_plant.simulate`). Every result's metrics name the
+backend and the reason (``backend``, ``backend_reason``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.loop.scene import Backend, Scene, resolve
+from hapticopt.analysis.prrr import closed_loop
+
+
+def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
+             backend: Backend | None = None) -> Any:
+    """Run ``scene`` on ``design`` on the backend the resolver picks (or ``backend`` forces)."""
+    res = resolve(scene, force=backend)
+    if scene.device == "master":
+        from hapticopt.analysis.master import mujoco_plant as master_mujoco
+
+        return master_mujoco.simulate(design, scene, fidelity=fidelity, reason=res.reason)
+    if res.backend == Backend.MULTIBODY:
+        from hapticopt.analysis.prrr import mujoco_plant as prrr_mujoco
+
+        return prrr_mujoco.simulate(design, scene, fidelity=fidelity, reason=res.reason)
+
+    return closed_loop.simulate_lumped(design, scene, fidelity=fidelity)
