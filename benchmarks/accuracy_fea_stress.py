@@ -1,9 +1,9 @@
 """Regenerate the tables of docs/structure_stress.md (von Mises stress of the solid FEA).
 
 Run: ``.venv/bin/python benchmarks/accuracy_fea_stress.py [--prrr LEVEL ...]`` (prints Markdown).
-Cantilever (200 × 20 × 10 mm, unit tip shear along y, as tests/analysis/test_fea.py): element
+Cantilever (200 × 20 × 10 mm, unit tip shear along y, as tests/analysis/fem/test_solid.py): element
 stress against σ_xx = −P (L − x) y / I; ``--prrr``: the CAD solid of prrr-paper with bonded
-pins (analysis.fea_cad) at the given mesh levels, 1 N along x at Δz = 58 mm. Stress-step
+pins (hapticopt.analysis.prrr.fea_cad) at the given mesh levels, 1 N along x at Δz = 58 mm. Stress-step
 times are the median of 5 calls on the machine it runs on.
 """
 

@@ -1,4 +1,4 @@
-"""Released-joint CAD FEA (analysis.fea_cad_hinge) vs the released frame model, prrr-paper at home.
+"""Released-joint CAD FEA (hapticopt.analysis.fem.hinge) vs the released frame model, prrr-paper at home.
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/accuracy_hinge.py --levels 0 1 2
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/accuracy_hinge.py --levels 0 1 2 3 4   # + the k∞ + c h^p fit (~7 min)

@@ -1,4 +1,4 @@
-"""Stress step of the solid FEA (analysis.fea_stress): von Mises per element from a P2 field.
+"""Stress step of the solid FEA (hapticopt.analysis.fem.stress): von Mises per element from a P2 field.
 
 Mesh: the 200 × 20 × 10 mm cantilever at 2.5 mm (1.3·10⁴ tetrahedra, about the size of the CAD
 solid at level 2: 1.4·10⁴). The cost does not depend on the field's values, so a seeded random

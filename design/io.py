@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import math
 import tomllib
-from importlib import resources
 from pathlib import Path
 from typing import Any, Union
 
+from hapticopt.design import bundled
 from hapticopt.design.master import params as master
 from hapticopt.design.prrr import params as prrr
 from hapticopt.design.atomic import write_text
-from hapticopt.design.errors import InputFileError, InvalidDesign, UnknownName
+from hapticopt.design.errors import InputFileError, InvalidDesign
 from hapticopt.design.schema import section_from_table, section_to_table, specs
 
 Design = Union[prrr.PrrrDesign, master.MasterDesign]
@@ -107,22 +107,18 @@ def save_design(design: Design, path: str | Path) -> None:
 
 
 # ---------------------------------------------------------------------------- presets
-def _preset_dir():
-    return resources.files("hapticopt.design.presets")
+PRESETS = "hapticopt.design.presets"
 
 
 def preset_names() -> list[str]:
     """Names of the bundled presets."""
-    return sorted(p.name[: -len(".toml")] for p in _preset_dir().iterdir() if p.name.endswith(".toml"))
+    return bundled.names(PRESETS)
 
 
 def load_preset(name: str) -> Design:
     """Load a bundled preset by name. Raises :class:`UnknownName`."""
-    names = preset_names()
-    if name not in names:
-        raise UnknownName(f"preset {name!r} does not exist: allowed presets are {', '.join(names)}")
-    text = (_preset_dir() / f"{name}.toml").read_text(encoding="utf-8")
-    return design_from_dict(tomllib.loads(text), source=f"preset {name}")
+    found = bundled.read(PRESETS, "preset", name, allow_path=False)
+    return design_from_dict(tomllib.loads(found.text), source=found.source)
 
 
 # ---------------------------------------------------------------------------- overrides

@@ -9,7 +9,7 @@ A part is a rigid solid described in its own frame (SI, metres) as a set of prim
   twice by the solids (a boss disc overlapping the end of its link bar: a "cap segment") and
   are subtracted once. The CAD ignores them.
 
-The CAD (:mod:`design.cad_prrr`, :mod:`design.cad_master`) turns SOLID/HOLE into OpenCASCADE
+The CAD (:mod:`hapticopt.design.prrr.cad`, :mod:`hapticopt.design.master.cad`) turns SOLID/HOLE into OpenCASCADE
 solids, :func:`manifold_of` into manifold3d meshes, and :func:`volume_properties` sums closed
 forms (cap segments by a fixed Gauss–Legendre rule) without building any solid.
 """

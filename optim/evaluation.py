@@ -11,7 +11,7 @@ Gradients. An evaluator module may provide a differentiable twin of its metrics:
 where ``values`` maps TOML keys (``"geometry.beta_deg"``, edge units) to jax scalars that
 override the design's fields, and the result holds metrics with the same names and
 engineering units as ``Result.metrics()``. :data:`JAX_ADAPTERS` supplies the twin for
-evaluators that do not define one (``analysis.prrr_statics``). A metric without a jax twin
+evaluators that do not define one (``hapticopt.analysis.prrr.statics``). A metric without a jax twin
 gets central finite differences (2n extra evaluations; reported as ``gradient_source = "fd"``).
 """
 

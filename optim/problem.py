@@ -56,10 +56,10 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from hapticopt.design import bundled
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design import io
 from hapticopt.design.errors import InputFileError, InvalidDesign, InvalidInput, UnknownName
@@ -307,30 +307,18 @@ def design_at(base: Any, variables: Sequence[Variable], x: Sequence[float]) -> A
 
 
 # ------------------------------------------------------------------------------------ loading
-def _problem_dir():
-    return resources.files("hapticopt.optim.problems")
+PROBLEMS = "hapticopt.optim.problems"
 
 
 def problem_names() -> list[str]:
     """Names of the bundled problems."""
-    return sorted(p.name[: -len(".toml")] for p in _problem_dir().iterdir() if p.name.endswith(".toml"))
+    return bundled.names(PROBLEMS)
 
 
 def load_problem(name_or_path: str | Path) -> Problem:
     """A bundled problem by name, or a problem TOML file by path."""
-    text_arg = str(name_or_path)
-    path = Path(text_arg)
-    if text_arg in problem_names() and not path.is_file():
-        text = (_problem_dir() / f"{text_arg}.toml").read_text(encoding="utf-8")
-        return problem_from_text(text, source=f"problem {text_arg}", base_dir=None)
-    if not path.is_file():
-        raise UnknownName(f"problem {text_arg!r} is neither a bundled problem nor a file: bundled problems are "
-                          f"{', '.join(problem_names())}")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputFileError(f"problem file {text_arg!r} cannot be read: {exc}") from None
-    return problem_from_text(text, source=path.name, base_dir=path.parent)
+    found = bundled.read(PROBLEMS, "problem", name_or_path)
+    return problem_from_text(found.text, source=found.source, base_dir=found.base_dir)
 
 
 def problem_from_text(text: str, *, source: str, base_dir: Path | None) -> Problem:

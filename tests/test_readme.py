@@ -47,3 +47,27 @@ def test_cheap_readme_commands_run():
         if argv[0] in ("presets", "problems") or (argv[0] == "evaluate" and "prrr-paper" in argv and "--plots" not in argv):
             res = runner.invoke(app, argv)
             assert res.exit_code == 0, (argv, res.output)
+
+
+def test_python_section_runs_outside_the_repository(tmp_path, monkeypatch):
+    """The README's Python block, run as a user would: from another directory, by the installed names."""
+    blocks = re.findall(r"## Python.*?```python\n(.*?)```", README.read_text(), flags=re.S)
+    assert len(blocks) == 1
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {}
+    exec(compile(blocks[0], "README.md", "exec"), namespace)  # noqa: S102 - our own README
+    assert namespace["after"].metrics()["max_force_N"] != namespace["before"].metrics()["max_force_N"]
+    assert (tmp_path / "cad_out" / "prrr-beta45" / "prrr-paper.step").is_file()
+
+
+def test_the_top_level_folders_are_not_importable_outside_the_repository(tmp_path):
+    """Installed as hapticopt.*: `import design` fails outside the repository, `import hapticopt.design` works."""
+    import subprocess
+    import sys
+
+    ok = subprocess.run([sys.executable, "-c", "import hapticopt.analysis, hapticopt.design, hapticopt.optim"],
+                        cwd=tmp_path, capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stderr
+    for name in ("design", "analysis", "optim"):
+        bad = subprocess.run([sys.executable, "-c", f"import {name}"], cwd=tmp_path, capture_output=True, text=True)
+        assert bad.returncode != 0 and "ModuleNotFoundError" in bad.stderr

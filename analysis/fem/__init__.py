@@ -1,0 +1,1 @@
+"""Solid finite elements (gmsh, scikit-fem, pyamg): generic solver, hinge release, stress."""

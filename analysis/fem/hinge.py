@@ -1,6 +1,6 @@
 """Hinge release in the solid FEA: frictionless bilateral cylindrical interfaces at the pins.
 
-The bonded CAD FEA (:mod:`analysis.fea_cad`) fuses every pin into both parts of its joint (gmsh
+The bonded CAD FEA (:mod:`hapticopt.analysis.prrr.fea_cad`) fuses every pin into both parts of its joint (gmsh
 ``fragment`` makes the bore surfaces conformal). Here the revolute joints are **released**, the
 solid counterpart of ``FrameOptions(joints=Joints.RELEASED)``:
 
@@ -15,7 +15,7 @@ solid counterpart of ``FrameOptions(joints=Joints.RELEASED)``:
   joint turns freely, while radial and axial force and the tilting moments pass by bearing.
 
 The ties are imposed by elimination (u = T q, K_red = Tᵀ K T, as the rigid region of
-:func:`analysis.fea.solve_with_rigid_region`), never by penalties; q = [free node DOFs (node
+:func:`hapticopt.analysis.fem.solid.solve_with_rigid_region`), never by penalties; q = [free node DOFs (node
 blocks of 3, the part-side copies of tied DOF locations removed) | s (padded to blocks of 3) |
 six rigid-region master DOFs]. The AMG near-nullspace is the six rigid-body modes expressed in q:
 a rigid motion needs s = 0 (pin and part move together), and the masters carry identity rows.
@@ -262,7 +262,7 @@ class ReleasedSolution:
 
 def solve_released(split: SplitMesh, *, youngs_modulus: float, poisson_ratio: float, fixed: list[str], region,
                    centre, wrenches: np.ndarray, tol: float = 1e-7, amg_blocks: bool = False) -> ReleasedSolution:
-    """:func:`analysis.fea.solve_with_rigid_region` with the hinge ties of ``split`` eliminated too.
+    """:func:`hapticopt.analysis.fem.solid.solve_with_rigid_region` with the hinge ties of ``split`` eliminated too.
 
     ``amg_blocks``: aggregate 3×3 blocks (the s unknowns padded into triples) instead of scalar
     DOFs; scalar aggregation needed fewer CG iterations here (docs/structure_hinge.md).

@@ -14,7 +14,7 @@ one of the linear interpolant — one order less accurate; the result says which
 
 Units: SI in, SI out; for a displacement field per newton of load the stress is in Pa per N.
 The gradient code is plain numpy (memory ∝ number of elements, no quadrature tables); it is
-tested against scikit-fem's own interpolation in tests/analysis/test_fea_stress.py.
+tested against scikit-fem's own interpolation in tests/analysis/fem/test_stress.py.
 """
 
 from __future__ import annotations

@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import StrEnum
 
+from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.errors import InvalidInput
 
 
@@ -39,6 +40,12 @@ class SolverSettings:
             raise InvalidInput(f"solver solimp = {self.solimp!r}: d0 and d_width must be in (0, 1)")
 
 
+#: Solver settings per fidelity (chosen from the measured table in docs/multibody.md).
+SOLVER_BY_FIDELITY: dict[Fidelity, SolverSettings] = {
+    Fidelity.DRAFT: SolverSettings(timestep=2.5e-4, integrator=Integrator.EULER, solref=(5e-4, 1.0)),
+    Fidelity.STANDARD: SolverSettings(timestep=1e-4, integrator=Integrator.EULER, solref=(2e-4, 1.0)),
+    Fidelity.FINE: SolverSettings(timestep=2.5e-5, integrator=Integrator.RK4, solref=(5e-5, 1.0)),
+}
 
 
 # --------------------------------------------------------------------------- constraint health

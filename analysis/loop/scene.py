@@ -3,11 +3,11 @@
 A scene names the duration, the controller settings, the virtual environment, the operator
 (a mass-spring-damper hand, seed 000 eq 1, driven by a reference motion) or an initial
 perturbation, and the **effects** switched on. An effect that is off is absent from the plant
-and from the controller (it is not evaluated at all, see ``tests/analysis/test_closed_loop.py``).
+and from the controller (it is not evaluated at all, see ``tests/analysis/prrr/test_closed_loop.py``).
 
 :func:`resolve` turns a scene into the effect set actually simulated and the backend that
-can simulate it, with the reason: the lumped plant (``analysis.lumped_plant``) when the effects
-allow it, the multibody MuJoCo plant (``analysis.mujoco_plant``, ``analysis.mujoco_master``) for
+can simulate it, with the reason: the lumped plant (``hapticopt.analysis.prrr.lumped_plant``) when the effects
+allow it, the multibody MuJoCo plant (``hapticopt.analysis.prrr.mujoco_plant``, ``hapticopt.analysis.master.mujoco_plant``) for
 ``link_dynamics`` (with or without gravity on the links) and for the surgical master at all.
 A scene (``backend = "lumped" | "multibody"``) or the caller may force a backend; forcing the
 lumped plant onto a scene it cannot simulate is refused with a one-line error, never silently run.
@@ -23,11 +23,11 @@ import math
 import tomllib
 from dataclasses import dataclass, field
 from enum import StrEnum
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from hapticopt.design.errors import InputFileError, InvalidInput, UnknownName
+from hapticopt.design import bundled
+from hapticopt.design.errors import InputFileError, InvalidInput
 from hapticopt.analysis.loop.operator import Operator
 
 
@@ -367,35 +367,18 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
                  backend=backend, sweep_factors=sweep, sweep_periods=sweep_periods)
 
 
-def _scene_dir():
-    return resources.files("hapticopt.analysis.scenes")
+SCENES = "hapticopt.analysis.scenes"
 
 
 def scene_names() -> list[str]:
     """Names of the bundled scenes."""
-    return sorted(p.name[: -len(".toml")] for p in _scene_dir().iterdir() if p.name.endswith(".toml"))
+    return bundled.names(SCENES)
 
 
 def load_scene(name_or_path: str | Path) -> Scene:
     """A bundled scene by name, or a scene TOML file by path."""
-    text: str
-    source: str
-    path = Path(name_or_path)
-    if str(name_or_path) in scene_names():
-        text = (_scene_dir() / f"{name_or_path}.toml").read_text(encoding="utf-8")
-        source = f"scene {name_or_path}"
-    elif path.suffix == ".toml" or path.exists():
-        if not path.is_file():
-            raise InputFileError(f"scene file {str(path)!r} does not exist: give a .toml path or a bundled scene "
-                                 f"({', '.join(scene_names())})")
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputFileError(f"scene file {str(path)!r} cannot be read: {exc}") from None
-        source = path.name
-    else:
-        raise UnknownName(f"scene {str(name_or_path)!r} does not exist: allowed scenes are {', '.join(scene_names())} "
-                          "or a path to a .toml file")
+    found = bundled.read(SCENES, "scene", name_or_path)
+    text, source = found.text, found.source
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -405,7 +388,7 @@ def load_scene(name_or_path: str | Path) -> Scene:
 
 # --------------------------------------------------------------------------------------- resolving
 class Backend(StrEnum):
-    LUMPED = "lumped"  # analysis.lumped_plant: two-mass SEA per leg + constant M_e (eq 6, 7)
+    LUMPED = "lumped"  # hapticopt.analysis.prrr.lumped_plant: two-mass SEA per leg + constant M_e (eq 6, 7)
     MULTIBODY = "multibody"  # MuJoCo plant (issue 8)
 
 

@@ -1,0 +1,1 @@
+"""Evaluators, firmware, plants and plots of the surgical master (seed 003)."""

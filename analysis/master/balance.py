@@ -3,7 +3,7 @@
 Seed 003 (eq 4–12). With the motors off, the hand must hold the gravity torque G(q):
 Jᵀ F = G, so the unbalance force at the handle is F = J⁻ᵀ G (eq 5). G has the form
 [0, G1 cos θ2, G2 sin θ3] with G1 = M g P_x, G2 = M g P_z (eq 4, 10–11; derived, not assumed,
-in :mod:`analysis.master_dynamics`), so at every pose the force is a *linear map of the CoM
+in :mod:`hapticopt.analysis.master.dynamics`), so at every pose the force is a *linear map of the CoM
 offset* P = (P_x, P_z):
 
     F(q) = A(q) P,    A(q) = M g · J_p(q)⁻ᵀ · diag(cos θ2, sin θ3)      (2×2, in-plane)

@@ -3,7 +3,7 @@
     M(q) q̈ + C(q, q̇) q̇ + G(q) = τ        (seed 003 eq 3)
 
 Every moving part is a rigid body attached to one of the link frames of
-:func:`analysis.master_kinematics.link_frames` (turret, upper arm, driver link, coupler, forearm,
+:func:`hapticopt.design.master.kinematics.link_frames` (turret, upper arm, driver link, coupler, forearm,
 handle) with its mass, its centre of mass and its inertia tensor about the CoM, both in the
 frame's axes. The parallelogram is exact: each body's pose is a function of (θ1, θ2, θ3) only,
 so the reduced (3-DOF) dynamics follow from the kinetic and potential energy:
@@ -165,7 +165,7 @@ class GravityParameters(NamedTuple):
 def gravity_parameters(model: MassModel) -> GravityParameters:
     """G1, G2 read off the general G(q) at θ2 = 0 (cos θ2 = 1) and θ3 = 90° (sin θ3 = 1).
 
-    Uses the NumPy mirror of :func:`gravity_torque` (:mod:`analysis.master_numeric`, no jit).
+    Uses the NumPy mirror of :func:`gravity_torque` (:mod:`hapticopt.analysis.master.dynamics_numpy`, no jit).
     """
 
     G = mn.gravity_torque(model, np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.5 * np.pi]]))

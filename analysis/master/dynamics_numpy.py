@@ -1,13 +1,13 @@
 """NumPy fast path of the master's kinematics and dynamics (no jit, no tracing).
 
-The reference implementation is jax (:mod:`analysis.master_kinematics`,
-:mod:`analysis.master_dynamics`); a short CLI call cannot afford its compile time, so the
+The reference implementation is jax (:mod:`hapticopt.design.master.kinematics`,
+:mod:`hapticopt.analysis.master.dynamics`); a short CLI call cannot afford its compile time, so the
 evaluators use this mirror. Derivatives are taken by the complex step
 (f(q + ih·e_k).imag / h, exact to rounding), so the same general body-sum formulas hold:
 M = Σ m J_vᵀJ_v + J_ωᵀ R I Rᵀ J_ω + rotor inertia, G = ∂V/∂q. The tests check this module
 against the jax reference to ~1e-12.
 
-Shapes: q (n, 3) [rad]; model arrays as in :class:`analysis.master_dynamics.MassModel`.
+Shapes: q (n, 3) [rad]; model arrays as in :class:`hapticopt.analysis.master.dynamics.MassModel`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ _H = 1e-30  # complex-step size
 
 def frames(kin, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Origins (n, 6, 3) and rotations (n, 6, 3, 3) of the six link frames (order of
-    :class:`analysis.master_kinematics.LinkFrames`). Works for real or complex q."""
+    :class:`hapticopt.design.master.kinematics.LinkFrames`). Works for real or complex q."""
     q = np.asarray(q)
     t1, t2, t3 = q[:, 0], q[:, 1], q[:, 2]
     c1, s1 = np.cos(t1), np.sin(t1)

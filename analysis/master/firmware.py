@@ -1,10 +1,10 @@
 """Firmware of the surgical master (seed 003): joint-torque impedance control τ = Jᵀ F at 1 kHz.
 
-The counterpart of :mod:`analysis.firmware` / :mod:`analysis.firmware_numpy` for device B, with
+The counterpart of :mod:`hapticopt.analysis.prrr.firmware` / :mod:`hapticopt.analysis.prrr.firmware_numpy` for device B, with
 the same ``reset(counts)`` / ``step(counts) -> commands`` idea. It sees only the three joint
 encoder counts (θ1, θ2, θ3, counted from the calibration pose ``q0`` it was homed at, at
 ``encoder_counts_per_rev``); from them it computes the handle position p(q) and the Jacobian
-(the master's closed-form forward kinematics, :mod:`analysis.master_kinematics` conventions), the
+(the master's closed-form forward kinematics, :mod:`hapticopt.design.master.kinematics` conventions), the
 velocity by a filtered backward difference, the virtual environment's force F (a spring
 F = −K(p − p_r) − B ṗ, or walls of a box around p_r: −K_b·depth − B_b ṗ on every axis beyond its
 wall) and the joint torques τ = Jᵀ F (+ the model's gravity torque G(q) when gravity
@@ -46,7 +46,7 @@ class MasterFirmwareConfig:
     saturation: bool
     quantized: bool  # counts are integers (informational; the plant rounds)
     gravity_compensation: bool
-    gravity_g1: float = 0.0  # G(q) = (0, G1 cos θ2, G2 sin θ3) [N·m] (analysis.master_dynamics.gravity_parameters)
+    gravity_g1: float = 0.0  # G(q) = (0, G1 cos θ2, G2 sin θ3) [N·m] (hapticopt.analysis.master.dynamics.gravity_parameters)
     gravity_g2: float = 0.0
 
 

@@ -1,11 +1,11 @@
 """The surgical master (seed 003) in closed loop: its firmware against the MuJoCo multibody plant.
 
-Plant: the MJCF of :func:`design.mjcf_master.master_mjcf` (turret, upper arm, driver link,
+Plant: the MJCF of :func:`hapticopt.design.master.mjcf.master_mjcf` (turret, upper arm, driver link,
 parallelogram coupler closed by an equality ``connect``, forearm, handle, counterweights, joint
 motors) with the scene's effects applied after compiling: gravity on/off, joint viscous friction
 (``viscous_friction``), Coulomb friction (``coulomb_friction``, MuJoCo ``frictionloss``), rotor
 inertia (``motor_dynamics``, joint armature), the motor torque limit (``saturation``). The
-solver settings are the 3-PRRR plant's per fidelity (:data:`analysis.mujoco_prrr.SOLVER_BY_FIDELITY`:
+solver settings are the 3-PRRR plant's per fidelity (:data:`hapticopt.analysis.prrr.mujoco_model.SOLVER_BY_FIDELITY`:
 integrator, timestep, solref = 2·dt, solimp 0.9999) — the parallelogram closure is held to the
 same tolerance (≤ 0.01 mm, reported with every run and flagged when exceeded).
 
@@ -15,16 +15,16 @@ tied to the handle by a ``connect``; the reference is updated once per controlle
 midpoint, as for the 3-PRRR plant. The force of the hand on the handle is
 k_h(x_r − x_h) + b_h(ẋ_r − ẋ_h) − m_h ẍ_h.
 
-The firmware (:class:`analysis.firmware_master.MasterController`) sees only the joint encoder
+The firmware (:class:`hapticopt.analysis.master.firmware.MasterController`) sees only the joint encoder
 counts (rounded when ``quantization`` is on) and its torques are held for the period (ZOH, 1 kHz).
 
 Scenes (``device = "master"``): a virtual spring or box (walls) around the start handle position
 x0 + ``environment.anchor_mm``. With ``simulation.sweep_factors`` the scene is a sine sweep: one run
 per frequency f = factor × the frequency-domain transparency bandwidth of
-:mod:`analysis.master_transparency` (same pose, spring, amplitude, hold); the gain is the ratio of
+:mod:`hapticopt.analysis.master.transparency` (same pose, spring, amplitude, hold); the gain is the ratio of
 the fundamentals of the force the hand feels, −F_hand·e, and of the ideal force −K e·(x − x_r),
 over whole periods after the first; the bandwidth is the ±3 dB crossing (log interpolation, as
-:mod:`analysis.master_sweep`).
+:mod:`hapticopt.analysis.master.sweep`).
 """
 
 from __future__ import annotations
@@ -394,7 +394,7 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
     wall = time.perf_counter() - t0
     # unstable: the run stopped (non-finite, runaway, MuJoCo reset), or the torques sat on the limit
     # for more than half of a 0.1 s window (a saturated limit cycle, e.g. a chattering stiff wall) —
-    # the rules of analysis.closed_loop.classify
+    # the rules of hapticopt.analysis.prrr.closed_loop.classify
     times = []
     for r in runs:
         if r["stop"][0] >= 0:

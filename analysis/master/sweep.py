@@ -7,9 +7,9 @@ along x_d(t) = x0 + e·X·sin ωt. The firmware samples the actuated joints ever
 the fundamentals of the force felt by the hand, F_H = −F_hand, and of the ideal force
 −K·e·(x − x0), both along e, over whole periods after one settling period. The bandwidth is
 where |G_T| crosses 0 ± 3 dB, interpolated (in log f) between the swept frequencies, which
-bracket the frequency-domain prediction of :mod:`analysis.master_transparency`.
+bracket the frequency-domain prediction of :mod:`hapticopt.analysis.master.transparency`.
 
-Uses the closed-chain MJCF of :func:`design.mjcf_master.master_mjcf` (parallelogram closed by
+Uses the closed-chain MJCF of :func:`hapticopt.design.master.mjcf.master_mjcf` (parallelogram closed by
 an equality constraint, solref 2 ms, timestep 0.25 ms, implicitfast).
 """
 
@@ -25,7 +25,7 @@ from hapticopt.analysis.master import transparency as mt
 from hapticopt.design.master.params import MasterDesign
 from hapticopt.analysis.master import dynamics as md
 
-_DB3 = np.sqrt(2.0)  # ±3 dB as half/double power, as analysis.master_transparency
+_DB3 = np.sqrt(2.0)  # ±3 dB as half/double power, as hapticopt.analysis.master.transparency
 
 
 @dataclass(frozen=True, kw_only=True)

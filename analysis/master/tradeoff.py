@@ -1,7 +1,7 @@
 """Seed 003's trade-off: sweep the counterweights down from perfect balance.
 
 Both counterweights are scaled by the same fraction s of their perfect-balance masses
-(:func:`analysis.master_dynamics.balancing_counterweights`); at each s the maximum unbalance
+(:func:`hapticopt.analysis.master.dynamics.balancing_counterweights`); at each s the maximum unbalance
 force over the workspace and the transparency bandwidth (x, z) at the default pose are
 evaluated. Lighter counterweights → larger unbalance force, lower inertia, higher bandwidth.
 """

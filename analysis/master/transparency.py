@@ -18,7 +18,7 @@ amplitude X. Compensation (none by default) adds the model's gravity, friction a
 torques through the same hold, i.e. multiplies the compensated terms by (1 − H).
 
 Closed form (no compensation, no friction, no gravity, T → 0, point mass m): G_T = 1 − m ω²/K,
-which leaves −3 dB at ω = √((1 − 1/√2) K/m) (see tests/analysis/test_master_transparency.py).
+which leaves −3 dB at ω = √((1 − 1/√2) K/m) (see tests/analysis/master/test_transparency.py).
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def axis_coefficients(model: md.MassModel, q: np.ndarray, amplitude: float = AMP
                       gravity: md.GravityParameters | None = None) -> AxisCoefficients:
     """Apparent mass, damping, gravity stiffness and Coulomb term along x and z at poses q (…, 3).
 
-    NumPy fast path (:mod:`analysis.master_numeric`); the gravity stiffness is the central
+    NumPy fast path (:mod:`hapticopt.analysis.master.dynamics_numpy`); the gravity stiffness is the central
     difference of J⁻ᵀG along δq = h·J⁻¹e (h = 1e-5 m, error ~1e-10 relative), with G in the
     eq-4 form whose coefficients come from the general G (:func:`md.gravity_parameters`;
     the tests check the form against the general ∂V/∂q).

@@ -1,6 +1,6 @@
 """Surgical master workspace and conditioning: volume, coverage of a required box, κ field, GCI.
 
-Kinematics from :mod:`analysis.master_kinematics` (seed 003, PHANToM structure): the handle is
+Kinematics from :mod:`hapticopt.design.master.kinematics` (seed 003, PHANToM structure): the handle is
 p = (ρ cos θ1, ρ sin θ1, h + L5 sin θ2 − L4 cos θ3), ρ = L5 cos θ2 + L4 sin θ3, and
 det J = ρ·L4·L5·cos(θ2 − θ3). The joint ranges are a box in (θ1, θ3, φ), φ = 90° − θ2 + θ3
 (seed 003), and cos(θ2 − θ3) = sin φ.

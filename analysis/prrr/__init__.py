@@ -1,0 +1,1 @@
+"""Evaluators, firmware, plants and plots of the 3-PRRR (seed 002)."""

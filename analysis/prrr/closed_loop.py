@@ -8,7 +8,7 @@ continuous-time limit (tested to converge to the eigenvalue analysis, ``tests``)
 
 The lumped plant runs fused with the controller in one compiled loop (``jax.lax.scan`` over
 chunks of ticks, batched over any number of controller gains: the Z-width map is one batched
-run). Other plants implement :class:`analysis.plant.Plant` and run in :func:`run_with_plant`
+run). Other plants implement :class:`hapticopt.analysis.loop.plant.Plant` and run in :func:`run_with_plant`
 (plain Python loop), whose traces feed the same :func:`metrics_from_traces`.
 
 Instability is detected early and the run stops cleanly (the state freezes at the last finite
@@ -153,7 +153,7 @@ class ClosedLoopResult:
     backend: str
     effects: tuple[str, ...]
     notes: tuple[str, ...] = ()
-    reason: str = ""  # why this backend (analysis.scene.resolve)
+    reason: str = ""  # why this backend (hapticopt.analysis.loop.scene.resolve)
     period: float = 1e-3
     substeps: int = 1
     ticks: int = 0
@@ -247,7 +247,7 @@ def observation_matrix(m: LumpedModel) -> tuple[np.ndarray, np.ndarray]:
 class Simulator:
     """Compiled closed loop of one :class:`Setup` on the lumped plant, batched over gains.
 
-    ``run(gains)`` takes :class:`analysis.firmware.Gains` whose entries may carry a leading batch
+    ``run(gains)`` takes :class:`hapticopt.analysis.prrr.firmware.Gains` whose entries may carry a leading batch
     axis (e.g. stiffness (B, 3)); the plant matrices are compiled in as constants.
     """
 

@@ -1,6 +1,6 @@
 """Solid FEA of the CAD geometry of the 3-PRRR (issue 3's build123d solids) with bonded pins.
 
-Geometry: the posed OpenCASCADE solids of :mod:`design.cad_prrr` (the same solids as the STEP
+Geometry: the posed OpenCASCADE solids of :mod:`hapticopt.design.prrr.cad` (the same solids as the STEP
 export) — ``carriage_i``, ``link1_i``, ``link2_i`` and the ``platform``; base and rails are left
 out (the sliders are locked: the carriages are clamped on their rail slots).
 
@@ -11,14 +11,14 @@ both parts' bores (and the gap between them) — is added per joint, and gmsh's 
 ``fragment`` of parts and pins makes the mesh conformal: the pin is bonded to both parts (it
 transmits all six force/moment components, including the moment about the axis; compare with
 ``FrameOptions(joints=Joints.BONDED)``). Axial layering (from the plane Π through R1, T = link
-thickness, g = clearance; see ``design/cad_prrr.py``): R1 pin spans [−3T/2−g, T/2] (clevis +
+thickness, g = clearance; see ``design/prrr/cad.py``): R1 pin spans [−3T/2−g, T/2] (clevis +
 link1), R2 [−T/2, 3T/2+g] (link1 + link2), R3 [T/2+g, s_lug+T/2] (link2 boss with its riser +
 platform lug).
 
 Named physical groups: volumes ``carriage_i``, ``link1_i``, ``link2_i``, ``platform``,
 ``pin_r{1,2,3}_i``; surfaces ``support_leg{i}`` (the four faces of carriage i's rail slot,
 clamped). Load: a rigid region of the platform is tied exactly to six master DOFs (a rigid-body
-multi-point constraint, :func:`analysis.fea.solve_with_rigid_region`) that carry the unit load
+multi-point constraint, :func:`hapticopt.analysis.fem.solid.solve_with_rigid_region`) that carry the unit load
 cases, forces at the load point P + Δz e_z. (An earlier version spread min-norm nodal forces over
 the region and fitted its rigid motion: those point loads made the stiffness drift with the mesh
 instead of converging, docs/structure.md.) ``rigid="stem"`` (default, comparable with the frame model, whose handle P → P + Δz e_z
@@ -169,7 +169,7 @@ class CadFeaResult:
     mesh: fea.TetMesh | None = None
     displacement: np.ndarray | None = None  # (3, n_nodes) [m] for a unit x force at the load point
     #: (3, n_edges) [m] the same field at the edge midpoints (P2 DOFs; edges of skfem's
-    #: MeshTet(mesh.points, mesh.tets)), for the stress (analysis.fea_stress)
+    #: MeshTet(mesh.points, mesh.tets)), for the stress (hapticopt.analysis.fem.stress)
     displacement_edges: np.ndarray | None = None
 
 
@@ -180,7 +180,7 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
     """Stiffness [N/m] of the posed CAD parts, for forces Δz above p (3 load cases).
 
     ``joints``: "bonded" (pins fused into both parts) or "released" (every revolute joint a
-    frictionless bilateral cylindrical interface on one bore, :mod:`analysis.fea_cad_hinge`;
+    frictionless bilateral cylindrical interface on one bore, :mod:`hapticopt.analysis.fem.hinge`;
     ``release_side`` "frame" or "swapped" picks the bore).
     """
 

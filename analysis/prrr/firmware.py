@@ -230,7 +230,7 @@ class FirmwareController:
 
     ``sensors`` are counts (slider encoder, spring deflection), each shape (3,). The step is
     compiled once; per-call cost is the jit dispatch (the runner fuses it into its compiled loop
-    instead, see ``analysis.closed_loop``).
+    instead, see ``hapticopt.analysis.prrr.closed_loop``).
     """
 
     def __init__(self, cfg: FirmwareConfig, gains: Gains) -> None:

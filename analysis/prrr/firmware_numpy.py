@@ -1,12 +1,12 @@
 """Plain-numpy fast path of the firmware control law, for plants stepped from Python.
 
-:func:`analysis.firmware.step` is the reference (jax, batched, compiled); called once per tick
+:func:`hapticopt.analysis.prrr.firmware.step` is the reference (jax, batched, compiled); called once per tick
 from a Python loop its dispatch costs ≈ 0.1–1 ms, several times a MuJoCo controller period of
 physics. This is the same law, term by term and in the same order, for one controller with
-numpy scalars/3-vectors (≈ 20–40 µs per tick); ``tests/analysis/test_firmware_numpy.py`` checks it
+numpy scalars/3-vectors (≈ 20–40 µs per tick); ``tests/analysis/prrr/test_firmware_numpy.py`` checks it
 against the reference on every bundled scene's structure and on the optional terms (integral,
 interpolation, box outside, force reference). It implements the
-:class:`analysis.firmware.FirmwareController` interface (``reset``, ``step``, ``last_force``).
+:class:`hapticopt.analysis.prrr.firmware.FirmwareController` interface (``reset``, ``step``, ``last_force``).
 
 Without interpolation and outside-box walls (every bundled scene) ``step`` runs a scalar path
 on Python floats (≈ 8 µs per tick instead of ≈ 35 µs for 3-vector numpy operations), the same

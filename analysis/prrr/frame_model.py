@@ -8,7 +8,7 @@ Each link is a 12-DOF Timoshenko beam (axial, torsion, two bending planes with s
 rectangular cross-section in ``design.structure``; the three revolute joints of every leg
 release the rotation about their axis w_i; the sliders are locked (optionally with the SEA
 spring in series along z). The model is assembled at any pose from the leg points of
-:func:`analysis.prrr_kinematics.leg_chain`, condensed onto the end-effector node and turned
+:func:`hapticopt.design.prrr.kinematics.leg_chain`, condensed onto the end-effector node and turned
 into the Cartesian stiffness for a load applied Δz above the end-effector.
 
 Structure of one leg i (points in the seed-digest leg construction; S is the rail point):
@@ -31,7 +31,7 @@ Without them the node-to-node beams ignore the bosses and the overlap of the lin
 and the bonded frame came out ~30 % softer than the solid FEA (docs/structure.md).
 
 Pin joints (``FrameOptions.pins``, default on): the members sit in their CAD layers along w
-(``design.cad_prrr.layout``: carriage clevis, link1, link2, platform lug, pitch λ = link thickness
+(``hapticopt.design.prrr.cad.layout``: carriage clevis, link1, link2, platform lug, pitch λ = link thickness
 + clearance) and each revolute joint is the bonded pin across the clearance gap between two
 layers. ``PinModel.NECK`` (default): the bosses are rigid up to the gap mid-plane and the joint is
 a spring there: two half-spaces loaded through the pin's circular section (Gazetas 1991) in series
@@ -77,6 +77,9 @@ from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg
 
 #: Above this 1-norm condition number (Jacobi-scaled K) a result is reported as ill-conditioned.
 COND_LIMIT = 1e12
+#: At or above this condition number the matrix is numerically singular (1/eps ≈ 4.5e15 in float64;
+#: three decades above COND_LIMIT, so a rounding-level change of the estimate never flips the verdict).
+SINGULAR_COND = 1e15
 #: Default load height above the end-effector [m] (seed 002 Table 3: Δz = 58 mm).
 LOAD_HEIGHT = 0.058
 _EZ = np.array([0.0, 0.0, 1.0])
@@ -145,8 +148,8 @@ def frame_params_of(design, xp=jnp) -> FrameParams:
     g = design.geometry
     kin = PrrrParams(*(xp.asarray(float(x)) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
     sec = Section(*(xp.asarray(float(x)) for x in (s.link_width, s.link_thickness, s.youngs_modulus, s.poisson_ratio)))
-    layer = float(s.link_thickness) + float(s.clearance)  # design.cad_prrr.layout: s_link2 = T + g
-    s_lug = max(float(g.r4), 2.0 * layer)  # design.cad_prrr.layout: s_lug = max(r4, 2T + 2g)
+    layer = float(s.link_thickness) + float(s.clearance)  # hapticopt.design.prrr.cad.layout: s_link2 = T + g
+    s_lug = max(float(g.r4), 2.0 * layer)  # hapticopt.design.prrr.cad.layout: s_lug = max(r4, 2T + 2g)
     return FrameParams(kin=kin, r_p=xp.asarray(float(g.r_p)), section=sec,
                        spring=xp.asarray(float(design.actuator.spring)),
                        joint_zone=xp.asarray(0.5 * float(s.boss_diameter)),
@@ -482,7 +485,7 @@ def _assemble(n, L, elems, section: Section, spring, options: FrameOptions, xp=j
 
 def _leg_stiffness_pins(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp,
                         fp: FrameParams, zones_on):
-    """One leg with the CAD's axial layering (``FrameOptions(pins=True)``, design.cad_prrr layers).
+    """One leg with the CAD's axial layering (``FrameOptions(pins=True)``, hapticopt.design.prrr.cad layers).
 
     Along w from the plane Π of A, B, B' (λ = link thickness + clearance): carriage clevis at −λ,
     link1 at 0, link2 at λ, platform lug at s_lug = max(r4, 2λ) (the kinematic Q is at r4).

@@ -5,16 +5,16 @@ problem that constrains ``interference_overlap_fraction`` (or the removed fracti
 evaluation does not pay for it (issue 4's ≤ 20 ms draft budget).
 
 Metric ``interference_removed_fraction``: the share of the sampled workspace volume whose poses
-make two parts collide, from :mod:`analysis.interference_fast` (convex primitives of the CAD part
+make two parts collide, from :mod:`hapticopt.analysis.prrr.interference_fast` (convex primitives of the CAD part
 tables, separating axes; ~30 ms for the 216 poses of
-:data:`analysis.prrr_workspace.INTERFERENCE_SAMPLING`). The same model at every fidelity: it never
+:data:`hapticopt.analysis.prrr.workspace.INTERFERENCE_SAMPLING`). The same model at every fidelity: it never
 misses a collision the manifold3d reference (:mod:`analysis.interference`) finds, so a bound on it
 is conservative (docs/workspace_interference.md). At fine fidelity the ``workspace`` evaluator
 also reports the manifold3d value, ``workspace_interference_removed_fraction``.
 
 Metric ``interference_overlap_fraction``: its continuous companion from the same pass, each pose
 weighted by clip(d / 1 mm, 0, 1), d its deepest part-pair overlap
-(:data:`analysis.interference_fast.OVERLAP_SCALE`). The removed fraction is a sum of pose weights
+(:data:`hapticopt.analysis.prrr.interference_fast.OVERLAP_SCALE`). The removed fraction is a sum of pose weights
 that switch on and off, piecewise constant in the design, which stalls COBYLA; the companion moves
 continuously with the overlap depths (docs/workspace_interference.md).
 """

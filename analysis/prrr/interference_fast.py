@@ -2,14 +2,14 @@
 
 The reference is :mod:`analysis.interference` (manifold3d meshes of the CAD parts, one exact
 boolean per candidate pair, ~20 ms a pose). This module tests the same part pairs, built from
-the same part tables (:func:`design.cad_prrr.part_specs`), without meshes:
+the same part tables (:func:`hapticopt.design.prrr.cad.part_specs`), without meshes:
 
 * **Shapes.** Every SOLID primitive of a part table is used as it is — box, cylinder, sphere —
   in its own frame; a part is the union of its primitives. HOLEs (pin bores, the carriage's
   rail slot) are ignored, so parts are *filled*: material is only ever added (conservative).
   OVERLAP primitives are mass-model bookkeeping and are not material.
 * **Pairs.** The reference's rule: every pair of parts on different rigid bodies that are not
-  joined by a joint (:func:`design.cad_prrr.neighbours`).
+  joined by a joint (:func:`hapticopt.design.prrr.cad.neighbours`).
 * **Test.** Two convex primitives are disjoint iff some axis separates their projections
   (separating-axis theorem). The projection half-width of a primitive on a unit axis n is its
   support: box Σ_k |n·e_k| h_k; cylinder h|n·a| + r√(1 − (n·a)²); sphere r. Candidate axes per
@@ -26,7 +26,7 @@ the same part tables (:func:`design.cad_prrr.part_specs`), without meshes:
 * **Speed.** World-axis-aligned bounds of every primitive (exact support extents) over all
   (pose, primitive pair) first; the 16 cheap axes on the survivors, the 40 sampled axes only
   on curved pairs still overlapping, each one numpy pass. Poses come from the numpy
-  inverse kinematics (:func:`analysis.prrr_kinematics.inverse_kinematics`, ``xp=numpy``), in the
+  inverse kinematics (:func:`hapticopt.design.prrr.kinematics.inverse_kinematics`, ``xp=numpy``), in the
   CAD's elbow branch.
 
 Usage::
@@ -160,7 +160,7 @@ def prepare(design: PrrrDesign) -> FastModel:
 def part_frames_batch(design: PrrrDesign, points, *, branch: int = cad_prrr.DEFAULT_BRANCH
                       ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], np.ndarray]:
     """World rotation (n, 3, 3) and origin (n, 3) [m] of every part at ``points`` (n, 3) [m]
-    (:func:`design.cad_prrr.part_frames_batch` after the numpy IK), and whether each point is reachable."""
+    (:func:`hapticopt.design.prrr.cad.part_frames_batch` after the numpy IK), and whether each point is reachable."""
 
     g = design.geometry
     p = np.atleast_2d(np.asarray(points, dtype=float))
@@ -291,7 +291,7 @@ def overlap_share(res: FastResult, *, scale: float = OVERLAP_SCALE) -> np.ndarra
 def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int,
                            scale: float = OVERLAP_SCALE) -> tuple[float, float]:
     """(removed fraction, overlap fraction) of the sampled workspace volume, from one check of
-    the poses (polar-cell weights w_i of :func:`analysis.prrr_workspace.workspace_sample_weights`):
+    the poses (polar-cell weights w_i of :func:`hapticopt.analysis.prrr.workspace.workspace_sample_weights`):
 
     * removed = Σ w_i [pose i collides] / Σ w_i — piecewise constant in the design;
     * overlap = Σ w_i clip(d_i / scale, 0, 1) / Σ w_i, d_i the deepest pair overlap at pose i —
@@ -310,5 +310,5 @@ def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int
 
 def removed_fraction(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> float:
     """Share of the sampled workspace volume whose poses collide (the polar-cell weights of
-    :func:`analysis.prrr_workspace.workspace_sample_weights`; 0 for an empty sample)."""
+    :func:`hapticopt.analysis.prrr.workspace.workspace_sample_weights`; 0 for an empty sample)."""
     return interference_fractions(design, n_phi=n_phi, n_r=n_r, n_z=n_z)[0]

@@ -277,10 +277,10 @@ def observables(model: LumpedModel, x, u, lam, xp=np):
 
 
 class LumpedPlant:
-    """The :class:`analysis.plant.Plant` implementation on the lumped model (plain numpy, one device).
+    """The :class:`hapticopt.analysis.loop.plant.Plant` implementation on the lumped model (plain numpy, one device).
 
     The closed-loop runner uses a fused, compiled version of the same update
-    (``analysis.closed_loop``); this object is the plain reference it is tested against and the
+    (``hapticopt.analysis.prrr.closed_loop``); this object is the plain reference it is tested against and the
     template for other backends.
     """
 

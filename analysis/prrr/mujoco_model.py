@@ -2,7 +2,7 @@
 
 Three legs, each: (motor mass M_m on a vertical slide →) series spring k → output slider
 (carriage) → R1 hinge → link 1 → R2 hinge → link 2, closed on the end-effector at the R3 axis
-by equality constraints. Geometry comes from :mod:`analysis.prrr_kinematics` (``leg_chain`` at
+by equality constraints. Geometry comes from :mod:`hapticopt.design.prrr.kinematics` (``leg_chain`` at
 the home pose p = 0, elbow branch 0); every body frame is parallel to the world frame at the
 home pose, so joint axes are the kinematic ``w_i``.
 
@@ -64,7 +64,7 @@ import dataclasses
 LUMPED_LINK_MASS = 1e-3
 #: output slider (carriage) mass [kg]; the paper's two-mass model has none, MuJoCo needs > 0
 CARRIAGE_MASS = 1e-3
-#: elbow branch of every leg: the CAD's (design.cad_prrr.DEFAULT_BRANCH), so link inertias match
+#: elbow branch of every leg: the CAD's (hapticopt.design.prrr.cad.DEFAULT_BRANCH), so link inertias match
 BRANCH = 1
 #: length along w of the second R3 closure point of the FREE platform [m]
 _AXIS_ARM = 0.04

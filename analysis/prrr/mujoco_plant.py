@@ -1,8 +1,8 @@
 """The multibody (MuJoCo) plant of the 3-PRRR for the closed-loop runner.
 
-Implements :class:`analysis.plant.Plant` on the model of :mod:`analysis.mujoco_prrr`: the
-firmware controller (``analysis.firmware``'s law, run through its tested numpy fast path
-``analysis.firmware_numpy``) at its period T; its commands are held (zero-order hold, or L samples per period with the seed 000 interpolation) over ``T / timestep``
+Implements :class:`hapticopt.analysis.loop.plant.Plant` on the model of :mod:`hapticopt.analysis.prrr.mujoco_model`: the
+firmware controller (``hapticopt.analysis.prrr.firmware``'s law, run through its tested numpy fast path
+``hapticopt.analysis.prrr.firmware_numpy``) at its period T; its commands are held (zero-order hold, or L samples per period with the seed 000 interpolation) over ``T / timestep``
 MuJoCo substeps; the runner reads the plant's sensors and quantises them exactly as for the
 lumped plant. The operator hand is a body (mass m_h on springs k_h and dampers b_h to the
 reference motion, seed 000 eq 1) tied to the handle by a ``<connect>``; its reference is
@@ -62,7 +62,7 @@ class BackendChoice:
 
 def choose_backend(scene: Scene, *, force: Backend | None = None) -> BackendChoice:
     """Lumped when the effects allow it, multibody when ``link_dynamics`` is on (or the device is
-    the master); ``force`` (else the scene's ``backend`` key) overrides — see :func:`analysis.scene.resolve`."""
+    the master); ``force`` (else the scene's ``backend`` key) overrides — see :func:`hapticopt.analysis.loop.scene.resolve`."""
     res = resolve(scene, force=force)
     return BackendChoice(backend=res.backend, reason=res.reason, resolution=res)
 
@@ -239,7 +239,7 @@ class MujocoPlant:
 
     # ----------------------------------------------------------------------------- fast loop
     def run(self, controller: Any, st: Any, *, check_every: int = CHECK_EVERY) -> Any:
-        """The closed loop of :func:`analysis.closed_loop.run_with_plant`, fused around ``mj_step``.
+        """The closed loop of :func:`hapticopt.analysis.prrr.closed_loop.run_with_plant`, fused around ``mj_step``.
 
         Same sensors, quantisation, controller calls, delay line, hand reference and stop rule;
         per tick only raw state is copied into preallocated arrays (qpos, qvel, qacc, kinetic
@@ -248,7 +248,7 @@ class MujocoPlant:
         vectorised every ``check_every`` ticks over the whole window (every tick is checked, none is
         skipped: the first bad tick in the window is found and the traces stop there exactly as in
         the reference loop; the plant may have run up to ``check_every − 1`` ticks beyond, which
-        nothing reads). Tested equal to the reference loop (``tests/analysis/test_mujoco_plant.py``).
+        nothing reads). Tested equal to the reference loop (``tests/analysis/prrr/test_mujoco_plant.py``).
         """
 
         mj, m, d = self._mujoco, self.model, self.data
@@ -451,7 +451,7 @@ class MujocoPlant:
 class MultibodyResult:
     """A closed-loop run on the multibody plant: the runner's result + constraint health."""
 
-    loop: Any  # analysis.closed_loop.ClosedLoopResult
+    loop: Any  # hapticopt.analysis.prrr.closed_loop.ClosedLoopResult
     health: Health
     warnings: tuple[str, ...]
     substeps: int
@@ -553,7 +553,7 @@ def stiffness_limit(design: PrrrDesign, scene: Scene, *, backend: Backend, axis:
                     link_masses: LinkMasses | None = LinkMasses.LUMPED) -> tuple[float, float]:
     """Largest stable virtual stiffness K_v along ``axis`` [N/m] by bisection (geometric mean).
 
-    Both plants run the same Python loop (:func:`analysis.closed_loop.run_with_plant`) and the
+    Both plants run the same Python loop (:func:`hapticopt.analysis.prrr.closed_loop.run_with_plant`) and the
     same stability classification (the scene's criterion, e.g. ``decay``). Returns the bracket
     (stable, unstable) after ``iterations`` halvings of its log-width.
     """

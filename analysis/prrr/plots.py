@@ -92,7 +92,7 @@ def structure_plots(design: PrrrDesign, result, out_dir: Path) -> list[Path]:
         st = getattr(result, "fea_stress", None)  # computed by the evaluator at fine fidelity
         if st is None:
             st = fea_element_stress(design, fea_res)
-        if st is not None:  # von Mises from the P2 field (analysis.fea_stress), per element
+        if st is not None:  # von Mises from the P2 field (hapticopt.analysis.fem.stress), per element
             grid.cell_data["von_mises_MPa_per_N"] = st.von_mises * 1e-6
             warped = grid.warp_by_vector("u", factor=sc)
             pl = pv.Plotter(off_screen=True, window_size=(900, 700))

@@ -4,8 +4,8 @@ Metrics (seed 002 section 2.3, Table 3): the Cartesian stiffness [x, y, z] for a
 Δz = 58 mm above the end-effector (sliders locked), the elastic centre (height above the
 end-effector on the z axis where a lateral force and the rotation decouple) and the stiffness
 when loaded there. ``draft``/``standard`` fidelity: the Timoshenko frame model
-(:mod:`analysis.frame_model`: pins as bonded necks, numpy path, ~3–5 ms, no compilation).
-``fine``: additionally the solid FEA of the CAD geometry with bonded pins (:mod:`analysis.fea_cad`, level 2, ~20–40 s),
+(:mod:`hapticopt.analysis.prrr.frame_model`: pins as bonded necks, numpy path, ~3–5 ms, no compilation).
+``fine``: additionally the solid FEA of the CAD geometry with bonded pins (:mod:`hapticopt.analysis.prrr.fea_cad`, level 2, ~20–40 s),
 reported next to the frame model with bonded joints at the CAD's elbow branch, the model it checks.
 """
 
@@ -34,12 +34,12 @@ class StructuralStiffness:
     elastic_centre: float  # height of the elastic centre above the end-effector [m]
     stiffness_elastic_centre: np.ndarray  # (3,) [N/m]
     compliance_ee: np.ndarray  # (6, 6) compliance at the end-effector [SI]
-    coupling_residual: float  # see analysis.frame_model.frame_arrays
+    coupling_residual: float  # see hapticopt.analysis.prrr.frame_model.frame_arrays
     condition: float  # condition estimate of the stiffness matrix
     options: fm.FrameOptions
-    fea: Any = None  # analysis.fea_cad.CadFeaResult at fine fidelity
+    fea: Any = None  # hapticopt.analysis.prrr.fea_cad.CadFeaResult at fine fidelity
     stiffness_load_frame_bonded: np.ndarray | None = None  # (3,) [N/m] frame with bonded joints (FEA's model)
-    fea_stress: Any = None  # analysis.fea_stress.ElementStress of the FEA's 1 N x load case (fine)
+    fea_stress: Any = None  # hapticopt.analysis.fem.stress.ElementStress of the FEA's 1 N x load case (fine)
     status: Status = Status.OK
     message: str = ""
 
@@ -69,6 +69,9 @@ def _status(out: dict[str, np.ndarray]) -> tuple[Status, str]:
     cond = float(out["condition"])
     if not all(np.all(np.isfinite(v)) for v in values) or not np.isfinite(cond):
         return Status.SINGULAR, "frame stiffness matrix is singular (non-finite compliance)"
+    if cond >= fm.SINGULAR_COND:
+        return Status.SINGULAR, (f"frame stiffness matrix is numerically singular (condition ≈ {cond:.2g} ≥ "
+                                 f"{fm.SINGULAR_COND:.0e}): results meaningless")
     if cond > fm.COND_LIMIT:
         return Status.SINGULAR, (f"frame stiffness matrix is ill-conditioned (condition ≈ {cond:.2g} > "
                                  f"{fm.COND_LIMIT:.0e}): results unreliable")
@@ -134,7 +137,7 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> S
 
 
 def fea_element_stress(design: PrrrDesign, fea_result):
-    """Element von Mises stress of the FEA's 1 N x load case (analysis.fea_stress), or None without the P2 field."""
+    """Element von Mises stress of the FEA's 1 N x load case (hapticopt.analysis.fem.stress), or None without the P2 field."""
     u_edges = getattr(fea_result, "displacement_edges", None)
     if fea_result.mesh is None or fea_result.displacement is None or u_edges is None:
         return None

@@ -33,7 +33,7 @@ So the workspace is {(x, y) reached by every leg} × z-interval(x, y), and
   which contains its centroid, the axis). R_reach is computed exactly (sampled start, Newton
   on the ellipse parameter).
 * **footprint**: the device envelope in xy, the larger of the fixed parts' circle (base plate,
-  carriage and SEA block as built by ``design.cad_prrr``) and the links' swept extent (the
+  carriage and SEA block as built by ``hapticopt.design.prrr.cad``) and the links' swept extent (the
   R1, R2, R3 joint bosses over the sampled reach region, in the CAD's elbow branch).
 * **Jacobian constancy**: the IK slider map is differentiated by central differences at
   sampled workspace points; the largest relative deviation of cond₂ from the analytic
@@ -68,7 +68,7 @@ _GAMMA = np.asarray(GAMMAS)
 _THIRD = 2.0 * math.pi / 3.0
 
 def base_envelope(design: PrrrDesign) -> float:
-    """Radius [m] of the fixed parts' envelope in xy, as built by ``design.cad_prrr``: the base
+    """Radius [m] of the fixed parts' envelope in xy, as built by ``hapticopt.design.prrr.cad``: the base
     plate, and the carriage/SEA block (radially r_p − … to r_p + rail_width/2 + clearance +
     sea_envelope, tangentially ±(rail_width/2 + clearance + carriage_wall)), whose outer corner
     is the farthest point."""
@@ -78,7 +78,7 @@ def base_envelope(design: PrrrDesign) -> float:
 
 
 #: Elbow branch used for the links' swept extent: the CAD's assembly mode
-#: (``design.cad_prrr.DEFAULT_BRANCH``: branch 1 of the IK, elbows outwards, θ2 ≤ 0).
+#: (``hapticopt.design.prrr.cad.DEFAULT_BRANCH``: branch 1 of the IK, elbows outwards, θ2 ≤ 0).
 ELBOW_BRANCH = 1
 
 #: Default required cylinder diameter for ``workspace_height_at_diameter_mm`` [m]
@@ -322,7 +322,7 @@ def _fd_condition(kp: PrrrParams, pts: jax.Array) -> tuple[jax.Array, jax.Array]
 
 def jacobian_constancy(design: PrrrDesign, *, n_phi: int = 24, n_r: int = 6, n_z: int = 3) -> tuple[float, int]:
     """Largest relative deviation of the finite-difference cond₂ from the analytic one over
-    sampled workspace points (uses the geometric IK of :mod:`analysis.prrr_kinematics`, not
+    sampled workspace points (uses the geometric IK of :mod:`hapticopt.design.prrr.kinematics`, not
     the closed forms of this module), and the number of points."""
     wp = workspace_params(design)
     pts = sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)
@@ -413,7 +413,7 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     ``interference``: check link interference with the manifold3d reference on the 216 poses of
     :data:`INTERFERENCE_SAMPLING` (default: the fidelity's setting, fine only); it reduces the
     volume. The inscribed-cylinder metrics are always reach-and-stroke. The fast model for the
-    optimiser is a separate evaluator, :mod:`analysis.prrr_interference`.
+    optimiser is a separate evaluator, :mod:`hapticopt.analysis.prrr.interference`.
     """
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
@@ -450,7 +450,7 @@ def batch_arrays(wp: WorkspaceParams, *, fidelity: Fidelity = Fidelity.STANDARD)
 
 
 #: sampling of the interference checks (3·n_phi·n_r·n_z = 216 poses; manifold3d ~20 ms each at
-#: fine, analysis.interference_fast ~30 ms for all of them at every level)
+#: fine, hapticopt.analysis.prrr.interference_fast ~30 ms for all of them at every level)
 INTERFERENCE_SAMPLING = dict(n_phi=6, n_r=4, n_z=3)
 
 

@@ -2,7 +2,7 @@
 
 Every point is one closed-loop run of the scene (e.g. the bundled ``z-width`` scene: released
 1 mm off the anchor, nobody holding the handle, decay criterion). All points of a map run as
-one batched, compiled simulation (:class:`analysis.closed_loop.Simulator` batched over gains);
+one batched, compiled simulation (:class:`hapticopt.analysis.prrr.closed_loop.Simulator` batched over gains);
 the boundary K_max(B) is refined by bisection, all damping values at once.
 """
 

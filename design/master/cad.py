@@ -1,6 +1,6 @@
 """Parametric CAD of the PHANToM-type surgical master (seed 003).
 
-Frames come from :func:`analysis.master_kinematics.link_frames` (x along the link, y along the
+Frames come from :func:`hapticopt.design.master.kinematics.link_frames` (x along the link, y along the
 joint axis a, origin on the proximal joint), so every bore lies on its kinematic axis.
 
 Parts (name → body): ``base`` (plate below z = 0) → base; ``turret`` (drum on the θ1 axis and

@@ -53,7 +53,7 @@ def analytic_mass_properties(design: MasterDesign) -> tuple[BodyMass, ...]:
     design puts it, counterweights and handle as steel spheres, the turret as its inertia about θ1.
 
     Counterweights: ``upper`` at −r2x on the upper arm's rear extension; ``forearm`` at +r4z along
-    the driver link (which points away from the forearm), see :mod:`design.master`.
+    the driver link (which points away from the forearm), see :mod:`hapticopt.design.master.params`.
     """
     g, ln, cw = design.geometry, design.links, design.counterweights
     it = ln.turret_inertia

@@ -1,14 +1,14 @@
 """MJCF (MuJoCo XML) of the surgical master: turret, upper arm, θ3 driver link, parallelogram
 coupler (closed by an equality ``connect``), forearm, handle, counterweights, joint motors.
 
-Frames and joint signs follow :mod:`analysis.master_kinematics` (z up; θ2, θ3 about the link
+Frames and joint signs follow :mod:`hapticopt.design.master.kinematics` (z up; θ2, θ3 about the link
 frames' y axis). Joint vector of the compiled model (qpos order):
 ``[theta1, theta2, forearm_rel, theta3, coupler_rel]`` with forearm_rel = θ3 − θ2 and
 coupler_rel = θ2 − θ3 (the parallelogram closure). :data:`REDUCTION` maps the reduced joint
 velocities (θ̇1, θ̇2, θ̇3) to the full ones: M_red = Sᵀ M S, G_red = Sᵀ qfrc_bias.
 
-Mass properties: :func:`analysis.master_dynamics.analytic_mass_properties` unless a list of
-:class:`analysis.master_dynamics.BodyMass` is given (e.g. from the CAD). Every part becomes a
+Mass properties: :func:`hapticopt.analysis.master.dynamics.analytic_mass_properties` unless a list of
+:class:`hapticopt.analysis.master.dynamics.BodyMass` is given (e.g. from the CAD). Every part becomes a
 joint-less child body with an explicit ``<inertial>`` (so visual geoms add no mass). MuJoCo
 rejects massless moving bodies: masses below 1e-9 kg are floored to 1e-9 kg.
 """

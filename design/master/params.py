@@ -98,7 +98,7 @@ class MasterActuators:
 
 @dataclass(frozen=True, kw_only=True)
 class MasterStructure:
-    """Cross-sections and materials of the CAD (design/cad_master.py); not in seed 003, documented defaults."""
+    """Cross-sections and materials of the CAD (design/master/cad.py); not in seed 003, documented defaults."""
 
     link_width: float = param("link_width_mm", "mm", default=14.0, lo=0.0, hi=500.0, lo_open=True,
                               doc="link cross-section, in the arm plane")

@@ -10,7 +10,7 @@ Axial layering (along each leg's joint direction w, measured from the plane Π t
 point A of seed 002's leg construction, T = link thickness, g = clearance):
 carriage clevis [−3T/2−g, −T/2−g], link1 [−T/2, T/2], link2 [T/2+g, 3T/2+g], platform lug
 centred at s3 = max(r4, 2T+2g). Every joint axis is the kinematic axis of
-:mod:`analysis.prrr_kinematics` (tested), so neighbouring parts never share volume.
+:mod:`hapticopt.design.prrr.kinematics` (tested), so neighbouring parts never share volume.
 
 All geometry is SI here; build123d receives mm through :mod:`design.cad_units`.
 """

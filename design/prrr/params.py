@@ -100,7 +100,7 @@ class Structure:
                                   doc="Young's modulus (aluminium 6061)")
     poisson_ratio: float = param("poisson_ratio", "", default=0.33, lo=0.0, hi=0.5, hi_open=True,
                                  doc="Poisson's ratio (aluminium 6061)")
-    # --- CAD (design/cad_prrr.py); defaults chosen here, the paper gives no part data
+    # --- CAD (design/prrr/cad.py); defaults chosen here, the paper gives no part data
     clearance: float = param("clearance_mm", "mm", default=0.5, lo=0.0, hi=50.0, lo_open=True,
                              doc="axial gap between stacked links at a joint")
     rail_width: float = param("rail_width_mm", "mm", default=20.0, lo=0.0, hi=500.0, lo_open=True,

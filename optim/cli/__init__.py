@@ -1,6 +1,9 @@
-"""The ``hapticopt`` command line. Each subcommand lives in its own ``optim.cli_*`` module."""
+"""The ``hapticopt`` command line. Each subcommand lives in its own module of this package."""
 
 from __future__ import annotations
+
+from importlib.metadata import version
+from typing import Annotated
 
 import typer
 
@@ -16,6 +19,22 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+def _show_version(value: bool) -> None:
+    if value:
+        typer.echo(f"hapticopt {version('hapticopt')}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    show_version: Annotated[bool, typer.Option("--version", help="Print the version and exit.", callback=_show_version,
+                                               is_eager=True)] = False,
+) -> None:
+    """Design optimisation of haptic mechanisms: describe, evaluate, optimise, export, verify."""
+
+
 app.command("evaluate")(cli_evaluate.evaluate)
 app.command("presets")(cli_evaluate.presets)
 app.command("export")(cli_export.export)

@@ -10,7 +10,7 @@ import pytest
 
 from hapticopt.design import export as ex
 from hapticopt.design import io
-from hapticopt.design.mass_properties import from_cad
+from hapticopt.design.mass_properties import Method
 
 PARTS = {"base", "platform"} | {f"{k}_{i}" for k in ("rail", "carriage", "link1", "link2") for i in (1, 2, 3)}
 
@@ -97,7 +97,7 @@ def test_mjcf_matches_mass_properties_json(exported, paper):
 def test_json_is_the_cad_mass_properties(exported, paper):
     data = json.loads((exported.out_dir / "mass_properties.json").read_text())
     assert data["method"] == "cad"
-    cad = from_cad(paper)
+    cad = ex.mass_properties(paper, method=Method.CAD)
     assert data["parts"]["platform"]["mass_kg"] == pytest.approx(cad.parts["platform"].mass, rel=1e-12)
 
 

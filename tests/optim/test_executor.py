@@ -11,7 +11,7 @@ from hapticopt.optim import driver
 from hapticopt.optim.executor import InlineExecutor, make_executor, worker_count
 from hapticopt.optim.problem import load_problem
 
-ONLY = ("statics",)  # the problem's metrics all come from analysis.prrr_statics
+ONLY = ("statics",)  # the problem's metrics all come from hapticopt.analysis.prrr.statics
 PROBLEM = Path(__file__).parent / "data" / "resume-problem.toml"
 
 

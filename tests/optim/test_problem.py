@@ -53,7 +53,7 @@ def test_problem_file_path_and_fields():
 def test_default_bounds_come_from_the_field_metadata():
     p = problem_from_dict(base_problem(variables=[{"key": "geometry.d3_mm"}]))
     (v,) = p.variables
-    # design/prrr.py: d3_mm is 0 < d3 ≤ 2000 mm (open at 0: kept strictly inside)
+    # design/prrr/params.py: d3_mm is 0 < d3 ≤ 2000 mm (open at 0: kept strictly inside)
     assert v.upper == 2000.0 and 0.0 < v.lower < 1e-2
     b = problem_from_dict(base_problem(variables=[{"key": "geometry.beta_deg"}])).variables[0]
     assert 0.0 < b.lower < 1e-3 and 90.0 - 1e-3 < b.upper < 90.0  # 0 < β < 90° (open)
@@ -113,7 +113,7 @@ def test_bad_problems_raise_one_line_errors(changes, match):
 
 
 def test_unknown_problem_name_and_bad_toml(tmp_path):
-    with pytest.raises(UnknownName, match="bundled problems are .*prrr-workspace"):
+    with pytest.raises(UnknownName, match="allowed problems are .*prrr-workspace"):
         load_problem("no-such-problem")
     bad = tmp_path / "bad.toml"
     bad.write_text("name = \n")

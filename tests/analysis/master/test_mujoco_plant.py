@@ -1,4 +1,4 @@
-"""The surgical master in closed loop (analysis/mujoco_master.py, analysis/firmware_master.py)."""
+"""The surgical master in closed loop (analysis/master/mujoco_plant.py, analysis/master/firmware.py)."""
 
 from __future__ import annotations
 
@@ -34,8 +34,8 @@ def _cfg(**kw):
 
 
 def test_firmware_kinematics_match_mujoco_and_numeric_jacobian():
-    """The firmware's closed-form p(q), J(q) equal the MJCF handle site (design.mjcf_master) and
-    analysis.master_numeric.jacobian at poses across the workspace."""
+    """The firmware's closed-form p(q), J(q) equal the MJCF handle site (hapticopt.design.master.mjcf) and
+    hapticopt.analysis.master.dynamics_numpy.jacobian at poses across the workspace."""
     import mujoco
 
     from hapticopt.analysis.master import dynamics as md
@@ -75,7 +75,7 @@ def test_firmware_sees_counts_and_renders_jt_f_with_saturation():
 
 def test_master_transparency_sweep_agrees_with_frequency_domain():
     """Issue 8 acceptance: the time-domain bandwidth of the master-transparency sweep (firmware in the
-    loop, quantised encoders, 1 kHz ZOH, MuJoCo master) within 5 % of analysis.master_transparency."""
+    loop, quantised encoders, 1 kHz ZOH, MuJoCo master) within 5 % of hapticopt.analysis.master.transparency."""
     r = simulate(MASTER, load_scene("master-transparency"), fidelity=Fidelity.DRAFT)
     m = r.metrics()
     assert r.status == Status.OK, r.message

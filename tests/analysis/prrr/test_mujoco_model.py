@@ -1,4 +1,4 @@
-"""Tests of the MuJoCo 3-PRRR model (analysis/mujoco_prrr.py)."""
+"""Tests of the MuJoCo 3-PRRR model (analysis/prrr/mujoco_model.py)."""
 
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 from hapticopt.optim.cli import app
 
 runner = CliRunner()
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 
 
 def invoke(*args: str):

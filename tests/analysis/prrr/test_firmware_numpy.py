@@ -1,5 +1,5 @@
-"""The numpy fast path of the firmware law (analysis/firmware_numpy.py) against the reference
-:func:`analysis.firmware.step` (jax): same commands and force references tick by tick."""
+"""The numpy fast path of the firmware law (analysis/prrr/firmware_numpy.py) against the reference
+:func:`hapticopt.analysis.prrr.firmware.step` (jax): same commands and force references tick by tick."""
 
 from __future__ import annotations
 

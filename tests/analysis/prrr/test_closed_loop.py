@@ -1,4 +1,4 @@
-"""analysis.closed_loop: issue 6 acceptance on the lumped plant (rendering, transparency, force loop,
+"""hapticopt.analysis.prrr.closed_loop: issue 6 acceptance on the lumped plant (rendering, transparency, force loop,
 switching effects, hard cases) and the fused runner against the plain reference loop."""
 
 from __future__ import annotations

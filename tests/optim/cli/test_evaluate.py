@@ -25,7 +25,7 @@ def test_evaluate_preset_json_has_reference_metrics():
     out = json.loads(res.stdout)
     assert set(out) >= {"design", "metrics", "timings_s"}
     m = out["metrics"]
-    # seed 002 Table 1 and eq 15 (see tests/analysis/test_prrr_statics.py for the sources)
+    # seed 002 Table 1 and eq 15 (see tests/analysis/prrr/test_statics.py for the sources)
     assert m["max_force_N"] == pytest.approx([1378, 1194, 3581], rel=2e-3)
     assert m["stiffness_limit_N_per_mm"] == pytest.approx([28.14, 28.14, 168.8], rel=2e-3)
     assert m["jacobian_condition"] == pytest.approx(6**0.5, rel=1e-12)

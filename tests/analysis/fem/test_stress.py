@@ -1,7 +1,7 @@
-"""Von Mises stress from the P2 field (analysis.fea_stress) and its picture in ``--plots``.
+"""Von Mises stress from the P2 field (hapticopt.analysis.fem.stress) and its picture in ``--plots``.
 
 Reference: Euler–Bernoulli bending stress σ_xx = −M y / I, M = P (L − x), of the clamped
-200 × 20 × 10 mm aluminium cantilever of tests/analysis/test_fea.py under a unit tip shear
+200 × 20 × 10 mm aluminium cantilever of tests/analysis/fem/test_solid.py under a unit tip shear
 along y (bending about z: I = t b³ / 12, outer fibre c = b / 2).
 """
 
@@ -15,7 +15,7 @@ import pytest
 from hapticopt.analysis.prrr import plots as prrr_plots
 from hapticopt.analysis.fem import solid as fea, stress as fea_stress
 
-L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33  # as tests/analysis/test_fea.py
+L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33  # as tests/analysis/fem/test_solid.py
 I_Z, C = T * B**3 / 12.0, B / 2.0
 SIZE = T / fea.REFINEMENT_RATIO  # 7.1 mm: ~900 tetrahedra, 6·10³ DOFs, ~2 s
 

@@ -8,7 +8,7 @@ import pytest
 from hapticopt.analysis.prrr import frame_model as fm
 from hapticopt.design import io
 
-E, NU = 68.9e9, 0.33  # aluminium 6061 (design/prrr.py defaults)
+E, NU = 68.9e9, 0.33  # aluminium 6061 (design/prrr/params.py defaults)
 
 
 def _section(b=0.02, t=0.01):

@@ -1,4 +1,4 @@
-"""Tests of the multibody plant in the closed loop (analysis/mujoco_plant.py)."""
+"""Tests of the multibody plant in the closed loop (analysis/prrr/mujoco_plant.py)."""
 
 from __future__ import annotations
 

@@ -129,7 +129,7 @@ def test_degenerate_designs_stay_finite(paper):
 
 
 def test_interference_evaluator_reports_the_fast_fraction_and_workspace_stays_cheap(paper):
-    # the optimiser's metric comes from its own evaluator (analysis.prrr_interference), so a plain
+    # the optimiser's metric comes from its own evaluator (hapticopt.analysis.prrr.interference), so a plain
     # draft workspace evaluation neither runs nor reports it (issue 4's 20 ms draft budget)
     from hapticopt.analysis.prrr import interference as prrr_interference
     from hapticopt.analysis.registry import evaluate_all

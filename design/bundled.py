@@ -1,0 +1,49 @@
+"""Bundled TOML files (presets, scenes, problems): one loader for the three kinds.
+
+A bundled file is named by its stem (``prrr-paper``); anything else is read as a path. A name
+that is both (a file of that name in the working directory) is read as the file, so a user's
+file is never shadowed silently. Unknown names get one line listing what is bundled.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from hapticopt.design.errors import InputFileError, UnknownName
+
+
+@dataclass(frozen=True, kw_only=True)
+class TomlText:
+    text: str
+    source: str  # "scene stiffness-25" or the file name, for messages
+    base_dir: Path | None  # the file's folder (relative paths inside it), None when bundled
+
+
+def names(package: str) -> list[str]:
+    """Stems of the ``*.toml`` files bundled in ``package`` (e.g. ``hapticopt.analysis.scenes``)."""
+    return sorted(p.name[: -len(".toml")] for p in resources.files(package).iterdir() if p.name.endswith(".toml"))
+
+
+def read(package: str, kind: str, name_or_path: str | Path, *, allow_path: bool = True) -> TomlText:
+    """The text of bundled ``kind`` ``name_or_path`` from ``package``, or of that file."""
+    arg = str(name_or_path)
+    bundled = names(package)
+    path = Path(arg)
+    if arg in bundled and not (allow_path and path.is_file()):
+        text = (resources.files(package) / f"{arg}.toml").read_text(encoding="utf-8")
+        return TomlText(text=text, source=f"{kind} {arg}", base_dir=None)
+    if not allow_path:
+        raise UnknownName(f"{kind} {arg!r} does not exist: allowed {kind}s are {', '.join(bundled)}")
+    if not path.is_file():
+        if path.suffix == ".toml" or path.exists():
+            raise InputFileError(f"{kind} file {arg!r} does not exist: give a .toml path or a bundled {kind} "
+                                 f"({', '.join(bundled)})")
+        raise UnknownName(f"{kind} {arg!r} does not exist: allowed {kind}s are {', '.join(bundled)} "
+                          "or a path to a .toml file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputFileError(f"{kind} file {arg!r} cannot be read: {exc}") from None
+    return TomlText(text=text, source=path.name, base_dir=path.parent)
