@@ -440,52 +440,50 @@ class OuterLoopResult:
     ioic: OuterTrace
 
 
-def _simulate_batch(cfg: OuterLoopConfig, gain_fns, noise_on: np.ndarray) -> list[tuple]:
-    """RK4 on the batch of controllers; gain_fns[c](t, t_mid) → (m, n) at stage time t of the
-    step with midpoint t_mid; noise_on[c] whether v_n is
-    added on [0, t_learn). x_d steps are applied to e_p between steps (x_r is continuous)."""
+def _simulate_batch(cfg: OuterLoopConfig, gain_fns, noise_on: np.ndarray) -> tuple:
+    """RK4 on a batch of controllers (vectorised over the batch).
+
+    gain_fns[c](t, t_mid) → (T, m, n): the gain at stage times t of the steps with midpoints
+    t_mid (a gain jump without soft switch therefore happens between steps); noise_on[c]: v_n
+    is added while the step midpoint is < t_learn. The x_d steps (at multiples of period/2,
+    grid points) are applied to e_p between steps (x_r is continuous). Schedules and noise
+    are evaluated for all stage times up front; the loop only does the 3×3 algebra.
+    """
     a, b, _, _ = cfg.matrices()
     n_steps = int(round(cfg.duration / cfg.step))
     h = cfg.step
     t = h * np.arange(n_steps + 1)
+    mid = t + h / 2
     xd = cfg.desired(t)
     nb = len(gain_fns)
+    k_grid = np.stack([fn(t, mid).reshape(len(t), -1) for fn in gain_fns], axis=1)  # (T, nb, 3)
+    k_mid = np.stack([fn(mid, mid).reshape(len(t), -1) for fn in gain_fns], axis=1)
+    k_end = np.stack([fn(t + h, mid).reshape(len(t), -1) for fn in gain_fns], axis=1)
+    learn = np.where(mid < cfg.t_learn, 1.0, 0.0)[:, None] * np.asarray(noise_on, float)[None]
+    v_grid = learn * cfg.noise(t)[:, None]  # (T, nb)
+    v_mid = learn * cfg.noise(mid)[:, None]
+    v_end = learn * cfg.noise(t + h)[:, None]
+    bcol = b[:, 0]
     x = np.zeros((nb, 3))
     x[:, 0] = -xd[0]  # x_r(0) = 0
     xs = np.empty((n_steps + 1, nb, 3))
-    us = np.empty((n_steps + 1, nb))
-    ks = np.empty((n_steps + 1, nb, 3))
-    noise_on = np.asarray(noise_on, dtype=float)
 
-    def gains(tt, mid):
-        return np.stack([fn(tt, mid).reshape(-1) for fn in gain_fns])
-
-    def control(tt, xx, kk, learn):
-        return -np.sum(kk * xx, axis=1) + learn * noise_on * cfg.noise(tt)
-
-    def f(tt, xx, kk, learn):
-        u = control(tt, xx, kk, learn)
-        return xx @ a.T + u[:, None] * b[:, 0]
+    def f(xx, kk, vv):
+        u = -np.einsum("bj,bj->b", kk, xx) + vv
+        return xx @ a.T + u[:, None] * bcol
 
     for i in range(n_steps):
-        ti = t[i]
-        learn = 1.0 if ti + h / 2 < cfg.t_learn else 0.0  # step-midpoint convention
-        mid = ti + h / 2  # a gain jump (no soft switch) happens between steps
-        k_a, k_m, k_b = gains(ti, mid), gains(mid, mid), gains(ti + h, mid)
-        ks[i] = k_a
-        learn_now = 1.0 if ti < cfg.t_learn - 1e-12 else 0.0
-        us[i] = control(ti, x, k_a, learn_now)
         xs[i] = x
-        k1 = f(ti, x, k_a, learn)
-        k2 = f(ti + h / 2, x + h / 2 * k1, k_m, learn)
-        k3 = f(ti + h / 2, x + h / 2 * k2, k_m, learn)
-        k4 = f(ti + h, x + h * k3, k_b, learn)
+        k1 = f(x, k_grid[i], v_grid[i])
+        k2 = f(x + h / 2 * k1, k_mid[i], v_mid[i])
+        k3 = f(x + h / 2 * k2, k_mid[i], v_mid[i])
+        k4 = f(x + h * k3, k_end[i], v_end[i])
         x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         x[:, 0] -= xd[i + 1] - xd[i]  # e_p = x_r − x_d jumps with x_d
     xs[-1] = x
-    ks[-1] = gains(t[-1], t[-1] + h / 2)
-    us[-1] = control(t[-1], x, ks[-1], 0.0)
-    return t, xd, xs, us, ks
+    # u at the grid points: the gain and noise of the step that starts there
+    us = -np.einsum("tbj,tbj->tb", k_grid, xs) + v_grid
+    return t, xd, xs, us, k_grid
 
 
 def simulate_outer_loop(cfg: OuterLoopConfig = OuterLoopConfig()) -> OuterLoopResult:
@@ -499,20 +497,16 @@ def simulate_outer_loop(cfg: OuterLoopConfig = OuterLoopConfig()) -> OuterLoopRe
     learning = policy_iteration(data, k0, q, r, eps=cfg.eps)
     k_target = learning.k if learning.status is LearningStatus.OK else k0
 
-    def fic(tt, mid):
-        return k0
-
-    def oic(tt, mid):
-        return opt.k
+    def const(k):
+        return lambda tt, mid: np.broadcast_to(k, (len(tt),) + k.shape)
 
     def ioic(tt, mid):
-        if mid < cfg.t_learn:
-            return k0
-        if not cfg.soft:
-            return k_target
-        return soft_switch(tt, k0, k_target, t_start=cfg.t_learn, t_switch=cfg.t_switch)
+        after = (soft_switch(tt, k0, k_target, t_start=cfg.t_learn, t_switch=cfg.t_switch)
+                 if cfg.soft else np.broadcast_to(k_target, (len(tt),) + k0.shape))
+        return np.where((mid < cfg.t_learn)[:, None, None], k0, after)
 
-    t, xd, xs, us, ks = _simulate_batch(cfg, [fic, oic, ioic], np.array([0.0, 0.0, 1.0]))
+    t, xd, xs, us, ks = _simulate_batch(cfg, [const(k0), const(opt.k), ioic],
+                                        np.array([0.0, 0.0, 1.0]))
     traces = [OuterTrace(strategy=s, t=t, x=xs[:, c], u=us[:, c], k=ks[:, c], x_d=xd,
                          x_r=xd + xs[:, c, 0])
               for c, s in enumerate((Strategy.FIC, Strategy.OIC, Strategy.IOIC))]
