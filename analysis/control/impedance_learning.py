@@ -430,7 +430,9 @@ class OuterTrace:
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class OuterLoopResult:
-    """status: the learning status (the IOIC trace keeps K_0 when it is not ``ok``)."""
+    """status: the learning status (the IOIC trace keeps K_0 when it is not ``ok``).
+    rms_full / rms_after_learning: Strategy → (RMS e_p [m], RMS f [N]) over [0, duration] and
+    over [t_learn + t_switch, duration]."""
 
     status: LearningStatus
     optimum: OptimalImpedance
@@ -439,6 +441,8 @@ class OuterLoopResult:
     fic: OuterTrace
     oic: OuterTrace
     ioic: OuterTrace
+    rms_full: dict
+    rms_after_learning: dict
 
 
 def _simulate_batch(cfg: OuterLoopConfig, gain_fns, noise_on: np.ndarray) -> tuple:
@@ -511,5 +515,9 @@ def simulate_outer_loop(cfg: OuterLoopConfig = OuterLoopConfig()) -> OuterLoopRe
     traces = [OuterTrace(strategy=s, t=t, x=xs[:, c], u=us[:, c], k=ks[:, c], x_d=xd,
                          x_r=xd + xs[:, c, 0])
               for c, s in enumerate((Strategy.FIC, Strategy.OIC, Strategy.IOIC))]
+    t_after = cfg.t_learn + cfg.t_switch
     return OuterLoopResult(status=learning.status, optimum=opt, learning=learning, data=data,
-                           fic=traces[0], oic=traces[1], ioic=traces[2])
+                           fic=traces[0], oic=traces[1], ioic=traces[2],
+                           rms_full={tr.strategy: tr.rms(0.0, cfg.duration) for tr in traces},
+                           rms_after_learning={tr.strategy: tr.rms(t_after, cfg.duration)
+                                               for tr in traces})

@@ -34,6 +34,7 @@ def test_human_state_space_is_eq29():
     """Seed 001 eq 4 with the §4.1 gains K_r = 0.5, K_f = 5, K_c = 20 gives eq 29's A, B."""
     a, b = human.state_space(human.HumanModel())
     np.testing.assert_array_equal(a, A29)
+    assert human.force_rate(human.HumanModel(), 0.1, 0.3) == pytest.approx(a[2] @ [0.1, 0.0, 0.3])
     np.testing.assert_array_equal(b, B29)
     with pytest.raises(ValueError, match=r"k_r = -1.*> 0.*unit: s"):
         human.HumanModel(k_r=-1.0)
@@ -171,6 +172,23 @@ def test_fic_oic_ioic_rms(outer):
         e_f, f_f = outer.fic.rms(t0, 15.0)
         assert abs(e_i - e_o) <= 0.05 * e_o and abs(f_i - f_o) <= 0.05 * f_o
         assert e_f > 1.1 * e_o and f_f > 1.1 * f_o
+
+
+def test_rms_fields_are_the_trace_rms(outer):
+    """The result's RMS table (Figs 5–6) is the traces' RMS over [0, 15] and [1, 15] s."""
+    assert outer.rms_full[il.Strategy.OIC] == outer.oic.rms(0.0, 15.0)
+    assert outer.rms_after_learning[il.Strategy.IOIC] == outer.ioic.rms(1.0, 15.0)
+
+
+def test_unexciting_run_keeps_initial_impedance():
+    """Eq 8 without v_n: IOIC refuses to learn (NaN gains, status not_exciting) and keeps K_0,
+    so its trace equals FIC's."""
+    res = il.simulate_outer_loop(il.OuterLoopConfig(noise=il.ExplorationNoise.zero(),
+                                                    duration=2.0))
+    assert res.status is il.LearningStatus.NOT_EXCITING
+    assert np.isnan(res.learning.k).all()
+    np.testing.assert_array_equal(res.ioic.k, res.fic.k)
+    np.testing.assert_allclose(res.ioic.x, res.fic.x, atol=1e-12)
 
 
 def test_ioic_data_phase_is_the_same_trajectory(outer):
