@@ -424,7 +424,8 @@ class SimulatedLimit:
 
 
 def simulated_stiffness_limit(plant: Plant, fw: Firmware, *, stiffness_range_N_per_m: tuple[float, float],
-                              duration_s: float, points: int = 16, substeps: int = 4) -> SimulatedLimit:
+                              duration_s: float, points: int = 16, substeps: int = 4,
+                              online_fit: bool = False) -> SimulatedLimit:
     """The K where the simulated growth rate crosses 0: a geometric grid over the range, then a
     linear grid over the first bracketing pair, then linear interpolation of σ(K)."""
     lo, hi = stiffness_range_N_per_m
@@ -432,7 +433,7 @@ def simulated_stiffness_limit(plant: Plant, fw: Firmware, *, stiffness_range_N_p
         raise ValueError(f"stiffness_range_N_per_m = {stiffness_range_N_per_m!r}: allowed 0 < lo < hi [N/m]")
     grid = np.geomspace(lo, hi, points)
     for refine in range(2):
-        sim = simulate(plant, fw, grid, duration_s=duration_s, substeps=substeps)
+        sim = simulate(plant, fw, grid, duration_s=duration_s, substeps=substeps, online_fit=online_fit)
         s = np.array([g.rate_per_s for g in sim.growth])
         if not np.all(np.isfinite(s)):
             return SimulatedLimit(math.nan, "growth_undetermined", grid, s)
