@@ -14,11 +14,10 @@ import statistics
 import time
 
 import numpy as np
-from threadpoolctl import threadpool_limits
-
 from hapticopt.analysis.control import upsampling as up
 from hapticopt.analysis.handle import model as hm
 from hapticopt.analysis.handle import stability as hs
+from threadpoolctl import threadpool_limits
 
 H = hm.HANDLE_PAPER
 BE = hm.PAPER_WALL_DAMPING_N_S_PER_M
@@ -58,9 +57,9 @@ def upsampling_table() -> None:
     for L in (1, 2, 4, 10):
         for v in up.Variant:
             f = up.Firmware(period_s=1e-3, upsampling=L, variant=v, coefficients=CV)
-            lim, ta = timed(lambda: up.lifted_stiffness_limit(plant, f, reference_N_per_m=base))
+            lim, ta = timed(lambda f=f: up.lifted_stiffness_limit(plant, f, reference_N_per_m=base))
             K = lim.value_N_per_m
-            sim, ts = timed(lambda: up.simulated_stiffness_limit(plant, f, stiffness_range_N_per_m=(0.3 * K, 3 * K),
+            sim, ts = timed(lambda f=f, K=K: up.simulated_stiffness_limit(plant, f, stiffness_range_N_per_m=(0.3 * K, 3 * K),
                                                                  duration_s=3.0, points=10))
             print(f"| {L} | {v.value} | {K / 1e3:.4f} | {100 * (K / base - 1):+.1f} % | {sim.value_N_per_m / 1e3:.4f} "
                   f"| {100 * (sim.value_N_per_m / K - 1):+.2f} % | {ta * 1e3:.1f} ms | {ts:.2f} s |")
@@ -72,7 +71,7 @@ def upsampling_table() -> None:
             f = up.Firmware(period_s=1e-3, upsampling=L, variant=v, order=2, window=16)
             K = up.lifted_stiffness_limit(plant, up.Firmware(period_s=1e-3, upsampling=L, variant=v, coefficients=CV),
                                           reference_N_per_m=base).value_N_per_m
-            sim, ts = timed(lambda: up.simulated_stiffness_limit(plant, f, stiffness_range_N_per_m=(0.3 * K, 3 * K),
+            sim, ts = timed(lambda f=f, K=K: up.simulated_stiffness_limit(plant, f, stiffness_range_N_per_m=(0.3 * K, 3 * K),
                                                                  duration_s=3.0, points=10, online_fit=True))
             print(f"| {L} | {v.value} | {sim.value_N_per_m / 1e3:.4f} ({sim.status}) | {100 * (sim.value_N_per_m / base - 1):+.1f} % "
                   f"| {K / 1e3:.4f} | {ts:.2f} s |")

@@ -11,11 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from threadpoolctl import threadpool_limits
-
 from hapticopt.analysis.control import upsampling as up
 from hapticopt.analysis.handle import model as hm
 from hapticopt.analysis.handle import stability as hs
+from threadpoolctl import threadpool_limits
 
 H = hm.HANDLE_PAPER
 

@@ -46,6 +46,10 @@ from scipy.optimize import brentq
 BSPLINE_BASIS = np.array([[-1.0, 3.0, -3.0, 1.0], [3.0, -6.0, 3.0, 0.0], [-3.0, 0.0, 3.0, 0.0],
                           [1.0, 4.0, 1.0, 0.0]]) / 6.0
 
+#: ρ(𝓛) within this of 1 is "marginal" (``lifted_verdict``): seven decades above the float64
+#: rounding of a small eigenproblem (~1e-16), six below the lowest scan point's 1 − ρ ≈ 2e-3
+LIFTED_RHO_BAND = 1e-9
+
 #: reciprocal condition number of the AR regression below which the fit is refused (fallback
 #: used): a constant history gives ~1e-17, a 70 rad/s oscillation sampled at 1 kHz ~1e-2 (p = 2)
 #: and ~1e-4 (p = 3) — the band sits four decades from both.
@@ -59,12 +63,13 @@ class Variant(enum.Enum):
 
 
 #: the firmware default: the variant that does not lower the stable stiffness (measured on the
-#: handle, docs/seed000.md and benchmarks/accuracy_seed000.py; as printed lowers it by ~60 %)
+#: handle, docs/seed000.md and benchmarks/accuracy_seed000.py; as printed lowers it by 52–67 %)
 DEFAULT_VARIANT = Variant.AS_INTENDED
 
 
 class ARStatus(enum.Enum):
     FITTED = "fitted"  #: least-squares fit with rcond above AR_RCOND_BAND
+    FIXED = "fixed"  #: the configured coefficients, no fit
     SHORT_HISTORY = "short_history"  #: fewer samples than the window: fallback coefficients
     UNEXCITING = "unexciting"  #: rank-deficient regression (e.g. constant history): fallback
 
@@ -162,7 +167,7 @@ class Firmware:
     variant: Variant = DEFAULT_VARIANT
     order: int = 2  #: AR order p [samples]
     window: int = 16  #: regression window [samples]
-    coefficients: np.ndarray | None = field(default=None)  #: fixed AR coefficients; None = fit online
+    coefficients: tuple[float, ...] | None = field(default=None)  #: fixed AR coefficients; None = fit online
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.period_s) and self.period_s > 0.0):
@@ -175,6 +180,7 @@ class Firmware:
             a = np.asarray(self.coefficients, dtype=float)
             if a.shape != (self.order,) or not np.all(np.isfinite(a)):
                 raise ValueError(f"coefficients = {self.coefficients!r}: allowed {self.order} finite values [-]")
+            object.__setattr__(self, "coefficients", tuple(float(v) for v in a))  # immutable
 
 
 @dataclass(frozen=True)
@@ -192,7 +198,7 @@ def firmware_tick(fw: Firmware, stiffness_N_per_m: float, positions_m, forces_N)
     x = np.asarray(positions_m, dtype=float)
     T, B, K = fw.period_s, fw.wall_damping_N_s_per_m, stiffness_N_per_m
     if fw.coefficients is not None:
-        fit = ARFit(np.asarray(fw.coefficients, dtype=float), ARStatus.FITTED, math.nan, math.nan)
+        fit = ARFit(np.asarray(fw.coefficients, dtype=float), ARStatus.FIXED, math.nan, math.nan)
     else:
         fit = fit_ar(x, order=fw.order, window=fw.window)
     xp = predict(fit.coefficients, x, steps=2)
@@ -259,6 +265,14 @@ def lifted_matrix(plant: Plant, fw: Firmware, stiffness_N_per_m: float, *, _fast
     return M
 
 
+def lifted_verdict(margin_per_s: float, period_s: float) -> str:
+    """"stable" / "marginal" / "unstable" from ``lifted_margin`` with the band ``LIFTED_RHO_BAND``."""
+    band = LIFTED_RHO_BAND / period_s
+    if margin_per_s > band:
+        return "stable"
+    return "unstable" if margin_per_s < -band else "marginal"
+
+
 @dataclass(frozen=True)
 class LiftedLimit:
     value_N_per_m: float  #: NaN unless status == "ok"
@@ -284,9 +298,9 @@ def lifted_stiffness_limit(plant: Plant, fw: Firmware, *, reference_N_per_m: flo
     if not (np.isfinite(reference_N_per_m) and reference_N_per_m > 0.0):
         raise ValueError(f"reference_N_per_m = {reference_N_per_m!r}: allowed finite > 0 [N/m]")
     fast = _zoh(plant.A, plant.b, fw.period_s / fw.upsampling)
-    g = lambda K: lifted_margin(plant, fw, K, _fast=fast)  # noqa: E731
+    g = lambda K: lifted_margin(plant, fw, K, _fast=fast)
     lo = 1e-3 * reference_N_per_m
-    if not g(lo) > 0.0:
+    if lifted_verdict(g(lo), fw.period_s) != "stable":
         return LiftedLimit(math.nan, "unstable_without_wall", math.nan, lo)
     while True:
         hi = lo * 1.25
@@ -354,7 +368,7 @@ class Simulation:
     t_s: np.ndarray  #: (N,) fast-rate times [s]
     x_m: np.ndarray  #: (nK, N) positions [m]
     growth: tuple[GrowthEstimate, ...]
-    fit_status: tuple[ARStatus, ...]  #: last AR status per stiffness (FITTED for fixed coefficients)
+    fit_status: tuple[ARStatus, ...]  #: last AR status per stiffness (FIXED for fixed coefficients)
 
 
 def simulate(plant: Plant, fw: Firmware, stiffness_N_per_m, *, duration_s: float, x0_m: float = 1e-3,
@@ -371,7 +385,7 @@ def simulate(plant: Plant, fw: Firmware, stiffness_N_per_m, *, duration_s: float
         raise ValueError(f"duration_s = {duration_s!r}: allowed ≥ 40·T = {40 * T} [s]")
     if not online_fit and fw.coefficients is None:
         raise ValueError("fw.coefficients = None: pass fixed coefficients or online_fit=True [-]")
-    n_ticks = int(round(duration_s / T))
+    n_ticks = round(duration_s / T)
     P, q = _rk4_matrices(plant.A, plant.b, T / L, substeps)
     W = spline_weights(L, fw.variant)
     H = max(fw.window, fw.order + 1, 4)
@@ -381,7 +395,7 @@ def simulate(plant: Plant, fw: Firmware, stiffness_N_per_m, *, duration_s: float
     fhist = np.tile((K * x0_m)[:, None], (1, 2))  # f_{i−2}, f_{i−1}
     x_out = np.empty((K.size, n_ticks * L))
     B = fw.wall_damping_N_s_per_m
-    status = [ARStatus.FITTED] * K.size
+    status = [ARStatus.FITTED if online_fit else ARStatus.FIXED] * K.size
     alive = n_ticks
     for i in range(n_ticks):
         xi = z @ plant.c

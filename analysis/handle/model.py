@@ -119,7 +119,7 @@ class Handle:
         """Equivalent tip damping B_m/R² + b_h [N·s/m]."""
         return self.motor_damping_N_m_s / self.lever_m**2 + self.operator.damping_N_s_per_m
 
-    def with_(self, **changes) -> "Handle":
+    def with_(self, **changes) -> Handle:
         """``dataclasses.replace`` shorthand."""
         return dataclasses.replace(self, **changes)
 
@@ -165,16 +165,6 @@ def pade_closed_loop(handle: Handle, *, with_operator: bool = True) -> StateSpac
     B = np.array([[0.0], [p.B[1, 1]], [0.0]])
     C = np.array([[1.0, 0.0, 0.0]])
     return StateSpace(A, B, C)
-
-
-def zoh(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretisation over h [s]: (e^{Ah}, ∫₀ʰ e^{Aτ}dτ B) via one expm."""
-    n, m = A.shape[0], B.shape[1]
-    M = np.zeros((n + m, n + m))
-    M[:n, :n] = A * h
-    M[:n, n:] = B * h
-    E = scipy.linalg.expm(M)
-    return E[:n, :n], E[:n, n:]
 
 
 def discrete_plant(handle: Handle, *, period_s: float | None = None, with_operator: bool = True

@@ -151,10 +151,6 @@ def loop_matrix(handle: Handle, *, delay_samples: int = 0, _plant=None) -> np.nd
     return E + np.eye(E.shape[0])
 
 
-def spectral_radius(M: np.ndarray) -> float:
-    return float(np.max(np.abs(np.linalg.eigvals(M))))
-
-
 def _delta_margin(E: np.ndarray, T: float, rate: float) -> np.ndarray:
     """−max ln|1 + e|/T over the eigenvalues e of E = M − I, divided by ``rate`` (batched)."""
     e = np.linalg.eigvals(E)
@@ -342,7 +338,7 @@ def simulate_wall(handle: Handle, *, hold: Hold, duration_s: float, x0_m: float 
     if not (np.isfinite(duration_s) and duration_s > 20 * handle.period_s):
         raise ValueError(f"duration_s = {duration_s!r}: must exceed 20 periods T = {handle.period_s} [s]")
     T = handle.period_s
-    n = int(round(duration_s / T))
+    n = round(duration_s / T)
     t = np.arange(n + 1) * T
     if hold is Hold.PADE:
         A = pade_closed_loop(handle).A
@@ -362,3 +358,34 @@ def simulate_wall(handle: Handle, *, hold: Hold, duration_s: float, x0_m: float 
             z = M @ z
         t = t[: x.size]
     return WallSimulation(t, x, growth_rate(t, x))
+
+
+# ------------------------------------------------------------------------------ evaluator
+@dataclass(frozen=True)
+class HandleStability:
+    """Stability summary of a handle with its wall and operator. Non-ok status → NaN limits."""
+
+    status: LimitStatus  #: of the exact boundary
+    verdict: Verdict  #: of the handle's own K_e, B_e in the exact loop
+    margin: float  #: exact-loop margin of the handle's own K_e, B_e [-]
+    exact_limit_N_per_mm: float  #: max stable K_e, exact ZOH, no computation delay
+    pade_limit_N_per_mm: float  #: max stable K_e of the paper's Padé loop (eq 18/21)
+    eq22_operator_stiffness_N_per_mm: float  #: eq (22) with R² for the handle's K_e, B_e
+    exact_operator_stiffness_N_per_mm: float  #: its exact-hold counterpart (NaN if none ≤ 1e9 N/m)
+
+
+def evaluate(handle: Handle) -> HandleStability:
+    """Pure evaluator: the closed forms and the exact loop for ``handle`` (SI in, N/mm out)."""
+    ex = stiffness_limit(handle)
+    pa = stiffness_limit(handle, hold=Hold.PADE)
+    m = margin(handle)
+    ok = ex.status is LimitStatus.OK
+    return HandleStability(
+        status=ex.status,
+        verdict=verdict(m),
+        margin=m,
+        exact_limit_N_per_mm=ex.value_N_per_mm if ok else math.nan,
+        pade_limit_N_per_mm=pa.value_N_per_mm if ok else math.nan,
+        eq22_operator_stiffness_N_per_mm=eq22_critical_operator_stiffness(handle) / N_PER_MM,
+        exact_operator_stiffness_N_per_mm=critical_operator_stiffness(handle) / N_PER_MM,
+    )

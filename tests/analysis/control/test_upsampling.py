@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from hapticopt.analysis.control import upsampling as up
 from hapticopt.analysis.handle import model as hm
 from hapticopt.analysis.handle import stability as hs
@@ -167,3 +166,15 @@ def test_hard_cases():
     with pytest.raises(ValueError, match=r"coefficients = .*: allowed 2 finite values"):
         up.Firmware(period_s=1e-3, coefficients=np.array([1.0, np.nan]))
     assert up.growth_rate(np.arange(10.0), np.ones(10)).status == "too_short"
+    # fixed coefficients are reported as such, and stored immutably
+    f = fw(up.Variant.AS_INTENDED, 2)
+    assert f.coefficients == (2.0, -1.0)
+    assert up.firmware_tick(f, 1e3, np.arange(20.0) * 1e-4, [0.0, 0.1]).fit.status is up.ARStatus.FIXED
+
+
+def test_lifted_verdict_band():
+    # ρ within 1e-9 of 1 is marginal (LIFTED_RHO_BAND); the free handle (no wall) has a pole at z = 1
+    T = H.period_s
+    assert up.lifted_verdict(up.lifted_margin(PLANT, fw(up.Variant.NONE), 0.0), T) == "marginal"
+    assert up.lifted_verdict(up.lifted_margin(PLANT, fw(up.Variant.NONE), 0.5 * K_REF), T) == "stable"
+    assert up.lifted_verdict(up.lifted_margin(PLANT, fw(up.Variant.NONE), 1.5 * K_REF), T) == "unstable"
