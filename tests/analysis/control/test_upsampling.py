@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from hapticopt.analysis.control import upsampling as up
 from hapticopt.analysis.handle import model as hm
 from hapticopt.analysis.handle import stability as hs
@@ -178,3 +180,12 @@ def test_lifted_verdict_band():
     assert up.lifted_verdict(up.lifted_margin(PLANT, fw(up.Variant.NONE), 0.0), T) == "marginal"
     assert up.lifted_verdict(up.lifted_margin(PLANT, fw(up.Variant.NONE), 0.5 * K_REF), T) == "stable"
     assert up.lifted_verdict(up.lifted_margin(PLANT, fw(up.Variant.NONE), 1.5 * K_REF), T) == "unstable"
+
+
+@settings(max_examples=30, deadline=None)
+@given(L=st.integers(1, 12), c=st.lists(st.floats(-1e3, 1e3), min_size=5, max_size=5),
+       variant=st.sampled_from(list(up.Variant)))
+def test_spline_output_within_control_hull(L, c, variant):
+    # B-spline property (convex hull): every output lies between the min and max of its control points
+    out = up.spline_weights(L, variant) @ np.array(c)
+    assert np.all(out >= min(c) - 1e-9) and np.all(out <= max(c) + 1e-9)

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from hapticopt.analysis.handle import model as hm
 from hapticopt.analysis.handle import stability as hs
 
@@ -196,3 +198,17 @@ def test_evaluate():
         H.with_(wall_stiffness_N_per_m=10e3, wall_damping_N_s_per_m=BE)) / 1e3, rel=1e-12)
     bad = hs.evaluate(H.with_(wall_damping_N_s_per_m=2e3))  # non-ok status → NaN limits
     assert bad.status is hs.LimitStatus.UNSTABLE_WITHOUT_WALL and np.isnan(bad.exact_limit_N_per_mm)
+
+
+@settings(max_examples=25, deadline=None)
+@given(T=st.floats(1e-4, 1e-2), Be=st.floats(0.0, 1.0), kh=st.floats(0.0, 1e4))
+def test_boundary_brackets_the_verdict(T, Be, kh):
+    # property: the exact boundary separates stable (−1 %) from unstable (+1 %) walls, and the Padé
+    # closed form (eq 18 generalised) equals the Padé loop's eigenvalue boundary
+    h = H.with_(period_s=T, wall_damping_N_s_per_m=Be, operator=hm.Operator(stiffness_N_per_m=kh))
+    lim = hs.stiffness_limit(h)
+    assert lim.status is hs.LimitStatus.OK
+    K = lim.value_N_per_m
+    assert hs.verdict(hs.margin(h.with_(wall_stiffness_N_per_m=0.99 * K))) is hs.Verdict.STABLE
+    assert hs.verdict(hs.margin(h.with_(wall_stiffness_N_per_m=1.01 * K))) is hs.Verdict.UNSTABLE
+    assert hs.stiffness_limit(h, hold=hm.Hold.PADE).value_N_per_m == pytest.approx(hs.eq18_stiffness_limit(h), rel=1e-8)
