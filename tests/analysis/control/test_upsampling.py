@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from hapticopt.analysis.control import upsampling as up
 from hapticopt.analysis.handle import model as hm
 from hapticopt.analysis.handle import stability as hs
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 H = hm.HANDLE_PAPER
 PLANT = hm.wall_plant(H)

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from hapticopt.analysis.handle import model as hm
 from hapticopt.analysis.handle import stability as hs
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 H = hm.HANDLE_PAPER
 BE = hm.PAPER_WALL_DAMPING_N_S_PER_M
