@@ -138,6 +138,18 @@ def test_analysis_and_simulation_agree(variant):
     assert sim.value_N_per_m == pytest.approx(lim.value_N_per_m, rel=0.02)
 
 
+def test_analysis_and_simulation_agree_order3():
+    # a longer history (AR(3) quadratic extrapolator (3, −3, 1), L = 3) exercises the lifted state's
+    # position register beyond the spline's own needs; same ≤ 2 % acceptance as above
+    f = up.Firmware(period_s=H.period_s, upsampling=3, variant=up.Variant.AS_INTENDED, order=3, window=12,
+                    coefficients=np.array([3.0, -3.0, 1.0]))
+    lim = up.lifted_stiffness_limit(PLANT, f, reference_N_per_m=K_REF)
+    sim = up.simulated_stiffness_limit(PLANT, f, stiffness_range_N_per_m=(0.3 * lim.value_N_per_m, 3 * lim.value_N_per_m),
+                                       duration_s=3.0, points=10)
+    assert sim.status == "ok"
+    assert sim.value_N_per_m == pytest.approx(lim.value_N_per_m, rel=0.02)
+
+
 def test_online_fit_as_intended_brackets_the_fixed_coefficient_limit():
     # the online least-squares fit on an oscillating history is close to the CV extrapolator here:
     # 0.8× the fixed-coefficient limit decays, 1.3× grows (nonlinear loop; simulation only)
