@@ -1,6 +1,12 @@
-"""Seed 001's controllers (issue 18): the eq 2 human model, the iterative optimal impedance
-outer loop (IOIC: LQR optimum, off-policy policy iteration from data, soft switch) and the
-nonsingular terminal sliding-mode inner loop (NTSMTC) on the paper's two-link arm.
+"""Firmware-side control methods shared by every device (shared analysis floor).
 
-Self-contained: imports only numpy, scipy and jax. SI units throughout.
+``upsampling``          : seed 000's prediction + cubic B-spline upsampling (eq 23) — an AR
+                          predictor fitted online to the position history, the spline as printed
+                          and as the text intends, the exact lifted analysis of the multi-rate
+                          loop and its time-domain simulation.
+``impedance_learning``  : seed 001's iterative optimal impedance (IOIC): the LQR optimum of eq 6,
+                          off-policy policy iteration from interaction data, the soft switch.
+``sliding_mode``        : seed 001's nonsingular terminal sliding-mode tracking control (NTSMTC).
+``human``               : seed 001's operator model of eq 2.
+``two_link``            : seed 001's two-link arm (Table 1), the reference plant of its examples.
 """
