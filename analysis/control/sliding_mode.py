@@ -31,10 +31,9 @@ import dataclasses
 import math
 
 import jax
+import jax.numpy as jnp
 
-jax.config.update("jax_enable_x64", True)
-
-import jax.numpy as jnp  # noqa: E402
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)

@@ -25,10 +25,9 @@ import functools
 import math
 
 import jax
+import jax.numpy as jnp
 
-jax.config.update("jax_enable_x64", True)
-
-import jax.numpy as jnp  # noqa: E402
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np  # noqa: E402
 
 from . import impedance_learning as il  # noqa: E402

@@ -5,8 +5,6 @@ from __future__ import annotations
 import json
 import math
 import re
-import sys
-import types
 from pathlib import Path
 
 import pytest
@@ -61,14 +59,18 @@ def test_final_fidelity_constraint_check(beta_run):
 
 
 def test_export_and_verify_stages_call_the_landed_modules(tmp_path, monkeypatch):
-    """The pipeline calls hapticopt.design.export and the closed-loop runner when they exist (stand-ins here)."""
+    """The pipeline calls hapticopt.design.export.export and the closed-loop runner (stand-ins here)."""
+    from hapticopt.design import export as design_export
+
     calls = {}
 
-    def export_design(design, out_dir):
+    def export(design, out_dir, *, render=False):
         calls["export"] = design.name
-        (Path(out_dir) / f"{design.name}.step").write_text("ISO-10303-21;")
+        step = Path(out_dir) / f"{design.name}.step"
+        step.write_text("ISO-10303-21;")
+        return design_export.ExportResult(out_dir=Path(out_dir), files=(step,), timings_s={}, total_mass_kg=0.0)
 
-    monkeypatch.setitem(sys.modules, "hapticopt.design.export", types.SimpleNamespace(export_design=export_design))
+    monkeypatch.setattr(design_export, "export", export)
     monkeypatch.syspath_prepend(str(DATA))  # the stand-in runner must import in the child process
     import fake_verifier
 
