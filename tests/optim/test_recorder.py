@@ -138,3 +138,19 @@ def test_sigkill_mid_run_then_resume(tmp_path):
     reference = driver.run(load_problem(PROBLEM), only=ONLY)  # uninterrupted, same seed
     assert resumed["history"] == [[list(r.x), r.f] for r in reference.history]
     assert tuple(resumed["best_x"]) == reference.best.x
+
+
+def test_a_run_recorded_before_the_layout_move_still_resumes(tmp_path):
+    """tests/optim/data/pre-layout-run/evaluations.sqlite was recorded by the code before the
+    modules moved (commit 99f7fb3, ``optimise tests/optim/data/resume-problem.toml --max-evals 30
+    --scheduler inline``). The problem's fingerprint (TOML text and dataclass reprs, no module
+    paths) is unchanged, so the new code opens it for --resume and replays every recorded point."""
+    import shutil
+
+    shutil.copy(DATA / "pre-layout-run" / "evaluations.sqlite", tmp_path / "evaluations.sqlite")
+    problem = load_problem(PROBLEM)
+    with Recorder(tmp_path, fingerprint=problem.fingerprint(), resume=True) as rec:
+        rows = rec.rows()
+        assert rec.n_previous == len(rows) == 29
+        replayed = [rec.lookup(r["key"]) for r in rows]
+    assert all(p is not None and len(p.x) == 2 for p in replayed)
