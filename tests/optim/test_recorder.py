@@ -148,7 +148,7 @@ def test_a_run_recorded_before_the_layout_move_still_resumes(tmp_path):
     import shutil
 
     shutil.copy(DATA / "pre-layout-run" / "evaluations.sqlite", tmp_path / "evaluations.sqlite")
-    problem = load_problem(PROBLEM)
+    problem = load_problem(PROBLEM).with_optimiser(max_evals=30)  # as the CLI's --max-evals 30 did
     with Recorder(tmp_path, fingerprint=problem.fingerprint(), resume=True) as rec:
         rows = rec.rows()
         assert rec.n_previous == len(rows) == 29
