@@ -6,7 +6,7 @@
 * ``"tcp://host:port"``: a Dask cluster, through ``Client(address).get_executor()``.
 
 The results do not depend on the choice: each evaluation is a pure function of its task.
-Dask's LocalCluster needs the ``if __name__ == "__main__":`` guard that ``optim/cli.py`` has.
+Dask's LocalCluster needs the ``if __name__ == "__main__":`` guard that ``optim/cli/__init__.py`` has.
 """
 
 from __future__ import annotations
