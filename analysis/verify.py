@@ -15,6 +15,8 @@ from typing import Any
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop.scene import Backend, Scene, resolve
 from hapticopt.analysis.prrr import closed_loop
+from hapticopt.analysis.master import mujoco_plant as master_mujoco
+from hapticopt.analysis.prrr import mujoco_plant as prrr_mujoco
 
 
 def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
@@ -22,12 +24,8 @@ def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDAR
     """Run ``scene`` on ``design`` on the backend the resolver picks (or ``backend`` forces)."""
     res = resolve(scene, force=backend)
     if scene.device == "master":
-        from hapticopt.analysis.master import mujoco_plant as master_mujoco
-
         return master_mujoco.simulate(design, scene, fidelity=fidelity, reason=res.reason)
     if res.backend == Backend.MULTIBODY:
-        from hapticopt.analysis.prrr import mujoco_plant as prrr_mujoco
-
         return prrr_mujoco.simulate(design, scene, fidelity=fidelity, reason=res.reason)
 
     return closed_loop.simulate_lumped(design, scene, fidelity=fidelity)

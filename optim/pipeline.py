@@ -31,6 +31,8 @@ from hapticopt.optim.recorder import Recorder
 from hapticopt.optim.executor import make_executor
 from hapticopt.optim import driver, report
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, Verdict
+from hapticopt.design import export as design_export
+from hapticopt.analysis import verify as closed_loop_verify
 
 
 def evaluate_design(design: Any, fidelity: Fidelity) -> DesignEvaluation:
@@ -56,7 +58,6 @@ def evaluators_for(problem: Problem, evaluation: DesignEvaluation) -> tuple[str,
 # ------------------------------------------------------------------------------ stages
 def _export(design: Any, out_dir: Path) -> StageOutcome:
     """STEP, STLs, MJCF, mass properties and the render of ``design`` into ``out_dir``."""
-    from hapticopt.design import export as design_export
 
     t0 = time.perf_counter()
     result = design_export.export(design, out_dir, render=True)
@@ -70,7 +71,6 @@ STIFFNESS_ERROR_LIMIT_PCT = 10.0
 
 def run_scene(design: Any, scene: str, fidelity: Fidelity) -> Any:
     """The closed-loop verification of ``design`` in the bundled or file scene ``scene``."""
-    from hapticopt.analysis import verify as closed_loop_verify
 
     return closed_loop_verify.simulate(design, load_scene(scene), fidelity=fidelity)
 

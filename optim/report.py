@@ -163,7 +163,6 @@ def write(p: "PipelineResult", *, extra_stage: tuple[str, float] | None = None) 
     prob = p.problem
     write_text(out / "convergence.svg", convergence_svg(p.run.history, sense_max=prob.objective.sense.value == "maximise"))
     if extra_stage is not None:
-
         name, t0 = extra_stage
         p = dataclasses.replace(p, stages=p.stages + (StageOutcome(name=name, status="ok",
                                                                    wall_s=time.perf_counter() - t0),))

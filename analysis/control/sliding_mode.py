@@ -30,7 +30,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import jax
 import jax.numpy as jnp
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)

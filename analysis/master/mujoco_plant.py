@@ -48,6 +48,8 @@ from hapticopt.analysis.master.transparency import default_pose
 from hapticopt.analysis.master import dynamics as md
 from hapticopt.analysis.master import transparency as mt
 from hapticopt.analysis.master.sweep import _crossing
+from hapticopt.design.master.mjcf import master_mjcf
+from hapticopt.design.master.mjcf import full_qpos
 
 VIOLATION_TOL = 1e-5  # [m] parallelogram closure (issue 8: 0.01 mm)
 RUNAWAY = 0.5  # [m] handle further than this from its start: unstable
@@ -60,7 +62,6 @@ def _v(x: Any) -> str:
 
 def master_xml(design: MasterDesign, res: Resolution, scene: Scene, solver: SolverSettings, x0: np.ndarray) -> str:
     """The master MJCF with the fidelity's solver settings and (operator on) the hand body."""
-    from hapticopt.design.master.mjcf import master_mjcf
 
     xml = master_mjcf(design, gravity=Effect.GRAVITY in res.effects, timestep=solver.timestep)
     sol = f'solref="{_v(solver.solref)}" solimp="{_v(solver.solimp)}"'
@@ -96,7 +97,6 @@ class MasterPlant:
                  fidelity: Fidelity = Fidelity.STANDARD, solver: SolverSettings | None = None) -> None:
         import mujoco
 
-        from hapticopt.design.master.mjcf import full_qpos
 
         self._mujoco = mujoco
         self.design, self.scene, self.res = design, scene, res
@@ -217,7 +217,6 @@ class MasterPlant:
 
 
 def _arm_only(design: MasterDesign, res: Resolution, scene: Scene, solver: SolverSettings) -> str:
-    from hapticopt.design.master.mjcf import master_mjcf
 
     return master_mjcf(design, gravity=Effect.GRAVITY in res.effects, timestep=solver.timestep)
 

@@ -24,6 +24,8 @@ from hapticopt.analysis.master import dynamics_numpy as mn
 from hapticopt.analysis.master import transparency as mt
 from hapticopt.design.master.params import MasterDesign
 from hapticopt.analysis.master import dynamics as md
+from hapticopt.design.master.mjcf import full_qpos
+from hapticopt.design.master.mjcf import master_mjcf
 
 _DB3 = np.sqrt(2.0)  # ±3 dB as half/double power, as hapticopt.analysis.master.transparency
 
@@ -49,7 +51,6 @@ def _gain_at(model_mj, data, design: MasterDesign, kin, q0: np.ndarray, x0: np.n
              setup: mt.RenderingSetup, timestep: float, hand_stiffness: float, hand_damping: float) -> tuple[float, float]:
     import mujoco
 
-    from hapticopt.design.master.mjcf import full_qpos
 
     mujoco.mj_resetData(model_mj, data)
     data.qpos[:] = full_qpos(q0)
@@ -105,7 +106,6 @@ def sweep(design: MasterDesign, axis: str = "x", *, pose: np.ndarray | None = No
     """Sine sweep along ``axis`` ('x' or 'z') around the frequency-domain bandwidth."""
     import mujoco
 
-    from hapticopt.design.master.mjcf import master_mjcf
 
     a = mt.AXES.index(axis)
     e = np.eye(3)[[0, 2][a]]
@@ -119,7 +119,6 @@ def sweep(design: MasterDesign, axis: str = "x", *, pose: np.ndarray | None = No
     model_mj = mujoco.MjModel.from_xml_string(master_mjcf(design, timestep=timestep))
     data = mujoco.MjData(model_mj)
     data.qpos[:] = 0
-    from hapticopt.design.master.mjcf import full_qpos
 
     data.qpos[:] = full_qpos(q0)
     mujoco.mj_forward(model_mj, data)

@@ -43,6 +43,7 @@ from pathlib import Path
 from hapticopt.design import parts as _parts
 from hapticopt.analysis.prrr import frame_model as fm
 from hapticopt.analysis.fem.stress import p2_nodal_values
+from hapticopt.design.prrr import cad as cad_prrr
 
 #: mesh size [m] of refinement level k: link thickness · 1.5 / √2^k
 LEVEL0_FACTOR = 1.5
@@ -57,7 +58,6 @@ def cad_level_size(design, level: int) -> float:
 
 def _pins(design, pose, radius: float | None = None) -> list[dict[str, Any]]:
     """Pin cylinders [m]: name, start point, axis vector (length = span), radius (default the bore's)."""
-    from hapticopt.design.prrr import cad as cad_prrr
 
     L = cad_prrr.layout(design)
     T, g, r4 = L.T, L.g, design.geometry.r4
@@ -85,7 +85,6 @@ def cad_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int | None = Non
 
     from build123d import export_brep
 
-    from hapticopt.design.prrr import cad as cad_prrr
 
     branch = cad_prrr.DEFAULT_BRANCH if branch is None else branch
     pose = cad_prrr.solve_pose(design, p, branch=branch)
@@ -239,7 +238,6 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
     k = 1.0 / np.diagonal(C)
     disp = disp_edges = None
     if keep_fields:
-
         disp, disp_edges = p2_nodal_values(sol.basis, sol.displacements[:, 0])
     status, message = Status.OK, ""
     if not np.all(np.isfinite(k)) or np.any(k <= 0):

@@ -22,6 +22,8 @@ from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.analysis.fem.stress import element_stress
+from hapticopt.analysis.prrr import fea_cad
+from hapticopt.design.prrr.cad import DEFAULT_BRANCH
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -121,8 +123,6 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> S
                                    message=str(exc))
     if fidelity != Fidelity.FINE:
         return result
-    from hapticopt.analysis.prrr import fea_cad  # lazy: build123d, gmsh, scikit-fem, pyamg
-    from hapticopt.design.prrr.cad import DEFAULT_BRANCH
 
     bonded = structural_stiffness(design, options=fm.FrameOptions(joints=fm.Joints.BONDED, branch=DEFAULT_BRANCH))
     try:

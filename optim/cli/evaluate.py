@@ -52,7 +52,6 @@ def evaluate(
     timings = {"imports": t_import - t_start, **evaluation.timings_s}
     written = write_plots(design, evaluation, plots) if plots is not None else []
     if sweep is not None:
-
         written += run_sweep(design, sweep, plots if plots is not None else Path("."), level)
     timings["total"] = time.perf_counter() - t_start
     metrics = evaluation.metrics()

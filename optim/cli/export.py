@@ -13,6 +13,8 @@ import math
 import numpy as np
 from hapticopt.design.errors import InvalidInput
 from hapticopt.analysis import interference
+from hapticopt.design.export import export as run_export
+from hapticopt.design.export import _cad
 
 
 def parse_pose_mm(text: str):
@@ -43,7 +45,6 @@ def export(
     t0 = time.perf_counter()
     design = load_design_arg(file, preset, set_)
     p = parse_pose_mm(pose) if pose is not None else None
-    from hapticopt.design.export import export as run_export
 
     out_dir = out if out is not None else Path("cad_out") / design.name
     result = run_export(design, out_dir, p=p, render=render)
@@ -59,6 +60,5 @@ def export(
 def result_pose(design, p):
     if p is not None:
         return p
-    from hapticopt.design.export import _cad
 
     return _cad(design).home_point(design)
