@@ -86,13 +86,13 @@ def cubic(handle: Handle) -> np.ndarray:
     T, I, Bm = handle.period_s, handle.inertia_kg_m2, handle.motor_damping_N_m_s
     R2, rR = handle.lever_m**2, handle.rR_m2
     op = handle.operator
-    Ieq = I + R2 * op.mass_kg
-    Beq = Bm + R2 * op.damping_N_s_per_m
+    Ieq = I + R2 * op.mass
+    Beq = Bm + R2 * op.damping
     return np.array([
         T * Ieq,
         2.0 * Ieq + T * Beq,
-        2.0 * (Beq + rR * handle.wall_damping_N_s_per_m) + R2 * op.stiffness_N_per_m * T,
-        2.0 * rR * handle.wall_stiffness_N_per_m + 2.0 * R2 * op.stiffness_N_per_m,
+        2.0 * (Beq + rR * handle.wall_damping_N_s_per_m) + R2 * op.stiffness * T,
+        2.0 * rR * handle.wall_stiffness_N_per_m + 2.0 * R2 * op.stiffness,
     ])
 
 
@@ -107,7 +107,7 @@ def hurwitz_margin(a: np.ndarray) -> float:
 def eq18_stiffness_limit(handle: Handle) -> float:
     """K_e at which a1 a2 = a0 a3 (eq 18; with the operator the same root of eq 21) [N/m]."""
     a0, a1, a2, _ = cubic(handle)
-    R2k = handle.lever_m**2 * handle.operator.stiffness_N_per_m
+    R2k = handle.lever_m**2 * handle.operator.stiffness
     return (a1 * a2 / a0 - 2.0 * R2k) / (2.0 * handle.rR_m2)
 
 
@@ -239,7 +239,7 @@ def max_stable_stiffness_N_per_mm(handle: Handle, *, period_s: float | None = No
     if wall_damping_N_s_per_m is not None:
         h = dataclasses.replace(h, wall_damping_N_s_per_m=wall_damping_N_s_per_m)
     if operator_stiffness_N_per_m is not None:
-        h = dataclasses.replace(h, operator=dataclasses.replace(h.operator, stiffness_N_per_m=operator_stiffness_N_per_m))
+        h = dataclasses.replace(h, operator=dataclasses.replace(h.operator, stiffness=operator_stiffness_N_per_m))
     return stiffness_limit(h, hold=hold).value_N_per_mm
 
 
@@ -249,7 +249,7 @@ def critical_operator_stiffness(handle: Handle, *, hold: Hold = Hold.EXACT) -> f
     0 if stable without a hand, NaN if even 1e9 N/m does not stabilise."""
 
     def g(kh: float) -> float:
-        op = dataclasses.replace(handle.operator, stiffness_N_per_m=kh)
+        op = dataclasses.replace(handle.operator, stiffness=kh)
         return margin(dataclasses.replace(handle, operator=op), hold=hold)
 
     if g(0.0) > MARGIN_BAND:
