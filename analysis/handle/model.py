@@ -40,6 +40,7 @@ import scipy.linalg
 
 from hapticopt.analysis.control.upsampling import Plant
 from hapticopt.analysis.loop.operator import NO_HAND, Operator, hand  # noqa: F401  (re-exported)
+from hapticopt.design.handle.params import HandleDesign
 
 G_CM2 = 1e-7  #: 1 g·cm² in kg·m²
 MS = 1e-3  #: 1 ms in s
@@ -116,6 +117,16 @@ class Handle:
 
 #: the paper's handle (section 2.2), no wall, T = 1 ms
 HANDLE_PAPER = Handle()
+
+
+def from_design(design: HandleDesign) -> Handle:
+    """The analysis model of a handle description (``design/handle/params.py``), SI throughout."""
+    g, d, w, o = design.geometry, design.drive, design.wall, design.operator
+    return Handle(motor_radius_m=g.motor_radius, lever_m=g.lever, motor_inertia_kg_m2=d.motor_inertia,
+                  link_inertia_kg_m2=d.link_inertia, motor_damping_N_m_s=d.motor_damping,
+                  wall_stiffness_N_per_m=w.stiffness, wall_damping_N_s_per_m=w.damping,
+                  period_s=design.firmware.period,
+                  operator=Operator(mass=o.mass, damping=o.damping, stiffness=o.stiffness))
 #: the paper's virtual damping B_e = 30 "g·cm²/s" of eq (19), i.e. 30 g/s (module docstring)
 PAPER_WALL_DAMPING_N_S_PER_M = 30e-3
 

@@ -190,13 +190,13 @@ def test_verdict_bands():
 
 def test_evaluate():
     # the evaluator collects the numbers above for the paper's case (eq 19, eq 22) with a status
-    r = hs.evaluate(H.with_(wall_stiffness_N_per_m=10e3, wall_damping_N_s_per_m=BE))
+    r = hs.analyse(H.with_(wall_stiffness_N_per_m=10e3, wall_damping_N_s_per_m=BE))
     assert r.status is hs.LimitStatus.OK and r.verdict is hs.Verdict.UNSTABLE  # 10 N/mm > 2.67 N/mm
     assert r.pade_limit_N_per_mm == pytest.approx(2.67, rel=0.01)
     assert r.exact_limit_N_per_mm == pytest.approx(2.67, rel=0.01)
     assert r.eq22_operator_stiffness_N_per_mm == pytest.approx(hs.eq22_critical_operator_stiffness(
         H.with_(wall_stiffness_N_per_m=10e3, wall_damping_N_s_per_m=BE)) / 1e3, rel=1e-12)
-    bad = hs.evaluate(H.with_(wall_damping_N_s_per_m=2e3))  # non-ok status → NaN limits
+    bad = hs.analyse(H.with_(wall_damping_N_s_per_m=2e3))  # non-ok status → NaN limits
     assert bad.status is hs.LimitStatus.UNSTABLE_WITHOUT_WALL and np.isnan(bad.exact_limit_N_per_mm)
 
 
