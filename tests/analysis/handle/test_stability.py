@@ -8,6 +8,8 @@ one-sample-delay bound K < 2b/(3T).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from hapticopt.analysis.handle import model as hm
@@ -215,3 +217,30 @@ def test_boundary_brackets_the_verdict(T, Be, kh):
     assert hs.verdict(hs.margin(h.with_(wall_stiffness_N_per_m=0.99 * K))) is hs.Verdict.STABLE
     assert hs.verdict(hs.margin(h.with_(wall_stiffness_N_per_m=1.01 * K))) is hs.Verdict.UNSTABLE
     assert hs.stiffness_limit(h, hold=hm.Hold.PADE).value_N_per_m == pytest.approx(hs.eq18_stiffness_limit(h), rel=1e-8)
+
+
+def test_registry_evaluator_on_the_preset():
+    # hapticopt evaluate --preset handle-paper: eq (19) with the paper's B_e = 30 g/s → 2.67 N/mm (±1 %), the
+    # exact loop 2.6654, the limit ∝ 1/T within 2 % over 0.5–5 ms, rising with B_e and with k_h (Fig 8)
+    from hapticopt.analysis.status import Status
+    from hapticopt.design import io
+
+    r = hs.evaluate(io.load_preset("handle-paper"))
+    m = r.metrics()
+    assert r.status is Status.OK and m["wall_stable"]  # its wall, 2 N/mm, is inside the limit
+    assert m["eq19_stable_stiffness_N_per_mm"] == pytest.approx(2.67, rel=0.01)
+    assert m["max_stable_stiffness_N_per_mm"] == pytest.approx(2.67, rel=0.01)
+    kT = [k * t for k, t in zip(m["max_stable_stiffness_vs_period_N_per_mm"], m["sweep_period_ms"])]
+    assert max(kT) / min(kT) - 1.0 < 0.02
+    assert np.all(np.diff(m["max_stable_stiffness_vs_wall_damping_N_per_mm"]) > 0)
+    assert np.all(np.diff(m["max_stable_stiffness_vs_operator_stiffness_N_per_mm"]) > 0)
+    assert m["critical_operator_stiffness_N_per_mm"] == 0.0  # stable without a hand
+
+
+def test_registry_evaluator_status_means_what_it_says():
+    from hapticopt.analysis.status import Status
+    from hapticopt.design import io
+
+    d = io.apply_overrides(io.load_preset("handle-paper"), ["wall.damping_Ns_per_m=2000"])
+    r = hs.evaluate(d)  # B_e far beyond the Z-width: no stiffness is stable
+    assert r.status is Status.UNSTABLE and math.isnan(r.metrics()["max_stable_stiffness_N_per_mm"])
