@@ -32,6 +32,7 @@ from hapticopt.analysis.loop.operator import Operator
 from hapticopt.analysis.loop.scene import (ControllerSettings, Effect, EnvKind, Environment, Scene,
                                            resolve)
 from hapticopt.analysis.prrr.lumped_plant import PlantMode, build_model, discretise
+from hapticopt.design.prrr.kinematics import jacobian
 from hapticopt.design.prrr.params import PrrrDesign
 
 #: effects of the linear loop analysed here
@@ -75,8 +76,10 @@ def linear_scene(settings: LoopSettings, *, axis: int = 0, stiffness_N_per_m: fl
                  initial_offset=tuple(off), effects=frozenset(fx))
 
 
-def lifted_matrix(design: PrrrDesign, settings: LoopSettings, stiffness: np.ndarray, *, _plant=None) -> np.ndarray:
-    """𝓛 over one controller period (module docstring); ``stiffness`` (3,) K_v [N/m]."""
+def lifted_matrix(design: PrrrDesign, settings: LoopSettings, stiffness_N_per_m: float, *, axis: int = 0,
+                  _plant=None) -> np.ndarray:
+    """𝓛 over one controller period (module docstring); the virtual spring K_v [N/m] and damper
+    ``settings.damping_N_s_per_m`` act along Cartesian ``axis``."""
     sc = linear_scene(settings)
     model = build_model(design, sc, resolve(sc)) if _plant is None else _plant[0]
     if model.mode is not PlantMode.FULL:
@@ -106,12 +109,9 @@ def lifted_matrix(design: PrrrDesign, settings: LoopSettings, stiffness: np.ndar
     Vp = np.zeros((3, dim))
     Vp[:, iv] = np.eye(3)
     v = alpha * Vp + (1.0 - alpha) * (p - Pp) / T
-    K = np.diag(np.asarray(stiffness, dtype=float))
-    B = np.zeros((3, 3))
-    B[0, 0] = 0.0
-    Bv = np.zeros(3)
-    Bv[int(np.argmax(np.asarray(stiffness) != 0)) if np.any(stiffness) else 0] = settings.damping_N_s_per_m
-    F = -K @ p - np.diag(Bv) @ v
+    Kv, Bv = np.zeros((3, 3)), np.zeros((3, 3))
+    Kv[axis, axis], Bv[axis, axis] = stiffness_N_per_m, settings.damping_N_s_per_m
+    F = -Kv @ p - Bv @ v
     u = settings.force_gain * (J.T @ F - model.spring * (Dm - De))  # (3, dim)
     U1 = np.zeros((3, dim))
     U1[:, iu1] = np.eye(3)
@@ -140,8 +140,6 @@ def lifted_matrix(design: PrrrDesign, settings: LoopSettings, stiffness: np.ndar
 
 def axis_block(design: PrrrDesign, M: np.ndarray, axis: int) -> np.ndarray:
     """The rows/columns of ``M`` (state layout of :func:`lifted_matrix`) that belong to Cartesian ``axis``."""
-    from hapticopt.design.prrr.kinematics import jacobian
-
     J = np.asarray(jacobian(design.geometry.beta, xp=np))
     S = np.linalg.norm(J, axis=1)
     U = J / S[:, None]  # orthonormal rows
@@ -165,18 +163,14 @@ def axis_block(design: PrrrDesign, M: np.ndarray, axis: int) -> np.ndarray:
 def axis_margin(design: PrrrDesign, settings: LoopSettings, stiffness_N_per_m: float, *, axis: int = 0,
                 _plant=None) -> float:
     """−ln ρ / T of the axis block [1/s]; > 0 stable."""
-    K = np.zeros(3)
-    K[axis] = stiffness_N_per_m
-    Mb = axis_block(design, lifted_matrix(design, settings, K, _plant=_plant), axis)
+    Mb = axis_block(design, lifted_matrix(design, settings, stiffness_N_per_m, axis=axis, _plant=_plant), axis)
     with np.errstate(divide="ignore"):
         return -float(np.log(np.max(np.abs(np.linalg.eigvals(Mb))))) / settings.period_s
 
 
 def axis_poles(design: PrrrDesign, settings: LoopSettings, stiffness_N_per_m: float, *, axis: int = 0) -> np.ndarray:
     """Closed-loop poles of the axis as continuous-equivalent s = ln(z)/T [1/s] (slow-rate z)."""
-    K = np.zeros(3)
-    K[axis] = stiffness_N_per_m
-    z = np.linalg.eigvals(axis_block(design, lifted_matrix(design, settings, K), axis))
+    z = np.linalg.eigvals(axis_block(design, lifted_matrix(design, settings, stiffness_N_per_m, axis=axis), axis))
     z = z[np.abs(z) > 1e-12]
     return np.log(z.astype(complex)) / settings.period_s
 
@@ -240,8 +234,6 @@ def hand_limit_closed_form(design: PrrrDesign, *, force_gain: float, operator: O
     ω reaches the force loop's own frequency ω_f = √(a k/M_m): a stiffer hand helps while it moves ω away
     from ω_f and hurts while it moves ω towards it.
     """
-    from hapticopt.design.prrr.kinematics import jacobian
-
     a_ = design.actuator
     J = np.asarray(jacobian(design.geometry.beta, xp=np))
     s2 = float(np.sum(J[axis] ** 2))
