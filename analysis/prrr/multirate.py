@@ -4,7 +4,8 @@ The lumped plant (``lumped_plant.build_model``, two-mass SEA per leg, eq 6–7) 
 firmware's linear law (``firmware.step``: p = J D_e, low-passed backward-difference velocity,
 virtual spring-damper F = −K p − B v, f_r = Jᵀ F, SEA force loop u = K_p(f_r − k x̂), optionally
 the hand of seed 000 eq 1 with its reference at rest) and the seed 000 upsampler on u (AR
-prediction of u and the eq 23 spline of ``interpolation_variant``, L = l2/l1 samples per period):
+prediction of u and the eq 23 spline of ``interpolation_variant``, L = l2/l1 samples per period;
+L = 1 is the plain hold whatever the variant, as in the firmware):
 
     s_i = [z(iT), p_{i−1}, v_{i−1}, u_{i−1}, u_{i−2}],    s_{i+1} = 𝓛 s_i
 
@@ -122,8 +123,8 @@ def lifted_matrix(design: PrrrDesign, settings: LoopSettings, stiffness_N_per_m:
     newest = [p1, u, U1]
     p2 = sum(a[j] * newest[j] for j in range(a.size))
     ctrl = [U2, U1, u, p1, p2]
-    W = spline_weights(L, settings.variant) if L > 1 or settings.variant is not Variant.NONE else np.array(
-        [[0, 0, 1.0, 0, 0]])
+    # the 3-PRRR firmware interpolates only for L > 1 (``controller.interpolation = 1`` is off): L = 1 is the hold
+    W = spline_weights(L, settings.variant if L > 1 else Variant.NONE)
     M = np.zeros((dim, dim))
     acc = np.eye(n)
     for j in range(L - 1, -1, -1):
