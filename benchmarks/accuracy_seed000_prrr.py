@@ -10,6 +10,8 @@ Run: PYTHONPATH=<shim> .venv/bin/python benchmarks/accuracy_seed000_prrr.py [--p
    spring and for the scenes' hand (m_h = 0.3 kg, b_h = 50 N·s/m): the continuous closed form
    (multirate.hand_limit_closed_form), the exact sampled loop (T = 1 ms), the crossing frequency
    and the force loop's frequency ω_f. With --plot, the figure of docs/seed000.md.
+3. The force loop's gain margin on the deflection feedback (k x̂ scaled by g until ρ(𝓛) = 1) at
+   K_v = 5 N/mm, per variant: why quantisation breaks the literal spline.
 """
 
 from __future__ import annotations
@@ -124,9 +126,30 @@ def operator_table(plot: str | None) -> None:
         print(f"wrote {plot}", file=sys.stderr)
 
 
+def gain_margin_table() -> None:
+    from hapticopt.analysis.loop.scene import resolve
+    from hapticopt.analysis.prrr.lumped_plant import build_model, discretise
+
+    print("### Gain margin of the force loop on the deflection feedback (K_v = 5 N/mm, linear loop)\n")
+    print("| l2/l1 | variant | g at ρ(𝓛) = 1 (scan 1 … 4, step 0.025) |")
+    print("|---|---|---|")
+    for L, v in ((1, Variant.NONE), (2, Variant.AS_PRINTED), (2, Variant.AS_INTENDED), (4, Variant.AS_PRINTED),
+                 (4, Variant.AS_INTENDED), (10, Variant.AS_PRINTED), (10, Variant.AS_INTENDED)):
+        s = mr.LoopSettings(upsampling=L, variant=v)
+        sc = mr.linear_scene(s)
+        m = build_model(D, sc, resolve(sc))
+        disc = discretise(m, s.period_s / L)
+        gs = np.arange(1.0, 4.0001, 0.025)
+        first = next((g for g in gs if mr.axis_margin(
+            D, s, 5e3, _plant=(dataclasses.replace(m, spring=g * m.spring), disc)) < 0.0), None)
+        print(f"| {L} | {v.value} | {'> 4' if first is None else f'{first:.3f}'} |")
+    print()
+
+
 if __name__ == "__main__":
     plot = sys.argv[sys.argv.index("--plot") + 1] if "--plot" in sys.argv else None
     with threadpool_limits(1):
         operator_table(plot)
+        gain_margin_table()
         if "--no-upsampling" not in sys.argv:
             upsampling_table()
