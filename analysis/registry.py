@@ -62,6 +62,11 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
         EvaluatorEntry(name="transparency", module=_A + "master.transparency",
                        plot=_A + "master.plots:transparency_plots"),
     ),
+    "handle": (
+        EvaluatorEntry(name="stability", module=_A + "handle.stability"),
+        EvaluatorEntry(name="upsampling", module=_A + "handle.upsampled"),
+        EvaluatorEntry(name="zwidth", module=_A + "handle.zwidth", plot=_A + "handle.plots:zwidth_plots"),
+    ),
 }
 
 

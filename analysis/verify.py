@@ -4,7 +4,8 @@
 models the scene's effects and runs it: the 3-PRRR's lumped SEA plant fused with its firmware
 (:func:`hapticopt.analysis.prrr.closed_loop.simulate_lumped`), the 3-PRRR's MuJoCo plant
 (:func:`hapticopt.analysis.prrr.mujoco_plant.simulate`) or the master's MuJoCo plant
-(:func:`hapticopt.analysis.master.mujoco_plant.simulate`). Every result's metrics name the
+(:func:`hapticopt.analysis.master.mujoco_plant.simulate`), or seed 000's handle
+(:func:`hapticopt.analysis.handle.closed_loop.simulate`). Every result's metrics name the
 backend and the reason (``backend``, ``backend_reason``).
 """
 
@@ -13,6 +14,7 @@ from __future__ import annotations
 from typing import Any
 
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.handle import closed_loop as handle_loop
 from hapticopt.analysis.loop.scene import Backend, Scene, resolve
 from hapticopt.analysis.prrr import closed_loop
 from hapticopt.analysis.master import mujoco_plant as master_mujoco
@@ -23,6 +25,8 @@ def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDAR
              backend: Backend | None = None) -> Any:
     """Run ``scene`` on ``design`` on the backend the resolver picks (or ``backend`` forces)."""
     res = resolve(scene, force=backend)
+    if scene.device == "handle":
+        return handle_loop.simulate(design, scene, fidelity=fidelity)
     if scene.device == "master":
         return master_mujoco.simulate(design, scene, fidelity=fidelity, reason=res.reason)
     if res.backend == Backend.MULTIBODY:

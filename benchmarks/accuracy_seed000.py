@@ -83,13 +83,13 @@ def upsampling_with_operator_table() -> None:
     without the method (3.86 N/mm), and the same with k_h = 300 N/m, m_h = 50 g."""
     from scipy.optimize import brentq
 
-    bh = brentq(lambda b: hs.stiffness_limit(H.with_(operator=hm.Operator(damping_N_s_per_m=b))).value_N_per_mm - 3.86,
+    bh = brentq(lambda b: hs.stiffness_limit(H.with_(operator=hm.hand(damping=b))).value_N_per_mm - 3.86,
                 0.0, 1.0)
     print(f"### Upsampling with an operator (analysis; b_h = {bh:.4f} N·s/m gives 3.86 N/mm single-rate)\n")
     print("| operator | l2/l1 | as printed vs none | as intended vs none |")
     print("|---|---|---|---|")
-    for name, op in (("b_h", hm.Operator(damping_N_s_per_m=bh)),
-                     ("b_h, k_h = 300 N/m, m_h = 50 g", hm.Operator(damping_N_s_per_m=bh, stiffness_N_per_m=300.0, mass_kg=0.05))):
+    for name, op in (("b_h", hm.hand(damping=bh)),
+                     ("b_h, k_h = 300 N/m, m_h = 50 g", hm.hand(damping=bh, stiffness=300.0, mass=0.05))):
         h = H.with_(operator=op)
         base = hs.stiffness_limit(h).value_N_per_m
         for L in (2, 4, 10):

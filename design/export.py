@@ -24,6 +24,7 @@ import numpy as np
 
 from hapticopt.design import atomic
 from hapticopt.design import mass_properties as mp
+from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.master import cad as cad_master
 from hapticopt.design.master import mjcf as mjcf_master
 from hapticopt.design.master.mass import bodies_from_mass_properties
@@ -40,7 +41,11 @@ class ExportResult:
 
 
 def _cad(design: Any):
-    return {"prrr": cad_prrr, "master": cad_master}[design.device]
+    cads = {"prrr": cad_prrr, "master": cad_master}
+    if design.device not in cads:
+        raise InvalidDesign(f"device = {design.device!r} of design {design.name!r} has no CAD model to export: "
+                            f"allowed {', '.join(cads)}")
+    return cads[design.device]
 
 
 def _mjcf(design: Any, p, masses) -> str:

@@ -12,15 +12,17 @@ from pathlib import Path
 from typing import Any, Union
 
 from hapticopt.design import bundled
+from hapticopt.design.handle import params as handle
 from hapticopt.design.master import params as master
 from hapticopt.design.prrr import params as prrr
 from hapticopt.design.atomic import write_text
 from hapticopt.design.errors import InputFileError, InvalidDesign
 from hapticopt.design.schema import section_from_table, section_to_table, specs
 
-Design = Union[prrr.PrrrDesign, master.MasterDesign]
+Design = Union[prrr.PrrrDesign, master.MasterDesign, handle.HandleDesign]
 
-_DEVICES: dict[str, type] = {prrr.DEVICE: prrr.PrrrDesign, master.DEVICE: master.MasterDesign}
+_DEVICES: dict[str, type] = {prrr.DEVICE: prrr.PrrrDesign, master.DEVICE: master.MasterDesign,
+                             handle.DEVICE: handle.HandleDesign}
 _TOP_KEYS = {"name", "device", "description"}
 
 

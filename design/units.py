@@ -30,6 +30,7 @@ TO_SI: dict[str, float] = {
     "kg_per_m3": 1.0,
     "kg_mm2": 1e-6,
     "g_cm2": 1e-7,
+    "g_cm2_per_ms": 1e-4,  # 1 g·cm²/ms = 1e-7 kg·m² / 1e-3 s (seed 000's B_m) [N·m·s/rad]
     "GPa": 1e9,
     "MPa": 1e6,
     "Hz": 1.0,

@@ -6,7 +6,8 @@ Dynamics (eq 3–4 of the paper, x = Rθ the tip displacement):
 
 with f_m = K_e x + B_e ẋ the virtual wall's force (eq 8) at the motor shaft of radius r, applied
 after a zero-order hold of period T (eq 9). The operator of eq (1), Z_h = m_h s + b_h + k_h/s, acts
-at the tip against a fixed motion command (x_e = 0).
+at the tip against a fixed motion command (x_e = 0); it is the project's one hand type,
+:class:`hapticopt.analysis.loop.operator.Operator` (fields ``mass`` [kg], ``damping`` [N·s/m], ``stiffness`` [N/m]).
 
 Paper values and their conversion to SI (section 2.2):
 
@@ -37,6 +38,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from hapticopt.analysis.control.upsampling import Plant
+from hapticopt.analysis.loop.operator import NO_HAND, Operator, hand  # noqa: F401  (re-exported)
+from hapticopt.design.handle.params import HandleDesign
+
 G_CM2 = 1e-7  #: 1 g·cm² in kg·m²
 MS = 1e-3  #: 1 ms in s
 N_PER_MM = 1e3  #: 1 N/mm in N/m
@@ -49,22 +54,8 @@ class Hold(enum.Enum):
     PADE = "pade"  #: the paper's continuous approximation 2/(2 + sT)
 
 
-@dataclass(frozen=True, kw_only=True)
-class Operator:
-    """Operator impedance of eq (1) at the handle tip, Z_h = m_h s + b_h + k_h/s (SI)."""
-
-    mass_kg: float = 0.0
-    damping_N_s_per_m: float = 0.0
-    stiffness_N_per_m: float = 0.0
-
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if not (np.isfinite(v) and v >= 0.0):
-                raise ValueError(f"Operator.{f.name} = {v!r}: must be finite and ≥ 0 [SI units of the field name]")
-
-
-NO_OPERATOR = Operator()
+#: no operator: the handle alone (the one hand type, ``analysis.loop.operator.Operator``)
+NO_OPERATOR = NO_HAND
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -112,12 +103,12 @@ class Handle:
     @property
     def mass_kg(self) -> float:
         """Equivalent tip mass I/R² + m_h [kg]."""
-        return self.inertia_kg_m2 / self.lever_m**2 + self.operator.mass_kg
+        return self.inertia_kg_m2 / self.lever_m**2 + self.operator.mass
 
     @property
     def damping_N_s_per_m(self) -> float:
         """Equivalent tip damping B_m/R² + b_h [N·s/m]."""
-        return self.motor_damping_N_m_s / self.lever_m**2 + self.operator.damping_N_s_per_m
+        return self.motor_damping_N_m_s / self.lever_m**2 + self.operator.damping
 
     def with_(self, **changes) -> Handle:
         """``dataclasses.replace`` shorthand."""
@@ -126,6 +117,16 @@ class Handle:
 
 #: the paper's handle (section 2.2), no wall, T = 1 ms
 HANDLE_PAPER = Handle()
+
+
+def from_design(design: HandleDesign) -> Handle:
+    """The analysis model of a handle description (``design/handle/params.py``), SI throughout."""
+    g, d, w, o = design.geometry, design.drive, design.wall, design.operator
+    return Handle(motor_radius_m=g.motor_radius, lever_m=g.lever, motor_inertia_kg_m2=d.motor_inertia,
+                  link_inertia_kg_m2=d.link_inertia, motor_damping_N_m_s=d.motor_damping,
+                  wall_stiffness_N_per_m=w.stiffness, wall_damping_N_s_per_m=w.damping,
+                  period_s=design.firmware.period,
+                  operator=Operator(mass=o.mass, damping=o.damping, stiffness=o.stiffness))
 #: the paper's virtual damping B_e = 30 "g·cm²/s" of eq (19), i.e. 30 g/s (module docstring)
 PAPER_WALL_DAMPING_N_S_PER_M = 30e-3
 
@@ -143,7 +144,7 @@ def plant(handle: Handle, *, with_operator: bool = True) -> StateSpace:
     """Open-loop plant, state [x, ẋ] [m, m/s], inputs [f_m, f_ext] [N], output x [m]."""
     op = handle.operator if with_operator else NO_OPERATOR
     h = dataclasses.replace(handle, operator=op)
-    m, b, k = h.mass_kg, h.damping_N_s_per_m, op.stiffness_N_per_m
+    m, b, k = h.mass_kg, h.damping_N_s_per_m, op.stiffness
     A = np.array([[0.0, 1.0], [-k / m, -b / m]])
     B = np.array([[0.0, 0.0], [-h.transmission / m, 1.0 / m]])
     C = np.array([[1.0, 0.0]])
@@ -188,7 +189,5 @@ def discrete_plant(handle: Handle, *, period_s: float | None = None, with_operat
 def wall_plant(handle: Handle, *, with_operator: bool = True):
     """The plant as seen by the shared firmware (``analysis.control.upsampling.Plant``): input the
     wall force f_m [N], output the tip position x [m]."""
-    from ..control.upsampling import Plant
-
     p = plant(handle, with_operator=with_operator)
     return Plant(p.A, p.B[:, 0].copy(), p.C[0].copy())

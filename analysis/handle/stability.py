@@ -50,8 +50,11 @@ import numpy as np
 import scipy.integrate
 from scipy.optimize import brentq
 
-from ..control.upsampling import GrowthEstimate, growth_rate
-from .model import N_PER_MM, Handle, Hold, discrete_plant, pade_closed_loop
+from hapticopt.analysis.control.upsampling import GrowthEstimate, growth_rate
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
+from hapticopt.design.handle.params import HandleDesign
+from hapticopt.analysis.handle.model import N_PER_MM, Handle, Hold, discrete_plant, from_design, pade_closed_loop
 
 #: |margin| below this is "marginal". The margin is the slowest modal decay rate relative to the
 #: handle's mechanical rate b/m (``margin``); computed in delta form its rounding error is
@@ -86,13 +89,13 @@ def cubic(handle: Handle) -> np.ndarray:
     T, I, Bm = handle.period_s, handle.inertia_kg_m2, handle.motor_damping_N_m_s
     R2, rR = handle.lever_m**2, handle.rR_m2
     op = handle.operator
-    Ieq = I + R2 * op.mass_kg
-    Beq = Bm + R2 * op.damping_N_s_per_m
+    Ieq = I + R2 * op.mass
+    Beq = Bm + R2 * op.damping
     return np.array([
         T * Ieq,
         2.0 * Ieq + T * Beq,
-        2.0 * (Beq + rR * handle.wall_damping_N_s_per_m) + R2 * op.stiffness_N_per_m * T,
-        2.0 * rR * handle.wall_stiffness_N_per_m + 2.0 * R2 * op.stiffness_N_per_m,
+        2.0 * (Beq + rR * handle.wall_damping_N_s_per_m) + R2 * op.stiffness * T,
+        2.0 * rR * handle.wall_stiffness_N_per_m + 2.0 * R2 * op.stiffness,
     ])
 
 
@@ -107,7 +110,7 @@ def hurwitz_margin(a: np.ndarray) -> float:
 def eq18_stiffness_limit(handle: Handle) -> float:
     """K_e at which a1 a2 = a0 a3 (eq 18; with the operator the same root of eq 21) [N/m]."""
     a0, a1, a2, _ = cubic(handle)
-    R2k = handle.lever_m**2 * handle.operator.stiffness_N_per_m
+    R2k = handle.lever_m**2 * handle.operator.stiffness
     return (a1 * a2 / a0 - 2.0 * R2k) / (2.0 * handle.rR_m2)
 
 
@@ -239,7 +242,7 @@ def max_stable_stiffness_N_per_mm(handle: Handle, *, period_s: float | None = No
     if wall_damping_N_s_per_m is not None:
         h = dataclasses.replace(h, wall_damping_N_s_per_m=wall_damping_N_s_per_m)
     if operator_stiffness_N_per_m is not None:
-        h = dataclasses.replace(h, operator=dataclasses.replace(h.operator, stiffness_N_per_m=operator_stiffness_N_per_m))
+        h = dataclasses.replace(h, operator=dataclasses.replace(h.operator, stiffness=operator_stiffness_N_per_m))
     return stiffness_limit(h, hold=hold).value_N_per_mm
 
 
@@ -249,7 +252,7 @@ def critical_operator_stiffness(handle: Handle, *, hold: Hold = Hold.EXACT) -> f
     0 if stable without a hand, NaN if even 1e9 N/m does not stabilise."""
 
     def g(kh: float) -> float:
-        op = dataclasses.replace(handle.operator, stiffness_N_per_m=kh)
+        op = dataclasses.replace(handle.operator, stiffness=kh)
         return margin(dataclasses.replace(handle, operator=op), hold=hold)
 
     if g(0.0) > MARGIN_BAND:
@@ -374,7 +377,7 @@ class HandleStability:
     exact_operator_stiffness_N_per_mm: float  #: its exact-hold counterpart (NaN if none ≤ 1e9 N/m)
 
 
-def evaluate(handle: Handle) -> HandleStability:
+def analyse(handle: Handle) -> HandleStability:
     """Pure evaluator: the closed forms and the exact loop for ``handle`` (SI in, N/mm out)."""
     ex = stiffness_limit(handle)
     pa = stiffness_limit(handle, hold=Hold.PADE)
@@ -389,3 +392,72 @@ def evaluate(handle: Handle) -> HandleStability:
         eq22_operator_stiffness_N_per_mm=eq22_critical_operator_stiffness(handle) / N_PER_MM,
         exact_operator_stiffness_N_per_mm=critical_operator_stiffness(handle) / N_PER_MM,
     )
+
+
+#: grids of the limit's dependence reported by the evaluator (T [s], B_e [N·s/m], k_h [N/m]):
+#: the paper's conclusions (limit falls with T, rises with B_e, a stiffer operator stabilises)
+SWEEP_PERIODS_S = (0.5e-3, 1e-3, 2e-3, 5e-3)
+SWEEP_WALL_DAMPING_N_S_PER_M = (0.0, 0.03, 1.0, 10.0, 100.0)
+SWEEP_OPERATOR_STIFFNESS_N_PER_M = (0.0, 1e3, 1e4, 1e5)
+
+
+@dataclass(frozen=True, kw_only=True)
+class StabilityResult:
+    """The handle evaluator's result (``hapticopt evaluate``): limits in N/mm, NaN unless ok."""
+
+    summary: HandleStability
+    eq19_limit_N_per_mm: float  #: eq (18)–(19), Padé closed form, the design's B_e, no operator
+    vs_period_N_per_mm: tuple[float, ...]  #: exact limit at SWEEP_PERIODS_S
+    vs_wall_damping_N_per_mm: tuple[float, ...]  #: exact limit at SWEEP_WALL_DAMPING_N_S_PER_M
+    vs_operator_stiffness_N_per_mm: tuple[float, ...]  #: exact limit at SWEEP_OPERATOR_STIFFNESS_N_PER_M
+    status: Status
+    message: str = ""
+
+    def metrics(self) -> dict[str, object]:
+        s = self.summary
+        return {
+            "max_stable_stiffness_N_per_mm": s.exact_limit_N_per_mm,
+            "pade_stable_stiffness_N_per_mm": s.pade_limit_N_per_mm,
+            "pade_minus_exact_pct": 100.0 * (s.pade_limit_N_per_mm / s.exact_limit_N_per_mm - 1.0),
+            "eq19_stable_stiffness_N_per_mm": self.eq19_limit_N_per_mm,
+            "wall_stable": s.verdict is Verdict.STABLE,
+            "wall_margin": s.margin,
+            "eq22_operator_stiffness_N_per_mm": s.eq22_operator_stiffness_N_per_mm,
+            "critical_operator_stiffness_N_per_mm": s.exact_operator_stiffness_N_per_mm,
+            "max_stable_stiffness_vs_period_N_per_mm": list(self.vs_period_N_per_mm),
+            "sweep_period_ms": [t * 1e3 for t in SWEEP_PERIODS_S],
+            "max_stable_stiffness_vs_wall_damping_N_per_mm": list(self.vs_wall_damping_N_per_mm),
+            "sweep_wall_damping_Ns_per_m": list(SWEEP_WALL_DAMPING_N_S_PER_M),
+            "max_stable_stiffness_vs_operator_stiffness_N_per_mm": list(self.vs_operator_stiffness_N_per_mm),
+            "sweep_operator_stiffness_N_per_mm": [k / N_PER_MM for k in SWEEP_OPERATOR_STIFFNESS_N_PER_M],
+        }
+
+
+def evaluate(design: HandleDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> StabilityResult:
+    """Registry evaluator: eq 15–22 and the exact sampled loop for the described handle, wall and hand.
+
+    Status ``ok`` when the exact boundary was found (the limit is a number); ``unstable`` when no
+    wall stiffness is stable (the handle with this B_e and hand is unstable alone: limits NaN).
+    The design's own wall is judged separately (``wall_stable``, ``wall_margin``).
+    """
+    del fidelity  # closed forms and eigenvalues: no accuracy knob
+    h = from_design(design)
+    s = analyse(h)
+    no_hand = dataclasses.replace(h, operator=dataclasses.replace(h.operator, mass=0.0, damping=0.0, stiffness=0.0))
+    eq19 = eq18_stiffness_limit(no_hand) / N_PER_MM
+    sweep = lambda **kw: max_stable_stiffness_N_per_mm(h, **kw)  # noqa: E731
+    vs_T = tuple(sweep(period_s=t) for t in SWEEP_PERIODS_S)
+    vs_B = tuple(sweep(wall_damping_N_s_per_m=b) for b in SWEEP_WALL_DAMPING_N_S_PER_M)
+    vs_k = tuple(sweep(operator_stiffness_N_per_m=k) for k in SWEEP_OPERATOR_STIFFNESS_N_PER_M)
+    if s.status is LimitStatus.OK:
+        return StabilityResult(summary=s, eq19_limit_N_per_mm=eq19, vs_period_N_per_mm=vs_T,
+                               vs_wall_damping_N_per_mm=vs_B, vs_operator_stiffness_N_per_mm=vs_k, status=Status.OK,
+                               message="" if s.verdict is Verdict.STABLE else
+                               f"the design's wall K_e = {h.wall_stiffness_N_per_m / N_PER_MM:g} N/mm is above the limit "
+                               f"{s.exact_limit_N_per_mm:.4g} N/mm")
+    why = ("no wall stiffness is stable: the handle with this B_e and hand is unstable on its own"
+           if s.status is LimitStatus.UNSTABLE_WITHOUT_WALL else "stable up to the scan's end (1e4 × 2b/(T r/R))")
+    return StabilityResult(summary=s, eq19_limit_N_per_mm=math.nan, vs_period_N_per_mm=vs_T,
+                           vs_wall_damping_N_per_mm=vs_B, vs_operator_stiffness_N_per_mm=vs_k,
+                           status=Status.UNSTABLE if s.status is LimitStatus.UNSTABLE_WITHOUT_WALL else Status.FAILED,
+                           message=why)

@@ -28,6 +28,7 @@ from typing import Any
 
 from hapticopt.design import bundled
 from hapticopt.design.errors import InputFileError, InvalidInput
+from hapticopt.analysis.control.upsampling import DEFAULT_VARIANT, Variant
 from hapticopt.analysis.loop.operator import Operator
 
 
@@ -48,7 +49,7 @@ class Effect(StrEnum):
 
 
 #: devices a scene can be written for
-DEVICES = ("prrr", "master")
+DEVICES = ("prrr", "master", "handle")
 
 #: effects on when a scene's [effects] table does not mention them
 DEFAULT_EFFECTS: frozenset[Effect] = frozenset(Effect) - {Effect.TIME_DELAY, Effect.LINK_DYNAMICS}
@@ -82,6 +83,9 @@ class ControllerSettings:
     gravity_compensation: bool = True
     interpolation: int = 1  # output samples per period (seed 000 eq 23); 1 = off
     ar_coefficients: tuple[float, ...] = (2.0, -1.0)  # f_{i+1} = Σ a_j f_{i−j}
+    # which eq (23) spline segment (analysis.control.upsampling.Variant); default: the one that does
+    # not lower the stable stiffness (docs/seed000.md)
+    interpolation_variant: Variant = DEFAULT_VARIANT
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -268,6 +272,7 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
         gravity_compensation=c.flag("gravity_compensation", True),
         interpolation=c.integer("interpolation", 1, lo=1, hi=64),
         ar_coefficients=ar_t,
+        interpolation_variant=c.choice("interpolation_variant", Variant, DEFAULT_VARIANT),
     )
     c.done()
 
@@ -431,6 +436,8 @@ def resolve(scene: Scene, *, available: frozenset[Backend] = AVAILABLE_BACKENDS,
     """
     effects = set(scene.effects)
     notes: list[str] = []
+    if scene.device == "handle":
+        return _resolve_handle(scene, effects, force if force is not None else scene.backend)
     need = multibody_need(scene)
     force = force if force is not None else scene.backend
     if need is not None:
@@ -476,3 +483,23 @@ def resolve(scene: Scene, *, available: frozenset[Backend] = AVAILABLE_BACKENDS,
     if scene.output_locked and Effect.SEA_COMPLIANCE not in effects:
         raise InvalidInput(f"scene {scene.name}: simulation.output_locked = true needs sea_compliance on")
     return Resolution(effects=frozenset(effects), backend=backend, reason=reason, notes=tuple(notes))
+
+
+#: effects the handle's per-axis loop (``hapticopt.analysis.handle.closed_loop``) models
+HANDLE_EFFECTS: frozenset[Effect] = frozenset({Effect.SAMPLING, Effect.OPERATOR, Effect.TIME_DELAY})
+
+
+def _resolve_handle(scene: Scene, effects: set[Effect], force: Backend | None) -> Resolution:
+    """Seed 000's handle: one lumped axis (mass, damping, the hand), always the lumped backend."""
+    if force == Backend.MULTIBODY:
+        raise InvalidInput(f"scene {scene.name}: backend = multibody cannot simulate the handle (it has no multibody "
+                           "model); use backend = lumped or auto")
+    if Effect.SAMPLING not in effects:
+        raise InvalidInput(f"scene {scene.name}: effects.sampling = false is not simulated on the handle (its "
+                           "zero-order hold is what the scenes test): switch it on")
+    dropped = sorted(e.value for e in effects - HANDLE_EFFECTS)
+    notes = [f"not modelled on the handle, dropped: {', '.join(dropped)}"] if dropped else []
+    return Resolution(effects=frozenset(effects & HANDLE_EFFECTS), backend=Backend.LUMPED,
+                      reason=("seed 000's handle, one axis: tip mass I/R² (+ hand), damping B_m/R², exact "
+                              "zero-order hold per output sample (analysis.handle.closed_loop)"),
+                      notes=tuple(notes))

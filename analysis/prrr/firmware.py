@@ -9,8 +9,10 @@ counts (integers when quantisation is on). Per tick:
    + friction compensation F_fc·tanh(ṗ̂/v_ε) in x and y, + weight compensation in z
 4. f_r = Jᵀ F_r                                           (spring-force references per leg)
 5. per-SEA force loop F = K_p (f_r − k x̂) + K_i ∫(f_r − k x̂) (rigid: F = f_r/η; ideal: F = f_r)
-6. optional seed 000 prediction f_{i+1} = Σ a_j f_{i−j} and cubic B-spline (eq 23) giving L
-   output samples per period
+6. optional seed 000 prediction f_{i+1} = Σ a_j f_{i−j} (and f_{i+2} by the same recursion) and cubic
+   B-spline (eq 23) giving L output samples per period; ``interpolation_variant`` picks the segment
+   (``analysis.control.upsampling.Variant``; default as intended, the one that does not lower the
+   stable stiffness: docs/seed000.md, 3-PRRR section)
 7. motor-force saturation |F| ≤ F_max/η (anti-windup: the integral is clamped too)
 
 The law is a pure function :func:`step` on arrays (jax, compiled once per structure, batched
@@ -31,6 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.control.upsampling import DEFAULT_VARIANT, Variant, spline_weights
 from hapticopt.design.prrr.kinematics import jacobian
 from hapticopt.analysis.loop.scene import BoxMode, Effect, EnvKind, Resolution, Scene
 from hapticopt.design.prrr.params import PrrrDesign
@@ -68,6 +71,7 @@ class FirmwareConfig:
     gravity_compensation: bool = False
     interpolation: int = 1
     ar: tuple[float, ...] = (2.0, -1.0)
+    interpolation_variant: Variant = DEFAULT_VARIANT
     velocity_alpha: float = 0.0  # low-pass pole of the velocity estimate, exp(−2π f_c T)
 
 
@@ -122,6 +126,7 @@ def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: f
         friction_compensation=Effect.COULOMB_FRICTION in fx and cs.friction_compensation > 0,
         gravity_compensation=Effect.GRAVITY in fx and cs.gravity_compensation,
         interpolation=cs.interpolation, ar=cs.ar_coefficients, velocity_alpha=alpha,
+        interpolation_variant=cs.interpolation_variant,
     )
     J = np.asarray(jacobian(design.geometry.beta, xp=np))
     limit = a.force_limit if loop == ForceLoop.IDEAL else a.force_limit / a.efficiency
@@ -147,11 +152,17 @@ def init_state(cfg: FirmwareConfig, gains: Gains, slider_counts: jax.Array) -> S
 
 
 def interpolation_weights(cfg: FirmwareConfig) -> np.ndarray:
-    """(L, 4) weights of [f_{i−2}, f_{i−1}, f_i, f̂_{i+1}] for the L output samples (eq 23)."""
-    L = cfg.interpolation
-    u = np.arange(L) / L
-    U = np.stack([u**3, u**2, u, np.ones(L)], axis=-1)
-    return U @ BSPLINE
+    """(L, 5) weights of [f_{i−2}, f_{i−1}, f_i, f̂_{i+1}, f̂_{i+2}] for the L output samples (eq 23) of
+    the configured variant (as printed: the first four; as intended: the last four; none: f_i)."""
+    return spline_weights(cfg.interpolation, cfg.interpolation_variant)
+
+
+def predictions(ar: tuple[float, ...], history, xp=np):
+    """(f̂_{i+1}, f̂_{i+2}) by the AR recursion from history (…, 3, 3) = [f_{i−2}, f_{i−1}, f_i]."""
+    pred = sum(a * history[..., 2 - j, :] for j, a in enumerate(ar))
+    newest = [pred, history[..., 2, :], history[..., 1, :]]  # f̂_{i+1}, f_i, f_{i−1}
+    pred2 = sum(a * newest[j] for j, a in enumerate(ar))
+    return pred, pred2
 
 
 def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Array, deflection_counts: jax.Array
@@ -212,8 +223,8 @@ def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Arr
     if cfg.interpolation > 1:
         _traced("interpolation")
         history = jnp.concatenate([history[..., 1:, :], out[..., None, :]], axis=-2)
-        pred = sum(a * history[..., 2 - j, :] for j, a in enumerate(cfg.ar))
-        ctrl = jnp.concatenate([history, pred[..., None, :]], axis=-2)  # (…, 4, 3)
+        pred, pred2 = predictions(cfg.ar, history)
+        ctrl = jnp.concatenate([history, pred[..., None, :], pred2[..., None, :]], axis=-2)  # (…, 5, 3)
         W = jnp.asarray(interpolation_weights(cfg))
         cmd = jnp.einsum("lj,...jk->...lk", W, ctrl)
     else:

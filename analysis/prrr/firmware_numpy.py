@@ -179,8 +179,8 @@ class NumpyController:
         history = self._history
         if self._W is not None:
             history = np.concatenate([history[1:], out[None]], axis=0)
-            pred = sum(c * history[2 - j] for j, c in enumerate(cfg.ar))
-            ctrl = np.concatenate([history, pred[None]], axis=0)
+            pred, pred2 = firmware.predictions(cfg.ar, history)
+            ctrl = np.concatenate([history, pred[None], pred2[None]], axis=0)
             cmd = self._W @ ctrl
         else:
             cmd = out[None, :]

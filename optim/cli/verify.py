@@ -52,7 +52,7 @@ def _plot(result: Any, out_dir: Path, name: str) -> list[Path]:
 def verify(
     file: Annotated[Optional[Path], typer.Argument(help="Design TOML file (or use --preset).", show_default=False)] = None,
     preset: Annotated[Optional[str], typer.Option("--preset", help="Bundled preset name.")] = None,
-    scene: Annotated[Optional[str], typer.Option("--scene", help="Bundled scene name (free-space, stiffness-25, stiffness-25-links, virtual-box, z-width; master-transparency, master-wall) or a .toml path [default: stiffness-25, master-wall for a master].", show_default=False)] = None,
+    scene: Annotated[Optional[str], typer.Option("--scene", help="Bundled scene name (free-space, stiffness-25, stiffness-25-links, virtual-box, z-width; master-transparency, master-wall; handle-wall, handle-ball) or a .toml path [default: stiffness-25, master-wall for a master, handle-wall for a handle].", show_default=False)] = None,
     backend: Annotated[str, typer.Option("--backend", help="auto (the scene resolver picks), lumped or multibody.")] = "auto",
     set_: Annotated[Optional[list[str]], typer.Option("--set", help="Override a design TOML key (repeatable).")] = None,
     fidelity: Annotated[str, typer.Option("--fidelity", help="draft, standard or fine.")] = "standard",
@@ -69,8 +69,8 @@ def verify(
         raise InvalidInput(f"--backend = {backend!r} is not a backend: allowed auto, lumped, multibody")
     force = None if backend == "auto" else Backend(backend)
     design = load_design_arg(file, preset, set_)
-    device = "master" if design.device == "master" else "prrr"
-    sc = load_scene(scene or ("master-wall" if device == "master" else "stiffness-25"))
+    device = design.device if design.device in ("master", "handle") else "prrr"
+    sc = load_scene(scene or {"master": "master-wall", "handle": "handle-wall"}.get(device, "stiffness-25"))
     if sc.device != device:
         raise InvalidInput(f"--scene {sc.name} is written for the {sc.device} device; design {design.name!r} is a "
                            f"{design.device}: pick a {device} scene")

@@ -139,3 +139,13 @@ def test_cli_export_and_errors(tmp_path):
     res = runner.invoke(app, ["export", "--preset", "prrr-paper", "--out", str(tmp_path / "q"), "--pose", "500,0,0"])
     assert res.exit_code == 2 and "not reachable" in res.output
     assert not (tmp_path / "q").exists()
+
+
+def test_handle_has_no_cad_one_line(tmp_path):
+    # seed 000's handle is an analysis device (one axis): export refuses it with one line, not a KeyError
+    from hapticopt.design import export, io
+    from hapticopt.design.errors import InvalidDesign
+
+    with pytest.raises(InvalidDesign, match=r"^device = 'handle' of design 'handle-paper' has no CAD model to export: "
+                                            r"allowed prrr, master$"):
+        export.export(io.load_preset("handle-paper"), tmp_path)

@@ -8,11 +8,13 @@ one-sample-delay bound K < 2b/(3T).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from hapticopt.analysis.handle import model as hm
 from hapticopt.analysis.handle import stability as hs
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 H = hm.HANDLE_PAPER
@@ -65,7 +67,7 @@ def test_limit_inversely_proportional_to_T(hold):
 def test_pade_cubic_is_the_closed_loop_with_operator():
     # eq (20) with R² k_h (and m_h, b_h of eq 1): its roots are the eigenvalues of the Padé loop
     h = H.with_(wall_stiffness_N_per_m=2e3, wall_damping_N_s_per_m=BE,
-                operator=hm.Operator(mass_kg=0.1, damping_N_s_per_m=2.0, stiffness_N_per_m=300.0))
+                operator=hm.hand(mass=0.1, damping=2.0, stiffness=300.0))
     roots = np.sort_complex(np.roots(hs.cubic(h)))
     eig = np.sort_complex(np.linalg.eigvals(hm.pade_closed_loop(h).A))
     assert roots == pytest.approx(eig, rel=1e-9)
@@ -83,7 +85,7 @@ def test_eq22_is_the_hurwitz_boundary_of_the_cubic_with_operator():
     assert hs.eq22_critical_operator_stiffness(h) == pytest.approx(k_star, rel=1e-12)
     assert hs.critical_operator_stiffness(h, hold=hm.Hold.PADE) == pytest.approx(k_star, rel=1e-9)
     for f, sign in ((0.99, -1), (1.01, 1)):
-        hh = h.with_(operator=hm.Operator(stiffness_N_per_m=f * k_star))
+        hh = h.with_(operator=hm.hand(stiffness=f * k_star))
         assert np.sign(hs.hurwitz_margin(hs.cubic(hh))) == sign
 
 
@@ -93,7 +95,7 @@ def test_eq22_simulated_wall_inside_outside():
     h = H.with_(wall_stiffness_N_per_m=10e3, wall_damping_N_s_per_m=BE)
     kc = hs.eq22_critical_operator_stiffness(h)
     for f, sign in ((0.95, 1), (1.05, -1)):
-        hh = h.with_(operator=hm.Operator(stiffness_N_per_m=f * kc))
+        hh = h.with_(operator=hm.hand(stiffness=f * kc))
         sim = hs.simulate_wall(hh, hold=hm.Hold.PADE, duration_s=1.5)
         expected = -hs.margin(hh, hold=hm.Hold.PADE) * hh.damping_N_s_per_m / hh.mass_kg  # max Re λ [1/s]
         assert sim.growth.status == "ok"
@@ -106,13 +108,13 @@ def test_eq22_does_not_hold_for_the_exact_hold():
     # still unstable (simulated and by ρ), and the exact critical k_h lies above eq (22)
     h = H.with_(wall_stiffness_N_per_m=10e3, wall_damping_N_s_per_m=BE)
     kc = hs.eq22_critical_operator_stiffness(h)
-    hh = h.with_(operator=hm.Operator(stiffness_N_per_m=1.05 * kc))
+    hh = h.with_(operator=hm.hand(stiffness=1.05 * kc))
     assert hs.verdict(hs.margin(hh)) is hs.Verdict.UNSTABLE
     assert hs.simulate_wall(hh, hold=hm.Hold.EXACT, duration_s=1.5).growth.rate_per_s > 0.0
     k_exact = hs.critical_operator_stiffness(h)
     assert k_exact > 1.1 * kc
     for f, v in ((0.98, hs.Verdict.UNSTABLE), (1.02, hs.Verdict.STABLE)):
-        assert hs.verdict(hs.margin(h.with_(operator=hm.Operator(stiffness_N_per_m=f * k_exact)))) is v
+        assert hs.verdict(hs.margin(h.with_(operator=hm.hand(stiffness=f * k_exact)))) is v
 
 
 def test_stiffer_operator_stabilises():
@@ -171,8 +173,8 @@ def test_hard_cases():
         assert lim.value_N_per_m * T * H.transmission == pytest.approx(2 * H.damping_N_s_per_m, rel=1e-3)
     with pytest.raises(ValueError, match=r"Handle.period_s = 0.0: must be finite and > 0"):
         H.with_(period_s=0.0)
-    with pytest.raises(ValueError, match=r"Operator.stiffness_N_per_m = -1.0: must be finite and ≥ 0"):
-        hm.Operator(stiffness_N_per_m=-1.0)
+    with pytest.raises(ValueError, match=r"Operator.stiffness = -1.0: allowed finite values ≥ 0 \[N/m\]"):
+        hm.hand(stiffness=-1.0)
     with pytest.raises(ValueError, match=r"duration_s"):
         hs.simulate_wall(H, hold=hm.Hold.EXACT, duration_s=1e-3)
     # a huge virtual damping makes even K_e → 0 unstable: a status, NaN limit
@@ -190,13 +192,13 @@ def test_verdict_bands():
 
 def test_evaluate():
     # the evaluator collects the numbers above for the paper's case (eq 19, eq 22) with a status
-    r = hs.evaluate(H.with_(wall_stiffness_N_per_m=10e3, wall_damping_N_s_per_m=BE))
+    r = hs.analyse(H.with_(wall_stiffness_N_per_m=10e3, wall_damping_N_s_per_m=BE))
     assert r.status is hs.LimitStatus.OK and r.verdict is hs.Verdict.UNSTABLE  # 10 N/mm > 2.67 N/mm
     assert r.pade_limit_N_per_mm == pytest.approx(2.67, rel=0.01)
     assert r.exact_limit_N_per_mm == pytest.approx(2.67, rel=0.01)
     assert r.eq22_operator_stiffness_N_per_mm == pytest.approx(hs.eq22_critical_operator_stiffness(
         H.with_(wall_stiffness_N_per_m=10e3, wall_damping_N_s_per_m=BE)) / 1e3, rel=1e-12)
-    bad = hs.evaluate(H.with_(wall_damping_N_s_per_m=2e3))  # non-ok status → NaN limits
+    bad = hs.analyse(H.with_(wall_damping_N_s_per_m=2e3))  # non-ok status → NaN limits
     assert bad.status is hs.LimitStatus.UNSTABLE_WITHOUT_WALL and np.isnan(bad.exact_limit_N_per_mm)
 
 
@@ -205,10 +207,40 @@ def test_evaluate():
 def test_boundary_brackets_the_verdict(T, Be, kh):
     # property: the exact boundary separates stable (−1 %) from unstable (+1 %) walls, and the Padé
     # closed form (eq 18 generalised) equals the Padé loop's eigenvalue boundary
-    h = H.with_(period_s=T, wall_damping_N_s_per_m=Be, operator=hm.Operator(stiffness_N_per_m=kh))
+    h = H.with_(period_s=T, wall_damping_N_s_per_m=Be, operator=hm.hand(stiffness=kh))
+    # the hand's own resonance below Nyquist (ω_h T < π): above it the sampled loop aliases the hand
+    # to low frequency and can stay stable up to the scan's end (T = 9.9 ms, k_h = 7.9 N/mm: NOT_FOUND)
+    assume(np.sqrt(kh / h.mass_kg) * T < np.pi)
     lim = hs.stiffness_limit(h)
     assert lim.status is hs.LimitStatus.OK
     K = lim.value_N_per_m
     assert hs.verdict(hs.margin(h.with_(wall_stiffness_N_per_m=0.99 * K))) is hs.Verdict.STABLE
     assert hs.verdict(hs.margin(h.with_(wall_stiffness_N_per_m=1.01 * K))) is hs.Verdict.UNSTABLE
     assert hs.stiffness_limit(h, hold=hm.Hold.PADE).value_N_per_m == pytest.approx(hs.eq18_stiffness_limit(h), rel=1e-8)
+
+
+def test_registry_evaluator_on_the_preset():
+    # hapticopt evaluate --preset handle-paper: eq (19) with the paper's B_e = 30 g/s → 2.67 N/mm (±1 %), the
+    # exact loop 2.6654, the limit ∝ 1/T within 2 % over 0.5–5 ms, rising with B_e and with k_h (Fig 8)
+    from hapticopt.analysis.status import Status
+    from hapticopt.design import io
+
+    r = hs.evaluate(io.load_preset("handle-paper"))
+    m = r.metrics()
+    assert r.status is Status.OK and m["wall_stable"]  # its wall, 2 N/mm, is inside the limit
+    assert m["eq19_stable_stiffness_N_per_mm"] == pytest.approx(2.67, rel=0.01)
+    assert m["max_stable_stiffness_N_per_mm"] == pytest.approx(2.67, rel=0.01)
+    kT = [k * t for k, t in zip(m["max_stable_stiffness_vs_period_N_per_mm"], m["sweep_period_ms"])]
+    assert max(kT) / min(kT) - 1.0 < 0.02
+    assert np.all(np.diff(m["max_stable_stiffness_vs_wall_damping_N_per_mm"]) > 0)
+    assert np.all(np.diff(m["max_stable_stiffness_vs_operator_stiffness_N_per_mm"]) > 0)
+    assert m["critical_operator_stiffness_N_per_mm"] == 0.0  # stable without a hand
+
+
+def test_registry_evaluator_status_means_what_it_says():
+    from hapticopt.analysis.status import Status
+    from hapticopt.design import io
+
+    d = io.apply_overrides(io.load_preset("handle-paper"), ["wall.damping_Ns_per_m=2000"])
+    r = hs.evaluate(d)  # B_e far beyond the Z-width: no stiffness is stable
+    assert r.status is Status.UNSTABLE and math.isnan(r.metrics()["max_stable_stiffness_N_per_mm"])

@@ -104,3 +104,20 @@ def test_master_scenes_and_sweep_validation():
         scene_from_dict({"name": "m", "simulation": {"sweep_factors": [1.0]}})
     with pytest.raises(InvalidInput, match="device = 'robot' is not known"):
         scene_from_dict({"name": "m", "device": "robot"})
+
+
+def test_handle_scenes_and_interpolation_variant():
+    from hapticopt.analysis.control.upsampling import DEFAULT_VARIANT, Variant
+
+    sc = load_scene("handle-ball")
+    assert sc.device == "handle" and sc.controller.interpolation_variant is DEFAULT_VARIANT
+    res = resolve(sc)
+    assert res.backend == Backend.LUMPED and res.effects == frozenset({Effect.SAMPLING, Effect.OPERATOR})
+    assert res.notes and res.notes[0].startswith("not modelled on the handle, dropped: coulomb_friction")
+    with pytest.raises(InvalidInput, match="backend = multibody cannot simulate the handle"):
+        resolve(sc, force=Backend.MULTIBODY)
+    v = scene_from_dict({"name": "s", "controller": {"interpolation_variant": "as_printed"}})
+    assert v.controller.interpolation_variant is Variant.AS_PRINTED
+    with pytest.raises(InvalidInput, match=r"controller.interpolation_variant = 'late' is not known: allowed none, "
+                                           r"as_printed, as_intended"):
+        scene_from_dict({"name": "s", "controller": {"interpolation_variant": "late"}})

@@ -49,10 +49,20 @@ def test_box_inside_and_outside(prrr_paper):
 
 
 def test_bspline_partition_of_unity_and_constant_reproduction(prrr_paper):
+    from hapticopt.analysis.control.upsampling import Variant
+
     cfg, g = _law(prrr_paper, interpolation=5)
-    W = fw.interpolation_weights(cfg)
+    W = fw.interpolation_weights(cfg)  # on [f_{i−2}, f_{i−1}, f_i, f̂_{i+1}, f̂_{i+2}]
     assert W.sum(axis=1) == pytest.approx(np.ones(5))  # eq 23 basis sums to one
-    assert W[0] == pytest.approx([1 / 6, 4 / 6, 1 / 6, 0])  # u = 0: (f_{i−2} + 4f_{i−1} + f_i)/6
+    # default: as intended, u = 0 at (f_{i−1} + 4f_i + f̂_{i+1})/6 (= f_i for linear data)
+    assert cfg.interpolation_variant is Variant.AS_INTENDED
+    assert W[0] == pytest.approx([0, 1 / 6, 4 / 6, 1 / 6, 0])
+    Wp = fw.interpolation_weights(dataclasses.replace(cfg, interpolation_variant=Variant.AS_PRINTED))
+    assert Wp[0] == pytest.approx([1 / 6, 4 / 6, 1 / 6, 0, 0])  # as printed: (f_{i−2} + 4f_{i−1} + f_i)/6
+    # the (2, −1) recursion continues a linear history: f̂_{i+1} = 4, f̂_{i+2} = 5 after 1, 2, 3
+    h = np.array([[1.0] * 3, [2.0] * 3, [3.0] * 3])
+    p1, p2 = fw.predictions((2.0, -1.0), h)
+    assert p1 == pytest.approx([4.0] * 3) and p2 == pytest.approx([5.0] * 3)
 
 
 def test_saturation_clips_motor_force(prrr_paper):

@@ -117,3 +117,19 @@ def test_help_is_accurate():
     res = invoke("evaluate", "--help")
     for opt in ("--preset", "--set", "--fidelity", "--json", "--plots"):
         assert opt in res.stdout
+
+
+def test_evaluate_handle_preset():
+    # seed 000's handle as a third device: eq (19) with the paper's B_e (2.67 N/mm ± 1 %) through the registry
+    res = invoke("evaluate", "--preset", "handle-paper", "--json")
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert out["status"] == {"stability": "ok", "upsampling": "ok", "zwidth": "ok"}
+    assert out["metrics"]["max_stable_stiffness_N_per_mm"] == pytest.approx(2.67, rel=0.01)
+    assert out["design"]["drive"]["motor_inertia_g_cm2"] == 34.7
+
+
+def test_evaluate_handle_bad_value_exit_2():
+    res = invoke("evaluate", "--preset", "handle-paper", "--set", "firmware.period_ms=0")
+    assert res.exit_code == 2
+    assert res.output.strip().splitlines()[-1].endswith("firmware.period_ms = 0 is out of range: allowed 0 < period_ms ≤ 100 (ms)")

@@ -74,3 +74,15 @@ def test_verify_master_wall_and_backend_option(tmp_path):
     assert forced.exit_code == 0, forced.output
     fm = json.loads(forced.stdout)["metrics"]
     assert fm["backend"] == "multibody" and "forced" in fm["backend_reason"] and fm["constraint_health_ok"]
+
+
+def test_verify_handle_scenes():
+    # seed 000's handle: the wall and the ball scenes through analysis/verify.py
+    for scene in ("handle-wall", "handle-ball"):
+        res = runner.invoke(app, ["verify", "--preset", "handle-paper", "--scene", scene, "--json"])
+        assert res.exit_code == 0, res.output
+        out = json.loads(res.stdout)
+        assert out["status"] == "ok" and out["metrics"]["backend"] == "handle"
+        assert out["metrics"]["interpolation_variant"] == "as_intended"
+    wrong = runner.invoke(app, ["verify", "--preset", "handle-paper", "--scene", "stiffness-25"])
+    assert wrong.exit_code == 2 and "is written for the prrr device" in wrong.output
