@@ -36,7 +36,7 @@ import math
 import numpy as np
 import scipy.linalg
 
-from .human import HumanModel, state_space
+from hapticopt.analysis.loop.operator import Operator, state_space
 
 #: Data matrices whose column-scaled reciprocal condition number is below this are refused.
 #: Measured (docs/seed001.md): exciting data ≈ 1e-4 (printed noise, 50 intervals), no noise
@@ -364,7 +364,7 @@ def soft_switch(t: float | np.ndarray, k0: np.ndarray, k1: np.ndarray, *, t_star
 class OuterLoopConfig:
     """Section 4.1 example. Units: amplitude [m], period/duration/steps [s]."""
 
-    human: HumanModel = HumanModel()
+    human: Operator = Operator.eq2()  # seed 001 eq 2 with the §4.1 gains
     q: tuple[float, ...] = (1.0, 1.0, 1.0)  # diag of Q (eq 27)
     r: float = 0.01  # eq 27
     k0: tuple[float, float, float] = (10.0, 4.0, 0.2)  # eq 31
