@@ -21,8 +21,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
+
+from hapticopt.analysis.loop.operator import state_space
+from hapticopt.analysis.loop.scene import Scene
+from hapticopt.analysis.status import Status
+from hapticopt.design.errors import InvalidInput
 
 from . import impedance_learning as il
 
@@ -203,3 +209,77 @@ def learning_verdict(strategy: il.Strategy, learning: il.LearningResult | None) 
     if learning.status is il.LearningStatus.OK:
         return True, ""
     return False, f"{learning.status.value}: {learning.message} (the firmware kept K_0)"
+
+
+#: performance metrics nulled when the status is not ok
+PERFORMANCE = ("impedance_error_rms_mm", "impedance_error_rms_after_learning_mm", "interaction_force_rms_N",
+               "interaction_force_rms_after_learning_N", "interaction_force_peak_N", "tracking_error_rms_mm",
+               "tracking_error_peak_mm", "reference_error_rms_after_learning_mm", "joint_torque_peak_Nm",
+               "joint_torque_rms_Nm", "joint_error_peak_mrad", "joint_error_peak_after_learning_mrad",
+               "gain_SI", "gain_rel_error_to_optimum", "impedance_mass_kg", "impedance_damping_Ns_per_m",
+               "impedance_stiffness_N_per_m", "motor_command_peak_N", "force_tracking_rms_N", "off_axis_drift_peak_mm")
+
+
+def outer_config(scene: Scene, period: float) -> OnlineIoicConfig:
+    """The outer loop of a scene: K* from eq 6 with the scene's eq-2 operator (the model)."""
+    s = scene.ioic
+    a, b = state_space(scene.operator)
+    opt = il.riccati_optimum(a, b, np.diag(s.state_weights), np.array([[s.input_weight]]))
+    if not s.exploration:
+        noise = il.ExplorationNoise.zero()
+    elif s.noise_seed >= 0:
+        noise = il.ExplorationNoise.random_phases(s.noise_seed)
+    else:
+        noise = il.ExplorationNoise.printed()
+    try:
+        return OnlineIoicConfig(
+            period=period, strategy=il.Strategy(s.strategy.value), k0=s.initial_gain,
+            k_star=tuple(float(v) for v in opt.k[0]), q=s.state_weights, r=s.input_weight, learn_time=s.learn_time,
+            intervals=s.intervals, switch_time=s.switch_time, noise=noise, eps=s.tolerance)
+    except ValueError as exc:
+        raise InvalidInput(f"scene {scene.name}: ioic: {exc}") from None
+
+
+def optimum_of(scene: Scene) -> il.OptimalImpedance:
+    s = scene.ioic
+    a, b = state_space(scene.operator)
+    return il.riccati_optimum(a, b, np.diag(s.state_weights), np.array([[s.input_weight]]))
+
+
+def _finite_or_none(v: Any) -> Any:
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, list):
+        return [_finite_or_none(x) for x in v]
+    return v
+
+
+def clean_metrics(measures: dict[str, Any], *, ok: bool) -> dict[str, Any]:
+    """NaN → None (JSON null); with a non-ok status the performance metrics are null too."""
+    out = dict(measures)
+    if not ok:
+        for key in PERFORMANCE:
+            if key in out:
+                out[key] = None
+    return {k: _finite_or_none(v) for k, v in out.items()}
+
+
+def run_status(*, stable: bool, unstable_at: float | None, strategy: il.Strategy,
+               learning: il.LearningResult | None, problems: list[str]) -> tuple[Status, str]:
+    """The run's status: ``unstable``; a refused learning ``singular`` (not exciting) or ``failed``;
+    ``failed`` for any other problem (plant health); ``ok`` otherwise."""
+    ok_learn, learn_msg = learning_verdict(strategy, learning)
+    msgs = []
+    if not stable:
+        status = Status.UNSTABLE
+        msgs.append(f"unstable: detected at t = {unstable_at:.4g} s")
+    elif not ok_learn:
+        refused = learning is not None and learning.status is il.LearningStatus.NOT_EXCITING
+        status = Status.SINGULAR if refused else Status.FAILED
+        msgs.append(learn_msg)
+    else:
+        status = Status.OK
+    msgs += problems
+    if problems and status == Status.OK:
+        status = Status.FAILED
+    return status, "; ".join(msgs)

@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.control import ioic_online
 from hapticopt.analysis.control.sliding_mode import NTSMTCParams
 from hapticopt.analysis.loop.scene import Motion

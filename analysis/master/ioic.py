@@ -32,7 +32,7 @@ from hapticopt.analysis.control import ioic_online
 from hapticopt.analysis.control.sliding_mode import NTSMTCParams
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop.mujoco_solver import SolverSettings
-from hapticopt.analysis.loop.operator import force_step, state_space
+from hapticopt.analysis.loop.operator import force_step
 from hapticopt.analysis.loop.scene import Effect, FirmwareMode, Scene, require_mode, resolve
 from hapticopt.analysis.loop.traces import OVERSAMPLE, Traces
 from hapticopt.analysis.master import dynamics as md
@@ -40,41 +40,6 @@ from hapticopt.analysis.master.firmware_ioic import MasterIoicConfig, MasterIoic
 from hapticopt.analysis.master.mujoco_plant import RUNAWAY, VIOLATION_TOL, MasterPlant
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
-
-#: performance metrics nulled when the status is not ok
-PERFORMANCE = ("impedance_error_rms_mm", "impedance_error_rms_after_learning_mm", "interaction_force_rms_N",
-               "interaction_force_rms_after_learning_N", "interaction_force_peak_N", "tracking_error_rms_mm",
-               "tracking_error_peak_mm", "reference_error_rms_after_learning_mm", "joint_torque_peak_Nm",
-               "joint_torque_rms_Nm", "joint_error_peak_mrad", "joint_error_peak_after_learning_mrad",
-               "gain_SI", "gain_rel_error_to_optimum", "impedance_mass_kg", "impedance_damping_Ns_per_m",
-               "impedance_stiffness_N_per_m")
-
-
-def outer_config(scene: Scene, period: float) -> ioic_online.OnlineIoicConfig:
-    """The outer loop of a scene: K* from eq 6 with the scene's eq-2 operator (the model)."""
-    s = scene.ioic
-    a, b = state_space(scene.operator)
-    opt = il.riccati_optimum(a, b, np.diag(s.state_weights), np.array([[s.input_weight]]))
-    if not s.exploration:
-        noise = il.ExplorationNoise.zero()
-    elif s.noise_seed >= 0:
-        noise = il.ExplorationNoise.random_phases(s.noise_seed)
-    else:
-        noise = il.ExplorationNoise.printed()
-    try:
-        return ioic_online.OnlineIoicConfig(
-            period=period, strategy=il.Strategy(s.strategy.value), k0=s.initial_gain,
-            k_star=tuple(float(v) for v in opt.k[0]), q=s.state_weights, r=s.input_weight, learn_time=s.learn_time,
-            intervals=s.intervals, switch_time=s.switch_time, noise=noise, eps=s.tolerance)
-    except ValueError as exc:
-        raise InvalidInput(f"scene {scene.name}: ioic: {exc}") from None
-
-
-def optimum_of(scene: Scene) -> il.OptimalImpedance:
-    s = scene.ioic
-    a, b = state_space(scene.operator)
-    return il.riccati_optimum(a, b, np.diag(s.state_weights), np.array([[s.input_weight]]))
-
 
 @dataclass(frozen=True, kw_only=True)
 class MasterIoicResult:
@@ -113,14 +78,6 @@ class MasterIoicResult:
         return out
 
 
-def _clean(v: Any) -> Any:
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, list):
-        return [_clean(x) for x in v]
-    return v
-
-
 def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD, reason: str | None = None,
              solver: SolverSettings | None = None) -> MasterIoicResult:
     """Run a master scene in the IOIC firmware mode on the MuJoCo plant."""
@@ -145,7 +102,7 @@ def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDAR
     cfg = MasterIoicConfig(
         period=T, counts_per_rev=design.actuators.encoder_counts, q0=tuple(map(float, plant.q0)),
         upper_arm=g.upper_arm, forearm=g.forearm, shoulder_height=g.shoulder_height, axis=ax,
-        x_start=tuple(map(float, plant.x0)), motion=scene.motion, outer=outer_config(scene, T),
+        x_start=tuple(map(float, plant.x0)), motion=scene.motion, outer=ioic_online.outer_config(scene, T),
         ntsmtc=NTSMTCParams(lambda1=nt.lambda1, lambda2=nt.lambda2, a=nt.a, b=nt.b, mu=nt.mu, beta=nt.beta,
                             eta=nt.eta, theta=nt.theta),
         velocity_alpha=math.exp(-2 * math.pi * c.velocity_filter * T) if c.velocity_filter > 0 else 0.0,
@@ -204,7 +161,7 @@ def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDAR
     strategy = il.Strategy(s.strategy.value)
     learning = ctl.outer.learning
     after = s.learn_time + s.switch_time
-    measures = ioic_online.outer_metrics(rec, strategy=strategy, learning=learning, optimum=optimum_of(scene),
+    measures = ioic_online.outer_metrics(rec, strategy=strategy, learning=learning, optimum=ioic_online.optimum_of(scene),
                                          after=after)
     sel = t[:end] >= after - 1e-9
     measures.update({
@@ -220,33 +177,19 @@ def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDAR
     stable = stop < 0
     violation = float(EF[:end].max()) if end else 0.0
     warns = plant.warnings()
-    ok_learn, learn_msg = ioic_online.learning_verdict(strategy, learning)
     problems = []
-    if not stable:
-        status = Status.UNSTABLE
-        problems.append(f"unstable: detected at t = {(stop + 1) * T:.4g} s")
-    elif not ok_learn:
-        status = Status.SINGULAR if learning is not None and learning.status is il.LearningStatus.NOT_EXCITING \
-            else Status.FAILED
-        problems.append(learn_msg)
-    else:
-        status = Status.OK
     if violation > VIOLATION_TOL:
         problems.append(f"parallelogram closure violation {violation * 1e3:.3g} mm > {VIOLATION_TOL * 1e3:g} mm")
     if warns:
         problems.append("MuJoCo warnings: " + ", ".join(warns))
-    if problems and status == Status.OK:
-        status = Status.FAILED
-    if status != Status.OK:
-        for key in PERFORMANCE:
-            if key in measures:
-                measures[key] = None
-    measures = {k: _clean(v) for k, v in measures.items()}
+    status, message = ioic_online.run_status(stable=stable, unstable_at=(stop + 1) * T, strategy=strategy,
+                                             learning=learning, problems=problems)
+    measures = ioic_online.clean_metrics(measures, ok=status == Status.OK)
     traces = Traces(period=T, energy=np.zeros((N, 1)), saturated=np.zeros((N, 1), dtype=bool),
                     stop_tick=np.array([stop]), position=P[:, None], hand_force=(-F[:, None, None] * e_ax),
                     velocity=np.zeros((N, 1, 3)))
     return MasterIoicResult(
-        scene=scene.name, status=status, message="; ".join(problems), measures=measures, stable=stable,
+        scene=scene.name, status=status, message=message, measures=measures, stable=stable,
         unstable_at=None if stable else (stop + 1) * T, violation=violation, warnings=warns,
         effects=tuple(res.effect_names()), notes=res.notes, reason=reason or res.reason, period=T,
         substeps=plant.substeps, wall_time=time.perf_counter() - t0, learning=learning, record=rec,
