@@ -9,7 +9,8 @@ Run: PYTHONPATH=<shim> python benchmarks/accuracy_seed001_devices.py
 2. Hard case: the data phase without exploration noise (status, rank, rcond).
 3. What limits the learned gain on each device: the master without encoder quantization; the
    3-PRRR with other tracking stiffnesses.
-Prints markdown.
+Prints markdown. With ``--figure PATH`` it instead draws the IOIC runs of both devices
+(x_d, x_r, x along the axis; the force f; the gain K(t)) to PATH (docs/figures/seed001_devices.png).
 """
 
 from __future__ import annotations
@@ -92,6 +93,10 @@ def table_limits():
     variants.append(("master", "master-paper", "as bundled", base))
     variants.append(("master", "master-paper", "no encoder quantization",
                      dataclasses.replace(base, effects=base.effects - {Effect.QUANTIZATION})))
+    fast = dataclasses.replace(base.ntsmtc, lambda1=(30.0,) * 3, lambda2=(30.0,) * 3)
+    variants.append(("master", "master-paper", "NTSMTC λ1 = λ2 = 30 1/s (§4.2: 3)", dataclasses.replace(base, ntsmtc=fast)))
+    variants.append(("master", "master-paper", "λ = 30 1/s, no quantization",
+                     dataclasses.replace(base, ntsmtc=fast, effects=base.effects - {Effect.QUANTIZATION})))
     base = load_scene("prrr-ioic")
     for k in (5.0, 10.0, 20.0):
         variants.append(("3-PRRR", "prrr-paper", f"tracking stiffness {k:g} N/mm",
@@ -107,7 +112,50 @@ def table_limits():
     print()
 
 
+def figure(path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(3, 2, figsize=(11, 7.5), sharex=True)
+    for col, (dev, preset, name) in enumerate(DEVICES):
+        design, base = load_preset(preset), load_scene(name)
+        for strat, style in ((IoicStrategy.FIC, ":"), (IoicStrategy.OIC, "--"), (IoicStrategy.IOIC, "-")):
+            sc = dataclasses.replace(base, ioic=dataclasses.replace(base.ioic, strategy=strat))
+            r = verify.simulate(design, sc)
+            rec = r.record
+            x0 = rec.x_r[0]
+            if strat == IoicStrategy.IOIC:
+                ax[0, col].plot(rec.t, (rec.x_d - x0) * 1e3, "k", lw=0.8, label="x_d")
+                ax[0, col].plot(rec.t, (rec.x_r - x0) * 1e3, "C1", lw=1.2, label="x_r (IOIC)")
+                ax[0, col].plot(rec.t, (rec.x - x0) * 1e3, "C0--", lw=0.8, label="x (IOIC)")
+                for i, lab in enumerate(("K1 [1/s²]", "K2 [1/s]", "10·K3 [1/kg]")):
+                    ax[2, col].plot(rec.t, rec.gain[:, i] * (10 if i == 2 else 1), f"C{i}", label=lab)
+                    k = r.metrics()["optimal_gain_SI"][i] * (10 if i == 2 else 1)
+                    ax[2, col].axhline(k, color=f"C{i}", ls=":", lw=0.8)
+            ax[1, col].plot(rec.t, rec.f, "C3" + style, lw=1.0, label=f"f, {strat.value.upper()}")
+        ax[0, col].set_title(f"{dev} ({name})")
+        ax[0, col].set_ylabel("position − start [mm]")
+        ax[1, col].set_ylabel("operator force f [N]")
+        ax[2, col].set_ylabel("gain (dotted: Riccati K*)")
+        ax[2, col].set_xlabel("t [s]")
+        for a in ax[:, col]:
+            a.legend(fontsize=7, loc="upper right")
+            a.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+
+
 if __name__ == "__main__":
+    import sys
+
+    if "--limits" in sys.argv:
+        table_limits()
+        sys.exit(0)
+    if "--figure" in sys.argv:
+        figure(sys.argv[sys.argv.index("--figure") + 1])
+        sys.exit(0)
     table_strategies()
     table_hard_cases()
     table_limits()
