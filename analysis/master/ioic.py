@@ -126,7 +126,7 @@ def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDAR
     f = 0.0
     hand = -f * e_ax
     ctl.reset(counts())
-    X, XR, XD, F, TAU, QE, EF = (np.zeros(N) for _ in range(7))
+    X, XR, XD, F, EF = (np.zeros(N) for _ in range(5))
     K = np.zeros((N, 3))
     TAU, QE, P = np.zeros((N, 3)), np.zeros((N, 3)), np.zeros((N, 3))
     delay = [np.zeros((1, 3))] * delay_ticks

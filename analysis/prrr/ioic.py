@@ -88,7 +88,6 @@ def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDAR
     base, gains = firmware.build(design, scene, plant_res, period=T)
     s, op = scene.ioic, scene.operator
     ax = s.axis
-    n = model.n
     J = model.J
     e_ax = np.eye(3)[ax]
     substeps = scene.substeps or (FRICTION_SUBSTEPS[fidelity] if Effect.COULOMB_FRICTION in fx else 1)
