@@ -5,8 +5,11 @@ models the scene's effects and runs it: the 3-PRRR's lumped SEA plant fused with
 (:func:`hapticopt.analysis.prrr.closed_loop.simulate_lumped`), the 3-PRRR's MuJoCo plant
 (:func:`hapticopt.analysis.prrr.mujoco_plant.simulate`) or the master's MuJoCo plant
 (:func:`hapticopt.analysis.master.mujoco_plant.simulate`), or seed 000's handle
-(:func:`hapticopt.analysis.handle.closed_loop.simulate`). Every result's metrics name the
-backend and the reason (``backend``, ``backend_reason``).
+(:func:`hapticopt.analysis.handle.closed_loop.simulate`). Scenes in the IOIC firmware mode
+(``controller.mode = "ioic"``, seed 001) run the device's IOIC firmware instead: the master's
+IOIC + NTSMTC on its MuJoCo plant (:func:`hapticopt.analysis.master.ioic.simulate`), the 3-PRRR's
+IOIC over its SEA force loops on the lumped plant (:func:`hapticopt.analysis.prrr.ioic.simulate`).
+Every result's metrics name the backend and the reason (``backend``, ``backend_reason``).
 """
 
 from __future__ import annotations
@@ -15,7 +18,8 @@ from typing import Any
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.handle import closed_loop as handle_loop
-from hapticopt.analysis.loop.scene import Backend, Scene, resolve
+from hapticopt.analysis.loop.scene import Backend, FirmwareMode, Scene, resolve
+from hapticopt.design.errors import InvalidInput
 from hapticopt.analysis.prrr import closed_loop
 from hapticopt.analysis.master import mujoco_plant as master_mujoco
 from hapticopt.analysis.prrr import mujoco_plant as prrr_mujoco
@@ -27,6 +31,17 @@ def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDAR
     res = resolve(scene, force=backend)
     if scene.device == "handle":
         return handle_loop.simulate(design, scene, fidelity=fidelity)
+    if scene.controller.mode == FirmwareMode.IOIC:
+        if scene.device == "master":
+            from hapticopt.analysis.master import ioic as master_ioic
+
+            return master_ioic.simulate(design, scene, fidelity=fidelity, reason=res.reason)
+        if res.backend != Backend.LUMPED:
+            raise InvalidInput(f"scene {scene.name}: the 3-PRRR's IOIC mode runs on the lumped plant: allowed "
+                               "--backend auto or lumped")
+        from hapticopt.analysis.prrr import ioic as prrr_ioic
+
+        return prrr_ioic.simulate(design, scene, fidelity=fidelity)
     if scene.device == "master":
         return master_mujoco.simulate(design, scene, fidelity=fidelity, reason=res.reason)
     if res.backend == Backend.MULTIBODY:

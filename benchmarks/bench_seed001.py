@@ -52,3 +52,38 @@ def test_outer_loop_15s(benchmark):
     """FIC, OIC and IOIC outer loops together, 15 s at 1 ms (numpy RK4)."""
     res = benchmark.pedantic(il.simulate_outer_loop, args=(CFG,), rounds=3, iterations=1)
     assert res.status is il.LearningStatus.OK
+
+
+# ---------------------------------------------------------------------- in our devices (issue 18 item 5)
+def _device(preset, scene):
+    from hapticopt.analysis.loop.scene import load_scene
+    from hapticopt.design.io import load_preset
+
+    return load_preset(preset), load_scene(scene)
+
+
+def test_online_learning_at_t_learn(benchmark):
+    """The firmware's learning step at t_learn: eq 7's data from 500 tick samples + eq 9."""
+    from hapticopt.analysis.control import ioic_online as io
+
+    a, b, q, r = CFG.matrices()
+    data = il.collect_data(a, b, np.array([CFG.k0]), CFG.noise, np.array([-0.4, 0.0, 0.0]),
+                           duration=0.5, n_intervals=50, substeps=10)
+    x, u = data.x_fine, data.u_fine[:-1]
+
+    def learn():
+        return il.policy_iteration(io.data_from_samples(x, u, 1e-3, 10), np.array([CFG.k0]), q, r)
+
+    assert benchmark(learn).status is il.LearningStatus.OK
+
+
+@pytest.mark.parametrize("preset,scene", [("master-paper", "master-ioic"), ("prrr-paper", "prrr-ioic")])
+def test_device_ioic_scene(benchmark, preset, scene):
+    """The bundled IOIC scene (6 s at 1 kHz): master IOIC + NTSMTC on MuJoCo, 3-PRRR IOIC over the
+    SEA loops on the lumped plant (the master's model terms compiled outside the timing)."""
+    from hapticopt.analysis import verify
+
+    design, sc = _device(preset, scene)
+    verify.simulate(design, sc)
+    res = benchmark.pedantic(verify.simulate, args=(design, sc), rounds=3, iterations=1)
+    assert str(res.status) == "ok"

@@ -7,6 +7,5 @@
 ``impedance_learning``  : seed 001's iterative optimal impedance (IOIC): the LQR optimum of eq 6,
                           off-policy policy iteration from interaction data, the soft switch.
 ``sliding_mode``        : seed 001's nonsingular terminal sliding-mode tracking control (NTSMTC).
-``human``               : seed 001's operator model of eq 2.
 ``two_link``            : seed 001's two-link arm (Table 1), the reference plant of its examples.
 """

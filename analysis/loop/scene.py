@@ -29,7 +29,7 @@ from typing import Any
 from hapticopt.design import bundled
 from hapticopt.design.errors import InputFileError, InvalidInput
 from hapticopt.analysis.control.upsampling import DEFAULT_VARIANT, Variant
-from hapticopt.analysis.loop.operator import Operator
+from hapticopt.analysis.loop.operator import Operator, OperatorKind
 
 
 class Effect(StrEnum):
@@ -72,8 +72,64 @@ class StabilityCriterion(StrEnum):
     DECAY = "decay"  # + the energy of the last window exceeds the window before (growth)
 
 
+class FirmwareMode(StrEnum):
+    """What the firmware does (``[controller] mode``)."""
+
+    IMPEDANCE = "impedance"  # render the scene's virtual environment (seed 002 / seed 003 firmware)
+    IOIC = "ioic"  # seed 001: learned optimal impedance (outer loop) over the device's inner loop
+
+
+class MotionShape(StrEnum):
+    SINE = "sine"  # offset + amplitude·sin(2πft + phase)
+    SQUARE = "square"  # offset ± amplitude, +amplitude on the first half period (seed 001 §4.1)
+
+
+class IoicStrategy(StrEnum):
+    """Outer-loop gain of the IOIC firmware mode (seed 001 Figs 4–6)."""
+
+    FIC = "fic"  # fixed impedance K_0 throughout
+    OIC = "oic"  # the model optimum K* (Riccati, eq 6) throughout
+    IOIC = "ioic"  # K_0 + exploration for the data phase, policy iteration, soft switch (eq 7–10)
+
+
+@dataclass(frozen=True, kw_only=True)
+class IoicSettings:
+    """Seed 001's outer loop on a device (``[ioic]``); defaults are §4.1's (eq 27, 28, 31)."""
+
+    strategy: IoicStrategy = IoicStrategy.IOIC
+    axis: int = 0  # Cartesian axis of the learned impedance (0 = x)
+    state_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)  # diag Q of eq 6 [1/m², s²/m², 1/N²]
+    input_weight: float = 0.01  # R of eq 6 [s⁴/m²]
+    initial_gain: tuple[float, float, float] = (10.0, 4.0, 0.2)  # K_0 = [K/M, B/M, 1/M] [1/s², 1/s, 1/kg] (eq 31)
+    learn_time: float = 0.5  # data phase [s]
+    intervals: int = 50  # sampling intervals of the data phase
+    switch_time: float = 0.5  # T_s of eq 10 [s]
+    exploration: bool = True  # exploration noise v_n of eq 28 during the data phase
+    noise_seed: int = -1  # −1: eq 28 as printed; ≥ 0: its ten phases drawn from this seed
+    tolerance: float = 1e-8  # ε of ‖P_k − P_{k−1}‖_F
+    tracking_stiffness: float = 2e3  # 3-PRRR: Cartesian spring towards x_r [N/m]
+    tracking_damping: float = 40.0  # 3-PRRR: Cartesian damper towards ẋ_r [N·s/m]
+
+
+@dataclass(frozen=True, kw_only=True)
+class NtsmtcSettings:
+    """Seed 001's NTSMTC inner loop (eq 13–17, 26) per joint of the master (``[ntsmtc]``);
+    defaults: §4.2 (λ1 = λ2 = 3, a = 5, b = 3, μ = 0.005, β = (0.5, 1), η = 1.5), the third joint
+    as the second; θ of eq 26 is ours."""
+
+    lambda1: tuple[float, float, float] = (3.0, 3.0, 3.0)  # [1/s]
+    lambda2: tuple[float, float, float] = (3.0, 3.0, 3.0)  # [1/s]
+    a: int = 5
+    b: int = 3
+    mu: float = 0.005  # [rad]
+    beta: tuple[float, float, float] = (0.5, 1.0, 1.0)  # [1/s]
+    eta: float = 1.5  # [rad/s²]
+    theta: float = 0.05  # [rad/s]
+
+
 @dataclass(frozen=True, kw_only=True)
 class ControllerSettings:
+    mode: FirmwareMode = FirmwareMode.IMPEDANCE
     period: float = 1e-3  # T [s]
     force_gain: float = 45.0  # K_p [-] (seed 002 Table 4 experiments)
     integral_gain: float = 0.0  # K_i [1/s]
@@ -110,6 +166,13 @@ class Motion:
     frequency: float = 1.0  # [Hz]
     phase: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [rad]
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [m]
+    shape: MotionShape = MotionShape.SINE
+
+    def square(self, t: float) -> float:
+        """The square wave's sign at t [s]: +1 on [0, 1/(2f)), −1 on [1/(2f), 1/f), ... (a
+        1e-9-period nudge puts the edge samples on the new level)."""
+        phase = math.fmod(t * self.frequency + 1e-9, 1.0)
+        return 1.0 if phase < 0.5 else -1.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -141,6 +204,15 @@ class Scene:
     sweep_factors: tuple[float, ...] = ()  # master: sine sweep at these × the frequency-domain bandwidth
     sweep_periods: int = 3  # periods per sweep frequency (the first one settles)
     backend: "Backend | None" = None  # forced backend; None = the resolver chooses
+    ioic: IoicSettings = field(default_factory=IoicSettings)  # controller.mode = "ioic"
+    ntsmtc: NtsmtcSettings = field(default_factory=NtsmtcSettings)  # the master's IOIC inner loop
+
+
+def require_mode(scene: Scene, mode: FirmwareMode, who: str) -> None:
+    """Refuse (one line) a scene whose firmware mode ``who`` does not run."""
+    if scene.controller.mode != mode:
+        raise InvalidInput(f"scene {scene.name}: controller.mode = {scene.controller.mode.value!r} is not run by "
+                           f"{who}: allowed {mode.value!r} (hapticopt.analysis.verify dispatches by mode)")
 
 
 # ---------------------------------------------------------------------------------------- parsing
@@ -262,6 +334,7 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
     else:
         raise InvalidInput(f"{where}: controller.ar_coefficients = {ar!r} must be a list of 1 to 3 finite numbers")
     controller = ControllerSettings(
+        mode=c.choice("mode", FirmwareMode, FirmwareMode.IMPEDANCE),
         period=c.num("period_ms", 1.0, scale=1e-3, lo=0.0, hi=100.0, lo_open=True, unit="ms"),
         force_gain=c.num("force_gain", 45.0, lo=0.0, hi=1e9, unit="(N motor force per N spring-force error)"),
         integral_gain=c.num("integral_gain_per_s", 0.0, lo=0.0, hi=1e9, unit="1/s"),
@@ -294,11 +367,19 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
 
     o = _Reader(data.get("operator", {}), f"{where}: operator")
     top.used.add("operator")
-    operator = Operator(
-        mass=o.num("mass_kg", 0.3, lo=0.0, hi=100.0, unit="kg"),
-        damping=o.num("damping_Ns_per_m", 50.0, lo=0.0, hi=1e7, unit="N·s/m"),
-        stiffness=o.num("stiffness_N_per_mm", 20.0, scale=1e3, lo=0.0, hi=1e7, unit="N/mm"),
-    )
+    kind = o.choice("kind", OperatorKind, OperatorKind.MASS_SPRING_DAMPER)
+    if kind == OperatorKind.FORCE_EQ2:  # seed 001 eq 2
+        operator = Operator.eq2(
+            k_r=o.num("force_time_constant_s", 0.5, lo=0.0, hi=100.0, lo_open=True, unit="s"),
+            k_f=o.num("force_decay", 5.0, lo=0.0, hi=1e6, lo_open=True, unit="(dimensionless)"),
+            k_c=o.num("force_gain_N_per_m", 20.0, lo=0.0, hi=1e9, lo_open=True, unit="N/m"),
+        )
+    else:  # seed 000 eq 1
+        operator = Operator(
+            mass=o.num("mass_kg", 0.3, lo=0.0, hi=100.0, unit="kg"),
+            damping=o.num("damping_Ns_per_m", 50.0, lo=0.0, hi=1e6, unit="N·s/m"),
+            stiffness=o.num("stiffness_N_per_mm", 20.0, scale=1e3, lo=0.0, hi=1e7, unit="N/mm"),
+        )
     o.done()
 
     m = _Reader(data.get("motion", {}), f"{where}: motion")
@@ -308,6 +389,7 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
         frequency=m.num("frequency_Hz", 1.0, lo=0.0, hi=1e4, unit="Hz"),
         phase=m.vec("phase_deg", (0.0,) * 3, scale=math.pi / 180.0, lo=-360.0, hi=360.0, unit="deg"),
         offset=m.vec("offset_mm", (0.0,) * 3, scale=1e-3, lo=-500.0, hi=500.0, unit="mm"),
+        shape=m.choice("shape", MotionShape, MotionShape.SINE),
     )
     m.done()
 
@@ -349,7 +431,84 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
         points=z.integer("points", 20, lo=2, hi=1000),
     )
     z.done()
+
+    io = _Reader(data.get("ioic", {}), f"{where}: ioic")
+    top.used.add("ioic")
+    m0 = io.num("initial_mass_kg", 5.0, lo=0.0, hi=1e6, lo_open=True, unit="kg")
+    b0 = io.num("initial_damping_Ns_per_m", 20.0, lo=0.0, hi=1e9, unit="N·s/m")
+    k0 = io.num("initial_stiffness_N_per_m", 50.0, lo=0.0, hi=1e9, unit="N/m")
+    noise_seed = io._get("noise_seed")
+    if noise_seed is not None and (isinstance(noise_seed, bool) or not isinstance(noise_seed, int)
+                                   or not 0 <= noise_seed < 2**32):
+        raise InvalidInput(f"{where}: ioic.noise_seed = {noise_seed!r} must be a whole number: allowed "
+                           "0 ≤ noise_seed < 2^32 (absent: eq 28's phases as printed)")
+    ioic = IoicSettings(
+        strategy=io.choice("strategy", IoicStrategy, IoicStrategy.IOIC),
+        axis=io.axis("axis", 0),
+        state_weights=tuple(io.vec("state_weights", (1.0, 1.0, 1.0), lo=0.0, hi=1e12,
+                                   unit="(Q of eq 6, SI: 1/m², s²/m², 1/N²)")),
+        input_weight=io.num("input_weight", 0.01, lo=0.0, hi=1e12, lo_open=True, unit="(R of eq 6, s⁴/m²)"),
+        initial_gain=(k0 / m0, b0 / m0, 1.0 / m0),
+        learn_time=io.num("learn_s", 0.5, lo=0.0, hi=60.0, lo_open=True, unit="s"),
+        intervals=io.integer("intervals", 50, lo=1, hi=100000),
+        switch_time=io.num("switch_s", 0.5, lo=0.0, hi=60.0, lo_open=True, unit="s"),
+        exploration=io.flag("exploration", True),
+        noise_seed=-1 if noise_seed is None else noise_seed,
+        tolerance=io.num("tolerance", 1e-8, lo=0.0, hi=1.0, lo_open=True, unit="(‖P_k − P_k−1‖_F)"),
+        tracking_stiffness=io.num("tracking_stiffness_N_per_mm", 2.0, scale=1e3, lo=0.0, hi=1e6, lo_open=True,
+                                  unit="N/mm"),
+        tracking_damping=io.num("tracking_damping_Ns_per_m", 40.0, lo=0.0, hi=1e6, unit="N·s/m"),
+    )
+    io.done()
+
+    nt = _Reader(data.get("ntsmtc", {}), f"{where}: ntsmtc")
+    top.used.add("ntsmtc")
+    a_exp, b_exp = nt.integer("a", 5, lo=1, hi=99), nt.integer("b", 3, lo=1, hi=99)
+    if not (a_exp % 2 == 1 and b_exp % 2 == 1 and 0.5 < b_exp / a_exp < 1.0):
+        raise InvalidInput(f"{where}: ntsmtc.a = {a_exp}, ntsmtc.b = {b_exp} must be odd with 1/2 < b/a < 1 "
+                           "(seed 001 eq 14)")
+    ntsmtc = NtsmtcSettings(
+        lambda1=tuple(nt.vec("lambda1_per_s", (3.0,) * 3, lo=0.0, hi=1e6, unit="1/s")),
+        lambda2=tuple(nt.vec("lambda2_per_s", (3.0,) * 3, lo=0.0, hi=1e6, unit="1/s")),
+        a=a_exp, b=b_exp,
+        mu=nt.num("mu_rad", 0.005, lo=0.0, hi=1.0, lo_open=True, unit="rad"),
+        beta=tuple(nt.vec("beta_per_s", (0.5, 1.0, 1.0), lo=0.0, hi=1e6, unit="1/s")),
+        eta=nt.num("eta_rad_per_s2", 1.5, lo=0.0, hi=1e6, lo_open=True, unit="rad/s²"),
+        theta=nt.num("theta_rad_per_s", 0.05, lo=0.0, hi=1e3, lo_open=True, unit="rad/s"),
+    )
+    nt.done()
     top.done()
+
+    ioic_mode = controller.mode == FirmwareMode.IOIC
+    if ioic_mode != (operator.kind == OperatorKind.FORCE_EQ2):
+        raise InvalidInput(f"{where}: operator.kind = {operator.kind.value!r} with controller.mode = "
+                           f"{controller.mode.value!r}: the eq-2 operator (kind = \"force_eq2\") goes with "
+                           "controller.mode = \"ioic\" and only with it")
+    if not ioic_mode:
+        for table in ("ioic", "ntsmtc"):
+            if table in data:
+                raise InvalidInput(f"{where}: [{table}] is read only with controller.mode = \"ioic\"")
+        if motion.shape != MotionShape.SINE:
+            raise InvalidInput(f"{where}: motion.shape = {motion.shape.value!r} drives the eq-2 operator only: allowed "
+                               "\"sine\" with controller.mode = \"impedance\"")
+    else:
+        if Effect.OPERATOR not in effects:
+            raise InvalidInput(f"{where}: effects.operator = false: controller.mode = \"ioic\" learns from the "
+                               "operator's force (seed 001 eq 2)")
+        if device != "master" and "ntsmtc" in data:
+            raise InvalidInput(f"{where}: [ntsmtc] is the master's inner loop; the 3-PRRR's inner loop is its SEA "
+                               "force loop (controller.force_gain)")
+        if device == "master" and any(k in data.get("ioic", {}) for k in ("tracking_stiffness_N_per_mm",
+                                                                         "tracking_damping_Ns_per_m")):
+            raise InvalidInput(f"{where}: ioic.tracking_* set the 3-PRRR's Cartesian tracking; the master tracks "
+                               "x_r with NTSMTC ([ntsmtc])")
+        if ioic.learn_time / ioic.intervals < controller.period * (1 - 1e-9):
+            raise InvalidInput(f"{where}: ioic.intervals = {ioic.intervals} gives intervals of "
+                               f"{ioic.learn_time / ioic.intervals * 1e3:g} ms, shorter than the controller period "
+                               f"{controller.period * 1e3:g} ms")
+        if motion.frequency <= 0.0:
+            raise InvalidInput(f"{where}: motion.frequency_Hz = 0: the eq-2 operator's desired position x_d needs a "
+                               "frequency > 0")
 
     if Effect.TIME_DELAY in effects:
         ticks = delay / controller.period
@@ -369,7 +528,7 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
                  operator=operator, motion=motion, initial_offset=initial, effects=frozenset(effects),
                  time_delay=delay if Effect.TIME_DELAY in effects else 0.0, substeps=substeps,
                  output_locked=locked, stability=criterion, measure_axis=axis, zwidth=zw, device=device,
-                 backend=backend, sweep_factors=sweep, sweep_periods=sweep_periods)
+                 backend=backend, sweep_factors=sweep, sweep_periods=sweep_periods, ioic=ioic, ntsmtc=ntsmtc)
 
 
 SCENES = "hapticopt.analysis.scenes"

@@ -40,7 +40,7 @@ from hapticopt.analysis.loop.traces import OVERSAMPLE, SATURATION_FRACTION, SATU
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.master.firmware import MasterController, MasterFirmwareConfig
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
-from hapticopt.analysis.loop.scene import Effect, EnvKind, Resolution, Scene, resolve
+from hapticopt.analysis.loop.scene import Effect, EnvKind, FirmwareMode, Resolution, Scene, require_mode, resolve
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.master.params import MasterDesign
@@ -310,6 +310,7 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
     if getattr(design, "device", None) != "master":
         raise InvalidInput(f"scene {scene.name} is a master scene; design {getattr(design, 'name', '?')!r} is a "
                            f"{getattr(design, 'device', '?')}")
+    require_mode(scene, FirmwareMode.IMPEDANCE, "the master's impedance firmware (IOIC: hapticopt.analysis.master.ioic)")
     res = resolve(scene)
     fx = res.effects
     T = scene.controller.period if Effect.SAMPLING in fx else scene.controller.period / OVERSAMPLE[fidelity]

@@ -45,9 +45,11 @@ from hapticopt.analysis.loop.scene import (
     BoxMode,
     Effect,
     EnvKind,
+    FirmwareMode,
     Resolution,
     Scene,
     StabilityCriterion,
+    require_mode,
     resolve,
 )
 from hapticopt.analysis.status import Status
@@ -82,6 +84,7 @@ class Setup:
 
 def setup(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD) -> Setup:
     """Resolve the scene and build the plant model and the controller."""
+    require_mode(scene, FirmwareMode.IMPEDANCE, "the 3-PRRR's impedance firmware (IOIC: hapticopt.analysis.prrr.ioic)")
     res = resolve(scene)
     fx = res.effects
     T = scene.controller.period

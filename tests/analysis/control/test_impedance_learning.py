@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hapticopt.analysis.control import human
+from hapticopt.analysis.loop import operator as op_mod
 from hapticopt.analysis.control import impedance_learning as il
 
 # Seed 001 eq 27, 29: the section 4.1 problem.
@@ -28,16 +28,6 @@ def _learn(noise, *, n_intervals=50, substeps=10, a=A29, b=B29, **kw):
 @pytest.fixture(scope="module")
 def outer():
     return il.simulate_outer_loop(il.OuterLoopConfig())
-
-
-def test_human_state_space_is_eq29():
-    """Seed 001 eq 4 with the §4.1 gains K_r = 0.5, K_f = 5, K_c = 20 gives eq 29's A, B."""
-    a, b = human.state_space(human.HumanModel())
-    np.testing.assert_array_equal(a, A29)
-    assert human.force_rate(human.HumanModel(), 0.1, 0.3) == pytest.approx(a[2] @ [0.1, 0.0, 0.3])
-    np.testing.assert_array_equal(b, B29)
-    with pytest.raises(ValueError, match=r"k_r = -1.*> 0.*unit: s"):
-        human.HumanModel(k_r=-1.0)
 
 
 def test_riccati_optimum_eq30_and_impedance_eq33():
@@ -90,7 +80,7 @@ def test_printed_noise_matches_paper_k7():
 def test_learner_recovers_another_operator():
     """Recovery: data from an operator with K_r = 1, K_f = 2, K_c = 10 (eq 2) — never shown to
     the learner — give that operator's Riccati optimum (eq 6)."""
-    a, b = human.state_space(human.HumanModel(k_r=1.0, k_f=2.0, k_c=10.0))
+    a, b = op_mod.state_space(op_mod.Operator.eq2(k_r=1.0, k_f=2.0, k_c=10.0))
     _, res = _learn(il.ExplorationNoise.random_phases(7), a=a, b=b)
     k_star = il.riccati_optimum(a, b, Q27, R27).k
     assert res.status is il.LearningStatus.OK

@@ -121,3 +121,78 @@ def test_handle_scenes_and_interpolation_variant():
     with pytest.raises(InvalidInput, match=r"controller.interpolation_variant = 'late' is not known: allowed none, "
                                            r"as_printed, as_intended"):
         scene_from_dict({"name": "s", "controller": {"interpolation_variant": "late"}})
+
+
+# ------------------------------------------------------------------------- seed 001: IOIC mode
+def _ioic(**over):
+    d = {"name": "s", "controller": {"mode": "ioic"}, "operator": {"kind": "force_eq2"},
+         "motion": {"shape": "square", "amplitude_mm": [10.0, 0.0, 0.0], "frequency_Hz": 0.25}}
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(d.get(k), dict):
+            d[k] = {**d[k], **v}
+        else:
+            d[k] = v
+    return d
+
+
+def test_ioic_scenes_parse_with_seed001_defaults():
+    """The bundled IOIC scenes: eq-2 operator with §4.1's gains, K_0 of eq 31 = [10, 4, 0.2] from
+    M_0 = 5 kg, B_0 = 20 N·s/m, K_0 = 50 N/m, Q = I and R = 0.01 of eq 27, 0.5 s / 50 intervals."""
+    from hapticopt.analysis.loop.operator import OperatorKind
+    from hapticopt.analysis.loop.scene import FirmwareMode, IoicStrategy, MotionShape
+
+    for name, device in (("master-ioic", "master"), ("prrr-ioic", "prrr")):
+        sc = load_scene(name)
+        assert sc.device == device and sc.controller.mode == FirmwareMode.IOIC
+        op = sc.operator
+        assert op.kind == OperatorKind.FORCE_EQ2
+        assert (op.force_time_constant, op.force_decay, op.force_gain) == (0.5, 5.0, 20.0)
+        s = sc.ioic
+        assert s.strategy == IoicStrategy.IOIC and s.axis == 0
+        assert s.initial_gain == pytest.approx((10.0, 4.0, 0.2), rel=1e-15)
+        assert s.state_weights == (1.0, 1.0, 1.0) and s.input_weight == 0.01
+        assert (s.learn_time, s.intervals, s.switch_time, s.exploration) == (0.5, 50, 0.5, True)
+        assert sc.motion.shape == MotionShape.SQUARE
+    nt = load_scene("master-ioic").ntsmtc  # seed 001 §4.2
+    assert (nt.lambda1, nt.lambda2, nt.a, nt.b, nt.mu, nt.eta) == ((3.0,) * 3, (3.0,) * 3, 5, 3, 0.005, 1.5)
+
+
+def test_square_motion_starts_high():
+    """Seed 001 §4.1: x_d = +amplitude on the first half period, −amplitude on the second."""
+    m = scene_from_dict(_ioic()).motion
+    assert [m.square(t) for t in (0.0, 1.0, 1.999, 2.0, 3.9, 4.0)] == [1.0, 1.0, 1.0, -1.0, -1.0, 1.0]
+
+
+@pytest.mark.parametrize("over,match", [
+    ({"controller": {"mode": "impedance"}}, r'operator.kind = .force_eq2. with controller.mode = .impedance.'),
+    ({"operator": {"kind": "mass_spring_damper"}}, r"operator.kind = 'mass_spring_damper' with controller.mode = 'ioic'"),
+    ({"operator": {"kind": "robot"}}, r"operator.kind = 'robot' is not known: allowed mass_spring_damper, force_eq2"),
+    ({"operator": {"mass_kg": 0.3}}, r"operator.mass_kg is not a known key: allowed force_decay, force_gain_N_per_m"),
+    ({"operator": {"force_decay": 0}}, r"operator.force_decay = 0 is out of range: allowed 0 < force_decay"),
+    ({"ioic": {"intervals": 1000}}, r"ioic.intervals = 1000 gives intervals of 0.5 ms, shorter than the controller"),
+    ({"ioic": {"noise_seed": -3}}, r"ioic.noise_seed = -3 must be a whole number"),
+    ({"ioic": {"initial_mass_kg": 0}}, r"ioic.initial_mass_kg = 0 is out of range: allowed 0 < initial_mass_kg"),
+    ({"ioic": {"strategy": "lqr"}}, r"ioic.strategy = 'lqr' is not known: allowed fic, oic, ioic"),
+    ({"ntsmtc": {"a": 4}}, r"ntsmtc.a = 4, ntsmtc.b = 3 must be odd with 1/2 < b/a < 1 \(seed 001 eq 14\)"),
+    ({"ntsmtc": {"a": 5}}, r"\[ntsmtc\] is the master's inner loop"),
+    ({"device": "master", "ioic": {"tracking_stiffness_N_per_mm": 3.0}}, r"ioic.tracking_\* set the 3-PRRR's"),
+    ({"effects": {"operator": False}}, r"effects.operator = false: controller.mode = .ioic. learns"),
+])
+def test_ioic_validation_messages(over, match):
+    with pytest.raises(InvalidInput, match=match):
+        scene_from_dict(_ioic(**over))
+
+
+def test_ioic_tables_only_in_ioic_mode():
+    with pytest.raises(InvalidInput, match=r'\[ioic\] is read only with controller.mode = "ioic"'):
+        scene_from_dict({"name": "s", "ioic": {"learn_s": 1.0}})
+    with pytest.raises(InvalidInput, match=r"motion.shape = 'square' drives the eq-2 operator only"):
+        scene_from_dict({"name": "s", "motion": {"shape": "square"}})
+
+
+def test_impedance_simulators_refuse_ioic_scenes():
+    from hapticopt.analysis.prrr import closed_loop
+    from hapticopt.design.io import load_preset
+
+    with pytest.raises(InvalidInput, match=r"controller.mode = 'ioic' is not run by the 3-PRRR's impedance firmware"):
+        closed_loop.setup(load_preset("prrr-paper"), load_scene("prrr-ioic"))

@@ -12,7 +12,7 @@ import pytest
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.prrr import closed_loop, firmware
 from hapticopt.analysis.prrr.firmware_numpy import NumpyController
-from hapticopt.analysis.loop.scene import BoxMode, EnvKind, load_scene, scene_names
+from hapticopt.analysis.loop.scene import BoxMode, EnvKind, FirmwareMode, load_scene, scene_names
 from hapticopt.design.io import load_preset
 
 DESIGN = load_preset("prrr-paper")
@@ -21,6 +21,8 @@ DESIGN = load_preset("prrr-paper")
 def _variants():
     out = []
     for name in sorted(scene_names()):
+        if load_scene(name).controller.mode != FirmwareMode.IMPEDANCE:
+            continue  # the IOIC mode has its own firmware (tests/analysis/prrr/test_firmware_ioic.py)
         st = closed_loop.setup(DESIGN, load_scene(name))
         out.append((name, st.cfg, st.gains))
     st = closed_loop.setup(DESIGN, load_scene("stiffness-25"))

@@ -86,3 +86,29 @@ def test_verify_handle_scenes():
         assert out["metrics"]["interpolation_variant"] == "as_intended"
     wrong = runner.invoke(app, ["verify", "--preset", "handle-paper", "--scene", "stiffness-25"])
     assert wrong.exit_code == 2 and "is written for the prrr device" in wrong.output
+
+
+@pytest.mark.parametrize("preset, scene, extra", [
+    ("master-paper", "master-ioic", {"joint_torque_peak_Nm", "joint_error_peak_mrad", "constraint_health_ok"}),
+    ("prrr-paper", "prrr-ioic", {"motor_command_peak_N", "force_tracking_rms_N"}),
+])
+def test_verify_ioic_scenes(preset, scene, extra):
+    """Issue 18: seed 001's IOIC firmware mode on both devices from the command line; the learned
+    impedance against the Riccati optimum, tracking error, interaction force, device loads."""
+    res = runner.invoke(app, ["verify", "--preset", preset, "--scene", scene, "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    m = out["metrics"]
+    assert out["status"] == "ok" and m["firmware_mode"] == "ioic" and m["learning_status"] == "ok"
+    assert {"impedance_mass_kg", "impedance_damping_Ns_per_m", "impedance_stiffness_N_per_m",
+            "optimal_impedance_mass_kg", "optimal_impedance_damping_Ns_per_m", "optimal_impedance_stiffness_N_per_m",
+            "gain_rel_error_to_optimum", "tracking_error_rms_mm", "interaction_force_rms_N",
+            "impedance_error_rms_after_learning_mm"} | extra <= set(m)
+
+
+def test_verify_ioic_bad_scene_is_one_line(tmp_path):
+    scene = tmp_path / "bad.toml"
+    scene.write_text('name = "bad"\n[operator]\nkind = "force_eq2"\n')
+    res = runner.invoke(app, ["verify", "--preset", "prrr-paper", "--scene", str(scene)])
+    assert res.exit_code == 2 and res.output.count("\n") <= 1
+    assert "operator.kind = 'force_eq2' with controller.mode = 'impedance'" in res.output
