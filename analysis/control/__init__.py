@@ -6,6 +6,7 @@
                           loop and its time-domain simulation.
 ``impedance_learning``  : seed 001's iterative optimal impedance (IOIC): the LQR optimum of eq 6,
                           off-policy policy iteration from interaction data, the soft switch.
+``ioic_online``         : the IOIC outer loop as firmware, learning tick by tick (both devices).
 ``sliding_mode``        : seed 001's nonsingular terminal sliding-mode tracking control (NTSMTC).
 ``two_link``            : seed 001's two-link arm (Table 1), the reference plant of its examples.
 """
