@@ -27,7 +27,8 @@ from hapticopt.optim.driver import SMOOTH_SURROGATES
 from hapticopt.analysis.loop.scene import load_scene
 import multiprocessing
 import queue as queue_mod
-from hapticopt.optim.recorder import Recorder
+from hapticopt.optim.recorder import Recorder, check_run_dir
+from hapticopt.optim.runs import problem_info
 from hapticopt.optim.executor import make_executor
 from hapticopt.optim import driver, report
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, Verdict
@@ -142,15 +143,18 @@ def _constraints_at(problem: Problem, metrics: dict[str, Any]) -> tuple[tuple[st
     return tuple(out)
 
 
-def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False, scheduler: str = "local",
+def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False, force: bool = False,
+                 scheduler: str = "local",
                  workers: int | None = None, progress: ProgressFn | None = None, export: bool = True,
                  verify: bool = True, on_stage: Callable[[str], None] | None = None,
                  verifier: Callable[[Any, str], Any] | None = None) -> PipelineResult:
     """Run every stage; returns the result and writes the run directory.
 
     ``verifier(design, scene_name) -> result with .metrics()`` replaces the closed-loop runner
-    :func:`run_scene` (a module-level function: it runs in a child process).
+    :func:`run_scene` (a module-level function: it runs in a child process). An existing record
+    in ``out_dir`` is continued with ``resume``, replaced with ``force``, and otherwise refused.
     """
+    check_run_dir(out_dir, resume=resume, force=force)
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -172,10 +176,21 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     stages.append(StageOutcome(name="baseline", status="ok", wall_s=time.perf_counter() - t))
 
     t = stage("optimise")
-    with Recorder(out, fingerprint=problem.fingerprint(), resume=resume) as rec, \
-            make_executor(scheduler, workers=workers) as executor:
-        result = driver.run(problem, executor=executor, recorder=rec, metric_modules=base_opt.modules, only=only,
-                            progress=progress)
+    rec = Recorder(out, fingerprint=problem.fingerprint(), resume=resume, force=force,
+                   search_fingerprint=problem.search_fingerprint())
+    try:
+        rec.describe({**problem_info(problem), "status": "running"})
+        rec.record_design("baseline", fidelity=str(problem.fidelity_optimise), x=problem.start,
+                          design_toml=io.dumps(problem.base), metrics=base_opt.metrics, statuses=base_opt.statuses)
+        with make_executor(scheduler, workers=workers) as executor:
+            result = driver.run(problem, executor=executor, recorder=rec, metric_modules=base_opt.modules, only=only,
+                                progress=progress)
+        rec.end_session(status="optimised", n_evaluated=result.n_evaluated, n_replayed=result.n_replayed,
+                        max_evals=problem.optimiser.max_evals)
+    except BaseException:
+        rec.set_status("interrupted")
+        rec.close()
+        raise
     files["recorder"] = "evaluations.sqlite"
     stages.append(StageOutcome(name="optimise", status=result.status,
                                message=f"{result.n_evaluated} evaluated, {result.n_replayed} replayed, "
@@ -195,6 +210,10 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     sign = 1.0 if problem.objective.sense.value == "minimise" else -1.0
     improved = math.isfinite(obj_opt) and (not math.isfinite(obj_base) or sign * obj_opt < sign * obj_base)
     io.save_design(optimum_design, out / "optimum.toml")
+    rec.record_design("final", fidelity=str(problem.fidelity_final), x=best.x if best else problem.start,
+                      design_toml=io.dumps(optimum_design), metrics=optimum.metrics, statuses=optimum.statuses)
+    rec.set_status("finished")
+    rec.close()
     files["optimum"] = "optimum.toml"
     stages.append(StageOutcome(name="final", status="ok" if feasible_final else "infeasible",
                                message=f"re-evaluated at {problem.fidelity_final} fidelity",

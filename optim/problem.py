@@ -294,6 +294,14 @@ class Problem:
                         self.optimiser.fingerprint(), str(self.fidelity_optimise)))
         return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
+    def search_fingerprint(self) -> str:
+        """:meth:`fingerprint` without the budget (max_evals, max_time_s): nlopt asks the same points
+        in the same order whatever its budget, so ``--resume --max-evals N`` may extend a run."""
+        opt = {k: v for k, v in self.optimiser.fingerprint().items() if k not in ("max_evals", "max_time_s")}
+        payload = repr(("search", self.name, io.dumps(self.base), self.variables, self.objective, self.constraints,
+                        opt, str(self.fidelity_optimise)))
+        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
 
 def design_at(base: Any, variables: Sequence[Variable], x: Sequence[float]) -> Any:
     """``base`` with each variable's field set to x[i] (edge units), validated by the constructor."""

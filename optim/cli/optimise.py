@@ -13,6 +13,7 @@ from hapticopt.optim.problem import load_problem
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from hapticopt.optim.problem import problem_names
+from hapticopt.optim.recorder import check_run_dir
 
 
 @one_line_errors
@@ -20,7 +21,8 @@ def optimise(
     problem: Annotated[str, typer.Argument(help="Bundled problem name (see `hapticopt problems`) or a problem TOML file.",
                                            show_default=False)],
     out: Annotated[Optional[Path], typer.Option("--out", help="Run directory (default cad_out/<problem-name>/).")] = None,
-    resume: Annotated[bool, typer.Option("--resume", help="Continue the run in --out: recorded evaluations are replayed, not recomputed.")] = False,
+    resume: Annotated[bool, typer.Option("--resume", help="Continue the run in --out: recorded evaluations are replayed, not recomputed (with --max-evals: extend its budget).")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace the run already recorded in --out (without it, an existing run is refused).")] = False,
     max_evals: Annotated[Optional[int], typer.Option("--max-evals", help="Total evaluation budget (overrides the problem's).")] = None,
     scheduler: Annotated[str, typer.Option("--scheduler", help="local (process pool), inline, or a Dask scheduler address tcp://HOST:PORT.")] = "local",
     workers: Annotated[Optional[int], typer.Option("--workers", help="Processes of the local pool (default: min(4, CPUs)).")] = None,
@@ -38,7 +40,7 @@ def optimise(
     if workers is not None and workers < 1:
         raise InvalidInput(f"--workers = {workers} must be ≥ 1")
     out_dir = out if out is not None else Path("cad_out") / prob.name
-
+    check_run_dir(out_dir, resume=resume, force=force)  # before anything is computed or written
 
     from hapticopt.optim.pipeline import run_pipeline
 
@@ -61,7 +63,7 @@ def optimise(
         def on_stage(name):
             progress.update(task, stage=name)
 
-        result = run_pipeline(prob, out_dir=out_dir, resume=resume, scheduler=scheduler, workers=workers,
+        result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler, workers=workers,
                               progress=on_point, export=export, verify=verify, on_stage=on_stage)
         progress.update(task, stage="done")
     obj = prob.objective.metric
