@@ -241,12 +241,12 @@ def scalar_columns(results: Sequence[PointResult]) -> list[str]:
     cols: dict[str, None] = {}
     for r in results:
         for name, value in r.metrics.items():
-            for col, _ in _scalars(name, value):
+            for col, _ in scalars(name, value):
                 cols.setdefault(col, None)
     return list(cols)
 
 
-def _scalars(name: str, value: Any) -> list[tuple[str, float]]:
+def scalars(name: str, value: Any) -> list[tuple[str, float]]:
     if isinstance(value, bool) or value is None or isinstance(value, str):
         return []
     if isinstance(value, (int, float)):
@@ -262,7 +262,7 @@ def table(result: SweepResult) -> tuple[list[str], list[list[Any]]]:
     header = [a.label for a in result.sweep.axes] + ["outcome"] + cols
     rows = []
     for x, r in zip(result.points, result.results):
-        values = dict(itertools.chain.from_iterable(_scalars(k, v) for k, v in r.metrics.items()))
+        values = dict(itertools.chain.from_iterable(scalars(k, v) for k, v in r.metrics.items()))
         rows.append([*x, str(r.outcome), *(values.get(c, math.nan) for c in cols)])
     return header, rows
 

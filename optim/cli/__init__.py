@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from hapticopt.optim.cli import compare as cli_compare
 from hapticopt.optim.cli import evaluate as cli_evaluate
 from hapticopt.optim.cli import export as cli_export
 from hapticopt.optim.cli import optimise as cli_optimise
@@ -46,6 +47,7 @@ app.command("verify")(cli_verify.verify)
 app.command("runs")(cli_runs.runs)
 app.command("show")(cli_runs.show)
 app.command("sweep")(cli_sweep.sweep)
+app.command("compare")(cli_compare.compare)
 
 
 def main() -> None:

@@ -42,9 +42,24 @@ def optimise(
     out_dir = out if out is not None else Path("cad_out") / prob.name
     check_run_dir(out_dir, resume=resume, force=force)  # before anything is computed or written
 
-    from hapticopt.optim.pipeline import run_pipeline
+    from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline
 
     console = Console(stderr=True, quiet=quiet)
+    if prob.is_multi_objective:
+        with console.status("tracing the Pareto front", spinner="dots") as status:
+            res = run_front_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
+                                     workers=workers,
+                                     progress=lambda label, n: status.update(f"Pareto front: {label} done, {n} evaluated"))
+        f1, f2 = (o["metric"] for o in res["objectives"])
+        typer.echo(f"{prob.name}: Pareto front of {f1} and {f2}: {len(res['front'])} points "
+                   f"(ε-constraint, {len(res['runs'])} runs); {res['n_evaluated']} evaluated, {res['n_replayed']} replayed")
+        ch = res["chosen"]
+        if ch is not None:
+            typer.echo(f"  chosen ({prob.pareto.choose if prob.pareto else 'knee'}): {f1} = {ch['objectives'][0]:.6g}, "
+                       f"{f2} = {ch['objectives'][1]:.6g}; constraints at {prob.fidelity_final} fidelity "
+                       f"{'satisfied' if ch['feasible_at_final_fidelity'] else 'NOT satisfied'} -> {out_dir / 'chosen.toml'}")
+        typer.echo(f"report: {out_dir / 'report.html'}")
+        return
     sense_max = prob.objective.sense.value == "maximise"
     with Progress(TextColumn("[bold]{task.fields[stage]}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   TextColumn("{task.description}"), console=console, transient=False, disable=quiet) as progress:
