@@ -21,6 +21,7 @@ import io as _io
 import itertools
 import math
 import re
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, as_completed
 from dataclasses import dataclass
@@ -30,14 +31,17 @@ from typing import Any
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.registry import EVALUATORS
+from hapticopt.analysis.prrr.statics import PrrrStatics, statics_arrays
+from hapticopt.analysis.registry import EVALUATORS, jsonable
+from hapticopt.analysis.status import Status
 from hapticopt.design import io
 from hapticopt.design.atomic import atomic_path, write_text
 from hapticopt.design.errors import InvalidDesign, InvalidInput
+from hapticopt.design.prrr.kinematics import PrrrParams
 from hapticopt.design.schema import specs
 from hapticopt.design.units import TO_SI, pretty
 from hapticopt.optim.evaluation import Outcome, PointResult, PointTask, evaluate_point
-from hapticopt.optim.problem import Variable
+from hapticopt.optim.problem import Variable, design_at
 from hapticopt.optim.recorder import Recorder, point_key
 from hapticopt.optim.runs import software_versions
 
@@ -181,13 +185,88 @@ class SweepResult:
 
 ProgressFn = Callable[[int, int], None]  # (done, total)
 
+#: evaluators with a batched jax form, by device: one jit-compiled vmap call evaluates a whole chunk
+BATCHED: dict[str, tuple[str, ...]] = {"prrr": ("statics",)}
+#: designs per batched call (the last chunk is padded to this size: one compiled shape)
+BATCH_CHUNK = 256
+
+
+def batch_supported(sweep: "Sweep") -> bool:
+    """True when every evaluator the sweep runs has a batched form (``--only`` must name them)."""
+    allowed = BATCHED.get(sweep.base.device, ())
+    return sweep.only is not None and len(sweep.only) > 0 and all(name in allowed for name in sweep.only)
+
+
+def _statics_batch_fn() -> Callable[..., Any]:
+    import jax
+
+    def one(p: Any, k: Any, f: Any, m: Any) -> Any:
+        return statics_arrays(PrrrParams(*p), k, f, m)
+
+    return jax.jit(jax.vmap(one))
+
+
+_BATCH_FNS: dict[str, Callable[..., Any]] = {}
+
+
+def _prrr_statics_batch(designs: Sequence[Any]) -> list[tuple[dict[str, Any], str, str]]:
+    """(metrics, status, message) of :func:`hapticopt.analysis.prrr.statics.evaluate` for each
+    design, computed by one jit-compiled ``vmap`` of the same ``statics_arrays`` (jax instead of numpy)."""
+    if "statics" not in _BATCH_FNS:
+        _BATCH_FNS["statics"] = _statics_batch_fn()
+    fn = _BATCH_FNS["statics"]
+    n = len(designs)
+    pad = list(designs) + [designs[-1]] * (BATCH_CHUNK - n)
+    fields = ("beta", "d1", "d2", "d3", "d4", "r4", "b5", "stroke")
+    p = tuple(np.array([float(getattr(d.geometry, f)) for d in pad]) for f in fields)
+    out = fn(p, np.array([d.actuator.spring for d in pad]), np.array([d.actuator.force_limit for d in pad]),
+             np.array([d.end_effector.mass for d in pad]))
+    out = {k: np.asarray(v)[:n] for k, v in out.items()}
+    results = []
+    for i in range(n):
+        finite = all(np.all(np.isfinite(v[i])) for v in out.values())
+        st = PrrrStatics(jacobian=out["jacobian"][i], condition=float(out["condition"][i]),
+                         condition_frobenius=float(out["condition_frobenius"][i]),
+                         effective_mass=out["effective_mass"][i], stiffness_matrix=out["stiffness_matrix"][i],
+                         stiffness_limit=out["stiffness_limit"][i], max_force=out["max_force"][i],
+                         max_pure_force=out["max_pure_force"][i],
+                         status=Status.OK if finite else Status.SINGULAR,
+                         message="" if finite else "Jacobian is numerically singular at this β")
+        results.append((jsonable(st.metrics()), str(st.status), st.message))
+    return results
+
+
+def _run_batched(sweep: "Sweep", xs: Sequence[tuple[float, ...]]) -> list[PointResult]:
+    """The batched twin of :func:`evaluate_point` for ``xs`` (no objective references)."""
+    out: list[PointResult | None] = [None] * len(xs)
+    valid: list[tuple[int, Any]] = []
+    for i, x in enumerate(xs):
+        try:
+            valid.append((i, design_at(sweep.base, sweep.variables, x)))
+        except InvalidDesign as exc:
+            out[i] = PointResult(x=tuple(x), outcome=Outcome.INVALID_DESIGN, message=str(exc))
+    for c in range(0, len(valid), BATCH_CHUNK):
+        chunk = valid[c:c + BATCH_CHUNK]
+        t0 = time.perf_counter()
+        evaluated = _prrr_statics_batch([d for _, d in chunk])
+        per = (time.perf_counter() - t0) / len(chunk)
+        for (i, _), (metrics, status, message) in zip(chunk, evaluated):
+            out[i] = PointResult(x=tuple(xs[i]), outcome=Outcome.OK, metrics=metrics, statuses={"statics": status},
+                                 timings_s={"statics": per})
+    return [r for r in out if r is not None]
+
 
 def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = None,
               progress: ProgressFn | None = None,
               evaluate_fn: Callable[[PointTask], PointResult] = evaluate_point,
-              timeout_s: float | None = None) -> SweepResult:
+              timeout_s: float | None = None, batch: bool = False) -> SweepResult:
     """Evaluate every grid point (recorded points are replayed); results in grid order.
-    ``timeout_s`` bounds the wait for the executor (:class:`TimeoutError` past it)."""
+    ``timeout_s`` bounds the wait for the executor (:class:`TimeoutError` past it). ``batch``
+    evaluates in this process with the evaluators' batched jax forms (:func:`batch_supported`)."""
+    if batch and not batch_supported(sweep):
+        allowed = BATCHED.get(sweep.base.device, ())
+        raise InvalidInput(f"--batch needs --only naming evaluators with a batched form: for a {sweep.base.device} "
+                           f"design allowed {', '.join(allowed) if allowed else 'none'}")
     points = sweep.points()
     fid = str(sweep.fidelity)
     results: list[PointResult | None] = [None] * len(points)
@@ -204,6 +283,17 @@ def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = N
     done = n_replayed
     if progress is not None:
         progress(done, len(points))
+    if batch:
+        for c in range(0, len(todo), BATCH_CHUNK):
+            idx = todo[c:c + BATCH_CHUNK]
+            for i, res in zip(idx, _run_batched(sweep, [points[i] for i in idx])):
+                if recorder is not None:
+                    recorder.record(keys[i], res, start=0, stage="sweep", fidelity=fid)
+                results[i] = res
+            done += len(idx)
+            if progress is not None:
+                progress(done, len(points))
+        todo = []
     futures = {executor.submit(evaluate_fn, PointTask(base=sweep.base, variables=sweep.variables, x=points[i],
                                                       fidelity=sweep.fidelity, refs=(), only=sweep.only)): i
                for i in todo}
@@ -220,7 +310,7 @@ def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = N
         if progress is not None:
             progress(done, len(points))
     return SweepResult(sweep=sweep, points=tuple(points), results=tuple(r for r in results if r is not None),
-                       n_evaluated=len(todo), n_replayed=n_replayed)
+                       n_evaluated=len(points) - n_replayed, n_replayed=n_replayed)
 
 
 # ------------------------------------------------------------------------------ outputs

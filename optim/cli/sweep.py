@@ -63,6 +63,7 @@ def sweep(
     scheduler: Annotated[str, typer.Option("--scheduler", help="local (process pool), inline, or a Dask scheduler address tcp://HOST:PORT.")] = "local",
     workers: Annotated[Optional[int], typer.Option("--workers", help="Processes of the local pool (default: min(4, CPUs)).")] = None,
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="One PNG per metric under DIR/plots/.")] = True,
+    batch: Annotated[bool, typer.Option("--batch", help="Evaluate in one process with the evaluators' batched jax forms (3-PRRR: --only statics).")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
 ) -> None:
     """Sweep one or two numeric design keys over a grid; writes sweep.csv, a plot per metric and the record."""
@@ -82,6 +83,10 @@ def sweep(
     axes = tuple(sw.parse_axis(t, design) for t in axes_text)
     only_t = tuple(s.strip() for s in only.split(",") if s.strip()) if only is not None else None
     spec = sw.Sweep(base=design, axes=axes, fidelity=level, only=only_t)
+    if batch and not sw.batch_supported(spec):
+        allowed = sw.BATCHED.get(design.device, ())
+        raise InvalidInput(f"--batch needs --only naming evaluators with a batched form: for a {design.device} design "
+                           f"allowed {', '.join(allowed) if allowed else 'none'}")
     out_dir = out if out is not None else Path("cad_out") / f"sweep-{design.name}-{'-'.join(a.key for a in axes)}"
     check_run_dir(out_dir, resume=resume, force=force)  # nothing written before this
     console = Console(stderr=True, quiet=quiet)
@@ -94,7 +99,8 @@ def sweep(
             try:
                 with make_executor(scheduler, workers=workers) as executor:
                     result = sw.run_sweep(spec, executor=executor, recorder=rec,
-                                          progress=lambda done, total: progress.update(task, completed=done))
+                                          progress=lambda done, total: progress.update(task, completed=done),
+                                          batch=batch)
             except BaseException:
                 rec.set_status("interrupted")
                 raise

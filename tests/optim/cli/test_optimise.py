@@ -124,3 +124,28 @@ def test_missing_problem_and_bad_options(tmp_path):
     assert res.exit_code == 2 and "--scheduler" in res.stderr
     res = invoke("optimise", str(DATA / "beta-isotropic.toml"), "--max-evals", "1", "--quiet")
     assert res.exit_code == 2 and "--max-evals = 1" in res.stderr
+
+
+def test_two_objective_problem_traces_a_front(tmp_path):
+    from hapticopt.optim.runs import RunReader
+
+    text = (DATA / "beta-front.toml").read_text().replace("points = 41", "points = 5").replace("max_evals = 2000",
+                                                                                              "max_evals = 200")
+    problem = tmp_path / "front.toml"
+    problem.write_text(text)
+    out = tmp_path / "run"
+    res = invoke("optimise", str(problem), "--out", str(out), "--scheduler", "inline", "--quiet")
+    assert res.exit_code == 0, res.output
+    assert "Pareto front of stiffness_limit_N_per_mm[0] and workspace_height_at_diameter_mm: 5 points" in res.stdout
+    for name in ("front.csv", "front.svg", "chosen.toml", "result.json", "report.md", "report.html"):
+        assert (out / name).is_file(), name
+    result = json.loads((out / "result.json").read_text())
+    assert len(result["front"]) == 5 and result["chosen"]["feasible_at_final_fidelity"]
+    assert "front.svg" in (out / "report.html").read_text() and "polyline" in (out / "front.svg").read_text()
+    with RunReader(out) as r:
+        assert r.kind == "pareto" and r.status == "finished" and len(r.objectives) == 2
+        assert len([d for d in r.designs() if d.role == "front"]) == 5 and r.design("chosen") is not None
+    again = invoke("optimise", str(problem), "--out", str(out), "--scheduler", "inline", "--quiet")
+    assert again.exit_code == 2 and "already holds a run" in again.stderr
+    resumed = invoke("optimise", str(problem), "--out", str(out), "--scheduler", "inline", "--quiet", "--resume")
+    assert resumed.exit_code == 0 and "0 evaluated" in resumed.stdout
