@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
