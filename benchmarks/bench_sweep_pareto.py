@@ -61,27 +61,32 @@ def test_sweep_1000_draft_designs(benchmark, scheduler):
 
 
 def test_pareto_front_2000_evaluations(benchmark):
-    """β and stroke, stiffness limit vs workspace height, 20 ε-constraint runs of 100 evaluations
-    (xtol = ftol = 0: each run uses its budget)."""
+    """β and stroke, stiffness limit vs workspace height, 38 ε-constraint runs of up to 100
+    evaluations (xtol = ftol = 0; COBYLA still stops early where its trust region collapses).
+    Against two single-design figures: prrr-paper evaluated alone (median), and the evaluators'
+    own time per point inside the front (mean of the recorded timings: the wall time is a mean too)."""
     problem = problem_from_dict({
         "name": "bench-front", "base": "prrr-paper",
         "variables": [{"key": "geometry.beta_deg", "lower": 52.0, "upper": 70.0},
                       {"key": "geometry.stroke_mm", "lower": 160.0, "upper": 200.0}],
         "objectives": [{"metric": "stiffness_limit_N_per_mm[0]", "sense": "maximise"},
                        {"metric": "workspace_height_at_diameter_mm", "sense": "maximise"}],
-        "pareto": {"points": 20},
-        "optimiser": {"algorithm": "LN_COBYLA", "xtol_rel": 0.0, "ftol_rel": 0.0, "max_evals": FRONT_EVALS}})
+        "pareto": {"points": 38},
+        "optimiser": {"algorithm": "LN_COBYLA", "xtol_rel": 0.0, "ftol_rel": 0.0, "max_evals": 3800}})
     single = _single(FRONT_ONLY)
     res = benchmark.pedantic(lambda: run_front(problem, only=FRONT_ONLY), rounds=1, iterations=1)
     wall = benchmark.stats.stats.median
     asked = len(res.history)
+    inside = statistics.fmean(sum(r.timings_s.values()) for r in res.history if str(r.source) == "evaluated")
+    per = wall / res.n_evaluated
     benchmark.extra_info.update(points_asked=asked, evaluated=res.n_evaluated, front=len(res.front), wall_s=wall,
-                                single_design_ms=1e3 * single, ms_per_evaluation=1e3 * wall / res.n_evaluated,
-                                ratio_to_single=wall / res.n_evaluated / single)
+                                single_design_ms=1e3 * single, evaluators_in_front_ms=1e3 * inside,
+                                ms_per_evaluation=1e3 * per, ratio_to_single=per / single,
+                                ratio_to_evaluators_in_front=per / inside)
     print(f"\npareto: {asked} points asked, {res.n_evaluated} evaluated, {len(res.front)} on the front, "
-          f"{wall:.1f} s = {1e3 * wall / res.n_evaluated:.2f} ms/evaluation; single design {1e3 * single:.2f} ms; "
-          f"ratio {wall / res.n_evaluated / single:.2f}")
-    assert asked >= FRONT_EVALS - 20
+          f"{wall:.1f} s = {1e3 * per:.2f} ms/evaluation; single design {1e3 * single:.2f} ms (ratio {per / single:.2f}); "
+          f"evaluators per point in the front {1e3 * inside:.2f} ms (ratio {per / inside:.2f})")
+    assert res.n_evaluated >= 0.9 * FRONT_EVALS
 
 
 @pytest.mark.parametrize("mode", ["per-point", "batched"])
