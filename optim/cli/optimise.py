@@ -30,7 +30,7 @@ def optimise(
     verify: Annotated[bool, typer.Option("--verify/--no-verify", help="Verify the optimum in closed loop on the problem's scenes.")] = True,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
 ) -> None:
-    """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report."""
+    """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front)."""
 
     prob = load_problem(problem)
     if max_evals is not None:

@@ -50,8 +50,9 @@ def run_sweep(design: Any, name: str, out_dir: Path, fidelity: Any) -> list[Path
 # ------------------------------------------------------------------ hapticopt sweep (any numeric key)
 @one_line_errors
 def sweep(
-    args: Annotated[list[str], typer.Argument(help="[FILE] KEY=lo:hi:n [KEY2=lo:hi:n]: an optional design TOML file "
-                                                   "(or --preset), then one or two axes, e.g. geometry.beta_deg=30:70:41.",
+    args: Annotated[list[str], typer.Argument(help="An optional design TOML file (or --preset), then one or two axes "
+                                                   "section.key=lo:hi:n (n ≥ 2 values, both ends included), e.g. "
+                                                   "geometry.beta_deg=30:70:41.",
                                               show_default=False, metavar="[FILE] KEY=lo:hi:n [KEY2=lo:hi:n]")],
     preset: Annotated[Optional[str], typer.Option("--preset", help="Bundled preset name (see `hapticopt presets`).")] = None,
     set_: Annotated[Optional[list[str]], typer.Option("--set", help="Override a TOML key of the base design (repeatable).")] = None,
