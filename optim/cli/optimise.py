@@ -58,6 +58,9 @@ def optimise(
             typer.echo(f"  chosen ({prob.pareto.choose if prob.pareto else 'knee'}): {f1} = {ch['objectives'][0]:.6g}, "
                        f"{f2} = {ch['objectives'][1]:.6g}; constraints at {prob.fidelity_final} fidelity "
                        f"{'satisfied' if ch['feasible_at_final_fidelity'] else 'NOT satisfied'} -> {out_dir / 'chosen.toml'}")
+        if export or verify:
+            typer.echo("  export/verify: not run for a Pareto front — run `hapticopt export` / `hapticopt verify` "
+                       "on chosen.toml")
         typer.echo(f"report: {out_dir / 'report.html'}")
         return
     sense_max = prob.objective.sense.value == "maximise"
