@@ -161,7 +161,7 @@ class Sweep:
 
     def info(self) -> dict[str, Any]:
         """The record's ``run_info`` for this sweep."""
-        return {"kind": "sweep", "problem": f"sweep {' × '.join(a.key for a in self.axes)} of {self.base.name}",
+        return {"kind": "sweep", "problem": f"{self.base.name} sweep",
                 "description": f"{self.base.name}: " + ", ".join(f"{a.key}={a.variable.lower:g}:{a.variable.upper:g}:"
                                                                  f"{a.n}" for a in self.axes),
                 "device": self.base.device, "base_design": io.dumps(self.base),

@@ -107,7 +107,8 @@ def show(
         if best is not None:
             objs = ", ".join(f"{o['metric']} ({o['sense']}) = {_fmt(v)}"
                              for o, v in zip(reader.objectives or [], reader.objective_values(best)))
-            console.print(f"best: evaluation {best.id}, {objs}, feasible {_fmt(reader.feasible(best))}")
+            which = "best by the first objective" if len(reader.objectives or []) > 1 else "best"
+            console.print(f"{which}: evaluation {best.id}, {objs}, feasible {_fmt(reader.feasible(best))}")
             table = Table(title="best design")
             for col in ("variable", "unit", "lower", "upper", "start", "best"):
                 table.add_column(col)
@@ -115,8 +116,17 @@ def show(
                 table.add_row(v["key"], v["unit"], _fmt(v["lower"]), _fmt(v["upper"]), _fmt(v["start"]), _fmt(x))
             console.print(table)
         if designs:
-            console.print("recorded designs: " + ", ".join(f"{d.role} ({d.fidelity}, session {d.session})"
-                                                           for d in designs))
+            groups: dict[tuple[str, str, int], int] = {}
+            for d in designs:
+                groups[(d.role, d.fidelity, d.session)] = groups.get((d.role, d.fidelity, d.session), 0) + 1
+            console.print("recorded designs: " + ", ".join(
+                f"{'' if n == 1 else f'{n} × '}{role} ({fid}, session {ses})" for (role, fid, ses), n in groups.items()))
+        chosen = reader.design("chosen")
+        if reader.kind == "pareto" and chosen is not None:
+            vals = ", ".join(f"{o['metric']} = {_fmt(v)}"
+                             for o, v in zip(reader.objectives or [], reader.objective_values(chosen)))
+            n_front = sum(d.role == "front" and d.session == chosen.session for d in designs)
+            console.print(f"Pareto front: {n_front} points; chosen design at {chosen.fidelity} fidelity: {vals}")
         shown = [i for i, c in enumerate(cols) if c not in ("session", "start", "stage")]  # in --csv/--json
         table = Table(title=f"history (last {min(last, len(rows))} of {len(rows)}; --csv for all)")
         for i in shown:
