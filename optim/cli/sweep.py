@@ -28,7 +28,8 @@ def run_sweep(design: Any, name: str, out_dir: Path, fidelity: Any) -> list[Path
     allowed = SWEEPS.get(design.device, ())
     if name not in allowed:
         raise InvalidInput(f"--sweep = {name!r} is not a sweep for a {design.device} design: "
-                           f"allowed {', '.join(allowed) if allowed else 'none'}")
+                           f"allowed {', '.join(allowed) if allowed else 'none'} (any numeric key: "
+                           "`hapticopt sweep KEY=lo:hi:n`)")
 
     from hapticopt.analysis.master import plots as master_plots, tradeoff as master_tradeoff
 
