@@ -15,11 +15,12 @@ $(STAMP): pyproject.toml
 setup: $(STAMP)
 
 # The main job: evaluate and export the reference 3-PRRR, then optimise → export → verify →
-# report the bundled problem (outputs in cad_out/prrr-paper/ and cad_out/prrr-workspace/).
+# report the bundled problem (outputs in cad_out/prrr-paper/ and cad_out/prrr-workspace/). A second
+# `make run` resumes the recorded run (every point replayed) instead of being refused.
 run: $(STAMP)
 	$(BIN)/hapticopt evaluate --preset prrr-paper
 	$(BIN)/hapticopt export --preset prrr-paper --render
-	$(BIN)/hapticopt optimise prrr-workspace
+	$(BIN)/hapticopt optimise prrr-workspace $(if $(wildcard cad_out/prrr-workspace/evaluations.sqlite),--resume,)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

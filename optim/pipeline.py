@@ -27,9 +27,10 @@ from hapticopt.optim.driver import SMOOTH_SURROGATES
 from hapticopt.analysis.loop.scene import load_scene
 import multiprocessing
 import queue as queue_mod
-from hapticopt.optim.recorder import Recorder
+from hapticopt.optim.recorder import Recorder, check_run_dir
+from hapticopt.optim.runs import problem_info
 from hapticopt.optim.executor import make_executor
-from hapticopt.optim import driver, report
+from hapticopt.optim import driver, pareto, pareto_report, report
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, Verdict
 from hapticopt.design import export as design_export
 from hapticopt.analysis import verify as closed_loop_verify
@@ -142,15 +143,18 @@ def _constraints_at(problem: Problem, metrics: dict[str, Any]) -> tuple[tuple[st
     return tuple(out)
 
 
-def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False, scheduler: str = "local",
+def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False, force: bool = False,
+                 scheduler: str = "local",
                  workers: int | None = None, progress: ProgressFn | None = None, export: bool = True,
                  verify: bool = True, on_stage: Callable[[str], None] | None = None,
                  verifier: Callable[[Any, str], Any] | None = None) -> PipelineResult:
     """Run every stage; returns the result and writes the run directory.
 
     ``verifier(design, scene_name) -> result with .metrics()`` replaces the closed-loop runner
-    :func:`run_scene` (a module-level function: it runs in a child process).
+    :func:`run_scene` (a module-level function: it runs in a child process). An existing record
+    in ``out_dir`` is continued with ``resume``, replaced with ``force``, and otherwise refused.
     """
+    check_run_dir(out_dir, resume=resume, force=force)
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -172,10 +176,21 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     stages.append(StageOutcome(name="baseline", status="ok", wall_s=time.perf_counter() - t))
 
     t = stage("optimise")
-    with Recorder(out, fingerprint=problem.fingerprint(), resume=resume) as rec, \
-            make_executor(scheduler, workers=workers) as executor:
-        result = driver.run(problem, executor=executor, recorder=rec, metric_modules=base_opt.modules, only=only,
-                            progress=progress)
+    rec = Recorder(out, fingerprint=problem.fingerprint(), resume=resume, force=force,
+                   search_fingerprint=problem.search_fingerprint())
+    try:
+        rec.describe({**problem_info(problem), "status": "running"})
+        rec.record_design("baseline", fidelity=str(problem.fidelity_optimise), x=problem.start,
+                          design_toml=io.dumps(problem.base), metrics=base_opt.metrics, statuses=base_opt.statuses)
+        with make_executor(scheduler, workers=workers) as executor:
+            result = driver.run(problem, executor=executor, recorder=rec, metric_modules=base_opt.modules, only=only,
+                                progress=progress)
+        rec.end_session(status="optimised", n_evaluated=result.n_evaluated, n_replayed=result.n_replayed,
+                        max_evals=problem.optimiser.max_evals)
+    except BaseException:
+        rec.set_status("interrupted")
+        rec.close()
+        raise
     files["recorder"] = "evaluations.sqlite"
     stages.append(StageOutcome(name="optimise", status=result.status,
                                message=f"{result.n_evaluated} evaluated, {result.n_replayed} replayed, "
@@ -195,6 +210,10 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     sign = 1.0 if problem.objective.sense.value == "minimise" else -1.0
     improved = math.isfinite(obj_opt) and (not math.isfinite(obj_base) or sign * obj_opt < sign * obj_base)
     io.save_design(optimum_design, out / "optimum.toml")
+    rec.record_design("final", fidelity=str(problem.fidelity_final), x=best.x if best else problem.start,
+                      design_toml=io.dumps(optimum_design), metrics=optimum.metrics, statuses=optimum.statuses)
+    rec.set_status("finished")
+    rec.close()
     files["optimum"] = "optimum.toml"
     stages.append(StageOutcome(name="final", status="ok" if feasible_final else "infeasible",
                                message=f"re-evaluated at {problem.fidelity_final} fidelity",
@@ -259,3 +278,75 @@ def _write_result_json(p: PipelineResult) -> None:
         "files": p.files,
     }
     write_text(p.out_dir / "result.json", json.dumps(payload, indent=2, default=str) + "\n")
+
+
+def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False, force: bool = False,
+                       scheduler: str = "local", workers: int | None = None,
+                       progress: Callable[[str, int], None] | None = None) -> dict[str, Any]:
+    """A two-objective problem: trace the front (:func:`optim.pareto.run_front`), re-evaluate the
+    chosen design at the final fidelity, write ``chosen.toml``, ``front.csv``, ``front.svg``,
+    ``result.json`` and the report. Returns the ``result.json`` payload."""
+    check_run_dir(out_dir, resume=resume, force=force)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    base_opt = evaluate_design(problem.base, problem.fidelity_optimise)
+    check_metrics(problem, base_opt.metrics)
+    single = dataclasses.replace(problem, objectives=(), pareto=None)
+    needed = {base_opt.modules[r.name] for r in problem.all_metric_refs() if r.name in base_opt.modules}
+    only = tuple(e.name for e in EVALUATORS[problem.device] if e.module in needed)
+    rec = Recorder(out, fingerprint=problem.fingerprint(), resume=resume, force=force,
+                   search_fingerprint=problem.search_fingerprint())
+    try:
+        info = problem_info(single, kind="pareto")
+        info["objectives"] = [{"metric": o.metric.text, "sense": str(o.sense)} for o in problem.objectives]
+        assert problem.pareto is not None
+        info["pareto"] = {"method": "epsilon-constraint", "points": problem.pareto.points,
+                          "choose": str(problem.pareto.choose), "weights": list(problem.pareto.weights)}
+        rec.describe({**info, "status": "running"})
+        rec.record_design("baseline", fidelity=str(problem.fidelity_optimise), x=problem.start,
+                          design_toml=io.dumps(problem.base), metrics=base_opt.metrics, statuses=base_opt.statuses)
+        with make_executor(scheduler, workers=workers) as executor:
+            result = pareto.run_front(problem, executor=executor, recorder=rec, metric_modules=base_opt.modules,
+                                      only=only, progress=progress)
+        rec.end_session(status="front traced", n_evaluated=result.n_evaluated, n_replayed=result.n_replayed,
+                        max_evals=problem.optimiser.max_evals)
+        chosen = result.chosen
+        chosen_design = problem.design_at(chosen.x) if chosen is not None else problem.base
+        chosen_design = dataclasses.replace(chosen_design, name=f"{problem.name}-chosen",
+                                            description=f"chosen design on the Pareto front of {problem.name}")
+        final = evaluate_design(chosen_design, problem.fidelity_final)
+        cons = _constraints_at(problem, final.metrics)
+        feasible_final = all(ok for _, _, ok in cons) and all(s != "failed" for s in final.statuses.values())
+        rec.record_design("chosen", fidelity=str(problem.fidelity_final), x=chosen.x if chosen else problem.start,
+                          design_toml=io.dumps(chosen_design), metrics=final.metrics, statuses=final.statuses)
+        for p in result.front:
+            rec.record_design("front", fidelity=str(problem.fidelity_optimise), x=p.x,
+                              design_toml=io.dumps(problem.design_at(p.x)), metrics=p.metrics, statuses={})
+        rec.set_status("finished")
+    except BaseException:
+        rec.set_status("interrupted")
+        raise
+    finally:
+        rec.close()
+    io.save_design(chosen_design, out / "chosen.toml")
+    files = pareto_report.write(result, problem, out, chosen_metrics=final.metrics, chosen_feasible=feasible_final,
+                                fidelity_final=str(problem.fidelity_final))
+    payload = {
+        "problem": problem.name, "kind": "pareto", "method": "epsilon-constraint",
+        "objectives": [{"metric": o.metric.text, "sense": str(o.sense)} for o in problem.objectives],
+        "front": [{"run": p.run, "epsilon": None if math.isnan(p.epsilon) else p.epsilon,
+                   "x": dict(zip([v.key for v in problem.variables], p.x)), "objectives": list(p.objectives)}
+                  for p in result.front],
+        "chosen": None if chosen is None else {"run": chosen.run,
+                                               "x": dict(zip([v.key for v in problem.variables], chosen.x)),
+                                               "objectives": list(chosen.objectives),
+                                               "objectives_final": [o.metric.value(final.metrics)
+                                                                    for o in problem.objectives],
+                                               "feasible_at_final_fidelity": feasible_final},
+        "runs": [{"run": label, "epsilon": None if math.isnan(eps) else eps, "status": res.status,
+                  "n_evaluated": res.n_evaluated, "n_replayed": res.n_replayed} for label, eps, res in result.runs],
+        "n_evaluated": result.n_evaluated, "n_replayed": result.n_replayed, "wall_s": result.wall_s,
+        "files": {"chosen": "chosen.toml", "recorder": "evaluations.sqlite", **files},
+    }
+    write_text(out / "result.json", json.dumps(payload, indent=2, default=str) + "\n")
+    return payload

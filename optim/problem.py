@@ -66,8 +66,8 @@ from hapticopt.design.errors import InputFileError, InvalidDesign, InvalidInput,
 from hapticopt.design.schema import specs
 from hapticopt.design.units import from_si, pretty, to_si
 
-_TOP_KEYS = {"name", "description", "device", "base", "base_file", "variables", "objective", "constraints",
-             "optimiser", "fidelity", "verify"}
+_TOP_KEYS = {"name", "description", "device", "base", "base_file", "variables", "objective", "objectives",
+             "constraints", "optimiser", "fidelity", "verify", "pareto"}
 
 
 class Sense(StrEnum):
@@ -207,6 +207,20 @@ class Objective:
     sense: Sense
 
 
+class Choice(StrEnum):
+    KNEE = "knee"  # the front point farthest from the line through the two anchors (normalised)
+    WEIGHTS = "weights"  # the front point maximising Σ wᵢ · (normalised objective i, 1 = best)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ParetoConfig:
+    """How a two-objective problem's front is traced (ε-constraint series, :mod:`optim.pareto`)."""
+
+    points: int = 11  # front points: 2 anchors + points − 2 ε levels
+    choose: Choice = Choice.KNEE
+    weights: tuple[float, ...] = ()
+
+
 @dataclass(frozen=True, kw_only=True)
 class Constraint:
     """``metric op value``; nlopt sees c(x) = ±(value − metric)/scale ≤ 0."""
@@ -265,6 +279,13 @@ class Problem:
     scenes: tuple[str, ...] = ()
     verify_max_time_s: float = 60.0  # per scene; a slower simulation is stopped and fails its verdict
     source_text: str = ""
+    #: every objective (``objective`` is the first); two make a Pareto problem (:mod:`optim.pareto`)
+    objectives: tuple[Objective, ...] = ()
+    pareto: ParetoConfig | None = None
+
+    @property
+    def is_multi_objective(self) -> bool:
+        return len(self.objectives) > 1
 
     @property
     def lower(self) -> list[float]:
@@ -281,6 +302,11 @@ class Problem:
     def metric_refs(self) -> tuple[MetricRef, ...]:
         return (self.objective.metric,) + tuple(c.metric for c in self.constraints)
 
+    def all_metric_refs(self) -> tuple[MetricRef, ...]:
+        """Every objective's and constraint's metric (the evaluators a point needs)."""
+        objs = self.objectives or (self.objective,)
+        return tuple(o.metric for o in objs) + tuple(c.metric for c in self.constraints)
+
     def with_optimiser(self, **changes: Any) -> "Problem":
         return dataclasses.replace(self, optimiser=dataclasses.replace(self.optimiser, **changes))
 
@@ -291,7 +317,16 @@ class Problem:
     def fingerprint(self) -> str:
         """Hash of everything that decides the sequence of evaluated points (for ``--resume``)."""
         payload = repr((self.name, io.dumps(self.base), self.variables, self.objective, self.constraints,
-                        self.optimiser.fingerprint(), str(self.fidelity_optimise)))
+                        self.optimiser.fingerprint(), str(self.fidelity_optimise))
+                       + ((self.objectives, self.pareto) if self.is_multi_objective else ()))
+        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+    def search_fingerprint(self) -> str:
+        """:meth:`fingerprint` without the budget (max_evals, max_time_s): nlopt asks the same points
+        in the same order whatever its budget, so ``--resume --max-evals N`` may extend a run."""
+        opt = {k: v for k, v in self.optimiser.fingerprint().items() if k not in ("max_evals", "max_time_s")}
+        payload = repr(("search", self.name, io.dumps(self.base), self.variables, self.objectives or self.objective,
+                        self.constraints, opt, str(self.fidelity_optimise), self.pareto))
         return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
@@ -379,7 +414,25 @@ def problem_from_dict(data: Mapping[str, Any], *, source: str = "problem", base_
     if device != base.device:
         raise InvalidInput(f"{source}: device = {device!r} but the base design is a {base.device!r} design")
     variables = _variables(data.get("variables"), base, source)
-    objective = _objective(data.get("objective"), source)
+    if ("objective" in data) == ("objectives" in data):
+        raise InvalidInput(f"{source}: give exactly one of [objective] (one objective) or [[objectives]] (two, for a "
+                           "Pareto front)")
+    if "objective" in data:
+        objective = _objective(data.get("objective"), source)
+        objectives: tuple[Objective, ...] = (objective,)
+        if "pareto" in data:
+            raise InvalidInput(f"{source}: [pareto] needs two [[objectives]]")
+        pareto = None
+    else:
+        raw = data["objectives"]
+        if not isinstance(raw, list) or len(raw) != 2:
+            n = len(raw) if isinstance(raw, list) else raw
+            raise InvalidInput(f"{source}: [[objectives]] must list exactly 2 objectives (a Pareto front), got {n}")
+        objectives = tuple(_objective(t, f"{source}: objectives[{i}]") for i, t in enumerate(raw))
+        if objectives[0].metric.text == objectives[1].metric.text:
+            raise InvalidInput(f"{source}: objectives[1].metric = {objectives[1].metric.text!r} repeats objectives[0]")
+        objective = objectives[0]
+        pareto = _pareto(_table(data, "pareto", source, {"points", "choose", "weights"}), source)
     constraints = _constraints(data.get("constraints", []), source)
     optimiser = _optimiser(_table(data, "optimiser", source, {f.name for f in dataclasses.fields(OptimiserConfig)}),
                            source, bool(constraints))
@@ -398,7 +451,26 @@ def problem_from_dict(data: Mapping[str, Any], *, source: str = "problem", base_
                    base=base, variables=variables, objective=objective, constraints=constraints,
                    optimiser=optimiser, fidelity_optimise=fidelity_optimise, fidelity_final=fidelity_final,
                    fidelity_verify=fidelity_verify, verify_max_time_s=verify_max_time_s,
-                   scenes=tuple(scenes), source_text=source_text)
+                   scenes=tuple(scenes), source_text=source_text, objectives=objectives, pareto=pareto)
+
+
+def _pareto(table: dict[str, Any], source: str) -> ParetoConfig:
+    where = f"{source}: pareto"
+    points = table.get("points", 11)
+    if isinstance(points, bool) or not isinstance(points, int) or not 3 <= points <= 1000:
+        raise InvalidInput(f"{where}.points = {points!r} must be a whole number of front points, 3 ≤ points ≤ 1000")
+    choose = _enum(Choice, table.get("choose", "weights" if "weights" in table else "knee"), f"{where}.choose")
+    weights: tuple[float, ...] = ()
+    if choose is Choice.WEIGHTS:
+        raw = table.get("weights")
+        if not isinstance(raw, list) or len(raw) != 2:
+            raise InvalidInput(f"{where}.weights = {raw!r} must be two numbers ≥ 0, one per objective")
+        weights = tuple(_number(w, f"{where}.weights") for w in raw)
+        if min(weights) < 0 or sum(weights) <= 0:
+            raise InvalidInput(f"{where}.weights = {raw!r} must be ≥ 0 with a positive sum")
+    elif "weights" in table:
+        raise InvalidInput(f"{where}.weights is given but choose = \"knee\": use choose = \"weights\"")
+    return ParetoConfig(points=points, choose=choose, weights=weights)
 
 
 def _variables(raw: Any, base: Any, source: str) -> tuple[Variable, ...]:
@@ -535,5 +607,7 @@ def _optimiser(table: dict[str, Any], source: str, constrained: bool) -> Optimis
 def check_metrics(problem: Problem, metrics: Mapping[str, Any]) -> None:
     """Raise a one-line error for any objective/constraint metric the evaluators do not produce."""
     problem.objective.metric.check(metrics, "objective.metric")
+    for i, o in enumerate(problem.objectives[1:], start=1):
+        o.metric.check(metrics, f"objectives[{i}].metric")
     for i, c in enumerate(problem.constraints):
         c.metric.check(metrics, f"constraints ({c.text})")

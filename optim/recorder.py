@@ -5,6 +5,17 @@ metrics JSON, gradients, timings, outcome). ``--resume`` re-opens it: because th
 deterministic (same problem, same seed), it asks the same points in the same order, and each
 one found here under its exact key (the float64 bit patterns of the vector, the fidelity and
 whether a gradient was computed) is replayed without running an evaluator.
+
+A run is never destroyed silently: opening an existing record without ``resume`` is refused
+unless ``force`` (:func:`check_run_dir`). ``search_fingerprint`` leaves the budget out (max_evals,
+max_time_s), so ``--resume --max-evals N`` extends a run: nlopt asks the same points first
+(replayed), then continues; the recorder counts any point evaluated again (``repeated``).
+
+The record describes itself (additive tables, created ``IF NOT EXISTS``): ``run_info`` (kind,
+problem text, variables with units and bounds, objectives and constraints with senses and
+bounds, software versions, status), ``designs`` (baseline and final-fidelity rows) and
+``session_counts`` (per session: budget, evaluated, replayed, repeated). Read it with
+:class:`hapticopt.optim.runs.RunReader`, which never writes.
 """
 
 from __future__ import annotations
@@ -43,6 +54,27 @@ CREATE TABLE IF NOT EXISTS evaluations (
     timings TEXT NOT NULL,
     created REAL NOT NULL
 );
+CREATE TABLE IF NOT EXISTS run_info (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS designs (
+    id INTEGER PRIMARY KEY,
+    session INTEGER NOT NULL,
+    role TEXT NOT NULL,
+    fidelity TEXT NOT NULL,
+    x TEXT NOT NULL,
+    design TEXT NOT NULL,
+    metrics TEXT NOT NULL,
+    statuses TEXT NOT NULL,
+    created REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS session_counts (
+    session INTEGER PRIMARY KEY,
+    max_evals INTEGER,
+    evaluated INTEGER NOT NULL,
+    replayed INTEGER NOT NULL,
+    repeated INTEGER NOT NULL,
+    status TEXT NOT NULL,
+    finished REAL NOT NULL
+);
 """
 
 
@@ -51,11 +83,24 @@ def point_key(x: Sequence[float], fidelity: str, gradient: bool) -> str:
     return ",".join(float(v).hex() for v in x) + f"|{fidelity}|{'g' if gradient else '-'}"
 
 
+def check_run_dir(run_dir: str | Path, *, resume: bool, force: bool) -> None:
+    """Refuse to start a new run over a recorded one unless ``force`` (one line, nothing touched)."""
+    path = Path(run_dir) / FILENAME
+    if resume and force:
+        raise InvalidInput("--resume and --force contradict each other: --resume continues the run, "
+                           "--force replaces it")
+    if not resume and not force and path.is_file():
+        raise InvalidInput(f"--out {run_dir} already holds a run ({path}): give --resume to continue it "
+                           "or --force to replace it, or choose another --out")
+
+
 class Recorder:
     """SQLite recorder (thread-safe: the driver may evaluate several starts at once)."""
 
-    def __init__(self, run_dir: str | Path, *, fingerprint: str, resume: bool) -> None:
+    def __init__(self, run_dir: str | Path, *, fingerprint: str, resume: bool, force: bool = False,
+                 search_fingerprint: str | None = None) -> None:
         self.path = Path(run_dir) / FILENAME
+        check_run_dir(run_dir, resume=resume, force=force)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if not resume:
             for suffix in ("", "-wal", "-shm"):
@@ -68,8 +113,17 @@ class Recorder:
         self._db.execute("PRAGMA synchronous=NORMAL")
         self._db.executescript(_SCHEMA)
         row = self._db.execute("SELECT value FROM meta WHERE key='fingerprint'").fetchone()
+        srow = self._db.execute("SELECT value FROM meta WHERE key='search_fingerprint'").fetchone()
         if row is None:
             self._db.execute("INSERT INTO meta(key, value) VALUES ('fingerprint', ?)", (fingerprint,))
+            if search_fingerprint is not None:
+                self._db.execute("INSERT INTO meta(key, value) VALUES ('search_fingerprint', ?)",
+                                 (search_fingerprint,))
+        elif srow is not None and search_fingerprint is not None:
+            if srow[0] != search_fingerprint:
+                raise InvalidInput(f"--resume: the run in {run_dir} was made with a different problem or optimiser "
+                                   f"settings (fingerprint {srow[0]} ≠ {search_fingerprint}; the budget may differ): "
+                                   "use the same settings or a new --out")
         elif row[0] != fingerprint:
             raise InvalidInput(f"--resume: the run in {run_dir} was made with a different problem or optimiser "
                                f"settings (fingerprint {row[0]} ≠ {fingerprint}): use the same settings or a new --out")
@@ -85,6 +139,7 @@ class Recorder:
                 gradients=None if grads is None else tuple(tuple(r) for r in json.loads(grads)),
                 gradient_source=gsrc, metrics=json.loads(metrics), statuses=json.loads(statuses),
                 timings_s=json.loads(timings))
+        self.n_repeated = 0  # evaluations of a point this run had already recorded (should stay 0)
 
     @property
     def n_previous(self) -> int:
@@ -104,10 +159,12 @@ class Recorder:
         with self._lock:
             self._db.execute("BEGIN IMMEDIATE")
             try:
-                self._db.execute(
+                cur = self._db.execute(
                     "INSERT OR IGNORE INTO evaluations(key, session, start, stage, fidelity, x, outcome, message, vals,"
                     " gradients, gradient_source, metrics, statuses, timings, created)"
                     " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)", row)
+                if cur.rowcount == 0:
+                    self.n_repeated += 1
                 self._db.execute("COMMIT")
             except BaseException:
                 self._db.execute("ROLLBACK")
@@ -119,6 +176,41 @@ class Recorder:
             cur = self._db.execute("SELECT id, key, session, start, stage, outcome, x, timings FROM evaluations ORDER BY id")
             cols = [c[0] for c in cur.description]
             return [dict(zip(cols, r)) for r in cur.fetchall()]
+
+    # ------------------------------------------------------------ the self-describing record
+    def _write(self, sql: str, params: Sequence[Any] | Sequence[Sequence[Any]], *, many: bool = False) -> None:
+        with self._lock:
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                (self._db.executemany if many else self._db.execute)(sql, params)
+                self._db.execute("COMMIT")
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+
+    def describe(self, info: dict[str, Any]) -> None:
+        """Store what the run is (kind, problem, variables, objectives, versions …): JSON per key."""
+        self._write("INSERT OR REPLACE INTO run_info(key, value) VALUES (?, ?)",
+                    [(k, json.dumps(v, default=str)) for k, v in info.items()], many=True)
+
+    def set_status(self, status: str) -> None:
+        """``running``, ``finished`` or ``interrupted`` (what ``hapticopt runs`` lists)."""
+        self.describe({"status": status})
+
+    def record_design(self, role: str, *, fidelity: str, x: Sequence[float], design_toml: str,
+                      metrics: dict[str, Any], statuses: dict[str, str]) -> None:
+        """A whole design evaluated outside the loop: ``baseline``, ``final``, ``chosen`` …"""
+        self._write("INSERT INTO designs(session, role, fidelity, x, design, metrics, statuses, created)"
+                    " VALUES (?,?,?,?,?,?,?,?)",
+                    (self.session, role, fidelity, json.dumps([float(v) for v in x]), design_toml,
+                     json.dumps(metrics, default=str), json.dumps(statuses), time.time()))
+
+    def end_session(self, *, status: str, n_evaluated: int, n_replayed: int, max_evals: int | None) -> None:
+        """This session's counts (``repeated`` is the recorder's own count of re-evaluated points)."""
+        self._write("INSERT OR REPLACE INTO session_counts(session, max_evals, evaluated, replayed, repeated,"
+                    " status, finished) VALUES (?,?,?,?,?,?,?)",
+                    (self.session, max_evals, n_evaluated, n_replayed, self.n_repeated, status, time.time()))
+        self.set_status(status)
 
     def close(self) -> None:
         with self._lock:

@@ -7,9 +7,12 @@ from typing import Annotated
 
 import typer
 
+from hapticopt.optim.cli import compare as cli_compare
 from hapticopt.optim.cli import evaluate as cli_evaluate
 from hapticopt.optim.cli import export as cli_export
 from hapticopt.optim.cli import optimise as cli_optimise
+from hapticopt.optim.cli import runs as cli_runs
+from hapticopt.optim.cli import sweep as cli_sweep
 from hapticopt.optim.cli import verify as cli_verify
 
 app = typer.Typer(
@@ -41,6 +44,10 @@ app.command("export")(cli_export.export)
 app.command("optimise")(cli_optimise.optimise)
 app.command("problems")(cli_optimise.problems)
 app.command("verify")(cli_verify.verify)
+app.command("runs")(cli_runs.runs)
+app.command("show")(cli_runs.show)
+app.command("sweep")(cli_sweep.sweep)
+app.command("compare")(cli_compare.compare)
 
 
 def main() -> None:

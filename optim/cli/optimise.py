@@ -13,6 +13,7 @@ from hapticopt.optim.problem import load_problem
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from hapticopt.optim.problem import problem_names
+from hapticopt.optim.recorder import check_run_dir
 
 
 @one_line_errors
@@ -20,7 +21,8 @@ def optimise(
     problem: Annotated[str, typer.Argument(help="Bundled problem name (see `hapticopt problems`) or a problem TOML file.",
                                            show_default=False)],
     out: Annotated[Optional[Path], typer.Option("--out", help="Run directory (default cad_out/<problem-name>/).")] = None,
-    resume: Annotated[bool, typer.Option("--resume", help="Continue the run in --out: recorded evaluations are replayed, not recomputed.")] = False,
+    resume: Annotated[bool, typer.Option("--resume", help="Continue the run in --out: recorded evaluations are replayed, not recomputed (with --max-evals: extend its budget).")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace the run already recorded in --out (without it, an existing run is refused).")] = False,
     max_evals: Annotated[Optional[int], typer.Option("--max-evals", help="Total evaluation budget (overrides the problem's).")] = None,
     scheduler: Annotated[str, typer.Option("--scheduler", help="local (process pool), inline, or a Dask scheduler address tcp://HOST:PORT.")] = "local",
     workers: Annotated[Optional[int], typer.Option("--workers", help="Processes of the local pool (default: min(4, CPUs)).")] = None,
@@ -28,7 +30,7 @@ def optimise(
     verify: Annotated[bool, typer.Option("--verify/--no-verify", help="Verify the optimum in closed loop on the problem's scenes.")] = True,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
 ) -> None:
-    """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report."""
+    """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front)."""
 
     prob = load_problem(problem)
     if max_evals is not None:
@@ -38,11 +40,29 @@ def optimise(
     if workers is not None and workers < 1:
         raise InvalidInput(f"--workers = {workers} must be ≥ 1")
     out_dir = out if out is not None else Path("cad_out") / prob.name
+    check_run_dir(out_dir, resume=resume, force=force)  # before anything is computed or written
 
-
-    from hapticopt.optim.pipeline import run_pipeline
+    from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline
 
     console = Console(stderr=True, quiet=quiet)
+    if prob.is_multi_objective:
+        with console.status("tracing the Pareto front", spinner="dots") as status:
+            res = run_front_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
+                                     workers=workers,
+                                     progress=lambda label, n: status.update(f"Pareto front: {label} done, {n} evaluated"))
+        f1, f2 = (o["metric"] for o in res["objectives"])
+        typer.echo(f"{prob.name}: Pareto front of {f1} and {f2}: {len(res['front'])} points "
+                   f"(ε-constraint, {len(res['runs'])} runs); {res['n_evaluated']} evaluated, {res['n_replayed']} replayed")
+        ch = res["chosen"]
+        if ch is not None:
+            typer.echo(f"  chosen ({prob.pareto.choose if prob.pareto else 'knee'}): {f1} = {ch['objectives'][0]:.6g}, "
+                       f"{f2} = {ch['objectives'][1]:.6g}; constraints at {prob.fidelity_final} fidelity "
+                       f"{'satisfied' if ch['feasible_at_final_fidelity'] else 'NOT satisfied'} -> {out_dir / 'chosen.toml'}")
+        if export or verify:
+            typer.echo("  export/verify: not run for a Pareto front — run `hapticopt export` / `hapticopt verify` "
+                       "on chosen.toml")
+        typer.echo(f"report: {out_dir / 'report.html'}")
+        return
     sense_max = prob.objective.sense.value == "maximise"
     with Progress(TextColumn("[bold]{task.fields[stage]}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   TextColumn("{task.description}"), console=console, transient=False, disable=quiet) as progress:
@@ -61,7 +81,7 @@ def optimise(
         def on_stage(name):
             progress.update(task, stage=name)
 
-        result = run_pipeline(prob, out_dir=out_dir, resume=resume, scheduler=scheduler, workers=workers,
+        result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler, workers=workers,
                               progress=on_point, export=export, verify=verify, on_stage=on_stage)
         progress.update(task, stage="done")
     obj = prob.objective.metric

@@ -1,14 +1,24 @@
-"""``hapticopt evaluate --sweep NAME``: parameter sweeps that write a plot and a CSV table."""
+"""``hapticopt sweep (FILE | --preset NAME) KEY=lo:hi:n [KEY2=lo:hi:n]`` (any numeric key, on the
+executor, recorded like a run: :mod:`hapticopt.optim.sweep`) and ``hapticopt evaluate --sweep NAME``
+(the master's counterweight trade-off of seed 003)."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Optional
 
-from hapticopt.design.errors import InvalidInput
+import typer
 from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
+
+from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.atomic import write_text
+from hapticopt.design.errors import InvalidInput
+from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+from hapticopt.optim.executor import make_executor
+from hapticopt.optim import sweep as sw
+from hapticopt.optim.recorder import Recorder, check_run_dir
 
 SWEEPS = {"master": ("counterweight",)}
 
@@ -18,7 +28,8 @@ def run_sweep(design: Any, name: str, out_dir: Path, fidelity: Any) -> list[Path
     allowed = SWEEPS.get(design.device, ())
     if name not in allowed:
         raise InvalidInput(f"--sweep = {name!r} is not a sweep for a {design.device} design: "
-                           f"allowed {', '.join(allowed) if allowed else 'none'}")
+                           f"allowed {', '.join(allowed) if allowed else 'none'} (any numeric key: "
+                           "`hapticopt sweep KEY=lo:hi:n`)")
 
     from hapticopt.analysis.master import plots as master_plots, tradeoff as master_tradeoff
 
@@ -35,3 +46,72 @@ def run_sweep(design: Any, name: str, out_dir: Path, fidelity: Any) -> list[Path
         table.add_row(*(f"{v:.4g}" for v in r.values()))
     Console(stderr=True).print(table)
     return [table_path, plot_path]
+
+
+# ------------------------------------------------------------------ hapticopt sweep (any numeric key)
+@one_line_errors
+def sweep(
+    args: Annotated[list[str], typer.Argument(help="An optional design TOML file (or --preset), then one or two axes "
+                                                   "section.key=lo:hi:n (n ≥ 2 values, both ends included), e.g. "
+                                                   "geometry.beta_deg=30:70:41.",
+                                              show_default=False, metavar="[FILE] KEY=lo:hi:n [KEY2=lo:hi:n]")],
+    preset: Annotated[Optional[str], typer.Option("--preset", help="Bundled preset name (see `hapticopt presets`).")] = None,
+    set_: Annotated[Optional[list[str]], typer.Option("--set", help="Override a TOML key of the base design (repeatable).")] = None,
+    fidelity: Annotated[str, typer.Option("--fidelity", help="draft, standard or fine.")] = "draft",
+    only: Annotated[Optional[str], typer.Option("--only", help="Evaluators to run, comma-separated (default: all for the device).")] = None,
+    out: Annotated[Optional[Path], typer.Option("--out", help="Run directory (default cad_out/sweep-<design>-<keys>/).")] = None,
+    resume: Annotated[bool, typer.Option("--resume", help="Continue the sweep in --out: recorded points are replayed.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace the run already recorded in --out.")] = False,
+    scheduler: Annotated[str, typer.Option("--scheduler", help="local (process pool), inline, or a Dask scheduler address tcp://HOST:PORT.")] = "local",
+    workers: Annotated[Optional[int], typer.Option("--workers", help="Processes of the local pool (default: min(4, CPUs)).")] = None,
+    plots: Annotated[bool, typer.Option("--plots/--no-plots", help="One PNG per metric under DIR/plots/.")] = True,
+    batch: Annotated[bool, typer.Option("--batch", help="Evaluate in one process with the evaluators' batched jax forms (3-PRRR: --only statics).")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
+) -> None:
+    """Sweep one or two numeric design keys over a grid; writes sweep.csv, a plot per metric and the record."""
+    try:
+        level = Fidelity(fidelity)
+    except ValueError:
+        raise InvalidInput(f"--fidelity = {fidelity!r} is not a fidelity level: allowed draft, standard, fine") from None
+    file = None
+    axes_text = list(args)
+    if axes_text and "=" not in axes_text[0]:
+        file = Path(axes_text.pop(0))
+    if not axes_text:
+        raise InvalidInput("give one or two axes KEY=lo:hi:n after the design, e.g. geometry.beta_deg=30:70:41")
+    if workers is not None and workers < 1:
+        raise InvalidInput(f"--workers = {workers} must be ≥ 1")
+    design = load_design_arg(file, preset, set_)
+    axes = tuple(sw.parse_axis(t, design) for t in axes_text)
+    only_t = tuple(s.strip() for s in only.split(",") if s.strip()) if only is not None else None
+    spec = sw.Sweep(base=design, axes=axes, fidelity=level, only=only_t)
+    if batch and not sw.batch_supported(spec):
+        allowed = sw.BATCHED.get(design.device, ())
+        raise InvalidInput(f"--batch needs --only naming evaluators with a batched form: for a {design.device} design "
+                           f"allowed {', '.join(allowed) if allowed else 'none'}")
+    out_dir = out if out is not None else Path("cad_out") / f"sweep-{design.name}-{'-'.join(a.key for a in axes)}"
+    check_run_dir(out_dir, resume=resume, force=force)  # nothing written before this
+    console = Console(stderr=True, quiet=quiet)
+    with Recorder(out_dir, fingerprint=spec.fingerprint(), resume=resume, force=force,
+                  search_fingerprint=spec.fingerprint()) as rec:
+        rec.describe({**spec.info(), "status": "running"})
+        with Progress(TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                      console=console, disable=quiet) as progress:
+            task = progress.add_task("", total=spec.n_points)
+            try:
+                with make_executor(scheduler, workers=workers) as executor:
+                    result = sw.run_sweep(spec, executor=executor, recorder=rec,
+                                          progress=lambda done, total: progress.update(task, completed=done),
+                                          batch=batch)
+            except BaseException:
+                rec.set_status("interrupted")
+                raise
+        rec.end_session(status="finished", n_evaluated=result.n_evaluated, n_replayed=result.n_replayed,
+                        max_evals=spec.n_points)
+    written = sw.write_outputs(result, out_dir, plots=plots)
+    n_fail = spec.n_points - result.n_ok
+    typer.echo(f"sweep of {design.name} over {' × '.join(f'{a.key} ({a.n})' for a in axes)} at {level} fidelity: "
+               f"{spec.n_points} points, {result.n_ok} ok, {n_fail} not ok; {result.n_evaluated} evaluated, "
+               f"{result.n_replayed} replayed")
+    n_plots = len(written) - 1
+    typer.echo(f"table: {written[0]}" + (f"; {n_plots} plots in {out_dir / 'plots'}" if n_plots else ""))

@@ -124,3 +124,22 @@ def test_report_opens_in_headless_chromium(beta_run):
     html = (broken / "report.html").read_text().replace('src="convergence.svg"', 'src="nope.png"')
     (broken / "report.html").write_text(html)
     assert "image did not load: nope.png" in module.check(broken)
+
+
+def test_the_record_describes_itself(beta_run):
+    """Issue 20 item 2: variables with units, objectives and constraints, baseline and final rows."""
+    from hapticopt.optim.runs import RunReader
+
+    with RunReader(beta_run.out_dir) as r:
+        assert r.kind == "optimise" and r.problem == "beta-isotropic" and r.status == "finished"
+        assert r.variables == [{"key": "geometry.beta_deg", "unit": "deg", "lower": 10.0, "upper": 80.0,
+                                "start": 60.0}]
+        assert r.objectives == [{"metric": "jacobian_condition", "sense": "minimise"}]
+        assert r.constraints == [{"metric": "max_force_N[2]", "op": ">=", "value": 1000.0}]
+        assert "isotropic" in r.info["problem_text"] and r.info["fidelity"] == {"optimise": "draft",
+                                                                                 "final": "standard"}
+        base, final = r.design("baseline"), r.design("final")
+        assert base.fidelity == "draft" and final.fidelity == "standard"
+        assert base.metrics["jacobian_condition"] == pytest.approx(math.sqrt(6.0))  # cond(J) at 60°: √6
+        assert final.x == beta_run.run.best.x
+        assert r.best().x == beta_run.run.best.x and r.n_repeated == 0

@@ -37,9 +37,55 @@ def test_optimise_then_resume_replays_everything(tmp_path):
     r2 = json.loads((tmp_path / "result.json").read_text())
     assert r2["n_evaluated"] == 0 and r2["n_replayed"] == r1["n_evaluated"]
     assert r2["best_x"] == r1["best_x"]
-    # a different budget is a different run: resuming it is refused with one line
-    bad = invoke(*args[:-2], "--max-evals", "30", "--resume")
+    # a different problem is a different run: resuming it is refused with one line
+    other = tmp_path / "other.toml"
+    other.write_text((DATA / "beta-isotropic.toml").read_text().replace("upper = 80.0", "upper = 75.0"))
+    bad = invoke("optimise", str(other), *args[2:], "--resume")
     assert bad.exit_code == 2 and "different problem or optimiser settings" in bad.stderr
+
+
+def _md5(path):
+    import hashlib
+
+    return hashlib.md5(path.read_bytes()).hexdigest()
+
+
+def test_existing_run_is_refused_forced_or_extended(tmp_path):
+    """Issue 20 item 1: a second run without flags is refused (exit 2, one line, file unchanged);
+    --force replaces it; --resume --max-evals N extends it with 0 repeated evaluations."""
+    from hapticopt.optim.runs import RunReader
+
+    args = ["optimise", str(DATA / "beta-isotropic.toml"), "--out", str(tmp_path), "--scheduler", "inline",
+            "--no-export", "--no-verify", "--quiet"]
+    first = invoke(*args, "--max-evals", "12")
+    assert first.exit_code == 0, first.output
+    db = tmp_path / "evaluations.sqlite"
+    before = _md5(db)
+    again = invoke(*args, "--max-evals", "12")
+    assert again.exit_code == 2
+    (line,) = again.stderr.strip().splitlines()
+    assert "already holds a run" in line and "--resume" in line and "--force" in line
+    assert _md5(db) == before
+    both = invoke(*args, "--resume", "--force")
+    assert both.exit_code == 2 and "contradict" in both.stderr and _md5(db) == before
+    with RunReader(tmp_path) as r:
+        n1 = len(r)
+    assert r.status == "finished" and n1 == 12 - 1  # 12 points asked, one (the start) asked twice: cache
+    ext = invoke(*args, "--resume", "--max-evals", "40")
+    assert ext.exit_code == 0, ext.output
+    r2 = json.loads((tmp_path / "result.json").read_text())
+    with RunReader(tmp_path) as r:
+        sessions = r.sessions()
+        assert r.n_repeated == 0 and len(r) == n1 + r2["n_evaluated"]
+        keys = [c.x for c in r.cases()]
+    assert len(keys) == len(set(keys))  # every recorded point is distinct
+    assert r2["n_replayed"] == n1 and r2["n_evaluated"] > 0
+    assert [(s["max_evals"], s["evaluated"], s["replayed"], s["repeated"]) for s in sessions] == \
+        [(12, n1, 0, 0), (40, r2["n_evaluated"], n1, 0)]
+    forced = invoke(*args, "--max-evals", "12", "--force")
+    assert forced.exit_code == 0, forced.output
+    with RunReader(tmp_path) as r:
+        assert len(r) == n1 and len(r.sessions()) == 1
 
 
 def _write(tmp_path, text):
@@ -78,3 +124,28 @@ def test_missing_problem_and_bad_options(tmp_path):
     assert res.exit_code == 2 and "--scheduler" in res.stderr
     res = invoke("optimise", str(DATA / "beta-isotropic.toml"), "--max-evals", "1", "--quiet")
     assert res.exit_code == 2 and "--max-evals = 1" in res.stderr
+
+
+def test_two_objective_problem_traces_a_front(tmp_path):
+    from hapticopt.optim.runs import RunReader
+
+    text = (DATA / "beta-front.toml").read_text().replace("points = 41", "points = 5").replace("max_evals = 2000",
+                                                                                              "max_evals = 200")
+    problem = tmp_path / "front.toml"
+    problem.write_text(text)
+    out = tmp_path / "run"
+    res = invoke("optimise", str(problem), "--out", str(out), "--scheduler", "inline", "--quiet")
+    assert res.exit_code == 0, res.output
+    assert "Pareto front of stiffness_limit_N_per_mm[0] and workspace_height_at_diameter_mm: 5 points" in res.stdout
+    for name in ("front.csv", "front.svg", "chosen.toml", "result.json", "report.md", "report.html"):
+        assert (out / name).is_file(), name
+    result = json.loads((out / "result.json").read_text())
+    assert len(result["front"]) == 5 and result["chosen"]["feasible_at_final_fidelity"]
+    assert "front.svg" in (out / "report.html").read_text() and "polyline" in (out / "front.svg").read_text()
+    with RunReader(out) as r:
+        assert r.kind == "pareto" and r.status == "finished" and len(r.objectives) == 2
+        assert len([d for d in r.designs() if d.role == "front"]) == 5 and r.design("chosen") is not None
+    again = invoke("optimise", str(problem), "--out", str(out), "--scheduler", "inline", "--quiet")
+    assert again.exit_code == 2 and "already holds a run" in again.stderr
+    resumed = invoke("optimise", str(problem), "--out", str(out), "--scheduler", "inline", "--quiet", "--resume")
+    assert resumed.exit_code == 0 and "0 evaluated" in resumed.stdout

@@ -1,0 +1,71 @@
+"""``hapticopt compare A B …``: designs (files, presets or run directories) side by side."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design.errors import InvalidInput
+from hapticopt.optim import compare as cmp
+from hapticopt.optim.cli.common import one_line_errors
+
+
+@one_line_errors
+def compare(
+    designs: Annotated[list[str], typer.Argument(help="Two or more designs: design TOML files, preset names or run "
+                                                      "directories (their optimum). The first is the reference.",
+                                                 show_default=False)],
+    fidelity: Annotated[str, typer.Option("--fidelity", help="draft, standard or fine (one level for all).")] = "standard",
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON {designs, metrics, design_differences}.")] = False,
+    report: Annotated[Optional[Path], typer.Option("--report", help="Also write the comparison to FILE.md or FILE.html.")] = None,
+    renders: Annotated[bool, typer.Option("--renders", help="With --report: a picture of each design (CAD export; seconds per design).")] = False,
+    changed_only: Annotated[bool, typer.Option("--changed-only", help="Table: only metrics that differ.")] = False,
+) -> None:
+    """Evaluate designs at one fidelity and show every metric side by side with deltas, units and statuses."""
+    try:
+        level = Fidelity(fidelity)
+    except ValueError:
+        raise InvalidInput(f"--fidelity = {fidelity!r} is not a fidelity level: allowed draft, standard, fine") from None
+    if len(designs) < 2:
+        raise InvalidInput(f"compare needs at least 2 designs, got {len(designs)}")
+    if renders and report is None:
+        raise InvalidInput("--renders needs --report FILE.md or FILE.html")
+    if report is not None and report.suffix not in (".md", ".html"):
+        raise InvalidInput(f"--report = {str(report)!r} must end in .md or .html")
+    named = [cmp.resolve(d) for d in designs]
+    result = cmp.compare(named, fidelity=level)
+    written = cmp.write_report(result, report, renders=renders) if report is not None else []
+    if as_json:
+        typer.echo(json.dumps(cmp.as_json(result), indent=2))
+        return
+    console = Console()
+    labels = [d.label for d in named]
+    table = Table(title=f"{' vs '.join(labels)} ({level} fidelity; Δ from {labels[0]}, relative; "
+                        "--json has absolute deltas)")
+    table.add_column("metric", overflow="fold")
+    table.add_column("unit")
+    table.add_column(labels[0], justify="right", overflow="fold")
+    for b in labels[1:]:
+        table.add_column(b, justify="right", overflow="fold")
+        table.add_column(f"Δ {b}", justify="right", overflow="fold")
+    for r in result.rows:
+        if changed_only and all(d == 0.0 for d in r.deltas):
+            continue
+        cells = [cmp.fmt(r.values[0])]
+        for i in range(1, len(labels)):
+            cells += [cmp.fmt(r.values[i]), cmp.fmt_short(r.deltas[i], r.relative[i])]
+        table.add_row(r.metric, r.unit, *cells)
+    console.print(table)
+    for d, st, msg in zip(named, result.statuses, result.messages):
+        bad = {k: v for k, v in st.items() if v != "ok"}
+        line = "all evaluators ok" if not bad else "; ".join(f"{k}: {v}" + (f" — {msg[k]}" if k in msg else "")
+                                                             for k, v in bad.items())
+        console.print(f"{d.label} ({d.source}): {line}")
+    for path in written[:1]:
+        console.print(f"wrote {path}")

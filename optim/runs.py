@@ -1,0 +1,306 @@
+"""Reading recorded runs: :class:`RunReader` (read-only, like OpenMDAO's ``CaseReader``).
+
+A run directory holds ``evaluations.sqlite`` (:mod:`hapticopt.optim.recorder`). The record
+describes itself — ``run_info`` (kind, problem text, variables with units and bounds,
+objectives and constraints, software versions, status), ``designs`` (baseline and
+final-fidelity rows), ``evaluations`` and ``session_counts`` — so this module needs neither
+the problem file nor the code that wrote it.
+
+The reader opens the database with ``mode=ro``: it never writes, never checkpoints and never
+deletes, so it may read a run while another process is writing it (SQLite WAL readers see the
+last committed evaluation). A record made before the self-describing tables existed is read
+too: its variables and objectives are then unknown (``None``) and no best point is picked.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+import sqlite3
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any
+
+from hapticopt.design import io
+from hapticopt.design.errors import InvalidInput
+from hapticopt.design.units import pretty
+from hapticopt.optim.problem import Constraint, MetricRef, Op, Problem
+from hapticopt.optim.recorder import FILENAME
+
+#: packages whose versions a record states
+VERSIONED = ("hapticopt", "numpy", "scipy", "jax", "nlopt", "dask")
+
+
+def software_versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for name in VERSIONED:
+        try:
+            out[name] = version(name)
+        except PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def problem_info(problem: Problem, *, kind: str = "optimise") -> dict[str, Any]:
+    """The ``run_info`` entries describing ``problem`` (JSON-ready; edge units)."""
+    return {
+        "kind": kind,
+        "problem": problem.name,
+        "description": problem.description,
+        "device": problem.device,
+        "base_source": problem.base_source,
+        "base_design": io.dumps(problem.base),
+        "problem_text": problem.source_text,
+        "variables": [{"key": v.key, "unit": v.unit, "lower": v.lower, "upper": v.upper, "start": v.start}
+                      for v in problem.variables],
+        "objectives": [{"metric": problem.objective.metric.text, "sense": str(problem.objective.sense)}],
+        "constraints": [{"metric": c.metric.text, "op": c.op.value, "value": c.value} for c in problem.constraints],
+        "constraint_tol": problem.optimiser.constraint_tol,
+        "fidelity": {"optimise": str(problem.fidelity_optimise), "final": str(problem.fidelity_final)},
+        "optimiser": problem.optimiser.fingerprint(),
+        "versions": software_versions(),
+    }
+
+
+@dataclass(frozen=True, kw_only=True)
+class Case:
+    """One recorded evaluation."""
+
+    id: int
+    session: int
+    start: int
+    stage: str
+    fidelity: str
+    x: tuple[float, ...]  # edge units, in the order of :attr:`RunReader.variables`
+    outcome: str
+    message: str
+    metrics: dict[str, Any] = field(compare=False, repr=False)
+    statuses: dict[str, str] = field(compare=False, repr=False)
+    timings_s: dict[str, float] = field(compare=False, repr=False)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RecordedDesign:
+    """A whole design evaluated outside the loop (``baseline``, ``final``, ``chosen``)."""
+
+    session: int
+    role: str
+    fidelity: str
+    x: tuple[float, ...]
+    design_toml: str
+    metrics: dict[str, Any] = field(compare=False, repr=False)
+    statuses: dict[str, str] = field(compare=False, repr=False)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunSummary:
+    """One line of ``hapticopt runs``."""
+
+    path: Path
+    kind: str
+    problem: str
+    status: str
+    n_evaluations: int
+    best: float  # the first objective at the best point (NaN if none or unknown)
+    objective: str  # its metric reference ('' if unknown)
+    feasible: bool | None  # None: the record does not say what feasible means
+    repeated: int  # evaluations of a point already recorded (counted by the recorder)
+
+
+class RunReader:
+    """Read-only access to a run directory (or its ``evaluations.sqlite``)."""
+
+    def __init__(self, run: str | Path) -> None:
+        path = Path(run)
+        if path.is_dir():
+            path = path / FILENAME
+        if not path.is_file():
+            raise InvalidInput(f"RUN = {str(run)!r} is not a run: no {FILENAME} there")
+        self.path = path
+        self.run_dir = path.parent
+        try:
+            self._db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True, timeout=30.0,
+                                       check_same_thread=False)
+            self._tables = {r[0] for r in self._db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        except sqlite3.DatabaseError as exc:
+            raise InvalidInput(f"RUN = {str(run)!r}: {path} is not a readable run record ({exc})") from None
+        if "evaluations" not in self._tables:
+            self._db.close()
+            raise InvalidInput(f"RUN = {str(run)!r}: {path} has no evaluations table: not a hapticopt run record")
+        self.info: dict[str, Any] = {}
+        if "run_info" in self._tables:
+            self.info = {k: json.loads(v) for k, v in self._db.execute("SELECT key, value FROM run_info")}
+        self.meta = dict(self._db.execute("SELECT key, value FROM meta").fetchall()) if "meta" in self._tables else {}
+
+    # ----------------------------------------------------------------------- description
+    @property
+    def kind(self) -> str:
+        return str(self.info.get("kind", "optimise"))
+
+    @property
+    def problem(self) -> str:
+        return str(self.info.get("problem", "?"))
+
+    @property
+    def status(self) -> str:
+        return str(self.info.get("status", "unknown"))
+
+    @property
+    def variables(self) -> list[dict[str, Any]] | None:
+        return self.info.get("variables")
+
+    @property
+    def objectives(self) -> list[dict[str, Any]] | None:
+        return self.info.get("objectives")
+
+    @property
+    def constraints(self) -> list[dict[str, Any]]:
+        return list(self.info.get("constraints", []))
+
+    # ----------------------------------------------------------------------- rows
+    def _rows(self, sql: str, params: Sequence[Any] = ()) -> list[tuple[Any, ...]]:
+        return self._db.execute(sql, params).fetchall()
+
+    def cases(self) -> list[Case]:
+        """Every recorded evaluation, in the order they were recorded."""
+        return [Case(id=i, session=s, start=st, stage=stg, fidelity=fid, x=tuple(json.loads(x)), outcome=o,
+                     message=msg, metrics=json.loads(m), statuses=json.loads(sts), timings_s=json.loads(t))
+                for i, s, st, stg, fid, x, o, msg, m, sts, t in self._rows(
+                    "SELECT id, session, start, stage, fidelity, x, outcome, message, metrics, statuses, timings "
+                    "FROM evaluations ORDER BY id")]
+
+    def __len__(self) -> int:
+        return int(self._rows("SELECT COUNT(*) FROM evaluations")[0][0])
+
+    def designs(self) -> list[RecordedDesign]:
+        if "designs" not in self._tables:
+            return []
+        return [RecordedDesign(session=s, role=r, fidelity=f, x=tuple(json.loads(x)), design_toml=d,
+                               metrics=json.loads(m), statuses=json.loads(st))
+                for s, r, f, x, d, m, st in self._rows(
+                    "SELECT session, role, fidelity, x, design, metrics, statuses FROM designs ORDER BY id")]
+
+    def design(self, role: str) -> RecordedDesign | None:
+        """The latest recorded design of ``role`` (``baseline``, ``final`` …), or None."""
+        found = [d for d in self.designs() if d.role == role]
+        return found[-1] if found else None
+
+    def sessions(self) -> list[dict[str, Any]]:
+        """Each session: when it started, whether it resumed, and its counts where recorded."""
+        counts: dict[int, dict[str, Any]] = {}
+        if "session_counts" in self._tables:
+            cur = self._db.execute("SELECT * FROM session_counts")
+            cols = [c[0] for c in cur.description]
+            counts = {r[0]: dict(zip(cols, r)) for r in cur.fetchall()}
+        n_rows = dict(self._rows("SELECT session, COUNT(*) FROM evaluations GROUP BY session"))
+        return [{"session": s, "started": t, "resumed": bool(r), "recorded": int(n_rows.get(s, 0)),
+                 **{k: v for k, v in counts.get(s, {}).items() if k != "session"}}
+                for s, t, r in self._rows("SELECT id, started, resumed FROM sessions ORDER BY id")]
+
+    @property
+    def n_repeated(self) -> int:
+        return sum(int(s.get("repeated", 0) or 0) for s in self.sessions())
+
+    # ----------------------------------------------------------------------- values
+    def _refs(self) -> tuple[list[tuple[MetricRef, str]], list[Constraint]]:
+        objs = [(MetricRef.parse(o["metric"], "objective"), str(o["sense"])) for o in (self.objectives or [])]
+        cons = [Constraint(metric=MetricRef.parse(c["metric"], "constraint"), op=Op(c["op"]), value=float(c["value"]))
+                for c in self.constraints]
+        return objs, cons
+
+    def objective_values(self, case: Case | RecordedDesign) -> tuple[float, ...]:
+        """Each objective's value at ``case`` (NaN where unavailable)."""
+        return tuple(ref.value(case.metrics) for ref, _ in self._refs()[0])
+
+    def violation(self, case: Case | RecordedDesign) -> float:
+        """Largest normalised constraint violation (≤ 0 satisfied; inf when a value is missing)."""
+        worst = 0.0
+        for c in self._refs()[1]:
+            v = c.metric.value(case.metrics)
+            worst = max(worst, c.normalised(v) if math.isfinite(v) else math.inf)
+        return worst
+
+    def feasible(self, case: Case | RecordedDesign) -> bool:
+        ok = getattr(case, "outcome", "ok") == "ok"
+        return ok and self.violation(case) <= float(self.info.get("constraint_tol", 1e-4))
+
+    def best(self) -> Case | None:
+        """The best evaluation by the first objective: feasible first, then least violation.
+        None when the record names no objective (a sweep, or a record older than ``run_info``)."""
+        objs, _ = self._refs()
+        if not objs:
+            return None
+        ref, sense = objs[0]
+        sign = -1.0 if sense == "maximise" else 1.0
+        best, best_key = None, None
+        for case in self.cases():
+            v = ref.value(case.metrics)
+            if case.outcome != "ok" or not math.isfinite(v):
+                continue
+            feas = self.feasible(case)
+            key = (0, sign * v) if feas else (1, self.violation(case))
+            if best_key is None or key < best_key:
+                best, best_key = case, key
+        return best
+
+    def summary(self) -> RunSummary:
+        best = self.best()
+        objs = self.objectives or []
+        return RunSummary(path=self.run_dir, kind=self.kind, problem=self.problem, status=self.status,
+                          n_evaluations=len(self), objective=objs[0]["metric"] if objs else "",
+                          best=self.objective_values(best)[0] if best is not None else math.nan,
+                          feasible=None if best is None else self.feasible(best), repeated=self.n_repeated)
+
+    def history_table(self) -> tuple[list[str], list[list[Any]]]:
+        """Columns and rows of the history: id, session, start, stage, outcome, each variable (edge
+        units), each objective and constraint metric, feasible."""
+        var_cols = [f"{v['key']} [{pretty(v['unit'])}]" for v in (self.variables or [])]
+        objs, cons = self._refs()
+        metric_cols = [r.text for r, _ in objs] + [c.metric.text for c in cons if c.metric.text not in
+                                                   {r.text for r, _ in objs}]
+        refs = {r.text: r for r, _ in objs} | {c.metric.text: c.metric for c in cons}
+        cols = ["id", "session", "start", "stage", "outcome"] + (var_cols or ["x"]) + metric_cols + ["feasible"]
+        rows = []
+        for c in self.cases():
+            xs: list[Any] = list(c.x) if var_cols else [json.dumps(list(c.x))]
+            rows.append([c.id, c.session, c.start, c.stage, c.outcome, *xs,
+                         *(refs[m].value(c.metrics) for m in metric_cols), self.feasible(c) if objs else ""])
+        return cols, rows
+
+    # ----------------------------------------------------------------------- lifetime
+    def close(self) -> None:
+        self._db.close()
+
+    def __enter__(self) -> "RunReader":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def find_runs(root: str | Path, *, depth: int = 3) -> Iterator[Path]:
+    """Run directories at or below ``root`` (those holding ``evaluations.sqlite``), sorted."""
+    root = Path(root)
+    found: list[Path] = []
+    level = [root]
+    for _ in range(depth + 1):
+        nxt = []
+        for d in level:
+            if (d / FILENAME).is_file():
+                found.append(d)
+            try:
+                nxt.extend(sorted(p for p in d.iterdir() if p.is_dir() and not p.is_symlink() and not p.name.startswith(".")))
+            except OSError:
+                continue
+        level = nxt
+    yield from sorted(found)
+
+
+def as_dict(summary: RunSummary) -> Mapping[str, Any]:
+    return {"path": str(summary.path), "kind": summary.kind, "problem": summary.problem, "status": summary.status,
+            "evaluations": summary.n_evaluations, "objective": summary.objective,
+            "best": None if math.isnan(summary.best) else summary.best, "feasible": summary.feasible,
+            "repeated": summary.repeated}

@@ -1,0 +1,428 @@
+"""Parameter sweeps over any numeric design key, 1-D or 2-D, on the executor, recorded like a run.
+
+``KEY=lo:hi:n`` (TOML key ``section.key`` in its edge unit, ``n ≥ 2`` evenly spaced values, both
+ends included). A sweep is the full grid of its axes (the first axis varies slowest). Each point
+is :func:`hapticopt.optim.evaluation.evaluate_point` — the same unit of work as an optimiser
+point — submitted to the executor (process pool, inline or Dask); results do not depend on the
+executor. Every point is recorded in ``DIR/evaluations.sqlite`` under its exact key as it
+completes, so an interrupted sweep resumes (``--resume``) and recomputes nothing it recorded.
+
+Outputs (written by :func:`write_outputs`): ``sweep.csv`` (one row per point: the keys with
+units, the outcome, every scalar metric and every component ``name[i]`` of a vector metric)
+and ``plots/sweep_<metric>.png`` (1-D: metric against the key; 2-D: a filled contour map), the
+unit on each axis.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io as _io
+import itertools
+import math
+import re
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import Executor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+import numpy as np
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr.statics import PrrrStatics, statics_arrays
+from hapticopt.analysis.registry import EVALUATORS, jsonable
+from hapticopt.analysis.status import Status
+from hapticopt.design import io
+from hapticopt.design.atomic import atomic_path, write_text
+from hapticopt.design.errors import InvalidDesign, InvalidInput
+from hapticopt.design.prrr.kinematics import PrrrParams
+from hapticopt.design.schema import specs
+from hapticopt.design.units import TO_SI, pretty
+from hapticopt.optim.evaluation import Outcome, PointResult, PointTask, evaluate_point
+from hapticopt.optim.problem import Variable, design_at
+from hapticopt.optim.recorder import Recorder, point_key
+from hapticopt.optim.runs import software_versions
+
+#: at most this many points in one sweep (a typo such as n = 10000 × 10000 is refused)
+MAX_POINTS = 200_000
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_AXIS_RE = re.compile(rf"^\s*([^=\s]+)\s*=\s*({_NUMBER})\s*:\s*({_NUMBER})\s*:\s*(\S+)\s*$")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Axis:
+    """One swept key: ``n`` evenly spaced values from ``lo`` to ``hi`` (edge unit)."""
+
+    variable: Variable
+    n: int
+
+    @property
+    def key(self) -> str:
+        return self.variable.key
+
+    @property
+    def unit(self) -> str:
+        return self.variable.unit
+
+    @property
+    def values(self) -> tuple[float, ...]:
+        lo, hi, n = self.variable.lower, self.variable.upper, self.n
+        # lo + i·(hi − lo)/(n − 1), with both ends exact
+        return tuple(lo if i == 0 else hi if i == n - 1 else lo + i * (hi - lo) / (n - 1) for i in range(n))
+
+    @property
+    def label(self) -> str:
+        return f"{self.key} [{pretty(self.unit)}]"
+
+
+def parse_axis(text: str, base: Any) -> Axis:
+    """``section.key=lo:hi:n`` for a numeric key of ``base``; one-line errors name what is allowed."""
+    m = _AXIS_RE.match(text)
+    if m is None:
+        raise InvalidInput(f"sweep axis {text!r} must have the form section.key=lo:hi:n, e.g. geometry.beta_deg=30:70:9")
+    key, lo_s, hi_s, n_s = m.groups()
+    if key.count(".") != 1:
+        raise InvalidInput(f"sweep axis {key!r} is not a numeric design key: give section.key, e.g. geometry.beta_deg "
+                           f"(sections of a {base.device} design: {', '.join(base.SECTIONS)})")
+    section, tkey = key.split(".")
+    if section not in base.SECTIONS:
+        raise InvalidInput(f"sweep axis {key}: {section} is not a section of a {base.device} design: "
+                           f"allowed {', '.join(base.SECTIONS)}")
+    by_key = {s.key: (fname, s) for fname, s in specs(getattr(base, section)).items()}
+    if tkey not in by_key:
+        raise InvalidInput(f"sweep axis {key} is not a numeric key of the design: allowed keys in [{section}] are "
+                           f"{', '.join(sorted(by_key))}")
+    fname, spec = by_key[tkey]
+    lo, hi = float(lo_s), float(hi_s)
+    try:
+        n = int(n_s)
+    except ValueError:
+        raise InvalidInput(f"sweep axis {key}: n = {n_s!r} must be a whole number of points ≥ 2") from None
+    if n < 2:
+        raise InvalidInput(f"sweep axis {key}: n = {n} must be ≥ 2 (points, both ends included)")
+    if not lo < hi:
+        raise InvalidInput(f"sweep axis {key}: lo = {lo:g} must be below hi = {hi:g} ({pretty(spec.unit)})")
+    for value, name in ((lo, "lo"), (hi, "hi")):
+        try:
+            spec.check(f"sweep axis {key}: {name}", value)
+        except InvalidDesign as exc:
+            raise InvalidInput(str(exc)) from None
+    axis = Axis(variable=Variable(key=key, section=section, field=fname, unit=spec.unit, lower=lo, upper=hi,
+                                  start=lo), n=n)
+    if spec.integer and any(v != int(v) for v in axis.values):
+        raise InvalidInput(f"sweep axis {key} takes whole numbers: {lo:g}:{hi:g}:{n} gives fractions "
+                           f"(choose n so that (hi − lo)/(n − 1) is whole)")
+    return axis
+
+
+@dataclass(frozen=True, kw_only=True)
+class Sweep:
+    """What to sweep: the base design, one or two axes, the fidelity, the evaluators run per point."""
+
+    base: Any
+    axes: tuple[Axis, ...]
+    fidelity: Fidelity = Fidelity.DRAFT
+    only: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if not 1 <= len(self.axes) <= 2:
+            raise InvalidInput(f"a sweep takes 1 or 2 axes KEY=lo:hi:n, not {len(self.axes)}")
+        keys = [a.key for a in self.axes]
+        if len(set(keys)) != len(keys):
+            raise InvalidInput(f"sweep axis {keys[0]} is given twice")
+        if self.n_points > MAX_POINTS:
+            raise InvalidInput(f"the sweep has {self.n_points} points: allowed at most {MAX_POINTS}")
+        if self.only is not None:
+            names = [e.name for e in EVALUATORS[self.base.device]]
+            for name in self.only:
+                if name not in names:
+                    raise InvalidInput(f"--only {name!r} is not an evaluator of a {self.base.device} design: "
+                                       f"allowed {', '.join(names)}")
+
+    @property
+    def variables(self) -> tuple[Variable, ...]:
+        return tuple(a.variable for a in self.axes)
+
+    @property
+    def n_points(self) -> int:
+        return math.prod(a.n for a in self.axes)
+
+    def points(self) -> list[tuple[float, ...]]:
+        """The grid, first axis slowest (row-major)."""
+        return [tuple(p) for p in itertools.product(*(a.values for a in self.axes))]
+
+    def fingerprint(self) -> str:
+        payload = repr(("sweep", io.dumps(self.base), self.variables, tuple(a.n for a in self.axes),
+                        str(self.fidelity), self.only))
+        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+    def info(self) -> dict[str, Any]:
+        """The record's ``run_info`` for this sweep."""
+        return {"kind": "sweep", "problem": f"{self.base.name} sweep",
+                "description": f"{self.base.name}: " + ", ".join(f"{a.key}={a.variable.lower:g}:{a.variable.upper:g}:"
+                                                                 f"{a.n}" for a in self.axes),
+                "device": self.base.device, "base_design": io.dumps(self.base),
+                "variables": [{"key": a.key, "unit": a.unit, "lower": a.variable.lower, "upper": a.variable.upper,
+                               "start": a.variable.lower, "n": a.n} for a in self.axes],
+                "objectives": [], "constraints": [], "fidelity": {"optimise": str(self.fidelity)},
+                "only": list(self.only) if self.only is not None else None, "versions": software_versions()}
+
+
+@dataclass(frozen=True, kw_only=True)
+class SweepResult:
+    sweep: Sweep
+    points: tuple[tuple[float, ...], ...]
+    results: tuple[PointResult, ...]  # one per point, in grid order
+    n_evaluated: int
+    n_replayed: int
+
+    @property
+    def n_ok(self) -> int:
+        return sum(r.outcome is Outcome.OK for r in self.results)
+
+
+ProgressFn = Callable[[int, int], None]  # (done, total)
+
+#: evaluators with a batched jax form, by device: one jit-compiled vmap call evaluates a whole chunk
+BATCHED: dict[str, tuple[str, ...]] = {"prrr": ("statics",)}
+#: designs per batched call (the last chunk is padded to this size: one compiled shape)
+BATCH_CHUNK = 256
+
+
+def batch_supported(sweep: "Sweep") -> bool:
+    """True when every evaluator the sweep runs has a batched form (``--only`` must name them)."""
+    allowed = BATCHED.get(sweep.base.device, ())
+    return sweep.only is not None and len(sweep.only) > 0 and all(name in allowed for name in sweep.only)
+
+
+def _statics_batch_fn() -> Callable[..., Any]:
+    import jax
+
+    def one(p: Any, k: Any, f: Any, m: Any) -> Any:
+        return statics_arrays(PrrrParams(*p), k, f, m)
+
+    return jax.jit(jax.vmap(one))
+
+
+_BATCH_FNS: dict[str, Callable[..., Any]] = {}
+
+
+def _prrr_statics_batch(designs: Sequence[Any]) -> list[tuple[dict[str, Any], str, str]]:
+    """(metrics, status, message) of :func:`hapticopt.analysis.prrr.statics.evaluate` for each
+    design, computed by one jit-compiled ``vmap`` of the same ``statics_arrays`` (jax instead of numpy)."""
+    if "statics" not in _BATCH_FNS:
+        _BATCH_FNS["statics"] = _statics_batch_fn()
+    fn = _BATCH_FNS["statics"]
+    n = len(designs)
+    pad = list(designs) + [designs[-1]] * (BATCH_CHUNK - n)
+    fields = ("beta", "d1", "d2", "d3", "d4", "r4", "b5", "stroke")
+    p = tuple(np.array([float(getattr(d.geometry, f)) for d in pad]) for f in fields)
+    out = fn(p, np.array([d.actuator.spring for d in pad]), np.array([d.actuator.force_limit for d in pad]),
+             np.array([d.end_effector.mass for d in pad]))
+    out = {k: np.asarray(v)[:n] for k, v in out.items()}
+    results = []
+    for i in range(n):
+        finite = all(np.all(np.isfinite(v[i])) for v in out.values())
+        st = PrrrStatics(jacobian=out["jacobian"][i], condition=float(out["condition"][i]),
+                         condition_frobenius=float(out["condition_frobenius"][i]),
+                         effective_mass=out["effective_mass"][i], stiffness_matrix=out["stiffness_matrix"][i],
+                         stiffness_limit=out["stiffness_limit"][i], max_force=out["max_force"][i],
+                         max_pure_force=out["max_pure_force"][i],
+                         status=Status.OK if finite else Status.SINGULAR,
+                         message="" if finite else "Jacobian is numerically singular at this β")
+        results.append((jsonable(st.metrics()), str(st.status), st.message))
+    return results
+
+
+def _run_batched(sweep: "Sweep", xs: Sequence[tuple[float, ...]]) -> list[PointResult]:
+    """The batched twin of :func:`evaluate_point` for ``xs`` (no objective references)."""
+    out: list[PointResult | None] = [None] * len(xs)
+    valid: list[tuple[int, Any]] = []
+    for i, x in enumerate(xs):
+        try:
+            valid.append((i, design_at(sweep.base, sweep.variables, x)))
+        except InvalidDesign as exc:
+            out[i] = PointResult(x=tuple(x), outcome=Outcome.INVALID_DESIGN, message=str(exc))
+    for c in range(0, len(valid), BATCH_CHUNK):
+        chunk = valid[c:c + BATCH_CHUNK]
+        t0 = time.perf_counter()
+        evaluated = _prrr_statics_batch([d for _, d in chunk])
+        per = (time.perf_counter() - t0) / len(chunk)
+        for (i, _), (metrics, status, message) in zip(chunk, evaluated):
+            out[i] = PointResult(x=tuple(xs[i]), outcome=Outcome.OK, metrics=metrics, statuses={"statics": status},
+                                 timings_s={"statics": per})
+    return [r for r in out if r is not None]
+
+
+def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = None,
+              progress: ProgressFn | None = None,
+              evaluate_fn: Callable[[PointTask], PointResult] = evaluate_point,
+              timeout_s: float | None = None, batch: bool = False) -> SweepResult:
+    """Evaluate every grid point (recorded points are replayed); results in grid order.
+    ``timeout_s`` bounds the wait for the executor (:class:`TimeoutError` past it). ``batch``
+    evaluates in this process with the evaluators' batched jax forms (:func:`batch_supported`)."""
+    if batch and not batch_supported(sweep):
+        allowed = BATCHED.get(sweep.base.device, ())
+        raise InvalidInput(f"--batch needs --only naming evaluators with a batched form: for a {sweep.base.device} "
+                           f"design allowed {', '.join(allowed) if allowed else 'none'}")
+    points = sweep.points()
+    fid = str(sweep.fidelity)
+    results: list[PointResult | None] = [None] * len(points)
+    keys = [point_key(x, fid, False) for x in points]
+    n_replayed = 0
+    todo: list[int] = []
+    for i, key in enumerate(keys):
+        prev = recorder.lookup(key) if recorder is not None else None
+        if prev is not None:
+            results[i] = prev
+            n_replayed += 1
+        else:
+            todo.append(i)
+    done = n_replayed
+    if progress is not None:
+        progress(done, len(points))
+    if batch:
+        for c in range(0, len(todo), BATCH_CHUNK):
+            idx = todo[c:c + BATCH_CHUNK]
+            for i, res in zip(idx, _run_batched(sweep, [points[i] for i in idx])):
+                if recorder is not None:
+                    recorder.record(keys[i], res, start=0, stage="sweep", fidelity=fid)
+                results[i] = res
+            done += len(idx)
+            if progress is not None:
+                progress(done, len(points))
+        todo = []
+    futures = {executor.submit(evaluate_fn, PointTask(base=sweep.base, variables=sweep.variables, x=points[i],
+                                                      fidelity=sweep.fidelity, refs=(), only=sweep.only)): i
+               for i in todo}
+    for fut in as_completed(futures, timeout=timeout_s):
+        i = futures[fut]
+        try:
+            res = fut.result()
+        except Exception as exc:  # a worker crash is a handled outcome
+            res = PointResult(x=points[i], outcome=Outcome.EVALUATOR_FAILED, message=f"{type(exc).__name__}: {exc}")
+        if recorder is not None:
+            recorder.record(keys[i], res, start=0, stage="sweep", fidelity=fid)
+        results[i] = res
+        done += 1
+        if progress is not None:
+            progress(done, len(points))
+    return SweepResult(sweep=sweep, points=tuple(points), results=tuple(r for r in results if r is not None),
+                       n_evaluated=len(points) - n_replayed, n_replayed=n_replayed)
+
+
+# ------------------------------------------------------------------------------ outputs
+def unit_of_metric(name: str) -> str:
+    """The unit a metric name ends with (``stiffness_limit_N_per_mm`` → ``N_per_mm``), '' if none."""
+    base = name.split("[")[0]
+    found = [u for u in TO_SI if u and base.endswith("_" + u)]
+    return max(found, key=len) if found else ""
+
+
+def metric_label(name: str) -> str:
+    unit = unit_of_metric(name)
+    return f"{name} [{pretty(unit)}]" if unit else f"{name} [-]"
+
+
+def scalar_columns(results: Sequence[PointResult]) -> list[str]:
+    """Every scalar metric and every component ``name[i]`` of a vector metric, in first-seen order."""
+    cols: dict[str, None] = {}
+    for r in results:
+        for name, value in r.metrics.items():
+            for col, _ in scalars(name, value):
+                cols.setdefault(col, None)
+    return list(cols)
+
+
+def scalars(name: str, value: Any) -> list[tuple[str, float]]:
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return []
+    if isinstance(value, (int, float)):
+        return [(name, float(value))]
+    if isinstance(value, (list, tuple)) and value and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                          for v in value):
+        return [(f"{name}[{i}]", float(v)) for i, v in enumerate(value)]
+    return []  # matrices and records: in the record, not in the table
+
+
+def table(result: SweepResult) -> tuple[list[str], list[list[Any]]]:
+    cols = scalar_columns(result.results)
+    header = [a.label for a in result.sweep.axes] + ["outcome"] + cols
+    rows = []
+    for x, r in zip(result.points, result.results):
+        values = dict(itertools.chain.from_iterable(scalars(k, v) for k, v in r.metrics.items()))
+        rows.append([*x, str(r.outcome), *(values.get(c, math.nan) for c in cols)])
+    return header, rows
+
+
+def csv_text(result: SweepResult) -> str:
+    header, rows = table(result)
+    buf = _io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    for row in rows:
+        w.writerow(["" if isinstance(v, float) and math.isnan(v) else (repr(v) if isinstance(v, float) else v)
+                    for v in row])
+    return buf.getvalue()
+
+
+def write_outputs(result: SweepResult, out_dir: Path, *, plots: bool = True) -> list[Path]:
+    """``sweep.csv`` and one plot per scalar metric column (PNG, units on both axes)."""
+    out_dir = Path(out_dir)
+    written = [out_dir / "sweep.csv"]
+    write_text(written[0], csv_text(result))
+    if plots:
+        written += write_plots(result, out_dir / "plots")
+    return written
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_")
+
+
+def write_plots(result: SweepResult, plot_dir: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    header, rows = table(result)
+    axes = result.sweep.axes
+    n_ax = len(axes)
+    cols = header[n_ax + 1:]
+    data = np.array([[float(v) for v in r[n_ax + 1:]] for r in rows], dtype=float).reshape(len(rows), len(cols))
+    plot_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    title = f"{result.sweep.base.name} ({result.sweep.fidelity} fidelity)"
+    for j, col in enumerate(cols):
+        y = data[:, j]
+        if not np.any(np.isfinite(y)):
+            continue
+        fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=100)
+        if n_ax == 1:
+            ax.plot(axes[0].values, y, "o-", ms=3 if len(y) <= 200 else 0)
+            ax.set_xlabel(axes[0].label)
+            ax.set_ylabel(metric_label(col))
+            ax.grid(True, alpha=0.3)
+        else:
+            z = y.reshape(axes[0].n, axes[1].n)
+            xs, ys = np.asarray(axes[1].values), np.asarray(axes[0].values)
+            finite = z[np.isfinite(z)]
+            if finite.max() > finite.min():
+                cs = ax.contourf(xs, ys, np.ma.masked_invalid(z), levels=12)
+            else:
+                cs = ax.pcolormesh(xs, ys, np.ma.masked_invalid(z), shading="nearest")
+            fig.colorbar(cs, ax=ax, label=metric_label(col))
+            ax.set_xlabel(axes[1].label)
+            ax.set_ylabel(axes[0].label)
+        ax.set_title(title, fontsize=10)
+        fig.tight_layout()
+        path = plot_dir / f"sweep_{_safe(col)}.png"
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format="png")
+        plt.close(fig)
+        written.append(path)
+    return written

@@ -1,0 +1,89 @@
+"""``hapticopt compare``: prrr-paper against the prrr-workspace optimum shows every metric with its
+delta; presets, files and run directories resolve; bad input is one line, exit 2."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.registry import evaluate_all
+from hapticopt.design import io
+from hapticopt.optim.cli import app
+from hapticopt.optim.sweep import scalars
+
+runner = CliRunner()
+#: Regression snapshot: the optimum.toml of `hapticopt optimise prrr-workspace --no-export --no-verify`
+#: (issue 20 branch, 2026-11-26); regenerate with that command and copy cad_out/prrr-workspace/optimum.toml.
+OPTIMUM = Path(__file__).parents[1] / "data" / "prrr-workspace-optimum.toml"
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("prrr-workspace")
+    shutil.copy(OPTIMUM, d / "optimum.toml")
+    return d
+
+
+def test_compare_prrr_paper_and_the_prrr_workspace_optimum(run_dir, tmp_path):
+    res = runner.invoke(app, ["compare", "prrr-paper", str(run_dir), "--fidelity", "draft", "--json",
+                              "--report", str(tmp_path / "c.md")])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert [d["source"] for d in out["designs"]] == ["preset prrr-paper", f"run {run_dir} (optimum.toml)"]
+    # every metric component of both designs, each with its delta from prrr-paper
+    paper = evaluate_all(io.load_preset("prrr-paper"), fidelity=Fidelity.DRAFT)
+    opt = evaluate_all(io.load_design(OPTIMUM), fidelity=Fidelity.DRAFT)
+    expected = [k for name, v in paper.metrics().items() for k, _ in scalars(name, v)]
+    rows = {r["metric"]: r for r in out["metrics"]}
+    assert list(rows) == expected and len(expected) >= 30
+    flat_p = dict(kv for n, v in paper.metrics().items() for kv in scalars(n, v))
+    flat_o = dict(kv for n, v in opt.metrics().items() for kv in scalars(n, v))
+    for name, r in rows.items():
+        assert r["values"] == [flat_p[name], flat_o[name]]
+        assert r["deltas"][1] == flat_o[name] - flat_p[name]  # Δ = optimum − reference, every metric
+    assert rows["workspace_footprint_ratio"]["deltas"][1] > 0  # the problem's objective improved
+    assert rows["stiffness_limit_N_per_mm[0]"]["unit"] == "N/mm" and rows["jacobian_condition"]["unit"] == "-"
+    assert all(s == "ok" for d in out["designs"] for s in d["statuses"].values())
+    md = (tmp_path / "c.md").read_text()
+    assert md.count("\n| ") >= len(expected) and "| workspace_footprint_ratio | - |" in md
+
+
+def test_compare_table_at_80_columns(run_dir):
+    res = runner.invoke(app, ["compare", "prrr-paper", str(run_dir), "--fidelity", "draft"], env={"COLUMNS": "80"})
+    assert res.exit_code == 0, res.output
+    assert all(len(line) <= 80 for line in res.stdout.splitlines())
+    assert "Δ" in res.stdout and "all evaluators ok" in res.stdout
+
+
+@pytest.mark.parametrize("args, match", [
+    (["prrr-paper"], "at least 2 designs"),
+    (["prrr-paper", "no-such-design"], "is not a file, a run directory or a preset"),
+    (["prrr-paper", "master-paper", "--fidelity", "coarse"], "--fidelity = 'coarse'"),
+    (["prrr-paper", "master-paper", "--renders"], "--renders needs --report"),
+    (["prrr-paper", "master-paper", "--report", "x.pdf"], "must end in .md or .html"),
+])
+def test_bad_compare_one_line_exit_2(args, match, tmp_path):
+    res = runner.invoke(app, ["compare", *args])
+    assert res.exit_code == 2
+    (line,) = res.stderr.strip().splitlines()
+    assert match in line
+
+
+def test_compare_a_run_without_optimum_toml_uses_the_recorded_final_design(tmp_path):
+    from hapticopt.optim.cli.compare import cmp
+
+    res = runner.invoke(app, ["optimise", str(Path(__file__).parents[1] / "data" / "beta-isotropic.toml"), "--out",
+                              str(tmp_path), "--scheduler", "inline", "--no-export", "--no-verify", "--quiet",
+                              "--max-evals", "12"])
+    assert res.exit_code == 0, res.output
+    (tmp_path / "optimum.toml").unlink()
+    named = cmp.resolve(str(tmp_path))
+    assert named.source.endswith("(recorded final design)")
+    assert math.isclose(math.degrees(named.design.geometry.beta), json.loads(
+        (tmp_path / "result.json").read_text())["best_x"]["geometry.beta_deg"], rel_tol=1e-12)

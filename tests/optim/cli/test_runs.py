@@ -1,0 +1,76 @@
+"""``hapticopt runs`` and ``hapticopt show``: list and show recorded runs (read-only)."""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from hapticopt.optim import driver
+from hapticopt.optim.cli import app
+from hapticopt.optim.problem import load_problem
+from hapticopt.optim.recorder import FILENAME, Recorder
+from hapticopt.optim.runs import problem_info
+
+runner = CliRunner()
+DATA = Path(__file__).parents[1] / "data"
+
+
+@pytest.fixture(scope="module")
+def runs_dir(tmp_path_factory):
+    root = tmp_path_factory.mktemp("runs")
+    problem = load_problem(DATA / "resume-problem.toml").with_optimiser(max_evals=30)
+    with Recorder(root / "opt", fingerprint=problem.fingerprint(), resume=False) as rec:
+        rec.describe({**problem_info(problem), "status": "running"})
+        res = driver.run(problem, only=("statics",), recorder=rec)
+        rec.end_session(status="finished", n_evaluated=res.n_evaluated, n_replayed=0, max_evals=30)
+    out = runner.invoke(app, ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=40:60:3", "--only", "statics",
+                              "--scheduler", "inline", "--no-plots", "--quiet", "--out", str(root / "nested" / "sw")])
+    assert out.exit_code == 0, out.output
+    return root, res
+
+
+def test_runs_lists_every_run(runs_dir):
+    root, res = runs_dir
+    listed = json.loads(runner.invoke(app, ["runs", str(root), "--json"]).stdout)
+    by_path = {Path(r["path"]).name: r for r in listed}
+    assert set(by_path) == {"opt", "sw"}
+    assert by_path["opt"]["problem"] == "resume" and by_path["opt"]["evaluations"] == res.n_evaluated
+    assert by_path["opt"]["best"] == res.best.objective and by_path["opt"]["feasible"] is res.feasible
+    assert by_path["sw"]["kind"] == "sweep" and by_path["sw"]["evaluations"] == 3 and by_path["sw"]["best"] is None
+    table = runner.invoke(app, ["runs", str(root)], env={"COLUMNS": "80"})
+    assert table.exit_code == 0 and "opt" in table.stdout and "sweep" in table.stdout
+    assert all(len(line) <= 80 for line in table.stdout.splitlines())
+
+
+def test_show_table_csv_json_and_read_only(runs_dir):
+    root, res = runs_dir
+    db = root / "opt" / FILENAME
+    before = hashlib.sha256(db.read_bytes()).hexdigest()
+    table = runner.invoke(app, ["show", str(root / "opt")], env={"COLUMNS": "80"})
+    assert table.exit_code == 0, table.output
+    assert "best: evaluation" in table.stdout and "geometry.beta_deg" in table.stdout
+    rows = list(csv.reader(io.StringIO(runner.invoke(app, ["show", str(root / "opt"), "--csv"]).stdout)))
+    assert rows[0][5:7] == ["geometry.beta_deg [deg]", "actuator.spring_N_per_mm [N/mm]"]
+    assert len(rows) == 1 + res.n_evaluated
+    payload = json.loads(runner.invoke(app, ["show", str(root / "opt"), "--json"]).stdout)
+    assert payload["best_case"]["x"] == list(res.best.x) and payload["sessions"][0]["evaluated"] == res.n_evaluated
+    assert hashlib.sha256(db.read_bytes()).hexdigest() == before
+
+
+@pytest.mark.parametrize("args, match", [
+    (["show", "no/such/run"], "is not a run: no evaluations.sqlite"),
+    (["runs", "no/such/dir"], "is not a folder"),
+    (["show", ".", "--json", "--csv"], "at most one of --json and --csv"),
+    (["show", ".", "--last", "-1"], "--last = -1 must be ≥ 0"),
+])
+def test_bad_input_one_line_exit_2(args, match):
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2
+    (line,) = res.stderr.strip().splitlines()
+    assert match in line
