@@ -31,7 +31,7 @@ from hapticopt.design.units import GRAVITY
 REDUCTION = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 1.0], [0.0, 0.0, 1.0], [0.0, 1.0, -1.0]])
 ACTUATED = ("theta1", "theta2", "theta3")
 _MIN_MASS = 1e-13  # [kg] MuJoCo needs mass on every moving body; 1e-13 kg × g × 0.5 m ≈ 5e-13 N·m of gravity torque
-_MIN_INERTIA = 1e-15
+_MIN_INERTIA = 1e-12
 
 
 def full_qpos(q: Any) -> np.ndarray:

@@ -40,7 +40,7 @@ def test_point_mass_closed_form_bandwidth(design, m, K):
     1 − m ω²/K = 1/√2, i.e. ω = √((1 − 1/√2) K/m) and f_bw = √((1 − 1/√2)·K/m)/(2π)
     (the +3 dB crossing, mω²/K = 1 + √2, comes later). Continuous rendering (hold period 0)."""
     d, model = _point_mass(design, m)
-    setup = mt.RenderingSetup(spring=K, hold_period=0.0)
+    setup = mt.RenderingSetup(spring=K, hold_period=0.0, compensation=mt.OPEN_LOOP)
     r = mt.evaluate(d, setup=setup, model=model)
     expected = np.sqrt((1 - 1 / np.sqrt(2)) * K / m) / (2 * np.pi)
     np.testing.assert_allclose(r.apparent_mass, (m, m), rtol=1e-10)
@@ -50,15 +50,16 @@ def test_point_mass_closed_form_bandwidth(design, m, K):
 
 def test_zero_order_hold_barely_changes_the_bandwidth_at_1kHz(design):
     d, model = _point_mass(design, 0.5)
-    cont = mt.evaluate(d, setup=mt.RenderingSetup(hold_period=0.0), model=model).bandwidth
-    held = mt.evaluate(d, model=model).bandwidth
+    cont = mt.evaluate(d, setup=mt.RenderingSetup(hold_period=0.0, compensation=mt.OPEN_LOOP), model=model).bandwidth
+    held = mt.evaluate(d, setup=mt.RenderingSetup(hold_period=mt.HOLD_PERIOD_S, compensation=mt.OPEN_LOOP),
+                       model=model).bandwidth
     np.testing.assert_allclose(held, cont, rtol=1e-3)
     assert not np.allclose(held, cont, rtol=1e-12)
 
 
 def test_inertia_compensation_raises_bandwidth(design):
-    base = mt.evaluate(design)
-    comp = mt.evaluate(design, setup=mt.RenderingSetup(compensation=mt.Compensation(inertia=True, friction=True)))
+    base = mt.evaluate(design, setup=mt.RenderingSetup(compensation=mt.OPEN_LOOP, hold_period=mt.HOLD_PERIOD_S))
+    comp = mt.evaluate(design, setup=mt.RenderingSetup(compensation=mt.Compensation(inertia=mt.DynamicsCompensation.FULL, friction=True), hold_period=mt.HOLD_PERIOD_S))
     # the compensation goes through the same 1 kHz hold, so a residual λ(1 − H) ≈ λ·jωT/2 remains
     assert comp.bandwidth[0] > 5 * base.bandwidth[0] and comp.bandwidth[1] > 5 * base.bandwidth[1]
 
