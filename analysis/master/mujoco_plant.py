@@ -121,7 +121,8 @@ class MasterPlant:
             m.dof_armature[act] = 0.0
         if Effect.SATURATION not in fx:
             m.actuator_ctrllimited[:] = 0
-        self.substeps = max(1, int(round(period / self.solver.timestep)))
+        # plant steps per controller period: the scene's ``simulation.substeps`` if set, else by fidelity
+        self.substeps = scene.substeps if scene.substeps > 0 else max(1, int(round(period / self.solver.timestep)))
         m.opt.timestep = period / self.substeps
         self.period = period
         self.hand = Effect.OPERATOR in fx
@@ -171,7 +172,9 @@ class MasterPlant:
             tm = (np.arange(N) + 0.5) * T
             REF = off + amp * np.sin(w * tm[:, None] + ph)
             DREF = op.damping * amp * w * np.cos(w * tm[:, None] + ph)
-            HQ, HV, HA = (np.zeros((N, 3)) for _ in range(3))
+            HQ, HV, HA, EQF = (np.zeros((N, 3)) for _ in range(4))
+            eq_hand = m.equality("hand").id
+            eq_type = int(mj.mjtConstraint.mjCNSTR_EQUALITY)
         stop = -1
         n = self.n_closure
         for k in range(N):
@@ -193,6 +196,9 @@ class MasterPlant:
             clock[k] = d.time
             if self.hand:
                 HQ[k], HV[k], HA[k] = d.qpos[hq], d.qvel[hd], d.qacc[hd]
+                rows = np.nonzero((d.efc_type == eq_type) & (d.efc_id == eq_hand))[0]
+                if rows.size == 3:  # the connect's force on the hand (body1); the handle feels its opposite
+                    EQF[k] = -d.efc_force[rows]
             if k % 100 == 99 or k == N - 1:
                 lo = max(0, k - 99)
                 bad = (~np.all(np.isfinite(P[lo:k + 1]), axis=-1)
@@ -202,11 +208,10 @@ class MasterPlant:
                     stop = lo + int(np.argmax(bad))
                     break
         if self.hand:
-            op = self.scene.operator
-            t = (np.arange(N) + 1) * T
-            ref = off + amp * np.sin(w * t[:, None] + ph)
-            dref = amp * w * np.cos(w * t[:, None] + ph)
-            FH = op.stiffness * (ref - HQ) + op.damping * (dref - HV) - op.mass * HA
+            # the hand's force on the handle: the hand connect's constraint force, at the same instant as
+            # the recorded handle position (kinematics and efc_force of the last substep's start). The
+            # spring formula k_h(x_r − x_h) + b_h(ẋ_r − ẋ_h) − m_h ẍ_h gives the same fundamentals (issue 16).
+            FH = EQF
             V = HV  # the hand is tied to the handle: its velocity is the handle's
         out = {"position": P, "velocity": V, "hand_force": FH, "torque": TAU, "force_reference": FREF,
                "violation": EF, "stop": np.array([stop]), "reference": off + amp * np.sin(w * ((np.arange(N) + 1) * T)[:, None] + ph)}
