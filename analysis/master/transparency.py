@@ -52,6 +52,8 @@ ESTIMATOR_FILTER_HZ = 100.0  # the firmware's velocity (and acceleration) filter
 AXES = ("x", "z")
 NEAR_AXIS = 0.2  # worst case: poses with the handle closer than 0.2·L5 to the θ1 axis are left out
 F_MIN_HZ, F_MAX_HZ = 1e-3, 500.0
+#: worst case over the workspace: grid (θ1, θ3, φ) per fidelity (none at draft)
+WORST_GRID = {Fidelity.STANDARD: (3, 9, 9), Fidelity.FINE: (5, 15, 15)}
 _DB3 = np.sqrt(2.0)  # ±3 dB read as half/double power: |G_T| = 1/√2 … √2 (as the closed form)
 
 
@@ -256,7 +258,7 @@ class MasterTransparency:
     bandwidth: tuple[float, float]  # [Hz] x, z at the pose
     apparent_mass: tuple[float, float]  # λ [kg] x, z at the pose
     gravity_stiffness: tuple[float, float]  # [N/m]
-    worst_bandwidth: tuple[float, float] | None  # [Hz] min over the workspace (fine fidelity)
+    worst_bandwidth: tuple[float, float] | None  # [Hz] min over the workspace (standard, fine fidelity)
     worst_pose: tuple[tuple[float, float, float], tuple[float, float, float]] | None
     setup: RenderingSetup
     coefficients: AxisCoefficients = field(repr=False)
@@ -276,8 +278,8 @@ class MasterTransparency:
 
 def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, setup: RenderingSetup = RenderingSetup(),
              pose: np.ndarray | None = None, model: md.MassModel | None = None) -> MasterTransparency:
-    """Transparency bandwidth along x and z at ``pose`` (default :func:`default_pose`); at fine
-    fidelity also the worst case over a grid of the joint-range workspace."""
+    """Transparency bandwidth along x and z at ``pose`` (default :func:`default_pose`); at standard
+    and fine fidelity also the worst case over a grid of the joint-range workspace (:data:`WORST_GRID`)."""
 
     fidelity = Fidelity(fidelity)
     model = md.model_of(design) if model is None else model
@@ -294,12 +296,13 @@ def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, se
     if dc.any():
         status, message = Status.UNSTABLE, "|G_T| is outside ±3 dB already at DC (gravity stiffness too large)"
     worst = worst_pose = None
-    if fidelity is Fidelity.FINE:
+    if fidelity in WORST_GRID:
+        n1, n3, nph = WORST_GRID[fidelity]
         ws = mb.workspace_of(design)
         j = design.joints
-        t1 = np.linspace(j.theta1_min, j.theta1_max, 5)
-        t3 = np.linspace(*ws.theta3, 15)
-        ph = np.linspace(*ws.phi, 15)
+        t1 = np.linspace(j.theta1_min, j.theta1_max, n1)
+        t3 = np.linspace(*ws.theta3, n3)
+        ph = np.linspace(*ws.phi, nph)
         T1, T3, PH = np.meshgrid(t1, t3, ph, indexing="ij")
         Q = np.stack([T1, 0.5 * np.pi + T3 - PH, T3], -1).reshape(-1, 3)
         g = design.geometry
