@@ -161,7 +161,7 @@ def test_com_exactly_on_the_boundary(design, balance):
                                                                           forearm_mass=mf))
     b = mb.evaluate(d)
     assert b.max_force == pytest.approx(0.1, rel=2e-3) and np.isfinite(b.radius)  # r moves with M (r ∝ 1/M)
-    assert np.hypot(*b.com_offset) == pytest.approx(b.radius, rel=1e-3)
+    assert np.hypot(*b.com_offset) == pytest.approx(b.radius, rel=2e-3)  # r moves with M
     t = mt.evaluate(d)
     assert t.status is Status.OK and np.all(np.isfinite(t.bandwidth))
 
@@ -197,8 +197,8 @@ def test_problem_optimises_counterweight_masses_and_positions_and_verifies_in_tw
     keys = {v.key for v in p.variables}
     assert keys == {"counterweights.upper_mass_kg", "counterweights.upper_distance_mm",
                     "counterweights.forearm_mass_kg", "counterweights.forearm_distance_mm"}
-    assert p.objective.metric == "transparency_bandwidth_min_Hz"
-    assert {c.metric for c in p.constraints} == {"max_unbalance_force_N", "workspace_coverage"}
+    assert p.objective.metric.text == "transparency_bandwidth_min_Hz"
+    assert {c.metric.text for c in p.constraints} == {"max_unbalance_force_N", "workspace_coverage"}
     assert set(p.scenes) == {"master-transparency", "master-wall"}
 
 
