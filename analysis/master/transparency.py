@@ -53,7 +53,8 @@ AXES = ("x", "z")
 NEAR_AXIS = 0.2  # worst case: poses with the handle closer than 0.2·L5 to the θ1 axis are left out
 F_MIN_HZ, F_MAX_HZ = 1e-3, 500.0
 #: worst case over the workspace: grid (θ1, θ3, φ) per fidelity (none at draft)
-WORST_GRID = {Fidelity.STANDARD: (3, 9, 9), Fidelity.FINE: (5, 15, 15)}
+#: (n θ1, n θ3, n φ, zoom levels)
+WORST_GRID = {Fidelity.STANDARD: (3, 15, 15, 4), Fidelity.FINE: (5, 15, 15, 8)}
 _DB3 = np.sqrt(2.0)  # ±3 dB read as half/double power: |G_T| = 1/√2 … √2 (as the closed form)
 
 
@@ -297,23 +298,43 @@ def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, se
         status, message = Status.UNSTABLE, "|G_T| is outside ±3 dB already at DC (gravity stiffness too large)"
     worst = worst_pose = None
     if fidelity in WORST_GRID:
-        n1, n3, nph = WORST_GRID[fidelity]
+        n1, n3, nph, levels = WORST_GRID[fidelity]
         ws = mb.workspace_of(design)
         j = design.joints
-        t1 = np.linspace(j.theta1_min, j.theta1_max, n1)
-        t3 = np.linspace(*ws.theta3, n3)
-        ph = np.linspace(*ws.phi, nph)
-        T1, T3, PH = np.meshgrid(t1, t3, ph, indexing="ij")
-        Q = np.stack([T1, 0.5 * np.pi + T3 - PH, T3], -1).reshape(-1, 3)
+        lo = np.array([j.theta1_min, ws.theta3[0], ws.phi[0]])
+        hi = np.array([j.theta1_max, ws.theta3[1], ws.phi[1]])
         g = design.geometry
-        rho = g.upper_arm * np.cos(Q[:, 1]) + g.forearm * np.sin(Q[:, 2])
-        Q = Q[rho >= NEAR_AXIS * g.upper_arm]  # near the θ1 axis the turret's apparent mass diverges
-        cw = axis_coefficients(model, Q, setup.amplitude, gravity=gp)
-        bws, _ = bandwidth(cw, setup)
-        bws = np.where(cw.valid[:, None], bws, np.inf)
-        k = np.argmin(bws, axis=0)
-        worst = (float(bws[k[0], 0]), float(bws[k[1], 1]))
-        worst_pose = (tuple(map(float, Q[k[0]])), tuple(map(float, Q[k[1]])))
+
+        def bandwidths(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """(θ1, θ3, φ) points → poses kept (away from the θ1 axis) and their bandwidths (n, 2)."""
+            Q = np.stack([P[:, 0], 0.5 * np.pi + P[:, 1] - P[:, 2], P[:, 1]], -1)
+            rho = g.upper_arm * np.cos(Q[:, 1]) + g.forearm * np.sin(Q[:, 2])
+            Q = Q[rho >= NEAR_AXIS * g.upper_arm]  # near the θ1 axis the turret's apparent mass diverges
+            cw = axis_coefficients(model, Q, setup.amplitude, gravity=gp)
+            bws, _ = bandwidth(cw, setup)
+            return Q, np.where(cw.valid[:, None], bws, np.inf)
+
+        axes_ = [np.linspace(lo[i], hi[i], n) for i, n in enumerate((n1, n3, nph))]
+        P0 = np.stack(np.meshgrid(*axes_, indexing="ij"), -1).reshape(-1, 3)
+        Q, bws = bandwidths(P0)
+        step = (hi - lo) / np.maximum(np.array([n1, n3, nph]) - 1, 1)
+        worst_l, pose_l = [], []
+        for a in range(2):  # zoom around each axis's grid minimum (as the unbalance maximisation)
+            k = int(np.argmin(bws[:, a]))
+            best_v, best_q = float(bws[k, a]), Q[k]
+            h = step.copy()
+            for _ in range(levels):
+                c = np.array([best_q[0], best_q[2], 0.5 * np.pi + best_q[2] - best_q[1]])  # (θ1, θ3, φ)
+                loc = [np.clip(np.linspace(c[i] - h[i], c[i] + h[i], 5), lo[i], hi[i]) for i in range(3)]
+                Qz, bz = bandwidths(np.stack(np.meshgrid(*loc, indexing="ij"), -1).reshape(-1, 3))
+                if len(Qz) and float(bz[:, a].min()) < best_v:
+                    kz = int(np.argmin(bz[:, a]))
+                    best_v, best_q = float(bz[kz, a]), Qz[kz]
+                h = 0.5 * h
+            worst_l.append(best_v)
+            pose_l.append(tuple(map(float, best_q)))
+        worst = (worst_l[0], worst_l[1])
+        worst_pose = (pose_l[0], pose_l[1])
         if ws.clipped:
             status = Status.SINGULAR
             message = "the φ range reaches the parallelogram singularity: poses within 2° of it are excluded"
