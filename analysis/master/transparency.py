@@ -53,8 +53,8 @@ AXES = ("x", "z")
 NEAR_AXIS = 0.2  # worst case: poses with the handle closer than 0.2·L5 to the θ1 axis are left out
 F_MIN_HZ, F_MAX_HZ = 1e-3, 500.0
 #: worst case over the workspace: grid (θ1, θ3, φ) per fidelity (none at draft)
-#: (n θ1, n θ3, n φ, zoom levels)
-WORST_GRID = {Fidelity.STANDARD: (3, 15, 15, 4), Fidelity.FINE: (5, 15, 15, 8)}
+#: (n θ1, n θ3, n φ, zoom levels, points per coordinate and zoom level)
+WORST_GRID = {Fidelity.STANDARD: (3, 15, 15, 5, 3), Fidelity.FINE: (5, 15, 15, 8, 5)}
 _DB3 = np.sqrt(2.0)  # ±3 dB read as half/double power: |G_T| = 1/√2 … √2 (as the closed form)
 
 
@@ -298,7 +298,7 @@ def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, se
         status, message = Status.UNSTABLE, "|G_T| is outside ±3 dB already at DC (gravity stiffness too large)"
     worst = worst_pose = None
     if fidelity in WORST_GRID:
-        n1, n3, nph, levels = WORST_GRID[fidelity]
+        n1, n3, nph, levels, zoom_points = WORST_GRID[fidelity]
         ws = mb.workspace_of(design)
         j = design.joints
         lo = np.array([j.theta1_min, ws.theta3[0], ws.phi[0]])
@@ -325,7 +325,7 @@ def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, se
             h = step.copy()
             for _ in range(levels):
                 c = np.array([best_q[0], best_q[2], 0.5 * np.pi + best_q[2] - best_q[1]])  # (θ1, θ3, φ)
-                loc = [np.clip(np.linspace(c[i] - h[i], c[i] + h[i], 5), lo[i], hi[i]) for i in range(3)]
+                loc = [np.clip(np.linspace(c[i] - h[i], c[i] + h[i], zoom_points), lo[i], hi[i]) for i in range(3)]
                 Qz, bz = bandwidths(np.stack(np.meshgrid(*loc, indexing="ij"), -1).reshape(-1, 3))
                 if len(Qz) and float(bz[:, a].min()) < best_v:
                     kz = int(np.argmin(bz[:, a]))
