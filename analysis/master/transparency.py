@@ -46,14 +46,12 @@ from hapticopt.analysis.master import balance as mb
 SPRING_N_PER_M = 50.0  # 0.05 N/mm, seed 003's ideal force
 AMPLITUDE_M = 7.5e-3  # 7.5 mm, seed 003's hand motion
 HOLD_PERIOD_S = 1e-3  # 1 kHz firmware
-PROTOCOL_FREQUENCY_HZ = 1.0  # seed 003: the handle moves along 7.5 sin(2πt) mm
-PROTOCOL_DURATION_S = 3.0  # seed 003: 3 s per co-simulation
 ESTIMATOR_FILTER_HZ = 100.0  # the firmware's velocity (and acceleration) filter, scenes' velocity_filter_Hz
 AXES = ("x", "z")
 NEAR_AXIS = 0.2  # worst case: poses with the handle closer than 0.2·L5 to the θ1 axis are left out
 F_MIN_HZ, F_MAX_HZ = 1e-3, 500.0
-#: worst case over the workspace: grid (θ1, θ3, φ) per fidelity (none at draft)
-#: (n θ1, n θ3, n φ, zoom levels, points per coordinate and zoom level)
+#: worst case over the workspace per fidelity (none at draft): grid (n θ1, n θ3, n φ), then zoom
+#: levels around each axis's minimum with this many points per coordinate
 WORST_GRID = {Fidelity.STANDARD: (3, 15, 15, 5, 3), Fidelity.FINE: (5, 15, 15, 8, 5)}
 _DB3 = np.sqrt(2.0)  # ±3 dB read as half/double power: |G_T| = 1/√2 … √2 (as the closed form)
 

@@ -105,3 +105,22 @@ def test_mujoco_sine_sweep_agrees_with_frequency_domain(design):
     r = master_sweep.sweep(design, "z", factors=(0.9, 1.1))
     assert r.relative_error < 0.05
     assert r.closure_error < 1e-4
+
+
+def test_full_compensation_of_exact_state_is_perfectly_transparent(design):
+    """Closed form: with every body compensated from the exact state (T = 0, no filter) and no gravity
+    stiffness or friction, G_T = [K − ω²(λ − λ̂)]/K = 1 at every frequency."""
+    d, model = _point_mass(design, 0.5)
+    r = mt.evaluate(d, model=model, setup=mt.RenderingSetup(compensation=mt.Compensation(
+        inertia=mt.DynamicsCompensation.FULL)))
+    G = mt.transfer(r.coefficients, np.array([0.1, 1.0, 10.0, 100.0]), r.setup)
+    np.testing.assert_allclose(G, 1.0, atol=1e-12)
+
+
+def test_estimator_is_one_at_low_frequency_and_lags_by_about_a_period():
+    """Two plain backward differences D = (1 − z⁻¹)/T: D²/(jω)² = e^{−jωT}·sinc²(ωT/2), i.e. a delay of
+    one period T and unit gain at low frequency (closed form)."""
+    T, w = 1e-3, np.array([1.0, 10.0, 100.0])
+    E = mt.estimator(w, T, 0.0)
+    np.testing.assert_allclose(E, np.exp(-1j * w * T) * np.sinc(w * T / 2 / np.pi) ** 2, rtol=1e-12)
+    np.testing.assert_allclose(mt.estimator(w, 0.0, 0.0), 1.0)
