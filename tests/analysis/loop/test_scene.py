@@ -104,3 +104,18 @@ def test_master_scenes_and_sweep_validation():
         scene_from_dict({"name": "m", "simulation": {"sweep_factors": [1.0]}})
     with pytest.raises(InvalidInput, match="device = 'robot' is not known"):
         scene_from_dict({"name": "m", "device": "robot"})
+
+
+def test_master_protocol_scenes_and_dynamics_compensation_key():
+    """issue 16: seed 003's protocol scenes (7.5 mm at 1 Hz for 3 s, links compensated, no gravity
+    compensation); controller.dynamics_compensation accepts none / links / full only."""
+    from hapticopt.analysis.loop.scene import DynamicsCompensation
+
+    for axis, amp in (("x", (7.5e-3, 0.0, 0.0)), ("z", (0.0, 0.0, 7.5e-3))):
+        sc = load_scene(f"master-protocol-{axis}")
+        assert sc.motion.amplitude == pytest.approx(amp) and sc.motion.frequency == pytest.approx(1.0)
+        assert sc.duration == pytest.approx(3.0) and not sc.controller.gravity_compensation
+        assert sc.controller.dynamics_compensation is DynamicsCompensation.LINKS
+    assert load_scene("master-wall").controller.dynamics_compensation is DynamicsCompensation.NONE
+    with pytest.raises(InvalidInput, match="dynamics_compensation = 'model' is not known: allowed none, links, full"):
+        scene_from_dict({"name": "m", "device": "master", "controller": {"dynamics_compensation": "model"}})
