@@ -15,7 +15,8 @@ Transparency mode (seed 003's controller, ``compensation_model`` set): model-bas
 compensation of the dynamics *without gravity*, τ += M̂(q) q̂̈ + Ĉ(q, q̂̇) q̂̇, with M̂ the mass matrix of
 the compensation model's bodies (``compensation_weights`` selects them: the links without the
 counterweights in seed 003's reading, docs/master.md) and q̂̇, q̂̈ two cascaded filtered backward
-differences of the joint angles (the velocity filter's pole; no filter = plain differences). Ĉ q̂̇ =
+differences of the joint angles (the velocity filter's pole; no filter = plain differences; each
+filter starts at its first input), applied from the third step on (q̂̈ needs three samples). Ĉ q̂̇ =
 Ṁ q̂̇ − ½ ∂(q̂̇ᵀ M̂ q̂̇)/∂q by central differences of M̂ (h = 1e-6 rad). The frequency-domain model of this
 loop is :func:`hapticopt.analysis.master.transparency.transfer`.
 """
@@ -113,7 +114,26 @@ class MasterController:
         self._p_prev, _ = forward(self.cfg, q)
         self._v = np.zeros(3)
         self._q_prev, self._qd, self._qdd = q, np.zeros(3), np.zeros(3)
+        self._samples = 0  # joint-angle samples seen by step(): q̂̇ needs 2, q̂̈ 3 (no compensation before)
         self._ready = True
+
+    def _compensation(self, q: np.ndarray) -> np.ndarray:
+        """M̂ q̂̈ + Ĉ q̂̇ from filtered differences of the step samples (zero until q̂̈ is defined)."""
+        cfg, a = self.cfg, self.cfg.velocity_alpha
+        n = self._samples
+        self._samples = n + 1
+        if n == 0:  # the first sample: nothing to difference
+            self._q_prev = q
+            return np.zeros(3)
+        diff = (q - self._q_prev) / cfg.period
+        qd = diff if n == 1 else a * self._qd + (1.0 - a) * diff  # the filter starts at its first input
+        if n == 1:
+            self._q_prev, self._qd = q, qd
+            return np.zeros(3)
+        d2 = (qd - self._qd) / cfg.period
+        qdd = d2 if n == 2 else a * self._qdd + (1.0 - a) * d2
+        self._q_prev, self._qd, self._qdd = q, qd, qdd
+        return compensation_torque(cfg.compensation_model, self._weights, q, qd, qdd)
 
     def step(self, counts: np.ndarray) -> np.ndarray:
         cfg = self.cfg
@@ -134,10 +154,7 @@ class MasterController:
             F = np.zeros(3)
         tau = F @ J  # Jᵀ F
         if cfg.compensation_model is not None:
-            qd = a * self._qd + (1.0 - a) * (q - self._q_prev) / cfg.period
-            qdd = a * self._qdd + (1.0 - a) * (qd - self._qd) / cfg.period
-            self._q_prev, self._qd, self._qdd = q, qd, qdd
-            tau = tau + compensation_torque(cfg.compensation_model, self._weights, q, qd, qdd)
+            tau = tau + self._compensation(q)
         if cfg.gravity_compensation:
             tau = tau + np.array([0.0, cfg.gravity_g1 * math.cos(q[1]), cfg.gravity_g2 * math.sin(q[2])])
         if cfg.saturation:
