@@ -27,7 +27,6 @@ from hapticopt.design import mass_properties as mp
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.master import cad as cad_master
 from hapticopt.design.master import mjcf as mjcf_master
-from hapticopt.design.master.mass import bodies_from_mass_properties
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.prrr import mjcf as mjcf_prrr
 
@@ -51,8 +50,9 @@ def _cad(design: Any):
 def _mjcf(design: Any, p, masses) -> str:
     if design.device == "prrr":
         return mjcf_prrr.prrr_mjcf(design, p=p, mass_properties=masses)
-    # our part frames are the master's link frames; the fixed base is not in that model
-    return mjcf_master.master_mjcf(design, mass_properties=bodies_from_mass_properties(masses))
+    # the master's MJCF carries the mass model that evaluate and verify use (design.master.mass:
+    # the design's link, counterweight and handle data), not the CAD solids' (issue 16)
+    return mjcf_master.master_mjcf(design)
 
 
 def build_assembly(design: Any, p=None) -> tuple[dict[str, Any], dict[str, np.ndarray]]:

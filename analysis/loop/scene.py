@@ -127,6 +127,14 @@ class NtsmtcSettings:
     theta: float = 0.05  # [rad/s]
 
 
+class DynamicsCompensation(StrEnum):
+    """Which bodies' inertia (and Coriolis) a model-based controller compensates (master, seed 003)."""
+
+    NONE = "none"  # open-loop impedance rendering τ = Jᵀ F_D
+    LINKS = "links"  # the links' model without the counterweights (seed 003's reading, docs/master.md)
+    FULL = "full"  # every moving body, counterweights included
+
+
 @dataclass(frozen=True, kw_only=True)
 class ControllerSettings:
     mode: FirmwareMode = FirmwareMode.IMPEDANCE
@@ -137,6 +145,7 @@ class ControllerSettings:
     friction_compensation: float = 0.0  # [N] added in x and y along the estimated velocity (seed 002: 3 N)
     friction_compensation_velocity: float = 2e-3  # [m/s] width of the tanh sign used by the compensation
     gravity_compensation: bool = True
+    dynamics_compensation: DynamicsCompensation = DynamicsCompensation.NONE  # master: model-based M q̈ + C q̇
     interpolation: int = 1  # output samples per period (seed 000 eq 23); 1 = off
     ar_coefficients: tuple[float, ...] = (2.0, -1.0)  # f_{i+1} = Σ a_j f_{i−j}
     # which eq (23) spline segment (analysis.control.upsampling.Variant); default: the one that does
@@ -343,6 +352,7 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
         friction_compensation_velocity=c.num("friction_compensation_velocity_mm_per_s", 2.0, scale=1e-3,
                                              lo=0.0, hi=1e4, lo_open=True, unit="mm/s"),
         gravity_compensation=c.flag("gravity_compensation", True),
+        dynamics_compensation=c.choice("dynamics_compensation", DynamicsCompensation, DynamicsCompensation.NONE),
         interpolation=c.integer("interpolation", 1, lo=1, hi=64),
         ar_coefficients=ar_t,
         interpolation_variant=c.choice("interpolation_variant", Variant, DEFAULT_VARIANT),

@@ -123,6 +123,8 @@ class MasterBalance:
     region_radii: np.ndarray = field(repr=False)  # (n,) boundary distance ρ(ψ) [m]
     ellipse_axes: tuple[float, float]  # paper-style 45° ellipse fit: semi-axes along (1, 1) and (1, −1) [m]
     ellipse_overlap: float  # area(E ∩ R) / area(E ∪ R)
+    fit_axes: tuple[float, float]  # free-tilt ellipse with the region's area second moments: semi-axes (major, minor) [m]
+    fit_tilt: float  # angle of its major axis from the P_x axis, in [0, π) [rad] (seed 003: 40°–45°)
     balancing_masses: tuple[float, float]  # counterweights (upper, forearm) for P = 0 [kg]; NaN-free (0, 0) if impossible
     status: Status = Status.OK
     message: str = ""
@@ -140,6 +142,8 @@ class MasterBalance:
             "com_inside_unbalance_radius": bool(self.inside),
             "unbalance_ellipse_axes_mm": [float(x * 1e3) for x in self.ellipse_axes],
             "unbalance_ellipse_overlap_pct": float(100.0 * self.ellipse_overlap),
+            "unbalance_ellipse_fit_mm": [float(x * 1e3) for x in self.fit_axes],
+            "unbalance_ellipse_tilt_deg": float(np.rad2deg(self.fit_tilt)),
             "balancing_counterweights_kg": [float(x) for x in self.balancing_masses],
             "moving_mass_kg": float(self.moving_mass),
         }
@@ -190,7 +194,7 @@ def evaluate_parameters(design: MasterDesign, gp: md.GravityParameters, *, fidel
             threshold=threshold, moving_mass=gp.moving_mass, G1=gp.G1, G2=gp.G2, com_offset=(0.0, 0.0),
             max_force=0.0, max_force_pose=(0.0, 0.0, 0.0), radius=0.0, worst_direction=(1.0, 0.0),
             worst_pose=(0.0, 0.0, 0.0), region_angles=empty, region_radii=np.zeros(2), ellipse_axes=(0.0, 0.0),
-            ellipse_overlap=0.0, balancing_masses=masses, status=Status.FAILED,
+            ellipse_overlap=0.0, fit_axes=(0.0, 0.0), fit_tilt=0.0, balancing_masses=masses, status=Status.FAILED,
             message="no moving mass: the CoM offset and the unbalance radius are undefined")
 
     def q_of(t3: float, ph: float) -> tuple[float, float, float]:
@@ -226,6 +230,7 @@ def evaluate_parameters(design: MasterDesign, gp: md.GravityParameters, *, fidel
         return float(threshold / max(g, smax * 1e-12))
 
     ax = (extent(np.array([1.0, 1.0]) / np.sqrt(2)), extent(np.array([1.0, -1.0]) / np.sqrt(2)))
+    fit_axes, fit_tilt = moment_ellipse(psi, radii)
     rho_e = _ellipse_radius(psi, ax[0], ax[1])
     inter = np.sum(np.minimum(radii, rho_e) ** 2)
     union = np.sum(np.maximum(radii, rho_e) ** 2)
@@ -234,7 +239,24 @@ def evaluate_parameters(design: MasterDesign, gp: md.GravityParameters, *, fidel
         max_force=float(fmax), max_force_pose=q_of(t3f, phf), radius=float(radius),
         worst_direction=(float(worst[0]), float(worst[1])), worst_pose=q_of(t3s, phs), region_angles=psi,
         region_radii=radii, ellipse_axes=(float(ax[0]), float(ax[1])), ellipse_overlap=float(inter / union),
+        fit_axes=fit_axes, fit_tilt=fit_tilt,
         balancing_masses=masses, status=status, message=message)
+
+
+def moment_ellipse(psi: np.ndarray, radii: np.ndarray) -> tuple[tuple[float, float], float]:
+    """The ellipse with the same area second moments as the star-shaped region ρ(ψ) about its centre.
+
+    ``psi`` uniform over [0, 2π). ∫∫ x xᵀ dA = ∫ ρ⁴/4 · d dᵀ dψ with d = (cos ψ, sin ψ); a uniform
+    ellipse with semi-axes (a, b) has ∫∫ x xᵀ dA / area = diag(a², b²)/4, so a, b = 2·√eig and the
+    tilt is the major eigenvector's angle. Returns ((a, b) [m], tilt in [0, π) [rad]).
+    """
+    dpsi = 2 * np.pi / len(psi)
+    d = np.stack([np.cos(psi), np.sin(psi)])
+    area = 0.5 * np.sum(radii**2) * dpsi
+    S = np.einsum("in,jn,n->ij", d, d, radii**4 / 4.0) * dpsi / area
+    w, v = np.linalg.eigh(S)
+    tilt = float(np.arctan2(v[1, 1], v[0, 1]) % np.pi)
+    return (float(2 * np.sqrt(w[1])), float(2 * np.sqrt(max(w[0], 0.0)))), tilt
 
 
 def _ellipse_radius(psi: np.ndarray, a: float, b: float) -> np.ndarray:

@@ -41,6 +41,10 @@ from hapticopt.analysis.master import dynamics_numpy as mn
 from hapticopt.design.errors import InvalidDesign
 
 
+#: names of the counterweight bodies (analytic model and CAD part table); every other moving body is a "link"
+COUNTERWEIGHTS = ("upper_counterweight", "forearm_counterweight")
+
+
 class MassModel(NamedTuple):
     """Dynamics parameters as a jax pytree [SI]; nb = number of bodies."""
 
@@ -53,6 +57,7 @@ class MassModel(NamedTuple):
     viscous: jax.Array  # (3,) [N·m·s/rad]
     coulomb: jax.Array  # (3,) [N·m]
     gravity: jax.Array  # [m/s²]
+    counterweight: jax.Array  # (nb,) 1.0 for the counterweight bodies, 0.0 for the links (compensation model)
 
 
 def model_of(design: MasterDesign, bodies: tuple[BodyMass, ...] | None = None, *, gravity: float = GRAVITY) -> MassModel:
@@ -75,6 +80,7 @@ def model_of(design: MasterDesign, bodies: tuple[BodyMass, ...] | None = None, *
         viscous=np.full(3, a.viscous),
         coulomb=np.full(3, a.coulomb),
         gravity=np.asarray(float(gravity)),
+        counterweight=np.asarray([1.0 if b.name in COUNTERWEIGHTS else 0.0 for b in bodies]),
     )
 
 

@@ -67,13 +67,21 @@ def _derivatives(model, q: np.ndarray):
 
 def mass_matrix(model, q: np.ndarray) -> np.ndarray:
     """M(q) (n, 3, 3) [kg·m²] including the rotor inertia."""
+    return body_mass_matrices(model, q).sum(axis=1) + np.diag(np.asarray(model.rotor_inertia))
+
+
+def body_mass_matrices(model, q: np.ndarray) -> np.ndarray:
+    """Each body's contribution m J_vᵀJ_v + J_ωᵀ R I Rᵀ J_ω to M(q): (n, nb, 3, 3) [kg·m²] (no rotor inertia).
+
+    Sums over subsets give the mass matrix of part of the arm (e.g. the links without the
+    counterweights, the model of a compensating controller) from one set of derivatives.
+    """
     _, R, Jv, dR = _derivatives(model, q)
     W = np.einsum("nbikm,nbjk->nbijm", dR, R)
     Jw = np.stack([W[:, :, 2, 1], W[:, :, 0, 2], W[:, :, 1, 0]], 2)  # (n, nb, 3, m)
     Iw = np.einsum("nbij,bjk,nblk->nbil", R, np.asarray(model.inertia), R)
     m = np.asarray(model.mass)
-    M = np.einsum("b,nbik,nbil->nkl", m, Jv, Jv) + np.einsum("nbik,nbij,nbjl->nkl", Jw, Iw, Jw)
-    return M + np.diag(np.asarray(model.rotor_inertia))
+    return np.einsum("b,nbik,nbil->nbkl", m, Jv, Jv) + np.einsum("nbik,nbij,nbjl->nbkl", Jw, Iw, Jw)
 
 
 def gravity_torque(model, q: np.ndarray) -> np.ndarray:

@@ -10,14 +10,26 @@ F = −K(p − p_r) − B ṗ, or walls of a box around p_r: −K_b·depth − B
 wall) and the joint torques τ = Jᵀ F (+ the model's gravity torque G(q) when gravity
 compensation is on), clipped to the motor torque limit when saturation is on. The plant holds τ
 for the period (zero-order hold).
+
+Transparency mode (seed 003's controller, ``compensation_model`` set): model-based feedback
+compensation of the dynamics *without gravity*, τ += M̂(q) q̂̈ + Ĉ(q, q̂̇) q̂̇, with M̂ the mass matrix of
+the compensation model's bodies (``compensation_weights`` selects them: the links without the
+counterweights in seed 003's reading, docs/master.md) and q̂̇, q̂̈ two cascaded filtered backward
+differences of the joint angles (the velocity filter's pole; no filter = plain differences; each
+filter starts at its first input), applied from the third step on (q̂̈ needs three samples). Ĉ q̂̇ =
+Ṁ q̂̇ − ½ ∂(q̂̇ᵀ M̂ q̂̇)/∂q by central differences of M̂ (h = 1e-6 rad). The frequency-domain model of this
+loop is :func:`hapticopt.analysis.master.transparency.transfer`.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+
+from hapticopt.analysis.master import dynamics_numpy as mn
 
 from hapticopt.analysis.loop.scene import EnvKind
 
@@ -48,6 +60,23 @@ class MasterFirmwareConfig:
     gravity_compensation: bool
     gravity_g1: float = 0.0  # G(q) = (0, G1 cos θ2, G2 sin θ3) [N·m] (hapticopt.analysis.master.dynamics.gravity_parameters)
     gravity_g2: float = 0.0
+    compensation_model: Any = None  # hapticopt.analysis.master.dynamics.MassModel; None = no dynamics compensation
+    compensation_weights: tuple[float, ...] = ()  # per body of the model: 1 compensated, 0 not
+
+
+_H_COMP = 1e-6  # [rad] central-difference step of ∂M̂/∂q
+
+
+def compensation_torque(model: Any, weights: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+    """M̂(q) q̈ + Ĉ(q, q̇) q̇ (3,) [N·m] of the bodies selected by ``weights`` (rotor inertia included)."""
+    Q = np.repeat(np.asarray(q, dtype=float)[None], 7, axis=0)
+    for k in range(3):
+        Q[1 + 2 * k, k] += _H_COMP
+        Q[2 + 2 * k, k] -= _H_COMP
+    M = np.einsum("b,nbij->nij", weights, mn.body_mass_matrices(model, Q)) + np.diag(np.asarray(model.rotor_inertia))
+    dM = (M[1::2] - M[2::2]) / (2 * _H_COMP)  # (k, i, j) = ∂M_ij/∂q_k
+    c = np.einsum("kij,j,k->i", dM, qd, qd) - 0.5 * np.einsum("ijk,j,k->i", dM, qd, qd)
+    return M[0] @ qdd + c
 
 
 def forward(cfg: MasterFirmwareConfig, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -74,15 +103,37 @@ class MasterController:
         self._K, self._B = np.asarray(cfg.stiffness), np.asarray(cfg.damping)
         self._anchor, self._half = np.asarray(cfg.anchor), np.asarray(cfg.half_size)
         self.last_force = np.zeros(3)
+        self._weights = np.asarray(cfg.compensation_weights, dtype=float)
         self._ready = False
 
     def joint_angles(self, counts: np.ndarray) -> np.ndarray:
         return self._q0 + np.asarray(counts, dtype=float) * self._scale
 
     def reset(self, counts: np.ndarray) -> None:
-        self._p_prev, _ = forward(self.cfg, self.joint_angles(counts))
+        q = self.joint_angles(counts)
+        self._p_prev, _ = forward(self.cfg, q)
         self._v = np.zeros(3)
+        self._q_prev, self._qd, self._qdd = q, np.zeros(3), np.zeros(3)
+        self._samples = 0  # joint-angle samples seen by step(): q̂̇ needs 2, q̂̈ 3 (no compensation before)
         self._ready = True
+
+    def _compensation(self, q: np.ndarray) -> np.ndarray:
+        """M̂ q̂̈ + Ĉ q̂̇ from filtered differences of the step samples (zero until q̂̈ is defined)."""
+        cfg, a = self.cfg, self.cfg.velocity_alpha
+        n = self._samples
+        self._samples = n + 1
+        if n == 0:  # the first sample: nothing to difference
+            self._q_prev = q
+            return np.zeros(3)
+        diff = (q - self._q_prev) / cfg.period
+        qd = diff if n == 1 else a * self._qd + (1.0 - a) * diff  # the filter starts at its first input
+        if n == 1:
+            self._q_prev, self._qd = q, qd
+            return np.zeros(3)
+        d2 = (qd - self._qd) / cfg.period
+        qdd = d2 if n == 2 else a * self._qdd + (1.0 - a) * d2
+        self._q_prev, self._qd, self._qdd = q, qd, qdd
+        return compensation_torque(cfg.compensation_model, self._weights, q, qd, qdd)
 
     def step(self, counts: np.ndarray) -> np.ndarray:
         cfg = self.cfg
@@ -102,6 +153,8 @@ class MasterController:
         else:
             F = np.zeros(3)
         tau = F @ J  # Jᵀ F
+        if cfg.compensation_model is not None:
+            tau = tau + self._compensation(q)
         if cfg.gravity_compensation:
             tau = tau + np.array([0.0, cfg.gravity_g1 * math.cos(q[1]), cfg.gravity_g2 * math.sin(q[2])])
         if cfg.saturation:

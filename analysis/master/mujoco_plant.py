@@ -40,7 +40,16 @@ from hapticopt.analysis.loop.traces import OVERSAMPLE, SATURATION_FRACTION, SATU
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.master.firmware import MasterController, MasterFirmwareConfig
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
-from hapticopt.analysis.loop.scene import Effect, EnvKind, FirmwareMode, Resolution, Scene, require_mode, resolve
+from hapticopt.analysis.loop.scene import (
+    DynamicsCompensation,
+    Effect,
+    EnvKind,
+    FirmwareMode,
+    Resolution,
+    Scene,
+    require_mode,
+    resolve,
+)
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.master.params import MasterDesign
@@ -121,7 +130,8 @@ class MasterPlant:
             m.dof_armature[act] = 0.0
         if Effect.SATURATION not in fx:
             m.actuator_ctrllimited[:] = 0
-        self.substeps = max(1, int(round(period / self.solver.timestep)))
+        # plant steps per controller period: the scene's ``simulation.substeps`` if set, else by fidelity
+        self.substeps = scene.substeps if scene.substeps > 0 else max(1, int(round(period / self.solver.timestep)))
         m.opt.timestep = period / self.substeps
         self.period = period
         self.hand = Effect.OPERATOR in fx
@@ -171,7 +181,9 @@ class MasterPlant:
             tm = (np.arange(N) + 0.5) * T
             REF = off + amp * np.sin(w * tm[:, None] + ph)
             DREF = op.damping * amp * w * np.cos(w * tm[:, None] + ph)
-            HQ, HV, HA = (np.zeros((N, 3)) for _ in range(3))
+            HQ, HV, HA, EQF = (np.zeros((N, 3)) for _ in range(4))
+            eq_hand = m.equality("hand").id
+            eq_type = int(mj.mjtConstraint.mjCNSTR_EQUALITY)
         stop = -1
         n = self.n_closure
         for k in range(N):
@@ -193,6 +205,9 @@ class MasterPlant:
             clock[k] = d.time
             if self.hand:
                 HQ[k], HV[k], HA[k] = d.qpos[hq], d.qvel[hd], d.qacc[hd]
+                rows = np.nonzero((d.efc_type == eq_type) & (d.efc_id == eq_hand))[0]
+                if rows.size == 3:  # the connect's force on the hand (body1); the handle feels its opposite
+                    EQF[k] = -d.efc_force[rows]
             if k % 100 == 99 or k == N - 1:
                 lo = max(0, k - 99)
                 bad = (~np.all(np.isfinite(P[lo:k + 1]), axis=-1)
@@ -202,11 +217,10 @@ class MasterPlant:
                     stop = lo + int(np.argmax(bad))
                     break
         if self.hand:
-            op = self.scene.operator
-            t = (np.arange(N) + 1) * T
-            ref = off + amp * np.sin(w * t[:, None] + ph)
-            dref = amp * w * np.cos(w * t[:, None] + ph)
-            FH = op.stiffness * (ref - HQ) + op.damping * (dref - HV) - op.mass * HA
+            # the hand's force on the handle: the hand connect's constraint force, at the same instant as
+            # the recorded handle position (kinematics and efc_force of the last substep's start). The
+            # spring formula k_h(x_r − x_h) + b_h(ẋ_r − ẋ_h) − m_h ẍ_h gives the same fundamentals (issue 16).
+            FH = EQF
             V = HV  # the hand is tied to the handle: its velocity is the handle's
         out = {"position": P, "velocity": V, "hand_force": FH, "torque": TAU, "force_reference": FREF,
                "violation": EF, "stop": np.array([stop]), "reference": off + amp * np.sin(w * ((np.arange(N) + 1) * T)[:, None] + ph)}
@@ -246,8 +260,19 @@ def controller_for(design: MasterDesign, scene: Scene, res: Resolution, x0: np.n
         half_size=env.half_size, wall_stiffness=env.wall_stiffness, wall_damping=env.wall_damping,
         velocity_alpha=math.exp(-2 * math.pi * c.velocity_filter * period) if c.velocity_filter > 0 else 0.0,
         torque_limit=design.actuators.torque_limit, saturation=Effect.SATURATION in fx,
-        quantized=Effect.QUANTIZATION in fx, gravity_compensation=gcomp, gravity_g1=g1, gravity_g2=g2)
+        quantized=Effect.QUANTIZATION in fx, gravity_compensation=gcomp, gravity_g1=g1, gravity_g2=g2,
+        **_compensation(design, c.dynamics_compensation))
     return MasterController(cfg)
+
+
+def _compensation(design: MasterDesign, which: DynamicsCompensation) -> dict[str, Any]:
+    """The firmware's compensation model: the design's bodies, weighted per :class:`DynamicsCompensation`."""
+    if which == DynamicsCompensation.NONE:
+        return {}
+    model = md.model_of(design)
+    cw = np.asarray(model.counterweight, dtype=float)
+    weights = np.ones_like(cw) if which == DynamicsCompensation.FULL else 1.0 - cw
+    return {"compensation_model": model, "compensation_weights": tuple(map(float, weights))}
 
 
 # ------------------------------------------------------------------------------------ results
@@ -294,6 +319,15 @@ class MasterResult:
         return out
 
 
+def _setup(scene: Scene, ctl: MasterController, K: float, amp: float, T: float) -> mt.RenderingSetup:
+    """The frequency-domain model of the scene's loop: its spring, amplitude, controller period
+    (hold and derivative estimates at the rate the firmware runs) and compensation."""
+    c = scene.controller
+    return mt.RenderingSetup(spring=K, amplitude=amp, hold_period=T, estimator_filter=c.velocity_filter,
+                             compensation=mt.Compensation(gravity=ctl.cfg.gravity_compensation,
+                                                          inertia=c.dynamics_compensation))
+
+
 def _fundamental(x: np.ndarray, t: np.ndarray, w: float) -> complex:
     return complex(np.sum(x * np.exp(-1j * w * t)))
 
@@ -333,8 +367,7 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
                                "x or z (hapticopt.analysis.master.transparency)")
         K = scene.environment.stiffness[ax]
         amp = float(np.linalg.norm(scene.motion.amplitude))
-        setup = mt.RenderingSetup(spring=K, amplitude=amp, hold_period=T if Effect.SAMPLING in fx else 0.0,
-                                  compensation=mt.Compensation(gravity=ctl.cfg.gravity_compensation))
+        setup = _setup(scene, ctl, K, amp, T)
         pred = mt.evaluate(design, setup=setup, pose=plant.q0, model=md.model_of(design))
         predicted = float(pred.bandwidth[mt.AXES.index(_AXIS_NAMES[ax])])
         freqs = predicted * np.asarray(scene.sweep_factors)
@@ -389,6 +422,22 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
             measures["rendered_stiffness_N_per_mm"] = float(coef[0]) * 1e-3
             target = env.stiffness[ax]
             measures["stiffness_error_pct"] = abs(coef[0] - target) / target * 100 if target > 0 else None
+            f = scene.motion.frequency
+            per = int(round(1.0 / f / T)) if f > 0 else 0
+            if per > 0 and stop < 0 and n >= 2 * per and ax != 1:
+                # seed 003's G_T = F_H/F_D at the motion frequency: fundamentals over whole periods after the first
+                t = (np.arange(n) + 1) * T
+                sl = slice(per, per * (n // per))
+                w = 2 * math.pi * f
+                fh_e = -r["hand_force"][sl] @ np.eye(3)[ax]
+                fd_e = -target * ((r["position"][sl] - anchor) @ np.eye(3)[ax])
+                G = _fundamental(fh_e, t[sl], w) / _fundamental(fd_e, t[sl], w)
+                amp = float(np.linalg.norm(scene.motion.amplitude))
+                pred = mt.evaluate(design, setup=_setup(scene, ctl, target, amp, T), pose=plant.q0)
+                Gp = complex(mt.transfer(pred.coefficients, np.array([f]), pred.setup)[0, mt.AXES.index(_AXIS_NAMES[ax]), 0])
+                measures.update({"transparency_gain_at_motion": abs(G), "predicted_transparency_gain": abs(Gp),
+                                 "transparency_gain_error_pct": abs(abs(G) - abs(Gp)) / abs(Gp) * 100,
+                                 "transparency_bandwidth_predicted_Hz": float(pred.bandwidth[mt.AXES.index(_AXIS_NAMES[ax])])})
         sat = np.abs(r["torque"][:end]) >= design.actuators.torque_limit * (1 - 1e-12)
         measures["torque_saturated_fraction"] = float(sat.any(axis=-1).mean()) if end else 0.0
     wall = time.perf_counter() - t0

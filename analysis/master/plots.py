@@ -74,7 +74,7 @@ def balance_plots(design, result, out_dir: Path) -> list[Path]:
     if a > 0 and b > 0:
         ex = a * np.cos(c) / np.sqrt(2) + b * np.sin(c) / np.sqrt(2)
         ey = a * np.cos(c) / np.sqrt(2) - b * np.sin(c) / np.sqrt(2)
-        chart.line(ex, ey, color="g", style="--", label=f"45° ellipse fit ({100 * result.ellipse_overlap:.0f} % IoU)")
+        chart.line(ex, ey, color="orange", style="--", label=f"45° ellipse fit ({100 * result.ellipse_overlap:.0f} % IoU)")
     chart.scatter([result.com_offset[0] * 1e3], [result.com_offset[1] * 1e3], color="k", size=10, label="design")
     written.append(_save(_chart_plotter(chart), out_dir / f"{design.name}_unbalance_region.png"))
     return written
@@ -97,17 +97,38 @@ def transparency_plots(design, result, out_dir: Path) -> list[Path]:
     return [_save(_chart_plotter(chart), out_dir / f"{design.name}_transparency.png")]
 
 
-def sweep_plot(rows: list[dict], out: Path) -> Path:
-    """Counterweight sweep: max unbalance force and bandwidths against the counterweight fraction."""
+def sweep_plot(rows: list[dict], out: Path, *, boundary_mass: float | None = None) -> Path:
+    """Seed 003's trade-off: bandwidth (x, z) and maximum unbalance force against the total
+    counterweight mass, the 0.1 N unbalance boundary marked (vertical line at ``boundary_mass`` [kg])
+    and the first sample whose CoM offset reaches the unbalance radius (dotted)."""
     import pyvista as pv
 
-    s = np.array([r["counterweight_fraction"] for r in rows])
-    chart = pv.Chart2D(x_label="counterweight mass / perfect-balance mass", y_label="value")
-    chart.line(s, [r["max_unbalance_force_N"] for r in rows], color="k", width=2.0, label="max unbalance force [N]")
-    chart.line(s, [r["transparency_bandwidth_x_Hz"] for r in rows], color="b", width=2.0, label="bandwidth x [Hz]")
-    chart.line(s, [r["transparency_bandwidth_z_Hz"] for r in rows], color="r", width=2.0, label="bandwidth z [Hz]")
-    chart.line(s[[0, -1]], [0.1, 0.1], color="gray", style="--", label="0.1 N JND")
-    return _save(_chart_plotter(chart), out)
+    m = np.array([r["counterweight_mass_kg"] for r in rows]) * 1e3
+    bx = np.array([r["transparency_bandwidth_x_Hz"] for r in rows])
+    bz = np.array([r["transparency_bandwidth_z_Hz"] for r in rows])
+    f = np.array([r["max_unbalance_force_N"] for r in rows])
+    top = pv.Chart2D(x_label="total counterweight mass [g]", y_label="transparency bandwidth [Hz]")
+    top.line(m, bx, color="b", width=2.0, label="bandwidth x")
+    top.line(m, bz, color="r", width=2.0, label="bandwidth z")
+    bot = pv.Chart2D(x_label="total counterweight mass [g]", y_label="max unbalance force [N]")
+    bot.line(m, f, color="k", width=2.0, label="max unbalance force")
+    bot.line([m.min(), m.max()], [0.1, 0.1], color="gray", style="--", label="0.1 N (10 % JND)")
+    if boundary_mass is not None:
+        b = boundary_mass * 1e3
+        lo_b = min(bx.min(), bz.min())
+        top.line([b, b], [0.95 * lo_b, 1.05 * max(bx.max(), bz.max())], color="orange", style="--",
+                 label=f"unbalance boundary {b:.1f} g")
+        bot.line([b, b], [0.0, f.max()], color="orange", style="--", label=f"unbalance boundary {b:.1f} g")
+    on = [r["counterweight_mass_kg"] * 1e3 for r in rows if r["com_offset_mm"] >= r["unbalance_radius_mm"]]
+    if on:
+        top.line([on[0], on[0]], [0.95 * min(bx.min(), bz.min()), 1.05 * max(bx.max(), bz.max())], color="m",
+                 style=":", label="CoM beyond the unbalance radius (to the left)")
+    pl = pv.Plotter(off_screen=True, window_size=(900, 1000), shape=(2, 1))
+    pl.subplot(0, 0)
+    pl.add_chart(top)
+    pl.subplot(1, 0)
+    pl.add_chart(bot)
+    return _save(pl, out)
 
 
 def workspace_plots(design, result, out_dir: Path) -> list[Path]:

@@ -10,7 +10,9 @@ where |G_T| crosses 0 ± 3 dB, interpolated (in log f) between the swept frequen
 bracket the frequency-domain prediction of :mod:`hapticopt.analysis.master.transparency`.
 
 Uses the closed-chain MJCF of :func:`hapticopt.design.master.mjcf.master_mjcf` (parallelogram closed by
-an equality constraint, solref 2 ms, timestep 0.25 ms, implicitfast).
+an equality constraint, solref 2 ms, timestep 0.25 ms, implicitfast). This sweep renders open loop
+(no dynamics compensation): its setup defaults to :data:`OPEN_LOOP_1KHZ`; seed 003's compensating
+controller runs in the firmware's scenes (:mod:`hapticopt.analysis.master.mujoco_plant`).
 """
 
 from __future__ import annotations
@@ -100,13 +102,21 @@ def _gain_at(model_mj, data, design: MasterDesign, kin, q0: np.ndarray, x0: np.n
     return float(abs(np.sum(np.asarray(fh) * ph) / np.sum(np.asarray(fd) * ph))), closure
 
 
+#: the open-loop 1 kHz rendering this sweep implements
+OPEN_LOOP_1KHZ = mt.RenderingSetup(compensation=mt.OPEN_LOOP, hold_period=mt.HOLD_PERIOD_S)
+
+
 def sweep(design: MasterDesign, axis: str = "x", *, pose: np.ndarray | None = None,
-          setup: mt.RenderingSetup = mt.RenderingSetup(), factors: tuple[float, ...] = (0.85, 0.95, 1.05, 1.15),
+          setup: mt.RenderingSetup | None = None, factors: tuple[float, ...] = (0.85, 0.95, 1.05, 1.15),
           timestep: float = 2.5e-4, hand_stiffness: float = 3000.0) -> SweepResult:
     """Sine sweep along ``axis`` ('x' or 'z') around the frequency-domain bandwidth."""
     import mujoco
 
 
+    setup = OPEN_LOOP_1KHZ if setup is None else setup
+    if setup.compensation != mt.OPEN_LOOP:
+        raise ValueError("analysis.master.sweep renders open loop only: use mt.OPEN_LOOP (the compensating "
+                         "controller runs in the master scenes)")
     a = mt.AXES.index(axis)
     e = np.eye(3)[[0, 2][a]]
     q0 = mt.default_pose(design) if pose is None else np.asarray(pose, dtype=float)

@@ -18,7 +18,7 @@ from hapticopt.analysis.master import transparency as mt
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.master.params import MasterDesign
 
-FRACTIONS = (1.0, 0.99, 0.98, 0.97, 0.95, 0.9, 0.8, 0.6, 0.4, 0.2, 0.0)
+FRACTIONS = (1.0, 0.95, 0.9, 0.85, 0.8, 0.75, 0.7, 0.65, 0.6, 0.55, 0.5, 0.45, 0.4, 0.35, 0.3)
 
 
 def counterweight_sweep(design: MasterDesign, fractions: tuple[float, ...] = FRACTIONS, *,
@@ -35,6 +35,7 @@ def counterweight_sweep(design: MasterDesign, fractions: tuple[float, ...] = FRA
         tr = mt.evaluate(d, fidelity=Fidelity.STANDARD, pose=pose, model=model)
         rows.append({
             "counterweight_fraction": float(s),
+            "counterweight_mass_kg": float(s * (mu + mf)),
             "upper_counterweight_kg": float(s * mu),
             "forearm_counterweight_kg": float(s * mf),
             "com_offset_mm": float(np.hypot(*bal.com_offset) * 1e3),
@@ -44,6 +45,25 @@ def counterweight_sweep(design: MasterDesign, fractions: tuple[float, ...] = FRA
             "transparency_bandwidth_z_Hz": float(tr.bandwidth[1]),
         })
     return rows
+
+
+def unbalance_boundary(design: MasterDesign, *, threshold: float = mb.FORCE_JND_N,
+                       fidelity: Fidelity = Fidelity.STANDARD) -> float:
+    """The counterweight fraction s* < 1 of the sweep at which the maximum unbalance force reaches
+    ``threshold`` [N] (the 0.1 N JND boundary); bisection, the force is monotone in 1 − s here."""
+    mu, mf = md.balancing_counterweights(design)
+
+    def force(s: float) -> float:
+        cw = dataclasses.replace(design.counterweights, upper_mass=s * mu, forearm_mass=s * mf)
+        return mb.evaluate(dataclasses.replace(design, counterweights=cw), fidelity=fidelity).max_force - threshold
+
+    lo, hi = 0.0, 1.0  # force(lo) > 0 ≥ force(hi)
+    if force(lo) <= 0.0:
+        return 0.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if force(mid) > 0.0 else (lo, mid)
+    return hi
 
 
 def rows_to_csv(rows: list[dict[str, float]]) -> str:

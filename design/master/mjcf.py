@@ -10,7 +10,10 @@ velocities (θ̇1, θ̇2, θ̇3) to the full ones: M_red = Sᵀ M S, G_red = S�
 Mass properties: :func:`hapticopt.analysis.master.dynamics.analytic_mass_properties` unless a list of
 :class:`hapticopt.analysis.master.dynamics.BodyMass` is given (e.g. from the CAD). Every part becomes a
 joint-less child body with an explicit ``<inertial>`` (so visual geoms add no mass). MuJoCo
-rejects massless moving bodies: masses below 1e-9 kg are floored to 1e-9 kg.
+rejects massless moving bodies: masses below 1e-13 kg are floored to 1e-13 kg (gravity torque
+error < 1e-12 N·m). Joint ranges: θ1 and θ3 from the design's limits (``range``, ``limited``),
+the parallelogram angle φ = 90° − θ2 + θ3 on the relative joint ``forearm_rel`` = θ3 − θ2 as
+φ − 90°; actuators are torque motors with the design's continuous torque limit.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ from hapticopt.design.units import GRAVITY
 #: reduced → full joint velocities, rows [theta1, theta2, forearm_rel, theta3, coupler_rel]
 REDUCTION = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 1.0], [0.0, 0.0, 1.0], [0.0, 1.0, -1.0]])
 ACTUATED = ("theta1", "theta2", "theta3")
-_MIN_MASS = 1e-9
+_MIN_MASS = 1e-13  # [kg] MuJoCo needs mass on every moving body; 1e-13 kg × g × 0.5 m ≈ 5e-13 N·m of gravity torque
 _MIN_INERTIA = 1e-12
 
 
@@ -78,9 +81,15 @@ def master_mjcf(design: MasterDesign, mass_properties: Any = None, *, gravity: b
     def parts(frame: str, indent: str) -> str:
         return "".join(_part(b, indent) for b in by_frame.get(frame, []))
 
+    j = design.joints
+    ranges = {"theta1": (j.theta1_min, j.theta1_max), "theta3": (j.theta3_min, j.theta3_max),
+              "forearm_rel": (j.parallelogram_min - math.pi / 2, j.parallelogram_max - math.pi / 2)}
+
     def joint(name: str, actuated: bool) -> str:
         extra = (f' armature="{a.rotor_inertia:.12g}" damping="{a.viscous:.12g}" frictionloss="{a.coulomb:.12g}"'
                  if actuated else "")
+        if name in ranges:
+            extra += f' range="{ranges[name][0]:.12g} {ranges[name][1]:.12g}"'
         axis = "0 0 1" if name == "theta1" else "0 1 0"
         return f'<joint name="{name}" type="hinge" axis="{axis}"{extra}/>'
 

@@ -8,7 +8,8 @@ seed 003) and ``counterweights.forearm_*`` on the rear of the θ3 driver link (m
 
 Joint ranges default to the paper's workspace: −90° < θ3 < 40° and
 35° < 90° − θ2 + θ3 < 150° (seed 003), giving a workspace of about a 200 mm cube with the
-PHANToM-class link lengths below (chosen and documented here; the paper gives no link data).
+link lengths below. Defaults = the preset master-paper, re-derived from seed 003 eq 7/12
+(moving mass 1.30 kg, unbalance radius 0.81 mm; docs/master.md).
 """
 
 from __future__ import annotations
@@ -26,13 +27,13 @@ _MASS = dict(lo=0.0, hi=100.0)
 
 @dataclass(frozen=True, kw_only=True)
 class MasterGeometry:
-    """Link lengths (PHANToM Premium 1.5 class)."""
+    """Link lengths (seed 003: L4 = L5 = 264 mm put the unbalance radius at 0.81 mm with M = 1.30 kg)."""
 
-    upper_arm: float = param("upper_arm_mm", "mm", default=220.0, **_LEN, doc="shoulder (θ2 axis) to elbow, L5")
-    forearm: float = param("forearm_mm", "mm", default=220.0, **_LEN, doc="elbow to handle centre, L4")
+    upper_arm: float = param("upper_arm_mm", "mm", default=264.0, **_LEN, doc="shoulder (θ2 axis) to elbow, L5")
+    forearm: float = param("forearm_mm", "mm", default=264.0, **_LEN, doc="elbow to handle centre, L4")
     driver_link: float = param("driver_link_mm", "mm", default=60.0, **_LEN,
                                doc="θ3 driver link of the parallelogram (short side)")
-    shoulder_height: float = param("shoulder_height_mm", "mm", default=400.0, **_LEN,
+    shoulder_height: float = param("shoulder_height_mm", "mm", default=460.0, **_LEN,
                                    doc="height of the θ2/θ3 axes above the base plate")
 
 
@@ -40,15 +41,17 @@ class MasterGeometry:
 class MasterLinks:
     """Masses and centres of mass of the moving links (CoM measured along each link from its proximal joint)."""
 
-    upper_arm_mass: float = param("upper_arm_mass_kg", "kg", default=0.080, **_MASS)
-    upper_arm_com: float = param("upper_arm_com_mm", "mm", default=110.0, lo=-2000.0, hi=2000.0)
-    forearm_mass: float = param("forearm_mass_kg", "kg", default=0.060, **_MASS)
-    forearm_com: float = param("forearm_com_mm", "mm", default=110.0, lo=-2000.0, hi=2000.0)
-    driver_link_mass: float = param("driver_link_mass_kg", "kg", default=0.030, **_MASS)
-    driver_link_com: float = param("driver_link_com_mm", "mm", default=30.0, lo=-2000.0, hi=2000.0)
-    coupler_mass: float = param("coupler_mass_kg", "kg", default=0.040, **_MASS,
+    upper_arm_mass: float = param("upper_arm_mass_kg", "kg", default=0.565, **_MASS,
+                                 doc="upper arm with its capstan drum sector")
+    upper_arm_com: float = param("upper_arm_com_mm", "mm", default=-35.4, lo=-2000.0, hi=2000.0)
+    forearm_mass: float = param("forearm_mass_kg", "kg", default=0.050, **_MASS)
+    forearm_com: float = param("forearm_com_mm", "mm", default=100.0, lo=-2000.0, hi=2000.0)
+    driver_link_mass: float = param("driver_link_mass_kg", "kg", default=0.500, **_MASS,
+                                   doc="θ3 driver link with its capstan drum sector")
+    driver_link_com: float = param("driver_link_com_mm", "mm", default=12.2, lo=-2000.0, hi=2000.0)
+    coupler_mass: float = param("coupler_mass_kg", "kg", default=0.030, **_MASS,
                                 doc="parallelogram coupler, parallel to the upper arm")
-    coupler_com: float = param("coupler_com_mm", "mm", default=110.0, lo=-2000.0, hi=2000.0)
+    coupler_com: float = param("coupler_com_mm", "mm", default=132.0, lo=-2000.0, hi=2000.0)
     handle_mass: float = param("handle_mass_kg", "kg", default=0.030, **_MASS, doc="handle/gimbal at the forearm tip")
     turret_inertia: float = param("turret_inertia_kg_mm2", "kg_mm2", default=2000.0, lo=0.0, hi=1e9,
                                   doc="turret inertia about the θ1 axis")
@@ -58,10 +61,10 @@ class MasterLinks:
 class Counterweights:
     """Counterweights on the rear extensions of the driven links."""
 
-    upper_mass: float = param("upper_mass_kg", "kg", default=0.4125, **_MASS, doc="m2 (seed 003)")
+    upper_mass: float = param("upper_mass_kg", "kg", default=0.0634875, **_MASS, doc="m2 (seed 003)")
     upper_distance: float = param("upper_distance_mm", "mm", default=80.0, lo=0.0, hi=2000.0,
                                   doc="behind the shoulder along the upper arm, r2x")
-    forearm_mass: float = param("forearm_mass_kg", "kg", default=0.12375, **_MASS, doc="m4 (seed 003)")
+    forearm_mass: float = param("forearm_mass_kg", "kg", default=0.06275, **_MASS, doc="m4 (seed 003)")
     forearm_distance: float = param("forearm_distance_mm", "mm", default=80.0, lo=0.0, hi=2000.0,
                                     doc="behind the elbow drive axis along the driver link, r4z")
 
@@ -92,8 +95,8 @@ class MasterActuators:
                            doc="joint viscous friction")
     coulomb: float = param("coulomb_Nm", "Nm", default=0.0, lo=0.0, hi=1e3, doc="joint Coulomb friction")
     encoder_counts: float = param("encoder_counts_per_rev", "", default=40000.0, lo=1.0, hi=1e9, integer=True,
-                                  doc="joint encoder counts per joint revolution (after the capstan; PHANToM 1.5 "
-                                      "class: 40000 → 0.035 mm at 0.22 m, its 0.03 mm nominal resolution)")
+                                  doc="joint encoder counts per joint revolution (after the capstan: "
+                                      "40000 → 0.041 mm at 0.264 m; PHANToM 1.5 class: 0.03 mm nominal resolution)")
 
 
 @dataclass(frozen=True, kw_only=True)

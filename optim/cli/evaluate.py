@@ -37,7 +37,7 @@ def evaluate(
     fidelity: Annotated[str, typer.Option("--fidelity", help="draft, standard or fine.")] = "standard",
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, metrics, status, timings_s}.")] = False,
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write pictures of the evaluators' results to this directory.")] = None,
-    sweep: Annotated[Optional[str], typer.Option("--sweep", help="Named trade-off sweep (master: counterweight); writes a plot and a CSV table to --plots DIR or the current directory. Any numeric key: `hapticopt sweep`.")] = None,
+    sweep: Annotated[Optional[str], typer.Option("--sweep", help="Named trade-off sweep (master: counterweight, the seed-003 trade-off of bandwidth and unbalance force against counterweight mass); writes a plot and a CSV table to --plots DIR or the current directory. Any numeric key: `hapticopt sweep`.")] = None,
 ) -> None:
     """Evaluate a design and print its metrics (units in the metric names)."""
     t_start = time.perf_counter()

@@ -38,7 +38,10 @@ def run_sweep(design: Any, name: str, out_dir: Path, fidelity: Any) -> list[Path
     out_dir.mkdir(parents=True, exist_ok=True)
     table_path = out_dir / f"{design.name}_sweep_counterweight.csv"
     write_text(table_path, master_tradeoff.rows_to_csv(rows))
-    plot_path = master_plots.sweep_plot(rows, out_dir / f"{design.name}_sweep_counterweight.png")
+    mu, mf = rows[0]["upper_counterweight_kg"], rows[0]["forearm_counterweight_kg"]
+    boundary = master_tradeoff.unbalance_boundary(design, fidelity=fidelity) * (mu + mf)
+    plot_path = master_plots.sweep_plot(rows, out_dir / f"{design.name}_sweep_counterweight.png",
+                                        boundary_mass=boundary)
     table = Table(title=f"{design.name}: counterweight sweep (seed 003 trade-off)")
     for key in rows[0]:
         table.add_column(key)

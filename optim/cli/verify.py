@@ -52,7 +52,7 @@ def _plot(result: Any, out_dir: Path, name: str) -> list[Path]:
 def verify(
     file: Annotated[Optional[Path], typer.Argument(help="Design TOML file (or use --preset).", show_default=False)] = None,
     preset: Annotated[Optional[str], typer.Option("--preset", help="Bundled preset name.")] = None,
-    scene: Annotated[Optional[str], typer.Option("--scene", help="Bundled scene name (free-space, stiffness-25, stiffness-25-links, virtual-box, z-width, prrr-ioic; master-transparency, master-wall, master-ioic; handle-wall, handle-ball) or a .toml path [default: stiffness-25, master-wall for a master, handle-wall for a handle].", show_default=False)] = None,
+    scene: Annotated[Optional[str], typer.Option("--scene", help="Bundled scene name (free-space, stiffness-25, stiffness-25-links, virtual-box, z-width, prrr-ioic; master-transparency, master-protocol-x, master-protocol-z, master-wall, master-ioic; handle-wall, handle-ball) or a .toml path [default: stiffness-25, master-wall for a master, handle-wall for a handle].", show_default=False)] = None,
     backend: Annotated[str, typer.Option("--backend", help="auto (the scene resolver picks), lumped or multibody.")] = "auto",
     set_: Annotated[Optional[list[str]], typer.Option("--set", help="Override a design TOML key (repeatable).")] = None,
     fidelity: Annotated[str, typer.Option("--fidelity", help="draft, standard or fine.")] = "standard",

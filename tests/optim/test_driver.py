@@ -210,7 +210,7 @@ def test_gradient_mode_none_for_derivative_free():
 
 
 def test_master_counterweight_on_unbalance_boundary_beats_balanced():
-    """Seed 003's lesson: with one counterweight free, the optimum sits on the 0.1 N unbalance
+    """Seed 003's lesson: with the counterweights free, the optimum sits on the 0.1 N unbalance
     boundary (active constraint) and has a higher transparency bandwidth than the perfectly
     balanced design (master-paper is balanced: max_unbalance_force_N ≈ 0)."""
     from hapticopt.optim.pipeline import evaluate_design, evaluators_for
@@ -222,5 +222,6 @@ def test_master_counterweight_on_unbalance_boundary_beats_balanced():
     res = driver.run(p, metric_modules=base.modules, only=evaluators_for(p, base))
     assert res.feasible
     unbalance = res.best.metrics["max_unbalance_force_N"]
-    assert unbalance == pytest.approx(0.1, rel=p.optimiser.constraint_tol)  # on the boundary: active
+    # on the boundary: active. Issue 16's problem (4 variables, ISRES then COBYLA polish) ends 0.11 % inside
+    assert unbalance == pytest.approx(0.1, rel=5e-3)
     assert res.best.objective > p.objective.metric.value(base.metrics)  # beats the balanced bandwidth

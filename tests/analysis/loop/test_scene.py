@@ -196,3 +196,18 @@ def test_impedance_simulators_refuse_ioic_scenes():
 
     with pytest.raises(InvalidInput, match=r"controller.mode = 'ioic' is not run by the 3-PRRR's impedance firmware"):
         closed_loop.setup(load_preset("prrr-paper"), load_scene("prrr-ioic"))
+
+
+def test_master_protocol_scenes_and_dynamics_compensation_key():
+    """issue 16: seed 003's protocol scenes (7.5 mm at 1 Hz for 3 s, links compensated, no gravity
+    compensation); controller.dynamics_compensation accepts none / links / full only."""
+    from hapticopt.analysis.loop.scene import DynamicsCompensation
+
+    for axis, amp in (("x", (7.5e-3, 0.0, 0.0)), ("z", (0.0, 0.0, 7.5e-3))):
+        sc = load_scene(f"master-protocol-{axis}")
+        assert sc.motion.amplitude == pytest.approx(amp) and sc.motion.frequency == pytest.approx(1.0)
+        assert sc.duration == pytest.approx(3.0) and not sc.controller.gravity_compensation
+        assert sc.controller.dynamics_compensation is DynamicsCompensation.LINKS
+    assert load_scene("master-wall").controller.dynamics_compensation is DynamicsCompensation.NONE
+    with pytest.raises(InvalidInput, match="dynamics_compensation = 'model' is not known: allowed none, links, full"):
+        scene_from_dict({"name": "m", "device": "master", "controller": {"dynamics_compensation": "model"}})

@@ -40,7 +40,7 @@ def test_point_mass_closed_form_bandwidth(design, m, K):
     1 − m ω²/K = 1/√2, i.e. ω = √((1 − 1/√2) K/m) and f_bw = √((1 − 1/√2)·K/m)/(2π)
     (the +3 dB crossing, mω²/K = 1 + √2, comes later). Continuous rendering (hold period 0)."""
     d, model = _point_mass(design, m)
-    setup = mt.RenderingSetup(spring=K, hold_period=0.0)
+    setup = mt.RenderingSetup(spring=K, hold_period=0.0, compensation=mt.OPEN_LOOP)
     r = mt.evaluate(d, setup=setup, model=model)
     expected = np.sqrt((1 - 1 / np.sqrt(2)) * K / m) / (2 * np.pi)
     np.testing.assert_allclose(r.apparent_mass, (m, m), rtol=1e-10)
@@ -50,15 +50,16 @@ def test_point_mass_closed_form_bandwidth(design, m, K):
 
 def test_zero_order_hold_barely_changes_the_bandwidth_at_1kHz(design):
     d, model = _point_mass(design, 0.5)
-    cont = mt.evaluate(d, setup=mt.RenderingSetup(hold_period=0.0), model=model).bandwidth
-    held = mt.evaluate(d, model=model).bandwidth
+    cont = mt.evaluate(d, setup=mt.RenderingSetup(hold_period=0.0, compensation=mt.OPEN_LOOP), model=model).bandwidth
+    held = mt.evaluate(d, setup=mt.RenderingSetup(hold_period=mt.HOLD_PERIOD_S, compensation=mt.OPEN_LOOP),
+                       model=model).bandwidth
     np.testing.assert_allclose(held, cont, rtol=1e-3)
     assert not np.allclose(held, cont, rtol=1e-12)
 
 
 def test_inertia_compensation_raises_bandwidth(design):
-    base = mt.evaluate(design)
-    comp = mt.evaluate(design, setup=mt.RenderingSetup(compensation=mt.Compensation(inertia=True, friction=True)))
+    base = mt.evaluate(design, setup=mt.RenderingSetup(compensation=mt.OPEN_LOOP, hold_period=mt.HOLD_PERIOD_S))
+    comp = mt.evaluate(design, setup=mt.RenderingSetup(compensation=mt.Compensation(inertia=mt.DynamicsCompensation.FULL, friction=True), hold_period=mt.HOLD_PERIOD_S))
     # the compensation goes through the same 1 kHz hold, so a residual λ(1 − H) ≈ λ·jωT/2 remains
     assert comp.bandwidth[0] > 5 * base.bandwidth[0] and comp.bandwidth[1] > 5 * base.bandwidth[1]
 
@@ -104,3 +105,22 @@ def test_mujoco_sine_sweep_agrees_with_frequency_domain(design):
     r = master_sweep.sweep(design, "z", factors=(0.9, 1.1))
     assert r.relative_error < 0.05
     assert r.closure_error < 1e-4
+
+
+def test_full_compensation_of_exact_state_is_perfectly_transparent(design):
+    """Closed form: with every body compensated from the exact state (T = 0, no filter) and no gravity
+    stiffness or friction, G_T = [K − ω²(λ − λ̂)]/K = 1 at every frequency."""
+    d, model = _point_mass(design, 0.5)
+    r = mt.evaluate(d, model=model, setup=mt.RenderingSetup(compensation=mt.Compensation(
+        inertia=mt.DynamicsCompensation.FULL)))
+    G = mt.transfer(r.coefficients, np.array([0.1, 1.0, 10.0, 100.0]), r.setup)
+    np.testing.assert_allclose(G, 1.0, atol=1e-12)
+
+
+def test_estimator_is_one_at_low_frequency_and_lags_by_about_a_period():
+    """Two plain backward differences D = (1 − z⁻¹)/T: D²/(jω)² = e^{−jωT}·sinc²(ωT/2), i.e. a delay of
+    one period T and unit gain at low frequency (closed form)."""
+    T, w = 1e-3, np.array([1.0, 10.0, 100.0])
+    E = mt.estimator(w, T, 0.0)
+    np.testing.assert_allclose(E, np.exp(-1j * w * T) * np.sinc(w * T / 2 / np.pi) ** 2, rtol=1e-12)
+    np.testing.assert_allclose(mt.estimator(w, 0.0, 0.0), 1.0)

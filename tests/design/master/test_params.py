@@ -15,7 +15,7 @@ def test_preset_loads_and_round_trips(tmp_path):
     d = io.load_preset("master-paper")
     assert isinstance(d, MasterDesign)
     # preset choices documented in design/presets/master-paper.toml and docs/master.md
-    assert d.geometry.upper_arm == pytest.approx(0.220) and d.geometry.forearm == pytest.approx(0.220)
+    assert d.geometry.upper_arm == pytest.approx(0.264) and d.geometry.forearm == pytest.approx(0.264)
     path = tmp_path / "m.toml"
     io.save_design(d, path)
     assert io.load_design(path) == d
