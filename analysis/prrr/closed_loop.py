@@ -40,11 +40,13 @@ from hapticopt.analysis.prrr.lumped_plant import (
     sensor_values,
     solve_friction,
 )
+from hapticopt.analysis.loop import paper
 from hapticopt.analysis.loop.plant import Plant
 from hapticopt.analysis.loop.scene import (
     BoxMode,
     Effect,
     EnvKind,
+    PaperQuantity,
     Resolution,
     Scene,
     StabilityCriterion,
@@ -160,7 +162,9 @@ class ClosedLoopResult:
     wall_time: float = 0.0
     status: Status = Status.OK
     message: str = ""
+    paper_metric: float | None = None  # the scene's [report] quantity computed the paper's way (N or %)
     traces: Traces | None = field(default=None, repr=False, compare=False)
+    report: Any = field(default=None, repr=False, compare=False)  # the scene's PaperReport (None: no report)
 
     def metrics(self) -> dict[str, Any]:
         def mm(v: float | None, f: float) -> float | None:
@@ -184,7 +188,14 @@ class ClosedLoopResult:
             "plant_substeps": self.substeps,
             "ticks": self.ticks,
             "wall_time_s": self.wall_time,
-        }
+        } | self._report_metrics()
+
+    def _report_metrics(self) -> dict[str, Any]:
+        r = self.report
+        if r is None:
+            return {}
+        return {"paper_quantity": str(r.quantity), "paper_axes": "".join("xyz"[a] for a in r.axes),
+                "paper_metric": self.paper_metric, "paper_value": r.value, "paper_source": r.source}
 
 
 def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | None = None,
@@ -220,6 +231,9 @@ def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | Non
             else:
                 inside = np.all(depth < 0, axis=-1)
                 pen = float((-depth.max(axis=-1))[inside].max()) if inside.any() else 0.0
+    ours = None
+    if sc.report is not None and stable and tr.position is not None and end - start >= 3:
+        ours = report_value(sc.report, tr, sl, b, err)
     status = Status.OK if stable else Status.UNSTABLE
     message = "" if stable else f"unstable: detected at t = {t_det:.4g} s; the run stopped cleanly"
     return ClosedLoopResult(
@@ -227,8 +241,21 @@ def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | Non
         residual_force_rms=res_rms, residual_force_rms_per_axis=res_axis, force_tracking_rms=track,
         wall_penetration=pen, backend=backend or str(st.resolution.backend), effects=tuple(st.resolution.effect_names()),
         notes=st.resolution.notes, reason=st.resolution.reason, period=st.period, substeps=st.substeps, ticks=st.ticks, wall_time=wall_time,
-        status=status, message=message, traces=tr,
+        status=status, message=message, traces=tr, paper_metric=ours, report=sc.report,
     )
+
+
+def report_value(report: Any, tr: Traces, sl: slice, b: int, stiffness_error: float | None) -> float | None:
+    """The scene's [report] quantity on batch element ``b`` over the settled window ``sl``
+    (definitions in :mod:`hapticopt.analysis.loop.paper`)."""
+    q = report.quantity
+    if q == PaperQuantity.HAND_FORCE_AXIS_RMS:
+        return paper.axis_rms(tr.hand_force[sl, b], report.axes[0])
+    if q == PaperQuantity.FORCE_ERROR_AXIS_RMS:
+        return paper.axis_error_rms(tr.actuator_force[sl, b], tr.force_reference[sl, b], report.axes[0])
+    if q == PaperQuantity.FORCE_ERROR_PLANE_RMS:
+        return paper.plane_error_rms(tr.actuator_force[sl, b], tr.force_reference[sl, b], report.axes)
+    return stiffness_error
 
 
 # ------------------------------------------------------------------------------ the fused runner
@@ -263,8 +290,10 @@ class Simulator:
         AdT, BudT, BldT, cd = (jnp.asarray(a) for a in (d.Ad.T, d.Bud.T, d.Bld.T, d.cd))
         n_sub, L = st.substeps, cfg.interpolation
         per = n_sub // L
-        friction = m.coulomb > 0.0
-        G = d.Bld[m.out_vel] if friction else None
+        friction = m.friction_map is not None
+        S = m.friction_map
+        G = S @ d.Bld[m.out_vel] @ S.T if friction else None
+        ST = jnp.asarray(S.T) if friction else None
         quantize, record = st.quantize, self.record
         J = m.J
         pos_rows = [s for s in (m.out_pos, m.motor_pos) if s is not None]
@@ -277,8 +306,8 @@ class Simulator:
                 u = applied[:, j // per] if L > 1 else applied[:, 0]
                 xf = x @ AdT + u @ BudT + cd
                 if friction:
-                    lam = solve_friction(jnp, xf[:, m.out_vel], G, m.coulomb, lam, FRICTION_ITERS)
-                    xf = xf + lam @ BldT
+                    lam = solve_friction(jnp, xf[:, m.out_vel] @ ST, G, m.friction_limit, lam, FRICTION_ITERS)
+                    xf = xf + (lam @ ST.T) @ BldT
                 return xf, lam
 
             if n_sub == 1:
@@ -323,7 +352,8 @@ class Simulator:
                 sat = jnp.zeros_like(ok)
             out = {"energy": jnp.where(ok, energy, 0.0), "saturated": sat}
             if record:
-                y = jnp.concatenate([x_out, u_out, lam_out], axis=-1) @ O + o0
+                lam_s = lam_out @ ST.T if friction else lam_out  # slider-space friction force
+                y = jnp.concatenate([x_out, u_out, lam_s], axis=-1) @ O + o0
                 out.update(position=y[:, 0:3], velocity=y[:, 3:6], hand_force=y[:, 6:9], actuator_force=y[:, 9:12],
                            force_reference=F)
             return (x_out, cs_out, buf2, u_out, lam_out, ok, stop, k + 1), out
@@ -353,7 +383,8 @@ class Simulator:
         cs = firmware.init_state(st.cfg, gains, sc)
         L = st.cfg.interpolation
         buf = jnp.zeros((st.delay_ticks, batch, L, 3)) if st.delay_ticks else jnp.zeros((0,))
-        return (x, cs, buf, u0, jnp.zeros((batch, 3)), jnp.ones(batch, dtype=bool),
+        n_fr = 3 if m.friction_map is None else m.friction_map.shape[0]
+        return (x, cs, buf, u0, jnp.zeros((batch, n_fr)), jnp.ones(batch, dtype=bool),
                 jnp.full(batch, -1), jnp.asarray(0))
 
     def run(self, gains: firmware.Gains | None = None, batch: int = 1) -> Traces:

@@ -41,6 +41,7 @@ app.command("export")(cli_export.export)
 app.command("optimise")(cli_optimise.optimise)
 app.command("problems")(cli_optimise.problems)
 app.command("verify")(cli_verify.verify)
+app.command("design-map")(cli_verify.design_map)
 
 
 def main() -> None:
