@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import json
 import math
 from pathlib import Path
@@ -166,6 +167,8 @@ def design_map(
                                    simulate_limits=simulate_limits, duration=duration_s)
     written: list[Path] = []
     if plots is not None:
+        if importlib.util.find_spec("matplotlib") is None:
+            raise InvalidInput("--plots needs matplotlib (not installed): pip install matplotlib, or leave --plots out")
         from hapticopt.analysis.prrr.plots import design_map_plots
 
         written = design_map_plots(dmap, plots)
