@@ -40,3 +40,12 @@ def plane_error_rms(actual: np.ndarray, reference: np.ndarray, axes: tuple[int, 
     idx = list(axes)
     e = np.asarray(actual, dtype=float)[:, idx] - np.asarray(reference, dtype=float)[:, idx]
     return float(np.sqrt(np.mean(np.sum(e**2, axis=-1))))
+
+
+def max_force_deviation_pct(force: np.ndarray, position: np.ndarray, stiffness: float, axis: int) -> float:
+    """max |F_a − K p_a| / max |K p_a| × 100 [%]: a second reading of Fig 15's "maximum stiffness
+    error" (the largest departure of the measured force–displacement curve from the commanded line,
+    relative to the line's peak force) — friction hysteresis shows here, not in a least-squares slope."""
+    f = np.asarray(force, dtype=float)[:, axis]
+    line = stiffness * np.asarray(position, dtype=float)[:, axis]
+    return float(np.max(np.abs(f - line)) / np.max(np.abs(line)) * 100.0)

@@ -90,3 +90,10 @@ def test_stiffness_scene_reports_the_fitted_error(prrr_paper):
     hand = 1.066 * 25e3 * p
     _, r = _report(prrr_paper, "stiffness-25", p, hand, np.zeros((N, 3)), np.zeros((N, 3)))
     assert r.paper_metric == pytest.approx(6.6, rel=1e-6)
+
+
+def test_max_force_deviation_pct():
+    """A 25 N/mm line over ±4 mm (peak 100 N) with a ±3 N square hysteresis: 3 % deviation."""
+    p = np.stack([_sin(4e-3, 1.0), np.zeros(N), np.zeros(N)], axis=-1)
+    F = 25e3 * p + 3.0 * np.sign(np.cos(2 * np.pi * t))[:, None] * np.array([1.0, 0.0, 0.0])
+    assert paper.max_force_deviation_pct(F, p, 25e3, 0) == pytest.approx(3.0, rel=1e-9)
