@@ -126,8 +126,8 @@ def design_map_plots(dmap, out_dir: Path) -> list[Path]:
     ax_name = "xyz"[dmap.axis]
     panels = (
         (dmap.residual, f"free-space residual ({dmap.scene}) [N]", True),
-        (np.where(np.isfinite(dmap.stiffness_limit), dmap.stiffness_limit * 1e-3, np.nan),
-         f"K_{ax_name} limit, exact sampled analysis [N/mm]", False),
+        (np.where(np.isfinite(dmap.stiffness_limit) & (dmap.stiffness_limit > 0), dmap.stiffness_limit * 1e-3, np.nan),
+         f"K_{ax_name} limit, exact sampled analysis [N/mm] (blank: force loop lost)", False),
         (dmap.bandwidth, "force-loop bandwidth (locked, sampled) [Hz]", True),
     )
     fig, axes = plt.subplots(1, 3, figsize=(16, 5), constrained_layout=True)
