@@ -19,6 +19,7 @@ cycle), and for decay scenes energy growth between the last two windows.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -276,23 +277,38 @@ class Simulator:
 
     ``run(gains)`` takes :class:`hapticopt.analysis.prrr.firmware.Gains` whose entries may carry a leading batch
     axis (e.g. stiffness (B, 3)); the plant matrices are compiled in as constants.
+
+    ``period_free=True`` compiles the period out instead: the discretised plant and the firmware's T
+    (and velocity-filter pole) become arguments, so one compiled loop runs any setup that differs
+    from ``st`` only in the controller period (``run(gains, batch, setup=other)``; the design map).
     """
 
-    def __init__(self, st: Setup, *, record: bool = True, chunk: int = CHUNK_TICKS) -> None:
+    def __init__(self, st: Setup, *, record: bool = True, chunk: int = CHUNK_TICKS, period_free: bool = False) -> None:
         self.st = st
         self.record = record
         self.chunk = min(chunk, st.ticks)
+        self.period_free = period_free
         self.disc = discretise(st.model, st.period / st.substeps)
-        self._chunk_fn = jax.jit(self._make_chunk())
+        fn = self._make_chunk()
+        if period_free:
+            self._chunk_fn = jax.jit(fn)
+        else:
+            mats = self._mats(st, self.disc, traced=False)
+            self._chunk_fn = jax.jit(lambda gains, carry: fn(gains, mats, carry))
+
+    def _mats(self, st: Setup, d, *, traced: bool):
+        """(AdT, BudT, BldT, cd, G) of the plant discretised over one substep of ``st``."""
+        m = st.model
+        G = m.friction_map @ d.Bld[m.out_vel] @ m.friction_map.T if m.friction_map is not None else None
+        mats = tuple(jnp.asarray(a) for a in (d.Ad.T, d.Bud.T, d.Bld.T, d.cd))
+        return mats + ((jnp.asarray(G) if traced and G is not None else G),)
 
     def _make_chunk(self):
-        st, m, d, cfg = self.st, self.model, self.disc, self.st.cfg
-        AdT, BudT, BldT, cd = (jnp.asarray(a) for a in (d.Ad.T, d.Bud.T, d.Bld.T, d.cd))
+        st, m, cfg = self.st, self.model, self.st.cfg
         n_sub, L = st.substeps, cfg.interpolation
         per = n_sub // L
         friction = m.friction_map is not None
         S = m.friction_map
-        G = S @ d.Bld[m.out_vel] @ S.T if friction else None
         ST = jnp.asarray(S.T) if friction else None
         quantize, record = st.quantize, self.record
         J = m.J
@@ -300,7 +316,9 @@ class Simulator:
         # every recorded observable is affine in [x, u, λ]: one matrix product per tick
         O, o0 = (jnp.asarray(a) for a in observation_matrix(m))
 
-        def advance(x, lam, applied):
+        def advance(mats, x, lam, applied):
+            AdT, BudT, BldT, cd, G = mats
+
             def sub(j, carry):
                 x, lam = carry
                 u = applied[:, j // per] if L > 1 else applied[:, 0]
@@ -314,7 +332,7 @@ class Simulator:
                 return sub(0, (x, lam))
             return jax.lax.fori_loop(0, n_sub, sub, (x, lam))
 
-        def tick(gains, carry, _):
+        def tick(gains, mats, carry, _):
             x, cs, buf, u_last, lam, alive, stop, k = carry
             slider, defl = sensor_values(m, x, u_last, xp=jnp)
             sc, dc = slider / gains.resolution, defl / gains.resolution
@@ -326,7 +344,7 @@ class Simulator:
                 buf2 = jnp.concatenate([buf[1:], cmd[None]], axis=0)
             else:
                 applied, buf2 = cmd, buf
-            x2, lam2 = advance(x, lam, applied)
+            x2, lam2 = advance(mats, x, lam, applied)
             u_end = applied[:, -1]
             energy = 0.5 * jnp.einsum("bi,ij,bj->b", x2, m.Q, x2)
             if m.out_pos is not None:
@@ -358,8 +376,8 @@ class Simulator:
                            force_reference=F)
             return (x_out, cs_out, buf2, u_out, lam_out, ok, stop, k + 1), out
 
-        def chunk(gains, carry):
-            return jax.lax.scan(lambda c, _: tick(gains, c, _), carry, None, length=self.chunk, unroll=UNROLL)
+        def chunk(gains, mats, carry):
+            return jax.lax.scan(lambda c, _: tick(gains, mats, c, _), carry, None, length=self.chunk, unroll=UNROLL)
 
         return chunk
 
@@ -387,22 +405,40 @@ class Simulator:
         return (x, cs, buf, u0, jnp.zeros((batch, n_fr)), jnp.ones(batch, dtype=bool),
                 jnp.full(batch, -1), jnp.asarray(0))
 
-    def run(self, gains: firmware.Gains | None = None, batch: int = 1) -> Traces:
-        """Run the scene's duration; stops between chunks once every batch element is unstable."""
-        gains = self.st.gains if gains is None else gains
+    def run(self, gains: firmware.Gains | None = None, batch: int = 1, *, setup: Setup | None = None) -> Traces:
+        """Run the scene's duration; stops between chunks once every batch element is unstable.
+
+        ``setup``: another setup of the same scene at another controller period (``period_free`` only).
+        """
+        st = self.st if setup is None else setup
+        gains = st.gains if gains is None else gains
+        if self.period_free:
+            if st.cfg != dataclasses.replace(self.st.cfg, period=st.cfg.period, velocity_alpha=st.cfg.velocity_alpha) \
+                    or (st.substeps, st.delay_ticks, st.quantize) != (self.st.substeps, self.st.delay_ticks,
+                                                                      self.st.quantize) \
+                    or (st.cfg.velocity_alpha > 0.0) != (self.st.cfg.velocity_alpha > 0.0):
+                raise ValueError("Simulator.run(setup=…): the setup differs from the compiled one in more than the period")
+            d = self.disc if setup is None else discretise(st.model, st.period / st.substeps)
+            mats = self._mats(st, d, traced=True)
+            gains = gains._replace(period=jnp.asarray(st.period), velocity_alpha=jnp.asarray(st.cfg.velocity_alpha))
+            step = lambda g, c: self._chunk_fn(g, mats, c)  # noqa: E731
+        else:
+            if setup is not None:
+                raise ValueError("Simulator.run(setup=…) needs period_free=True")
+            step = self._chunk_fn
         carry = self.initial_carry(gains, batch)
         outs = []
-        n_chunks = math.ceil(self.st.ticks / self.chunk)
+        n_chunks = math.ceil(st.ticks / self.chunk)
         for _ in range(n_chunks):
-            carry, out = self._chunk_fn(gains, carry)
+            carry, out = step(gains, carry)
             outs.append(out)
             if not bool(jnp.any(carry[5])):
                 break
-        cat = {k: np.concatenate([np.asarray(o[k]) for o in outs])[: self.st.ticks] for k in outs[0]}
+        cat = {k: np.concatenate([np.asarray(o[k]) for o in outs])[: st.ticks] for k in outs[0]}
         N = cat["energy"].shape[0]
-        if N < self.st.ticks:  # stopped early: hold the last values (the run stopped cleanly)
-            cat = {k: np.concatenate([v, np.repeat(v[-1:], self.st.ticks - N, axis=0)]) for k, v in cat.items()}
-        return Traces(period=self.st.period, stop_tick=np.asarray(carry[6]), **cat)
+        if N < st.ticks:  # stopped early: hold the last values (the run stopped cleanly)
+            cat = {k: np.concatenate([v, np.repeat(v[-1:], st.ticks - N, axis=0)]) for k, v in cat.items()}
+        return Traces(period=st.period, stop_tick=np.asarray(carry[6]), **cat)
 
 
 def batch_gains(gains: firmware.Gains, **fields: Any) -> firmware.Gains:

@@ -10,7 +10,8 @@ Per point:
 
 * ``residual`` — the scene's [report] quantity (the paper's definition, e.g. Fig 14's RMS of F_x)
   from the closed-loop simulation (:mod:`hapticopt.analysis.prrr.closed_loop`), all K_p of one T
-  in one batched compiled run; NaN where that run is unstable.
+  in one batched run of one compiled loop shared by every T (the period is an argument); NaN where
+  that run is unstable.
 * ``stiffness_limit`` — the largest stable virtual stiffness on the scene's measure axis (zero
   virtual damping) from the exact discrete analysis (eigenvalues of the sampled loop's transition
   matrix, :func:`hapticopt.analysis.prrr.stability.sampled_stiffness_limit`); with
@@ -157,9 +158,12 @@ def design_map(design: PrrrDesign, scene: Scene, *, periods, force_gains, fideli
     bw = np.full((nT, nK), np.nan)
     fl_ok = np.zeros((nT, nK), dtype=bool)
     sim_limit = np.zeros((nT, nK)) if simulate_limits else None
+    setups = [setup(design, _with(scene, period=T, duration=duration), fidelity=fidelity) for T in Ts]
+    # one compiled loop for every T (the period is an argument): the longest run sets the chunk length
+    sim = Simulator(setups[int(np.argmax([st.ticks for st in setups]))], period_free=True)
     for i, T in enumerate(Ts):
-        st = setup(design, _with(scene, period=T, duration=duration), fidelity=fidelity)
-        tr = Simulator(st).run(batch_gains(st.gains, kp=kps), batch=nK)
+        st = setups[i]
+        tr = sim.run(batch_gains(st.gains, kp=kps), batch=nK, setup=st)
         alpha = stability.velocity_alpha(T, scene.controller.velocity_filter)
         for j, kp in enumerate(kps):
             r = metrics_from_traces(tr, st, j)

@@ -94,6 +94,8 @@ class Gains(NamedTuple):
     friction_comp: jax.Array  # [N]
     friction_comp_velocity: jax.Array  # [m/s]
     weight: jax.Array  # M g [N]
+    period: jax.Array | None = None  # T [s] as an argument (None: the compiled-in cfg.period)
+    velocity_alpha: jax.Array | None = None  # velocity-filter pole as an argument (None: cfg.velocity_alpha)
 
 
 class State(NamedTuple):
@@ -160,11 +162,12 @@ def interpolation_weights(cfg: FirmwareConfig) -> np.ndarray:
 def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Array, deflection_counts: jax.Array
          ) -> tuple[State, jax.Array, jax.Array]:
     """One control period. Returns (new state, commands (…, L, 3) [N], F_r (…, 3) [N])."""
-    T = cfg.period
+    T = cfg.period if gains.period is None else gains.period
     p = (slider_counts * gains.resolution) @ gains.J.T
     diff = (p - state.p_prev) / T
-    if cfg.velocity_alpha > 0.0:
-        v = cfg.velocity_alpha * state.velocity + (1.0 - cfg.velocity_alpha) * diff
+    if cfg.velocity_alpha > 0.0:  # structure: whether the filter exists; its pole may be an argument
+        alpha = cfg.velocity_alpha if gains.velocity_alpha is None else gains.velocity_alpha
+        v = alpha * state.velocity + (1.0 - alpha) * diff
     else:
         v = diff
     delta = p - gains.anchor
