@@ -99,6 +99,12 @@ def test_every_bundled_scene_keeps_the_chains_closed(name):
         assert m["constraint_violation_mm"] <= mujoco_master.VIOLATION_TOL * 1e3
         assert m["constraint_health_ok"] and not r.warnings and r.status == Status.OK, r.message
         return
+    if scene.output_locked:  # seed 002 Fig 8 / 9: no linkage moves; the multibody plant refuses, one line
+        from hapticopt.design.errors import InvalidInput
+
+        with pytest.raises(InvalidInput, match="output_locked tests the SEA force loop alone"):
+            simulate(DESIGN, scene, platform=Platform.FREE)
+        return
     r = simulate(DESIGN, scene, platform=Platform.FREE)
     m = r.metrics()
     assert m["constraint_violation_mm"] <= VIOLATION_TOL * 1e3
