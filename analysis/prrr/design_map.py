@@ -31,7 +31,7 @@ from enum import StrEnum
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.loop.scene import Effect, Scene, StabilityCriterion
+from hapticopt.analysis.loop.scene import Effect, EnvKind, Scene, StabilityCriterion
 from hapticopt.analysis.prrr import stability
 from hapticopt.analysis.prrr.closed_loop import Simulator, batch_gains, classify, metrics_from_traces, setup
 from hapticopt.design.errors import InvalidInput
@@ -111,7 +111,7 @@ def simulated_stiffness_limits(design: PrrrDesign, scene: Scene, *, period: floa
     off[axis] = 1e-3
     sc = dataclasses.replace(_with(scene, period=period, duration=1.0), effects=frozenset(scene.effects & keep),
                              stability=StabilityCriterion.DECAY, initial_offset=tuple(off), report=None,
-                             environment=dataclasses.replace(scene.environment, kind="spring",
+                             environment=dataclasses.replace(scene.environment, kind=EnvKind.SPRING,
                                                              stiffness=(0.0, 0.0, 0.0), damping=(0.0, 0.0, 0.0)))
     st = setup(design, sc, fidelity=fidelity)
     sim = Simulator(st, record=False)
