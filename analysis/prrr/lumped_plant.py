@@ -247,11 +247,17 @@ def solve_friction(xp, v_free, G, limit, lam0, iters: int):
     """
     m = G.shape[0]
     lim = [float(x) for x in np.broadcast_to(np.asarray(limit, dtype=float), (m,))]
+    if isinstance(G, np.ndarray):  # constants: divide (bit-for-bit the reference path)
+        step = [lambda vi, i=i: vi / G[i, i] for i in range(m)]
+    else:  # a traced G (the period-free loop): read its entries and reciprocals once, outside the sweeps
+        G = _Entries([[G[i, j] for j in range(m)] for i in range(m)])
+        inv = [1.0 / G[i, i] for i in range(m)]
+        step = [lambda vi, i=i: vi * inv[i] for i in range(m)]
 
     def sweep(lam, v):
         lam, v = list(lam), list(v)
         for i in range(m):
-            new = xp.minimum(xp.maximum(lam[i] - v[i] / G[i, i], -lim[i]), lim[i])
+            new = xp.minimum(xp.maximum(lam[i] - step[i](v[i]), -lim[i]), lim[i])
             d = new - lam[i]
             v = [v[j] + G[j, i] * d for j in range(m)]
             lam[i] = new
@@ -271,6 +277,17 @@ def solve_friction(xp, v_free, G, limit, lam0, iters: int):
 
 
 FRICTION_ITERS = 12
+
+
+class _Entries:
+    """``G[i, j]`` over a nested list of (traced) scalars."""
+
+    def __init__(self, rows) -> None:
+        self.rows = rows
+        self.shape = (len(rows), len(rows))
+
+    def __getitem__(self, ij):
+        return self.rows[ij[0]][ij[1]]
 
 
 def sensor_values(model: LumpedModel, x: np.ndarray, u: np.ndarray, xp=np):
