@@ -67,6 +67,23 @@ class BoxMode(StrEnum):
     OUTSIDE = "outside"  # keep it out: acts when all axes are within, along the shallowest axis
 
 
+class FrictionLocation(StrEnum):
+    """Where the ``coulomb_friction`` effect acts (seed 002 blames the R joints, §4.3)."""
+
+    SLIDERS = "sliders"  # F_c on each output slider (``actuator.coulomb_friction_N``)
+    R_JOINTS = "r_joints"  # τ_c on each of the nine R joints (``structure.joint_friction_Nm``), through each leg's IK
+    BOTH = "both"
+
+
+class PaperQuantity(StrEnum):
+    """A seed experiment's reported quantity, computed the paper's way (:mod:`hapticopt.analysis.loop.paper`)."""
+
+    HAND_FORCE_AXIS_RMS = "hand_force_axis_rms"  # Fig 14: RMS of the measured force along the driven axis
+    FORCE_ERROR_AXIS_RMS = "force_error_axis_rms"  # Fig 8: RMS of (F − F_r) along one axis
+    FORCE_ERROR_PLANE_RMS = "force_error_plane_rms"  # Fig 9/10: RMS of |F − F_r| in a plane
+    STIFFNESS_ERROR_PCT = "stiffness_error_pct"  # Fig 15: rendered vs commanded stiffness
+
+
 class StabilityCriterion(StrEnum):
     DRIVEN = "driven"  # energy explodes beyond the scene's energy scale, or state runs away
     DECAY = "decay"  # + the energy of the last window exceeds the window before (growth)
@@ -165,6 +182,7 @@ class Environment:
     box_mode: BoxMode = BoxMode.INSIDE
     force_amplitude: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N]
     force_frequency: float = 1.0  # [Hz]
+    force_phase: tuple[float, float, float] = (0.0, 0.0, 0.0)  # F_r,a = A_a sin(2πft + φ_a) [rad]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -193,6 +211,16 @@ class ZWidthSettings:
 
 
 @dataclass(frozen=True, kw_only=True)
+class PaperReport:
+    """What a scene replicates: the seed's quantity, its axes, and the value the paper reports."""
+
+    quantity: PaperQuantity
+    axes: tuple[int, ...] = (0,)
+    value: float | None = None  # the paper's number in the quantity's unit (N or %)
+    source: str = ""  # e.g. "seed 002 Fig 14a"
+
+
+@dataclass(frozen=True, kw_only=True)
 class Scene:
     name: str
     description: str = ""
@@ -215,6 +243,8 @@ class Scene:
     backend: "Backend | None" = None  # forced backend; None = the resolver chooses
     ioic: IoicSettings = field(default_factory=IoicSettings)  # controller.mode = "ioic"
     ntsmtc: NtsmtcSettings = field(default_factory=NtsmtcSettings)  # the master's IOIC inner loop
+    friction_location: FrictionLocation = FrictionLocation.SLIDERS
+    report: PaperReport | None = None  # the seed experiment this scene replicates
 
 
 def require_mode(scene: Scene, mode: FirmwareMode, who: str) -> None:
@@ -372,6 +402,7 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
         box_mode=e.choice("box_mode", BoxMode, BoxMode.INSIDE),
         force_amplitude=e.vec("force_amplitude_N", (0.0,) * 3, lo=-1e6, hi=1e6, unit="N"),
         force_frequency=e.num("force_frequency_Hz", 1.0, lo=0.0, hi=1e5, unit="Hz"),
+        force_phase=e.vec("force_phase_deg", (0.0,) * 3, scale=math.pi / 180.0, lo=-360.0, hi=360.0, unit="deg"),
     )
     e.done()
 
@@ -412,6 +443,7 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
     top.used.add("effects")
     effects = {eff for eff in Effect if ef.flag(eff.value, eff in DEFAULT_EFFECTS)}
     delay = ef.num("time_delay_ms", 0.0, scale=1e-3, lo=0.0, hi=1e4, unit="ms")
+    friction_location = ef.choice("friction_location", FrictionLocation, FrictionLocation.SLIDERS)
     ef.done()
 
     s = _Reader(data.get("simulation", {}), f"{where}: simulation")
@@ -487,6 +519,41 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
         theta=nt.num("theta_rad_per_s", 0.05, lo=0.0, hi=1e3, lo_open=True, unit="rad/s"),
     )
     nt.done()
+    report = None
+    if "report" in data:
+        r = _Reader(data["report"], f"{where}: report")
+        quantity = r.choice("quantity", PaperQuantity, None)
+        if quantity is None:
+            allowed = ", ".join(q.value for q in PaperQuantity)
+            raise InvalidInput(f"{where}: report.quantity is missing: allowed {allowed}")
+        axes_key = r._get("axes")
+        if axes_key is None:
+            axes: tuple[int, ...] = (axis,)
+        elif (isinstance(axes_key, str) and 1 <= len(axes_key) <= 2 and all(ch in _AXES for ch in axes_key)
+              and len(set(axes_key)) == len(axes_key)):
+            axes = tuple(_AXES[ch] for ch in axes_key)
+        else:
+            raise InvalidInput(f"{where}: report.axes = {axes_key!r} must name one or two different axes: "
+                               "allowed \"x\", \"y\", \"z\", \"xy\", \"xz\", \"yz\"")
+        if quantity == PaperQuantity.FORCE_ERROR_PLANE_RMS and len(axes) != 2:
+            raise InvalidInput(f"{where}: report.axes = {axes_key!r} must name a plane (two axes) for "
+                               f"quantity = \"{quantity.value}\"")
+        if quantity != PaperQuantity.FORCE_ERROR_PLANE_RMS and len(axes) != 1:
+            raise InvalidInput(f"{where}: report.axes = {axes_key!r} must name one axis for "
+                               f"quantity = \"{quantity.value}\"")
+        source = r._get("source") or ""
+        if not isinstance(source, str):
+            raise InvalidInput(f"{where}: report.source = {source!r} must be a string")
+        unit = "%" if quantity == PaperQuantity.STIFFNESS_ERROR_PCT else "N"
+        value_key = "paper_value_pct" if unit == "%" else "paper_value_N"
+        value = r._get(value_key)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                  or not math.isfinite(value) or value < 0):
+            raise InvalidInput(f"{where}: report.{value_key} = {value!r} must be a finite number ≥ 0 {unit}")
+        r.done()
+        top.used.add("report")
+        report = PaperReport(quantity=quantity, axes=axes, value=None if value is None else float(value),
+                             source=source)
     top.done()
 
     ioic_mode = controller.mode == FirmwareMode.IOIC
@@ -538,7 +605,8 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
                  operator=operator, motion=motion, initial_offset=initial, effects=frozenset(effects),
                  time_delay=delay if Effect.TIME_DELAY in effects else 0.0, substeps=substeps,
                  output_locked=locked, stability=criterion, measure_axis=axis, zwidth=zw, device=device,
-                 backend=backend, sweep_factors=sweep, sweep_periods=sweep_periods, ioic=ioic, ntsmtc=ntsmtc)
+                 backend=backend, sweep_factors=sweep, sweep_periods=sweep_periods, ioic=ioic, ntsmtc=ntsmtc,
+                 friction_location=friction_location, report=report)
 
 
 SCENES = "hapticopt.analysis.scenes"

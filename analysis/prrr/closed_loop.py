@@ -19,6 +19,7 @@ cycle), and for decay scenes energy growth between the last two windows.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -40,12 +41,14 @@ from hapticopt.analysis.prrr.lumped_plant import (
     sensor_values,
     solve_friction,
 )
+from hapticopt.analysis.loop import paper
 from hapticopt.analysis.loop.plant import Plant
 from hapticopt.analysis.loop.scene import (
     BoxMode,
     Effect,
     EnvKind,
     FirmwareMode,
+    PaperQuantity,
     Resolution,
     Scene,
     StabilityCriterion,
@@ -163,7 +166,9 @@ class ClosedLoopResult:
     wall_time: float = 0.0
     status: Status = Status.OK
     message: str = ""
+    paper_metric: float | None = None  # the scene's [report] quantity computed the paper's way (N or %)
     traces: Traces | None = field(default=None, repr=False, compare=False)
+    report: Any = field(default=None, repr=False, compare=False)  # the scene's PaperReport (None: no report)
 
     def metrics(self) -> dict[str, Any]:
         def mm(v: float | None, f: float) -> float | None:
@@ -187,7 +192,14 @@ class ClosedLoopResult:
             "plant_substeps": self.substeps,
             "ticks": self.ticks,
             "wall_time_s": self.wall_time,
-        }
+        } | self._report_metrics()
+
+    def _report_metrics(self) -> dict[str, Any]:
+        r = self.report
+        if r is None:
+            return {}
+        return {"paper_quantity": str(r.quantity), "paper_axes": "".join("xyz"[a] for a in r.axes),
+                "paper_metric": self.paper_metric, "paper_value": r.value, "paper_source": r.source}
 
 
 def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | None = None,
@@ -223,6 +235,9 @@ def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | Non
             else:
                 inside = np.all(depth < 0, axis=-1)
                 pen = float((-depth.max(axis=-1))[inside].max()) if inside.any() else 0.0
+    ours = None
+    if sc.report is not None and stable and tr.position is not None and end - start >= 3:
+        ours = report_value(sc.report, tr, sl, b, err)
     status = Status.OK if stable else Status.UNSTABLE
     message = "" if stable else f"unstable: detected at t = {t_det:.4g} s; the run stopped cleanly"
     return ClosedLoopResult(
@@ -230,8 +245,21 @@ def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | Non
         residual_force_rms=res_rms, residual_force_rms_per_axis=res_axis, force_tracking_rms=track,
         wall_penetration=pen, backend=backend or str(st.resolution.backend), effects=tuple(st.resolution.effect_names()),
         notes=st.resolution.notes, reason=st.resolution.reason, period=st.period, substeps=st.substeps, ticks=st.ticks, wall_time=wall_time,
-        status=status, message=message, traces=tr,
+        status=status, message=message, traces=tr, paper_metric=ours, report=sc.report,
     )
+
+
+def report_value(report: Any, tr: Traces, sl: slice, b: int, stiffness_error: float | None) -> float | None:
+    """The scene's [report] quantity on batch element ``b`` over the settled window ``sl``
+    (definitions in :mod:`hapticopt.analysis.loop.paper`)."""
+    q = report.quantity
+    if q == PaperQuantity.HAND_FORCE_AXIS_RMS:
+        return paper.axis_rms(tr.hand_force[sl, b], report.axes[0])
+    if q == PaperQuantity.FORCE_ERROR_AXIS_RMS:
+        return paper.axis_error_rms(tr.actuator_force[sl, b], tr.force_reference[sl, b], report.axes[0])
+    if q == PaperQuantity.FORCE_ERROR_PLANE_RMS:
+        return paper.plane_error_rms(tr.actuator_force[sl, b], tr.force_reference[sl, b], report.axes)
+    return stiffness_error
 
 
 # ------------------------------------------------------------------------------ the fused runner
@@ -252,43 +280,62 @@ class Simulator:
 
     ``run(gains)`` takes :class:`hapticopt.analysis.prrr.firmware.Gains` whose entries may carry a leading batch
     axis (e.g. stiffness (B, 3)); the plant matrices are compiled in as constants.
+
+    ``period_free=True`` compiles the period out instead: the discretised plant and the firmware's T
+    (and velocity-filter pole) become arguments, so one compiled loop runs any setup that differs
+    from ``st`` only in the controller period (``run(gains, batch, setup=other)``; the design map).
     """
 
-    def __init__(self, st: Setup, *, record: bool = True, chunk: int = CHUNK_TICKS) -> None:
+    def __init__(self, st: Setup, *, record: bool = True, chunk: int = CHUNK_TICKS, period_free: bool = False) -> None:
         self.st = st
         self.record = record
         self.chunk = min(chunk, st.ticks)
+        self.period_free = period_free
         self.disc = discretise(st.model, st.period / st.substeps)
-        self._chunk_fn = jax.jit(self._make_chunk())
+        fn = self._make_chunk()
+        if period_free:
+            self._chunk_fn = jax.jit(fn)
+        else:
+            mats = self._mats(st, self.disc, traced=False)
+            self._chunk_fn = jax.jit(lambda gains, carry: fn(gains, mats, carry))
+
+    def _mats(self, st: Setup, d, *, traced: bool):
+        """(AdT, BudT, BldT, cd, G) of the plant discretised over one substep of ``st``."""
+        m = st.model
+        G = m.friction_map @ d.Bld[m.out_vel] @ m.friction_map.T if m.friction_map is not None else None
+        mats = tuple(jnp.asarray(a) for a in (d.Ad.T, d.Bud.T, d.Bld.T, d.cd))
+        return mats + ((jnp.asarray(G) if traced and G is not None else G),)
 
     def _make_chunk(self):
-        st, m, d, cfg = self.st, self.model, self.disc, self.st.cfg
-        AdT, BudT, BldT, cd = (jnp.asarray(a) for a in (d.Ad.T, d.Bud.T, d.Bld.T, d.cd))
+        st, m, cfg = self.st, self.model, self.st.cfg
         n_sub, L = st.substeps, cfg.interpolation
         per = n_sub // L
-        friction = m.coulomb > 0.0
-        G = d.Bld[m.out_vel] if friction else None
+        friction = m.friction_map is not None
+        S = m.friction_map
+        ST = jnp.asarray(S.T) if friction else None
         quantize, record = st.quantize, self.record
         J = m.J
         pos_rows = [s for s in (m.out_pos, m.motor_pos) if s is not None]
         # every recorded observable is affine in [x, u, λ]: one matrix product per tick
         O, o0 = (jnp.asarray(a) for a in observation_matrix(m))
 
-        def advance(x, lam, applied):
+        def advance(mats, x, lam, applied):
+            AdT, BudT, BldT, cd, G = mats
+
             def sub(j, carry):
                 x, lam = carry
                 u = applied[:, j // per] if L > 1 else applied[:, 0]
                 xf = x @ AdT + u @ BudT + cd
                 if friction:
-                    lam = solve_friction(jnp, xf[:, m.out_vel], G, m.coulomb, lam, FRICTION_ITERS)
-                    xf = xf + lam @ BldT
+                    lam = solve_friction(jnp, xf[:, m.out_vel] @ ST, G, m.friction_limit, lam, FRICTION_ITERS)
+                    xf = xf + (lam @ ST.T) @ BldT
                 return xf, lam
 
             if n_sub == 1:
                 return sub(0, (x, lam))
             return jax.lax.fori_loop(0, n_sub, sub, (x, lam))
 
-        def tick(gains, carry, _):
+        def tick(gains, mats, carry, _):
             x, cs, buf, u_last, lam, alive, stop, k = carry
             slider, defl = sensor_values(m, x, u_last, xp=jnp)
             sc, dc = slider / gains.resolution, defl / gains.resolution
@@ -300,7 +347,7 @@ class Simulator:
                 buf2 = jnp.concatenate([buf[1:], cmd[None]], axis=0)
             else:
                 applied, buf2 = cmd, buf
-            x2, lam2 = advance(x, lam, applied)
+            x2, lam2 = advance(mats, x, lam, applied)
             u_end = applied[:, -1]
             energy = 0.5 * jnp.einsum("bi,ij,bj->b", x2, m.Q, x2)
             if m.out_pos is not None:
@@ -326,13 +373,14 @@ class Simulator:
                 sat = jnp.zeros_like(ok)
             out = {"energy": jnp.where(ok, energy, 0.0), "saturated": sat}
             if record:
-                y = jnp.concatenate([x_out, u_out, lam_out], axis=-1) @ O + o0
+                lam_s = lam_out @ ST.T if friction else lam_out  # slider-space friction force
+                y = jnp.concatenate([x_out, u_out, lam_s], axis=-1) @ O + o0
                 out.update(position=y[:, 0:3], velocity=y[:, 3:6], hand_force=y[:, 6:9], actuator_force=y[:, 9:12],
                            force_reference=F)
             return (x_out, cs_out, buf2, u_out, lam_out, ok, stop, k + 1), out
 
-        def chunk(gains, carry):
-            return jax.lax.scan(lambda c, _: tick(gains, c, _), carry, None, length=self.chunk, unroll=UNROLL)
+        def chunk(gains, mats, carry):
+            return jax.lax.scan(lambda c, _: tick(gains, mats, c, _), carry, None, length=self.chunk, unroll=UNROLL)
 
         return chunk
 
@@ -356,25 +404,44 @@ class Simulator:
         cs = firmware.init_state(st.cfg, gains, sc)
         L = st.cfg.interpolation
         buf = jnp.zeros((st.delay_ticks, batch, L, 3)) if st.delay_ticks else jnp.zeros((0,))
-        return (x, cs, buf, u0, jnp.zeros((batch, 3)), jnp.ones(batch, dtype=bool),
+        n_fr = 3 if m.friction_map is None else m.friction_map.shape[0]
+        return (x, cs, buf, u0, jnp.zeros((batch, n_fr)), jnp.ones(batch, dtype=bool),
                 jnp.full(batch, -1), jnp.asarray(0))
 
-    def run(self, gains: firmware.Gains | None = None, batch: int = 1) -> Traces:
-        """Run the scene's duration; stops between chunks once every batch element is unstable."""
-        gains = self.st.gains if gains is None else gains
+    def run(self, gains: firmware.Gains | None = None, batch: int = 1, *, setup: Setup | None = None) -> Traces:
+        """Run the scene's duration; stops between chunks once every batch element is unstable.
+
+        ``setup``: another setup of the same scene at another controller period (``period_free`` only).
+        """
+        st = self.st if setup is None else setup
+        gains = st.gains if gains is None else gains
+        if self.period_free:
+            if st.cfg != dataclasses.replace(self.st.cfg, period=st.cfg.period, velocity_alpha=st.cfg.velocity_alpha) \
+                    or (st.substeps, st.delay_ticks, st.quantize) != (self.st.substeps, self.st.delay_ticks,
+                                                                      self.st.quantize) \
+                    or (st.cfg.velocity_alpha > 0.0) != (self.st.cfg.velocity_alpha > 0.0):
+                raise ValueError("Simulator.run(setup=…): the setup differs from the compiled one in more than the period")
+            d = self.disc if setup is None else discretise(st.model, st.period / st.substeps)
+            mats = self._mats(st, d, traced=True)
+            gains = gains._replace(period=jnp.asarray(st.period), velocity_alpha=jnp.asarray(st.cfg.velocity_alpha))
+            step = lambda g, c: self._chunk_fn(g, mats, c)  # noqa: E731
+        else:
+            if setup is not None:
+                raise ValueError("Simulator.run(setup=…) needs period_free=True")
+            step = self._chunk_fn
         carry = self.initial_carry(gains, batch)
         outs = []
-        n_chunks = math.ceil(self.st.ticks / self.chunk)
+        n_chunks = math.ceil(st.ticks / self.chunk)
         for _ in range(n_chunks):
-            carry, out = self._chunk_fn(gains, carry)
+            carry, out = step(gains, carry)
             outs.append(out)
             if not bool(jnp.any(carry[5])):
                 break
-        cat = {k: np.concatenate([np.asarray(o[k]) for o in outs])[: self.st.ticks] for k in outs[0]}
+        cat = {k: np.concatenate([np.asarray(o[k]) for o in outs])[: st.ticks] for k in outs[0]}
         N = cat["energy"].shape[0]
-        if N < self.st.ticks:  # stopped early: hold the last values (the run stopped cleanly)
-            cat = {k: np.concatenate([v, np.repeat(v[-1:], self.st.ticks - N, axis=0)]) for k, v in cat.items()}
-        return Traces(period=self.st.period, stop_tick=np.asarray(carry[6]), **cat)
+        if N < st.ticks:  # stopped early: hold the last values (the run stopped cleanly)
+            cat = {k: np.concatenate([v, np.repeat(v[-1:], st.ticks - N, axis=0)]) for k, v in cat.items()}
+        return Traces(period=st.period, stop_tick=np.asarray(carry[6]), **cat)
 
 
 def batch_gains(gains: firmware.Gains, **fields: Any) -> firmware.Gains:

@@ -5,7 +5,8 @@ counts (integers when quantisation is on). Per tick:
 
 1. p = J · (counts · resolution)                         (eq 1, positions from home)
 2. ṗ̂: first-order low-passed difference (cut-off f_c; plain backward difference if f_c = 0)
-3. F_r = −K_v (p − p_r) − B_v ṗ̂ (diagonal), or the virtual box of eq 13 (inside / outside),
+3. F_r = −K_v (p − p_r) − B_v ṗ̂ (diagonal), or the virtual box of eq 13 (inside / outside), or a
+   prescribed force A sin(2πft + φ) per axis (a phase per axis draws Fig 9's force circle),
    + friction compensation F_fc·tanh(ṗ̂/v_ε) in x and y, + weight compensation in z
 4. f_r = Jᵀ F_r                                           (spring-force references per leg)
 5. per-SEA force loop F = K_p (f_r − k x̂) + K_i ∫(f_r − k x̂) (rigid: F = f_r/η; ideal: F = f_r)
@@ -90,12 +91,15 @@ class Gains(NamedTuple):
     wall_damping: jax.Array  # [N·s/m]
     force_amplitude: jax.Array  # (…, 3) [N]
     force_omega: jax.Array  # (…,) [rad/s]
+    force_phase: jax.Array  # (…, 3) [rad]
     kp: jax.Array  # (…,) K_p
     ki: jax.Array  # (…,) K_i [1/s]
     motor_limit: jax.Array  # [N]
     friction_comp: jax.Array  # [N]
     friction_comp_velocity: jax.Array  # [m/s]
     weight: jax.Array  # M g [N]
+    period: jax.Array | None = None  # T [s] as an argument (None: the compiled-in cfg.period)
+    velocity_alpha: jax.Array | None = None  # velocity-filter pole as an argument (None: cfg.velocity_alpha)
 
 
 class State(NamedTuple):
@@ -136,6 +140,7 @@ def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: f
         stiffness=f64(env.stiffness), damping=f64(env.damping), anchor=f64(env.anchor), half_size=f64(env.half_size),
         wall_stiffness=f64(env.wall_stiffness), wall_damping=f64(env.wall_damping),
         force_amplitude=f64(env.force_amplitude), force_omega=f64(2.0 * math.pi * env.force_frequency),
+        force_phase=f64(env.force_phase),
         kp=f64(cs.force_gain), ki=f64(cs.integral_gain), motor_limit=f64(limit),
         friction_comp=f64(cs.friction_compensation), friction_comp_velocity=f64(cs.friction_compensation_velocity),
         weight=f64(design.end_effector.mass * GRAVITY),
@@ -168,11 +173,12 @@ def predictions(ar: tuple[float, ...], history, xp=np):
 def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Array, deflection_counts: jax.Array
          ) -> tuple[State, jax.Array, jax.Array]:
     """One control period. Returns (new state, commands (…, L, 3) [N], F_r (…, 3) [N])."""
-    T = cfg.period
+    T = cfg.period if gains.period is None else gains.period
     p = (slider_counts * gains.resolution) @ gains.J.T
     diff = (p - state.p_prev) / T
-    if cfg.velocity_alpha > 0.0:
-        v = cfg.velocity_alpha * state.velocity + (1.0 - cfg.velocity_alpha) * diff
+    if cfg.velocity_alpha > 0.0:  # structure: whether the filter exists; its pole may be an argument
+        alpha = cfg.velocity_alpha if gains.velocity_alpha is None else gains.velocity_alpha
+        v = alpha * state.velocity + (1.0 - alpha) * diff
     else:
         v = diff
     delta = p - gains.anchor
@@ -195,7 +201,7 @@ def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Arr
     else:  # FORCE: prescribed force reference
         _traced("force")
         t = state.tick * T
-        F = gains.force_amplitude * jnp.sin(gains.force_omega[..., None] * t) + jnp.zeros_like(p)
+        F = gains.force_amplitude * jnp.sin(gains.force_omega[..., None] * t + gains.force_phase) + jnp.zeros_like(p)
     if cfg.friction_compensation:
         _traced("friction_compensation")
         comp = gains.friction_comp * jnp.tanh(v / gains.friction_comp_velocity)

@@ -41,6 +41,7 @@ class NumpyController:
         self._K, self._B, self._anchor = g["stiffness"], g["damping"], g["anchor"]
         self._half, self._Kb, self._Bb = g["half_size"], float(g["wall_stiffness"]), float(g["wall_damping"])
         self._famp, self._fomega = g["force_amplitude"], float(g["force_omega"])
+        self._fphase = [float(x) for x in np.broadcast_to(g["force_phase"], (3,))]
         self._kp, self._ki, self._limit = float(g["kp"]), float(g["ki"]), float(g["motor_limit"])
         self._fc, self._fcv, self._weight = float(g["friction_comp"]), float(g["friction_comp_velocity"]), float(g["weight"])
         self._W = firmware.interpolation_weights(cfg) if cfg.interpolation > 1 else None
@@ -100,7 +101,7 @@ class NumpyController:
                     F[i] = -Kb * sgn * depth - Bb * v[i]
         else:
             ph = self._fomega * (self._tick * T)
-            F = [fa * math.sin(ph) for fa in self._famp_l]
+            F = [fa * math.sin(ph + phi) for fa, phi in zip(self._famp_l, self._fphase)]
         if cfg.friction_compensation:
             fc, fcv = self._fc, self._fcv
             F = [F[0] + fc * math.tanh(v[0] / fcv), F[1] + fc * math.tanh(v[1] / fcv), F[2] + 0.0]

@@ -36,8 +36,9 @@ import numpy as np
 import scipy.linalg
 
 from hapticopt.analysis.loop.plant import Observation, Sensors
-from hapticopt.design.prrr.kinematics import jacobian
-from hapticopt.analysis.loop.scene import Effect, Resolution, Scene
+from hapticopt.design.prrr.cad import DEFAULT_BRANCH
+from hapticopt.design.prrr.kinematics import jacobian, joint_rate_jacobian, params_of
+from hapticopt.analysis.loop.scene import Effect, FrictionLocation, Resolution, Scene
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.design.units import GRAVITY
 
@@ -75,7 +76,9 @@ class LumpedModel:
     hand_damping: float
     hand_mass: float
     offset: np.ndarray  # reference offset o [m]
-    coulomb: float  # F_c per slider [N] (0 when off)
+    coulomb: float  # F_c per slider [N] (0 when off or not on the sliders)
+    friction_map: np.ndarray | None = None  # (m, 3) S: friction-coordinate rates w = S Ḋ_e (None: no friction)
+    friction_limit: np.ndarray | None = None  # (m,) |μ_j| ≤ limit_j [N or N·m]; slider force Sᵀμ
 
     @property
     def n(self) -> int:
@@ -168,12 +171,46 @@ def build_model(design: PrrrDesign, scene: Scene, resolution: Resolution) -> Lum
         amp, ph = np.asarray(scene.motion.amplitude), np.asarray(scene.motion.phase)
         x0[ref_pos] = amp * np.sin(ph)
         x0[ref_vel] = amp * w * np.cos(ph)
+    S, limit = friction_coordinates(design, scene.friction_location) if (
+        Effect.COULOMB_FRICTION in fx and out_pos is not None) else (None, None)
+    on_sliders = S is not None and scene.friction_location != FrictionLocation.R_JOINTS
     return LumpedModel(
         mode=mode, A=A, Bu=Bu, Bl=Bl, c=c, Q=Q, x0=x0, out_pos=out_pos, out_vel=out_vel, motor_pos=motor_pos,
         ref_pos=ref_pos, ref_vel=ref_vel, J=J, spring=k, motor_mass=Mm, viscous=xi, efficiency=eta,
         hand_stiffness=kh, hand_damping=bh, hand_mass=mh, offset=offset,
-        coulomb=a.coulomb_friction if Effect.COULOMB_FRICTION in fx and out_pos is not None else 0.0,
+        coulomb=a.coulomb_friction if on_sliders else 0.0, friction_map=S, friction_limit=limit,
     )
+
+
+def r_joint_rates(design: PrrrDesign) -> np.ndarray:
+    """(9, 3) ∂θ/∂p of the nine R joints at the home pose [rad/m] (the CAD's elbow branch).
+
+    Constant over a run: the scenes move ≤ 4 mm about home, where ∂θ/∂p changes by ≤ 6 %
+    (``tests/analysis/prrr/test_lumped_plant.py``); the 3-PRRR's Jacobian J is constant, its
+    joint-rate map is not.
+    """
+    H = joint_rate_jacobian(params_of(design), np.zeros(3), DEFAULT_BRANCH)
+    return np.asarray(H).reshape(9, 3)
+
+
+def friction_coordinates(design: PrrrDesign, location: FrictionLocation) -> tuple[np.ndarray, np.ndarray]:
+    """(S (m, 3), limits (m,)): friction-coordinate rates w = S Ḋ_e and their Coulomb limits.
+
+    Sliders: w = Ḋ_e, |μ| ≤ F_c (``actuator.coulomb_friction_N``). R joints: w = θ̇ = H J Ḋ_e with
+    H = ∂θ/∂p of each leg's inverse kinematics (:func:`r_joint_rates`), |μ| ≤ τ_c
+    (``structure.joint_friction_Nm``); the slider-space force is Sᵀμ (virtual work). H has a zero
+    z column, so R-joint friction never acts along z.
+    """
+    a, s = design.actuator, design.structure
+    parts_S, parts_l = [], []
+    if location in (FrictionLocation.SLIDERS, FrictionLocation.BOTH):
+        parts_S.append(np.eye(3))
+        parts_l.append(np.full(3, a.coulomb_friction))
+    if location in (FrictionLocation.R_JOINTS, FrictionLocation.BOTH):
+        J = jacobian(design.geometry.beta, xp=np)
+        parts_S.append(r_joint_rates(design) @ J)
+        parts_l.append(np.full(9, s.joint_friction))
+    return np.vstack(parts_S), np.concatenate(parts_l)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -202,22 +239,32 @@ def discretise(model: LumpedModel, h: float) -> Discrete:
 def solve_friction(xp, v_free, G, limit, lam0, iters: int):
     """Box LCP of Coulomb friction, vectorised over leading axes (numpy or jax.numpy as ``xp``).
 
-    Find λ ∈ [−F_c, F_c]³ with v = v_free + λ Gᵀ such that λ_i = −F_c·sign(v_i) where v_i ≠ 0
-    (maximum dissipation). ``G`` (3, 3) maps friction forces to end-of-substep velocities
-    (symmetric positive definite: a mass-matrix inverse times h). Projected Gauss–Seidel from
-    ``lam0``.
+    Find λ ∈ [−F_c, F_c]ᵐ with v = v_free + λ Gᵀ such that λ_i = −F_c·sign(v_i) where v_i ≠ 0
+    (maximum dissipation). ``G`` (m, m) maps friction forces to end-of-substep friction-coordinate
+    velocities (symmetric positive semi-definite: S M⁻¹ Sᵀ h; singular for the nine R joints of a
+    3-DOF platform, where the QP's velocities are still unique). ``limit``: a scalar or (m,).
+    Projected Gauss–Seidel from ``lam0``.
     """
+    m = G.shape[0]
+    lim = [float(x) for x in np.broadcast_to(np.asarray(limit, dtype=float), (m,))]
+    if isinstance(G, np.ndarray):  # constants: divide (bit-for-bit the reference path)
+        step = [lambda vi, i=i: vi / G[i, i] for i in range(m)]
+    else:  # a traced G (the period-free loop): read its entries and reciprocals once, outside the sweeps
+        G = _Entries([[G[i, j] for j in range(m)] for i in range(m)])
+        inv = [1.0 / G[i, i] for i in range(m)]
+        step = [lambda vi, i=i: vi * inv[i] for i in range(m)]
+
     def sweep(lam, v):
         lam, v = list(lam), list(v)
-        for i in range(3):
-            new = xp.minimum(xp.maximum(lam[i] - v[i] / G[i, i], -limit), limit)
+        for i in range(m):
+            new = xp.minimum(xp.maximum(lam[i] - step[i](v[i]), -lim[i]), lim[i])
             d = new - lam[i]
-            v = [v[j] + G[j, i] * d for j in range(3)]
+            v = [v[j] + G[j, i] * d for j in range(m)]
             lam[i] = new
         return tuple(lam), tuple(v)
 
-    lam = tuple(lam0[..., i] for i in range(3))
-    v = tuple(v_free[..., i] + sum(G[i, j] * lam[j] for j in range(3)) for i in range(3))
+    lam = tuple(lam0[..., i] for i in range(m))
+    v = tuple(v_free[..., i] + sum(G[i, j] * lam[j] for j in range(m)) for i in range(m))
     if xp is np:
         for _ in range(iters):
             lam, v = sweep(lam, v)
@@ -230,6 +277,17 @@ def solve_friction(xp, v_free, G, limit, lam0, iters: int):
 
 
 FRICTION_ITERS = 12
+
+
+class _Entries:
+    """``G[i, j]`` over a nested list of (traced) scalars."""
+
+    def __init__(self, rows) -> None:
+        self.rows = rows
+        self.shape = (len(rows), len(rows))
+
+    def __getitem__(self, ij):
+        return self.rows[ij[0]][ij[1]]
 
 
 def sensor_values(model: LumpedModel, x: np.ndarray, u: np.ndarray, xp=np):
@@ -290,13 +348,15 @@ class LumpedPlant:
         self.model = model
         self.substeps = substeps
         self.disc = discretise(model, period / substeps)
-        self.G = self.disc.Bld[model.out_vel] if model.out_vel is not None else None
+        S = model.friction_map
+        self.G = S @ self.disc.Bld[model.out_vel] @ S.T if S is not None else None
         self.reset()
 
     def reset(self) -> None:
         self.x = self.model.x0.copy()
         self.u = np.zeros(3)
-        self.lam = np.zeros(3)
+        self.lam = np.zeros(3)  # slider-space friction force
+        self.mu = np.zeros(0 if self.model.friction_map is None else self.model.friction_map.shape[0])
 
     def sensors(self) -> Sensors:
         slider, defl = sensor_values(self.model, self.x, self.u)
@@ -309,9 +369,11 @@ class LumpedPlant:
         for j in range(self.substeps):
             self.u = commands[j // per]
             x = d.Ad @ self.x + d.Bud @ self.u + d.cd
-            if self.model.coulomb > 0.0:
-                self.lam = solve_friction(np, x[self.model.out_vel], self.G, self.model.coulomb, self.lam,
-                                          FRICTION_ITERS)
+            S = self.model.friction_map
+            if S is not None:
+                self.mu = solve_friction(np, S @ x[self.model.out_vel], self.G, self.model.friction_limit, self.mu,
+                                         FRICTION_ITERS)
+                self.lam = S.T @ self.mu
                 x = x + d.Bld @ self.lam
             self.x = x
 

@@ -92,6 +92,8 @@ class ModelOptions:
     motor_dynamics: bool = True  # motor-side mass M_m (else the force acts on the slider)
     viscous_friction: bool = False  # ξ on the motor joint (on the slider when no motor side)
     coulomb_friction: bool = False  # frictionloss on the output slider
+    r_joint_friction: bool = False  # frictionloss τ_c (structure.joint_friction_Nm) on R1, R2 and, as a fixed
+    #                                 tendon θ1 + θ2 = −θ3, on R3 (a translating platform turns R3 by −(θ1 + θ2))
     gravity: bool = False
     joint_damping: float = 0.0  # R-joint viscous damping [N·m·s/rad]
     hand: Operator | None = None  # operator hand body coupled to the handle
@@ -203,9 +205,16 @@ def build_xml(design: PrrrDesign, options: ModelOptions, *, ee_mass: float | Non
 
     legs = []
     tendons: list[str] = []
+    g_struct = design.structure
     for i in range(3):
         w = W[i]
         jd = f' damping="{options.joint_damping:.9g}"' if options.joint_damping > 0 else ""
+        if options.r_joint_friction:
+            rf = (f' frictionloss="{g_struct.joint_friction:.9g}" solreffriction="{_v(sol.solref)}" '
+                  f'solimpfriction="{_v(sol.solimp)}"')
+            jd += rf
+            tendons.append(f'<fixed name="r3_{i}"{rf}><joint joint="r1_{i}" coef="1"/>'
+                           f'<joint joint="r2_{i}" coef="1"/></fixed>')
         # link 2: B → (B + d4 e) → Q (the r4 offset along w as a second bar)
         bq_in_plane = Q[i] - g.r4 * w
         link2 = link_geoms(B[i], bq_in_plane, w, B[i])

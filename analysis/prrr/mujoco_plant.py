@@ -35,7 +35,7 @@ from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, So
 from hapticopt.analysis.loop.operator import Operator
 from hapticopt.analysis.prrr.mujoco_model import LinkMasses, ModelOptions, Platform, PrrrMj, build, set_pose
 from hapticopt.analysis.loop.plant import Observation, Sensors
-from hapticopt.analysis.loop.scene import Backend, Effect, Resolution, Scene, resolve
+from hapticopt.analysis.loop.scene import Backend, Effect, FrictionLocation, Resolution, Scene, resolve
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
@@ -82,7 +82,9 @@ def model_options(scene: Scene, resolution: Resolution, *, fidelity: Fidelity = 
     return ModelOptions(
         link_masses=link_masses, platform=platform,
         sea_compliance=Effect.SEA_COMPLIANCE in fx, motor_dynamics=Effect.MOTOR_DYNAMICS in fx,
-        viscous_friction=Effect.VISCOUS_FRICTION in fx, coulomb_friction=Effect.COULOMB_FRICTION in fx,
+        viscous_friction=Effect.VISCOUS_FRICTION in fx,
+        coulomb_friction=Effect.COULOMB_FRICTION in fx and scene.friction_location != FrictionLocation.R_JOINTS,
+        r_joint_friction=Effect.COULOMB_FRICTION in fx and scene.friction_location != FrictionLocation.SLIDERS,
         gravity=Effect.GRAVITY in fx, hand=hand, solver=SOLVER_BY_FIDELITY[fidelity],
     )
 

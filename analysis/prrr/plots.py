@@ -109,3 +109,50 @@ def structure_plots(design: PrrrDesign, result, out_dir: Path) -> list[Path]:
                         f"({xm[0]:.1f}, {xm[1]:.1f}, {xm[2]:.1f}) mm", font_size=10)
             save(pl, "structure_fea_stress.png")
     return written
+
+
+def design_map_plots(dmap, out_dir: Path) -> list[Path]:
+    """The firmware design map (:class:`hapticopt.analysis.prrr.design_map.DesignMap`): three panels over
+    (T, K_p) — the free-space residual, the K limit on the scene's axis and the force-loop bandwidth —
+    with the simulated unstable points crossed out and the paper's K_p = 45 marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import LogNorm
+
+    T_ms = np.asarray(dmap.periods) * 1e3
+    kp = np.asarray(dmap.force_gains, dtype=float)
+    ax_name = "xyz"[dmap.axis]
+    panels = (
+        (dmap.residual, f"free-space residual ({dmap.scene}) [N]", True),
+        (np.where(np.isfinite(dmap.stiffness_limit) & (dmap.stiffness_limit > 0), dmap.stiffness_limit * 1e-3, np.nan),
+         f"K_{ax_name} limit, exact sampled analysis [N/mm] (blank: force loop lost)", False),
+        (dmap.bandwidth, "force-loop bandwidth (locked, sampled) [Hz]", True),
+    )
+    fig, axes = plt.subplots(1, 3, figsize=(16, 5), constrained_layout=True)
+    kp_plot = np.where(kp > 0, kp, np.nan)
+    positive = kp > 0
+    for ax, (data, title, log) in zip(axes, panels):
+        Z = np.asarray(data, dtype=float)[:, positive]
+        finite = Z[np.isfinite(Z) & (Z > 0)]
+        norm = LogNorm(finite.min(), finite.max()) if log and finite.size and finite.min() < finite.max() else None
+        mesh = ax.pcolormesh(kp_plot[positive], T_ms, np.ma.masked_invalid(Z), shading="nearest", norm=norm,
+                             cmap="viridis")
+        fig.colorbar(mesh, ax=ax)
+        bad = ~np.asarray(dmap.stable)[:, positive]
+        KK, TT = np.meshgrid(kp_plot[positive], T_ms)
+        ax.scatter(KK[bad], TT[bad], marker="x", color="red", s=30, label="simulated unstable")
+        ax.axvline(45.0, color="white", ls="--", lw=1)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("force-loop gain K_p [-]")
+        ax.set_ylabel("controller period T [ms]")
+        ax.set_title(title, fontsize=10)
+    axes[0].legend(loc="lower left", fontsize=8)
+    fig.suptitle(f"design map of the firmware: {dmap.scene} (dashed: K_p = 45 of seed 002's identification)")
+    target = Path(out_dir) / f"design-map-{dmap.scene}.png"
+    with atomic_path(target) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+    plt.close(fig)
+    return [target]

@@ -225,3 +225,141 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, kp: 
         stiffness_limits=stiffness_limits(design),
         continuous_limits=np.array([stiffness_limit_closed_form(design, kp, a) for a in range(3)]),
     )
+
+
+# ------------------------------------------------------------- exact sampled (discrete) analysis
+def axis_scale(design: PrrrDesign, axis: int) -> float:
+    """λ_a = ‖row a of J‖: the rows of J are orthogonal, so J = Λ R (R orthogonal) and ζ = R D
+    decouples the whole loop per Cartesian axis, with p_a = λ_a ζ_a (λ_x² = 2 at β = π/3: k_x = k/λ²)."""
+    J = np.asarray(jacobian(design.geometry.beta, xp=np))
+    return float(np.linalg.norm(J[axis]))
+
+
+def velocity_alpha(T: float, cutoff: float) -> float:
+    """Pole of the firmware's first-order velocity filter at period T [s], cut-off [Hz] (0: none)."""
+    return math.exp(-2.0 * math.pi * cutoff * T) if cutoff > 0 else 0.0
+
+
+def _axis_plant(design: PrrrDesign, lam: float, T: float, hand: tuple[float, float, float]
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Exact ZOH (Ad (4, 4), Bd (4,)) of the two-mass SEA plant along one decoupled axis."""
+    a = design.actuator
+    mh, bh, kh = hand
+    k, Mm, xi, eta = a.spring, a.motor_mass, a.viscous, a.efficiency
+    Mo = (design.end_effector.mass + mh) * lam**2
+    Ac = np.array([
+        [0.0, 0.0, 1.0, 0.0],
+        [0.0, 0.0, 0.0, 1.0],
+        [-k / Mm, k / Mm, -xi / Mm, 0.0],
+        [k / Mo, -(k + kh * lam**2) / Mo, 0.0, -bh * lam**2 / Mo],
+    ])
+    aug = np.zeros((5, 5))
+    aug[:4, :4], aug[2, 4] = Ac, eta / Mm
+    E = scipy.linalg.expm(aug * T)
+    return E[:4, :4], E[:4, 4]
+
+
+def _axis_closed(design: PrrrDesign, lam: float, Ad: np.ndarray, Bd: np.ndarray, *, T: float, kp: float,
+                 stiffness: float, damping: float, alpha: float) -> np.ndarray:
+    p_row = np.array([0.0, lam, 0.0, 0.0, 0.0, 0.0])
+    v_row = (1.0 - alpha) / T * (p_row - np.eye(6)[4]) + alpha * np.eye(6)[5]
+    F_row = -stiffness * p_row - damping * v_row
+    u_row = kp * (lam * F_row - design.actuator.spring * np.array([1.0, -1.0, 0.0, 0.0, 0.0, 0.0]))
+    Phi = np.zeros((6, 6))
+    Phi[:4, :4] = Ad
+    Phi[:4] += np.outer(Bd, u_row)
+    Phi[4] = p_row
+    Phi[5] = v_row
+    return Phi
+
+
+def sampled_axis_matrix(design: PrrrDesign, *, axis: int, T: float, kp: float, stiffness: float,
+                        damping: float = 0.0, alpha: float = 0.0, hand: tuple[float, float, float] = (0.0, 0.0, 0.0)
+                        ) -> np.ndarray:
+    """Transition matrix over one period T of the sampled 3-PRRR closed loop along one Cartesian axis.
+
+    State [ζ_m, ζ_e, ζ̇_m, ζ̇_e, p_prev, v_prev]: the two-mass SEA plant of eq (6) in the decoupled
+    coordinates ζ = R D (motor and output), exact zero-order hold over T, and the firmware
+    (:mod:`hapticopt.analysis.prrr.firmware`, no quantisation): p = λζ_e,
+    v̂ = α v̂_prev + (1 − α)(p − p_prev)/T, F = −K p − B v̂, u = K_p(λF − k(ζ_m − ζ_e)).
+    ``hand`` = (m_h, b_h, k_h) of an operator holding the handle at rest (seed 000 eq 1).
+    Stable ⇔ every eigenvalue inside the unit circle.
+    """
+    lam = axis_scale(design, axis)
+    Ad, Bd = _axis_plant(design, lam, T, hand)
+    return _axis_closed(design, lam, Ad, Bd, T=T, kp=kp, stiffness=stiffness, damping=damping, alpha=alpha)
+
+
+def spectral_radius(Phi: np.ndarray) -> float:
+    return float(np.max(np.abs(np.linalg.eigvals(Phi))))
+
+
+def sampled_stiffness_limit(design: PrrrDesign, *, axis: int, T: float, kp: float, damping: float = 0.0,
+                            alpha: float = 0.0, rtol: float = 1e-6) -> float:
+    """Largest stable virtual K on ``axis`` of the sampled loop [N/m] (bisection on the spectral radius).
+
+    0 when the loop is unstable for every K > 0 (the sampled force loop itself has lost
+    stability); ``math.inf`` beyond 10¹² N/m.
+    """
+
+    lam = axis_scale(design, axis)
+    Ad, Bd = _axis_plant(design, lam, T, (0.0, 0.0, 0.0))
+
+    def stable(K: float) -> bool:
+        return spectral_radius(_axis_closed(design, lam, Ad, Bd, T=T, kp=kp, stiffness=K, damping=damping,
+                                            alpha=alpha)) < 1.0
+
+    lo = 1e-6 * float(stiffness_limits(design)[axis])
+    if not stable(lo):
+        return 0.0
+    hi = float(stiffness_limits(design)[axis])
+    while stable(hi):
+        lo, hi = hi, 2.0 * hi
+        if hi > 1e12:
+            return math.inf
+    while hi - lo > rtol * hi:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def sampled_force_loop(design: PrrrDesign, *, T: float, kp: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(Φ, Γ, C) of the sampled force loop of one leg with the output locked (eq 8 with a ZOH):
+    x = [D, Ḋ], x⁺ = Φx + Γ f_r, f = C x; u_k = K_p(f_r − k D_k) held over T."""
+    a = design.actuator
+    Ac = np.array([[0.0, 1.0], [-a.spring / a.motor_mass, -a.viscous / a.motor_mass]])
+    aug = np.zeros((3, 3))
+    aug[:2, :2] = Ac
+    aug[1, 2] = a.efficiency / a.motor_mass
+    E = scipy.linalg.expm(aug * T)
+    Ad, Bd = E[:2, :2], E[:2, 2]
+    C = np.array([a.spring, 0.0])
+    return Ad - kp * np.outer(Bd, C), kp * Bd, C
+
+
+def sampled_force_loop_bandwidth(design: PrrrDesign, *, T: float, kp: float) -> tuple[bool, float]:
+    """(stable, −3 dB bandwidth [Hz] below the DC gain) of the sampled force loop; the bandwidth is
+    NaN when the loop is unstable, and the Nyquist frequency 1/(2T) when the gain never drops 3 dB
+    below it."""
+    Phi, Gam, C = sampled_force_loop(design, T=T, kp=kp)
+    if spectral_radius(Phi) >= 1.0:
+        return False, math.nan
+    def mag(w):
+        z = np.exp(1j * np.atleast_1d(w) * T)
+        # (zI − Φ)⁻¹ Γ for a 2×2 Φ in closed form, vectorised over frequencies
+        a, b, c, d = Phi[0, 0], Phi[0, 1], Phi[1, 0], Phi[1, 1]
+        det = (z - a) * (z - d) - b * c
+        x0 = ((z - d) * Gam[0] + b * Gam[1]) / det
+        x1 = (c * Gam[0] + (z - a) * Gam[1]) / det
+        out = np.abs(C[0] * x0 + C[1] * x1)
+        return out if np.ndim(w) else float(out[0])
+
+    target = mag(0.0) / math.sqrt(2.0)
+    nyq = math.pi / T
+    grid = np.geomspace(1e-3 * nyq, nyq, 400)
+    below = np.nonzero(mag(grid) < target)[0]
+    if below.size == 0:
+        return True, nyq / (2.0 * math.pi)
+    i = int(below[0])
+    lo = grid[i - 1] if i > 0 else 0.0
+    return True, brentq(lambda w: mag(w) - target, lo, grid[i], xtol=1e-12) / (2.0 * math.pi)

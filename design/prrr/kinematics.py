@@ -171,6 +171,16 @@ def inverse_kinematics(params: PrrrParams, p: jax.Array, xp=jnp) -> IkSolution:
     )
 
 
+def joint_rate_jacobian(params: PrrrParams, p: jax.Array, branch: int) -> jax.Array:
+    """∂θ/∂p (3 legs, 3 joints, 3) [rad/m] at ``p`` (3,) on elbow ``branch``: the R-joint rates per
+    end-effector velocity (θ3 = −(θ1 + θ2), so its row is minus the sum of the other two).
+
+    The in-plane R1→R3 vector does not depend on z (seed digest), so the z column is zero: a pure
+    z translation turns no R joint. Exact (forward-mode autodiff of :func:`inverse_kinematics`).
+    """
+    return jax.jacfwd(lambda q: inverse_kinematics(params, q).theta[branch])(jnp.asarray(p, dtype=jnp.float64))
+
+
 def forward_kinematics(params: PrrrParams, sliders: jax.Array) -> jax.Array:
     """End-effector position [m] from slider positions ``D`` (..., 3): p = J(D − c_e·1) (eq 1)."""
     J = jacobian(params.beta)

@@ -119,6 +119,9 @@ class Structure:
                                   doc="gap between the lowest carriage and the base plate")
     stem_diameter: float = param("stem_diameter_mm", "mm", default=10.0, lo=0.0, hi=500.0, lo_open=True,
                                  doc="diameter of the end-effector stem carrying the handle ball")
+    joint_friction: float = param("joint_friction_Nm", "Nm", default=0.0384, lo=0.0, hi=100.0,
+                                  doc="Coulomb friction torque of each R joint (assumed: its x-equivalent at home, "
+                                      "0.0384 N·m × 78.06 rad/m, is the 3 N seed 002 compensates)")
 
 
 @dataclass(frozen=True, kw_only=True)

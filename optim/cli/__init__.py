@@ -48,6 +48,7 @@ app.command("runs")(cli_runs.runs)
 app.command("show")(cli_runs.show)
 app.command("sweep")(cli_sweep.sweep)
 app.command("compare")(cli_compare.compare)
+app.command("design-map")(cli_verify.design_map)
 
 
 def main() -> None:

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
+import importlib.util
 import json
+import math
 from pathlib import Path
 from typing import Annotated, Any, Optional
 
@@ -12,6 +15,7 @@ from hapticopt.analysis import verify as closed_loop_verify
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
 import numpy as np
 from hapticopt.design.atomic import atomic_path
+from hapticopt.analysis.prrr import design_map as firmware_map
 from hapticopt.analysis.prrr import zwidth
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop.scene import Backend, StabilityCriterion, load_scene
@@ -52,7 +56,9 @@ def _plot(result: Any, out_dir: Path, name: str) -> list[Path]:
 def verify(
     file: Annotated[Optional[Path], typer.Argument(help="Design TOML file (or use --preset).", show_default=False)] = None,
     preset: Annotated[Optional[str], typer.Option("--preset", help="Bundled preset name.")] = None,
-    scene: Annotated[Optional[str], typer.Option("--scene", help="Bundled scene name (free-space, stiffness-25, stiffness-25-links, virtual-box, z-width, prrr-ioic; master-transparency, master-protocol-x, master-protocol-z, master-wall, master-ioic; handle-wall, handle-ball) or a .toml path [default: stiffness-25, master-wall for a master, handle-wall for a handle].", show_default=False)] = None,
+    scene: Annotated[Optional[str], typer.Option("--scene", help="Bundled scene name (free-space, free-space-x, free-space-x-2hz, free-space-y, free-space-y-2hz, force-tracking, force-circle-xy, force-circle-xz, stiffness-25, stiffness-25-links, virtual-box, z-width, prrr-ioic; master-transparency, master-protocol-x, master-protocol-z, master-wall, master-ioic; handle-wall, handle-ball) or a .toml path [default: stiffness-25, master-wall for a master, handle-wall for a handle].", show_default=False)] = None,
+    period_ms: Annotated[Optional[float], typer.Option("--period-ms", help="Override the scene's controller period T, in ms.", show_default=False)] = None,
+    force_gain: Annotated[Optional[float], typer.Option("--force-gain", help="Override the scene's force-loop gain K_p (dimensionless).", show_default=False)] = None,
     backend: Annotated[str, typer.Option("--backend", help="auto (the scene resolver picks), lumped or multibody.")] = "auto",
     set_: Annotated[Optional[list[str]], typer.Option("--set", help="Override a design TOML key (repeatable).")] = None,
     fidelity: Annotated[str, typer.Option("--fidelity", help="draft, standard or fine.")] = "standard",
@@ -74,6 +80,7 @@ def verify(
     if sc.device != device:
         raise InvalidInput(f"--scene {sc.name} is written for the {sc.device} device; design {design.name!r} is a "
                            f"{design.device}: pick a {device} scene")
+    sc = _override_controller(sc, period_ms, force_gain)
     result = closed_loop_verify.simulate(design, sc, fidelity=level, backend=force)
     metrics = result.metrics()
     metrics["resolution_reason"] = metrics.get("backend_reason", "")
@@ -91,5 +98,96 @@ def verify(
             continue
         typer.echo(f"{k:32s} {v}")
     typer.echo(f"status: {result.status}" + (f" — {result.message}" if result.message else ""))
+    for p in written:
+        typer.echo(f"wrote {p}")
+
+
+def _override_controller(sc: Any, period_ms: float | None, force_gain: float | None) -> Any:
+    """The scene with --period-ms / --force-gain applied (same ranges as the scene TOML keys)."""
+    c = sc.controller
+    if period_ms is not None:
+        if not (math.isfinite(period_ms) and 0.0 < period_ms <= 100.0):
+            raise InvalidInput(f"--period-ms = {period_ms:g} is out of range: allowed 0 < period_ms ≤ 100 ms")
+        c = dataclasses.replace(c, period=period_ms * 1e-3)
+    if force_gain is not None:
+        if not (math.isfinite(force_gain) and 0.0 <= force_gain <= 1e9):
+            raise InvalidInput(f"--force-gain = {force_gain:g} is out of range: allowed 0 ≤ force_gain ≤ 1e+09 (-)")
+        c = dataclasses.replace(c, force_gain=force_gain)
+    return dataclasses.replace(sc, controller=c)
+
+
+def _grid(text: str, option: str, unit: str, scale: float) -> np.ndarray:
+    """"a:b:n" (n log-spaced values from a to b; a linear start at 0) or "v1,v2,…" → values × scale."""
+    try:
+        if ":" in text:
+            a, b, n = text.split(":")
+            lo, hi, count = float(a), float(b), int(n)
+            if count < 1 or count > 200 or not (0 <= lo <= hi):
+                raise ValueError
+            vals = (np.geomspace(lo, hi, count) if lo > 0 else np.concatenate([[0.0], np.geomspace(
+                max(hi * 1e-3, 1e-12), hi, count - 1)]) if count > 1 else np.array([lo]))
+        else:
+            vals = np.array([float(v) for v in text.split(",")])
+        if vals.size == 0 or not np.all(np.isfinite(vals)):
+            raise ValueError
+    except ValueError:
+        raise InvalidInput(f"{option} = {text!r} must be \"start:stop:count\" (log-spaced, count 1–200) or "
+                           f"\"v1,v2,…\" in {unit}") from None
+    return vals * scale
+
+
+@one_line_errors
+def design_map(
+    file: Annotated[Optional[Path], typer.Argument(help="Design TOML file (or use --preset).", show_default=False)] = None,
+    preset: Annotated[Optional[str], typer.Option("--preset", help="Bundled preset name.")] = None,
+    scene: Annotated[str, typer.Option("--scene", help="Scene whose report quantity (the scene TOML's report table) is mapped (free-space-x, free-space-y, or a .toml path).")] = "free-space-x",
+    periods_ms: Annotated[str, typer.Option("--periods-ms", help="Controller periods T in ms: \"start:stop:count\" (log-spaced) or \"v1,v2,…\".")] = "0.05:2:10",
+    force_gains: Annotated[str, typer.Option("--force-gains", help="Force-loop gains K_p (dimensionless): \"start:stop:count\" (log-spaced; start 0 adds K_p = 0) or \"v1,v2,…\".")] = "10:1000:10",
+    duration_s: Annotated[float, typer.Option("--duration-s", help="Simulated time per point, in s.")] = 2.0,
+    simulate_limits: Annotated[bool, typer.Option("--simulate-limits", help="Also find each K limit by bisection on simulated decay runs (slow).")] = False,
+    set_: Annotated[Optional[list[str]], typer.Option("--set", help="Override a design TOML key (repeatable).")] = None,
+    fidelity: Annotated[str, typer.Option("--fidelity", help="draft, standard or fine.")] = "standard",
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, scene, metrics}.")] = False,
+    plots: Annotated[Optional[Path], typer.Option("--plots", help="Write the design-map figure to this directory.")] = None,
+) -> None:
+    """Map the firmware over (controller period T, force-loop gain K_p): free-space residual, K limit, bandwidth."""
+    try:
+        level = Fidelity(fidelity)
+    except ValueError:
+        raise InvalidInput(f"--fidelity = {fidelity!r} is not a fidelity level: allowed draft, standard, fine") from None
+    if not (math.isfinite(duration_s) and 0.6 <= duration_s <= 60.0):
+        raise InvalidInput(f"--duration-s = {duration_s:g} is out of range: allowed 0.6 ≤ duration_s ≤ 60 s")
+    Ts = _grid(periods_ms, "--periods-ms", "ms", 1e-3)
+    kps = _grid(force_gains, "--force-gains", "(-)", 1.0)
+    design = load_design_arg(file, preset, set_)
+    if design.device != "prrr":
+        raise InvalidInput(f"design {design.name!r} is a {design.device}: the design map is the 3-PRRR's SEA force loop")
+    sc = load_scene(scene)
+    dmap = firmware_map.design_map(design, sc, periods=Ts, force_gains=kps, fidelity=level,
+                                   simulate_limits=simulate_limits, duration=duration_s)
+    written: list[Path] = []
+    if plots is not None:
+        if importlib.util.find_spec("matplotlib") is None:
+            raise InvalidInput("--plots needs matplotlib (not installed): pip install matplotlib, or leave --plots out")
+        from hapticopt.analysis.prrr.plots import design_map_plots
+
+        written = design_map_plots(dmap, plots)
+    metrics = dmap.metrics()
+    if as_json:
+        typer.echo(json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
+                               "plots": [str(p) for p in written]}, indent=2))
+        return
+    typer.echo(f"design map of {design.name} in {sc.name} ({sc.report.quantity}, axis {metrics['map_axis']}); "
+               f"{dmap.wall_time:.1f} s")
+    head = "T [ms] \\ K_p".ljust(14) + "".join(f"{k:>22.4g}" for k in kps)
+    typer.echo("cells: residual [N] / K limit [N/mm] / bandwidth [Hz]; '-' where unstable or undefined")
+    typer.echo(head)
+    for i, T in enumerate(Ts):
+        cells = []
+        for j in range(len(kps)):
+            r, K, bw = dmap.residual[i, j], dmap.stiffness_limit[i, j] * 1e-3, dmap.bandwidth[i, j]
+            f = lambda v, spec: format(v, spec) if math.isfinite(v) else ("inf" if v == math.inf else "-")  # noqa: E731
+            cells.append(f"{f(r, '.3g')}/{f(K, '.4g')}/{f(bw, '.3g')}".rjust(22))
+        typer.echo(f"{T * 1e3:<14.4g}" + "".join(cells))
     for p in written:
         typer.echo(f"wrote {p}")

@@ -211,3 +211,37 @@ def test_master_protocol_scenes_and_dynamics_compensation_key():
     assert load_scene("master-wall").controller.dynamics_compensation is DynamicsCompensation.NONE
     with pytest.raises(InvalidInput, match="dynamics_compensation = 'model' is not known: allowed none, links, full"):
         scene_from_dict({"name": "m", "device": "master", "controller": {"dynamics_compensation": "model"}})
+
+
+def test_seed002_experiment_scenes_parse():
+    """Issue 19: the paper's protocols as scenes (units in keys, SI inside)."""
+    import math
+
+    from hapticopt.analysis.loop.scene import FrictionLocation, PaperQuantity, load_scene
+
+    fx = load_scene("free-space-x")
+    assert fx.friction_location == FrictionLocation.R_JOINTS and fx.motion.amplitude == pytest.approx((4e-3, 0, 0))
+    assert fx.report.quantity == PaperQuantity.HAND_FORCE_AXIS_RMS and fx.report.value == 0.50
+    assert load_scene("free-space-y-2hz").motion.frequency == 2.0
+    circle = load_scene("force-circle-xy")
+    assert circle.environment.force_phase == pytest.approx((0.0, math.pi / 2, 0.0))
+    assert circle.output_locked and circle.report.axes == (0, 1)
+    track = load_scene("force-tracking")
+    assert track.report.axes == (2,) and track.environment.force_frequency == 3.0
+    assert load_scene("free-space").friction_location == FrictionLocation.SLIDERS  # the default is unchanged
+
+
+@pytest.mark.parametrize("extra, match", [
+    ({"effects": {"friction_location": "hinges"}}, "friction_location = 'hinges' is not known: allowed sliders"),
+    ({"report": {"axes": "x"}}, "report.quantity is missing"),
+    ({"report": {"quantity": "rms"}}, "report.quantity = 'rms' is not known"),
+    ({"report": {"quantity": "force_error_plane_rms", "axes": "x"}}, "must name a plane"),
+    ({"report": {"quantity": "hand_force_axis_rms", "axes": "xy"}}, "must name one axis"),
+    ({"report": {"quantity": "hand_force_axis_rms", "axes": "xx"}}, "must name one or two different axes"),
+    ({"report": {"quantity": "hand_force_axis_rms", "paper_value_N": -1}}, "paper_value_N = -1 must be a finite"),
+    ({"report": {"quantity": "stiffness_error_pct", "paper_value_N": 6.6}}, "report.paper_value_N is not a known key"),
+    ({"environment": {"kind": "force", "force_phase_deg": [0, 400, 0]}}, "force_phase_deg = [0, 400, 0] is out of range"),
+])
+def test_seed002_scene_validation(extra, match):
+    with pytest.raises(InvalidInput, match=match.replace("[", r"\[").replace("]", r"\]")):
+        scene_from_dict({"name": "s", **extra})

@@ -171,3 +171,19 @@ def test_real_links_carry_the_cad_mass_model():
             R = data.ximat[bid].reshape(3, 3)
             world = R @ np.diag(mj.model.body_inertia[bid]) @ R.T
             np.testing.assert_allclose(world, T[:3, :3] @ pm.inertia @ T[:3, :3].T, atol=1e-12, rtol=1e-6)
+
+
+def test_r_joint_friction_in_the_multibody_model():
+    """Issue 19: τ_c as frictionloss on R1 and R2 of every leg and on a fixed tendon θ1 + θ2 (= −θ3,
+    R3's relative rotation on a translating platform); none on the sliders unless asked for."""
+    mj = build(DESIGN, ModelOptions(r_joint_friction=True)).model
+    tau = DESIGN.structure.joint_friction
+    for i in range(3):
+        for j in ("r1", "r2"):
+            assert mj.dof_frictionloss[mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, f"{j}_{i}")]] == tau
+        t = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_TENDON, f"r3_{i}")
+        assert t >= 0 and mj.tendon_frictionloss[t] == tau
+        s = mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, f"slider_{i}")]
+        assert mj.dof_frictionloss[s] == 0.0
+    plain = build(DESIGN, ModelOptions()).model
+    assert plain.dof_frictionloss.max() == 0.0 and mujoco.mj_name2id(plain, mujoco.mjtObj.mjOBJ_TENDON, "r3_0") < 0

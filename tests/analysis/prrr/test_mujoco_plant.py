@@ -109,6 +109,12 @@ def test_every_bundled_scene_keeps_the_chains_closed(name):
         assert m["constraint_violation_mm"] <= mujoco_master.VIOLATION_TOL * 1e3
         assert m["constraint_health_ok"] and not r.warnings and r.status == Status.OK, r.message
         return
+    if scene.output_locked:  # seed 002 Fig 8 / 9: no linkage moves; the multibody plant refuses, one line
+        from hapticopt.design.errors import InvalidInput
+
+        with pytest.raises(InvalidInput, match="output_locked tests the SEA force loop alone"):
+            simulate(DESIGN, scene, platform=Platform.FREE)
+        return
     r = simulate(DESIGN, scene, platform=Platform.FREE)
     m = r.metrics()
     assert m["constraint_violation_mm"] <= VIOLATION_TOL * 1e3
@@ -239,3 +245,18 @@ def test_master_perfect_balance_holds_with_no_handle_force():
     off = dataclasses.replace(design, counterweights=dataclasses.replace(design.counterweights, upper_mass=mu,
                                                                           forearm_mass=mf))
     assert np.linalg.norm(_master_handle_force_at_rest(off, [0.0, 0.3, -0.4])) > 1e-2
+
+
+def test_friction_location_maps_onto_the_multibody_model():
+    """Issue 19: a scene's friction_location chooses the frictionloss of the MuJoCo model too."""
+    import dataclasses as _dc
+
+    from hapticopt.analysis.loop.scene import FrictionLocation, load_scene, resolve
+    from hapticopt.analysis.prrr.mujoco_plant import model_options
+
+    sc = load_scene("free-space-x")
+    for loc, sliders, joints in ((FrictionLocation.R_JOINTS, False, True), (FrictionLocation.SLIDERS, True, False),
+                                 (FrictionLocation.BOTH, True, True)):
+        s2 = _dc.replace(sc, friction_location=loc)
+        o = model_options(s2, resolve(s2))
+        assert (o.coulomb_friction, o.r_joint_friction) == (sliders, joints), loc

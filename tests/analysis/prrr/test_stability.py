@@ -116,3 +116,35 @@ def test_evaluator_metrics(prrr_paper):
     assert m["force_loop_bandwidth_Hz"] == pytest.approx(38.5, abs=0.05)  # eq 8, Table 4
     # k_a (1 + 1/(ηK_p)) at K_p = 45: 28.14·1.0242 N/mm (eq 14 and the Routh–Hurwitz closed form)
     assert m["closed_loop_stiffness_limit_N_per_mm"][0] == pytest.approx(28.135 * (1 + 1 / (0.9173 * 45)), rel=1e-4)
+
+
+# --------------------------------------------------------------- exact sampled analysis (issue 19)
+@pytest.mark.parametrize("kp", [2.0, 45.0, 500.0])
+def test_sampled_limit_tends_to_the_continuous_closed_form(prrr_paper, kp):
+    """T → 0: the sampled K limit → k_a(1 + 1/(ηK_p)) (Routh–Hurwitz closed form), within 0.1 % at
+    10 µs on x and at 1 µs on z (z's loop is faster: 3k on M/3)."""
+    K = sb.sampled_stiffness_limit(prrr_paper, axis=0, T=1e-5, kp=kp, rtol=1e-7)
+    assert K == pytest.approx(sb.stiffness_limit_closed_form(prrr_paper, kp, 0), rel=1e-3)
+    Kz = sb.sampled_stiffness_limit(prrr_paper, axis=2, T=1e-6, kp=kp, rtol=1e-7)
+    assert Kz == pytest.approx(sb.stiffness_limit_closed_form(prrr_paper, kp, 2), rel=1e-3)
+
+
+def test_sampled_force_loop_tends_to_eq8_and_loses_stability(prrr_paper):
+    """Bandwidth → eq (8)'s 38.52 Hz at K_p = 45 as T → 0; the DC gain of the sampled loop is eq 8's
+    ηkK_p/(k(1 + ηK_p)) exactly (ZOH keeps DC); at T = 1 ms, K_p = 500 the sampled loop is unstable."""
+    ok, bw = sb.sampled_force_loop_bandwidth(prrr_paper, T=1e-5, kp=45.0)
+    assert ok and bw == pytest.approx(sb.force_loop_bandwidth(prrr_paper, 45.0), rel=2e-3)
+    Phi, Gam, C = sb.sampled_force_loop(prrr_paper, T=1e-3, kp=45.0)
+    dc = C @ np.linalg.solve(np.eye(2) - Phi, Gam)
+    a = prrr_paper.actuator
+    assert dc == pytest.approx(a.efficiency * 45.0 / (1 + a.efficiency * 45.0), rel=1e-10)
+    assert sb.sampled_force_loop_bandwidth(prrr_paper, T=1e-3, kp=500.0) [0] is False
+    assert sb.sampled_stiffness_limit(prrr_paper, axis=0, T=1e-3, kp=500.0) == 0.0
+
+
+def test_sampled_axis_matrix_decouples_like_eq14(prrr_paper):
+    """λ_a² k_x = k: the per-axis scale of the decoupled loop reproduces eq (14) (k/2, k/2, 3k at π/3)."""
+    k = prrr_paper.actuator.spring
+    lims = sb.stiffness_limits(prrr_paper)
+    for axis in range(3):
+        assert k / sb.axis_scale(prrr_paper, axis) ** 2 == pytest.approx(lims[axis], rel=1e-12)

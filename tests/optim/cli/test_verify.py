@@ -112,3 +112,47 @@ def test_verify_ioic_bad_scene_is_one_line(tmp_path):
     res = runner.invoke(app, ["verify", "--preset", "prrr-paper", "--scene", str(scene)])
     assert res.exit_code == 2 and res.output.count("\n") <= 1
     assert "operator.kind = 'force_eq2' with controller.mode = 'impedance'" in res.output
+
+
+def test_design_map_json_and_plot(tmp_path):
+    """``hapticopt design-map``: one T, two K_p, the figure written where matplotlib exists."""
+    args = ["design-map", "--preset", "prrr-paper", "--periods-ms", "1", "--force-gains", "45,600",
+            "--duration-s", "0.6", "--json"]
+    if importlib.util.find_spec("matplotlib") is not None:
+        args += ["--plots", str(tmp_path)]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    m = json.loads(res.stdout)["metrics"]
+    assert m["map_verdict"] == [["ok", "unstable"]]
+    assert m["map_residual_N"][0][1] is None and m["map_residual_N"][0][0] > 0
+    assert m["map_stiffness_limit_N_per_mm"][0][1] == 0.0  # the sampled force loop is lost at 1 kHz, K_p = 600
+    if "--plots" in args:
+        assert (tmp_path / "design-map-free-space-x.png").is_file()
+
+
+@pytest.mark.parametrize("args, match", [
+    (["design-map", "--preset", "prrr-paper", "--periods-ms", "1:0.1:x"], "--periods-ms = '1:0.1:x' must be"),
+    (["design-map", "--preset", "prrr-paper", "--periods-ms", "0"], "period_ms = 0 is out of range"),
+    (["design-map", "--preset", "prrr-paper", "--scene", "free-space"], "has no [report] quantity"),
+    (["design-map", "--preset", "master-paper"], "the design map is the 3-PRRR's"),
+    (["verify", "--preset", "prrr-paper", "--period-ms", "0"], "--period-ms = 0 is out of range: allowed 0 < period_ms ≤ 100 ms"),
+    (["verify", "--preset", "prrr-paper", "--force-gain", "-1"], "--force-gain = -1 is out of range"),
+])
+def test_design_map_and_overrides_errors_are_one_line(args, match):
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert match in res.output and res.output.count("\n") <= 1
+
+
+def test_verify_force_gain_override_changes_the_result():
+    """--force-gain / --period-ms are first-class: the free-space residual falls with K_p (issue 19)."""
+    def residual(*extra):
+        res = runner.invoke(app, ["verify", "--preset", "prrr-paper", "--scene", "free-space-x", "--json",
+                                  "--fidelity", "draft", *extra])
+        assert res.exit_code == 0, res.output
+        out = json.loads(res.stdout)["metrics"]
+        return out["paper_metric"], out["controller_period_ms"]
+
+    hi, T_hi = residual("--force-gain", "400", "--period-ms", "0.5")
+    lo, T_lo = residual("--force-gain", "45", "--period-ms", "0.5")
+    assert T_hi == T_lo == 0.5 and hi < lo
