@@ -63,18 +63,21 @@ from hapticopt.analysis.status import Status
 from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
 from hapticopt.design.errors import HapticoptError
 from hapticopt.analysis import interference
+from hapticopt.design.prrr import cad as cad_prrr
 
 _GAMMA = np.asarray(GAMMAS)
 _THIRD = 2.0 * math.pi / 3.0
 
 def base_envelope(design: PrrrDesign) -> float:
-    """Radius [m] of the fixed parts' envelope in xy, as built by ``hapticopt.design.prrr.cad``: the base
-    plate, and the carriage/SEA block (radially r_p − … to r_p + rail_width/2 + clearance +
-    sea_envelope, tangentially ±(rail_width/2 + clearance + carriage_wall)), whose outer corner
-    is the farthest point."""
+    """Radius [m] of the fixed parts' and carriages' envelope in xy, as built by
+    ``hapticopt.design.prrr.cad`` (base plate, rails, screws, motors, carriages with their SEA
+    housings: :func:`hapticopt.design.prrr.cad.envelope_radius`). Where the CAD cannot lay the
+    parts out, the base plate and the rail circle r_p + rail_width/2 (a lower bound)."""
     g, s = design.geometry, design.structure
-    half_slot = s.rail_width / 2.0 + s.clearance
-    return max(s.base_radius, math.hypot(g.r_p + half_slot + s.sea_envelope, half_slot + s.carriage_wall))
+    try:
+        return cad_prrr.envelope_radius(design)
+    except HapticoptError:
+        return max(s.base_radius, g.r_p + s.rail_width / 2.0)
 
 
 #: Elbow branch used for the links' swept extent: the CAD's assembly mode
