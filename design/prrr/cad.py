@@ -186,9 +186,9 @@ def layout(design: PrrrDesign) -> PrrrLayout:
           f"{'inside' if gap == 0 else f'{_mm(gap)} mm from'} the carriage block around the rail "
           f"(allowed ≥ boss radius + clearance = {_mm(R + g)} mm): move the rail (r_p, θ_1p)")
     side = -1.0 if Ac[1] > 0 else 1.0  # SEA housing on the side away from the clevis
-    # bracket end: on the clevis plane, in the middle of the block wall facing the clevis
-    xe = min(max(Ac[0], x_in + s_.carriage_wall / 2), x_out - s_.carriage_wall / 2)
-    ye = min(max(Ac[1], -hy + s_.carriage_wall / 2), hy - s_.carriage_wall / 2)
+    # bracket end: on the clevis plane, on the block face nearest the clevis (a bar end inside the
+    # wall could reach into the rail slot, which the analytic mass model does not subtract)
+    xe, ye = qx, qy
     ze = Ac[2] - (wc[0] * (xe - Ac[0]) + wc[1] * (ye - Ac[1])) / wc[2]
     bracket_end = np.array([xe, ye, ze])
     reach = W / 2 + T
