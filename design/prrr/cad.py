@@ -222,9 +222,6 @@ def layout(design: PrrrDesign) -> PrrrLayout:
     carriage_hi = max(block_z[1], Ac[2] + T / 2 * math.sin(beta) + R * math.cos(beta))
     z_base_top = c_e - half + carriage_lo - s_.base_clearance
     z_rail_top = c_e + half + carriage_hi + s_.base_clearance
-    _need(m_.motor_length <= z_rail_top - z_base_top,
-          lambda: f"sea_module.motor_length_mm = {_mm(m_.motor_length)} is taller than the rails "
-          f"({_mm(z_rail_top - z_base_top)} mm)")
     return PrrrLayout(T=T, W=W, R_boss=R, r_bore=r, g=g, s_clevis=s_clevis, s_link2=s_link2, s_lug=s_lug,
                       block_x=(x_in, x_out), block_y=hy, block_z=block_z, slot=half_slot, side=side, clevis=Ac,
                       bracket_end=bracket_end, housing_y=housing_y, screw_xy=screw_xy, motor_xy=motor_xy,
@@ -263,9 +260,11 @@ def envelope_radius(design: PrrrDesign) -> float:
 
 
 def device_height(design: PrrrDesign) -> float:
-    """Height of the device [m]: base plate bottom to rail top (seed 002 Table 1: 231 mm)."""
+    """Height of the device [m]: base plate bottom to the rail tops or the motor tops, whichever is
+    higher (seed 002 Table 1: 231 mm)."""
     L = layout(design)
-    return L.z_rail_top - L.z_base_top + design.structure.base_thickness
+    top = max(L.z_rail_top, L.z_base_top + design.sea_module.motor_length)
+    return top - L.z_base_top + design.structure.base_thickness
 
 
 # ---------------------------------------------------------------------------- part tables
