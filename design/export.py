@@ -45,7 +45,10 @@ def _cad(design: Any):
 
 def _mjcf(design: Any, p, masses) -> str:
     if design.device == "prrr":
-        return mjcf_prrr.prrr_mjcf(design, p=p, mass_properties=masses)
+        # the drivable model (SEA motors, stroke and force limits, CAD geoms and contacts), built at
+        # home with a keyframe "pose" at p
+        return mjcf_prrr.prrr_mjcf(design, mjcf_prrr.export_options(), mass_properties=masses,
+                                   pose=None if p is None else p)
     # our part frames are the master's link frames; the fixed base is not in that model
     return mjcf_master.master_mjcf(design, mass_properties=bodies_from_mass_properties(masses))
 

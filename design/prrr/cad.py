@@ -492,8 +492,8 @@ def joint_axes(design: PrrrDesign, pose: PrrrPose) -> list[JointAxis]:
     for k, i in enumerate(LEGS):
         w = W[k]
         out.append(JointAxis(name=f"slider_{i}", parent="base", child=f"carriage_{i}", kind="slide",
-                             point=np.array([0.0, 0.0, pose.sliders[k]]) + design.geometry.r_p * np.array(
-                                 [math.cos(GAMMAS[k]), math.sin(GAMMAS[k]), 0.0]), direction=EZ.copy()))
+                             point=np.array([0.0, 0.0, pose.sliders[k]])
+                             + design.geometry.r_p * rail_direction(design, GAMMAS[k])[0], direction=EZ.copy()))
         out.append(JointAxis(name=f"r1_{i}", parent=f"carriage_{i}", child=f"link1_{i}", kind="hinge",
                              point=np.asarray(pts.a[k]), direction=w))
         out.append(JointAxis(name=f"r2_{i}", parent=f"link1_{i}", child=f"link2_{i}", kind="hinge",

@@ -164,7 +164,7 @@ def test_real_links_carry_the_cad_mass_model():
     for leg in cad_prrr.LEGS:
         for j in (1, 2):
             name = f"link{j}_{leg}"
-            bid = mujoco.mj_name2id(mj.model, mujoco.mjtObj.mjOBJ_BODY, f"link{j}_{leg - 1}")
+            bid = mujoco.mj_name2id(mj.model, mujoco.mjtObj.mjOBJ_BODY, f"link{j}_{leg}")
             pm, T = bodies[name], frames[name]
             assert mj.model.body_mass[bid] == pytest.approx(pm.mass, rel=1e-9)
             np.testing.assert_allclose(data.xipos[bid], T[:3, :3] @ pm.com + T[:3, 3], atol=1e-9)
