@@ -56,6 +56,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
         EvaluatorEntry(name="interference", module=_A + "prrr.interference"),
         EvaluatorEntry(name="free_workspace", module=_A + "prrr.free_workspace"),
         EvaluatorEntry(name="device_size", module=_A + "prrr.device_size"),
+        EvaluatorEntry(name="joint_limits", module=_A + "prrr.joint_limits"),
         EvaluatorEntry(name="stability", module=_A + "prrr.stability"),
     ),
     "master": (

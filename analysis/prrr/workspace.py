@@ -11,9 +11,10 @@ Structure exploited (seed 002, seed digest "A leg geometry consistent with eq (1
   not depend on z. Reach |d3 − d4| ≤ |ρ| ≤ d3 + d4 is an elliptic annulus in (x, y).
 * **Joint limits.** The only joint whose range changes the reachable set of a translational
   leg by itself is the elbow θ2: |ρ|² = d3² + d4² + 2 d3 d4 cos θ2, so an elbow range
-  θ2 ∈ [θ2_min, θ2_max] (absolute value) shrinks the annulus radii. The design gives no joint
-  limits (seed 002 does not; the default is the full range 0…π), so ``WorkspaceParams``
-  carries the annulus radii and callers may pass tighter ones.
+  θ2 ∈ [θ2_min, θ2_max] (absolute value) shrinks the annulus radii. Seed 002 gives none; the
+  folded elbow is kept a joint-boss radius from its singularity (:func:`fold_margin`), which
+  sets the inner radius; the parts' stops are checked by :mod:`hapticopt.analysis.prrr.joint_limits`.
+  ``WorkspaceParams`` carries the annulus radii and callers may pass tighter ones.
 
 So the workspace is {(x, y) reached by every leg} × z-interval(x, y), and
 
@@ -111,6 +112,15 @@ _NEWTON = 8
 _FD_STEP = 1e-4  # [m] central-difference step of the Jacobian check (the map is affine)
 
 
+def fold_margin(design: PrrrDesign) -> float:
+    """Smallest in-plane R1–R3 distance |ρ| [m] the legs may take: the folded-elbow singularity
+    (R3 axis on R1 axis, |ρ| = 0 when d3 = d4, leaves the leg's rotation about that axis
+    unconstrained) is kept one joint-boss radius away (the R3 boss stays off the R1 axis). The
+    elbow limit it gives is |θ2| ≤ acos((ρ_min² − d3² − d4²) / (2 d3 d4)); the workspace's inner
+    reach hole is |ρ| < max(|d3 − d4|, ρ_min) (issue 15: joint limits from the hardware)."""
+    return design.structure.boss_diameter / 2.0
+
+
 class WorkspaceParams(NamedTuple):
     """Parameters of the workspace computation [SI]; scalars, or ``(n,)`` for a batch."""
 
@@ -134,7 +144,7 @@ def workspace_params(design: PrrrDesign, *, required_diameter: float = DEFAULT_R
     """Workspace parameters of one design; ``rho_min``/``rho_max`` override the reach annulus
     (e.g. from elbow limits: |ρ|² = d3² + d4² + 2 d3 d4 cos θ2)."""
     g, s = design.geometry, design.structure
-    lo = abs(g.d3 - g.d4) if rho_min is None else rho_min
+    lo = max(abs(g.d3 - g.d4), fold_margin(design)) if rho_min is None else rho_min
     hi = g.d3 + g.d4 if rho_max is None else rho_max
     vals = (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke, lo, hi,
             base_envelope(design), s.boss_diameter / 2.0, required_diameter / 2.0)

@@ -85,3 +85,21 @@ def test_reach_only_results_unchanged(paper):
     r = W.evaluate(paper, fidelity="standard")
     assert r.cylinder_diameter == pytest.approx(0.1425, abs=1e-9) or r.reach_radius == pytest.approx(0.07125)
     assert r.height_at_required == pytest.approx(0.170 - 0.140 / math.sqrt(3))
+
+
+def test_joint_limits_from_the_hardware(paper):
+    from hapticopt.analysis.prrr import joint_limits as J
+
+    r = J.evaluate(paper, fidelity="draft")
+    assert r.status == Status.OK
+    # folded-elbow margin: |ρ| ≥ boss radius 12 mm, d3 = d4 = 80 mm:
+    # |θ2| ≤ acos((12² − 2·80²)/(2·80²)) = 171.40° (closed form)
+    assert r.metrics()["joint_elbow_limit_deg"] == pytest.approx(math.degrees(math.acos((144 - 12800) / 12800)))
+    lo, hi = r.used["r2"]
+    assert max(abs(lo), abs(hi)) <= r.elbow_limit and r.margin > 0
+    # the workspace honours it: the reach hole is |ρ| < 12 mm, the φ142.5 disc is untouched
+    # (its edge is 88.75 − 12 = 76.75 mm from the axis along t, beyond 71.25 mm)
+    assert W.workspace_params(paper).rho_min == pytest.approx(0.012)
+    # a fold margin that cuts the φ140 cylinder is reported, not hidden
+    fat = io.apply_overrides(paper, ["structure.boss_diameter_mm=60", "structure.bore_diameter_mm=8"])
+    assert J.evaluate(fat, fidelity="draft").status == Status.INFEASIBLE
