@@ -61,8 +61,8 @@ DEPTH_TOL = 1e-4
 #: depth scale of the continuous companion of the removed fraction [m]: a pose counts
 #: clip(d / OVERLAP_SCALE, 0, 1) of its weight, d its deepest pair overlap. 1 mm spans the band
 #: where the fast model and the manifold3d reference disagree (fast-only collisions 0.17–0.81 mm
-#: deep; the reference's shallowest accepted one 0.72 mm), and every colliding pose of prrr-paper
-#: is deeper (≥ 1.06 mm), so there both fractions are 0.46848 (docs/workspace_interference.md)
+#: deep; the reference's shallowest accepted one 0.72 mm), and every colliding pose of prrr-paper (the layout
+#: before issue 15) is deeper (≥ 1.06 mm), so there both fractions were 0.46848 (docs/workspace_interference.md)
 OVERLAP_SCALE = 1e-3
 
 _BOX, _CYL, _SPH = 0, 1, 2
