@@ -148,9 +148,10 @@ def test_interference_evaluator_reports_the_fast_fraction_and_workspace_stays_ch
     assert r.status == Status.OK
     assert r.metrics()["interference_removed_fraction"] == pytest.approx(
         F.removed_fraction(paper, **W.INTERFERENCE_SAMPLING), rel=1e-12)
-    # prrr-paper (issue 15 layout): 0.07330 of the 216 reach-and-stroke samples collide, all outside
-    # the φ140 collision-free cylinder (regression snapshot of this evaluator; before issue 15: 0.46848)
-    assert r.removed_fraction == pytest.approx(0.07330, abs=5e-5)
+    # prrr-paper (issue 15 layout): none of the 216 reach-and-stroke samples collides (regression
+    # snapshot of this evaluator; before issue 15: 0.46848); the layout before loses a share
+    assert r.removed_fraction == 0.0
+    assert prrr_interference.evaluate(io.apply_overrides(paper, LEGACY)).removed_fraction > 0.1
     assert r.metrics()["interference_overlap_fraction"] == pytest.approx(
         F.interference_fractions(paper, **W.INTERFERENCE_SAMPLING)[1], rel=1e-12)
     assert "workspace_interference_removed_fraction" not in W.evaluate(paper, fidelity="draft").metrics()
@@ -170,9 +171,10 @@ def test_overlap_share_is_the_clipped_depth_ramp():
 
 
 def test_overlap_fraction_equals_removed_fraction_when_depths_are_saturated(paper):
-    """prrr-paper: every colliding pose is deeper than OVERLAP_SCALE (measured ≥ 1.06 mm) and
-    the others are 0, so both fractions are the same sum of weights (0.46848, the problem's
-    bound). The precondition is checked here, not assumed."""
+    """The layout before issue 15 (prrr-paper then lost 0.46848): every colliding pose is deeper
+    than OVERLAP_SCALE and the others are 0, so both fractions are the same sum of weights. The
+    precondition is checked here, not assumed. (prrr-paper now loses nothing: both are 0.)"""
+    paper = io.apply_overrides(paper, LEGACY)
     pts, w = W.workspace_sample_weights(paper, **W.INTERFERENCE_SAMPLING)
     dmax = F.check_points(F.prepare(paper), pts, branch=W.ELBOW_BRANCH).depth.max(axis=1)
     assert np.all((dmax == 0.0) | (dmax >= F.OVERLAP_SCALE)) and (dmax > 0).any() and (dmax == 0).any()
