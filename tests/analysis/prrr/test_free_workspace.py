@@ -103,3 +103,18 @@ def test_joint_limits_from_the_hardware(paper):
     # a fold margin that cuts the φ140 cylinder is reported, not hidden
     fat = io.apply_overrides(paper, ["structure.boss_diameter_mm=60", "structure.bore_diameter_mm=8"])
     assert J.evaluate(fat, fidelity="draft").status == Status.INFEASIBLE
+
+
+def test_paper_is_the_size_seed_002_built(paper):
+    # seed 002 Table 1: φ260 × 231 mm, 4.4 kg; issue 15 acceptance: footprint ≤ 270 mm,
+    # height ≤ 240 mm, mass within ± 15 %, split stated
+    from hapticopt.analysis.prrr import device_size
+
+    s = device_size.evaluate(paper)
+    assert s.status == Status.OK
+    assert s.height <= 0.240
+    assert s.mass == pytest.approx(4.4, rel=0.15)
+    assert s.sea_mass + s.link_mass + s.frame_mass == pytest.approx(s.mass, rel=1e-12)
+    # SEA modules: 3 × (motor 0.40 + screw 0.12 + housing 0.20 kg), the preset's sea_module values
+    assert s.sea_mass == pytest.approx(3 * (0.40 + 0.12 + 0.20), rel=1e-9)
+    assert W.evaluate(paper, fidelity="draft").footprint_diameter <= 0.270
