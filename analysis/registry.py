@@ -54,6 +54,9 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
                        plot=_A + "prrr.plots:structure_plots"),
         EvaluatorEntry(name="workspace", module=_A + "prrr.workspace", plot=_A + "prrr.plots:workspace_plots"),
         EvaluatorEntry(name="interference", module=_A + "prrr.interference"),
+        EvaluatorEntry(name="free_workspace", module=_A + "prrr.free_workspace"),
+        EvaluatorEntry(name="device_size", module=_A + "prrr.device_size"),
+        EvaluatorEntry(name="joint_limits", module=_A + "prrr.joint_limits"),
         EvaluatorEntry(name="stability", module=_A + "prrr.stability"),
     ),
     "master": (

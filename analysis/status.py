@@ -11,3 +11,4 @@ class Status(StrEnum):
     SINGULAR = "singular"  # a singular or ill-conditioned configuration was met
     UNSTABLE = "unstable"
     FAILED = "failed"
+    INFEASIBLE = "infeasible"  # computed, but the requirement the metric reports does not hold (numbers kept)

@@ -49,9 +49,12 @@ def _cad(design: Any):
 
 def _mjcf(design: Any, p, masses) -> str:
     if design.device == "prrr":
-        return mjcf_prrr.prrr_mjcf(design, p=p, mass_properties=masses)
+        # the drivable model (SEA motors, stroke and force limits, CAD geoms and contacts), built at
+        # home with a keyframe "pose" at p
+        return mjcf_prrr.prrr_mjcf(design, mjcf_prrr.export_options(), mass_properties=masses,
+                                   pose=None if p is None else p)
     # the master's MJCF carries the mass model that evaluate and verify use (design.master.mass:
-    # the design's link, counterweight and handle data), not the CAD solids' (issue 16)
+    # the design's link, counterweight and handle data), not the CAD solids'
     return mjcf_master.master_mjcf(design)
 
 

@@ -88,7 +88,10 @@ def cad_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int | None = Non
 
     branch = cad_prrr.DEFAULT_BRANCH if branch is None else branch
     pose = cad_prrr.solve_pose(design, p, branch=branch)
-    specs = {k: v for k, v in cad_prrr.part_specs(design).items() if not (k == "base" or k.startswith("rail_"))}
+    # the load path only: fixed parts (base, rails, screws, motors) and the SEA spring housings (beside
+    # the carriage, not between the rail slot and R1) are left out
+    specs = {k: v for k, v in cad_prrr.part_specs(design).items()
+             if not (k == "base" or k.startswith(("rail_", "screw_", "motor_", "housing_")))}
 
     solids = _parts.posed(_parts.build_all(specs), cad_prrr.part_frames(design, pose))
     L = cad_prrr.layout(design)

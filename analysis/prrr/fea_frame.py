@@ -15,6 +15,8 @@ solid (pins, gaps, hinges) is :mod:`hapticopt.analysis.prrr.fea_cad`.
 
 from __future__ import annotations
 
+import math
+
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -55,8 +57,9 @@ def frame_segments(design, *, p=(0.0, 0.0, 0.0), branch: int = 0) -> list[dict[s
     out = []
     r4, d4, r_p = float(kin.r4), float(kin.d4), float(fp.r_p)
     for i in range(3):
-        w, u = np.asarray(f.w[i]), np.asarray(f.u[i])
-        S = float(ik.sliders[i]) * np.array([0.0, 0.0, 1.0]) + r_p * u
+        w, u, t = np.asarray(f.w[i]), np.asarray(f.u[i]), np.asarray(f.t[i])
+        th = float(fp.theta_1p)
+        S = float(ik.sliders[i]) * np.array([0.0, 0.0, 1.0]) + r_p * (math.cos(th) * u + math.sin(th) * t)
         A, B, Q = (np.asarray(x[i]) for x in (pts.a, pts.b, pts.q))
         Bp = Q - r4 * w
         e4 = (Bp - B) / d4

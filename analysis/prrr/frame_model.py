@@ -13,7 +13,7 @@ into the Cartesian stiffness for a load applied Δz above the end-effector.
 
 Structure of one leg i (points in the seed-digest leg construction; S is the rail point):
 
-    S = D_i e_z + r_p u_i  (slider carriage on the rail; clamped, or sliding in z on the SEA spring)
+    S = D_i e_z + r_p (cos θ_1p u_i + sin θ_1p t_i)  (slider carriage on the rail; clamped, or sliding in z on the SEA spring)
     S → A      carriage arm (d1/d2 offset)              beam, or rigid (``Offsets.RIGID``)
     A   R1     hinge about w_i
     A → B      link d3                                   beam
@@ -133,6 +133,7 @@ class FrameParams(NamedTuple):
 
     kin: PrrrParams
     r_p: jax.Array  # rail radius [m]
+    theta_1p: jax.Array  # rail angle from u_i about z [rad] (seed 002 θ_1p)
     section: Section
     spring: jax.Array  # SEA spring k [N/m] (used with ``FrameOptions(sea=True)``)
     joint_zone: jax.Array  # radius of the rigid joint zone (the joint boss) [m]
@@ -150,7 +151,7 @@ def frame_params_of(design, xp=jnp) -> FrameParams:
     sec = Section(*(xp.asarray(float(x)) for x in (s.link_width, s.link_thickness, s.youngs_modulus, s.poisson_ratio)))
     layer = float(s.link_thickness) + float(s.clearance)  # hapticopt.design.prrr.cad.layout: s_link2 = T + g
     s_lug = max(float(g.r4), 2.0 * layer)  # hapticopt.design.prrr.cad.layout: s_lug = max(r4, 2T + 2g)
-    return FrameParams(kin=kin, r_p=xp.asarray(float(g.r_p)), section=sec,
+    return FrameParams(kin=kin, r_p=xp.asarray(float(g.r_p)), theta_1p=xp.asarray(float(g.theta_1p)), section=sec,
                        spring=xp.asarray(float(design.actuator.spring)),
                        joint_zone=xp.asarray(0.5 * float(s.boss_diameter)),
                        pin_diameter=xp.asarray(float(s.bore_diameter)), layer=xp.asarray(layer),
@@ -620,7 +621,7 @@ def frame_arrays(fp: FrameParams, p: jax.Array, load_height: jax.Array, options:
     theta = xp.take(ik.theta, branch, axis=0)
     pts = leg_chain(kin, ik.sliders, theta, xp=xp)
     f = leg_frames(kin.beta, xp=xp)
-    S = ik.sliders[:, None] * _EZ + fp.r_p * f.u
+    S = ik.sliders[:, None] * _EZ + fp.r_p * (xp.cos(fp.theta_1p) * f.u + xp.sin(fp.theta_1p) * f.t)
 
     leg = functools.partial(_leg_stiffness, p=p, r4=kin.r4, d4=kin.d4, section=fp.section, spring=fp.spring,
                             zone=fp.joint_zone * zones_on, options=options, xp=xp, fp=fp, zones_on=zones_on)

@@ -61,8 +61,8 @@ DEPTH_TOL = 1e-4
 #: depth scale of the continuous companion of the removed fraction [m]: a pose counts
 #: clip(d / OVERLAP_SCALE, 0, 1) of its weight, d its deepest pair overlap. 1 mm spans the band
 #: where the fast model and the manifold3d reference disagree (fast-only collisions 0.17–0.81 mm
-#: deep; the reference's shallowest accepted one 0.72 mm), and every colliding pose of prrr-paper
-#: is deeper (≥ 1.06 mm), so there both fractions are 0.46848 (docs/workspace_interference.md)
+#: deep; the reference's shallowest accepted one 0.72 mm), and every colliding pose of prrr-paper (the layout
+#: before issue 15) is deeper (≥ 1.06 mm), so there both fractions were 0.46848 (docs/workspace_interference.md)
 OVERLAP_SCALE = 1e-3
 
 _BOX, _CYL, _SPH = 0, 1, 2
@@ -140,17 +140,17 @@ def prepare(design: PrrrDesign) -> FastModel:
     kind = np.asarray(kind)
     skip = _skip_pairs(specs)
     part_pairs, pa, pb, pp = [], [], [], []
+    members = [np.flatnonzero(prim_part == j) for j in range(len(names))]
     for i, a in enumerate(names):
-        for b in names[i + 1:]:
-            if frozenset((a, b)) in skip:
+        ia = members[i]
+        for j in range(i + 1, len(names)):
+            b = names[j]
+            ib = members[j]
+            if frozenset((a, b)) in skip or len(ia) == 0 or len(ib) == 0:
                 continue
-            ia, ib = np.flatnonzero(prim_part == i), np.flatnonzero(prim_part == names.index(b))
-            if len(ia) == 0 or len(ib) == 0:
-                continue
-            aa, bb = np.meshgrid(ia, ib, indexing="ij")
-            pa.append(aa.ravel())
-            pb.append(bb.ravel())
-            pp.append(np.full(aa.size, len(part_pairs)))
+            pa.append(np.repeat(ia, len(ib)))
+            pb.append(np.tile(ib, len(ia)))
+            pp.append(np.full(len(ia) * len(ib), len(part_pairs)))
             part_pairs.append((a, b))
     return FastModel(design=design, part_names=names, part_pairs=tuple(part_pairs), prim_part=prim_part,
                      kind=kind, R=np.asarray(R), o=np.asarray(o), half=half,

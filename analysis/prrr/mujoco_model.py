@@ -41,45 +41,31 @@ from typing import Any
 import numpy as np
 
 from hapticopt.design.prrr.kinematics import (
-    inverse_kinematics,
     jacobian,
-    leg_chain,
-    leg_frames,
     params_of,
     slider_offset,
 )
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.prrr.params import PrrrDesign
-from hapticopt.design.units import GRAVITY
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, ZERO_HEALTH, Health, Integrator, SolverSettings  # noqa: F401
 from hapticopt.analysis.loop.operator import Operator
-from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design.prrr import mjcf
 from hapticopt.design.prrr.kinematics import inverse_kinematics as ik_fn
 import time as _time
 import dataclasses
 
-#: mass of a link [kg] when link masses are lumped into the end-effector (0.15 % of M each; at
-#: 1e-4 kg the links' fast constraint modes dissipate 3 % of the energy in 10 periods, measured
-#: in docs/multibody.md; 1e-3 kg: 0.3 %)
-LUMPED_LINK_MASS = 1e-3
-#: output slider (carriage) mass [kg]; the paper's two-mass model has none, MuJoCo needs > 0
-CARRIAGE_MASS = 1e-3
-#: elbow branch of every leg: the CAD's (hapticopt.design.prrr.cad.DEFAULT_BRANCH), so link inertias match
-BRANCH = 1
-#: length along w of the second R3 closure point of the FREE platform [m]
-_AXIS_ARM = 0.04
+#: the generator's constants and option enums (design/prrr/mjcf.py: one 3-PRRR MJCF generator)
+LUMPED_LINK_MASS = mjcf.LUMPED_LINK_MASS
+CARRIAGE_MASS = mjcf.CARRIAGE_MASS
+BRANCH = mjcf.BRANCH
+Platform = mjcf.Platform
 
 
 class LinkMasses(StrEnum):
+    """The plant's mass modes (the generator's ``CAD`` mode is the exported model's)."""
+
     LUMPED = "lumped"
     REAL = "real"
-
-
-class Platform(StrEnum):
-    TRANSLATIONAL = "translational"
-    FREE = "free"
-
-
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -141,184 +127,28 @@ class PrrrMj:
         return qpos[self.motor_qpos] - qpos[self.slider_qpos]
 
 
-def _v(x: Any) -> str:
-    return " ".join(f"{float(c):.12g}" for c in np.ravel(x))
+home_pose = mjcf.home_pose
 
 
-def home_pose(design: PrrrDesign) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(sliders (3,), A, B, Q (3 legs, 3), w (3 legs, 3)) at p = 0, the CAD's elbow branch [m]."""
-    params = params_of(design)
-    ik = inverse_kinematics(params, np.zeros(3))
-    if not bool(ik.reachable):
-        raise InvalidDesign(f"design {design.name!r}: the home pose p = 0 is not reachable")
-    theta = ik.theta[BRANCH]
-    pts = leg_chain(params, ik.sliders, theta)
-    frames = leg_frames(params.beta)
-    return (np.asarray(ik.sliders), np.asarray(pts.a), np.asarray(pts.b), np.asarray(pts.q),
-            np.asarray(frames.w))
-
-
-def _real_link_inertials(design: PrrrDesign) -> dict[str, Any]:
-    """Link inertias of the analytic mass model (``hapticopt.design.mass_properties``, tested against
-    the CAD), moved from the CAD body frames at the home pose into this model's world-aligned body
-    frames: name → (body origin [m] ↦ ``<inertial>`` element)."""
-    bodies = cad_prrr.mass_properties(design).bodies()
-    frames = cad_prrr.part_frames(design, cad_prrr.solve_pose(design, (0.0, 0.0, 0.0), branch=BRANCH))
-    out: dict[str, Any] = {}
-    for name, pm in bodies.items():
-        if not name.startswith("link"):
-            continue
-        T = frames[name]
-        R = T[:3, :3]
-        com = R @ pm.com + T[:3, 3]
-        inertia = R @ pm.inertia @ R.T
-        full = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
-
-        def element(origin: np.ndarray, com=com, full=full, mass=pm.mass) -> str:
-            return f'<inertial pos="{_v(com - origin)}" mass="{mass:.12g}" fullinertia="{_v(full)}"/>'
-
-        out[name] = element
-    return out
+def mjcf_options(options: ModelOptions) -> mjcf.MjcfOptions:
+    """The generator's options for a plant configuration (hand and solver as plain values)."""
+    sol = options.solver
+    hand = None if options.hand is None else mjcf.HandBody(mass=options.hand.mass, stiffness=options.hand.stiffness,
+                                                           damping=options.hand.damping)
+    return mjcf.MjcfOptions(
+        link_masses=mjcf.LinkMasses(options.link_masses.value), platform=options.platform, sea_compliance=options.sea_compliance,
+        motor_dynamics=options.motor_dynamics, viscous_friction=options.viscous_friction,
+        coulomb_friction=options.coulomb_friction, r_joint_friction=options.r_joint_friction,
+        gravity=options.gravity, joint_damping=options.joint_damping,
+        hand=hand, spring_override=options.spring_override,
+        solver=mjcf.Solver(timestep=sol.timestep, integrator=sol.integrator.value, solref=tuple(sol.solref),
+                           solimp=tuple(sol.solimp), iterations=sol.iterations, tolerance=sol.tolerance))
 
 
 def build_xml(design: PrrrDesign, options: ModelOptions, *, ee_mass: float | None = None) -> str:
-    """MJCF text of the 3-PRRR for ``options``; ``ee_mass`` [kg] defaults to M − link masses (lumped)."""
-    sliders, A, B, Q, W = home_pose(design)
-    g = design.geometry
-    act = design.actuator
-    sol = options.solver
-    k = act.spring if options.spring_override is None else options.spring_override
-    M = design.end_effector.mass
-
-    def link_geoms(start: np.ndarray, end: np.ndarray, w: np.ndarray, origin: np.ndarray) -> str:
-        """Lumped link: a negligible point mass mid-way (frame-relative)."""
-        a, b = start - origin, end - origin
-        return (f'<inertial pos="{_v((a + b) / 2)}" mass="{LUMPED_LINK_MASS:.6g}" '
-                f'diaginertia="1e-9 1e-9 1e-9"/>')
-
-    real_links = _real_link_inertials(design) if options.link_masses is LinkMasses.REAL else {}
-
-    def link1_inertial(i: int, origin: np.ndarray) -> str:
-        if options.link_masses is LinkMasses.REAL:
-            return real_links[f"link1_{i + 1}"](origin)
-        return link_geoms(A[i], B[i], W[i], origin)
-
-    legs = []
-    tendons: list[str] = []
-    g_struct = design.structure
-    for i in range(3):
-        w = W[i]
-        jd = f' damping="{options.joint_damping:.9g}"' if options.joint_damping > 0 else ""
-        if options.r_joint_friction:
-            rf = (f' frictionloss="{g_struct.joint_friction:.9g}" solreffriction="{_v(sol.solref)}" '
-                  f'solimpfriction="{_v(sol.solimp)}"')
-            jd += rf
-            tendons.append(f'<fixed name="r3_{i}"{rf}><joint joint="r1_{i}" coef="1"/>'
-                           f'<joint joint="r2_{i}" coef="1"/></fixed>')
-        # link 2: B → (B + d4 e) → Q (the r4 offset along w as a second bar)
-        bq_in_plane = Q[i] - g.r4 * w
-        link2 = link_geoms(B[i], bq_in_plane, w, B[i])
-        if options.link_masses is LinkMasses.REAL:
-            link2 = real_links[f"link2_{i + 1}"](B[i])  # issue 3's mass model
-        closure_anchor = Q[i] - B[i]
-        body_link2 = (f'<body name="link2_{i}" pos="{_v(B[i] - A[i])}">'
-                      f'<joint name="r2_{i}" type="hinge" axis="{_v(w)}"{jd}/>{link2}</body>')
-        body_link1 = (f'<body name="link1_{i}" pos="0 0 0">'
-                      f'<joint name="r1_{i}" type="hinge" axis="{_v(w)}"{jd}/>'
-                      f'{link1_inertial(i, A[i])}{body_link2}</body>')
-        slider_damp = ""
-        if options.viscous_friction and not options.motor_dynamics:
-            slider_damp = f' damping="{act.viscous:.9g}"'
-        fric = ""
-        if options.coulomb_friction:  # friction of the output slider on its rail, as hard as the closures
-            fric = (f' frictionloss="{act.coulomb_friction:.9g}" solreffriction="{_v(sol.solref)}" '
-                    f'solimpfriction="{_v(sol.solimp)}"')
-        carriage_inertial = f'<inertial pos="0 0 0" mass="{CARRIAGE_MASS:.6g}" diaginertia="1e-9 1e-9 1e-9"/>'
-        motor_inertial = f'<inertial pos="0 0 0" mass="{act.motor_mass:.9g}" diaginertia="1e-3 1e-3 1e-3"/>'
-        mdamp = f' damping="{act.viscous:.9g}"' if options.viscous_friction else ""
-        if options.motor_dynamics and options.sea_compliance:
-            # motor and output slider each slide on the rail; the SEA spring is a fixed tendon
-            # L = D_e − D between them (no relative joint: the rail friction acts on D_e)
-            leg = (f'<body name="motor_{i}" pos="{_v(A[i])}" gravcomp="1">'
-                   f'<joint name="motor_{i}" type="slide" axis="0 0 1"{mdamp}/>{motor_inertial}</body>'
-                   f'<body name="carriage_{i}" pos="{_v(A[i])}" gravcomp="1">'
-                   f'<joint name="slider_{i}" type="slide" axis="0 0 1"{fric}/>'
-                   f'{carriage_inertial}{body_link1}</body>')
-            tendons.append(f'<fixed name="sea_{i}" stiffness="{k:.9g}" springlength="0">'
-                           f'<joint joint="slider_{i}" coef="1"/><joint joint="motor_{i}" coef="-1"/></fixed>')
-        elif options.motor_dynamics:  # rigid transmission: motor mass moves with the slider
-            leg = (f'<body name="carriage_{i}" pos="{_v(A[i])}" gravcomp="1">'
-                   f'<joint name="slider_{i}" type="slide" axis="0 0 1"{mdamp}{fric}/>{motor_inertial}'
-                   f'{body_link1}</body>')
-        else:  # ideal force source on the output slider (the spring force equals the command)
-            leg = (f'<body name="carriage_{i}" pos="{_v(A[i])}" gravcomp="1">'
-                   f'<joint name="slider_{i}" type="slide" axis="0 0 1"{slider_damp}{fric}/>'
-                   f'{carriage_inertial}{body_link1}</body>')
-        legs.append((leg, closure_anchor, w))
-
-    if ee_mass is None:
-        ee_mass = M - 6 * LUMPED_LINK_MASS
-    return _assemble(design, options, legs, tendons, ee_mass, sol)
-
-
-def _assemble(design: PrrrDesign, options: ModelOptions, legs: list, tendons: list[str], ee_mass: float,
-              sol: SolverSettings) -> str:
-    flags = [f'gravity="{"enable" if options.gravity else "disable"}"', 'contact="disable"']
-    r_ball = design.end_effector.handle_diameter / 2.0
-    i_ball = 0.4 * max(ee_mass, 1e-6) * r_ball**2
-    if options.platform is Platform.TRANSLATIONAL:
-        ee_joints = ('<joint name="ee_x" type="slide" axis="1 0 0"/>'
-                     '<joint name="ee_y" type="slide" axis="0 1 0"/>'
-                     '<joint name="ee_z" type="slide" axis="0 0 1"/>')
-    else:
-        ee_joints = '<freejoint name="ee_free"/>'
-    ee = (f'<body name="ee" pos="0 0 0">{ee_joints}'
-          f'<inertial pos="0 0 0" mass="{ee_mass:.12g}" diaginertia="{i_ball:.9g} {i_ball:.9g} {i_ball:.9g}"/>'
-          f'<site name="handle" pos="0 0 0"/></body>')
-    hand = ""
-    eqs = []
-    for i, (_, anchor, w) in enumerate(legs):
-        eqs.append(f'<connect name="close_{i}" body1="link2_{i}" body2="ee" anchor="{_v(anchor)}"/>')
-        if options.platform is Platform.FREE:
-            eqs.append(f'<connect name="close_{i}_axis" body1="link2_{i}" body2="ee" '
-                       f'anchor="{_v(anchor + _AXIS_ARM * w)}"/>')
-    if options.hand is not None:
-        h = options.hand
-        hj = "".join(f'<joint name="hand_{a}" type="slide" axis="{ax}" stiffness="{h.stiffness:.9g}" '
-                     f'damping="{h.damping:.9g}"/>'
-                     for a, ax in (("x", "1 0 0"), ("y", "0 1 0"), ("z", "0 0 1")))
-        hand = (f'<body name="hand" pos="0 0 0" gravcomp="1">{hj}<inertial pos="0 0 0" mass="{h.mass:.9g}" '
-                f'diaginertia="1e-5 1e-5 1e-5"/></body>')
-        eqs.append('<connect name="hand_grip" body1="hand" body2="ee" anchor="0 0 0"/>')
-    actuated = []
-    for i in range(3):
-        if options.motor_dynamics and options.sea_compliance:
-            actuated.append(f"motor_{i}")
-        else:
-            actuated.append(f"slider_{i}")
-    acts = "".join(f'<motor name="force_{i}" joint="{j}" gear="1"/>' for i, j in enumerate(actuated))
-    solref = _v(sol.solref)
-    solimp = _v(sol.solimp)
-    return f"""<mujoco model="{design.name}">
-  <compiler angle="radian" inertiafromgeom="auto" autolimits="true"/>
-  <option timestep="{sol.timestep:.9g}" integrator="{sol.integrator.value}" iterations="{sol.iterations}"
-          tolerance="{sol.tolerance:.3g}" gravity="0 0 {-GRAVITY:g}" cone="pyramidal" jacobian="dense">
-    <flag {' '.join(flags)}/>
-  </option>
-  <default>
-    <geom contype="0" conaffinity="0"/>
-    <equality solref="{solref}" solimp="{solimp}"/>
-  </default>
-  <worldbody>
-    {''.join(leg for leg, _, _ in legs)}
-    {ee}
-    {hand}
-  </worldbody>
-  <tendon>{''.join(tendons)}</tendon>
-  <equality>{''.join(eqs)}</equality>
-  <actuator>{acts}</actuator>
-</mujoco>
-"""
+    """MJCF text of the 3-PRRR for ``options`` (:func:`hapticopt.design.prrr.mjcf.prrr_mjcf`);
+    ``ee_mass`` [kg] defaults to M − link masses (lumped)."""
+    return mjcf.prrr_mjcf(design, mjcf_options(options), ee_mass=ee_mass)
 
 
 def build(design: PrrrDesign, options: ModelOptions | None = None) -> PrrrMj:
@@ -329,7 +159,7 @@ def build(design: PrrrDesign, options: ModelOptions | None = None) -> PrrrMj:
     xml = build_xml(design, options)
     model = mujoco.MjModel.from_xml_string(xml)
     link_ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"link{j}_{i}")
-                for i in range(3) for j in (1, 2)]
+                for i in (1, 2, 3) for j in (1, 2)]
     link_mass = float(sum(model.body_mass[b] for b in link_ids))
     ee_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "ee")
     if options.link_masses is LinkMasses.REAL:  # second pass: the platform gets M − links
@@ -350,12 +180,12 @@ def build(design: PrrrDesign, options: ModelOptions | None = None) -> PrrrMj:
 
     has_motor = options.motor_dynamics and options.sea_compliance
     if has_motor:
-        motor_qpos = np.array([jq(f"motor_{i}") for i in range(3)])
-        act_dof = np.array([jd(f"motor_{i}") for i in range(3)])
+        motor_qpos = np.array([jq(f"motor_{i}") for i in (1, 2, 3)])
+        act_dof = np.array([jd(f"motor_{i}") for i in (1, 2, 3)])
     else:
         motor_qpos = None
-        act_dof = np.array([jd(f"slider_{i}") for i in range(3)])
-    slider_qpos = np.array([jq(f"slider_{i}") for i in range(3)])
+        act_dof = np.array([jd(f"slider_{i}") for i in (1, 2, 3)])
+    slider_qpos = np.array([jq(f"slider_{i}") for i in (1, 2, 3)])
     if options.platform is Platform.TRANSLATIONAL:
         ee_qpos = np.array([jq(n) for n in ("ee_x", "ee_y", "ee_z")])
     else:
@@ -366,7 +196,7 @@ def build(design: PrrrDesign, options: ModelOptions | None = None) -> PrrrMj:
         hand_qpos = np.array([jq(f"hand_{a}") for a in "xyz"])
         hand_dof = np.array([jd(f"hand_{a}") for a in "xyz"])
     params = params_of(design)
-    carriage = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"carriage_{i}") for i in range(3)])
+    carriage = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"carriage_{i}") for i in (1, 2, 3)])
     return PrrrMj(
         carriage_body=carriage, carriage_home_z=home_pose(design)[1][:, 2],
         design=design, model=model, xml=xml, options=options,
@@ -421,7 +251,7 @@ def set_pose(mj: PrrrMj, data: Any, p: np.ndarray) -> None:
         data.qpos[mj.motor_qpos] = dz  # spring relaxed
     for i in range(3):
         for j, name in ((0, "r1"), (1, "r2")):
-            jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"{name}_{i}")
+            jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"{name}_{i + 1}")
             data.qpos[m.jnt_qposadr[jid]] = dth[i, j]
     if mj.options.platform is Platform.TRANSLATIONAL:
         data.qpos[mj.ee_qpos] = p

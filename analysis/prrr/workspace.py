@@ -11,9 +11,10 @@ Structure exploited (seed 002, seed digest "A leg geometry consistent with eq (1
   not depend on z. Reach |d3 − d4| ≤ |ρ| ≤ d3 + d4 is an elliptic annulus in (x, y).
 * **Joint limits.** The only joint whose range changes the reachable set of a translational
   leg by itself is the elbow θ2: |ρ|² = d3² + d4² + 2 d3 d4 cos θ2, so an elbow range
-  θ2 ∈ [θ2_min, θ2_max] (absolute value) shrinks the annulus radii. The design gives no joint
-  limits (seed 002 does not; the default is the full range 0…π), so ``WorkspaceParams``
-  carries the annulus radii and callers may pass tighter ones.
+  θ2 ∈ [θ2_min, θ2_max] (absolute value) shrinks the annulus radii. Seed 002 gives none; the
+  folded elbow is kept a joint-boss radius from its singularity (:func:`fold_margin`), which
+  sets the inner radius; the parts' stops are checked by :mod:`hapticopt.analysis.prrr.joint_limits`.
+  ``WorkspaceParams`` carries the annulus radii and callers may pass tighter ones.
 
 So the workspace is {(x, y) reached by every leg} × z-interval(x, y), and
 
@@ -32,9 +33,11 @@ So the workspace is {(x, y) reached by every leg} × z-interval(x, y), and
   outside every hole), also for R (the feasible centres form a convex 3-fold-symmetric set,
   which contains its centroid, the axis). R_reach is computed exactly (sampled start, Newton
   on the ellipse parameter).
-* **footprint**: the device envelope in xy, the larger of the fixed parts' circle (base plate,
-  carriage and SEA block as built by ``hapticopt.design.prrr.cad``) and the links' swept extent (the
-  R1, R2, R3 joint bosses over the sampled reach region, in the CAD's elbow branch).
+* **footprint**: the device body in xy, the circle about z of the fixed parts and the carriages
+  with their SEA modules as built by ``hapticopt.design.prrr.cad`` (seed 002's "device size",
+  φ260 mm in Table 1). The links' swept extent (the R1, R2, R3 joint bosses over the sampled reach
+  region, in the CAD's elbow branch) is reported apart, ``link_sweep_diameter_mm``: with Table 2's
+  d1…d4 the elbows swing outside the body (docs/workspace.md).
 * **Jacobian constancy**: the IK slider map is differentiated by central differences at
   sampled workspace points; the largest relative deviation of cond₂ from the analytic
   cond₂(J) is reported.
@@ -63,18 +66,21 @@ from hapticopt.analysis.status import Status
 from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
 from hapticopt.design.errors import HapticoptError
 from hapticopt.analysis import interference
+from hapticopt.design.prrr import cad as cad_prrr
 
 _GAMMA = np.asarray(GAMMAS)
 _THIRD = 2.0 * math.pi / 3.0
 
 def base_envelope(design: PrrrDesign) -> float:
-    """Radius [m] of the fixed parts' envelope in xy, as built by ``hapticopt.design.prrr.cad``: the base
-    plate, and the carriage/SEA block (radially r_p − … to r_p + rail_width/2 + clearance +
-    sea_envelope, tangentially ±(rail_width/2 + clearance + carriage_wall)), whose outer corner
-    is the farthest point."""
+    """Radius [m] of the fixed parts' and carriages' envelope in xy, as built by
+    ``hapticopt.design.prrr.cad`` (base plate, rails, screws, motors, carriages with their SEA
+    housings: :func:`hapticopt.design.prrr.cad.envelope_radius`). Where the CAD cannot lay the
+    parts out, the base plate and the rail circle r_p + rail_width/2 (a lower bound)."""
     g, s = design.geometry, design.structure
-    half_slot = s.rail_width / 2.0 + s.clearance
-    return max(s.base_radius, math.hypot(g.r_p + half_slot + s.sea_envelope, half_slot + s.carriage_wall))
+    try:
+        return cad_prrr.envelope_radius(design)
+    except HapticoptError:
+        return max(s.base_radius, g.r_p + s.rail_width / 2.0)
 
 
 #: Elbow branch used for the links' swept extent: the CAD's assembly mode
@@ -106,6 +112,15 @@ _NEWTON = 8
 _FD_STEP = 1e-4  # [m] central-difference step of the Jacobian check (the map is affine)
 
 
+def fold_margin(design: PrrrDesign) -> float:
+    """Smallest in-plane R1–R3 distance |ρ| [m] the legs may take: the folded-elbow singularity
+    (R3 axis on R1 axis, |ρ| = 0 when d3 = d4, leaves the leg's rotation about that axis
+    unconstrained) is kept one joint-boss radius away (the R3 boss stays off the R1 axis). The
+    elbow limit it gives is |θ2| ≤ acos((ρ_min² − d3² − d4²) / (2 d3 d4)); the workspace's inner
+    reach hole is |ρ| < max(|d3 − d4|, ρ_min) (issue 15: joint limits from the hardware)."""
+    return design.structure.boss_diameter / 2.0
+
+
 class WorkspaceParams(NamedTuple):
     """Parameters of the workspace computation [SI]; scalars, or ``(n,)`` for a batch."""
 
@@ -129,7 +144,7 @@ def workspace_params(design: PrrrDesign, *, required_diameter: float = DEFAULT_R
     """Workspace parameters of one design; ``rho_min``/``rho_max`` override the reach annulus
     (e.g. from elbow limits: |ρ|² = d3² + d4² + 2 d3 d4 cos θ2)."""
     g, s = design.geometry, design.structure
-    lo = abs(g.d3 - g.d4) if rho_min is None else rho_min
+    lo = max(abs(g.d3 - g.d4), fold_margin(design)) if rho_min is None else rho_min
     hi = g.d3 + g.d4 if rho_max is None else rho_max
     vals = (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke, lo, hi,
             base_envelope(design), s.boss_diameter / 2.0, required_diameter / 2.0)
@@ -261,7 +276,7 @@ def workspace_core(wp: WorkspaceParams, *, n_phi: int, n_r: int, xp=np) -> dict:
     radius = xp.maximum(xp.sqrt(bu**2 + bt**2), xp.sqrt(qu**2 + qt**2))
     link_extent = xp.max(xp.where(mask[..., None], radius, 0.0))
     link_extent = xp.maximum(link_extent, xp.sqrt(wp.d1**2 + wp.d2**2)) + wp.boss_radius
-    footprint = 2.0 * xp.maximum(wp.rail_envelope, link_extent)
+    footprint = 2.0 * wp.rail_envelope
 
     # tangent roots leave rounding-sized slivers (~1e-23 m³): below 1e-12 L ρ_max² counts as empty
     empty = ~(volume > 1e-12 * L * wp.rho_max**2)
@@ -337,16 +352,18 @@ def jacobian_constancy(design: PrrrDesign, *, n_phi: int = 24, n_r: int = 6, n_z
 class PrrrWorkspace:
     """Workspace of one 3-PRRR design [SI]."""
 
-    volume: float  # [m³] reach ∩ stroke (∩ no interference where interference_removed is set)
+    volume: float  # [m³] reach ∩ stroke (the same at every fidelity; after interference: ``free_volume``)
     reach_radius: float  # [m] distance from the z axis to the reach edge
     cylinder_diameter: float  # [m] largest-volume vertical cylinder on the z axis
     cylinder_height: float  # [m]
     required_diameter: float  # [m]
     height_at_required: float  # [m] height of a cylinder of the required diameter (0 if it does not fit)
-    footprint_diameter: float  # [m] device envelope in xy
+    footprint_diameter: float  # [m] device body in xy (fixed parts and carriages; seed 002's "device size")
+    link_sweep_diameter: float = 0.0  # [m] links' swept extent over the reach region (elbow branch of the CAD)
     condition_deviation: float | None = None  # fine only: max relative deviation of the FD cond₂
     condition_points: int = 0  # points of the constancy check
     interference_removed: float | None = None  # fine only: fraction of sampled volume lost to interference
+    free_volume: float | None = None  # fine only: [m³] volume after removing the colliding share
     fidelity: Fidelity = Fidelity.STANDARD
     status: Status = Status.OK
     message: str = ""
@@ -365,12 +382,15 @@ class PrrrWorkspace:
             "workspace_height_at_diameter_mm": self.height_at_required * 1e3,
             "workspace_required_diameter_mm": self.required_diameter * 1e3,
             "footprint_diameter_mm": self.footprint_diameter * 1e3,
+            "link_sweep_diameter_mm": self.link_sweep_diameter * 1e3,
             "workspace_footprint_ratio": self.footprint_ratio,
         }
         if self.condition_deviation is not None:
             out["jacobian_condition_deviation"] = self.condition_deviation
         if self.interference_removed is not None:
             out["workspace_interference_removed_fraction"] = self.interference_removed
+        if self.free_volume is not None:
+            out["workspace_free_volume_mm3"] = self.free_volume * 1e9
         return out
 
 
@@ -397,6 +417,7 @@ def _result(arrays: dict, required_radius: float, fidelity: Fidelity) -> PrrrWor
         required_diameter=2.0 * required_radius,
         height_at_required=zero * vals["height_at_required"],
         footprint_diameter=vals["footprint_diameter"],
+        link_sweep_diameter=2.0 * vals["link_extent"],
         fidelity=fidelity,
         status=status,
         message=message,
@@ -411,8 +432,10 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
 
     ``required_diameter`` [m]: the diameter of ``workspace_height_at_diameter_mm``.
     ``interference``: check link interference with the manifold3d reference on the 216 poses of
-    :data:`INTERFERENCE_SAMPLING` (default: the fidelity's setting, fine only); it reduces the
-    volume. The inscribed-cylinder metrics are always reach-and-stroke. The fast model for the
+    :data:`INTERFERENCE_SAMPLING` (default: the fidelity's setting, fine only); it gives
+    ``workspace_free_volume_mm3`` (``workspace_volume_mm3`` is reach-and-stroke at every level).
+    The inscribed-cylinder metrics are always reach-and-stroke; the collision-free cylinder is
+    :mod:`hapticopt.analysis.prrr.free_workspace`. The fast model for the
     optimiser is a separate evaluator, :mod:`hapticopt.analysis.prrr.interference`.
     """
     fidelity = Fidelity(fidelity)
@@ -500,7 +523,7 @@ def _with_interference(design: PrrrDesign, result: PrrrWorkspace) -> PrrrWorkspa
     if removed > 0:
         message = (message + "; " if message else "") + \
             f"link interference at {int((~free).sum())} of {len(free)} sampled poses"
-    return dataclasses.replace(result, volume=result.volume * (1.0 - removed), interference_removed=removed,
+    return dataclasses.replace(result, free_volume=result.volume * (1.0 - removed), interference_removed=removed,
                                message=message)
 
 

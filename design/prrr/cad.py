@@ -1,9 +1,11 @@
 """Parametric CAD of the 3-PRRR (seed 002): part tables, posed frames, build123d solids.
 
 Parts (names used in STEP, STL, MJCF and interference reports):
-``base``; per leg i = 1, 2, 3: ``rail_i`` (fixed, square bar at r_p·u_i), ``carriage_i`` (block
-sliding on the rail, containing the SEA housing envelope, with a bracket carrying the R1
-clevis), ``link1_i`` (R1–R2, length d3), ``link2_i`` (R2–R3, length d4, its R3 boss raised
+``base``; per leg i = 1, 2, 3: ``rail_i`` (fixed, square bar at r_p·u'_i, u'_i at angle
+γ_i + θ_1p), ``screw_i`` and ``motor_i`` (fixed: ball screw beside the rail, motor with belt and
+pulleys on the base plate), ``carriage_i`` (block sliding on the rail, with a bracket carrying
+the R1 clevis on one side face), ``housing_i`` (SEA spring housing and nut, on the other side
+face, moving with the carriage), ``link1_i`` (R1–R2, length d3), ``link2_i`` (R2–R3, length d4, its R3 boss raised
 along the axis to carry the r4 offset); ``platform`` (three R3 lugs, arms, stem, handle ball).
 
 Axial layering (along each leg's joint direction w, measured from the plane Π through the R1
@@ -27,6 +29,7 @@ from hapticopt.design import parts as _parts
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.parts import (
     JointAxis,
+    Kind,
     PartSpec,
     Role,
     bar_with_bosses,
@@ -57,9 +60,23 @@ def leg_vectors(beta: float, gamma: float) -> tuple[np.ndarray, np.ndarray, np.n
     return u, t, v, w
 
 
+def rail_direction(design: PrrrDesign, gamma: float) -> tuple[np.ndarray, np.ndarray]:
+    """(u', t'): radial and tangential unit vectors of the rail of the leg at ``gamma``, at angle
+    γ + θ_1p about z (seed 002 θ_1p; the carriage frame's x and y axes)."""
+    a = gamma + design.geometry.theta_1p
+    return np.array([math.cos(a), math.sin(a), 0.0]), np.array([-math.sin(a), math.cos(a), 0.0])
+
+
+def _rot_z(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 @dataclass(frozen=True, kw_only=True)
 class PrrrLayout:
-    """Derived CAD dimensions [m] (all from the design; see module docstring)."""
+    """Derived CAD dimensions [m] (all from the design; see module docstring). Carriage-frame
+    quantities: x = u' (radial, towards rail i at γ_i + θ_1p), y = t', z = e_z, origin on the
+    z axis at the slider height D."""
 
     T: float  # link thickness (axial)
     W: float  # link width
@@ -73,7 +90,12 @@ class PrrrLayout:
     block_y: float  # half width
     block_z: tuple[float, float]
     slot: float  # half size of the rail slot
+    side: float  # +1 / −1: the side (sign of y) of the SEA housing, screw and motor; the clevis is on −side
+    clevis: np.ndarray  # R1 clevis centre Ac, carriage frame
     bracket_end: np.ndarray  # carriage frame
+    housing_y: tuple[float, float]  # SEA spring housing, carriage frame (x and z as the block)
+    screw_xy: np.ndarray  # ball-screw axis, carriage frame
+    motor_xy: np.ndarray  # motor axis, carriage frame
     lug_rho: float  # radial position of the lug centre (platform frame)
     arm_length: float  # lug centre to the stem axis
     stem_bottom: float
@@ -92,14 +114,38 @@ def _mm(x: float) -> str:
     return f"{x * 1e3:g}"
 
 
+def clevis_point(design: PrrrDesign) -> np.ndarray:
+    """R1 clevis centre Ac = A + s_clevis·w of leg 1 (γ = 0) at D = 0, world frame [m]."""
+    g_, s_ = design.geometry, design.structure
+    u, t, v, w = leg_vectors(g_.beta, 0.0)
+    return g_.d1 * u + g_.d2 * t - (s_.link_thickness + s_.clearance) * w
+
+
+def carried_theta_1p(design: PrrrDesign, *, side: float = 1.0) -> float:
+    """θ_1p [rad] that puts the R1 clevis directly on the carriage (seed 002's device carries R1
+    on the carriage, beside the rail): the clevis boss touches the carriage block's side face
+    (tangential distance from the rail axis = block half width + boss radius + clearance), the
+    SEA housing on the other side (``side`` = +1: housing at +t', clevis at −t'). Depends only on
+    the geometry and part sizes, not on the current θ_1p."""
+    s_ = design.structure
+    Ac = clevis_point(design)
+    rho = math.hypot(Ac[0], Ac[1])
+    hy = s_.rail_width / 2 + s_.clearance + s_.carriage_wall
+    off = hy + s_.boss_diameter / 2 + s_.clearance
+    _need(off < rho, lambda: f"geometry.r_p_mm / theta_1p_deg: the carriage ({_mm(2 * hy)} mm wide) cannot carry the "
+          f"R1 clevis at {_mm(rho)} mm from the z axis")
+    return math.atan2(Ac[1], Ac[0]) + side * math.asin(off / rho)
+
+
 def layout(design: PrrrDesign) -> PrrrLayout:
     """Derived dimensions, after the buildability rules; raises :class:`InvalidDesign` naming
     the parameter when a part would be degenerate (zero-thickness wall, disconnected bracket…)."""
-    g_, s_, e_ = design.geometry, design.structure, design.end_effector
+    g_, s_, e_, m_ = design.geometry, design.structure, design.end_effector, design.sea_module
     beta = g_.beta
     T, W, g = s_.link_thickness, s_.link_width, s_.clearance
     R, r = s_.boss_diameter / 2, s_.bore_diameter / 2
     deg = math.degrees(beta)
+    where = f"geometry.r_p_mm = {_mm(g_.r_p)}, geometry.theta_1p_deg = {math.degrees(g_.theta_1p):.4g}"
     # --- cross-sections and walls
     for key, val in (("link_thickness_mm", T), ("link_width_mm", W), ("clearance_mm", g),
                      ("carriage_wall_mm", s_.carriage_wall), ("base_thickness_mm", s_.base_thickness)):
@@ -114,29 +160,48 @@ def layout(design: PrrrDesign) -> PrrrLayout:
     _need(e_.handle_diameter > s_.stem_diameter + 2 * MIN_FEATURE,
           lambda: f"end_effector.handle_diameter_mm = {_mm(e_.handle_diameter)} must exceed structure.stem_diameter_mm "
           f"= {_mm(s_.stem_diameter)} + {_mm(2 * MIN_FEATURE)} (mm)")
+    _need(m_.screw_diameter + 2 * MIN_FEATURE <= s_.sea_envelope,
+          lambda: f"sea_module.screw_diameter_mm = {_mm(m_.screw_diameter)} does not fit the spring housing of "
+          f"structure.sea_envelope_mm = {_mm(s_.sea_envelope)}: allowed ≤ {_mm(s_.sea_envelope - 2 * MIN_FEATURE)} (mm)")
     s_clevis, s_link2 = -(T + g), T + g
     s_lug = max(g_.r4, 2 * T + 2 * g)
-    # --- carriage block (carriage frame: x = u, y = t, z = e_z, origin on the axis at height D)
+    # --- carriage block around the rail (carriage frame: x = u', y = t', z = e_z, origin on the axis at D)
     half_slot = s_.rail_width / 2 + g
-    x_in = g_.r_p - half_slot - s_.carriage_wall
-    x_out = g_.r_p + half_slot + s_.sea_envelope
-    _need(x_in > 0.0, lambda: f"structure.carriage_wall_mm = {_mm(s_.carriage_wall)}: the carriage crosses the z axis "
-          f"(allowed < geometry.r_p_mm − rail_width/2 − clearance = {_mm(g_.r_p - half_slot)} mm)")
+    hy = half_slot + s_.carriage_wall
+    x_in = g_.r_p - hy
+    x_out = g_.r_p + hy
+    _need(x_in > 0.0, lambda: f"{where}: the carriage crosses the z axis (geometry.r_p_mm must exceed rail_width/2 + "
+          f"clearance + carriage_wall = {_mm(hy)} mm)")
     u, t, v, w = leg_vectors(beta, 0.0)
-    A = np.array([g_.d1, g_.d2, 0.0])
-    Ac = A + s_clevis * w
-    # bracket end: on the clevis plane, in the middle of the inner wall, at y = 0
-    xe = x_in + s_.carriage_wall / 2
-    ze = Ac[2] + (xe - Ac[0]) * math.cos(beta) / math.sin(beta)
-    bracket_end = np.array([xe, 0.0, ze])
+    Rz = _rot_z(-g_.theta_1p)  # world (leg 1) → carriage frame
+    A = Rz @ np.array([g_.d1, g_.d2, 0.0])
+    wc = Rz @ w
+    Ac = A + s_clevis * wc
+    # the clevis must sit outside the block (R1 carried beside the rail, not inside the carriage)
+    qx = min(max(Ac[0], x_in), x_out)
+    qy = min(max(Ac[1], -hy), hy)
+    gap = math.hypot(Ac[0] - qx, Ac[1] - qy)
+    _need(gap >= R + g,
+          lambda: f"{where}: the R1 clevis at {_mm(math.hypot(Ac[0], Ac[1]))} mm from the z axis lies "
+          f"{'inside' if gap == 0 else f'{_mm(gap)} mm from'} the carriage block around the rail "
+          f"(allowed ≥ boss radius + clearance = {_mm(R + g)} mm): move the rail (r_p, θ_1p)")
+    side = -1.0 if Ac[1] > 0 else 1.0  # SEA housing on the side away from the clevis
+    # bracket end: on the clevis plane, on the block face nearest the clevis (a bar end inside the
+    # wall could reach into the rail slot, which the analytic mass model does not subtract)
+    xe, ye = qx, qy
+    ze = Ac[2] - (wc[0] * (xe - Ac[0]) + wc[1] * (ye - Ac[1])) / wc[2]
+    bracket_end = np.array([xe, ye, ze])
     reach = W / 2 + T
     hz = s_.carriage_height / 2
     _need(abs(ze) <= 4 * hz + 1e-12,
           lambda: f"geometry.beta_deg = {deg:g}: the R1 bracket would meet the carriage {_mm(abs(ze))} mm off its centre "
-          f"(allowed ≤ 2·structure.carriage_height_mm = {_mm(4 * hz)} mm); raise beta or d1/d2")
+          f"(allowed ≤ 2·structure.carriage_height_mm = {_mm(4 * hz)} mm); raise beta or move the rail ({where})")
     block_z = (min(-hz, ze - reach), max(hz, ze + reach))
-    _need(np.linalg.norm(bracket_end - Ac) >= R + MIN_FEATURE,
-          lambda: f"geometry.d2_mm = {_mm(g_.d2)}: the R1 clevis sits inside the carriage block; move it out (d1, d2)")
+    # --- SEA module: spring housing beside the block, ball screw through it, motor beside the housing
+    housing_y = tuple(sorted((side * hy, side * (hy + s_.sea_envelope))))
+    screw_xy = np.array([g_.r_p, side * (hy + s_.sea_envelope / 2)])
+    Rm = m_.motor_diameter / 2
+    motor_xy = np.array([g_.r_p + m_.motor_radial_offset, side * (hy + s_.sea_envelope + g + Rm)])
     # --- platform (frame at p): lug centres at radius rho, arms along −v to the stem axis
     lug_rho = (g_.b5 - (s_lug - g_.r4)) * math.cos(beta)
     arm_length = lug_rho / math.sin(beta)
@@ -158,26 +223,64 @@ def layout(design: PrrrDesign) -> PrrrLayout:
     z_base_top = c_e - half + carriage_lo - s_.base_clearance
     z_rail_top = c_e + half + carriage_hi + s_.base_clearance
     return PrrrLayout(T=T, W=W, R_boss=R, r_bore=r, g=g, s_clevis=s_clevis, s_link2=s_link2, s_lug=s_lug,
-                      block_x=(x_in, x_out), block_y=half_slot + s_.carriage_wall, block_z=block_z,
-                      slot=half_slot, bracket_end=bracket_end, lug_rho=lug_rho, arm_length=arm_length,
+                      block_x=(x_in, x_out), block_y=hy, block_z=block_z, slot=half_slot, side=side, clevis=Ac,
+                      bracket_end=bracket_end, housing_y=housing_y, screw_xy=screw_xy, motor_xy=motor_xy,
+                      lug_rho=lug_rho, arm_length=arm_length,
                       stem_bottom=stem_bottom, ball_z=ball_z, z_base_top=z_base_top, z_rail_top=z_rail_top)
+
+
+def envelope_radius(design: PrrrDesign) -> float:
+    """Radius [m] of the fixed parts and the carriages (with their housings) about the z axis,
+    from the part tables: the carriages only turn about z and slide along it, so their xy
+    extent is the same at every pose. Exact for boxes (corners) and vertical cylinders."""
+    specs = part_specs(design)
+    frames = part_frames_batch(design, np.zeros((1, 3)), np.zeros((1, 3, 2)), np.zeros((1, 3)))
+    out = 0.0
+    for name, spec in specs.items():
+        if spec.body != "base" and not spec.body.startswith("carriage_"):
+            continue
+        Rf, of = frames[name][0][0], frames[name][1][0]
+        for p in spec.primitives:
+            if p.role != Role.SOLID:
+                continue
+            R, o = Rf @ p.R, Rf @ p.o + of
+            a, b, c = p.dims
+            if p.kind == Kind.BOX:
+                corners = np.array([[i, j, k] for i in (-.5, .5) for j in (-.5, .5) for k in (-.5, .5)]) * (a, b, c)
+                pts = o + corners @ R.T
+                out = max(out, float(np.max(np.hypot(pts[:, 0], pts[:, 1]))))
+            elif p.kind == Kind.CYLINDER:
+                ax = R[:, 2]
+                ends = o + np.outer((-b / 2, b / 2), ax)
+                # rim of a tilted cylinder: bounded by centre radius + a (+ half its axial projection)
+                out = max(out, float(np.max(np.hypot(ends[:, 0], ends[:, 1]))) + a)
+            else:
+                out = max(out, math.hypot(o[0], o[1]) + a)
+    return out
+
+
+def device_height(design: PrrrDesign) -> float:
+    """Height of the device [m]: base plate bottom to the rail tops or the motor tops, whichever is
+    higher (seed 002 Table 1: 231 mm)."""
+    L = layout(design)
+    top = max(L.z_rail_top, L.z_base_top + design.sea_module.motor_length)
+    return top - L.z_base_top + design.structure.base_thickness
 
 
 # ---------------------------------------------------------------------------- part tables
 def _carriage(design: PrrrDesign, L: PrrrLayout) -> list:
     g_ = design.geometry
-    u, t, v, w = leg_vectors(g_.beta, 0.0)
     I = np.eye(3)
     (x0, x1), hy, (z0, z1) = L.block_x, L.block_y, L.block_z
     prims = [
         box(((x0 + x1) / 2, 0.0, (z0 + z1) / 2), I, x1 - x0, 2 * hy, z1 - z0),
         box((g_.r_p, 0.0, (z0 + z1) / 2), I, 2 * L.slot, 2 * L.slot, z1 - z0, role=Role.HOLE),
     ]
-    A = np.array([g_.d1, g_.d2, 0.0])
-    Ac = A + L.s_clevis * w
+    wc = _rot_z(-g_.theta_1p) @ leg_vectors(g_.beta, 0.0)[3]
+    Ac = L.clevis
     d = L.bracket_end - Ac
     length = float(np.linalg.norm(d))
-    Rb = frame(d, w)
+    Rb = frame(d, wc)
     # analytic bar: from the clevis centre to where its axis enters the block
     s_in = _ray_box_entry(Ac, d / length, np.array([x0, -hy, z0]), np.array([x1, hy, z1]))
     bar = bar_with_bosses(Rb, Ac, 0.0, length, width=L.W, thickness=L.T, z=0.0, bosses=(0.0,),
@@ -185,6 +288,25 @@ def _carriage(design: PrrrDesign, L: PrrrLayout) -> list:
     # the part of the bar inside the block is counted by the block: subtract it analytically
     inside = box(Ac + (s_in + length) / 2 * Rb[:, 0], Rb, length - s_in, L.W, L.T, role=Role.OVERLAP)
     return prims + bar + [inside]
+
+
+def _housing(design: PrrrDesign, L: PrrrLayout) -> list:
+    """SEA spring housing (springs, nut, deflection encoder): a box beside the carriage block."""
+    (x0, x1), (y0, y1), (z0, z1) = L.block_x, L.housing_y, L.block_z
+    return [box(((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2), np.eye(3), x1 - x0, y1 - y0, z1 - z0)]
+
+
+def _fixed_cylinder(design: PrrrDesign, gamma: float, xy: np.ndarray, radius: float, z0: float, z1: float) -> list:
+    """A vertical cylinder at carriage-frame ``xy`` of the leg at ``gamma``, world frame, z0…z1."""
+    up, tp = rail_direction(design, gamma)
+    c = xy[0] * up + xy[1] * tp + (z0 + z1) / 2 * EZ
+    return [cylinder(c, EZ, radius, z1 - z0)]
+
+
+def _density(mass: float, prims: list) -> float:
+    vol = sum(p.dims[0] * p.dims[1] * p.dims[2] if p.kind == Kind.BOX else math.pi * p.dims[0] ** 2 * p.dims[1]
+              for p in prims if p.role == Role.SOLID)
+    return mass / vol
 
 
 def _ray_box_entry(o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
@@ -236,7 +358,7 @@ def _platform(design: PrrrDesign, L: PrrrLayout) -> list:
 
 def _rail(design: PrrrDesign, L: PrrrLayout, gamma: float) -> list:
     rw = design.structure.rail_width
-    u = np.array([math.cos(gamma), math.sin(gamma), 0.0])
+    u, _ = rail_direction(design, gamma)
     h = L.z_rail_top - L.z_base_top
     c = design.geometry.r_p * u + (L.z_base_top + h / 2) * EZ
     return [box(c, frame(u, EZ), rw, rw, h)]
@@ -253,12 +375,23 @@ def part_specs(design: PrrrDesign) -> dict[str, PartSpec]:
     rho = design.structure.density
     out: dict[str, PartSpec] = {"base": PartSpec(name="base", body="base", density=rho,
                                                  primitives=tuple(_base(design, L)))}
-    carriage, link1, link2 = (tuple(f(design, L)) for f in (_carriage, _link1, _link2))
+    m_ = design.sea_module
+    carriage, link1, link2, housing = (tuple(f(design, L)) for f in (_carriage, _link1, _link2, _housing))
+    rho_housing = _density(m_.housing_mass, list(housing))
     for i, gamma in zip(LEGS, GAMMAS):
         out[f"rail_{i}"] = PartSpec(name=f"rail_{i}", body="base", density=rho,
                                     primitives=tuple(_rail(design, L, gamma)))
+        screw = _fixed_cylinder(design, gamma, L.screw_xy, m_.screw_diameter / 2, L.z_base_top, L.z_rail_top)
+        motor = _fixed_cylinder(design, gamma, L.motor_xy, m_.motor_diameter / 2, L.z_base_top,
+                                L.z_base_top + m_.motor_length)
+        out[f"screw_{i}"] = PartSpec(name=f"screw_{i}", body="base", density=_density(m_.screw_mass, screw),
+                                     primitives=tuple(screw))
+        out[f"motor_{i}"] = PartSpec(name=f"motor_{i}", body="base", density=_density(m_.motor_mass, motor),
+                                     primitives=tuple(motor))
     for i in LEGS:
         out[f"carriage_{i}"] = PartSpec(name=f"carriage_{i}", body=f"carriage_{i}", density=rho, primitives=carriage)
+        out[f"housing_{i}"] = PartSpec(name=f"housing_{i}", body=f"carriage_{i}", density=rho_housing,
+                                       primitives=housing)
         out[f"link1_{i}"] = PartSpec(name=f"link1_{i}", body=f"link1_{i}", density=rho, primitives=link1)
         out[f"link2_{i}"] = PartSpec(name=f"link2_{i}", body=f"link2_{i}", density=rho, primitives=link2)
     out["platform"] = PartSpec(name="platform", body="platform", density=rho, primitives=tuple(_platform(design, L)))
@@ -270,6 +403,7 @@ def neighbours() -> frozenset[frozenset[str]]:
     pairs = set()
     for i in LEGS:
         pairs |= {frozenset(("base", f"rail_{i}")), frozenset((f"rail_{i}", f"carriage_{i}")),
+                  frozenset((f"screw_{i}", f"housing_{i}")),  # the screw runs through its nut
                   frozenset((f"carriage_{i}", f"link1_{i}")), frozenset((f"link1_{i}", f"link2_{i}")),
                   frozenset((f"link2_{i}", "platform"))}
         for j in LEGS:
@@ -336,8 +470,12 @@ def part_frames_batch(design: PrrrDesign, sliders: np.ndarray, theta: np.ndarray
         e12 = np.cos(th1 + th2)[:, None] * v + np.sin(th1 + th2)[:, None] * t
         A = D[:, None] * EZ + g_.d1 * u + g_.d2 * t
         B = A + g_.d3 * e1
+        up, tp = rail_direction(design, gamma)
         out[f"rail_{i}"] = (eye, zero)
-        out[f"carriage_{i}"] = (np.broadcast_to(np.stack([u, t, EZ], axis=1), (n, 3, 3)), D[:, None] * EZ)
+        out[f"screw_{i}"] = (eye, zero)
+        out[f"motor_{i}"] = (eye, zero)
+        out[f"carriage_{i}"] = (np.broadcast_to(np.stack([up, tp, EZ], axis=1), (n, 3, 3)), D[:, None] * EZ)
+        out[f"housing_{i}"] = out[f"carriage_{i}"]
         for name, x, org in ((f"link1_{i}", e1, A), (f"link2_{i}", e12, B)):
             out[name] = (np.stack([x, np.cross(w, x), np.broadcast_to(w, x.shape)], axis=2), org)
     out["platform"] = (eye, np.asarray(p, dtype=float))
@@ -354,8 +492,8 @@ def joint_axes(design: PrrrDesign, pose: PrrrPose) -> list[JointAxis]:
     for k, i in enumerate(LEGS):
         w = W[k]
         out.append(JointAxis(name=f"slider_{i}", parent="base", child=f"carriage_{i}", kind="slide",
-                             point=np.array([0.0, 0.0, pose.sliders[k]]) + design.geometry.r_p * np.array(
-                                 [math.cos(GAMMAS[k]), math.sin(GAMMAS[k]), 0.0]), direction=EZ.copy()))
+                             point=np.array([0.0, 0.0, pose.sliders[k]])
+                             + design.geometry.r_p * rail_direction(design, GAMMAS[k])[0], direction=EZ.copy()))
         out.append(JointAxis(name=f"r1_{i}", parent=f"carriage_{i}", child=f"link1_{i}", kind="hinge",
                              point=np.asarray(pts.a[k]), direction=w))
         out.append(JointAxis(name=f"r2_{i}", parent=f"link1_{i}", child=f"link2_{i}", kind="hinge",

@@ -25,6 +25,13 @@ GAMMAS: tuple[float, float, float] = (0.0, 2.0 * math.pi / 3.0, -2.0 * math.pi /
 
 _LEN = dict(lo=0.0, hi=2000.0, lo_open=True)
 
+#: θ_1p of ``prrr-paper`` [deg]: seed 002 defines θ_1p (the first P joint's angle from u_11) but
+#: Table 2 omits its value. Derived in :func:`hapticopt.design.prrr.cad.carried_theta_1p` from the
+#: paper's intent, R1 carried directly by the carriage (docs/cad.md, "Rail placement θ_1p"); the
+#: value here is that function's result for the Table 2 geometry and the preset's part sizes,
+#: rounded to 0.1 deg (a test recomputes it).
+THETA_1P_PAPER_DEG = 83.0
+
 
 @dataclass(frozen=True, kw_only=True)
 class PrrrGeometry:
@@ -40,6 +47,9 @@ class PrrrGeometry:
     r4: float = param("r4_mm", "mm", default=20.0, **_LEN, doc="R2–R3 link offset along the joint axis")
     b5: float = param("b5_mm", "mm", default=40.0, **_LEN, doc="R3 offset from the end-effector along the axis; r5 = b5·sin β")
     stroke: float = param("stroke_mm", "mm", default=170.0, **_LEN, doc="slider stroke, centred on the home pose")
+    theta_1p: float = param("theta_1p_deg", "deg", default=THETA_1P_PAPER_DEG, lo=-180.0, hi=180.0,
+                            doc="angle of rail i (P joint, carriage, SEA module) from u_i about z; "
+                                "eq 1 does not depend on it (seed 002 θ_1p)")
 
     @property
     def r5(self) -> float:
@@ -125,6 +135,29 @@ class Structure:
 
 
 @dataclass(frozen=True, kw_only=True)
+class SeaModule:
+    """Physical parts of each leg's SEA drive (seed 002 Fig. 3: motor, belt, ball screw, spring
+    housing; the paper gives no sizes or masses: approximate envelopes and catalogue-class masses,
+    docs/cad.md "Device size and mass"). The equivalent masses of :class:`SeaActuator` (eq 3, 6)
+    are dynamics parameters and unrelated to these."""
+
+    motor_diameter: float = param("motor_diameter_mm", "mm", default=32.0, lo=0.0, hi=500.0, lo_open=True,
+                                  doc="motor housing diameter (vertical, on the base plate beside the rail)")
+    motor_length: float = param("motor_length_mm", "mm", default=60.0, lo=0.0, hi=1000.0, lo_open=True,
+                                doc="motor housing length with encoder and belt pulley")
+    motor_radial_offset: float = param("motor_radial_offset_mm", "mm", default=-8.0, lo=-500.0, hi=500.0,
+                                       doc="radial offset of the motor axis from the rail axis (negative: towards z)")
+    motor_mass: float = param("motor_mass_kg", "kg", default=0.30, lo=0.0, hi=100.0, lo_open=True,
+                              doc="motor with encoder, pulleys and belt")
+    screw_diameter: float = param("screw_diameter_mm", "mm", default=8.0, lo=0.0, hi=200.0, lo_open=True,
+                                  doc="ball screw diameter (parallel to the rail, inside the spring housing)")
+    screw_mass: float = param("screw_mass_kg", "kg", default=0.10, lo=0.0, hi=100.0, lo_open=True,
+                              doc="ball screw with its end bearings")
+    housing_mass: float = param("housing_mass_kg", "kg", default=0.15, lo=0.0, hi=100.0, lo_open=True,
+                                doc="spring housing with springs, nut and deflection encoder (moves with the carriage)")
+
+
+@dataclass(frozen=True, kw_only=True)
 class PrrrDesign:
     """A complete 3-PRRR design. Frozen; change with :func:`dataclasses.replace`."""
 
@@ -134,10 +167,11 @@ class PrrrDesign:
     actuator: SeaActuator = field(default_factory=SeaActuator)
     end_effector: EndEffector = field(default_factory=EndEffector)
     structure: Structure = field(default_factory=Structure)
+    sea_module: SeaModule = field(default_factory=SeaModule)
 
     device = DEVICE  # class constant, not a field
 
-    SECTIONS = ("geometry", "actuator", "end_effector", "structure")
+    SECTIONS = ("geometry", "actuator", "end_effector", "structure", "sea_module")
 
     def __post_init__(self) -> None:
         validate(self)

@@ -15,6 +15,7 @@ from hapticopt.design.errors import InvalidInput
 from hapticopt.analysis import interference
 from hapticopt.design.export import export as run_export
 from hapticopt.design.export import _cad
+from hapticopt.analysis.status import Status
 
 
 def parse_pose_mm(text: str):
@@ -40,6 +41,9 @@ def export(
     out: Annotated[Optional[Path], typer.Option("--out", help="Output directory [default: cad_out/<design-name>/].")] = None,
     pose: Annotated[Optional[str], typer.Option("--pose", help="End-effector position X,Y,Z in mm [default: home].")] = None,
     render: Annotated[bool, typer.Option("--render", help="Also write <name>.png (pyvista, off-screen).")] = False,
+    poses: Annotated[int, typer.Option("--poses", help="Check interference (manifold3d) at N workspace poses "
+                                       "instead of only the exported pose (3-PRRR: the reach-and-stroke "
+                                       "workspace samples).", min=0)] = 0,
 ) -> None:
     """Export the CAD of a design: DIR/<name>.step, DIR/parts/*.stl, DIR/<name>.xml, DIR/mass_properties.json."""
     t0 = time.perf_counter()
@@ -48,13 +52,37 @@ def export(
 
     out_dir = out if out is not None else Path("cad_out") / design.name
     result = run_export(design, out_dir, p=p, render=render)
-    check = interference.check_pose(design, result_pose(design, p))
+    where = "the home pose" if p is None else f"the pose ({pose}) mm"
+    if poses > 0:
+        message = _check_many(design, poses)
+    else:
+        check = interference.check_pose(design, result_pose(design, p))
+        message = (f"none at {where}" if check.ok else f"{check.message} (at {where})") + \
+            " — only this pose was checked; --poses N checks the workspace"
     for f in result.files:
         typer.echo(f"wrote {f}")
-    typer.echo(f"total mass {result.total_mass_kg:.4g} kg; interference: "
-               + ("none" if check.ok else check.message))
+    typer.echo(f"total mass {result.total_mass_kg:.4g} kg; interference: {message}")
     typer.echo("timings_s: " + ", ".join(f"{k} {v:.2f}" for k, v in result.timings_s.items())
                + f", wall {time.perf_counter() - t0:.2f}")
+
+
+def _check_many(design, n: int) -> str:
+    """Interference (manifold3d) at about ``n`` workspace poses: one line naming how many collide."""
+    if design.device != "prrr":
+        from hapticopt.design.master import cad as cad_master
+
+        pts = np.atleast_2d(cad_master.home_point(design))
+    else:
+        from hapticopt.analysis.prrr.workspace import sample_points, workspace_params
+
+        k = max(1, round((n / 3) ** (1 / 3)))  # 3·k_phi·k_r·k_z ≈ n
+        pts = sample_points(workspace_params(design), n_phi=k, n_r=k, n_z=max(1, round(n / (3 * k * k))))
+    res = interference.check_poses(design, pts)
+    bad = [r for r in res if r.status == Status.FAILED]
+    if not bad:
+        return f"none at {len(res)} workspace poses"
+    pairs = sorted({f"{a} × {b}" for r in bad for a, b in r.pairs})
+    return f"{len(bad)} of {len(res)} workspace poses collide ({', '.join(pairs[:4])}{', …' if len(pairs) > 4 else ''})"
 
 
 def result_pose(design, p):

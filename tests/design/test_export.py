@@ -12,7 +12,8 @@ from hapticopt.design import export as ex
 from hapticopt.design import io
 from hapticopt.design.mass_properties import Method
 
-PARTS = {"base", "platform"} | {f"{k}_{i}" for k in ("rail", "carriage", "link1", "link2") for i in (1, 2, 3)}
+PARTS = {"base", "platform"} | {f"{k}_{i}" for k in ("rail", "screw", "motor", "carriage", "housing", "link1", "link2")
+                                 for i in (1, 2, 3)}
 
 
 @pytest.fixture(scope="module")
@@ -83,15 +84,22 @@ def test_every_stl_is_a_closed_manifold_with_the_solid_volume(exported, cad_volu
 def test_mjcf_matches_mass_properties_json(exported, paper):
     data = json.loads((exported.out_dir / "mass_properties.json").read_text())
     model = mujoco.MjModel.from_xml_path(str(exported.out_dir / f"{paper.name}.xml"))
-    assert model.body_mass.sum() == pytest.approx(data["total_mass_kg"], rel=1e-9)
+    # every CAD body, plus the three motor sides' equivalent mass M_m (seed 002 Table 4, not a part)
+    assert model.body_mass.sum() == pytest.approx(data["total_mass_kg"] + 3 * paper.actuator.motor_mass, rel=1e-9)
+    from hapticopt.design.prrr import cad as cad_prrr
+
+    frames = cad_prrr.part_frames(paper, cad_prrr.solve_pose(paper, (0.0, 0.0, 0.0)))
     for name, body in data["bodies"].items():
-        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "ee" if name == "platform" else name)
         R = np.zeros(9)
         mujoco.mju_quat2Mat(R, model.body_iquat[b])
         R = R.reshape(3, 3)
         inertia_kg_mm2 = R @ np.diag(model.body_inertia[b]) @ R.T * 1e6
         assert model.body_mass[b] == pytest.approx(body["mass_kg"], rel=1e-9)
-        assert inertia_kg_mm2 == pytest.approx(np.array(body["inertia_kg_mm2"]), rel=1e-6, abs=1e-9)
+        # MJCF bodies are world-aligned at home; the JSON is in the part frame
+        Rp = frames[name][:3, :3]
+        want = Rp @ np.array(body["inertia_kg_mm2"]) @ Rp.T
+        assert inertia_kg_mm2 == pytest.approx(want, rel=1e-6, abs=1e-9)
 
 
 def test_json_is_the_cad_mass_properties(exported, paper):

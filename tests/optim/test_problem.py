@@ -35,7 +35,8 @@ def test_bundled_problems_load():
     assert {"prrr-workspace", "master-transparency"} <= set(problem_names())
     p = load_problem("prrr-workspace")
     assert p.device == "prrr" and p.objective.sense is Sense.MAXIMISE
-    assert p.objective.metric.name == "workspace_footprint_ratio"
+    assert p.objective.metric.name == "workspace_free_footprint_ratio"
+    assert {v.key for v in p.variables} >= {"geometry.r_p_mm", "geometry.theta_1p_deg"}
     m = load_problem("master-transparency")
     assert m.device == "master"
     assert m.constraints[0].op is Op.LE and m.constraints[0].value == 0.1  # seed 003: 0.1 N unbalance

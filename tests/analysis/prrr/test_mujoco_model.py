@@ -164,7 +164,7 @@ def test_real_links_carry_the_cad_mass_model():
     for leg in cad_prrr.LEGS:
         for j in (1, 2):
             name = f"link{j}_{leg}"
-            bid = mujoco.mj_name2id(mj.model, mujoco.mjtObj.mjOBJ_BODY, f"link{j}_{leg - 1}")
+            bid = mujoco.mj_name2id(mj.model, mujoco.mjtObj.mjOBJ_BODY, f"link{j}_{leg}")
             pm, T = bodies[name], frames[name]
             assert mj.model.body_mass[bid] == pytest.approx(pm.mass, rel=1e-9)
             np.testing.assert_allclose(data.xipos[bid], T[:3, :3] @ pm.com + T[:3, 3], atol=1e-9)
@@ -178,7 +178,7 @@ def test_r_joint_friction_in_the_multibody_model():
     R3's relative rotation on a translating platform); none on the sliders unless asked for."""
     mj = build(DESIGN, ModelOptions(r_joint_friction=True)).model
     tau = DESIGN.structure.joint_friction
-    for i in range(3):
+    for i in (1, 2, 3):  # leg names are 1-based (the CAD's part names)
         for j in ("r1", "r2"):
             assert mj.dof_frictionloss[mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, f"{j}_{i}")]] == tau
         t = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_TENDON, f"r3_{i}")
@@ -186,4 +186,4 @@ def test_r_joint_friction_in_the_multibody_model():
         s = mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, f"slider_{i}")]
         assert mj.dof_frictionloss[s] == 0.0
     plain = build(DESIGN, ModelOptions()).model
-    assert plain.dof_frictionloss.max() == 0.0 and mujoco.mj_name2id(plain, mujoco.mjtObj.mjOBJ_TENDON, "r3_0") < 0
+    assert plain.dof_frictionloss.max() == 0.0 and mujoco.mj_name2id(plain, mujoco.mjtObj.mjOBJ_TENDON, "r3_1") < 0

@@ -74,13 +74,17 @@ def _grid_volume(design: PrrrDesign, n: int) -> float:
 
 
 def test_volume_agrees_with_independent_ik_grid(paper: PrrrDesign) -> None:
-    v = W.evaluate(paper, fidelity=Fidelity.FINE, interference=False).volume
+    # the IK grid knows no joint limits: compare with the closed form without the fold margin
+    wp = W.workspace_params(paper, rho_min=abs(paper.geometry.d3 - paper.geometry.d4))
+    v = float(W.workspace_core(wp, n_phi=W.SAMPLING[Fidelity.FINE].n_phi, n_r=2)["volume"])
     v_grid = _grid_volume(paper, 500)
     assert v_grid == pytest.approx(v, rel=3e-3)  # grid: O(h) boundary error, h = 0.8 mm
 
 
 def test_volume_converges_at_second_order(paper: PrrrDesign) -> None:
-    wp = W.workspace_params(paper)
+    # without the fold margin (the measurement of docs/workspace.md); its reach hole adds kinks
+    # where the rays graze the hole (measured rate 1.41 with it)
+    wp = W.workspace_params(paper, rho_min=abs(paper.geometry.d3 - paper.geometry.d4))
     ref = float(W.workspace_core(wp, n_phi=16384, n_r=2)["volume"])
     ns = np.array([24, 48, 96, 192])
     err = np.array([abs(float(W.workspace_core(wp, n_phi=int(n), n_r=2)["volume"]) - ref) for n in ns])
@@ -126,19 +130,23 @@ def test_jacobian_constancy_checked_at_fine(paper: PrrrDesign) -> None:
 def test_footprint_covers_rails_and_links(paper: PrrrDesign) -> None:
     g, s = paper.geometry, paper.structure
     r = W.evaluate(paper, fidelity=Fidelity.STANDARD)
-    assert r.footprint_diameter >= 2 * max(s.base_radius, g.r_p + s.rail_width / 2 + s.sea_envelope)
+    # the device body: base plate, and the rail's outer face (closed form, a lower bound of the
+    # part-table envelope); seed 002 Table 1: φ260, issue 15 acceptance ≤ 270 mm
+    assert r.footprint_diameter >= 2 * max(s.base_radius, g.r_p + s.rail_width / 2)
+    assert r.footprint_diameter <= 0.270
     # links' swept extent from the kinematics module's serial chain at sampled workspace points
     pts = W.sample_points(W.workspace_params(paper), n_phi=32, n_r=12, n_z=1)
     P = params_of(paper)
     ik = inverse_kinematics(P, jnp.asarray(pts))
     chain = leg_chain(P, ik.sliders, ik.theta[:, W.ELBOW_BRANCH])
     extent = max(np.linalg.norm(np.asarray(getattr(chain, k))[..., :2], axis=-1).max() for k in ("a", "b", "q"))
-    fine = W.evaluate(paper, fidelity=Fidelity.FINE, interference=False).footprint_diameter
+    fine = W.evaluate(paper, fidelity=Fidelity.FINE, interference=False).link_sweep_diameter
     assert fine >= 2 * (extent + s.boss_diameter / 2) - 1e-9 or fine == pytest.approx(
         2 * (extent + s.boss_diameter / 2), rel=2e-3)
-    # sampling under-estimates a maximum: cheaper levels are within 2 % of fine and below it
-    assert r.footprint_diameter <= fine + 1e-12
-    assert r.footprint_diameter == pytest.approx(fine, rel=2e-2)
+    # sampling under-estimates a maximum: cheaper levels are within 2 % of fine and (up to the
+    # samples' placement around the fold-margin hole, measured 0.004 %) below it
+    assert r.link_sweep_diameter <= fine * (1 + 1e-4)
+    assert r.link_sweep_diameter == pytest.approx(fine, rel=2e-2)
     assert r.footprint_ratio == pytest.approx(r.cylinder_diameter / r.footprint_diameter)
 
 

@@ -49,7 +49,8 @@ def test_rail_and_base_volumes(paper, solids):
 
 
 def test_every_part_is_one_valid_solid(solids):
-    assert set(solids) == {"base", "platform"} | {f"{k}_{i}" for k in ("rail", "carriage", "link1", "link2")
+    assert set(solids) == {"base", "platform"} | {f"{k}_{i}" for k in ("rail", "screw", "motor", "carriage",
+                                                                   "housing", "link1", "link2")
                                                 for i in (1, 2, 3)}
     for s in solids.values():
         assert s.is_valid and len(s.solids()) == 1
@@ -85,7 +86,7 @@ def test_cad_joint_axes_are_the_kinematic_axes(paper, solids, point_mm):
     for ax in cad_prrr.joint_axes(paper, pose):
         p = ax.point * 1e3
         if ax.kind == "slide":  # the rail's centre line is the slide axis
-            c = np.array(tuple(placed[ax.parent if ax.parent != "base" else f"rail_{ax.name[-1]}"].center()))
+            c = np.array(tuple(placed[f"rail_{ax.name[-1]}"].center()))
             assert _line_distance(p, ax.direction, c) < 1e-6
             continue
         for part in (ax.parent, ax.child):

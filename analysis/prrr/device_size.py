@@ -1,0 +1,59 @@
+"""Size and mass of the 3-PRRR as built by the CAD (seed 002 Table 1: φ260 × 231 mm, 4.4 kg).
+
+Masses come from the analytic mass model of the part tables
+(:func:`hapticopt.design.prrr.cad.mass_properties`, tested against OpenCASCADE's integrals), split
+into the SEA modules (motor with belt, ball screw, spring housing: ``sea_module`` of the design),
+the moving links (links 1 and 2, platform) and the frame (base plate, rails, carriages). The
+height is the base plate's bottom to the rail tops (:func:`hapticopt.design.prrr.cad.device_height`);
+the footprint is the workspace evaluator's ``footprint_diameter_mm``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
+from hapticopt.design.errors import HapticoptError
+from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design.prrr.params import PrrrDesign
+
+#: part-name prefixes of each mass group
+SEA_PARTS = ("motor_", "screw_", "housing_")
+LINK_PARTS = ("link1_", "link2_", "platform")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DeviceSize:
+    mass: float  # [kg] every part
+    sea_mass: float  # [kg] the three SEA modules
+    link_mass: float  # [kg] links and platform
+    frame_mass: float  # [kg] base plate, rails, carriages
+    height: float  # [m]
+    wall_s: float
+    status: Status = Status.OK
+    message: str = ""
+
+    def metrics(self) -> dict[str, float]:
+        return {"device_mass_kg": self.mass, "device_mass_sea_modules_kg": self.sea_mass,
+                "device_mass_links_kg": self.link_mass, "device_mass_frame_kg": self.frame_mass,
+                "device_height_mm": self.height * 1e3}
+
+
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> DeviceSize:
+    """Mass split and height (closed forms, the same at every fidelity)."""
+    Fidelity(fidelity)
+    t0 = time.perf_counter()
+    try:
+        parts = cad_prrr.mass_properties(design).parts
+        height = cad_prrr.device_height(design)
+    except HapticoptError as exc:
+        nan = float("nan")
+        return DeviceSize(mass=nan, sea_mass=nan, link_mass=nan, frame_mass=nan, height=nan,
+                          wall_s=time.perf_counter() - t0, status=Status.FAILED, message=f"size not computed: {exc}")
+    sea = sum(p.mass for n, p in parts.items() if n.startswith(SEA_PARTS))
+    links = sum(p.mass for n, p in parts.items() if n.startswith(LINK_PARTS))
+    total = sum(p.mass for p in parts.values())
+    return DeviceSize(mass=total, sea_mass=sea, link_mass=links, frame_mass=total - sea - links, height=height,
+                      wall_s=time.perf_counter() - t0)

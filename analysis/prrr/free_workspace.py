@@ -1,0 +1,229 @@
+"""Collision-free workspace of the 3-PRRR: the largest vertical cylinder about z that every leg
+reaches within the slider stroke and where no two parts collide, at every height.
+
+Seed 002's design goal is the xy workspace over the device size **without link interference**
+(φ140 mm of a φ260 mm device, Table 1). The reach-only cylinder of
+:mod:`hapticopt.analysis.prrr.workspace` ignores the parts; this evaluator removes the poses where
+parts collide. Every metric means the same at every fidelity; fidelity changes the sampling
+and the checker only (fast separating-axis model of
+:mod:`hapticopt.analysis.prrr.interference_fast` at draft and standard, the manifold3d meshes of
+:mod:`hapticopt.analysis.interference` at fine, the reference).
+
+Structure used (the reason one pose per column suffices):
+
+* **Moving parts translate together in z.** At fixed (x, y) the in-plane leg vectors do not
+  depend on z (seed digest, eq 1): moving the end-effector by δz moves every slider by δz and
+  keeps every joint angle, so carriages, housings, links and platform translate rigidly. A pair of
+  moving parts collides in a whole column or nowhere in it.
+* **Fixed parts are prisms standing on the base plate** (rails, screws, motors, the plate): a
+  moving part lowered by δ can only meet more of them (their cross-section is the same at every
+  height down to the plate). So a column is collision-free for every height above z iff it is
+  at z.
+* A cylinder of radius R has height H(R) = L − 2R cot β, centred on the home pose
+  (:func:`hapticopt.analysis.prrr.workspace.cylinder_z_range`); every cylinder containing a
+  column at radius r reaches down at most to −H(r)/2. The column at (r, φ) is checked once, at
+  z = −H(r)/2: free there ⇒ free in every cylinder that contains it (conservative for cylinders
+  larger than r, exact for R = r).
+
+Free radius R_free: on each of ``n_phi`` rays over one third of the circle (the device is
+3-fold symmetric) the columns at ``n_r`` radii up to the reach-and-stroke limit are checked; the
+first colliding radius is refined by ``n_bisect`` bisections. R_free is the smallest free radius
+over the rays (0 when the axis itself collides). Rays sample the angle: a collision between rays
+can be missed (measured against a dense reference in ``docs/workspace_interference.md``,
+``benchmarks/accuracy_free_workspace.py``).
+
+Metrics (engineering units at the edge):
+
+* ``workspace_free_radius_mm`` — R_free, the largest collision-free disc about z (radius);
+* ``workspace_free_cylinder_diameter_mm`` / ``…_height_mm`` — the largest-volume collision-free
+  cylinder: R* = min(R_free, L tan β / 3) (the same convention as the reach-only cylinder);
+* ``workspace_free_height_at_diameter_mm`` — height of the collision-free cylinder of the
+  required diameter (0 when it is not free or not reachable);
+* ``workspace_free_footprint_ratio`` — free cylinder diameter over the footprint diameter.
+
+Status: ``ok`` when the required cylinder (φ140 × 89 mm, seed 002 Table 1) is reachable and
+collision-free; ``infeasible`` (numbers kept: an optimiser steers on them) when it is not;
+``empty`` when no workspace exists; ``failed`` when the CAD cannot lay the parts out.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from hapticopt.analysis import interference
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr import interference_fast
+from hapticopt.analysis.prrr.workspace import (
+    DEFAULT_REQUIRED_DIAMETER,
+    ELBOW_BRANCH,
+    workspace_core,
+    workspace_params,
+)
+from hapticopt.analysis.status import Status
+from hapticopt.design.errors import HapticoptError
+from hapticopt.design.prrr.params import PrrrDesign
+
+#: required height of the collision-free cylinder [m] (seed 002 Table 1: workspace φ140 × 89 mm)
+DEFAULT_REQUIRED_HEIGHT = 0.089
+_THIRD = 2.0 * math.pi / 3.0
+
+
+class Checker:
+    """Which interference model decides a pose."""
+
+    FAST = "fast"  # interference_fast (separating axes on the part primitives)
+    MESH = "mesh"  # analysis.interference (manifold3d booleans), the reference
+
+
+@dataclass(frozen=True, kw_only=True)
+class FreeSampling:
+    n_phi: int  # rays over one third of the circle
+    n_r: int  # coarse radii per ray
+    n_bisect: int  # bisections of the first colliding interval
+    checker: str
+
+
+SAMPLING: dict[Fidelity, FreeSampling] = {
+    Fidelity.DRAFT: FreeSampling(n_phi=8, n_r=8, n_bisect=3, checker=Checker.FAST),
+    Fidelity.STANDARD: FreeSampling(n_phi=16, n_r=12, n_bisect=4, checker=Checker.FAST),
+    Fidelity.FINE: FreeSampling(n_phi=16, n_r=10, n_bisect=3, checker=Checker.MESH),
+}
+
+
+@dataclass(frozen=True, kw_only=True)
+class FreeWorkspace:
+    """Collision-free workspace of one design [SI]."""
+
+    free_radius: float  # [m]
+    cylinder_diameter: float  # [m] largest-volume collision-free cylinder about z
+    cylinder_height: float  # [m]
+    required_diameter: float  # [m]
+    required_height: float  # [m]
+    height_at_required: float  # [m] height of the free cylinder of the required diameter (0: not free)
+    footprint_diameter: float  # [m]
+    poses: int  # poses checked
+    colliding: int  # of which colliding
+    fidelity: Fidelity
+    wall_s: float
+    status: Status = Status.OK
+    message: str = ""
+
+    @property
+    def footprint_ratio(self) -> float:
+        return self.cylinder_diameter / self.footprint_diameter if self.footprint_diameter > 0 else 0.0
+
+    def metrics(self) -> dict[str, float]:
+        return {
+            "workspace_free_radius_mm": self.free_radius * 1e3,
+            "workspace_free_cylinder_diameter_mm": self.cylinder_diameter * 1e3,
+            "workspace_free_cylinder_height_mm": self.cylinder_height * 1e3,
+            "workspace_free_height_at_diameter_mm": self.height_at_required * 1e3,
+            "workspace_free_footprint_ratio": self.footprint_ratio,
+        }
+
+
+def column_poses(design: PrrrDesign, phi: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Check poses (…, 3) [m] of the columns at angles ``phi`` and radii ``r`` (broadcast):
+    z = −H(r)/2 = −L/2 + r cot β, the lowest point of the smallest cylinder containing the column."""
+    g = design.geometry
+    phi, r = np.broadcast_arrays(np.asarray(phi, dtype=float), np.asarray(r, dtype=float))
+    z = -g.stroke / 2.0 + r / math.tan(g.beta)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
+
+
+def _collides_fn(design: PrrrDesign, checker: str):
+    if checker == Checker.FAST:
+        model = interference_fast.prepare(design)
+
+        def collides(pts: np.ndarray) -> np.ndarray:
+            res = interference_fast.check_points(model, pts, branch=ELBOW_BRANCH)
+            return res.collides | ~res.reachable
+    else:
+        model = interference.prepare(design)
+
+        def collides(pts: np.ndarray) -> np.ndarray:
+            return np.array([not r.ok for r in interference.check_poses(model, pts, branch=ELBOW_BRANCH)], dtype=bool)
+    return collides
+
+
+def free_radius(design: PrrrDesign, r_max: float, *, n_phi: int, n_r: int, n_bisect: int,
+                checker: str = Checker.FAST) -> tuple[float, int, int]:
+    """(R_free [m], poses checked, poses colliding): largest radius ≤ ``r_max`` whose columns are
+    collision-free on every ray (see the module docstring)."""
+    collides = _collides_fn(design, checker)
+    if r_max <= 0.0:
+        return 0.0, 0, 0
+    phi = (np.arange(n_phi) + 0.5) * (_THIRD / n_phi)
+    radii = r_max * np.arange(0, n_r + 1) / n_r  # includes the axis (r = 0) and r_max
+    # the axis column is one pose for every ray
+    pts = np.concatenate([column_poses(design, np.zeros(1), np.zeros(1)),
+                          column_poses(design, phi[:, None], radii[None, 1:]).reshape(-1, 3)])
+    hit = collides(pts)
+    n_checked, n_hit = len(pts), int(hit.sum())
+    if hit[0]:
+        return 0.0, n_checked, n_hit
+    grid = hit[1:].reshape(n_phi, n_r)
+    first = np.where(grid.any(axis=1), grid.argmax(axis=1), n_r)  # index into radii[1:]
+    lo = radii[first]  # last free radius (radii[k] is the free one before radii[k + 1])
+    hi = np.where(first < n_r, radii[np.minimum(first + 1, n_r)], r_max)
+    open_ = first < n_r
+    for _ in range(n_bisect):
+        if not open_.any():
+            break
+        mid = 0.5 * (lo + hi)
+        k = np.flatnonzero(open_)
+        h = collides(column_poses(design, phi[k], mid[k]))
+        n_checked += len(k)
+        n_hit += int(h.sum())
+        hi[k] = np.where(h, mid[k], hi[k])
+        lo[k] = np.where(h, lo[k], mid[k])
+    return float(np.min(np.where(open_, lo, r_max))), n_checked, n_hit
+
+
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
+             required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
+             required_height: float = DEFAULT_REQUIRED_HEIGHT) -> FreeWorkspace:
+    """Collision-free workspace metrics of ``design`` (see the module docstring)."""
+    fidelity = Fidelity(fidelity)
+    smp = SAMPLING[fidelity]
+    t0 = time.perf_counter()
+    g = design.geometry
+    wp = workspace_params(design, required_diameter=required_diameter)
+    core = workspace_core(wp, n_phi=48, n_r=2)
+    footprint = float(core["footprint_diameter"])
+    cot = 1.0 / math.tan(g.beta)
+    # reach and stroke: the cylinder must be reached (r ≤ R_reach) and have a height (r < L tan β / 2)
+    r_max = min(float(core["reach_radius"]), 0.5 * g.stroke * math.tan(g.beta))
+
+    def result(r_free: float, poses: int, colliding: int, status: Status, message: str) -> FreeWorkspace:
+        r_cyl = min(r_free, g.stroke * math.tan(g.beta) / 3.0)
+        h_cyl = g.stroke - 2.0 * r_cyl * cot if r_cyl > 0 else 0.0
+        r_req = required_diameter / 2.0
+        h_req = max(g.stroke - 2.0 * r_req * cot, 0.0) if r_req <= r_free else 0.0
+        return FreeWorkspace(free_radius=r_free, cylinder_diameter=2.0 * r_cyl, cylinder_height=h_cyl,
+                             required_diameter=required_diameter, required_height=required_height,
+                             height_at_required=h_req, footprint_diameter=footprint, poses=poses,
+                             colliding=colliding, fidelity=fidelity, wall_s=time.perf_counter() - t0,
+                             status=status, message=message)
+
+    if bool(core["empty"]) or r_max <= 0.0:
+        return result(0.0, 0, 0, Status.EMPTY, "no point is reached by every leg within the slider stroke")
+    try:
+        r_free, n, hit = free_radius(design, r_max, n_phi=smp.n_phi, n_r=smp.n_r, n_bisect=smp.n_bisect,
+                                     checker=smp.checker)
+    except HapticoptError as exc:  # the CAD cannot lay this design's parts out
+        out = result(0.0, 0, 0, Status.FAILED, f"collision-free workspace not computed: {exc}")
+        nan = float("nan")
+        return FreeWorkspace(**{**out.__dict__, "free_radius": nan, "cylinder_diameter": nan,
+                                "cylinder_height": nan, "height_at_required": nan})
+    out = result(r_free, n, hit, Status.OK, "")
+    if out.height_at_required < required_height - 1e-12:
+        return FreeWorkspace(**{**out.__dict__, "status": Status.INFEASIBLE, "message": (
+            f"the collision-free workspace misses the required φ{required_diameter * 1e3:g} × "
+            f"{required_height * 1e3:g} mm cylinder: free radius {r_free * 1e3:.4g} mm, "
+            f"{hit} of {n} checked poses collide ({smp.checker} check)")})
+    return out

@@ -1,0 +1,36 @@
+"""``hapticopt export`` says where it checked interference (issue 15: honest statuses)."""
+
+from typer.testing import CliRunner
+
+from hapticopt.design import io
+from hapticopt.optim.cli import export as cli_export
+from hapticopt.optim.cli import app
+
+runner = CliRunner()
+
+
+def test_default_export_names_the_home_pose(tmp_path):
+    res = runner.invoke(app, ["export", "--preset", "prrr-paper", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    assert "interference: none at the home pose — only this pose was checked" in res.output
+
+
+def test_poses_option_checks_the_workspace():
+    paper = io.load_preset("prrr-paper")
+    assert cli_export._check_many(paper, 24).startswith("none at ")
+    # the layout before issue 15 (rails on u_i at r_p = 100, the old part sizes): part of the
+    # workspace collides, and the line says how much
+    legacy = io.apply_overrides(paper, ["geometry.theta_1p_deg=0", "geometry.r_p_mm=100", "structure.rail_width_mm=20",
+                                        "structure.carriage_wall_mm=8", "structure.carriage_height_mm=50",
+                                        "structure.sea_envelope_mm=25"])
+    msg = cli_export._check_many(legacy, 24)
+    assert " workspace poses collide (" in msg and "×" in msg
+
+
+def test_rail_too_close_is_one_line_exit_2(tmp_path):
+    # r_p too small for the carriage: one line naming r_p and θ_1p, exit 2
+    res = runner.invoke(app, ["export", "--preset", "prrr-paper", "--set", "geometry.r_p_mm=10",
+                              "--out", str(tmp_path)])
+    assert res.exit_code == 2
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "r_p_mm = 10" in lines[0] and "theta_1p_deg" in lines[0]
