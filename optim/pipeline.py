@@ -22,7 +22,8 @@ from hapticopt.design import io
 from hapticopt.design.atomic import write_text
 from hapticopt.optim.driver import EvalRecord, ProgressFn
 from hapticopt.optim.problem import Problem, check_metrics
-from hapticopt.analysis.registry import EVALUATORS, describe_failure, evaluate_all, jsonable
+from hapticopt.analysis.registry import EVALUATORS, describe_failure, evaluate_all, jsonable, run_plotter
+from hapticopt.design.paths import inside
 from hapticopt.optim.driver import SMOOTH_SURROGATES
 from hapticopt.analysis.loop.scene import load_scene
 import multiprocessing
@@ -194,7 +195,7 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     obj_opt = problem.objective.metric.value(optimum.metrics)
     sign = 1.0 if problem.objective.sense.value == "minimise" else -1.0
     improved = math.isfinite(obj_opt) and (not math.isfinite(obj_base) or sign * obj_opt < sign * obj_base)
-    io.save_design(optimum_design, out / "optimum.toml")
+    io.save_design(optimum_design, inside(out, "optimum.toml"))
     files["optimum"] = "optimum.toml"
     stages.append(StageOutcome(name="final", status="ok" if feasible_final else "infeasible",
                                message=f"re-evaluated at {problem.fidelity_final} fidelity",
@@ -204,11 +205,10 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     plot_files: list[str] = []
     (out / "plots").mkdir(exist_ok=True)
     for entry in EVALUATORS[problem.device]:
-        plotter = entry.plotter()
-        if plotter is None or entry.name not in optimum.results:
+        if entry.plotter() is None or entry.name not in optimum.results:
             continue
         try:
-            for path in plotter(optimum_design, optimum.results[entry.name], out / "plots"):
+            for path in run_plotter(entry, optimum_design, optimum.results[entry.name], out / "plots"):
                 plot_files.append(str(Path(path).resolve().relative_to(out.resolve())))
         except Exception as exc:  # noqa: BLE001 - a picture that fails is reported, the run goes on
             stages.append(StageOutcome(name=f"plot {entry.name}", status="failed", message=describe_failure(exc)))
@@ -258,4 +258,4 @@ def _write_result_json(p: PipelineResult) -> None:
                    for s in p.stages],
         "files": p.files,
     }
-    write_text(p.out_dir / "result.json", json.dumps(payload, indent=2, default=str) + "\n")
+    write_text(inside(p.out_dir, "result.json"), json.dumps(payload, indent=2, default=str) + "\n")

@@ -31,6 +31,7 @@ def _show_version(value: bool) -> None:
 def _root(
     show_version: Annotated[bool, typer.Option("--version", help="Print the version and exit.", callback=_show_version,
                                                is_eager=True)] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="On an error, also print the traceback.")] = False,
 ) -> None:
     """Design optimisation of haptic mechanisms: describe, evaluate, optimise, export, verify."""
 

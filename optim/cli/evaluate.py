@@ -85,6 +85,7 @@ def evaluate(
     console.print("timings_s: " + ", ".join(f"{k} {v:.3f}" for k, v in timings.items()))
 
 
+@one_line_errors
 def presets() -> None:
     """List the bundled design presets."""
 

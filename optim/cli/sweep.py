@@ -9,6 +9,7 @@ from hapticopt.design.errors import InvalidInput
 from rich.console import Console
 from rich.table import Table
 from hapticopt.design.atomic import write_text
+from hapticopt.design.paths import check_name, inside
 
 SWEEPS = {"master": ("counterweight",)}
 
@@ -24,10 +25,12 @@ def run_sweep(design: Any, name: str, out_dir: Path, fidelity: Any) -> list[Path
 
     rows = master_tradeoff.counterweight_sweep(design, fidelity=fidelity)
     out_dir = Path(out_dir)
+    check_name(design.name, "design name")
+    table_path = inside(out_dir, f"{design.name}_sweep_counterweight.csv")
+    plot_target = inside(out_dir, f"{design.name}_sweep_counterweight.png")
     out_dir.mkdir(parents=True, exist_ok=True)
-    table_path = out_dir / f"{design.name}_sweep_counterweight.csv"
     write_text(table_path, master_tradeoff.rows_to_csv(rows))
-    plot_path = master_plots.sweep_plot(rows, out_dir / f"{design.name}_sweep_counterweight.png")
+    plot_path = master_plots.sweep_plot(rows, plot_target)
     table = Table(title=f"{design.name}: counterweight sweep (seed 003 trade-off)")
     for key in rows[0]:
         table.add_column(key)
