@@ -72,7 +72,7 @@ def test_bad_problem_files_one_line_exit_2(tmp_path, text, match):
 
 def test_missing_problem_and_bad_options(tmp_path):
     res = invoke("optimise", "no-such-problem", "--quiet")
-    assert res.exit_code == 2 and "bundled problems are" in res.stderr
+    assert res.exit_code == 2 and "allowed problems are" in res.stderr
     res = invoke("optimise", str(DATA / "beta-isotropic.toml"), "--out", str(tmp_path), "--scheduler", "ftp://x",
                  "--quiet", "--no-export", "--no-verify")
     assert res.exit_code == 2 and "--scheduler" in res.stderr
