@@ -12,6 +12,7 @@ anywhere else.
 from __future__ import annotations
 
 import os
+import tempfile
 import unicodedata
 from pathlib import Path
 
@@ -64,3 +65,21 @@ def inside(root: str | os.PathLike[str], target: str | os.PathLike[str]) -> Path
         raise InvalidInput(f"output path {short(str(t))} resolves to {short(str(t_r))}, outside the output folder "
                            f"{short(str(root_r))}: refused")
     return t
+
+
+def writable_dir(path: str | os.PathLike[str], what: str = "--out") -> Path:
+    """Create ``path`` if needed and prove it takes a file (create and remove one); else raise.
+
+    Called before expensive work, so a read-only disk or an ``--out`` that is a file fails in
+    the first second with the OS reason, not after the baseline.
+    """
+    p = Path(path)
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".write-probe.", dir=p)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise InvalidInput(f"{what} = {short(str(p))} is not a writable folder: {reason}") from None
+    return p

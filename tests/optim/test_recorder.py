@@ -138,3 +138,32 @@ def test_sigkill_mid_run_then_resume(tmp_path):
     reference = driver.run(load_problem(PROBLEM), only=ONLY)  # uninterrupted, same seed
     assert resumed["history"] == [[list(r.x), r.f] for r in reference.history]
     assert tuple(resumed["best_x"]) == reference.best.x
+
+
+def _point(i: float) -> PointResult:
+    return PointResult(x=(float(i), 2.0), outcome=Outcome.OK, message="", values=(1.0,), gradients=None,
+                       gradient_source="none", metrics={"m": "x" * 4000}, statuses={"statics": "ok"},
+                       timings_s={"statics": 1e-4})
+
+
+def test_a_full_database_reports_the_sqlite_reason_not_a_failed_rollback(tmp_path):
+    """Issue 14: on a full disk the message was 'cannot rollback - no transaction is active'.
+    A page limit makes SQLite answer SQLITE_FULL exactly as a full disk does."""
+    from hapticopt.optim.recorder import RecorderError
+
+    with Recorder(tmp_path, fingerprint="f", resume=False) as rec:
+        pages = rec._db.execute("PRAGMA page_count").fetchone()[0]
+        rec._db.execute(f"PRAGMA max_page_count = {pages + 2}")
+        with pytest.raises(RecorderError, match="database or disk is full"):
+            for i in range(50):
+                rec.record(f"k{i}", _point(i), start=0, stage="search", fidelity="draft")
+        assert not rec._db.in_transaction
+    with Recorder(tmp_path, fingerprint="f", resume=True) as rec:  # what was committed is intact
+        assert 1 <= rec.n_previous < 50
+
+
+def test_commits_are_fsynced(tmp_path):
+    """The recorder promises durability on power loss: synchronous=FULL (2) on its connection
+    (pitfalls: NORMAL may lose the last transactions)."""
+    with Recorder(tmp_path, fingerprint="f", resume=False) as rec:
+        assert rec._db.execute("PRAGMA synchronous").fetchone()[0] == 2
