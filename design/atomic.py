@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -48,3 +49,31 @@ def write_bytes(target: str | os.PathLike[str], data: bytes) -> None:
 def write_text(target: str | os.PathLike[str], text: str) -> None:
     """Write UTF-8 ``text`` to ``target`` atomically."""
     write_bytes(target, text.encode("utf-8"))
+
+
+#: names of this module's temporary files (``.<target>.<random>.tmp<suffix>``) and of write probes
+_TEMP_RE = re.compile(r"^\.(.+\.[A-Za-z0-9_]{6,}\.tmp(\.[A-Za-z0-9]+)?|write-probe\.[A-Za-z0-9_]+)$")
+
+
+def remove_stale_temp_files(root: str | os.PathLike[str], *, depth: int = 2) -> list[Path]:
+    """Delete temp files left by killed writers in ``root`` and its subfolders (to ``depth``).
+
+    Call only while holding the folder (no live writer can own one): the pipeline does it under
+    its run lock. Returns the files removed.
+    """
+    removed: list[Path] = []
+    folders = [(Path(root), 0)]
+    while folders:
+        folder, level = folders.pop()
+        try:
+            entries = list(os.scandir(folder))
+        except OSError:
+            continue
+        for entry in entries:
+            if entry.is_dir(follow_symlinks=False):
+                if level < depth:
+                    folders.append((Path(entry.path), level + 1))
+            elif entry.is_file(follow_symlinks=False) and _TEMP_RE.match(entry.name):
+                Path(entry.path).unlink(missing_ok=True)
+                removed.append(Path(entry.path))
+    return removed

@@ -14,6 +14,8 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from typing import Any
@@ -31,6 +33,23 @@ class InlineExecutor(Executor):
         except BaseException as exc:  # noqa: BLE001 - delivered through the future
             future.set_exception(exc)
         return future
+
+
+def watch_parent(parent_pid: int, period_s: float = 0.5) -> None:
+    """In a child process: exit at once when ``parent_pid`` is gone (even after a SIGKILL).
+
+    A daemon thread polls the parent id (re-parenting is how Linux reports the parent's death);
+    pool workers and the verification child call it first, so none outlives its run by more
+    than ``period_s``.
+    """
+
+    def watch() -> None:
+        while True:
+            if os.getppid() != parent_pid:
+                os._exit(70)  # EX_SOFTWARE: the run that owned this process is gone
+            time.sleep(period_s)
+
+    threading.Thread(target=watch, name="hapticopt-watch-parent", daemon=True).start()
 
 
 def default_workers() -> int:
@@ -62,7 +81,8 @@ def make_executor(scheduler: str = "local", *, workers: int | None = None) -> It
     if scheduler == "local":
         # forkserver/spawn: a forked jax runtime is not safe
         ctx = multiprocessing.get_context("spawn")
-        pool = ProcessPoolExecutor(max_workers=workers or default_workers(), mp_context=ctx)
+        pool = ProcessPoolExecutor(max_workers=workers or default_workers(), mp_context=ctx,
+                                   initializer=watch_parent, initargs=(os.getpid(),))
         try:
             yield pool
         finally:

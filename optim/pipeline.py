@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -28,8 +29,10 @@ from hapticopt.optim.driver import SMOOTH_SURROGATES
 from hapticopt.analysis.loop.scene import load_scene
 import multiprocessing
 import queue as queue_mod
-from hapticopt.optim.recorder import Recorder
-from hapticopt.optim.executor import make_executor
+from hapticopt.optim.recorder import Recorder, run_lock
+from hapticopt.design.atomic import remove_stale_temp_files
+from hapticopt.design.paths import writable_dir
+from hapticopt.optim.executor import make_executor, watch_parent
 from hapticopt.optim import driver, report
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, Verdict
 
@@ -86,8 +89,9 @@ def verdict_of(metrics: dict[str, Any]) -> tuple[bool, str]:
     return True, "stable" + (f", stiffness error {err:.3g} %" if isinstance(err, (int, float)) else "")
 
 
-def _scene_worker(design: Any, scene: str, fidelity: Fidelity, queue: Any, verifier: Any) -> None:
+def _scene_worker(design: Any, scene: str, fidelity: Fidelity, queue: Any, verifier: Any, parent_pid: int) -> None:
     """Child process: run one scene, send back (metrics, message) or an error line."""
+    watch_parent(parent_pid)
     try:
         result = verifier(design, scene) if verifier is not None else run_scene(design, scene, fidelity)
         queue.put(("ok", jsonable(result.metrics()), str(getattr(result, "message", ""))))
@@ -102,7 +106,8 @@ def _run_scene_limited(design: Any, scene: str, fidelity: Fidelity, max_time_s: 
 
     ctx = multiprocessing.get_context("spawn")
     q = ctx.Queue()
-    proc = ctx.Process(target=_scene_worker, args=(design, scene, fidelity, q, verifier), daemon=True)
+    proc = ctx.Process(target=_scene_worker, args=(design, scene, fidelity, q, verifier, os.getpid()),
+                       daemon=True)
     proc.start()
     try:
         return q.get(timeout=max_time_s)
@@ -153,8 +158,39 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     :func:`run_scene` (a module-level function: it runs in a child process).
     """
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    # cheap checks first: a writable --out, the run lock, a reachable scheduler, then the baseline
+    out = writable_dir(out_dir)
+    with run_lock(out):
+        remove_stale_temp_files(out)
+        return _run_locked(problem, out, resume=resume, scheduler=scheduler, workers=workers, progress=progress,
+                           export=export, verify=verify, on_stage=on_stage, verifier=verifier)
+
+
+def _baseline_payload(ev: DesignEvaluation) -> dict[str, Any]:
+    return {"fidelity": str(ev.fidelity), "metrics": jsonable(ev.metrics), "modules": ev.modules,
+            "statuses": ev.statuses, "messages": ev.messages, "timings_s": ev.timings_s}
+
+
+def _baseline_from(payload: dict[str, Any]) -> DesignEvaluation:
+    return DesignEvaluation(fidelity=Fidelity(payload["fidelity"]), metrics=payload["metrics"],
+                            modules=payload["modules"], statuses=payload["statuses"], messages=payload["messages"],
+                            timings_s=payload["timings_s"])
+
+
+def _recorded_evaluation(rec: Recorder, design: Any, fidelity: Fidelity, name: str) -> DesignEvaluation:
+    """``evaluate_design(design, fidelity)``, replayed from the recorder when an earlier session has it."""
+    key = f"{name}|{fidelity}"
+    found = rec.lookup_stage(key)
+    if found is not None:
+        return _baseline_from(found)
+    ev = evaluate_design(design, fidelity)
+    rec.record_stage(key, _baseline_payload(ev))
+    return ev
+
+
+def _run_locked(problem: Problem, out: Path, *, resume: bool, scheduler: str, workers: int | None,
+                progress: ProgressFn | None, export: bool, verify: bool, on_stage: Callable[[str], None] | None,
+                verifier: Callable[[Any, str], Any] | None) -> PipelineResult:
     stages: list[StageOutcome] = []
     files: dict[str, str] = {}
 
@@ -163,18 +199,19 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
             on_stage(name)
         return time.perf_counter()
 
-    # baseline at the optimisation fidelity: which metrics exist, from which evaluator
-    t = stage("baseline")
-    base_opt = evaluate_design(problem.base, problem.fidelity_optimise)
-    check_metrics(problem, base_opt.metrics)
-    only = evaluators_for(problem, base_opt)
-    baseline = (base_opt if problem.fidelity_final == problem.fidelity_optimise
-                else evaluate_design(problem.base, problem.fidelity_final))
-    stages.append(StageOutcome(name="baseline", status="ok", wall_s=time.perf_counter() - t))
+    # the recorder exists before the baseline: a run killed during the baseline resumes too
+    with make_executor(scheduler, workers=workers) as executor, \
+            Recorder(out, fingerprint=problem.fingerprint(), resume=resume) as rec:
+        # baseline at the optimisation fidelity: which metrics exist, from which evaluator
+        t = stage("baseline")
+        base_opt = _recorded_evaluation(rec, problem.base, problem.fidelity_optimise, "baseline")
+        check_metrics(problem, base_opt.metrics)
+        only = evaluators_for(problem, base_opt)
+        baseline = (base_opt if problem.fidelity_final == problem.fidelity_optimise
+                    else _recorded_evaluation(rec, problem.base, problem.fidelity_final, "baseline"))
+        stages.append(StageOutcome(name="baseline", status="ok", wall_s=time.perf_counter() - t))
 
-    t = stage("optimise")
-    with Recorder(out, fingerprint=problem.fingerprint(), resume=resume) as rec, \
-            make_executor(scheduler, workers=workers) as executor:
+        t = stage("optimise")
         result = driver.run(problem, executor=executor, recorder=rec, metric_modules=base_opt.modules, only=only,
                             progress=progress)
     files["recorder"] = "evaluations.sqlite"

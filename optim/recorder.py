@@ -9,11 +9,14 @@ whether a gradient was computed) is replayed without running an evaluator.
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import json
+import os
 import sqlite3
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +36,7 @@ class RecorderError(OSError):
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS stages (name TEXT PRIMARY KEY, payload TEXT NOT NULL, created REAL NOT NULL);
 CREATE TABLE IF NOT EXISTS sessions (id INTEGER PRIMARY KEY, started REAL NOT NULL, resumed INTEGER NOT NULL);
 CREATE TABLE IF NOT EXISTS evaluations (
     id INTEGER PRIMARY KEY,
@@ -101,6 +105,21 @@ class Recorder:
                 gradient_source=gsrc, metrics=json.loads(metrics), statuses=json.loads(statuses),
                 timings_s=json.loads(timings))
 
+    def lookup_stage(self, name: str) -> dict[str, Any] | None:
+        """The recorded result of a whole stage (e.g. the baseline evaluation), or None."""
+        with self._lock:
+            row = self._db.execute("SELECT payload FROM stages WHERE name = ?", (name,)).fetchone()
+        return None if row is None else json.loads(row[0])
+
+    def record_stage(self, name: str, payload: dict[str, Any]) -> None:
+        """Record a stage's result (JSON values), on disk once this returns."""
+        with self._lock:
+            try:
+                self._db.execute("INSERT OR REPLACE INTO stages(name, payload, created) VALUES (?, ?, ?)",
+                                 (name, json.dumps(payload), time.time()))
+            except sqlite3.Error as exc:
+                raise RecorderError(f"cannot record stage {name} in {self.path}: {exc}") from exc
+
     @property
     def n_previous(self) -> int:
         return len(self._previous)
@@ -153,3 +172,30 @@ class Recorder:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+LOCKFILE = ".hapticopt.lock"
+
+
+@contextlib.contextmanager
+def run_lock(run_dir: str | Path) -> Iterator[Path]:
+    """Hold the run directory for this process (``flock`` on ``DIR/.hapticopt.lock``).
+
+    A second run or ``--resume`` of the same directory while one is alive gets one line
+    (:class:`InvalidInput`, exit 2) instead of repeating evaluations. The kernel drops the lock
+    when the holder dies, however it dies, so a killed run never blocks its resume.
+    """
+    path = Path(run_dir) / LOCKFILE
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+            raise InvalidInput(f"--out {run_dir} is in use by another hapticopt run (pid {holder}): wait for it to "
+                               "finish or use another --out") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        yield path
+    finally:
+        os.close(fd)  # releases the lock

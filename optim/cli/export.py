@@ -12,6 +12,7 @@ from hapticopt.optim.cli.common import load_design_arg, one_line_errors
 import math
 import numpy as np
 from hapticopt.design.errors import InvalidInput
+from hapticopt.design.paths import writable_dir
 from hapticopt.analysis import interference
 
 
@@ -45,7 +46,7 @@ def export(
     p = parse_pose_mm(pose) if pose is not None else None
     from hapticopt.design.export import export as run_export
 
-    out_dir = out if out is not None else Path("cad_out") / design.name
+    out_dir = writable_dir(out if out is not None else Path("cad_out") / design.name)
     result = run_export(design, out_dir, p=p, render=render)
     check = interference.check_pose(design, result_pose(design, p))
     for f in result.files:

@@ -64,11 +64,13 @@ def test_export_and_verify_stages_call_the_landed_modules(tmp_path, monkeypatch)
     """The pipeline calls hapticopt.design.export and the closed-loop runner when they exist (stand-ins here)."""
     calls = {}
 
-    def export_design(design, out_dir):
+    def export_design(design, out_dir, render=False):
         calls["export"] = design.name
-        (Path(out_dir) / f"{design.name}.step").write_text("ISO-10303-21;")
+        target = Path(out_dir) / f"{design.name}.step"
+        target.write_text("ISO-10303-21;")
+        return types.SimpleNamespace(files=(target,))
 
-    monkeypatch.setitem(sys.modules, "hapticopt.design.export", types.SimpleNamespace(export_design=export_design))
+    monkeypatch.setitem(sys.modules, "hapticopt.design.export", types.SimpleNamespace(export=export_design))
     monkeypatch.syspath_prepend(str(DATA))  # the stand-in runner must import in the child process
     import fake_verifier
 

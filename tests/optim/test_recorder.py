@@ -167,3 +167,31 @@ def test_commits_are_fsynced(tmp_path):
     (pitfalls: NORMAL may lose the last transactions)."""
     with Recorder(tmp_path, fingerprint="f", resume=False) as rec:
         assert rec._db.execute("PRAGMA synchronous").fetchone()[0] == 2
+
+
+def test_a_second_process_cannot_take_a_locked_run_directory(tmp_path):
+    """Two resumes of one run at once repeated 50 evaluations (issue 14): the second is refused."""
+    from hapticopt.optim.recorder import run_lock
+
+    code = ("import sys; from hapticopt.optim.recorder import run_lock\n"
+            "from hapticopt.design.errors import InvalidInput\n"
+            "try:\n    run_lock(sys.argv[1]).__enter__()\nexcept InvalidInput as e:\n    print(e); sys.exit(2)\n")
+    with run_lock(tmp_path):
+        other = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True)
+        assert other.returncode == 2 and f"pid {os.getpid()}" in other.stdout and "in use" in other.stdout
+    free = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True)
+    assert free.returncode == 0, free.stdout  # released when the holder lets go (or dies)
+
+
+def test_stale_temp_files_are_removed(tmp_path):
+    import tempfile
+
+    from hapticopt.design.atomic import remove_stale_temp_files, write_text
+
+    (tmp_path / "parts").mkdir()
+    stale = [tempfile.mkstemp(prefix=".a.step.", suffix=".tmp.step", dir=tmp_path)[1],
+             tempfile.mkstemp(prefix=".l.stl.", suffix=".tmp.stl", dir=tmp_path / "parts")[1]]
+    write_text(tmp_path / "keep.json", "{}")
+    (tmp_path / ".hapticopt.lock").write_text("1")
+    assert sorted(map(str, remove_stale_temp_files(tmp_path))) == sorted(stale)
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == [".hapticopt.lock", "keep.json"]
