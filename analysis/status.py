@@ -16,6 +16,8 @@ class Status(StrEnum):
     ILL_CONDITIONED = "ill-conditioned"  # rcond below RCOND_ILL: the answer has lost most of its digits
     NOT_POSITIVE_DEFINITE = "not-positive-definite"  # a stiffness/mass matrix with a non-positive eigenvalue
     UNSTABLE = "unstable"
+    INCONCLUSIVE = "inconclusive"  # the run cannot decide what it measures: too short for the instability
+    # detector, or too little motion (≤ 100 encoder quanta) to fit the rendered stiffness
     FAILED = "failed"
 
     @property

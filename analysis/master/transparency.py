@@ -29,6 +29,7 @@ import numpy as np
 
 from hapticopt.analysis.master import dynamics as md
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis import conditioning
 from hapticopt.analysis.status import Status
 from hapticopt.design.master.params import MasterDesign
 from hapticopt.analysis.master import dynamics_numpy as mn
@@ -95,9 +96,13 @@ def axis_coefficients(model: md.MassModel, q: np.ndarray, amplitude: float = AMP
     flat = q.reshape(-1, 3)
     E = np.eye(3)[[0, 2]].T  # (3, 2): x and z
     J = mn.jacobian(model.kin, flat)
-    det = np.linalg.det(J)
-    L = float(model.kin.upper_arm) * float(model.kin.forearm)
-    valid = np.abs(det) > 1e-6 * L * float(model.kin.upper_arm)
+    # verdict from the reciprocal condition number of J (columns scaled by the upper-arm length,
+    # so m/rad become dimensionless): singular and ill-conditioned poses (rcond < RCOND_ILL) are
+    # not valid, never a solve of a near-singular matrix (analysis.conditioning)
+    sv = np.linalg.svd(J / float(model.kin.upper_arm), compute_uv=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rc = np.where(sv[:, 0] > 0.0, sv[:, -1] / sv[:, 0], 0.0)
+    valid = np.isfinite(rc) & (rc >= conditioning.RCOND_ILL)
     Jsafe = np.where(valid[:, None, None], J, np.eye(3))
     V = np.linalg.solve(Jsafe, np.broadcast_to(E, Jsafe.shape[:-2] + (3, 2)))  # (n, 3, 2)
     M = mn.mass_matrix(model, flat)
@@ -113,13 +118,13 @@ def axis_coefficients(model: md.MassModel, q: np.ndarray, amplitude: float = AMP
         return np.linalg.solve(np.swapaxes(Jq, -1, -2), G[..., None])[..., 0]
 
     h = 1e-5
-    kg = np.empty_like(lam)
-    for a in range(2):
-        dq = h * V[:, :, a]
-        dF = (gravity_force(flat + dq) - gravity_force(flat - dq)) / (2 * h)
-        kg[:, a] = dF @ E[:, a]  # k_g = e·∂(J⁻ᵀG)/∂x·e (enters G_T with a + sign, module docstring)
+    kg = np.zeros_like(lam)
+    for a in range(2):  # only at valid poses: no solve near a singularity
+        dq = h * V[valid, :, a]
+        dF = (gravity_force(flat[valid] + dq) - gravity_force(flat[valid] - dq)) / (2 * h)
+        kg[valid, a] = dF @ E[:, a]  # k_g = e·∂(J⁻ᵀG)/∂x·e (enters G_T with a + sign, module docstring)
     shape = q.shape[:-1] + (2,)
-    clean = lambda x: np.where(valid[:, None], x, 0.0).reshape(shape)  # noqa: E731
+    clean = lambda x: np.where(valid[:, None], x, np.nan).reshape(shape)  # noqa: E731  (NaN: not a number to use)
     return AxisCoefficients(mass=clean(lam), damping=clean(b), gravity_stiffness=clean(kg),
                             coulomb=clean(cf), valid=valid.reshape(shape[:-1]))
 
@@ -232,13 +237,16 @@ def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, se
     coef = axis_coefficients(model, q0[None], setup.amplitude, gravity=gp)
     status, message = Status.OK, ""
     if not bool(coef.valid[0]):
-        return MasterTransparency(pose=tuple(map(float, q0)), bandwidth=(0.0, 0.0), apparent_mass=(0.0, 0.0),
-                                  gravity_stiffness=(0.0, 0.0), worst_bandwidth=None, worst_pose=None, setup=setup,
+        nan2 = (float("nan"), float("nan"))
+        return MasterTransparency(pose=tuple(map(float, q0)), bandwidth=nan2, apparent_mass=nan2,
+                                  gravity_stiffness=nan2, worst_bandwidth=None, worst_pose=None, setup=setup,
                                   coefficients=coef, status=Status.SINGULAR,
-                                  message="the pose is singular (cos(θ2 − θ3) = 0 or handle on the θ1 axis)")
+                                  message="the pose is singular or ill-conditioned (reciprocal condition number "
+                                          f"of J < {conditioning.RCOND_ILL:g}: cos(θ2 − θ3) ≈ 0 or handle on the θ1 axis)")
     bw, dc = bandwidth(coef, setup)
     if dc.any():
         status, message = Status.UNSTABLE, "|G_T| is outside ±3 dB already at DC (gravity stiffness too large)"
+        bw = np.full_like(bw, np.nan)  # no bandwidth to report
     worst = worst_pose = None
     if fidelity is Fidelity.FINE:
         ws = mb.workspace_of(design)
