@@ -97,9 +97,10 @@ def evaluate_point(task: PointTask) -> PointResult:
                            values=tuple(math.nan for _ in task.refs))
     metrics, statuses, timings, failure = run_evaluators(design, task.fidelity, task.only)
     values = tuple(ref.value(metrics) for ref in task.refs)
-    not_holding = [f"{name}: {st}" for name, st in statuses.items() if not Status(st).metrics_hold]
+    not_holding = [f"{name}: {st}" for name, st in statuses.items()
+                   if not Status(st).metrics_hold and Status(st) is not Status.FAILED]
     if failure or not_holding:
-        outcome, message = Outcome.EVALUATOR_FAILED, failure or "; ".join(not_holding)
+        outcome, message = Outcome.EVALUATOR_FAILED, "; ".join(not_holding + ([failure] if failure else []))
         values = tuple(math.nan for _ in task.refs)  # a singular or unstable point is never a number
     elif not all(math.isfinite(v) for v in values):
         bad = [r.text for r, v in zip(task.refs, values) if not math.isfinite(v)]
