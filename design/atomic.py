@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -53,6 +54,47 @@ def write_text(target: str | os.PathLike[str], text: str) -> None:
 
 #: names of this module's temporary files (``.<target>.<random>.tmp<suffix>``) and of write probes
 _TEMP_RE = re.compile(r"^\.(.+\.[A-Za-z0-9_]{6,}\.tmp(\.[A-Za-z0-9]+)?|write-probe\.[A-Za-z0-9_]+)$")
+#: names of :func:`file_set` staging folders
+_STAGE_RE = re.compile(r"^\.set\.[A-Za-z0-9_]{6,}\.tmp$")
+
+
+@contextlib.contextmanager
+def file_set(root: str | os.PathLike[str]) -> Iterator[Path]:
+    """Write a set of files as one: yield a staging folder inside ``root``; on success move each
+    file to the same relative path under ``root``.
+
+    Everything that can fail for lack of space or permission (creating and writing the files)
+    happens in the staging folder; a fault there removes it and leaves ``root`` as it was — the
+    previous set intact, none of the new one. Moving in is renames only (same filesystem: no data
+    written). A staging folder left by a killed process is removed by
+    :func:`remove_stale_temp_files`.
+    """
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=".set.", suffix=".tmp", dir=root))
+    try:
+        yield stage
+        files = sorted(p for p in stage.rglob("*") if p.is_file())
+        for f in files:  # folders first, so a missing folder cannot stop the renames half-way
+            (root / f.relative_to(stage)).parent.mkdir(parents=True, exist_ok=True)
+        for f in files:
+            os.replace(f, root / f.relative_to(stage))
+        _fsync_dir(root)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def _fsync_dir(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def remove_stale_temp_files(root: str | os.PathLike[str], *, depth: int = 2) -> list[Path]:
@@ -70,7 +112,10 @@ def remove_stale_temp_files(root: str | os.PathLike[str], *, depth: int = 2) -> 
         except OSError:
             continue
         for entry in entries:
-            if entry.is_dir(follow_symlinks=False):
+            if entry.is_dir(follow_symlinks=False) and _STAGE_RE.match(entry.name):
+                shutil.rmtree(entry.path, ignore_errors=True)
+                removed.append(Path(entry.path))
+            elif entry.is_dir(follow_symlinks=False):
                 if level < depth:
                     folders.append((Path(entry.path), level + 1))
             elif entry.is_file(follow_symlinks=False) and _TEMP_RE.match(entry.name):

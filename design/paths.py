@@ -68,12 +68,14 @@ def inside(root: str | os.PathLike[str], target: str | os.PathLike[str]) -> Path
 
 
 def writable_dir(path: str | os.PathLike[str], what: str = "--out") -> Path:
-    """Create ``path`` if needed and prove it takes a file (create and remove one); else raise.
+    """Prove that ``path`` can take a file (create and remove one there); else raise one line.
 
     Called before expensive work, so a read-only disk or an ``--out`` that is a file fails in
-    the first second with the OS reason, not after the baseline.
+    the first second with the OS reason, not after the baseline. Folders it had to create for
+    the probe are removed again: a run that then fails on its input leaves nothing behind.
     """
     p = Path(path)
+    missing = [a for a in [p, *p.parents] if not a.exists()]
     try:
         p.mkdir(parents=True, exist_ok=True)
         fd, probe = tempfile.mkstemp(prefix=".write-probe.", dir=p)
@@ -82,4 +84,10 @@ def writable_dir(path: str | os.PathLike[str], what: str = "--out") -> Path:
     except OSError as exc:
         reason = exc.strerror or str(exc)
         raise InvalidInput(f"{what} = {short(str(p))} is not a writable folder: {reason}") from None
+    finally:
+        for folder in missing:  # deepest first
+            try:
+                folder.rmdir()
+            except OSError:
+                pass
     return p

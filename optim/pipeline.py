@@ -30,7 +30,7 @@ from hapticopt.analysis.loop.scene import load_scene
 import multiprocessing
 import queue as queue_mod
 from hapticopt.optim.recorder import Recorder, run_lock
-from hapticopt.design.atomic import remove_stale_temp_files
+from hapticopt.design.atomic import file_set, remove_stale_temp_files
 from hapticopt.design.paths import writable_dir
 from hapticopt.optim.executor import make_executor, watch_parent
 from hapticopt.optim import driver, report
@@ -269,13 +269,14 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, scheduler: str, wo
     pres = PipelineResult(problem=problem, out_dir=out, run=result, baseline=baseline, optimum_design=optimum_design,
                           optimum=optimum, constraints_final=cons, feasible_final=feasible_final, improved=improved,
                           verdicts=verdicts, stages=tuple(stages), files=files)
-    written = report.write(pres, extra_stage=("report", t))
-    files.update(written)
-    _write_result_json(pres)
+    # the report set (convergence.svg, report.md, report.html, result.json) is written as one
+    with file_set(out) as staged:
+        files.update(report.write(pres, extra_stage=("report", t), dest=staged))
+        _write_result_json(pres, staged)
     return pres
 
 
-def _write_result_json(p: PipelineResult) -> None:
+def _write_result_json(p: PipelineResult, dest: Path) -> None:
     best: EvalRecord | None = p.run.best
     payload = {
         "problem": p.problem.name,
@@ -295,4 +296,4 @@ def _write_result_json(p: PipelineResult) -> None:
                    for s in p.stages],
         "files": p.files,
     }
-    write_text(inside(p.out_dir, "result.json"), json.dumps(payload, indent=2, default=str) + "\n")
+    write_text(inside(dest, "result.json"), json.dumps(payload, indent=2, default=str) + "\n")

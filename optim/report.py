@@ -158,9 +158,11 @@ font-size:13px}th{background:#f0f0f0}img{max-width:100%;border:1px solid #ddd;ma
 .ok{color:#2e7d32}.bad{color:#c62828}code{background:#f5f5f5;padding:1px 3px}"""
 
 
-def write(p: "PipelineResult", *, extra_stage: tuple[str, float] | None = None) -> dict[str, str]:
-    """Write convergence.svg, report.md and report.html into the run directory; returns role -> file."""
-    out = p.out_dir
+def write(p: "PipelineResult", *, extra_stage: tuple[str, float] | None = None,
+          dest: Path | None = None) -> dict[str, str]:
+    """Write convergence.svg, report.md and report.html into ``dest`` (default: the run directory;
+    the pipeline passes a :func:`design.atomic.file_set` staging folder); returns role -> file."""
+    out = p.out_dir if dest is None else Path(dest)
     prob = p.problem
     write_text(inside(out, "convergence.svg"), convergence_svg(p.run.history, sense_max=prob.objective.sense.value == "maximise"))
     if extra_stage is not None:
