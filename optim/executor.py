@@ -14,13 +14,14 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import re
 import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from typing import Any
 
-from hapticopt.design.errors import InvalidInput
+from hapticopt.design.errors import InvalidInput, short
 
 
 class InlineExecutor(Executor):
@@ -72,9 +73,22 @@ def worker_count(executor: Executor) -> int:
     return 2
 
 
+_ADDRESS_RE = re.compile(r"^(tcp|tls|inproc|ucx)://[A-Za-z0-9_.\-\[\]:]{1,253}:[0-9]{1,5}$")
+
+
+def check_scheduler(scheduler: str) -> None:
+    """Raise one line unless ``scheduler`` is local, inline or a Dask address SCHEME://HOST:PORT."""
+    if scheduler in ("local", "inline"):
+        return
+    if not isinstance(scheduler, str) or not _ADDRESS_RE.match(scheduler):
+        raise InvalidInput(f"--scheduler = {short(scheduler)} is not allowed: use local, inline or a Dask address "
+                           "tcp://HOST:PORT")
+
+
 @contextlib.contextmanager
 def make_executor(scheduler: str = "local", *, workers: int | None = None) -> Iterator[Executor]:
     """An executor for ``scheduler`` ("local", "inline" or a Dask address ``tcp://…``), closed on exit."""
+    check_scheduler(scheduler)
     if scheduler == "inline":
         yield InlineExecutor()
         return

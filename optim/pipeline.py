@@ -32,7 +32,7 @@ import queue as queue_mod
 from hapticopt.optim.recorder import Recorder, run_lock
 from hapticopt.design.atomic import file_set, remove_stale_temp_files
 from hapticopt.design.paths import writable_dir
-from hapticopt.optim.executor import make_executor, watch_parent
+from hapticopt.optim.executor import check_scheduler, make_executor, watch_parent
 from hapticopt.optim import driver, report
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, Verdict
 
@@ -159,7 +159,9 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     """
 
     # cheap checks first: a writable --out, the run lock, a reachable scheduler, then the baseline
+    check_scheduler(scheduler)
     out = writable_dir(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
     with run_lock(out):
         remove_stale_temp_files(out)
         return _run_locked(problem, out, resume=resume, scheduler=scheduler, workers=workers, progress=progress,

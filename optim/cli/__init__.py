@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from hapticopt.optim.cli import common
 from hapticopt.optim.cli import evaluate as cli_evaluate
 from hapticopt.optim.cli import export as cli_export
 from hapticopt.optim.cli import optimise as cli_optimise
@@ -34,6 +35,7 @@ def _root(
     debug: Annotated[bool, typer.Option("--debug", help="On an error, also print the traceback.")] = False,
 ) -> None:
     """Design optimisation of haptic mechanisms: describe, evaluate, optimise, export, verify."""
+    common.DEBUG.set(debug)
 
 
 app.command("evaluate")(cli_evaluate.evaluate)

@@ -9,6 +9,7 @@ COMMAND`` adds the traceback). Exit codes: 0 done; 2 bad input or an operating-s
 
 from __future__ import annotations
 
+import contextvars
 import functools
 import sys
 import traceback
@@ -16,7 +17,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
-import click
 import typer
 
 from hapticopt.design.errors import HapticoptError, InvalidInput
@@ -41,10 +41,16 @@ def fail(message: str, code: int = EXIT_BAD_INPUT) -> None:
     raise typer.Exit(code=code)
 
 
+#: set by the root command's ``--debug`` option for this invocation
+DEBUG: contextvars.ContextVar[bool] = contextvars.ContextVar("hapticopt_debug", default=False)
+#: typer's own control-flow exceptions (exit, abort, usage errors): they pass the boundary untouched
+_CLICK_EXCEPTION = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+_PASS_THROUGH = (typer.Exit, typer.Abort, _CLICK_EXCEPTION)
+
+
 def debug_requested() -> bool:
-    """Whether ``hapticopt --debug …`` was given (the root command's option)."""
-    ctx = click.get_current_context(silent=True)
-    return bool(ctx is not None and ctx.find_root().params.get("debug"))
+    """Whether ``hapticopt --debug …`` was given."""
+    return DEBUG.get()
 
 
 def describe_os_error(exc: OSError) -> str:
@@ -72,7 +78,7 @@ def one_line_errors(func: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return func(*args, **kwargs)
-        except (typer.Exit, click.exceptions.Exit, click.ClickException, click.exceptions.Abort):
+        except _PASS_THROUGH:
             raise
         except Exception as exc:  # noqa: BLE001 - this is the one boundary
             if debug_requested():
