@@ -167,3 +167,19 @@ def test_evaluate_reports_unreachable_home_as_failed(paper):
     short = _with(paper, "geometry", d3=0.03, d4=0.03)
     r = ss.evaluate(short)
     assert r.status == Status.FAILED and "outside the reach" in r.message
+
+
+@pytest.mark.hardcase
+@pytest.mark.parametrize("stretch, status", [
+    (1e-5, Status.OK),  # condition ~1e8: four decades below COND_LIMIT
+    (1e-11, Status.ILL_CONDITIONED),  # ~9e13: two decades above COND_LIMIT, one below SINGULAR_COND
+    (0.0, Status.SINGULAR),  # fully stretched: ≥ 1e17 under either OpenBLAS kernel tried
+])
+def test_stretched_leg_gets_a_named_status_not_a_number(paper, stretch, status):
+    """Issue 14: a stretched leg with condition 2.5e17 reported 367 N/mm. The frame condition
+    grows like 1/(distance to full stretch); the verdict comes from its bands, with NaN metrics."""
+    g = paper.geometry
+    y_edge = g.d2 - (g.d3 + g.d4)
+    r = ss.structural_stiffness(paper, p=(0.0, y_edge * (1 - stretch), 0.0))
+    assert r.status == status
+    assert math.isnan(r.metrics()["structural_stiffness_N_per_mm"][0]) == (status != Status.OK)
