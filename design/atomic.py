@@ -30,12 +30,45 @@ def atomic_path(target: str | os.PathLike[str]) -> Iterator[Path]:
     tmp_path = Path(tmp)
     os.chmod(tmp_path, 0o666 & ~_UMASK)  # mkstemp makes 0600; outputs get the usual permissions
     try:
-        yield tmp_path
+        try:
+            yield tmp_path
+        except OSError:
+            raise
+        except Exception as exc:
+            # writers of foreign libraries (OCCT's STEP, VTK) hide the OS reason ("Failed to write STEP
+            # file"): if the folder no longer takes data, report that reason instead (probed while the
+            # partial output still holds its space)
+            reason = _write_probe_error(target.parent)
+            if reason is not None:
+                raise reason from exc
+            raise
         if not tmp_path.exists() or tmp_path.stat().st_size == 0:
+            reason = _write_probe_error(target.parent)
+            if reason is not None:
+                raise reason
             raise OSError(f"writer produced no output for {target}")
         os.replace(tmp_path, target)
     finally:
         tmp_path.unlink(missing_ok=True)
+
+
+def _write_probe_error(folder: Path, size: int = 1 << 16) -> OSError | None:
+    """The OSError a 64 KiB write (fsynced) into ``folder`` meets, or None if it succeeds."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".write-probe.", dir=folder)
+    except OSError as exc:
+        return exc
+    try:
+        os.write(fd, b"\0" * size)
+        os.fsync(fd)
+    except OSError as exc:
+        if exc.filename is None:
+            exc.filename = str(folder)
+        return exc
+    finally:
+        os.close(fd)
+        os.unlink(probe)
+    return None
 
 
 def write_bytes(target: str | os.PathLike[str], data: bytes) -> None:
@@ -70,10 +103,20 @@ def file_set(root: str | os.PathLike[str]) -> Iterator[Path]:
     :func:`remove_stale_temp_files`.
     """
     root = Path(root)
+    created = [a for a in [root, *root.parents] if not a.exists()]
     root.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=".set.", suffix=".tmp", dir=root))
     try:
-        yield stage
+        try:
+            yield stage
+        except BaseException:
+            shutil.rmtree(stage, ignore_errors=True)
+            for folder in created:  # folders made for this set only: gone with it (deepest first)
+                try:
+                    folder.rmdir()
+                except OSError:
+                    pass
+            raise
         files = sorted(p for p in stage.rglob("*") if p.is_file())
         for f in files:  # folders first, so a missing folder cannot stop the renames half-way
             (root / f.relative_to(stage)).parent.mkdir(parents=True, exist_ok=True)
