@@ -202,3 +202,12 @@ def test_fuzz_set(stubs, monkeypatch, key, value, no_equals):
         assignment = key if no_equals else f"{key}={value}"
         _check(["evaluate", "--preset", "prrr-paper", "--set", assignment], work, set(), key.split(".")[-1] or None,
                "--set")
+
+
+@pytest.mark.parametrize("scenes", ['["a\\u0000b"]', '["' + "s" * 5000 + '"]', '["' + "/x" * 300 + '.toml"]'])
+def test_problem_scene_names_that_are_not_paths(stubs, tmp_path, monkeypatch, scenes):
+    monkeypatch.chdir(tmp_path)
+    doc, _ = _mutate(PROBLEM, (("verify",), "scenes"), scenes, False)
+    f = tmp_path / "p.toml"
+    f.write_text(_dump(doc))
+    _check(["optimise", str(f), "--quiet"], tmp_path, {f}, "scenes", "p.toml")
