@@ -29,6 +29,7 @@ from hapticopt.optim.driver import SMOOTH_SURROGATES
 from hapticopt.analysis.loop.scene import load_scene
 import multiprocessing
 import queue as queue_mod
+from hapticopt.optim.reaper import children_die_with_this_process
 from hapticopt.optim.recorder import Recorder, run_lock
 from hapticopt.design.atomic import file_set, remove_stale_temp_files
 from hapticopt.design.paths import writable_dir
@@ -162,7 +163,7 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     check_scheduler(scheduler)
     out = writable_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with run_lock(out):
+    with run_lock(out), children_die_with_this_process():
         remove_stale_temp_files(out)
         return _run_locked(problem, out, resume=resume, scheduler=scheduler, workers=workers, progress=progress,
                            export=export, verify=verify, on_stage=on_stage, verifier=verifier)
