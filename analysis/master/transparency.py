@@ -238,11 +238,12 @@ def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, se
     status, message = Status.OK, ""
     if not bool(coef.valid[0]):
         nan2 = (float("nan"), float("nan"))
+        verdict = conditioning.classify(mn.jacobian(model.kin, q0[None])[0] / float(model.kin.upper_arm),
+                                        what="J at the pose (cos(θ2 − θ3) ≈ 0 or the handle on the θ1 axis)")
         return MasterTransparency(pose=tuple(map(float, q0)), bandwidth=nan2, apparent_mass=nan2,
                                   gravity_stiffness=nan2, worst_bandwidth=None, worst_pose=None, setup=setup,
-                                  coefficients=coef, status=Status.SINGULAR,
-                                  message="the pose is singular or ill-conditioned (reciprocal condition number "
-                                          f"of J < {conditioning.RCOND_ILL:g}: cos(θ2 − θ3) ≈ 0 or handle on the θ1 axis)")
+                                  coefficients=coef, status=verdict.status if not verdict.ok else Status.SINGULAR,
+                                  message=verdict.message or "J at the pose is not finite")
     bw, dc = bandwidth(coef, setup)
     if dc.any():
         status, message = Status.UNSTABLE, "|G_T| is outside ±3 dB already at DC (gravity stiffness too large)"
