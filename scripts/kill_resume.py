@@ -4,8 +4,9 @@
 
 For each kill: a fresh run directory; the pipeline (tests/optim/data/pipeline_run.py --export:
 baseline, optimise on a 2-worker pool, final, plots, export, verification in a child process,
-report) is killed at a uniform random moment of an uninterrupted run's duration; then resumed to
-the end. Checked: children gone within 5 s, the resumed result equal to the uninterrupted one,
+report) is killed with SIGKILL a random 0–1.5 s after a stage begins (the stages in turn, so
+every stage is hit; "start" is the process start, before the run directory exists); then resumed
+to the end. Checked: children gone within 5 s, the resumed result equal to the uninterrupted one,
 no evaluation repeated, no temp file left. Prints a markdown table.
 """
 
@@ -20,6 +21,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+STAGES = ("start", "baseline", "optimise", "final", "plots", "export", "verify", "report")
 sys.path.insert(0, str(ROOT / "tests" / "optim"))
 import killing  # noqa: E402
 
@@ -40,19 +42,23 @@ def main(n_kills: int = 10, seed: int = 14) -> None:
         reference, t_ref = run_to_end(base / "reference", "--export")
         n_ref = killing.recorded(base / "reference")[0]
         print(f"uninterrupted: {t_ref:.1f} s, {n_ref} evaluations, best_x {reference['best_x']}\n")
-        print("| kill | at [s] | stage | evaluations recorded | children | gone after [s] | resumed: "
+        print("| kill | aimed at | at [s] | stage killed in | evaluations recorded | children | gone after [s] | resumed: "
               "replayed / evaluated | same result | repeated | leftovers |")
-        print("|---|---|---|---|---|---|---|---|---|---|")
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
         ok = True
         for k in range(n_kills):
             run, log = base / f"run{k}", base / f"stages{k}.log"
-            at = rng.uniform(0.0, t_ref)
+            target = STAGES[k % len(STAGES)]
+            delay = rng.uniform(0.0, 1.5)
             p = subprocess.Popen([sys.executable, str(killing.SCRIPT), str(run), "--export", "--stage-log", str(log)],
                                  env=killing.env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-            t_kill = time.time() + at
-            killed, kids, gone = killing.kill_after(p, at)
+            while p.poll() is None and not (log.exists() and target in log.read_text().split()):
+                time.sleep(0.01)
+            t_kill = time.time() + delay
+            killed, kids, gone = killing.kill_after(p, delay)
             stages = [ln.split() for ln in log.read_text().splitlines()] if log.exists() else []
-            stage = ([s for t, s in stages if float(t) <= t_kill] or ["start-up"])[-1]
+            stage = ([s for t, s in stages if float(t) <= t_kill] or ["start"])[-1]
+            at = t_kill - float(stages[0][0]) if stages else delay
             n_before = killing.recorded(run)[0]
             res, _ = run_to_end(run, "--resume" if (run / "evaluations.sqlite").exists() else "", "--export")
             same = res["best_x"] == reference["best_x"] and res["best_f"] == reference["best_f"]
@@ -61,7 +67,7 @@ def main(n_kills: int = 10, seed: int = 14) -> None:
             left = killing.leftovers(run)
             good = same and repeated == 0 and rows_ok and not left and gone <= 5.0
             ok &= good
-            print(f"| {k} | {at:.1f} | {stage if killed else '(finished first)'} | {n_before} | {len(kids)} | "
+            print(f"| {k} | {target} + {delay:.2f} | {at:.1f} | {stage if killed else '(finished first)'} | {n_before} | {len(kids)} | "
                   f"{gone:.2f} | {res['n_replayed']} / {res['n_evaluated']} | {'yes' if same else 'NO'} | "
                   f"{repeated} | {len(left)} |")
         print("\nall promises held" if ok else "\nSOME PROMISE BROKEN")
