@@ -1,6 +1,6 @@
 """Kill the pipeline with SIGKILL at random moments, resume it, and check the issue-14 promises.
 
-    PYTHONPATH=... python scripts/kill_resume.py [N_KILLS] [SEED]
+    PYTHONPATH=... python scripts/kill_resume.py [N_KILLS] [SEED] [STAGE,STAGE,...] [MAX_DELAY_S]
 
 For each kill: a fresh run directory; the pipeline (tests/optim/data/pipeline_run.py --export:
 baseline, optimise on a 2-worker pool, final, plots, export, verification in a child process,
@@ -35,7 +35,7 @@ def run_to_end(run: Path, *args: str) -> tuple[dict, float]:
     return json.loads(out.stdout.strip().splitlines()[-1]), time.monotonic() - t0
 
 
-def main(n_kills: int = 10, seed: int = 14) -> None:
+def main(n_kills: int = 10, seed: int = 14, stages: tuple[str, ...] = STAGES, max_delay_s: float = 1.5) -> None:
     rng = random.Random(seed)
     with tempfile.TemporaryDirectory() as d:
         base = Path(d)
@@ -48,8 +48,8 @@ def main(n_kills: int = 10, seed: int = 14) -> None:
         ok = True
         for k in range(n_kills):
             run, log = base / f"run{k}", base / f"stages{k}.log"
-            target = STAGES[k % len(STAGES)]
-            delay = rng.uniform(0.0, 1.5)
+            target = stages[k % len(stages)]
+            delay = rng.uniform(0.0, max_delay_s)
             p = subprocess.Popen([sys.executable, str(killing.SCRIPT), str(run), "--export", "--stage-log", str(log)],
                                  env=killing.env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             while p.poll() is None and not (log.exists() and target in log.read_text().split()):
@@ -74,4 +74,7 @@ def main(n_kills: int = 10, seed: int = 14) -> None:
 
 
 if __name__ == "__main__":
-    main(*(int(a) for a in sys.argv[1:3]))
+    # kill_resume.py [N_KILLS] [SEED] [STAGE,STAGE,...] [MAX_DELAY_S]
+    a = sys.argv[1:]
+    main(int(a[0]) if a else 10, int(a[1]) if len(a) > 1 else 14,
+         tuple(a[2].split(",")) if len(a) > 2 else STAGES, float(a[3]) if len(a) > 3 else 1.5)

@@ -71,7 +71,11 @@ def test_export_and_verify_stages_call_the_landed_modules(tmp_path, monkeypatch)
         target.write_text("ISO-10303-21;")
         return types.SimpleNamespace(files=(target,))
 
-    monkeypatch.setitem(sys.modules, "hapticopt.design.export", types.SimpleNamespace(export=export_design))
+    stub = types.SimpleNamespace(export=export_design)
+    monkeypatch.setitem(sys.modules, "hapticopt.design.export", stub)
+    import hapticopt.design
+
+    monkeypatch.setattr(hapticopt.design, "export", stub, raising=False)  # `from hapticopt.design import export`
     monkeypatch.syspath_prepend(str(DATA))  # the stand-in runner must import in the child process
     import fake_verifier
 
