@@ -56,9 +56,9 @@ def main(n_kills: int = 10, seed: int = 14, stages: tuple[str, ...] = STAGES, ma
                 time.sleep(0.01)
             t_kill = time.time() + delay
             killed, kids, gone = killing.kill_after(p, delay)
-            stages = [ln.split() for ln in log.read_text().splitlines()] if log.exists() else []
-            stage = ([s for t, s in stages if float(t) <= t_kill] or ["start"])[-1]
-            at = t_kill - float(stages[0][0]) if stages else delay
+            logged = [ln.split() for ln in log.read_text().splitlines()] if log.exists() else []
+            stage = ([s for t, s in logged if float(t) <= t_kill] or ["start"])[-1]
+            at = t_kill - float(logged[0][0]) if logged else delay
             n_before = killing.recorded(run)[0]
             res, _ = run_to_end(run, "--resume" if (run / "evaluations.sqlite").exists() else "", "--export")
             same = res["best_x"] == reference["best_x"] and res["best_f"] == reference["best_f"]
