@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test bench setup clean
+.PHONY: run test hardcases bench setup clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +24,16 @@ run: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# Verdicts near singularities and thresholds (pytest -m hardcase) under two OpenBLAS kernels:
+# a verdict that flips with the BLAS kernel is a rounding-level threshold (issue 14).
+# Haswell (AVX2) and Prescott (SSE3; OpenBLAS reports it as Katmai) both load on x86-64.
+OPENBLAS_KERNELS ?= Haswell Prescott
+hardcases: $(STAMP)
+	@for k in $(OPENBLAS_KERNELS); do \
+		echo "hard cases under OPENBLAS_CORETYPE=$$k"; \
+		OPENBLAS_CORETYPE=$$k $(BIN)/python -m pytest -q -m hardcase || exit 1; \
+	done
 
 bench: $(STAMP)
 	$(BIN)/python -m pytest -q benchmarks -o python_files='bench_*.py' --benchmark-enable --benchmark-columns=min,median,max,rounds

@@ -25,6 +25,8 @@ import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
+from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.paths import check_name, inside
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -149,13 +151,28 @@ def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
                       messages=messages, sources=sources)
 
 
+def run_plotter(entry: EvaluatorEntry, design: Any, result: Any, out_dir: Path) -> list[Path]:
+    """The pictures of one evaluator's ``result`` in ``out_dir`` (the files written).
+
+    Plotters name their files ``<design name>_<what>.png`` in ``out_dir``: the name is checked
+    (:func:`design.paths.check_name`) before, and every returned path is checked to lie inside
+    ``out_dir``.
+    """
+    check_name(design.name, "design name", error=InvalidDesign)
+    out_dir = Path(out_dir)
+    plotter = entry.plotter()
+    if plotter is None:
+        return []
+    return [inside(out_dir, p) for p in plotter(design, result, out_dir)]
+
+
 def write_plots(design: Any, evaluation: Evaluation, out_dir: Path) -> list[Path]:
     """Every registered picture of the evaluators that produced a result; the files written."""
+    check_name(design.name, "design name", error=InvalidDesign)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     for entry in EVALUATORS[design.device]:
-        plotter = entry.plotter()
-        if plotter is not None and entry.name in evaluation.results:
-            written.extend(plotter(design, evaluation.results[entry.name], out_dir))
+        if entry.name in evaluation.results:
+            written.extend(run_plotter(entry, design, evaluation.results[entry.name], out_dir))
     return written

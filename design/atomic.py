@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -28,12 +30,45 @@ def atomic_path(target: str | os.PathLike[str]) -> Iterator[Path]:
     tmp_path = Path(tmp)
     os.chmod(tmp_path, 0o666 & ~_UMASK)  # mkstemp makes 0600; outputs get the usual permissions
     try:
-        yield tmp_path
+        try:
+            yield tmp_path
+        except OSError:
+            raise
+        except Exception as exc:
+            # writers of foreign libraries (OCCT's STEP, VTK) hide the OS reason ("Failed to write STEP
+            # file"): if the folder no longer takes data, report that reason instead (probed while the
+            # partial output still holds its space)
+            reason = _write_probe_error(target.parent)
+            if reason is not None:
+                raise reason from exc
+            raise
         if not tmp_path.exists() or tmp_path.stat().st_size == 0:
+            reason = _write_probe_error(target.parent)
+            if reason is not None:
+                raise reason
             raise OSError(f"writer produced no output for {target}")
         os.replace(tmp_path, target)
     finally:
         tmp_path.unlink(missing_ok=True)
+
+
+def _write_probe_error(folder: Path, size: int = 1 << 16) -> OSError | None:
+    """The OSError a 64 KiB write (fsynced) into ``folder`` meets, or None if it succeeds."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".write-probe.", dir=folder)
+    except OSError as exc:
+        return exc
+    try:
+        os.write(fd, b"\0" * size)
+        os.fsync(fd)
+    except OSError as exc:
+        if exc.filename is None:
+            exc.filename = str(folder)
+        return exc
+    finally:
+        os.close(fd)
+        os.unlink(probe)
+    return None
 
 
 def write_bytes(target: str | os.PathLike[str], data: bytes) -> None:
@@ -48,3 +83,85 @@ def write_bytes(target: str | os.PathLike[str], data: bytes) -> None:
 def write_text(target: str | os.PathLike[str], text: str) -> None:
     """Write UTF-8 ``text`` to ``target`` atomically."""
     write_bytes(target, text.encode("utf-8"))
+
+
+#: names of this module's temporary files (``.<target>.<random>.tmp<suffix>``) and of write probes
+_TEMP_RE = re.compile(r"^\.(.+\.[A-Za-z0-9_]{6,}\.tmp(\.[A-Za-z0-9]+)?|write-probe\.[A-Za-z0-9_]+)$")
+#: names of :func:`file_set` staging folders
+_STAGE_RE = re.compile(r"^\.set\.[A-Za-z0-9_]{6,}\.tmp$")
+
+
+@contextlib.contextmanager
+def file_set(root: str | os.PathLike[str]) -> Iterator[Path]:
+    """Write a set of files as one: yield a staging folder inside ``root``; on success move each
+    file to the same relative path under ``root``.
+
+    Everything that can fail for lack of space or permission (creating and writing the files)
+    happens in the staging folder; a fault there removes it and leaves ``root`` as it was — the
+    previous set intact, none of the new one. Moving in is renames only (same filesystem: no data
+    written). A staging folder left by a killed process is removed by
+    :func:`remove_stale_temp_files`.
+    """
+    root = Path(root)
+    created = [a for a in [root, *root.parents] if not a.exists()]
+    root.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=".set.", suffix=".tmp", dir=root))
+    try:
+        try:
+            yield stage
+        except BaseException:
+            shutil.rmtree(stage, ignore_errors=True)
+            for folder in created:  # folders made for this set only: gone with it (deepest first)
+                try:
+                    folder.rmdir()
+                except OSError:
+                    pass
+            raise
+        files = sorted(p for p in stage.rglob("*") if p.is_file())
+        for f in files:  # folders first, so a missing folder cannot stop the renames half-way
+            (root / f.relative_to(stage)).parent.mkdir(parents=True, exist_ok=True)
+        for f in files:
+            os.replace(f, root / f.relative_to(stage))
+        _fsync_dir(root)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def _fsync_dir(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def remove_stale_temp_files(root: str | os.PathLike[str], *, depth: int = 2) -> list[Path]:
+    """Delete temp files left by killed writers in ``root`` and its subfolders (to ``depth``).
+
+    Call only while holding the folder (no live writer can own one): the pipeline does it under
+    its run lock. Returns the files removed.
+    """
+    removed: list[Path] = []
+    folders = [(Path(root), 0)]
+    while folders:
+        folder, level = folders.pop()
+        try:
+            entries = list(os.scandir(folder))
+        except OSError:
+            continue
+        for entry in entries:
+            if entry.is_dir(follow_symlinks=False) and _STAGE_RE.match(entry.name):
+                shutil.rmtree(entry.path, ignore_errors=True)
+                removed.append(Path(entry.path))
+            elif entry.is_dir(follow_symlinks=False):
+                if level < depth:
+                    folders.append((Path(entry.path), level + 1))
+            elif entry.is_file(follow_symlinks=False) and _TEMP_RE.match(entry.name):
+                Path(entry.path).unlink(missing_ok=True)
+                removed.append(Path(entry.path))
+    return removed

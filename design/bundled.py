@@ -11,7 +11,10 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from hapticopt.design.errors import InputFileError, UnknownName
+from hapticopt.design.errors import InputFileError, UnknownName, short
+
+#: longest accepted file path [characters] (Linux PATH_MAX)
+MAX_PATH = 4096
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -30,20 +33,27 @@ def read(package: str, kind: str, name_or_path: str | Path, *, allow_path: bool 
     """The text of bundled ``kind`` ``name_or_path`` from ``package``, or of that file."""
     arg = str(name_or_path)
     bundled = names(package)
+    if "\0" in arg or len(arg) > MAX_PATH:
+        raise InputFileError(f"{kind} {short(arg)} is not a usable name or path: allowed a bundled {kind} or a path "
+                             f"of at most {MAX_PATH} characters without NUL")
     path = Path(arg)
-    if arg in bundled and not (allow_path and path.is_file()):
+    try:
+        is_file = path.is_file()
+    except OSError as exc:  # e.g. a path component longer than the filesystem allows
+        raise InputFileError(f"{kind} file {short(arg)} cannot be read: {exc.strerror}") from None
+    if arg in bundled and not (allow_path and is_file):
         text = (resources.files(package) / f"{arg}.toml").read_text(encoding="utf-8")
         return TomlText(text=text, source=f"{kind} {arg}", base_dir=None)
     if not allow_path:
-        raise UnknownName(f"{kind} {arg!r} does not exist: allowed {kind}s are {', '.join(bundled)}")
-    if not path.is_file():
+        raise UnknownName(f"{kind} {short(arg)} does not exist: allowed {kind}s are {', '.join(bundled)}")
+    if not is_file:
         if path.suffix == ".toml" or path.exists():
-            raise InputFileError(f"{kind} file {arg!r} does not exist: give a .toml path or a bundled {kind} "
+            raise InputFileError(f"{kind} file {short(arg)} does not exist: give a .toml path or a bundled {kind} "
                                  f"({', '.join(bundled)})")
-        raise UnknownName(f"{kind} {arg!r} does not exist: allowed {kind}s are {', '.join(bundled)} "
+        raise UnknownName(f"{kind} {short(arg)} does not exist: allowed {kind}s are {', '.join(bundled)} "
                           "or a path to a .toml file")
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputFileError(f"{kind} file {arg!r} cannot be read: {exc}") from None
+        raise InputFileError(f"{kind} file {short(arg)} cannot be read: {exc}") from None
     return TomlText(text=text, source=path.name, base_dir=path.parent)

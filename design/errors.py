@@ -6,6 +6,8 @@ the value, and what is allowed (with its unit). The CLI turns them into exit cod
 
 from __future__ import annotations
 
+import reprlib
+
 
 class HapticoptError(Exception):
     """Base class of every error hapticopt raises on purpose."""
@@ -28,3 +30,24 @@ class UnknownName(HapticoptError, KeyError):
 
 class InvalidInput(HapticoptError, ValueError):
     """A non-design input (CLI option, scene or problem field) is invalid."""
+
+
+#: how values are echoed in messages: a 10⁶-element array or a megabyte string becomes one short line
+_REPR = reprlib.Repr()
+_REPR.maxstring = 60
+_REPR.maxother = 60
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
+_REPR.maxlevel = 2
+_REPR.maxlong = 40
+
+
+def short(value: object) -> str:
+    """``repr(value)`` shortened (:mod:`reprlib`) for a one-line message."""
+    return _REPR.repr(value)
+
+
+def short_key(key: object) -> str:
+    """A key as written (``colour``), or shortened/quoted when it is long or has odd characters."""
+    if isinstance(key, str) and len(key) <= 40 and key.isprintable():
+        return key
+    return short(key)

@@ -9,8 +9,9 @@ Writes into ``out_dir``::
     <name>.png             with ``render=True``: off-screen pyvista picture
 
 Everything is computed in memory first (a design that cannot be built raises before any file
-is touched); each file is then written atomically (:mod:`design.atomic`), so a failure leaves no
-partial file behind.
+is touched); the files are then written into a staging folder and moved in together
+(:func:`design.atomic.file_set`), so a failure (a full disk, a writer that fails) leaves the
+previous export set as it was and no partial set behind.
 """
 
 from __future__ import annotations
@@ -23,8 +24,9 @@ from typing import Any
 import numpy as np
 
 from hapticopt.design import atomic
-from hapticopt.design import mass_properties as mp
 from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.paths import check_name, inside
+from hapticopt.design import mass_properties as mp
 from hapticopt.design.master import cad as cad_master
 from hapticopt.design.master import mjcf as mjcf_master
 from hapticopt.design.prrr import cad as cad_prrr
@@ -71,6 +73,12 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False) ->
     from build123d import Compound, export_step, export_stl
 
     out_dir = Path(out_dir)
+    # every target is named and checked before anything is built or written
+    check_name(design.name, "design name", error=InvalidDesign)
+    step_path = inside(out_dir, f"{design.name}.step")
+    xml_path = inside(out_dir, f"{design.name}.xml")
+    json_path = inside(out_dir, "mass_properties.json")
+    png_path = inside(out_dir, f"{design.name}.png")
     cad = _cad(design)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -85,33 +93,35 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False) ->
     masses = mp.from_cad(design, solids=solids, specs=specs)
     mjcf = _mjcf(design, p, masses)
     timings["mass_properties+mjcf"] = time.perf_counter() - t
+    # the set is written into a staging folder and moved in at the end (design.atomic.file_set):
+    # a full disk or a failing writer leaves the previous export as it was
     files: list[Path] = []
-    t = time.perf_counter()
-    step_path = out_dir / f"{design.name}.step"
-    assembly = Compound(children=list(placed.values()), label=design.name)
-    with atomic.atomic_path(step_path) as tmp:
-        export_step(assembly, tmp)
-    files.append(step_path)
-    timings["step"] = time.perf_counter() - t
-    t = time.perf_counter()
-    for name, solid in placed.items():
-        target = out_dir / "parts" / f"{name}.stl"
-        with atomic.atomic_path(target) as tmp:
-            export_stl(solid, tmp, tolerance=0.01, angular_tolerance=0.1)
-        files.append(target)
-    timings["stl"] = time.perf_counter() - t
-    target = out_dir / f"{design.name}.xml"
-    atomic.write_text(target, mjcf)
-    files.append(target)
-    target = out_dir / "mass_properties.json"
-    atomic.write_text(target, masses.to_json())
-    files.append(target)
-    if render:
+    with atomic.file_set(out_dir) as stage:
+        def staged(target: Path) -> Path:
+            return stage / target.relative_to(out_dir)
+
         t = time.perf_counter()
-        target = out_dir / f"{design.name}.png"
-        render_png([f for f in files if f.suffix == ".stl"], target, title=design.name)
-        files.append(target)
-        timings["render"] = time.perf_counter() - t
+        assembly = Compound(children=list(placed.values()), label=design.name)
+        with atomic.atomic_path(staged(step_path)) as tmp:
+            export_step(assembly, tmp)
+        files.append(step_path)
+        timings["step"] = time.perf_counter() - t
+        t = time.perf_counter()
+        for name, solid in placed.items():
+            target = inside(out_dir, Path("parts") / f"{name}.stl")
+            with atomic.atomic_path(staged(target)) as tmp:
+                export_stl(solid, tmp, tolerance=0.01, angular_tolerance=0.1)
+            files.append(target)
+        timings["stl"] = time.perf_counter() - t
+        atomic.write_text(staged(xml_path), mjcf)
+        files.append(xml_path)
+        atomic.write_text(staged(json_path), masses.to_json())
+        files.append(json_path)
+        if render:
+            t = time.perf_counter()
+            render_png([staged(f) for f in files if f.suffix == ".stl"], staged(png_path), title=design.name)
+            files.append(png_path)
+            timings["render"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     return ExportResult(out_dir=out_dir, files=tuple(files), timings_s=timings, total_mass_kg=masses.total_mass)
 

@@ -7,7 +7,6 @@ happens here or in the design constructors.
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Any, Union
 
@@ -16,7 +15,9 @@ from hapticopt.design.handle import params as handle
 from hapticopt.design.master import params as master
 from hapticopt.design.prrr import params as prrr
 from hapticopt.design.atomic import write_text
-from hapticopt.design.errors import InputFileError, InvalidDesign
+from hapticopt.design import tomlsafe
+from hapticopt.design.errors import InputFileError, InvalidDesign, short, short_key
+from hapticopt.design.paths import check_name
 from hapticopt.design.schema import section_from_table, section_to_table, specs
 
 Design = Union[prrr.PrrrDesign, master.MasterDesign, handle.HandleDesign]
@@ -24,6 +25,7 @@ Design = Union[prrr.PrrrDesign, master.MasterDesign, handle.HandleDesign]
 _DEVICES: dict[str, type] = {prrr.DEVICE: prrr.PrrrDesign, master.DEVICE: master.MasterDesign,
                              handle.DEVICE: handle.HandleDesign}
 _TOP_KEYS = {"name", "device", "description"}
+_DESCRIPTION_MAX = 2000
 
 
 def _section_classes(design_cls: type) -> dict[str, type]:
@@ -34,23 +36,28 @@ def _section_classes(design_cls: type) -> dict[str, type]:
 
 def design_from_dict(data: dict[str, Any], *, source: str = "design") -> Design:
     """Build a design from a TOML-shaped mapping (edge units). Raises :class:`InvalidDesign`."""
+    if not isinstance(data, dict):
+        raise InvalidDesign(f"{source}: a design must be a table of keys, got {short(data)}")
     device = data.get("device")
-    if device not in _DEVICES:
+    if not isinstance(device, str) or device not in _DEVICES:
         allowed = ", ".join(f'"{d}"' for d in _DEVICES)
-        raise InvalidDesign(f"{source}: device = {device!r} is not a known device: allowed {allowed}")
+        raise InvalidDesign(f"{source}: device = {short(device)} is not a known device: allowed {allowed}")
     cls = _DEVICES[device]
     sections = _section_classes(cls)
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
         if key in _TOP_KEYS:
-            if key in ("name", "description"):
-                if not isinstance(value, str) or (key == "name" and not value.strip()):
-                    raise InvalidDesign(f"{source}: {key} = {value!r} must be a non-empty string")
+            if key == "name":
+                kwargs[key] = check_name(value, f"{source}: name", error=InvalidDesign)
+            elif key == "description":
+                if not isinstance(value, str) or len(value) > _DESCRIPTION_MAX:
+                    raise InvalidDesign(f"{source}: description = {short(value)} must be a string of at most "
+                                        f"{_DESCRIPTION_MAX} characters")
                 kwargs[key] = value
             continue
         if key not in sections:
             allowed = ", ".join(sorted(_TOP_KEYS | set(sections)))
-            raise InvalidDesign(f"{source}: {key} is not a known key for a {device} design: allowed {allowed}")
+            raise InvalidDesign(f"{source}: {short_key(key)} is not a known key for a {device} design: allowed {allowed}")
         kwargs[key] = section_from_table(sections[key], value, key)
     return cls(**kwargs)
 
@@ -68,14 +75,17 @@ def design_to_dict(design: Design) -> dict[str, Any]:
 def load_design(path: str | Path) -> Design:
     """Load a design TOML file. Raises :class:`InputFileError` or :class:`InvalidDesign`."""
     path = Path(path)
-    if not path.is_file():
-        raise InputFileError(f"design file {str(path)!r} does not exist: give a path to a .toml design or --preset NAME")
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise InputFileError(f"design file {str(path)!r} is not valid TOML: {exc}") from None
+        is_file = path.is_file()
+    except (OSError, ValueError) as exc:  # a name too long, a NUL in the path
+        raise InputFileError(f"design file {short(str(path))} cannot be read: {exc}") from None
+    if not is_file:
+        raise InputFileError(f"design file {short(str(path))} does not exist: give a path to a .toml design or --preset NAME")
+    try:
+        text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputFileError(f"design file {str(path)!r} cannot be read: {exc}") from None
+        raise InputFileError(f"design file {short(str(path))} cannot be read: {exc}") from None
+    data = tomlsafe.loads(text, source=f"design file {short(str(path))}")
     return design_from_dict(data, source=path.name)
 
 
@@ -120,7 +130,7 @@ def preset_names() -> list[str]:
 def load_preset(name: str) -> Design:
     """Load a bundled preset by name. Raises :class:`UnknownName`."""
     found = bundled.read(PRESETS, "preset", name, allow_path=False)
-    return design_from_dict(tomllib.loads(found.text), source=found.source)
+    return design_from_dict(tomlsafe.loads(found.text, source=found.source), source=found.source)
 
 
 # ---------------------------------------------------------------------------- overrides
@@ -131,24 +141,24 @@ def apply_overrides(design: Design, assignments: list[str]) -> Design:
     data = design_to_dict(design)
     for assignment in assignments:
         if "=" not in assignment:
-            raise InvalidDesign(f"--set {assignment!r} must have the form section.key=value, e.g. geometry.beta_deg=50")
+            raise InvalidDesign(f"--set {short(assignment)} must have the form section.key=value, e.g. geometry.beta_deg=50")
         lhs, rhs = (s.strip() for s in assignment.split("=", 1))
         if lhs in ("name", "description"):
-            data[lhs] = rhs
+            data[lhs] = check_name(rhs, "--set name", error=InvalidDesign) if lhs == "name" else rhs
             continue
         if lhs.count(".") != 1:
-            raise InvalidDesign(f"--set {lhs} must name section.key, e.g. geometry.beta_deg")
+            raise InvalidDesign(f"--set {short_key(lhs)} must name section.key, e.g. geometry.beta_deg")
         section, key = lhs.split(".")
         if section not in design.SECTIONS:
-            raise InvalidDesign(f"--set {lhs}: {section} is not a section of a {design.device} design: "
+            raise InvalidDesign(f"--set {short_key(lhs)}: {short_key(section)} is not a section of a {design.device} design: "
                                 f"allowed {', '.join(design.SECTIONS)}")
         allowed_keys = {s.key for s in specs(getattr(design, section)).values()}
         if key not in allowed_keys:
-            raise InvalidDesign(f"{lhs} is not a known parameter: allowed keys in [{section}] are "
+            raise InvalidDesign(f"--set {short_key(lhs)} is not a known parameter: allowed keys in [{section}] are "
                                 f"{', '.join(sorted(allowed_keys))}")
         try:
-            value = tomllib.loads(f"v = {rhs}")["v"]
-        except tomllib.TOMLDecodeError:
-            value = rhs
+            value = tomlsafe.loads(f"v = {rhs}", source=f"--set {lhs}")["v"]
+        except InputFileError:
+            value = rhs  # not a TOML value: checked (and refused as "not a number") below
         data[section][key] = value
     return design_from_dict(data, source="--set")

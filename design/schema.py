@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.errors import InvalidDesign, short, short_key
 from hapticopt.design.units import from_si, pretty, to_si
 
 
@@ -42,7 +42,7 @@ class ParamSpec:
     def check(self, where: str, value_edge: float) -> None:
         """Raise :class:`InvalidDesign` unless ``value_edge`` (in the edge unit) is allowed."""
         if not math.isfinite(value_edge):
-            raise InvalidDesign(f"{where} = {value_edge!r} is not a finite number: allowed {self.allowed()}")
+            raise InvalidDesign(f"{where} = {short(value_edge)} is not a finite number: allowed {self.allowed()}")
         too_low = value_edge <= self.lo if self.lo_open else value_edge < self.lo
         too_high = value_edge >= self.hi if self.hi_open else value_edge > self.hi
         if too_low or too_high:
@@ -88,21 +88,21 @@ def validate_section(section: Any, prefix: str) -> None:
 
 def _as_number(where: str, raw: Any, spec: ParamSpec) -> float:
     if isinstance(raw, bool) or not isinstance(raw, (int, float)):
-        raise InvalidDesign(f"{where} = {raw!r} is not a number: allowed {spec.allowed()}")
+        raise InvalidDesign(f"{where} = {short(raw)} is not a number: allowed {spec.allowed()}")
     return float(raw)
 
 
 def section_from_table(section_cls: type, table: Any, prefix: str) -> Any:
     """Build a section from its TOML table (values in edge units), validating every key."""
     if not isinstance(table, Mapping):
-        raise InvalidDesign(f"{prefix} = {table!r} must be a table of parameters")
+        raise InvalidDesign(f"{prefix} = {short(table)} must be a table of parameters")
     by_key = {spec.key: (name, spec) for name, spec in specs(section_cls).items()}
     values: dict[str, float] = {}
     for key, raw in table.items():
         where = f"{prefix}.{key}"
         if key not in by_key:
             known = ", ".join(sorted(by_key))
-            raise InvalidDesign(f"{where} is not a known parameter: allowed keys in [{prefix}] are {known}")
+            raise InvalidDesign(f"{prefix}.{short_key(key)} is not a known parameter: allowed keys in [{prefix}] are {known}")
         name, spec = by_key[key]
         value = _as_number(where, raw, spec)
         spec.check(where, value)

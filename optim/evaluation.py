@@ -32,6 +32,7 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.registry import evaluate_all
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.units import TO_SI
+from hapticopt.analysis.status import Status
 from hapticopt.optim.problem import MetricRef, Variable, design_at
 from hapticopt.design.schema import specs
 from hapticopt.design.prrr.kinematics import PrrrParams
@@ -42,7 +43,8 @@ import importlib
 class Outcome(StrEnum):
     OK = "ok"
     INVALID_DESIGN = "invalid_design"  # the variables violate a design rule (e.g. bore ≥ boss)
-    EVALUATOR_FAILED = "evaluator_failed"  # an evaluator raised or returned Status.FAILED
+    EVALUATOR_FAILED = "evaluator_failed"  # an evaluator raised, or returned a status whose numbers do not
+    # hold (failed, singular, ill-conditioned, not positive definite, unstable: Status.metrics_hold)
     NONFINITE = "nonfinite"  # a picked metric is NaN/inf
 
 
@@ -95,8 +97,11 @@ def evaluate_point(task: PointTask) -> PointResult:
                            values=tuple(math.nan for _ in task.refs))
     metrics, statuses, timings, failure = run_evaluators(design, task.fidelity, task.only)
     values = tuple(ref.value(metrics) for ref in task.refs)
-    if failure:
-        outcome, message = Outcome.EVALUATOR_FAILED, failure
+    not_holding = [f"{name}: {st}" for name, st in statuses.items()
+                   if not Status(st).metrics_hold and Status(st) is not Status.FAILED]
+    if failure or not_holding:
+        outcome, message = Outcome.EVALUATOR_FAILED, "; ".join(not_holding + ([failure] if failure else []))
+        values = tuple(math.nan for _ in task.refs)  # a singular or unstable point is never a number
     elif not all(math.isfinite(v) for v in values):
         bad = [r.text for r, v in zip(task.refs, values) if not math.isfinite(v)]
         outcome, message = Outcome.NONFINITE, "non-finite " + ", ".join(bad)

@@ -14,11 +14,14 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import re
+import threading
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from typing import Any
 
-from hapticopt.design.errors import InvalidInput
+from hapticopt.design.errors import InvalidInput, short
 
 
 class InlineExecutor(Executor):
@@ -31,6 +34,23 @@ class InlineExecutor(Executor):
         except BaseException as exc:  # noqa: BLE001 - delivered through the future
             future.set_exception(exc)
         return future
+
+
+def watch_parent(parent_pid: int, period_s: float = 0.5) -> None:
+    """In a child process: exit at once when ``parent_pid`` is gone (even after a SIGKILL).
+
+    A daemon thread polls the parent id (re-parenting is how Linux reports the parent's death);
+    pool workers and the verification child call it first, so none outlives its run by more
+    than ``period_s``.
+    """
+
+    def watch() -> None:
+        while True:
+            if os.getppid() != parent_pid:
+                os._exit(70)  # EX_SOFTWARE: the run that owned this process is gone
+            time.sleep(period_s)
+
+    threading.Thread(target=watch, name="hapticopt-watch-parent", daemon=True).start()
 
 
 def default_workers() -> int:
@@ -53,16 +73,30 @@ def worker_count(executor: Executor) -> int:
     return 2
 
 
+_ADDRESS_RE = re.compile(r"^(tcp|tls|inproc|ucx)://[A-Za-z0-9_.\-\[\]:]{1,253}:[0-9]{1,5}$")
+
+
+def check_scheduler(scheduler: str) -> None:
+    """Raise one line unless ``scheduler`` is local, inline or a Dask address SCHEME://HOST:PORT."""
+    if scheduler in ("local", "inline"):
+        return
+    if not isinstance(scheduler, str) or not _ADDRESS_RE.match(scheduler):
+        raise InvalidInput(f"--scheduler = {short(scheduler)} is not allowed: use local, inline or a Dask address "
+                           "tcp://HOST:PORT")
+
+
 @contextlib.contextmanager
 def make_executor(scheduler: str = "local", *, workers: int | None = None) -> Iterator[Executor]:
     """An executor for ``scheduler`` ("local", "inline" or a Dask address ``tcp://…``), closed on exit."""
+    check_scheduler(scheduler)
     if scheduler == "inline":
         yield InlineExecutor()
         return
     if scheduler == "local":
         # forkserver/spawn: a forked jax runtime is not safe
         ctx = multiprocessing.get_context("spawn")
-        pool = ProcessPoolExecutor(max_workers=workers or default_workers(), mp_context=ctx)
+        pool = ProcessPoolExecutor(max_workers=workers or default_workers(), mp_context=ctx,
+                                   initializer=watch_parent, initargs=(os.getpid(),))
         try:
             yield pool
         finally:

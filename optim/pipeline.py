@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -22,14 +23,18 @@ from hapticopt.design import io
 from hapticopt.design.atomic import write_text
 from hapticopt.optim.driver import EvalRecord, ProgressFn
 from hapticopt.optim.problem import Problem, check_metrics
-from hapticopt.analysis.registry import EVALUATORS, describe_failure, evaluate_all, jsonable
+from hapticopt.analysis.registry import EVALUATORS, describe_failure, evaluate_all, jsonable, run_plotter
+from hapticopt.design.paths import inside
 from hapticopt.optim.driver import SMOOTH_SURROGATES
 from hapticopt.analysis.loop.scene import load_scene
 import multiprocessing
 import queue as queue_mod
-from hapticopt.optim.recorder import Recorder, check_run_dir
+from hapticopt.optim.reaper import children_die_with_this_process
+from hapticopt.optim.recorder import Recorder, check_run_dir, run_lock
 from hapticopt.optim.runs import problem_info
-from hapticopt.optim.executor import make_executor
+from hapticopt.design.atomic import file_set, remove_stale_temp_files
+from hapticopt.design.paths import writable_dir
+from hapticopt.optim.executor import check_scheduler, make_executor, watch_parent
 from hapticopt.optim import driver, pareto, pareto_report, report
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, Verdict
 from hapticopt.design import export as design_export
@@ -86,8 +91,9 @@ def verdict_of(metrics: dict[str, Any]) -> tuple[bool, str]:
     return True, "stable" + (f", stiffness error {err:.3g} %" if isinstance(err, (int, float)) else "")
 
 
-def _scene_worker(design: Any, scene: str, fidelity: Fidelity, queue: Any, verifier: Any) -> None:
+def _scene_worker(design: Any, scene: str, fidelity: Fidelity, queue: Any, verifier: Any, parent_pid: int) -> None:
     """Child process: run one scene, send back (metrics, message) or an error line."""
+    watch_parent(parent_pid)
     try:
         result = verifier(design, scene) if verifier is not None else run_scene(design, scene, fidelity)
         queue.put(("ok", jsonable(result.metrics()), str(getattr(result, "message", ""))))
@@ -102,7 +108,8 @@ def _run_scene_limited(design: Any, scene: str, fidelity: Fidelity, max_time_s: 
 
     ctx = multiprocessing.get_context("spawn")
     q = ctx.Queue()
-    proc = ctx.Process(target=_scene_worker, args=(design, scene, fidelity, q, verifier), daemon=True)
+    proc = ctx.Process(target=_scene_worker, args=(design, scene, fidelity, q, verifier, os.getpid()),
+                       daemon=True)
     proc.start()
     try:
         return q.get(timeout=max_time_s)
@@ -156,8 +163,42 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     """
     check_run_dir(out_dir, resume=resume, force=force)
 
-    out = Path(out_dir)
+    # cheap checks first: a writable --out, the run lock, a reachable scheduler, then the baseline
+    check_scheduler(scheduler)
+    out = writable_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    with run_lock(out), children_die_with_this_process():
+        remove_stale_temp_files(out)
+        return _run_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
+                           progress=progress,
+                           export=export, verify=verify, on_stage=on_stage, verifier=verifier)
+
+
+def _baseline_payload(ev: DesignEvaluation) -> dict[str, Any]:
+    return {"fidelity": str(ev.fidelity), "metrics": jsonable(ev.metrics), "modules": ev.modules,
+            "statuses": ev.statuses, "messages": ev.messages, "timings_s": ev.timings_s}
+
+
+def _baseline_from(payload: dict[str, Any]) -> DesignEvaluation:
+    return DesignEvaluation(fidelity=Fidelity(payload["fidelity"]), metrics=payload["metrics"],
+                            modules=payload["modules"], statuses=payload["statuses"], messages=payload["messages"],
+                            timings_s=payload["timings_s"])
+
+
+def _recorded_evaluation(rec: Recorder, design: Any, fidelity: Fidelity, name: str) -> DesignEvaluation:
+    """``evaluate_design(design, fidelity)``, replayed from the recorder when an earlier session has it."""
+    key = f"{name}|{fidelity}"
+    found = rec.lookup_stage(key)
+    if found is not None:
+        return _baseline_from(found)
+    ev = evaluate_design(design, fidelity)
+    rec.record_stage(key, _baseline_payload(ev))
+    return ev
+
+
+def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str, workers: int | None,
+                progress: ProgressFn | None, export: bool, verify: bool, on_stage: Callable[[str], None] | None,
+                verifier: Callable[[Any, str], Any] | None) -> PipelineResult:
     stages: list[StageOutcome] = []
     files: dict[str, str] = {}
 
@@ -166,54 +207,53 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
             on_stage(name)
         return time.perf_counter()
 
-    # baseline at the optimisation fidelity: which metrics exist, from which evaluator
-    t = stage("baseline")
-    base_opt = evaluate_design(problem.base, problem.fidelity_optimise)
-    check_metrics(problem, base_opt.metrics)
-    only = evaluators_for(problem, base_opt)
-    baseline = (base_opt if problem.fidelity_final == problem.fidelity_optimise
-                else evaluate_design(problem.base, problem.fidelity_final))
-    stages.append(StageOutcome(name="baseline", status="ok", wall_s=time.perf_counter() - t))
+    # the recorder exists before the baseline: a run killed during the baseline resumes too
+    with make_executor(scheduler, workers=workers) as executor, \
+            Recorder(out, fingerprint=problem.fingerprint(), resume=resume, force=force,
+                     search_fingerprint=problem.search_fingerprint()) as rec:
+        # baseline at the optimisation fidelity: which metrics exist, from which evaluator
+        t = stage("baseline")
+        base_opt = _recorded_evaluation(rec, problem.base, problem.fidelity_optimise, "baseline")
+        check_metrics(problem, base_opt.metrics)
+        only = evaluators_for(problem, base_opt)
+        baseline = (base_opt if problem.fidelity_final == problem.fidelity_optimise
+                    else _recorded_evaluation(rec, problem.base, problem.fidelity_final, "baseline"))
+        stages.append(StageOutcome(name="baseline", status="ok", wall_s=time.perf_counter() - t))
 
-    t = stage("optimise")
-    rec = Recorder(out, fingerprint=problem.fingerprint(), resume=resume, force=force,
-                   search_fingerprint=problem.search_fingerprint())
-    try:
         rec.describe({**problem_info(problem), "status": "running"})
         rec.record_design("baseline", fidelity=str(problem.fidelity_optimise), x=problem.start,
                           design_toml=io.dumps(problem.base), metrics=base_opt.metrics, statuses=base_opt.statuses)
-        with make_executor(scheduler, workers=workers) as executor:
-            result = driver.run(problem, executor=executor, recorder=rec, metric_modules=base_opt.modules, only=only,
-                                progress=progress)
+        t = stage("optimise")
+        try:
+            result = driver.run(problem, executor=executor, recorder=rec, metric_modules=base_opt.modules,
+                                only=only, progress=progress)
+        except BaseException:
+            rec.set_status("interrupted")
+            raise
         rec.end_session(status="optimised", n_evaluated=result.n_evaluated, n_replayed=result.n_replayed,
                         max_evals=problem.optimiser.max_evals)
-    except BaseException:
-        rec.set_status("interrupted")
-        rec.close()
-        raise
-    files["recorder"] = "evaluations.sqlite"
-    stages.append(StageOutcome(name="optimise", status=result.status,
-                               message=f"{result.n_evaluated} evaluated, {result.n_replayed} replayed, "
-                                       f"{result.n_cached} repeated points served from cache",
-                               wall_s=time.perf_counter() - t))
+        files["recorder"] = "evaluations.sqlite"
+        stages.append(StageOutcome(name="optimise", status=result.status,
+                                   message=f"{result.n_evaluated} evaluated, {result.n_replayed} replayed, "
+                                           f"{result.n_cached} repeated points served from cache",
+                                   wall_s=time.perf_counter() - t))
 
-    t = stage("final")
-    best = result.best
-    optimum_design = problem.design_at(best.x) if best is not None else problem.base
-    optimum_design = dataclasses.replace(optimum_design, name=f"{problem.name}-optimum",
-                                         description=f"optimum of problem {problem.name}")
-    optimum = evaluate_design(optimum_design, problem.fidelity_final)
-    cons = _constraints_at(problem, optimum.metrics)
-    feasible_final = all(ok for _, _, ok in cons) and all(s != "failed" for s in optimum.statuses.values())
-    obj_base = problem.objective.metric.value(baseline.metrics)
-    obj_opt = problem.objective.metric.value(optimum.metrics)
-    sign = 1.0 if problem.objective.sense.value == "minimise" else -1.0
-    improved = math.isfinite(obj_opt) and (not math.isfinite(obj_base) or sign * obj_opt < sign * obj_base)
-    io.save_design(optimum_design, out / "optimum.toml")
-    rec.record_design("final", fidelity=str(problem.fidelity_final), x=best.x if best else problem.start,
-                      design_toml=io.dumps(optimum_design), metrics=optimum.metrics, statuses=optimum.statuses)
-    rec.set_status("finished")
-    rec.close()
+        t = stage("final")
+        best = result.best
+        optimum_design = problem.design_at(best.x) if best is not None else problem.base
+        optimum_design = dataclasses.replace(optimum_design, name=f"{problem.name}-optimum",
+                                             description=f"optimum of problem {problem.name}")
+        optimum = evaluate_design(optimum_design, problem.fidelity_final)
+        cons = _constraints_at(problem, optimum.metrics)
+        feasible_final = all(ok for _, _, ok in cons) and all(s != "failed" for s in optimum.statuses.values())
+        obj_base = problem.objective.metric.value(baseline.metrics)
+        obj_opt = problem.objective.metric.value(optimum.metrics)
+        sign = 1.0 if problem.objective.sense.value == "minimise" else -1.0
+        improved = math.isfinite(obj_opt) and (not math.isfinite(obj_base) or sign * obj_opt < sign * obj_base)
+        io.save_design(optimum_design, inside(out, "optimum.toml"))
+        rec.record_design("final", fidelity=str(problem.fidelity_final), x=best.x if best else problem.start,
+                          design_toml=io.dumps(optimum_design), metrics=optimum.metrics, statuses=optimum.statuses)
+        rec.set_status("finished")
     files["optimum"] = "optimum.toml"
     stages.append(StageOutcome(name="final", status="ok" if feasible_final else "infeasible",
                                message=f"re-evaluated at {problem.fidelity_final} fidelity",
@@ -223,11 +263,10 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     plot_files: list[str] = []
     (out / "plots").mkdir(exist_ok=True)
     for entry in EVALUATORS[problem.device]:
-        plotter = entry.plotter()
-        if plotter is None or entry.name not in optimum.results:
+        if entry.plotter() is None or entry.name not in optimum.results:
             continue
         try:
-            for path in plotter(optimum_design, optimum.results[entry.name], out / "plots"):
+            for path in run_plotter(entry, optimum_design, optimum.results[entry.name], out / "plots"):
                 plot_files.append(str(Path(path).resolve().relative_to(out.resolve())))
         except Exception as exc:  # noqa: BLE001 - a picture that fails is reported, the run goes on
             stages.append(StageOutcome(name=f"plot {entry.name}", status="failed", message=describe_failure(exc)))
@@ -251,13 +290,14 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     pres = PipelineResult(problem=problem, out_dir=out, run=result, baseline=baseline, optimum_design=optimum_design,
                           optimum=optimum, constraints_final=cons, feasible_final=feasible_final, improved=improved,
                           verdicts=verdicts, stages=tuple(stages), files=files)
-    written = report.write(pres, extra_stage=("report", t))
-    files.update(written)
-    _write_result_json(pres)
+    # the report set (convergence.svg, report.md, report.html, result.json) is written as one
+    with file_set(out) as staged:
+        files.update(report.write(pres, extra_stage=("report", t), dest=staged))
+        _write_result_json(pres, staged)
     return pres
 
 
-def _write_result_json(p: PipelineResult) -> None:
+def _write_result_json(p: PipelineResult, dest: Path) -> None:
     best: EvalRecord | None = p.run.best
     payload = {
         "problem": p.problem.name,
@@ -277,7 +317,7 @@ def _write_result_json(p: PipelineResult) -> None:
                    for s in p.stages],
         "files": p.files,
     }
-    write_text(p.out_dir / "result.json", json.dumps(payload, indent=2, default=str) + "\n")
+    write_text(inside(dest, "result.json"), json.dumps(payload, indent=2, default=str) + "\n")
 
 
 def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False, force: bool = False,
@@ -287,8 +327,17 @@ def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = 
     chosen design at the final fidelity, write ``chosen.toml``, ``front.csv``, ``front.svg``,
     ``result.json`` and the report. Returns the ``result.json`` payload."""
     check_run_dir(out_dir, resume=resume, force=force)
-    out = Path(out_dir)
+    check_scheduler(scheduler)
+    out = writable_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    with run_lock(out), children_die_with_this_process():
+        remove_stale_temp_files(out)
+        return _run_front_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
+                                 progress=progress)
+
+
+def _run_front_locked(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str,
+                      workers: int | None, progress: Callable[[str, int], None] | None) -> dict[str, Any]:
     base_opt = evaluate_design(problem.base, problem.fidelity_optimise)
     check_metrics(problem, base_opt.metrics)
     single = dataclasses.replace(problem, objectives=(), pareto=None)
@@ -328,7 +377,7 @@ def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = 
         raise
     finally:
         rec.close()
-    io.save_design(chosen_design, out / "chosen.toml")
+    io.save_design(chosen_design, inside(out, "chosen.toml"))
     files = pareto_report.write(result, problem, out, chosen_metrics=final.metrics, chosen_feasible=feasible_final,
                                 fidelity_final=str(problem.fidelity_final))
     payload = {
@@ -348,5 +397,5 @@ def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = 
         "n_evaluated": result.n_evaluated, "n_replayed": result.n_replayed, "wall_s": result.wall_s,
         "files": {"chosen": "chosen.toml", "recorder": "evaluations.sqlite", **files},
     }
-    write_text(out / "result.json", json.dumps(payload, indent=2, default=str) + "\n")
+    write_text(inside(out, "result.json"), json.dumps(payload, indent=2, default=str) + "\n")
     return payload

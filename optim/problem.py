@@ -52,7 +52,6 @@ import dataclasses
 import hashlib
 import math
 import re
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
@@ -61,11 +60,15 @@ from typing import Any
 
 from hapticopt.design import bundled
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.design import io
-from hapticopt.design.errors import InputFileError, InvalidDesign, InvalidInput, UnknownName
+from hapticopt.analysis.loop.scene import load_scene
+from hapticopt.design import io, tomlsafe
+from hapticopt.design.errors import InputFileError, InvalidDesign, InvalidInput, UnknownName, short, short_key
+from hapticopt.design.paths import NAME_MAX, check_name
 from hapticopt.design.schema import specs
 from hapticopt.design.units import from_si, pretty, to_si
 
+OPTIMUM_SUFFIX = "-optimum"
+PROBLEM_NAME_MAX = NAME_MAX - len(OPTIMUM_SUFFIX)
 _TOP_KEYS = {"name", "description", "device", "base", "base_file", "variables", "objective", "objectives",
              "constraints", "optimiser", "fidelity", "verify", "pareto"}
 
@@ -124,10 +127,10 @@ class MetricRef:
     @staticmethod
     def parse(text: str, where: str) -> "MetricRef":
         if not isinstance(text, str):
-            raise InvalidInput(f"{where} = {text!r} must be a metric name string, e.g. \"max_force_N[0]\"")
+            raise InvalidInput(f"{where} = {short(text)} must be a metric name string, e.g. \"max_force_N[0]\"")
         m = _REF_RE.match(text)
         if m is None:
-            raise InvalidInput(f"{where} = {text!r} is not a metric reference: allowed name, name[i], name[i][j], "
+            raise InvalidInput(f"{where} = {short(text)} is not a metric reference: allowed name, name[i], name[i][j], "
                                "min(name), max(name)")
         if m.group(1):
             return MetricRef(text=text.strip(), name=m.group(2), reduce=m.group(1))
@@ -146,13 +149,13 @@ class MetricRef:
         """Raise a one-line error unless this reference picks a number from ``metrics``."""
         if self.name not in metrics:
             known = ", ".join(sorted(metrics)) or "(none)"
-            raise UnknownName(f"{where} = {self.text!r}: metric {self.name!r} is not computed for this device: "
+            raise UnknownName(f"{where} = {short(self.text)}: metric {short(self.name)} is not computed for this device: "
                               f"known metrics are {known}")
         raw = metrics[self.name]
         try:
             float(_pick(raw, self.index, self.reduce))
         except (TypeError, ValueError, IndexError, KeyError):
-            raise InvalidInput(f"{where} = {self.text!r} does not pick one number from {self.name} = {raw!r}: "
+            raise InvalidInput(f"{where} = {short(self.text)} does not pick one number from {self.name} = {short(raw)}: "
                                f"give a component index such as {self.name}[0] or min({self.name})") from None
 
 
@@ -357,10 +360,7 @@ def load_problem(name_or_path: str | Path) -> Problem:
 
 
 def problem_from_text(text: str, *, source: str, base_dir: Path | None) -> Problem:
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputFileError(f"{source} is not valid TOML: {exc}") from None
+    data = tomlsafe.loads(text, source=source)
     return problem_from_dict(data, source=source, base_dir=base_dir, source_text=text)
 
 
@@ -370,13 +370,13 @@ def _table(data: Mapping[str, Any], key: str, source: str, allowed: set[str]) ->
         raise InvalidInput(f"{source}: [{key}] must be a table")
     for k in table:
         if k not in allowed:
-            raise InvalidInput(f"{source}: {key}.{k} is not a known key: allowed {', '.join(sorted(allowed))}")
+            raise InvalidInput(f"{source}: {key}.{short_key(k)} is not a known key: allowed {', '.join(sorted(allowed))}")
     return dict(table)
 
 
 def _number(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)):
-        raise InvalidInput(f"{where} = {value!r} must be a finite number")
+        raise InvalidInput(f"{where} = {short(value)} must be a finite number")
     return float(value)
 
 
@@ -385,34 +385,44 @@ def _enum(cls: type, value: Any, where: str) -> Any:
         return cls(value)
     except ValueError:
         allowed = ", ".join(m.value for m in cls)  # type: ignore[attr-defined]
-        raise InvalidInput(f"{where} = {value!r} is not allowed: allowed {allowed}") from None
+        raise InvalidInput(f"{where} = {short(value)} is not allowed: allowed {allowed}") from None
 
 
 def problem_from_dict(data: Mapping[str, Any], *, source: str = "problem", base_dir: Path | None = None,
                       source_text: str = "") -> Problem:
     """Build and validate a :class:`Problem` (metric names are checked later against an evaluation)."""
+    if not isinstance(data, Mapping):
+        raise InvalidInput(f"{source}: a problem must be a table of keys, got {short(data)}")
     for key in data:
         if key not in _TOP_KEYS:
-            raise InvalidInput(f"{source}: {key} is not a known key: allowed {', '.join(sorted(_TOP_KEYS))}")
+            raise InvalidInput(f"{source}: {short_key(key)} is not a known key: allowed {', '.join(sorted(_TOP_KEYS))}")
+    # the optimum is named NAME-optimum, and both become file names
     name = data.get("name")
-    if not isinstance(name, str) or not name.strip():
-        raise InvalidInput(f"{source}: name = {name!r} must be a non-empty string")
+    if isinstance(name, str) and len(name) > PROBLEM_NAME_MAX:
+        raise InvalidInput(f"{source}: name = {short(name)} is {len(name)} characters long: allowed at most "
+                           f"{PROBLEM_NAME_MAX} (the optimum is named NAME{OPTIMUM_SUFFIX})")
+    check_name(name, f"{source}: name")
     description = data.get("description", "")
+    if not isinstance(description, str):
+        raise InvalidInput(f"{source}: description = {short(description)} must be a string")
     # base design
     if ("base" in data) == ("base_file" in data):
         raise InvalidInput(f"{source}: give exactly one of base = \"PRESET\" or base_file = \"design.toml\"")
+    for key in ("base", "base_file"):
+        if key in data and (not isinstance(data[key], str) or not data[key] or "\0" in data[key]):
+            raise InvalidInput(f"{source}: {key} = {short(data[key])} must be a preset name or a file path string")
     if "base" in data:
-        base = io.load_preset(str(data["base"]))
+        base = io.load_preset(data["base"])
         base_source = f"preset {data['base']}"
     else:
-        p = Path(str(data["base_file"]))
+        p = Path(data["base_file"])
         if not p.is_absolute() and base_dir is not None:
             p = base_dir / p
         base = io.load_design(p)
         base_source = str(p)
     device = data.get("device", base.device)
     if device != base.device:
-        raise InvalidInput(f"{source}: device = {device!r} but the base design is a {base.device!r} design")
+        raise InvalidInput(f"{source}: device = {short(device)} but the base design is a {short(base.device)} design")
     variables = _variables(data.get("variables"), base, source)
     if ("objective" in data) == ("objectives" in data):
         raise InvalidInput(f"{source}: give exactly one of [objective] (one objective) or [[objectives]] (two, for a "
@@ -442,11 +452,21 @@ def problem_from_dict(data: Mapping[str, Any], *, source: str = "problem", base_
     fidelity_verify = _enum(Fidelity, fid.get("verify", "standard"), f"{source}: fidelity.verify")
     ver = _table(data, "verify", source, {"scenes", "max_time_s"})
     verify_max_time_s = _number(ver.get("max_time_s", 60.0), f"{source}: verify.max_time_s")
-    if verify_max_time_s <= 0:
-        raise InvalidInput(f"{source}: verify.max_time_s = {verify_max_time_s:g} must be > 0 (s)")
+    if not 0 < verify_max_time_s <= MAX_TIME_S:
+        raise InvalidInput(f"{source}: verify.max_time_s = {verify_max_time_s:g} is out of range: allowed "
+                           f"0 < max_time_s ≤ {MAX_TIME_S:g} (s)")
     scenes = ver.get("scenes", [])
     if not isinstance(scenes, list) or not all(isinstance(s, str) for s in scenes):
-        raise InvalidInput(f"{source}: verify.scenes = {scenes!r} must be a list of scene names")
+        raise InvalidInput(f"{source}: verify.scenes = {short(scenes)} must be a list of scene names")
+    for i, scene_name in enumerate(scenes):  # a misspelt scene fails here, not after the optimisation
+        try:
+            sc = load_scene(scene_name)
+        except (InvalidInput, InputFileError, UnknownName) as exc:
+            raise InvalidInput(f"{source}: verify.scenes[{i}] = {short(scene_name)}: {exc}") from None
+        scene_device = "master" if base.device == "master" else "prrr"
+        if sc.device != scene_device:
+            raise InvalidInput(f"{source}: verify.scenes[{i}] = {short(scene_name)} is a {sc.device} scene; the "
+                               f"base design is a {base.device}: allowed scenes of the {scene_device} device")
     return Problem(name=name.strip(), description=str(description), device=device, base_source=base_source,
                    base=base, variables=variables, objective=objective, constraints=constraints,
                    optimiser=optimiser, fidelity_optimise=fidelity_optimise, fidelity_final=fidelity_final,
@@ -484,20 +504,20 @@ def _variables(raw: Any, base: Any, source: str) -> tuple[Variable, ...]:
             raise InvalidInput(f"{where} must be a table with key, lower, upper")
         for k in table:
             if k not in ("key", "lower", "upper", "start"):
-                raise InvalidInput(f"{where}.{k} is not a known key: allowed key, lower, upper, start")
+                raise InvalidInput(f"{where}.{short_key(k)} is not a known key: allowed key, lower, upper, start")
         key = table.get("key")
         if not isinstance(key, str) or key.count(".") != 1:
-            raise InvalidInput(f"{where}.key = {key!r} must name section.key, e.g. \"geometry.beta_deg\"")
+            raise InvalidInput(f"{where}.key = {short(key)} must name section.key, e.g. \"geometry.beta_deg\"")
         section, tkey = key.split(".")
         if section not in base.SECTIONS:
-            raise InvalidInput(f"{where}.key = {key!r}: {section} is not a section of a {base.device} design: "
+            raise InvalidInput(f"{where}.key = {short(key)}: {section} is not a section of a {base.device} design: "
                                f"allowed {', '.join(base.SECTIONS)}")
         by_key = {s.key: (fname, s) for fname, s in specs(getattr(base, section)).items()}
         if tkey not in by_key:
-            raise InvalidInput(f"{where}.key = {key!r} is not a variable of the design: allowed keys in "
+            raise InvalidInput(f"{where}.key = {short(key)} is not a variable of the design: allowed keys in "
                                f"[{section}] are {', '.join(sorted(by_key))}")
         if key in seen:
-            raise InvalidInput(f"{where}.key = {key!r} appears twice")
+            raise InvalidInput(f"{where}.key = {short(key)} appears twice")
         seen.add(key)
         fname, spec = by_key[tkey]
         lower = _number(table["lower"], f"{where}.lower") if "lower" in table else spec.lo
@@ -538,7 +558,7 @@ def _objective(raw: Any, source: str) -> Objective:
         raise InvalidInput(f"{source}: [objective] must be a table with metric and sense")
     for k in raw:
         if k not in ("metric", "sense"):
-            raise InvalidInput(f"{source}: objective.{k} is not a known key: allowed metric, sense")
+            raise InvalidInput(f"{source}: objective.{short_key(k)} is not a known key: allowed metric, sense")
     if "metric" not in raw:
         raise InvalidInput(f"{source}: objective.metric is missing, e.g. metric = \"jacobian_condition\"")
     metric = MetricRef.parse(raw["metric"], f"{source}: objective.metric")
@@ -556,7 +576,7 @@ def _constraints(raw: Any, source: str) -> tuple[Constraint, ...]:
             raise InvalidInput(f"{where} must be a table with metric and min and/or max")
         for k in table:
             if k not in ("metric", "min", "max"):
-                raise InvalidInput(f"{where}.{k} is not a known key: allowed metric, min, max")
+                raise InvalidInput(f"{where}.{short_key(k)} is not a known key: allowed metric, min, max")
         if "metric" not in table:
             raise InvalidInput(f"{where}.metric is missing")
         metric = MetricRef.parse(table["metric"], f"{where}.metric")
@@ -573,6 +593,12 @@ def _constraints(raw: Any, source: str) -> tuple[Constraint, ...]:
     return tuple(out)
 
 
+#: longest allowed time limit [s] (one week)
+MAX_TIME_S = 7 * 86400.0
+#: allowed ranges of the optimiser's whole numbers (nlopt takes C ints; seed is an unsigned 32-bit value)
+INT_RANGES: dict[str, tuple[int, int]] = {"starts": (1, 1000), "seed": (0, 2**32 - 1), "max_evals": (1, 10**6)}
+
+
 def _optimiser(table: dict[str, Any], source: str, constrained: bool) -> OptimiserConfig:
     kw: dict[str, Any] = {}
     where = f"{source}: optimiser"
@@ -581,23 +607,24 @@ def _optimiser(table: dict[str, Any], source: str, constrained: bool) -> Optimis
     if "local" in table:
         kw["local"] = _enum(Algorithm, table["local"], f"{where}.local")
         if kw["local"] not in LOCAL_ALGORITHMS:
-            raise InvalidInput(f"{where}.local = {table['local']!r} must be a local algorithm: allowed "
+            raise InvalidInput(f"{where}.local = {short(table['local'])} must be a local algorithm: allowed "
                                f"{', '.join(a.value for a in LOCAL_ALGORITHMS)}")
-    for key in ("starts", "seed", "max_evals"):
+    for key, (lo, hi) in INT_RANGES.items():
         if key in table:
             v = table[key]
-            if isinstance(v, bool) or not isinstance(v, int) or v < (0 if key == "seed" else 1):
-                raise InvalidInput(f"{where}.{key} = {v!r} must be a whole number ≥ {0 if key == 'seed' else 1}")
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise InvalidInput(f"{where}.{key} = {short(v)} must be a whole number: allowed {lo} ≤ {key} ≤ {hi}")
             kw[key] = v
     for key in ("xtol_rel", "ftol_rel", "max_time_s", "constraint_tol"):
         if key in table:
             v = _number(table[key], f"{where}.{key}")
-            if v < 0 or (key == "max_time_s" and v == 0):
-                raise InvalidInput(f"{where}.{key} = {v!r} must be {'> 0' if key == 'max_time_s' else '≥ 0'}")
+            if v < 0 or (key == "max_time_s" and not 0 < v <= MAX_TIME_S):
+                raise InvalidInput(f"{where}.{key} = {short(v)} is out of range: allowed "
+                                   + (f"0 < {key} ≤ {MAX_TIME_S:g} (s)" if key == "max_time_s" else f"{key} ≥ 0"))
             kw[key] = v
     cfg = OptimiserConfig(**kw)
     if constrained and not cfg.algorithm.handles_constraints:
-        raise InvalidInput(f"{where}.algorithm = {cfg.algorithm.value!r} cannot handle constraints: use LN_COBYLA, "
+        raise InvalidInput(f"{where}.algorithm = {short(cfg.algorithm.value)} cannot handle constraints: use LN_COBYLA, "
                            "LD_SLSQP, LD_MMA, GN_ISRES or AUGLAG")
     if cfg.starts > cfg.max_evals:
         raise InvalidInput(f"{where}.starts = {cfg.starts} exceeds max_evals = {cfg.max_evals}")

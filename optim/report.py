@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from hapticopt.design.atomic import write_text
+from hapticopt.design.paths import inside
 from hapticopt.design.units import from_si, pretty
 from hapticopt.optim.results import PipelineResult, StageOutcome
 
@@ -157,11 +158,13 @@ font-size:13px}th{background:#f0f0f0}img{max-width:100%;border:1px solid #ddd;ma
 .ok{color:#2e7d32}.bad{color:#c62828}code{background:#f5f5f5;padding:1px 3px}"""
 
 
-def write(p: "PipelineResult", *, extra_stage: tuple[str, float] | None = None) -> dict[str, str]:
-    """Write convergence.svg, report.md and report.html into the run directory; returns role -> file."""
-    out = p.out_dir
+def write(p: "PipelineResult", *, extra_stage: tuple[str, float] | None = None,
+          dest: Path | None = None) -> dict[str, str]:
+    """Write convergence.svg, report.md and report.html into ``dest`` (default: the run directory;
+    the pipeline passes a :func:`design.atomic.file_set` staging folder); returns role -> file."""
+    out = p.out_dir if dest is None else Path(dest)
     prob = p.problem
-    write_text(out / "convergence.svg", convergence_svg(p.run.history, sense_max=prob.objective.sense.value == "maximise"))
+    write_text(inside(out, "convergence.svg"), convergence_svg(p.run.history, sense_max=prob.objective.sense.value == "maximise"))
     if extra_stage is not None:
         name, t0 = extra_stage
         p = dataclasses.replace(p, stages=p.stages + (StageOutcome(name=name, status="ok",
@@ -198,7 +201,7 @@ def write(p: "PipelineResult", *, extra_stage: tuple[str, float] | None = None) 
         md += ["## Exported files", ""] + [f"- [{f}]({f})" for f in exports] + [""]
     for title, key in sections[4:]:
         md += [f"## {title}", "", _md_table(*tables[key])]
-    write_text(out / "report.md", "\n".join(md))
+    write_text(inside(out, "report.md"), "\n".join(md))
     # html
     h = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
          f"<title>Optimisation report: {html.escape(prob.name)}</title><style>{_CSS}</style></head><body>",
@@ -220,5 +223,5 @@ def write(p: "PipelineResult", *, extra_stage: tuple[str, float] | None = None) 
     for title, key in sections[4:]:
         h += [f"<h2>{title}</h2>", _html_table(*tables[key])]
     h.append("</body></html>")
-    write_text(out / "report.html", "\n".join(h))
+    write_text(inside(out, "report.html"), "\n".join(h))
     return {"report_md": "report.md", "report_html": "report.html", "convergence": "convergence.svg"}

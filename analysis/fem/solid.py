@@ -355,10 +355,18 @@ class Richardson:
     ratio: float
 
 
+#: relative size below which a difference of two levels is rounding, not discretisation error
+#: (four decades above float64 ε)
+RICHARDSON_FLOOR = 1e-12
+
+
 def richardson(coarse: float, medium: float, fine: float, *, ratio: float = REFINEMENT_RATIO) -> Richardson:
     """Observed order p = ln((f1−f2)/(f2−f3))/ln r and f∞ = f3 + (f3−f2)/(r^p − 1)."""
     d1, d2 = coarse - medium, medium - fine
-    if d1 == 0.0 or d2 == 0.0 or d1 / d2 <= 0.0:
+    # differences at the rounding level of the values carry no order (their sign and ratio are
+    # noise): below RICHARDSON_FLOOR of the values' size the sequence has converged, order NaN
+    floor = RICHARDSON_FLOOR * max(abs(coarse), abs(medium), abs(fine))
+    if not (abs(d1) > floor and abs(d2) > floor) or d1 / d2 <= 0.0:
         return Richardson(extrapolated=fine, order=float("nan"), ratio=ratio)
     p = math.log(d1 / d2) / math.log(ratio)
     return Richardson(extrapolated=fine + (fine - medium) / (ratio**p - 1.0), order=p, ratio=ratio)

@@ -34,7 +34,6 @@ from hapticopt.analysis.control import upsampling as up
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.handle.firmware import HandleFirmware, HandleFirmwareConfig, WallKind, WallLaw
 from hapticopt.analysis.handle.model import NO_OPERATOR, Handle, discrete_plant, from_design
-from hapticopt.analysis.loop.operator import Operator
 from hapticopt.analysis.loop.scene import BoxMode, Effect, EnvKind, Resolution, Scene, resolve
 from hapticopt.analysis.loop.traces import Traces
 from hapticopt.analysis.status import Status

@@ -20,14 +20,14 @@ the scene, the key, the value and what is allowed.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
-from hapticopt.design import bundled
-from hapticopt.design.errors import InputFileError, InvalidInput
+from hapticopt.design import bundled, tomlsafe
+from hapticopt.design.errors import InvalidInput, short, short_key
+from hapticopt.design.paths import check_name
 from hapticopt.analysis.control.upsampling import DEFAULT_VARIANT, Variant
 from hapticopt.analysis.loop.operator import Operator, OperatorKind
 
@@ -263,7 +263,7 @@ class _Reader:
 
     def __init__(self, table: Any, where: str) -> None:
         if not isinstance(table, dict):
-            raise InvalidInput(f"{where} must be a table, got {table!r}")
+            raise InvalidInput(f"{where} must be a table, got {short(table)}")
         self.table = table
         self.where = where
         self.used: set[str] = set()
@@ -279,7 +279,7 @@ class _Reader:
             return default * scale  # defaults are given in the key's unit
         allowed = f"{'<' if lo_open else '≤'} {key} ≤ {hi:g}"
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise InvalidInput(f"{self.where}.{key} = {v!r} must be a finite number: allowed {lo:g} {allowed} {unit}".rstrip())
+            raise InvalidInput(f"{self.where}.{key} = {short(v)} must be a finite number: allowed {lo:g} {allowed} {unit}".rstrip())
         if v < lo or v > hi or (lo_open and v == lo):
             raise InvalidInput(f"{self.where}.{key} = {v:g} is out of range: allowed {lo:g} {allowed} {unit}".rstrip())
         return float(v) * scale
@@ -289,7 +289,7 @@ class _Reader:
         if v is None:
             return default
         if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-            raise InvalidInput(f"{self.where}.{key} = {v!r} must be a whole number: allowed {lo} ≤ {key} ≤ {hi}")
+            raise InvalidInput(f"{self.where}.{key} = {short(v)} must be a whole number: allowed {lo} ≤ {key} ≤ {hi}")
         return v
 
     def flag(self, key: str, default: bool) -> bool:
@@ -297,7 +297,7 @@ class _Reader:
         if v is None:
             return default
         if not isinstance(v, bool):
-            raise InvalidInput(f"{self.where}.{key} = {v!r} must be true or false")
+            raise InvalidInput(f"{self.where}.{key} = {short(v)} must be true or false")
         return v
 
     def vec(self, key: str, default: tuple[float, ...], *, n: int = 3, scale: float = 1.0,
@@ -307,10 +307,10 @@ class _Reader:
             return tuple(float(x) * scale for x in default)
         if (not isinstance(v, list) or len(v) != n
                 or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) for x in v)):
-            raise InvalidInput(f"{self.where}.{key} = {v!r} must be a list of {n} finite numbers ({unit or '-'})")
+            raise InvalidInput(f"{self.where}.{key} = {short(v)} must be a list of {n} finite numbers ({unit or '-'})")
         for x in v:
             if x < lo or x > hi:
-                raise InvalidInput(f"{self.where}.{key} = {v!r} is out of range: allowed {lo:g} ≤ each ≤ {hi:g} {unit}".rstrip())
+                raise InvalidInput(f"{self.where}.{key} = {short(v)} is out of range: allowed {lo:g} ≤ each ≤ {hi:g} {unit}".rstrip())
         return tuple(float(x) * scale for x in v)
 
     def choice(self, key: str, enum: type[StrEnum], default: StrEnum) -> Any:
@@ -321,43 +321,44 @@ class _Reader:
             return enum(v)
         except ValueError:
             allowed = ", ".join(e.value for e in enum)
-            raise InvalidInput(f"{self.where}.{key} = {v!r} is not known: allowed {allowed}") from None
+            raise InvalidInput(f"{self.where}.{key} = {short(v)} is not known: allowed {allowed}") from None
 
     def axis(self, key: str, default: int) -> int:
         v = self._get(key)
         if v is None:
             return default
-        if v not in _AXES:
-            raise InvalidInput(f"{self.where}.{key} = {v!r} is not an axis: allowed x, y, z")
+        if not isinstance(v, str) or v not in _AXES:
+            raise InvalidInput(f"{self.where}.{key} = {short(v)} is not an axis: allowed x, y, z")
         return _AXES[v]
 
     def done(self) -> None:
         extra = sorted(set(self.table) - self.used)
         if extra:
             allowed = ", ".join(sorted(self.used))
-            raise InvalidInput(f"{self.where}.{extra[0]} is not a known key: allowed {allowed}")
+            raise InvalidInput(f"{self.where}.{short_key(extra[0])} is not a known key: allowed {allowed}")
 
 
 def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
     """Build a :class:`Scene` from a TOML-shaped mapping (edge units). Raises :class:`InvalidInput`."""
     top = _Reader(data, source)
     name = top._get("name")
-    if not isinstance(name, str) or not name.strip():
-        raise InvalidInput(f"{source}.name = {name!r} must be a non-empty string")
+    check_name(name, f"{source}.name")
     description = top._get("description") or ""
     device = top._get("device") or "prrr"
-    if device not in DEVICES:
-        raise InvalidInput(f"{source}.device = {device!r} is not known: allowed {', '.join(DEVICES)}")
+    if not isinstance(device, str) or device not in DEVICES:
+        raise InvalidInput(f"{source}.device = {short(device)} is not known: allowed {', '.join(DEVICES)}")
     backend_key = top._get("backend")
+    if not isinstance(backend_key, (str, type(None))):
+        raise InvalidInput(f"{source}.backend = {short(backend_key)} is not known: allowed auto, lumped, multibody")
     if backend_key in (None, "auto"):
         backend = None
     else:
         try:
             backend = Backend(backend_key)
         except ValueError:
-            raise InvalidInput(f"{source}.backend = {backend_key!r} is not known: allowed auto, lumped, multibody") from None
+            raise InvalidInput(f"{source}.backend = {short(backend_key)} is not known: allowed auto, lumped, multibody") from None
     if not isinstance(description, str):
-        raise InvalidInput(f"{source}.description = {description!r} must be a string")
+        raise InvalidInput(f"{source}.description = {short(description)} must be a string")
     where = f"scene {name}"
     top.where = where
     duration = top.num("duration_s", 3.0, lo=0.0, hi=3600.0, lo_open=True, unit="s")
@@ -371,7 +372,7 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
           and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in ar)):
         ar_t = tuple(float(x) for x in ar)
     else:
-        raise InvalidInput(f"{where}: controller.ar_coefficients = {ar!r} must be a list of 1 to 3 finite numbers")
+        raise InvalidInput(f"{where}: controller.ar_coefficients = {short(ar)} must be a list of 1 to 3 finite numbers")
     controller = ControllerSettings(
         mode=c.choice("mode", FirmwareMode, FirmwareMode.IMPEDANCE),
         period=c.num("period_ms", 1.0, scale=1e-3, lo=0.0, hi=100.0, lo_open=True, unit="ms"),
@@ -459,7 +460,7 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
             isinstance(x, (int, float)) and not isinstance(x, bool) and 0.01 <= x <= 100 for x in sw)):
         sweep = tuple(sorted(float(x) for x in sw))
     else:
-        raise InvalidInput(f"{where}: simulation.sweep_factors = {sw!r} must be a list of 2 to 20 numbers in "
+        raise InvalidInput(f"{where}: simulation.sweep_factors = {short(sw)} must be a list of 2 to 20 numbers in "
                            "[0.01, 100] (multiples of the frequency-domain bandwidth)")
     sweep_periods = s.integer("sweep_periods", 3, lo=2, hi=1000)
     s.done()
@@ -621,10 +622,7 @@ def load_scene(name_or_path: str | Path) -> Scene:
     """A bundled scene by name, or a scene TOML file by path."""
     found = bundled.read(SCENES, "scene", name_or_path)
     text, source = found.text, found.source
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputFileError(f"{source} is not valid TOML: {exc}") from None
+    data = tomlsafe.loads(text, source=source)
     return scene_from_dict(data, source=source)
 
 

@@ -38,6 +38,7 @@ import numpy as np
 from hapticopt.analysis.master import dynamics as md
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop.scene import DynamicsCompensation
+from hapticopt.analysis import conditioning
 from hapticopt.analysis.status import Status
 from hapticopt.design.master.params import MasterDesign
 from hapticopt.analysis.master import dynamics_numpy as mn
@@ -121,9 +122,13 @@ def axis_coefficients(model: md.MassModel, q: np.ndarray, amplitude: float = AMP
     flat = q.reshape(-1, 3)
     E = np.eye(3)[[0, 2]].T  # (3, 2): x and z
     J = mn.jacobian(model.kin, flat)
-    det = np.linalg.det(J)
-    L = float(model.kin.upper_arm) * float(model.kin.forearm)
-    valid = np.abs(det) > 1e-6 * L * float(model.kin.upper_arm)
+    # verdict from the reciprocal condition number of J (columns scaled by the upper-arm length,
+    # so m/rad become dimensionless): singular and ill-conditioned poses (rcond < RCOND_ILL) are
+    # not valid, never a solve of a near-singular matrix (analysis.conditioning)
+    sv = np.linalg.svd(J / float(model.kin.upper_arm), compute_uv=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rc = np.where(sv[:, 0] > 0.0, sv[:, -1] / sv[:, 0], 0.0)
+    valid = np.isfinite(rc) & (rc >= conditioning.RCOND_ILL)
     Jsafe = np.where(valid[:, None, None], J, np.eye(3))
     V = np.linalg.solve(Jsafe, np.broadcast_to(E, Jsafe.shape[:-2] + (3, 2)))  # (n, 3, 2)
     Mb = mn.body_mass_matrices(model, flat)  # (n, nb, 3, 3)
@@ -145,14 +150,14 @@ def axis_coefficients(model: md.MassModel, q: np.ndarray, amplitude: float = AMP
         return np.linalg.solve(np.swapaxes(Jq, -1, -2), G[..., None])[..., 0]
 
     h = 1e-5
-    kg = np.empty_like(lam)
-    for a in range(2):
-        dq = h * V[:, :, a]
-        dF = (gravity_force(flat + dq) - gravity_force(flat - dq)) / (2 * h)
-        kg[:, a] = dF @ E[:, a]  # k_g = e·∂(J⁻ᵀG)/∂x·e (enters G_T with a + sign, module docstring)
+    kg = np.zeros_like(lam)
+    for a in range(2):  # only at valid poses: no solve near a singularity
+        dq = h * V[valid, :, a]
+        dF = (gravity_force(flat[valid] + dq) - gravity_force(flat[valid] - dq)) / (2 * h)
+        kg[valid, a] = dF @ E[:, a]  # k_g = e·∂(J⁻ᵀG)/∂x·e (enters G_T with a + sign, module docstring)
     shape = q.shape[:-1] + (2,)
-    clean = lambda x: np.where(valid[:, None], x, 0.0).reshape(shape)  # noqa: E731
-    lam_c = np.where(valid[:, None, None], lam_c, 0.0).reshape(shape + (3,))
+    clean = lambda x: np.where(valid[:, None], x, np.nan).reshape(shape)  # noqa: E731  (NaN: not a number to use)
+    lam_c = np.where(valid[:, None, None], lam_c, np.nan).reshape(shape + (3,))
     return AxisCoefficients(mass=clean(lam), compensated_mass=lam_c, damping=clean(b),
                             gravity_stiffness=clean(kg), coulomb=clean(cf), valid=valid.reshape(shape[:-1]))
 
@@ -287,13 +292,17 @@ def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD, se
     coef = axis_coefficients(model, q0[None], setup.amplitude, gravity=gp)
     status, message = Status.OK, ""
     if not bool(coef.valid[0]):
-        return MasterTransparency(pose=tuple(map(float, q0)), bandwidth=(0.0, 0.0), apparent_mass=(0.0, 0.0),
-                                  gravity_stiffness=(0.0, 0.0), worst_bandwidth=None, worst_pose=None, setup=setup,
-                                  coefficients=coef, status=Status.SINGULAR,
-                                  message="the pose is singular (cos(θ2 − θ3) = 0 or handle on the θ1 axis)")
+        nan2 = (float("nan"), float("nan"))
+        verdict = conditioning.classify(mn.jacobian(model.kin, q0[None])[0] / float(model.kin.upper_arm),
+                                        what="J at the pose (cos(θ2 − θ3) ≈ 0 or the handle on the θ1 axis)")
+        return MasterTransparency(pose=tuple(map(float, q0)), bandwidth=nan2, apparent_mass=nan2,
+                                  gravity_stiffness=nan2, worst_bandwidth=None, worst_pose=None, setup=setup,
+                                  coefficients=coef, status=verdict.status if not verdict.ok else Status.SINGULAR,
+                                  message=verdict.message or "J at the pose is not finite")
     bw, dc = bandwidth(coef, setup)
     if dc.any():
         status, message = Status.UNSTABLE, "|G_T| is outside ±3 dB already at DC (gravity stiffness too large)"
+        bw = np.full_like(bw, np.nan)  # no bandwidth to report
     worst = worst_pose = None
     if fidelity in WORST_GRID:
         n1, n3, nph, levels, zoom_points = WORST_GRID[fidelity]

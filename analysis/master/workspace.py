@@ -43,6 +43,7 @@ import numpy as np
 
 from hapticopt.design.master import kinematics as mk
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis import conditioning as bands
 from hapticopt.analysis.status import Status
 from hapticopt.design.master.params import MasterDesign
 
@@ -208,7 +209,13 @@ class MasterWorkspace:
     message: str = ""
 
     def metrics(self) -> dict[str, object]:
-        """Engineering-unit metrics (names carry their units)."""
+        """Engineering-unit metrics (names carry their units); NaN when the status is not ok/empty."""
+        if not self.status.metrics_hold:
+            nan = float("nan")
+            return {"workspace_volume_mm3": nan, "workspace_coverage": nan,
+                    "workspace_required_box_mm": [b * 1e3 for b in self.box], "workspace_centroid_mm": [nan] * 3,
+                    "workspace_box_centre_mm": [nan] * 3, "global_conditioning_index": nan,
+                    "jacobian_condition_min": nan, "jacobian_condition_max": self.condition_max}
         return {
             "workspace_volume_mm3": self.volume * 1e9,
             "workspace_coverage": self.coverage,
@@ -234,8 +241,11 @@ def _result(out: dict, box: tuple[float, float, float], fidelity: Fidelity) -> M
                                else "workspace computation gave a non-finite value")
     status, message = Status.OK, ""
     kmax = float(arr["condition_max"])
-    if kmax > 1e8:
-        status, message = Status.SINGULAR, "the joint ranges reach a singular configuration (κ₂ > 1e8)"
+    # the verdict from the smallest reciprocal condition number over the Gauss points, banded
+    # (analysis.conditioning: ill-conditioned below 1e-6, singular below 1e-12)
+    verdict = bands.classify_rcond(1.0 / kmax, what="the Jacobian somewhere in the joint ranges")
+    if not verdict.ok:
+        status, message = verdict.status, verdict.message + " (the joint ranges reach a singular configuration)"
         kmax = min(kmax, 1e300)
     return MasterWorkspace(
         volume=volume,

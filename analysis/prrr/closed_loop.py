@@ -121,6 +121,10 @@ def setup(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STA
                  energy_scale=scale, energy_floor=100 * quantum if Effect.QUANTIZATION in fx else 0.0)
 
 
+#: the rendered-stiffness fit needs a peak-to-peak motion of at least this many encoder quanta
+FIT_MIN_QUANTA = 100
+
+
 def classify(tr: Traces, st: Setup) -> tuple[np.ndarray, np.ndarray]:
     """(stable (B,), time the instability was detected (B,) [s], NaN where stable)."""
     N, B = tr.energy.shape
@@ -220,7 +224,10 @@ def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | Non
         if Effect.OPERATOR in fx:
             res_rms = float(np.sqrt(np.mean(np.sum(Fh**2, axis=-1))))
             res_axis = tuple(float(x) for x in np.sqrt(np.mean(Fh**2, axis=0)))
-            if sc.environment.kind == EnvKind.SPRING and np.ptp(p[:, ax]) > 0:
+            # the fit needs motion well above the position sensor's resolution: below it the
+            # slope is a fit to quantisation noise (issue 14: −11 501 N/mm "ok" with a still hand)
+            min_motion = FIT_MIN_QUANTA * float(st.design.actuator.encoder_resolution)
+            if sc.environment.kind == EnvKind.SPRING and np.ptp(p[:, ax]) > min_motion:
                 A = np.stack([p[:, ax], v[:, ax], np.ones(len(p))], axis=-1)
                 coef, *_ = np.linalg.lstsq(A, Fh[:, ax], rcond=None)
                 rk, rb = float(coef[0]), float(coef[1])
@@ -240,6 +247,20 @@ def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | Non
         ours = report_value(sc.report, tr, sl, b, err)
     status = Status.OK if stable else Status.UNSTABLE
     message = "" if stable else f"unstable: detected at t = {t_det:.4g} s; the run stopped cleanly"
+    run_s = end * tr.period
+    if stable and run_s < SATURATION_WINDOW_S * (1.0 - 1e-9):
+        # the detector decides on SATURATION_WINDOW_S windows: a shorter run proves nothing
+        # (issue 14: a 20 ms run at 1000× the stability limit was called stable)
+        status = Status.INCONCLUSIVE
+        message = (f"the run lasted {run_s:.3g} s, shorter than the {SATURATION_WINDOW_S:g} s the instability "
+                   "detector needs: no verdict")
+        stable = False
+        rk = rb = err = res_rms = track = pen = None
+        res_axis = None
+    elif stable and rk is None and Effect.OPERATOR in fx and sc.environment.kind == EnvKind.SPRING:
+        status = Status.INCONCLUSIVE  # stable, but the rendered stiffness the scene asks for is not measurable
+        message = (f"no rendered-stiffness fit: the motion along the measured axis stayed within "
+                   f"{FIT_MIN_QUANTA} encoder quanta")
     return ClosedLoopResult(
         stable=stable, unstable_at=t_det, rendered_stiffness=rk, rendered_damping=rb, stiffness_error_pct=err,
         residual_force_rms=res_rms, residual_force_rms_per_axis=res_axis, force_tracking_rms=track,

@@ -30,6 +30,7 @@ from scipy.optimize import brentq
 from hapticopt.analysis.prrr import statics as prrr_statics
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.prrr.kinematics import jacobian
+from hapticopt.analysis import conditioning
 from hapticopt.analysis.status import Status
 from hapticopt.design.prrr.params import PrrrDesign
 
@@ -98,6 +99,21 @@ def max_real_eigenvalue(A: np.ndarray) -> float:
     return float(np.max(np.linalg.eigvals(A).real))
 
 
+def max_real_flexible_eigenvalue(A: np.ndarray) -> float:
+    """Largest Re λ of ``A`` once its rigid-body modes are set aside [1/s].
+
+    The free axes keep rigid-body modes at λ = 0, which round-off moves to ±1e-16·max|λ| with a
+    kernel-dependent sign. Their number is explicit: the singular values of ``A`` below
+    ``RCOND_SINGULAR``·σ_max (:mod:`hapticopt.analysis.conditioning`); that many eigenvalues of
+    smallest modulus are dropped, and stability is decided on the others (no tolerance on Re λ).
+    """
+    sv = np.linalg.svd(A, compute_uv=False)
+    n_rigid = int(np.sum(sv < conditioning.RCOND_SINGULAR * sv[0]))
+    lam = np.linalg.eigvals(A)
+    flexible = lam[np.argsort(np.abs(lam))][n_rigid:]
+    return float(np.max(flexible.real)) if flexible.size else -math.inf
+
+
 def continuous_stiffness_limit(design: PrrrDesign, *, kp: float, axis: int, damping: float = 0.0,
                                rtol: float = 1e-9) -> float:
     """Largest stable K_v on ``axis`` by bisection on the eigenvalues of :func:`continuous_closed_loop` [N/m]."""
@@ -105,9 +121,7 @@ def continuous_stiffness_limit(design: PrrrDesign, *, kp: float, axis: int, damp
     def stable(K: float) -> bool:
         Kv, Bv = np.zeros(3), np.zeros(3)
         Kv[axis], Bv[axis] = K, damping
-        lam = np.linalg.eigvals(continuous_closed_loop(design, stiffness=Kv, damping=Bv, kp=kp))
-        # the two free axes keep rigid-body modes at λ = 0 (round-off ±1e-12): not an instability
-        return float(np.max(lam.real)) < 1e-9 * float(np.max(np.abs(lam)))
+        return max_real_flexible_eigenvalue(continuous_closed_loop(design, stiffness=Kv, damping=Bv, kp=kp)) < 0.0
 
     lo, hi = 0.0, stiffness_limits(design)[axis]
     while stable(hi):

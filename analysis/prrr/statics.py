@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from hapticopt.analysis import conditioning
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.prrr.kinematics import PrrrParams, jacobian, jacobian_inverse
 from hapticopt.analysis.status import Status
@@ -71,7 +72,12 @@ class PrrrStatics:
     message: str = ""
 
     def metrics(self) -> dict[str, object]:
-        """Engineering-unit metrics (names carry their units)."""
+        """Engineering-unit metrics (names carry their units); NaN unless the status is ok."""
+        if self.status is not Status.OK:
+            nan = float("nan")
+            return {"jacobian_condition": nan, "jacobian_condition_frobenius": nan, "max_force_N": [nan] * 3,
+                    "max_pure_force_N": [nan] * 3, "stiffness_limit_N_per_mm": [nan] * 3,
+                    "effective_mass_kg": [[nan] * 3 for _ in range(3)]}
         return {
             "jacobian_condition": float(self.condition),
             "jacobian_condition_frobenius": float(self.condition_frobenius),
@@ -94,8 +100,15 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> P
     a = design.actuator
     # numpy path: a single design needs no jit compile (the CLI's start-up budget); the jax
     # path (same function, xp=jnp) serves batches and gradients and is tested equal.
-    out = statics_arrays(params_np(design), a.spring, a.force_limit, design.end_effector.mass, xp=np)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        out = statics_arrays(params_np(design), a.spring, a.force_limit, design.end_effector.mass, xp=np)
+    # the verdict: the reciprocal condition number of J, banded (analysis.conditioning), never
+    # whether the numbers happened to come out finite
+    verdict = conditioning.classify(out["jacobian"], what=f"the Jacobian at β = {np.degrees(design.geometry.beta):.12g}°")
     finite = all(np.all(np.isfinite(v)) for v in out.values())
+    if verdict.ok and not finite:
+        verdict = conditioning.Conditioning(status=Status.SINGULAR, rcond=verdict.rcond,
+                                            message="the statics are not finite at this design")
     return PrrrStatics(
         jacobian=out["jacobian"],
         condition=float(out["condition"]),
@@ -105,6 +118,6 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> P
         stiffness_limit=out["stiffness_limit"],
         max_force=out["max_force"],
         max_pure_force=out["max_pure_force"],
-        status=Status.OK if finite else Status.SINGULAR,
-        message="" if finite else "Jacobian is numerically singular at this β",
+        status=verdict.status,
+        message=verdict.message,
     )

@@ -46,7 +46,13 @@ class StructuralStiffness:
     message: str = ""
 
     def metrics(self) -> dict[str, object]:
-        """Engineering-unit metrics (names carry their units)."""
+        """Engineering-unit metrics (names carry their units); NaN (the condition excepted) unless ok."""
+        if self.status is not Status.OK:
+            nan = float("nan")
+            return {"structural_stiffness_N_per_mm": [nan] * 3, "elastic_centre_mm": nan,
+                    "structural_stiffness_at_elastic_centre_N_per_mm": [nan] * 3,
+                    "structural_load_height_mm": float(self.load_height) * 1e3,
+                    "structural_condition": float(self.condition)}
         out: dict[str, object] = {
             "structural_stiffness_N_per_mm": [float(x) * 1e-3 for x in self.stiffness_load],
             "elastic_centre_mm": float(self.elastic_centre) * 1e3,
@@ -75,10 +81,10 @@ def _status(out: dict[str, np.ndarray]) -> tuple[Status, str]:
         return Status.SINGULAR, (f"frame stiffness matrix is numerically singular (condition ≈ {cond:.2g} ≥ "
                                  f"{fm.SINGULAR_COND:.0e}): results meaningless")
     if cond > fm.COND_LIMIT:
-        return Status.SINGULAR, (f"frame stiffness matrix is ill-conditioned (condition ≈ {cond:.2g} > "
+        return Status.ILL_CONDITIONED, (f"frame stiffness matrix is ill-conditioned (condition ≈ {cond:.2g} > "
                                  f"{fm.COND_LIMIT:.0e}): results unreliable")
     if np.any(np.diagonal(out["compliance_ee"]) <= 0.0):
-        return Status.SINGULAR, "frame stiffness matrix is not positive definite"
+        return Status.NOT_POSITIVE_DEFINITE, "frame stiffness matrix is not positive definite"
     return Status.OK, ""
 
 

@@ -165,6 +165,12 @@ def _c_u(wp: WorkspaceParams, xp):
     return wp.d1 - (wp.b5 + wp.r4) * xp.cos(wp.beta)
 
 
+#: Newton steps on the ellipse angle need a curvature above this fraction of its terms' size
+CURVATURE_REL = 1e-9
+#: a volume below this fraction of L·ρ_max² is a rounding sliver: the workspace is empty
+EMPTY_VOLUME_REL = 1e-12
+
+
 def _edge_distance(wp: WorkspaceParams, rho, xp):
     """Distance from the z axis to the ellipse |ρ| = rho (leg frame: centre (c_u, d2),
     semi-axes rho·sin β along u and rho along t). Sampled start, then safeguarded Newton on
@@ -184,7 +190,10 @@ def _edge_distance(wp: WorkspaceParams, rho, xp):
         x, y = cu + ax * c, d2 + bx * sn
         g1 = 2.0 * (-x * ax * sn + y * bx * c)
         g2 = 2.0 * ((ax * sn) ** 2 - x * ax * c + (bx * c) ** 2 - y * bx * sn)
-        ok = g2 > 0.0
+        # a Newton step only where the curvature is clearly positive: g2 above CURVATURE_REL of the
+        # size of its terms (decades above their rounding), never on the sign of a rounding-level g2
+        g2_scale = 2.0 * ((ax * sn) ** 2 + xp.abs(x * ax * c) + (bx * c) ** 2 + xp.abs(y * bx * sn))
+        ok = g2 > CURVATURE_REL * g2_scale
         step = xp.where(ok, g1 / xp.where(ok, g2, 1.0), 0.0)
         t = t - xp.clip(step, -step_max, step_max)
     return xp.sqrt(xp.minimum(f(t), f(th0)))
@@ -278,8 +287,9 @@ def workspace_core(wp: WorkspaceParams, *, n_phi: int, n_r: int, xp=np) -> dict:
     link_extent = xp.maximum(link_extent, xp.sqrt(wp.d1**2 + wp.d2**2)) + wp.boss_radius
     footprint = 2.0 * wp.rail_envelope
 
-    # tangent roots leave rounding-sized slivers (~1e-23 m³): below 1e-12 L ρ_max² counts as empty
-    empty = ~(volume > 1e-12 * L * wp.rho_max**2)
+    # tangent roots leave rounding-sized slivers (~1e-23 m³, ~1e-20 of L ρ_max²): below
+    # EMPTY_VOLUME_REL · L ρ_max² (eight decades above them, four above float64 rounding) counts as empty
+    empty = ~(volume > EMPTY_VOLUME_REL * L * wp.rho_max**2)
     return {
         "volume": xp.maximum(volume, 0.0),
         "reach_radius": r_reach,

@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from hapticopt.optim.cli import compare as cli_compare
+from hapticopt.optim.cli import common
 from hapticopt.optim.cli import evaluate as cli_evaluate
 from hapticopt.optim.cli import export as cli_export
 from hapticopt.optim.cli import optimise as cli_optimise
@@ -34,8 +35,10 @@ def _show_version(value: bool) -> None:
 def _root(
     show_version: Annotated[bool, typer.Option("--version", help="Print the version and exit.", callback=_show_version,
                                                is_eager=True)] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="On an error, also print the traceback.")] = False,
 ) -> None:
     """Design optimisation of haptic mechanisms: describe, evaluate, optimise, export, verify."""
+    common.DEBUG.set(debug)
 
 
 app.command("evaluate")(cli_evaluate.evaluate)

@@ -1,9 +1,18 @@
-"""Shared pieces of the CLI: loading a design from FILE or --preset, one-line errors."""
+"""Shared pieces of the CLI: loading a design from FILE or --preset, the one error boundary.
+
+Every command is wrapped in :func:`one_line_errors`, the only place where an exception becomes
+text for the user: one line on stderr and an exit code, never a traceback (``hapticopt --debug
+COMMAND`` adds the traceback). Exit codes: 0 done; 2 bad input or an operating-system fault
+(unreadable file, read-only or full disk, ``--out`` is a file — the OS reason is in the line);
+3 an internal error (a bug: the line names the exception and where it was raised).
+"""
 
 from __future__ import annotations
 
+import contextvars
 import functools
 import sys
+import traceback
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -16,23 +25,72 @@ from hapticopt.design import io
 F = TypeVar("F", bound=Callable[..., Any])
 
 EXIT_BAD_INPUT = 2
+EXIT_INTERNAL = 3
+#: longest error line printed [characters]; values inside are already shortened with reprlib
+MAX_LINE = 1000
 
 
-def fail(message: str) -> None:
-    """Print one error line to stderr and exit with code 2."""
-    typer.echo(f"error: {message}", err=True)
-    raise typer.Exit(code=EXIT_BAD_INPUT)
+def _one_line(text: str) -> str:
+    line = " ".join(str(text).split())
+    return line if len(line) <= MAX_LINE else line[: MAX_LINE - 3] + "..."
+
+
+def fail(message: str, code: int = EXIT_BAD_INPUT) -> None:
+    """Print one error line to stderr and exit with ``code`` (2 by default)."""
+    typer.echo(f"error: {_one_line(message)}", err=True)
+    raise typer.Exit(code=code)
+
+
+#: set by the root command's ``--debug`` option for this invocation
+DEBUG: contextvars.ContextVar[bool] = contextvars.ContextVar("hapticopt_debug", default=False)
+#: typer's own control-flow exceptions (exit, abort, usage errors): they pass the boundary untouched
+_CLICK_EXCEPTION = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+_PASS_THROUGH = (typer.Exit, typer.Abort, _CLICK_EXCEPTION)
+
+
+def debug_requested() -> bool:
+    """Whether ``hapticopt --debug …`` was given."""
+    return DEBUG.get()
+
+
+def describe_os_error(exc: OSError) -> str:
+    """``strerror: filename`` of an OS error (the OS reason first), or its text."""
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    name = exc.filename if exc.filename is not None else ""
+    where = f": {name}" if name != "" else ""
+    if exc.filename2 is not None:
+        where += f" -> {exc.filename2}"
+    return f"{reason}{where}"
+
+
+def _where(exc: BaseException) -> str:
+    tb = traceback.extract_tb(exc.__traceback__)
+    if not tb:
+        return ""
+    frame = tb[-1]
+    return f" ({Path(frame.filename).name}:{frame.lineno})"
 
 
 def one_line_errors(func: F) -> F:
-    """Turn every deliberate hapticopt error into one line on stderr and exit code 2."""
+    """The error boundary: every exception leaves as one stderr line and an exit code."""
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return func(*args, **kwargs)
-        except HapticoptError as exc:
-            fail(str(exc))
+        except _PASS_THROUGH:
+            raise
+        except Exception as exc:  # noqa: BLE001 - this is the one boundary
+            if debug_requested():
+                traceback.print_exc(file=sys.stderr)
+            if isinstance(exc, HapticoptError):
+                fail(str(exc))
+            if isinstance(exc, OSError):
+                fail(f"{describe_os_error(exc)} ({type(exc).__name__})")
+            if isinstance(exc, MemoryError):
+                fail("out of memory: the input asks for more than this machine has", EXIT_BAD_INPUT)
+            fail(f"internal error: {type(exc).__name__}: {exc}{_where(exc)} (hapticopt --debug shows the traceback)",
+                 EXIT_INTERNAL)
 
     return wrapper  # type: ignore[return-value]
 

@@ -14,6 +14,7 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.registry import evaluate_all, write_plots
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidInput
+from hapticopt.design.paths import writable_dir
 from rich.console import Console
 from rich.table import Table
 from hapticopt.optim.cli.sweep import run_sweep
@@ -48,6 +49,10 @@ def evaluate(
         raise InvalidInput(f"--fidelity = {fidelity!r} is not a fidelity level: allowed draft, standard, fine") from None
     t_import = time.perf_counter()
     design = load_design_arg(file, preset, set_)
+    if plots is not None:
+        writable_dir(plots, "--plots")
+    if sweep is not None:
+        writable_dir(plots if plots is not None else Path("."), "--plots")
     evaluation = evaluate_all(design, fidelity=level)
     timings = {"imports": t_import - t_start, **evaluation.timings_s}
     written = write_plots(design, evaluation, plots) if plots is not None else []
@@ -84,6 +89,7 @@ def evaluate(
     console.print("timings_s: " + ", ".join(f"{k} {v:.3f}" for k, v in timings.items()))
 
 
+@one_line_errors
 def presets() -> None:
     """List the bundled design presets."""
 

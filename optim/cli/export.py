@@ -12,6 +12,7 @@ from hapticopt.optim.cli.common import load_design_arg, one_line_errors
 import math
 import numpy as np
 from hapticopt.design.errors import InvalidInput
+from hapticopt.design.paths import writable_dir
 from hapticopt.analysis import interference
 from hapticopt.design.export import export as run_export
 from hapticopt.design.export import _cad
@@ -50,7 +51,7 @@ def export(
     design = load_design_arg(file, preset, set_)
     p = parse_pose_mm(pose) if pose is not None else None
 
-    out_dir = out if out is not None else Path("cad_out") / design.name
+    out_dir = writable_dir(out if out is not None else Path("cad_out") / design.name)
     result = run_export(design, out_dir, p=p, render=render)
     where = "the home pose" if p is None else f"the pose ({pose}) mm"
     if poses > 0:

@@ -9,11 +9,15 @@ import typer
 
 from hapticopt.optim.cli.common import one_line_errors
 from hapticopt.design.errors import InvalidInput
-from hapticopt.optim.problem import load_problem
+from hapticopt.optim.problem import INT_RANGES, load_problem
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from hapticopt.optim.problem import problem_names
 from hapticopt.optim.recorder import check_run_dir
+
+
+#: most processes of the local pool
+MAX_WORKERS = 256
 
 
 @one_line_errors
@@ -34,11 +38,14 @@ def optimise(
 
     prob = load_problem(problem)
     if max_evals is not None:
+        lo, hi = INT_RANGES["max_evals"]
+        if not lo <= max_evals <= hi:
+            raise InvalidInput(f"--max-evals = {max_evals} is out of range: allowed {lo} ≤ --max-evals ≤ {hi}")
         if max_evals < prob.optimiser.starts:
             raise InvalidInput(f"--max-evals = {max_evals} must be at least the number of starts ({prob.optimiser.starts})")
         prob = prob.with_optimiser(max_evals=max_evals)
-    if workers is not None and workers < 1:
-        raise InvalidInput(f"--workers = {workers} must be ≥ 1")
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+        raise InvalidInput(f"--workers = {workers} is out of range: allowed 1 ≤ --workers ≤ {MAX_WORKERS}")
     out_dir = out if out is not None else Path("cad_out") / prob.name
     check_run_dir(out_dir, resume=resume, force=force)  # before anything is computed or written
 
@@ -98,6 +105,7 @@ def optimise(
     typer.echo(f"report: {out_dir / 'report.html'}")
 
 
+@one_line_errors
 def problems() -> None:
     """List the bundled optimisation problems."""
 

@@ -19,6 +19,7 @@ from hapticopt.optim.cli.common import load_design_arg, one_line_errors
 from hapticopt.optim.executor import make_executor
 from hapticopt.optim import sweep as sw
 from hapticopt.optim.recorder import Recorder, check_run_dir
+from hapticopt.design.paths import check_name, inside
 
 SWEEPS = {"master": ("counterweight",)}
 
@@ -35,13 +36,14 @@ def run_sweep(design: Any, name: str, out_dir: Path, fidelity: Any) -> list[Path
 
     rows = master_tradeoff.counterweight_sweep(design, fidelity=fidelity)
     out_dir = Path(out_dir)
+    check_name(design.name, "design name")
+    table_path = inside(out_dir, f"{design.name}_sweep_counterweight.csv")
+    plot_target = inside(out_dir, f"{design.name}_sweep_counterweight.png")
     out_dir.mkdir(parents=True, exist_ok=True)
-    table_path = out_dir / f"{design.name}_sweep_counterweight.csv"
     write_text(table_path, master_tradeoff.rows_to_csv(rows))
     mu, mf = rows[0]["upper_counterweight_kg"], rows[0]["forearm_counterweight_kg"]
     boundary = master_tradeoff.unbalance_boundary(design, fidelity=fidelity) * (mu + mf)
-    plot_path = master_plots.sweep_plot(rows, out_dir / f"{design.name}_sweep_counterweight.png",
-                                        boundary_mass=boundary)
+    plot_path = master_plots.sweep_plot(rows, plot_target, boundary_mass=boundary)
     table = Table(title=f"{design.name}: counterweight sweep (seed 003 trade-off)")
     for key in rows[0]:
         table.add_column(key)

@@ -20,6 +20,7 @@ from hapticopt.analysis.prrr import zwidth
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop.scene import Backend, StabilityCriterion, load_scene
 from hapticopt.design.errors import InvalidInput
+from hapticopt.design.paths import check_name, inside, writable_dir
 
 
 def _plot(result: Any, out_dir: Path, name: str) -> list[Path]:
@@ -45,7 +46,7 @@ def _plot(result: Any, out_dir: Path, name: str) -> list[Path]:
     a2.set_ylabel("hand force [N]")
     a2.set_xlabel("t [s]")
     a1.legend()
-    target = out_dir / f"verify-{name}.png"
+    target = inside(out_dir, f"verify-{check_name(name, 'scene name')}.png")
     with atomic_path(target) as tmp:
         fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)
@@ -81,6 +82,8 @@ def verify(
         raise InvalidInput(f"--scene {sc.name} is written for the {sc.device} device; design {design.name!r} is a "
                            f"{design.device}: pick a {device} scene")
     sc = _override_controller(sc, period_ms, force_gain)
+    if plots is not None:
+        writable_dir(plots, "--plots")
     result = closed_loop_verify.simulate(design, sc, fidelity=level, backend=force)
     metrics = result.metrics()
     metrics["resolution_reason"] = metrics.get("backend_reason", "")

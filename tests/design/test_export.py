@@ -1,6 +1,7 @@
 """Export: STEP re-read by gmsh, STL manifold and volume, MJCF vs mass_properties.json,
 atomic writes, and the `hapticopt export` command."""
 
+import dataclasses
 import json
 import struct
 
@@ -109,18 +110,27 @@ def test_json_is_the_cad_mass_properties(exported, paper):
     assert data["parts"]["platform"]["mass_kg"] == pytest.approx(cad.parts["platform"].mass, rel=1e-12)
 
 
-def test_a_failing_writer_leaves_no_partial_file(paper, tmp_path, monkeypatch):
+def test_a_failing_writer_leaves_the_previous_set(paper, tmp_path, monkeypatch):
+    """Issue 14: an export to a full disk left 14 of 18 files. The set is staged and moved in at
+    the end: a writer failing at the 5th STL leaves the previous export byte for byte, no staging."""
     import build123d
 
-    def broken(*args, **kwargs):
-        raise OSError("disk full")
+    first = ex.export(paper, tmp_path / "out")
+    before = {p: p.read_bytes() for p in first.files}
+    real, calls = build123d.export_stl, []
 
-    monkeypatch.setattr(build123d, "export_stl", broken)
-    with pytest.raises(OSError, match="disk full"):
-        ex.export(paper, tmp_path / "out")
-    left = [p for p in (tmp_path / "out").rglob("*") if p.is_file()]
-    # the STEP written before the failure is complete; nothing partial or temporary remains
-    assert [p.name for p in left] == [f"{paper.name}.step"]
+    def full_disk(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 5:
+            raise OSError(28, "No space left on device")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(build123d, "export_stl", full_disk)
+    with pytest.raises(OSError, match="No space left"):
+        ex.export(dataclasses.replace(paper, name="other"), tmp_path / "out")
+    after = {p for p in (tmp_path / "out").rglob("*") if p.is_file()}
+    assert after == set(before) and all(p.read_bytes() == b for p, b in before.items())
+    assert not [p for p in (tmp_path / "out").rglob(".*")]
 
 
 def test_invalid_design_writes_nothing(paper, tmp_path):
@@ -147,6 +157,12 @@ def test_cli_export_and_errors(tmp_path):
     res = runner.invoke(app, ["export", "--preset", "prrr-paper", "--out", str(tmp_path / "q"), "--pose", "500,0,0"])
     assert res.exit_code == 2 and "not reachable" in res.output
     assert not (tmp_path / "q").exists()
+    # --out is a file: one line with the OS reason, before any CAD is built
+    (tmp_path / "f").write_text("x")
+    res = runner.invoke(app, ["export", "--preset", "prrr-paper", "--out", str(tmp_path / "f")])
+    assert res.exit_code == 2 and res.stderr.count("\n") == 1 and "File exists" in res.stderr, res.output
+
+
 
 
 def test_handle_has_no_cad_one_line(tmp_path):

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import math
 import re
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -143,3 +145,59 @@ def test_the_record_describes_itself(beta_run):
         assert base.metrics["jacobian_condition"] == pytest.approx(math.sqrt(6.0))  # cond(J) at 60°: √6
         assert final.x == beta_run.run.best.x
         assert r.best().x == beta_run.run.best.x and r.n_repeated == 0
+
+
+def test_killed_at_random_moments_then_resumed(tmp_path):
+    """Issue 14: kill the pipeline (pool workers, verification child) with SIGKILL during the
+    baseline and at a random later moment; every child is gone within 5 s, ``--resume`` finishes
+    with the uninterrupted result, no evaluation is repeated and no temp file is left. A second
+    process on the same run directory is refused while one is alive. (scripts/kill_resume.py
+    does the same at ≥ 10 moments, export included.)"""
+    import random
+    import subprocess
+    import sys as _sys
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    import killing
+    from hapticopt.optim import driver
+
+    problem = load_problem(DATA / "beta-isotropic.toml").with_optimiser(max_evals=30, starts=2)
+    reference = driver.run(problem, only=("statics",))  # what the pipeline's optimiser must reach
+    run = tmp_path / "run"
+    rng = random.Random(14)
+
+    # 1. during the baseline: as soon as the run database exists, before any stage is recorded
+    p = killing.start(run)
+    t0 = time.monotonic()
+    while not (run / "evaluations.sqlite").exists():
+        assert p.poll() is None and time.monotonic() - t0 < 60
+        time.sleep(0.02)
+    killed, kids, gone_s = killing.kill_after(p, 0.0)
+    assert killed and gone_s <= 5.0
+    n1, _ = killing.recorded(run)
+
+    # 2. resume, and kill again at a random moment (optimise, final, plots, verify or report)
+    p = killing.start(run, "--resume")
+    t0 = time.monotonic()
+    while killing.recorded(run)[1] == 0:  # the baseline recorded: the run is under way again
+        assert p.poll() is None and time.monotonic() - t0 < 60
+        time.sleep(0.05)
+    # meanwhile a second process on the same directory is refused with one line
+    other = subprocess.run([_sys.executable, str(killing.SCRIPT), str(run), "--resume"], env=killing.env(),
+                           capture_output=True, text=True)
+    assert other.returncode != 0 and "is in use by another hapticopt run" in other.stderr
+    killed, kids, gone_s = killing.kill_after(p, rng.uniform(0.5, 6.0))
+    assert gone_s <= 5.0, f"children outlived the parent: {kids}"
+    n2, _ = killing.recorded(run)
+
+    # 3. resume to the end
+    out = subprocess.run([_sys.executable, str(killing.SCRIPT), str(run), "--resume"], env=killing.env(),
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    res = json.loads(out.stdout.strip().splitlines()[-1])
+    assert res["best_x"] == list(reference.best.x) and res["best_f"] == reference.best.f
+    assert res["n_replayed"] == n2 and res["n_evaluated"] == reference.n_evaluated - n2  # nothing repeated
+    assert killing.recorded(run)[0] == reference.n_evaluated
+    assert killing.leftovers(run) == []
+    assert json.loads((run / "result.json").read_text())["n_evaluated"] == res["n_evaluated"]
+    del n1, killed

@@ -100,7 +100,7 @@ def test_check_metrics_names_unknown_metric_and_missing_index():
     ({"optimiser": {"algorithm": "LN_NELDERMEAD"}}, "is not allowed: allowed LN_COBYLA"),
     ({"optimiser": {"algorithm": "LN_BOBYQA"}}, "cannot handle constraints"),
     ({"optimiser": {"local": "GN_ISRES"}}, "must be a local algorithm"),
-    ({"optimiser": {"starts": 0}}, "whole number ≥ 1"),
+    ({"optimiser": {"starts": 0}}, "whole number: allowed 1 ≤ starts ≤ 1000"),
     ({"optimiser": {"tolerance": 1}}, "optimiser.tolerance is not a known key"),
     ({"base": "no-such-preset"}, "preset 'no-such-preset' does not exist"),
     ({"colour": "red"}, "colour is not a known key"),

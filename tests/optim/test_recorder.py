@@ -154,3 +154,60 @@ def test_a_run_recorded_before_the_layout_move_still_resumes(tmp_path):
         assert rec.n_previous == len(rows) == 29
         replayed = [rec.lookup(r["key"]) for r in rows]
     assert all(p is not None and len(p.x) == 2 for p in replayed)
+
+
+def _point(i: float) -> PointResult:
+    return PointResult(x=(float(i), 2.0), outcome=Outcome.OK, message="", values=(1.0,), gradients=None,
+                       gradient_source="none", metrics={"m": "x" * 4000}, statuses={"statics": "ok"},
+                       timings_s={"statics": 1e-4})
+
+
+def test_a_full_database_reports_the_sqlite_reason_not_a_failed_rollback(tmp_path):
+    """Issue 14: on a full disk the message was 'cannot rollback - no transaction is active'.
+    A page limit makes SQLite answer SQLITE_FULL exactly as a full disk does."""
+    from hapticopt.optim.recorder import RecorderError
+
+    with Recorder(tmp_path, fingerprint="f", resume=False) as rec:
+        pages = rec._db.execute("PRAGMA page_count").fetchone()[0]
+        rec._db.execute(f"PRAGMA max_page_count = {pages + 2}")
+        with pytest.raises(RecorderError, match="database or disk is full"):
+            for i in range(50):
+                rec.record(f"k{i}", _point(i), start=0, stage="search", fidelity="draft")
+        assert not rec._db.in_transaction
+    with Recorder(tmp_path, fingerprint="f", resume=True) as rec:  # what was committed is intact
+        assert 1 <= rec.n_previous < 50
+
+
+def test_commits_are_fsynced(tmp_path):
+    """The recorder promises durability on power loss: synchronous=FULL (2) on its connection
+    (pitfalls: NORMAL may lose the last transactions)."""
+    with Recorder(tmp_path, fingerprint="f", resume=False) as rec:
+        assert rec._db.execute("PRAGMA synchronous").fetchone()[0] == 2
+
+
+def test_a_second_process_cannot_take_a_locked_run_directory(tmp_path):
+    """Two resumes of one run at once repeated 50 evaluations (issue 14): the second is refused."""
+    from hapticopt.optim.recorder import run_lock
+
+    code = ("import sys; from hapticopt.optim.recorder import run_lock\n"
+            "from hapticopt.design.errors import InvalidInput\n"
+            "try:\n    run_lock(sys.argv[1]).__enter__()\nexcept InvalidInput as e:\n    print(e); sys.exit(2)\n")
+    with run_lock(tmp_path):
+        other = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True)
+        assert other.returncode == 2 and f"pid {os.getpid()}" in other.stdout and "in use" in other.stdout
+    free = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True)
+    assert free.returncode == 0, free.stdout  # released when the holder lets go (or dies)
+
+
+def test_stale_temp_files_are_removed(tmp_path):
+    import tempfile
+
+    from hapticopt.design.atomic import remove_stale_temp_files, write_text
+
+    (tmp_path / "parts").mkdir()
+    stale = [tempfile.mkstemp(prefix=".a.step.", suffix=".tmp.step", dir=tmp_path)[1],
+             tempfile.mkstemp(prefix=".l.stl.", suffix=".tmp.stl", dir=tmp_path / "parts")[1]]
+    write_text(tmp_path / "keep.json", "{}")
+    (tmp_path / ".hapticopt.lock").write_text("1")
+    assert sorted(map(str, remove_stale_temp_files(tmp_path))) == sorted(stale)
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == [".hapticopt.lock", "keep.json"]

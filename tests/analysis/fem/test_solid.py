@@ -66,6 +66,22 @@ def test_richardson_recovers_a_known_limit():
     assert rich.extrapolated == pytest.approx(1.0, rel=1e-12)
 
 
+@pytest.mark.hardcase
+@pytest.mark.parametrize("noise", [1e-15, 1e-14])
+def test_richardson_on_rounding_level_differences_has_no_order(noise):
+    """Issue 14: the order came from ``d1 == 0.0``: differences of 1e-15..1e-14 relative (rounding of a
+    converged value; two to three decades below RICHARDSON_FLOOR = 1e-12) give sign and ratio noise.
+    Now: converged, order NaN, the fine value kept — whichever sign the noise has."""
+    for signs in ((1, -1), (1, 1), (-1, 1)):
+        f = [1.0, 1.0 + signs[0] * noise, 1.0 + signs[0] * noise + signs[1] * 0.5 * noise]
+        rich = fea.richardson(*f)
+        assert math.isnan(rich.order) and rich.extrapolated == f[2]
+    # differences 1e-10 relative (two decades above the floor) are discretisation error: order 2 again
+    r = fea.REFINEMENT_RATIO
+    f = [1 + 1e-5 * (0.1 / r**k) ** 2 for k in range(3)]
+    assert fea.richardson(*f).order == pytest.approx(2.0, rel=1e-4)
+
+
 def test_rigid_region_constraint_is_exact_and_matches_timoshenko(closed_form):
     # a rigid tip slab (x ≥ L − 2 mm) loaded by a unit force along y at its centre: the constrained
     # DOFs move exactly rigidly, and the tip compliance is the closed form's for the slab-free

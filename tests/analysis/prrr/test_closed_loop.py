@@ -116,7 +116,11 @@ def test_hard_cases_detected_not_crashed(prrr_paper, case):
     tr = r.traces
     assert np.all(np.isfinite(tr.position)) and np.all(np.isfinite(tr.energy))
     if case == "tiny_T":
-        assert r.stable  # a faster controller renders 25 N/mm fine
+        # 5 ms (50 000 ticks of 0.1 µs) is shorter than the detector's 0.1 s window: no crash, and no
+        # verdict either way (issue 14: a short run proves nothing)
+        from hapticopt.analysis.status import Status
+
+        assert r.status is Status.INCONCLUSIVE and r.unstable_at is None
     else:
         assert not r.stable and r.unstable_at is not None and 0 < r.unstable_at <= sc.duration
         assert "unstable" in r.message
@@ -188,3 +192,28 @@ def test_period_free_simulator_matches_the_compiled_period(prrr_paper):
         assert list(free.stop_tick) == list(fixed.stop_tick)
     with pytest.raises(ValueError, match="more than the period"):
         sim.run(setup=cl.setup(prrr_paper, _drop(_with(sc, period=1e-3, duration=0.6), Effect.QUANTIZATION)))
+
+
+@pytest.mark.hardcase
+def test_short_run_and_still_hand_are_inconclusive_not_ok():
+    """Issue 14: a 20 ms run at 1000× the stability limit was called stable, and a hand with zero
+    stiffness 'rendered' −11 501 N/mm with status ok. A run shorter than the detector's window
+    (SATURATION_WINDOW_S = 0.1 s; 20 ms is 5× shorter) and a fit on motion within 100 encoder quanta
+    give a named status and no number."""
+    import dataclasses
+
+    from hapticopt.analysis.loop.scene import load_scene
+    from hapticopt.analysis.prrr import stability
+    from hapticopt.analysis.status import Status
+    from hapticopt.analysis.verify import simulate
+    from hapticopt.design import io
+
+    d = io.load_preset("prrr-paper")
+    sc = load_scene("stiffness-25")
+    limit = float(stability.evaluate(d).continuous_limits[0])
+    env = dataclasses.replace(sc.environment, stiffness=(1000.0 * limit, 0.0, 0.0))
+    short = simulate(d, dataclasses.replace(sc, environment=env, duration=0.02))
+    assert short.status is Status.INCONCLUSIVE and not short.stable and short.rendered_stiffness is None
+    still = simulate(d, dataclasses.replace(sc, operator=dataclasses.replace(sc.operator, stiffness=0.0)))
+    assert still.status is Status.INCONCLUSIVE and still.rendered_stiffness is None
+    assert "encoder quanta" in still.message

@@ -29,7 +29,7 @@ def test_stiffness_limits_eq14(prrr_paper):
 def test_eigenvalue_limit_matches_routh_hurwitz(prrr_paper, kp, axis):
     # closed form K < k_a(1 + 1/(ηK_p)) from Routh–Hurwitz of the per-axis quartic (module docstring)
     assert sb.continuous_stiffness_limit(prrr_paper, kp=kp, axis=axis) == pytest.approx(
-        sb.stiffness_limit_closed_form(prrr_paper, kp, axis), rel=1e-4)  # bisection on a 1e-9 eigenvalue tolerance
+        sb.stiffness_limit_closed_form(prrr_paper, kp, axis), rel=1e-4)  # bisection on Re λ of the flexible modes (rigid modes counted by SVD)
 
 
 def test_limit_tends_to_eq15(prrr_paper):
@@ -148,3 +148,18 @@ def test_sampled_axis_matrix_decouples_like_eq14(prrr_paper):
     lims = sb.stiffness_limits(prrr_paper)
     for axis in range(3):
         assert k / sb.axis_scale(prrr_paper, axis) ** 2 == pytest.approx(lims[axis], rel=1e-12)
+
+
+@pytest.mark.hardcase
+@pytest.mark.parametrize("factor, stable", [(0.01, True), (0.5, True), (2.0, False), (1000.0, False)])
+def test_stability_verdict_sets_rigid_modes_aside_explicitly(prrr_paper, factor, stable):
+    """Issue 14: the verdict was max Re λ < 1e-9·max|λ| with the free axes' rigid modes at round-off.
+    Now the rigid modes are counted by SVD and dropped; at 0.01–0.5× and 2–1000× the closed-form
+    limit (Routh–Hurwitz, k_a(1 + 1/(η K_p))) the flexible modes' Re λ is ≥ 1e-3·max|λ| away from 0."""
+    kp = 45.0
+    K = np.zeros(3)
+    K[0] = factor * sb.stiffness_limit_closed_form(prrr_paper, kp, 0)
+    A = sb.continuous_closed_loop(prrr_paper, stiffness=K, damping=np.zeros(3), kp=kp)
+    re = sb.max_real_flexible_eigenvalue(A)
+    assert (re < 0.0) == stable
+    assert abs(re) > 1e-3 * np.max(np.abs(np.linalg.eigvals(A)))

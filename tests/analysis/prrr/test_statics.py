@@ -110,3 +110,28 @@ def test_numpy_single_path_equals_jax_path(prrr_paper):
     np.testing.assert_allclose(r.max_force, out["max_force"], rtol=1e-14)
     np.testing.assert_allclose(r.effective_mass, out["effective_mass"], rtol=1e-14, atol=1e-15)
     assert r.condition == pytest.approx(float(out["condition"]), rel=1e-14)
+
+
+@pytest.mark.hardcase
+@pytest.mark.parametrize("beta_deg, status", [
+    (60.0, "ok"),  # cond √6 (seed digest)
+    (89.9999999, "ill-conditioned"),  # cond ≈ 8e8: rcond 1.2e-9, ~3 decades from both bands
+    (1e-7, "ill-conditioned"),  # cond ≈ 4e8
+    (90.0 - 1e-13, "singular"),  # cond ≈ 8e14: rcond 1.2e-15, 3 decades below RCOND_SINGULAR
+])
+def test_statics_status_from_the_reciprocal_condition_number(beta_deg, status):
+    """Issue 14: statics said ok at β = 89.999999999° (cond 8.1e10) and β = 1e-6°; now a banded verdict
+    with NaN metrics whenever the status is not ok."""
+    import dataclasses
+    import math
+
+    from hapticopt.analysis.prrr import statics
+    from hapticopt.design import io
+
+    d = io.load_preset("prrr-paper")
+    d = dataclasses.replace(d, geometry=dataclasses.replace(d.geometry, beta=math.radians(beta_deg)))
+    r = statics.evaluate(d)
+    assert str(r.status) == status
+    m = r.metrics()
+    assert all(math.isnan(v) for v in m["max_force_N"]) == (status != "ok")
+    assert math.isnan(m["jacobian_condition"]) == (status != "ok")

@@ -17,4 +17,6 @@ class Result:
 def run_scene(design, scene):
     if scene == "hangs":
         time.sleep(60)
+    if scene == "slow-scene":  # a verification that takes a while: a window to kill the pipeline in
+        time.sleep(1.0)
     return Result(scene != "unstable-scene", 25.0 if scene == "soft-scene" else 4.0)

@@ -1,0 +1,72 @@
+"""The CLI's one error boundary: every exception leaves as one stderr line and an exit code."""
+
+from __future__ import annotations
+
+import errno
+
+import pytest
+from typer.testing import CliRunner
+
+from hapticopt.optim.cli import app
+from hapticopt.optim.cli import evaluate as cli_evaluate
+
+runner = CliRunner()
+
+
+def _one_line(res) -> str:
+    assert "Traceback" not in res.output
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1, res.stderr
+    return lines[0]
+
+
+@pytest.mark.parametrize("exc, code, words", [
+    (OSError(errno.ENOSPC, "No space left on device", "/x/out.step"), 2, ["No space left on device", "/x/out.step"]),
+    (OSError(errno.EROFS, "Read-only file system", "/ro/a"), 2, ["Read-only file system"]),
+    (PermissionError(errno.EACCES, "Permission denied", "/p"), 2, ["Permission denied"]),
+    (RuntimeError("boom\nsecond line"), 3, ["internal error: RuntimeError: boom second line", "--debug"]),
+    (RecursionError("maximum recursion depth exceeded"), 3, ["internal error: RecursionError"]),
+])
+def test_any_exception_is_one_line_and_an_exit_code(monkeypatch, exc, code, words):
+    def raiser(*args, **kwargs):
+        raise exc
+
+    monkeypatch.setattr(cli_evaluate, "evaluate_all", raiser)
+    res = runner.invoke(app, ["evaluate", "--preset", "prrr-paper"])
+    assert res.exit_code == code
+    line = _one_line(res)
+    assert line.startswith("error: ") and all(w in line for w in words), line
+
+
+def test_debug_adds_the_traceback(monkeypatch):
+    def raiser(*args, **kwargs):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(cli_evaluate, "evaluate_all", raiser)
+    res = runner.invoke(app, ["--debug", "evaluate", "--preset", "prrr-paper"])
+    assert res.exit_code == 3 and "Traceback" in res.stderr and res.stderr.strip().endswith(
+        "(hapticopt --debug shows the traceback)")
+
+
+def test_error_lines_are_short_for_huge_values(tmp_path):
+    """Issue 14: a 10⁶-element array was echoed back in a megabyte-long line (10⁵ here: the file stays
+    under the parser's 1 MB bound, which refuses larger ones in one line too)."""
+    d = tmp_path / "d.toml"
+    d.write_text('name = "x"\ndevice = "prrr"\n[geometry]\nbeta_deg = [' + ", ".join(["1"] * 10**5) + "]\n")
+    res = runner.invoke(app, ["evaluate", str(d)])
+    assert res.exit_code == 2
+    line = _one_line(res)
+    assert "geometry.beta_deg" in line and len(line) < 400
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--max-evals", str(2**31)], ["--max-evals", "1 ≤ --max-evals ≤ 1000000"]),
+    (["--workers", "0"], ["--workers"]),
+    (["--scheduler", "udp://x"], ["--scheduler"]),
+])
+def test_optimise_options_are_bounded_before_any_work(tmp_path, args, words):
+    res = runner.invoke(app, ["optimise", "prrr-workspace", "--out", str(tmp_path / "run"), "--quiet", *args])
+    assert res.exit_code == 2
+    line = _one_line(res)
+    assert all(w in line for w in words), line
+    assert not (tmp_path / "run" / "evaluations.sqlite").exists()

@@ -1,0 +1,48 @@
+"""Design points: a result whose evaluator status says its numbers do not hold is a failed point."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.optim.evaluation import Outcome, PointTask, evaluate_point
+from hapticopt.optim.problem import problem_from_text
+
+PROBLEM = '''
+name = "bore"
+base = "prrr-paper"
+[[variables]]
+key = "structure.bore_diameter_mm"
+lower = 0.0005
+upper = 12.0
+[[variables]]
+key = "geometry.beta_deg"
+lower = 1e-9
+upper = 89.9
+[objective]
+metric = "structural_stiffness_N_per_mm[0]"
+sense = "maximise"
+[[constraints]]
+metric = "stiffness_limit_N_per_mm[0]"
+min = 1.0
+'''
+
+
+@pytest.mark.hardcase
+@pytest.mark.parametrize("bore_mm, beta_deg, outcome, why", [
+    (8.0, 60.0, Outcome.OK, ""),
+    # issue 14: a 1 µm bore gave k_x = −2.4e-11 N/mm to the optimiser (frame condition ~9e17: singular)
+    (0.001, 60.0, Outcome.EVALUATOR_FAILED, "structural_stiffness: singular"),
+    # β = 1e-7°: statics ill-conditioned (cond 4e8, rcond 2.5e-9)
+    (8.0, 1e-7, Outcome.EVALUATOR_FAILED, "statics: ill-conditioned"),
+])
+def test_a_point_with_a_non_ok_status_is_failed_not_a_number(bore_mm, beta_deg, outcome, why):
+    p = problem_from_text(PROBLEM, source="bore.toml", base_dir=None)
+    refs = (p.objective.metric,) + tuple(c.metric for c in p.constraints)
+    r = evaluate_point(PointTask(base=p.base, variables=p.variables, x=(bore_mm, beta_deg), fidelity=Fidelity.DRAFT,
+                                 refs=refs, only=("statics", "structural_stiffness")))
+    assert r.outcome is outcome, r.message
+    assert why in r.message
+    assert all(math.isnan(v) for v in r.values) == (outcome is not Outcome.OK)
