@@ -1,7 +1,8 @@
 """Outcome of an evaluation, as a value (failure is a value with a message).
 
-A status other than ``ok`` or ``empty`` means the evaluator's numbers do not hold: its metrics
-are NaN, and the optimiser treats the point as failed (:attr:`Status.metrics_hold`).
+A status other than ``ok``, ``empty`` or ``infeasible`` means the evaluator's numbers do not hold:
+its metrics are NaN, and the optimiser treats the point as failed (:attr:`Status.metrics_hold`).
+``infeasible`` keeps its numbers: they were computed, only the requirement they report is missed.
 """
 
 from __future__ import annotations
@@ -23,5 +24,5 @@ class Status(StrEnum):
 
     @property
     def metrics_hold(self) -> bool:
-        """Whether the metrics reported with this status are numbers to use (ok, empty, infeasible: computed, the requirement missed)."""
+        """Whether the metrics reported with this status are numbers to use (ok, empty, infeasible)."""
         return self in (Status.OK, Status.EMPTY, Status.INFEASIBLE)
