@@ -51,7 +51,7 @@ def test_compare_prrr_paper_and_the_prrr_workspace_optimum(run_dir, tmp_path):
     for name, r in rows.items():
         assert same(r["values"][0], flat_p[name]) and same(r["values"][1], flat_o[name])
         assert same(r["deltas"][1], flat_o[name] - flat_p[name])  # Δ = optimum − reference, every metric
-    assert rows["workspace_footprint_ratio"]["deltas"][1] > 0  # the problem's objective improved
+    assert rows["workspace_free_footprint_ratio"]["deltas"][1] > 0  # the problem's objective improved
     assert rows["stiffness_limit_N_per_mm[0]"]["unit"] == "N/mm" and rows["jacobian_condition"]["unit"] == "-"
     # every evaluator's status is reported, by its name (a value that does not hold is null beside it)
     assert all(set(d["statuses"]) == set(paper.statuses) for d in out["designs"])
