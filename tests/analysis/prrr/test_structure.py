@@ -137,7 +137,9 @@ def test_near_zero_cross_section_is_flagged(paper):
 def test_vanishing_pin_is_a_clear_singular_status(paper):
     # a 1 µm bore: the neck springs vanish (∝ a, a³) and the joints fall apart: a value, not a crash
     r = ss.structural_stiffness(_with(paper, "structure", bore_diameter=1e-6))
-    assert r.condition > 100 * fm.SINGULAR_COND  # ~9e17: two decades inside the singular band
+    # the verdict holds on every BLAS kernel; the number behind it does not: ~9e17 (two decades inside
+    # the singular band) under Haswell, an exactly singular pivot (non-finite, NaN) under Prescott
+    assert math.isnan(r.condition) or r.condition > 100 * fm.SINGULAR_COND
     assert r.status == Status.SINGULAR and "singular" in r.message
     assert all(math.isnan(v) for v in r.metrics()["structural_stiffness_N_per_mm"])  # no number with a non-ok status
     thin = ss.structural_stiffness(_with(paper, "structure", bore_diameter=1e-4))  # 0.1 mm: tiny but finite
