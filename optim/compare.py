@@ -28,6 +28,7 @@ from hapticopt.design.units import pretty
 from hapticopt.optim.recorder import FILENAME
 from hapticopt.optim.runs import RunReader
 from hapticopt.optim.sweep import scalars, unit_of_metric
+from hapticopt.design.errors import short
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -70,9 +71,9 @@ def resolve(arg: str) -> Named:
             if final is not None:
                 design = io.design_from_dict(tomllib.loads(final.design_toml), source=f"{arg} (recorded final design)")
                 return Named(label=arg, source=f"run {arg} (recorded final design)", design=design)
-            raise InvalidInput(f"design {arg!r}: the run has no optimum.toml and no recorded final design "
+            raise InvalidInput(f"design {short(arg)}: the run has no optimum.toml and no recorded final design "
                                "(is it still running, or a sweep?)")
-        raise InvalidInput(f"design {arg!r} is a folder but not a run directory (no optimum.toml or {FILENAME})")
+        raise InvalidInput(f"design {short(arg)} is a folder but not a run directory (no optimum.toml or {FILENAME})")
     if path.is_file():
         return Named(label=arg, source=f"file {arg}", design=io.load_design(path))
     if arg in io.preset_names():

@@ -45,6 +45,7 @@ from hapticopt.optim.evaluation import Outcome, PointResult, PointTask, evaluate
 from hapticopt.optim.problem import Variable, design_at
 from hapticopt.optim.recorder import Recorder, point_key
 from hapticopt.optim.runs import software_versions
+from hapticopt.design.errors import short
 
 #: at most this many points in one sweep (a typo such as n = 10000 × 10000 is refused)
 MAX_POINTS = 200_000
@@ -82,10 +83,10 @@ def parse_axis(text: str, base: Any) -> Axis:
     """``section.key=lo:hi:n`` for a numeric key of ``base``; one-line errors name what is allowed."""
     m = _AXIS_RE.match(text)
     if m is None:
-        raise InvalidInput(f"sweep axis {text!r} must have the form section.key=lo:hi:n, e.g. geometry.beta_deg=30:70:9")
+        raise InvalidInput(f"sweep axis {short(text)} must have the form section.key=lo:hi:n, e.g. geometry.beta_deg=30:70:9")
     key, lo_s, hi_s, n_s = m.groups()
     if key.count(".") != 1:
-        raise InvalidInput(f"sweep axis {key!r} is not a numeric design key: give section.key, e.g. geometry.beta_deg "
+        raise InvalidInput(f"sweep axis {short(key)} is not a numeric design key: give section.key, e.g. geometry.beta_deg "
                            f"(sections of a {base.device} design: {', '.join(base.SECTIONS)})")
     section, tkey = key.split(".")
     if section not in base.SECTIONS:
@@ -100,7 +101,7 @@ def parse_axis(text: str, base: Any) -> Axis:
     try:
         n = int(n_s)
     except ValueError:
-        raise InvalidInput(f"sweep axis {key}: n = {n_s!r} must be a whole number of points ≥ 2") from None
+        raise InvalidInput(f"sweep axis {key}: n = {short(n_s)} must be a whole number of points ≥ 2") from None
     if n < 2:
         raise InvalidInput(f"sweep axis {key}: n = {n} must be ≥ 2 (points, both ends included)")
     if not lo < hi:
@@ -139,7 +140,7 @@ class Sweep:
             names = [e.name for e in EVALUATORS[self.base.device]]
             for name in self.only:
                 if name not in names:
-                    raise InvalidInput(f"--only {name!r} is not an evaluator of a {self.base.device} design: "
+                    raise InvalidInput(f"--only {short(name)} is not an evaluator of a {self.base.device} design: "
                                        f"allowed {', '.join(names)}")
 
     @property

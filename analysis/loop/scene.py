@@ -483,7 +483,7 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
     noise_seed = io._get("noise_seed")
     if noise_seed is not None and (isinstance(noise_seed, bool) or not isinstance(noise_seed, int)
                                    or not 0 <= noise_seed < 2**32):
-        raise InvalidInput(f"{where}: ioic.noise_seed = {noise_seed!r} must be a whole number: allowed "
+        raise InvalidInput(f"{where}: ioic.noise_seed = {short(noise_seed)} must be a whole number: allowed "
                            "0 ≤ noise_seed < 2^32 (absent: eq 28's phases as printed)")
     ioic = IoicSettings(
         strategy=io.choice("strategy", IoicStrategy, IoicStrategy.IOIC),
@@ -534,23 +534,23 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
               and len(set(axes_key)) == len(axes_key)):
             axes = tuple(_AXES[ch] for ch in axes_key)
         else:
-            raise InvalidInput(f"{where}: report.axes = {axes_key!r} must name one or two different axes: "
+            raise InvalidInput(f"{where}: report.axes = {short(axes_key)} must name one or two different axes: "
                                "allowed \"x\", \"y\", \"z\", \"xy\", \"xz\", \"yz\"")
         if quantity == PaperQuantity.FORCE_ERROR_PLANE_RMS and len(axes) != 2:
-            raise InvalidInput(f"{where}: report.axes = {axes_key!r} must name a plane (two axes) for "
+            raise InvalidInput(f"{where}: report.axes = {short(axes_key)} must name a plane (two axes) for "
                                f"quantity = \"{quantity.value}\"")
         if quantity != PaperQuantity.FORCE_ERROR_PLANE_RMS and len(axes) != 1:
-            raise InvalidInput(f"{where}: report.axes = {axes_key!r} must name one axis for "
+            raise InvalidInput(f"{where}: report.axes = {short(axes_key)} must name one axis for "
                                f"quantity = \"{quantity.value}\"")
         source = r._get("source") or ""
         if not isinstance(source, str):
-            raise InvalidInput(f"{where}: report.source = {source!r} must be a string")
+            raise InvalidInput(f"{where}: report.source = {short(source)} must be a string")
         unit = "%" if quantity == PaperQuantity.STIFFNESS_ERROR_PCT else "N"
         value_key = "paper_value_pct" if unit == "%" else "paper_value_N"
         value = r._get(value_key)
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
                                   or not math.isfinite(value) or value < 0):
-            raise InvalidInput(f"{where}: report.{value_key} = {value!r} must be a finite number ≥ 0 {unit}")
+            raise InvalidInput(f"{where}: report.{value_key} = {short(value)} must be a finite number ≥ 0 {unit}")
         r.done()
         top.used.add("report")
         report = PaperReport(quantity=quantity, axes=axes, value=None if value is None else float(value),

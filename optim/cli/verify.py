@@ -21,6 +21,7 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop.scene import Backend, StabilityCriterion, load_scene
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.paths import check_name, inside, writable_dir
+from hapticopt.design.errors import short
 
 
 def _plot(result: Any, out_dir: Path, name: str) -> list[Path]:
@@ -71,9 +72,9 @@ def verify(
     try:
         level = Fidelity(fidelity)
     except ValueError:
-        raise InvalidInput(f"--fidelity = {fidelity!r} is not a fidelity level: allowed draft, standard, fine") from None
+        raise InvalidInput(f"--fidelity = {short(fidelity)} is not a fidelity level: allowed draft, standard, fine") from None
     if backend not in ("auto", "lumped", "multibody"):
-        raise InvalidInput(f"--backend = {backend!r} is not a backend: allowed auto, lumped, multibody")
+        raise InvalidInput(f"--backend = {short(backend)} is not a backend: allowed auto, lumped, multibody")
     force = None if backend == "auto" else Backend(backend)
     design = load_design_arg(file, preset, set_)
     device = design.device if design.device in ("master", "handle") else "prrr"
@@ -134,7 +135,7 @@ def _grid(text: str, option: str, unit: str, scale: float) -> np.ndarray:
         if vals.size == 0 or not np.all(np.isfinite(vals)):
             raise ValueError
     except ValueError:
-        raise InvalidInput(f"{option} = {text!r} must be \"start:stop:count\" (log-spaced, count 1–200) or "
+        raise InvalidInput(f"{option} = {short(text)} must be \"start:stop:count\" (log-spaced, count 1–200) or "
                            f"\"v1,v2,…\" in {unit}") from None
     return vals * scale
 
@@ -157,7 +158,7 @@ def design_map(
     try:
         level = Fidelity(fidelity)
     except ValueError:
-        raise InvalidInput(f"--fidelity = {fidelity!r} is not a fidelity level: allowed draft, standard, fine") from None
+        raise InvalidInput(f"--fidelity = {short(fidelity)} is not a fidelity level: allowed draft, standard, fine") from None
     if not (math.isfinite(duration_s) and 0.6 <= duration_s <= 60.0):
         raise InvalidInput(f"--duration-s = {duration_s:g} is out of range: allowed 0.6 ≤ duration_s ≤ 60 s")
     Ts = _grid(periods_ms, "--periods-ms", "ms", 1e-3)
