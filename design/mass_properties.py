@@ -130,3 +130,11 @@ def from_cad(design: Any, *, solids: dict[str, Any], specs: dict[str, _parts.Par
         out[name] = PartMass(name=name, body=spec.body, mass=rho * vol, com=com, inertia=rho * 0.5 * (J + J.T),
                              volume=vol)
     return MassProperties(design=design.name, method=Method.CAD, parts=out)
+
+
+def of(design: Any, *, specs: dict[str, _parts.PartSpec], build_solids: Any, method: Method = Method.ANALYTIC,
+       solids: dict[str, Any] | None = None) -> MassProperties:
+    """:func:`analytic` or :func:`from_cad` (``solids``, else ``build_solids(design)``) for a part table."""
+    if Method(method) == Method.ANALYTIC:
+        return analytic(design, specs=specs)
+    return from_cad(design, solids=solids if solids is not None else build_solids(design), specs=specs)

@@ -15,7 +15,7 @@ from hapticopt.design.atomic import write_text
 from hapticopt.design.units import pretty
 from hapticopt.optim.pareto import FrontPoint, FrontResult
 from hapticopt.optim.problem import Problem
-from hapticopt.optim.report import _CSS, _fmt, _html_table, _md_table
+from hapticopt.optim.report import _CSS, _fmt, _html_table, _md_table, svg_frame
 from hapticopt.optim.sweep import metric_label
 
 
@@ -29,10 +29,7 @@ def front_svg(result: FrontResult, problem: Problem, *, width: int = 640, height
     pts = cloud + front
     ml, mr, mt, mb = 80, 20, 20, 50
     w, h = width - ml - mr, height - mt - mb
-    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
-             f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="11">',
-             f'<rect x="0" y="0" width="{width}" height="{height}" fill="white"/>',
-             f'<rect x="{ml}" y="{mt}" width="{w}" height="{h}" fill="none" stroke="#444"/>']
+    parts = svg_frame(width, height, ml, mt, w, h)
     if not pts:
         parts.append(f'<text x="{ml + 10}" y="{mt + 20}">no feasible point</text></svg>')
         return "\n".join(parts)

@@ -37,15 +37,20 @@ def _fmt(value: Any) -> str:
     return str(value)
 
 
+def svg_frame(width: int, height: int, left: int, top: int, plot_w: int, plot_h: int) -> list[str]:
+    """Opening lines of a report figure: the SVG element, a white page and the plot area's border."""
+    return [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+            f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="11">',
+            f'<rect x="0" y="0" width="{width}" height="{height}" fill="white"/>',
+            f'<rect x="{left}" y="{top}" width="{plot_w}" height="{plot_h}" fill="none" stroke="#444"/>']
+
+
 def convergence_svg(history: Any, *, sense_max: bool, width: int = 640, height: int = 320) -> str:
     """SVG of every point's objective (grey: feasible, red: infeasible) and the best-so-far line."""
     pts = [(r.index, r.objective, r.feasible) for r in history if math.isfinite(r.objective)]
     ml, mr, mt, mb = 70, 20, 20, 45
     w, h = width - ml - mr, height - mt - mb
-    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
-             f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="11">',
-             f'<rect x="0" y="0" width="{width}" height="{height}" fill="white"/>',
-             f'<rect x="{ml}" y="{mt}" width="{w}" height="{h}" fill="none" stroke="#444"/>']
+    parts = svg_frame(width, height, ml, mt, w, h)
     if not pts:
         parts.append(f'<text x="{ml + 10}" y="{mt + 20}">no finite objective values</text></svg>')
         return "\n".join(parts)

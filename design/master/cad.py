@@ -235,7 +235,4 @@ def posed(solids: dict[str, object], frames: dict[str, np.ndarray]) -> dict[str,
 
 def mass_properties(design, *, method: _mp.Method = _mp.Method.ANALYTIC, solids=None) -> _mp.MassProperties:
     """Mass properties of every part: closed forms (default) or OpenCASCADE's integrals of the solids."""
-    specs = part_specs(design)
-    if method == _mp.Method.ANALYTIC:
-        return _mp.analytic(design, specs=specs)
-    return _mp.from_cad(design, solids=solids if solids is not None else build_parts(design), specs=specs)
+    return _mp.of(design, specs=part_specs(design), build_solids=build_parts, method=method, solids=solids)

@@ -70,7 +70,6 @@ def optimise(
                        "on chosen.toml")
         typer.echo(f"report: {out_dir / 'report.html'}")
         return
-    sense_max = prob.objective.sense.value == "maximise"
     with Progress(TextColumn("[bold]{task.fields[stage]}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   TextColumn("{task.description}"), console=console, transient=False, disable=quiet) as progress:
         task = progress.add_task("", total=prob.optimiser.max_evals, stage="baseline")
