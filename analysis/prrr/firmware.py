@@ -34,9 +34,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
-from hapticopt.analysis.control.upsampling import DEFAULT_VARIANT, Variant, spline_weights
+from hapticopt.analysis.control.upsampling import DEFAULT_VARIANT, Predictor, Variant, spline_weights
 from hapticopt.design.prrr.kinematics import jacobian
 from hapticopt.analysis.loop.scene import BoxMode, Effect, EnvKind, Resolution, Scene
+from hapticopt.design.errors import InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.design.units import GRAVITY
 
@@ -123,6 +124,10 @@ def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: f
     else:
         loop = ForceLoop.RIGID
     alpha = math.exp(-2.0 * math.pi * cs.velocity_filter * T) if cs.velocity_filter > 0 else 0.0
+    if cs.predictor is not Predictor.FIXED:
+        raise InvalidInput(f"scene {scene.name}: controller.predictor = \"{cs.predictor.value}\" is not available on the "
+                           "3-PRRR: its firmware extrapolates the motor command with fixed ar_coefficients "
+                           "(allowed: fixed; the online position fit runs on the handle, docs/seed000.md)")
     cfg = FirmwareConfig(
         period=T, env=env.kind, box_mode=env.box_mode, force_loop=loop,
         integral=loop == ForceLoop.SEA and cs.integral_gain > 0,
