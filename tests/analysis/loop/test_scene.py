@@ -260,8 +260,12 @@ def test_predictor_keys_are_checked(ctl, match):
         scene_from_dict({"name": "t", "device": "handle", "controller": ctl})
 
 
-def test_the_3prrr_refuses_the_online_predictor():
+def test_the_3prrr_online_predictor_window_is_checked():
+    # the 3-PRRR's defaults are AR(2) over 16 positions; an order whose 2·p exceeds the window is one line
     from hapticopt.analysis.prrr import firmware
     sc = scene_from_dict({"name": "t", "controller": {"predictor": "online", "interpolation": 4}})
-    with pytest.raises(InvalidInput, match=r'^scene t: controller.predictor = "online" is not available on the 3-PRRR'):
+    cfg, _ = firmware.build(io.load_preset("prrr-paper"), sc, resolve(sc))
+    assert cfg.online and (cfg.ar_order, cfg.ar_window) == (2, 16)
+    sc = scene_from_dict({"name": "t", "controller": {"predictor": "online", "interpolation": 4, "ar_order": 9}})
+    with pytest.raises(InvalidInput, match=r"^scene t: controller.ar_window = 16 is out of range: allowed ≥ 2·ar_order = 18"):
         firmware.build(io.load_preset("prrr-paper"), sc, resolve(sc))
