@@ -70,3 +70,18 @@ def test_optimise_options_are_bounded_before_any_work(tmp_path, args, words):
     line = _one_line(res)
     assert all(w in line for w in words), line
     assert not (tmp_path / "run" / "evaluations.sqlite").exists()
+
+
+def test_every_command_documents_the_exit_codes():
+    from hapticopt.optim.cli import common
+
+    assert (common.EXIT_OK, common.EXIT_BAD_INPUT, common.EXIT_NOT_MET, common.EXIT_INTERNAL) == (0, 2, 3, 4)
+    commands = [c.name for c in app.registered_commands]
+    assert len(commands) >= 11
+    for name in [None, *commands]:
+        res = runner.invoke(app, ([name] if name else []) + ["--help"], env={"COLUMNS": "120"})
+        assert res.exit_code == 0, name
+        text = " ".join(res.stdout.split())
+        for words in ("Exit codes:", "0 done; every requirement", "2 bad input", "3 done, but the result breaks",
+                      "best_infeasible.toml", "4 internal error"):
+            assert words in text, (name, words)
