@@ -363,14 +363,33 @@ def jacobian_constancy(design: PrrrDesign, *, n_phi: int = 24, n_r: int = 6, n_z
 CLOSURE_RAYS = 48
 
 
+def _closure_params(design: PrrrDesign) -> WorkspaceParams:
+    """Workspace parameters with the pure kinematic annulus (no fold margin); the envelope, which
+    does not change emptiness, is left at 0 (no CAD call)."""
+    g, s = design.geometry, design.structure
+    vals = (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke, abs(g.d3 - g.d4), g.d3 + g.d4, 0.0,
+            s.boss_diameter / 2.0, DEFAULT_REQUIRED_DIAMETER / 2.0)
+    return WorkspaceParams(*(np.float64(v) for v in vals))
+
+
 @functools.lru_cache(maxsize=256)
 def closure(design: PrrrDesign) -> str:
     """'' when some pose closes every leg within its reach and slider stroke, else why not."""
-    g = design.geometry
-    wp = workspace_params(design, rho_min=abs(g.d3 - g.d4), rho_max=g.d3 + g.d4)
-    core = workspace_core(wp, n_phi=CLOSURE_RAYS, n_r=2)
-    if not bool(core["empty"]):
+    if not bool(workspace_core(_closure_params(design), n_phi=CLOSURE_RAYS, n_r=2)["empty"]):
         return ""
+    return _closure_message(design)
+
+
+def closure_batch(designs: list[PrrrDesign]) -> list[str]:
+    """:func:`closure` of many designs in one vmapped, jitted call (compiled once per batch size)."""
+    if not designs:
+        return []
+    empty = np.asarray(_batched(CLOSURE_RAYS, 2)(stack([_closure_params(d) for d in designs]))["empty"])
+    return [_closure_message(d) if e else "" for d, e in zip(designs, empty)]
+
+
+def _closure_message(design: PrrrDesign) -> str:
+    g = design.geometry
     # the nearest the z axis (the home pose) comes to a leg's reach: |ρ| of the axis point
     c_u = g.d1 - (g.b5 + g.r4) * math.cos(g.beta)
     rho_axis = math.hypot(c_u / math.sin(g.beta), g.d2)
