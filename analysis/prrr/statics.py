@@ -88,8 +88,8 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> P
     """Statics of ``design``. Exact closed forms: every fidelity gives the same result.
 
     Status ``not-assemblable`` (metrics NaN, the arrays kept for callers that need the closed
-    forms) when the chain does not close (:func:`hapticopt.analysis.prrr.assembly.closure`);
-    otherwise the conditioning verdict of J.
+    forms) when J is well conditioned but the chain does not close
+    (:func:`hapticopt.analysis.prrr.assembly.closure`); otherwise the conditioning verdict of J.
     """
     del fidelity  # closed form
     a = design.actuator
@@ -105,7 +105,9 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> P
         verdict = conditioning.Conditioning(status=Status.SINGULAR, rcond=verdict.rcond,
                                             message="the statics are not finite at this design")
     status, message = verdict.status, verdict.message
-    blocked = assembly.closure(design)  # the constant-J closed forms hold only for a chain that closes
+    # the constant-J closed forms hold only for a chain that closes; a J verdict other than ok already
+    # says the numbers are meaningless and keeps its (issue 14) word
+    blocked = assembly.closure(design) if verdict.ok else ""
     if blocked:
         status, message = Status.NOT_ASSEMBLABLE, blocked
     return PrrrStatics(

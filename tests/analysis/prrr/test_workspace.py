@@ -176,15 +176,17 @@ def test_hard_cases_give_finite_metrics(paper: PrrrDesign, fidelity: Fidelity) -
 def test_hard_case_statuses(paper: PrrrDesign) -> None:
     cases = {k: W.evaluate(d, fidelity=Fidelity.STANDARD) for k, d in _hard_cases(paper).items()}
     assert cases["empty"].status == Status.NOT_ASSEMBLABLE  # d3 + d4 < d2 with c_u = 0: the chain cannot close
-    assert cases["beta_1deg"].status == Status.EMPTY  # ellipse semi-axis (d3+d4) sin 1° ≈ 2.8 mm
+    assert cases["beta_1deg"].status == Status.NOT_ASSEMBLABLE  # ellipse semi-axis (d3+d4) sin 1° ≈ 2.8 mm
     tiny = cases["barely_reaching"]
-    assert tiny.status == Status.OK
+    assert tiny.status == Status.NOT_MET  # computed (numbers below), but φ140 × 89 mm cannot fit in it
     # reach radius = d3 + d4 − d2 = 0.4 mm (seed digest closed form, c_u = 0)
     assert tiny.cylinder_diameter == pytest.approx(0.0008, rel=1e-9)
     # tiny: the region lies within ~1 mm of the axis, so V < L·(π·1 mm²) ≈ 5.3e-7 m³ (paper: 2.2e-3 m³)
     assert 0.0 < tiny.volume < paper.geometry.stroke * math.pi * 1e-6
-    assert cases["beta_89deg"].status == Status.OK
-    assert cases["unequal_links"].status == Status.OK
+    # workspaces that exist but whose reach radius (66.6 mm, 28.8 mm: the messages) is below the
+    # required 70 mm: computed, the requirement not met (issue 21: no longer "ok")
+    assert cases["beta_89deg"].status == Status.NOT_MET and cases["beta_89deg"].volume > 0
+    assert cases["unequal_links"].status == Status.NOT_MET and cases["unequal_links"].volume > 0
 
 
 def test_batch_equals_single(paper: PrrrDesign) -> None:
