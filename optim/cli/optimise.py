@@ -7,7 +7,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from hapticopt.optim.cli.common import one_line_errors
+from hapticopt.optim.cli.common import not_met, one_line_errors
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.problem import INT_RANGES, load_problem
 from rich.console import Console
@@ -34,7 +34,7 @@ def optimise(
     verify: Annotated[bool, typer.Option("--verify/--no-verify", help="Verify the optimum in closed loop on the problem's scenes.")] = True,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
 ) -> None:
-    """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front)."""
+    """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front). Exit 3 when the final point breaks a constraint (written as best_infeasible.toml)."""
 
     prob = load_problem(problem)
     if max_evals is not None:
@@ -49,7 +49,7 @@ def optimise(
     out_dir = out if out is not None else Path("cad_out") / prob.name
     check_run_dir(out_dir, resume=resume, force=force)  # before anything is computed or written
 
-    from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline
+    from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline, status_holds
 
     console = Console(stderr=True, quiet=quiet)
     if prob.is_multi_objective:
@@ -64,11 +64,15 @@ def optimise(
         if ch is not None:
             typer.echo(f"  chosen ({prob.pareto.choose if prob.pareto else 'knee'}): {f1} = {ch['objectives'][0]:.6g}, "
                        f"{f2} = {ch['objectives'][1]:.6g}; constraints at {prob.fidelity_final} fidelity "
-                       f"{'satisfied' if ch['feasible_at_final_fidelity'] else 'NOT satisfied'} -> {out_dir / 'chosen.toml'}")
+                       f"{'satisfied' if ch['feasible_at_final_fidelity'] else 'NOT satisfied'} -> "
+                       f"{out_dir / (res['files'].get('chosen') or res['files']['chosen_infeasible'])}")
         if export or verify:
             typer.echo("  export/verify: not run for a Pareto front — run `hapticopt export` / `hapticopt verify` "
                        "on chosen.toml")
         typer.echo(f"report: {out_dir / 'report.html'}")
+        if ch is not None and not ch["feasible_at_final_fidelity"]:
+            not_met(f"the chosen design breaks a constraint at {prob.fidelity_final} fidelity "
+                    f"(written as {out_dir / 'chosen_infeasible.toml'})")
         return
     with Progress(TextColumn("[bold]{task.fields[stage]}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   TextColumn("{task.description}"), console=console, transient=False, disable=quiet) as progress:
@@ -102,6 +106,11 @@ def optimise(
         if s.status in ("skipped", "failed"):
             typer.echo(f"  {s.name}: {s.status} — {s.message}")
     typer.echo(f"report: {out_dir / 'report.html'}")
+    if not result.feasible_final:
+        broken = [t for t, _, ok in result.constraints_final if not ok]
+        bad = [f"{k} ({s})" for k, s in result.optimum.statuses.items() if not status_holds(s)]
+        not_met(f"the final point is infeasible at {prob.fidelity_final} fidelity: "
+                + ", ".join(broken + bad) + f" (written as {out_dir / 'best_infeasible.toml'}, not optimum.toml)")
 
 
 @one_line_errors

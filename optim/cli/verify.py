@@ -12,7 +12,7 @@ from typing import Annotated, Any, Optional
 import typer
 
 from hapticopt.analysis import verify as closed_loop_verify
-from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors
 import numpy as np
 from hapticopt.design.atomic import atomic_path
 from hapticopt.analysis.prrr import design_map as firmware_map
@@ -67,7 +67,7 @@ def verify(
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, scene, metrics, status, message}.")] = False,
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write pictures of the run to this directory.")] = None,
 ) -> None:
-    """Simulate the design in closed loop with the firmware controller in a scene."""
+    """Simulate the design in closed loop with the firmware controller in a scene (exit 3 unless the verdict is ok)."""
 
     try:
         level = Fidelity(fidelity)
@@ -96,6 +96,7 @@ def verify(
         typer.echo(json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
                                "status": str(result.status), "message": result.message,
                                "plots": [str(p) for p in written]}, indent=2))
+        _exit_on_verdict(result, sc.name)
         return
     for k, v in metrics.items():
         if k.startswith("zwidth_stable") and isinstance(v, list):
@@ -104,6 +105,13 @@ def verify(
     typer.echo(f"status: {result.status}" + (f" — {result.message}" if result.message else ""))
     for p in written:
         typer.echo(f"wrote {p}")
+    _exit_on_verdict(result, sc.name)
+
+
+def _exit_on_verdict(result: Any, scene: str) -> None:
+    """Exit 3 unless the closed-loop verdict is ok (unstable, inconclusive, failed)."""
+    if str(result.status) != "ok":
+        not_met(f"verify {scene}: {result.status}" + (f" — {result.message}" if result.message else ""))
 
 
 def _override_controller(sc: Any, period_ms: float | None, force_gain: float | None) -> Any:
