@@ -15,12 +15,15 @@ from __future__ import annotations
 
 import dataclasses
 import html
+import io as _io
 import math
 import re
 import statistics
 import time
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from hapticopt.design.atomic import atomic_path, write_text
 from hapticopt.design.paths import inside
@@ -136,12 +139,10 @@ def convergence_figure(history: Any, *, metric: str, sense_max: bool) -> Any:
 
 def convergence_svg(history: Any, *, metric: str, sense_max: bool) -> str:
     """The convergence figure as SVG text (text kept as text: searchable, and testable)."""
-    import io
-
     import matplotlib
 
     fig = convergence_figure(history, metric=metric, sense_max=sense_max)
-    buf = io.StringIO()
+    buf = _io.StringIO()
     with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "hapticopt"}):
         fig.savefig(buf, format="svg", metadata={"Date": None})
     _pyplot().close(fig)
@@ -153,8 +154,6 @@ _AXES = (("x", "tab:blue"), ("y", "tab:orange"), ("z", "tab:green"))
 
 
 def _nonzero(a: Any) -> list[int]:
-    import numpy as np
-
     return [] if a is None else [i for i in range(a.shape[1]) if np.any(a[:, i] != 0.0)]
 
 
