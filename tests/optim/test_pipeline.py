@@ -79,7 +79,7 @@ def test_export_and_verify_stages_call_the_landed_modules(tmp_path, monkeypatch)
     import dataclasses
 
     problem = dataclasses.replace(load_problem(DATA / "beta-isotropic.toml"),
-                                  scenes=("free-space", "unstable-scene", "soft-scene", "hangs"), verify_max_time_s=5.0)
+                                  scenes=("free-space", "unstable-scene", "soft-scene", "hangs"), verify_max_time_s=15.0)
     problem = problem.with_optimiser(max_evals=20, starts=1)
     res = run_pipeline(problem, out_dir=tmp_path, scheduler="inline", verifier=fake_verifier.run_scene)
     assert calls["export"] == "beta-isotropic-optimum"
@@ -88,7 +88,7 @@ def test_export_and_verify_stages_call_the_landed_modules(tmp_path, monkeypatch)
     assert [(v.scene, v.passed) for v in res.verdicts] == [("free-space", True), ("unstable-scene", False),
                                                            ("soft-scene", False), ("hangs", False)]
     assert "stiffness error 25 % > 10 %" in res.verdicts[2].message  # issue 6's 10 % bound
-    assert "no result within 5 s" in res.verdicts[3].message
+    assert "no result within 15 s" in res.verdicts[3].message  # a spawned child under load needs > 5 s
     assert stages["verify"].status == "1/4 passed"
     md = (tmp_path / "report.md").read_text()
     assert "| unstable-scene | FAIL |" in md and "beta-isotropic-optimum.step" in md
