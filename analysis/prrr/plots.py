@@ -182,7 +182,7 @@ def design_map_plots(dmap, out_dir: Path) -> list[Path]:
         norm = LogNorm(finite.min(), finite.max()) if log and finite.size and finite.min() < finite.max() else None
         mesh = ax.pcolormesh(kp_plot[positive], T_ms, np.ma.masked_invalid(Z), shading="nearest", norm=norm,
                              cmap="viridis")
-        fig.colorbar(mesh, ax=ax)
+        fig.colorbar(mesh, ax=ax, label=title.split(" (blank")[0])
         bad = ~np.asarray(dmap.stable)[:, positive]
         KK, TT = np.meshgrid(kp_plot[positive], T_ms)
         ax.scatter(KK[bad], TT[bad], marker="x", color="red", s=30, label="simulated unstable")
