@@ -39,7 +39,7 @@ from hapticopt.design.atomic import file_set, remove_stale_temp_files
 from hapticopt.design.paths import writable_dir
 from hapticopt.optim.executor import check_scheduler, make_executor, watch_parent
 from hapticopt.optim import driver, pareto, pareto_report, report
-from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, Verdict
+from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, TimeHistory, Verdict
 from hapticopt.design import export as design_export
 from hapticopt.analysis import verify as closed_loop_verify
 
@@ -115,17 +115,18 @@ def verdict_of(metrics: dict[str, Any]) -> tuple[bool, str]:
 
 
 def _scene_worker(design: Any, scene: str, fidelity: Fidelity, queue: Any, verifier: Any, parent_pid: int) -> None:
-    """Child process: run one scene, send back (metrics, message) or an error line."""
+    """Child process: run one scene, send back (metrics, message, time history) or an error line."""
     watch_parent(parent_pid)
     try:
         result = verifier(design, scene) if verifier is not None else run_scene(design, scene, fidelity)
-        queue.put(("ok", jsonable(result.metrics()), str(getattr(result, "message", ""))))
+        history = TimeHistory.from_traces(getattr(result, "traces", None))
+        queue.put(("ok", jsonable(result.metrics()), str(getattr(result, "message", "")), history))
     except Exception as exc:  # noqa: BLE001 - sent to the parent as a failed verdict
-        queue.put(("error", {}, f"{type(exc).__name__}: {exc}"))
+        queue.put(("error", {}, f"{type(exc).__name__}: {exc}", None))
 
 
 def _run_scene_limited(design: Any, scene: str, fidelity: Fidelity, max_time_s: float, verifier: Any = None
-                       ) -> tuple[str, dict[str, Any], str]:
+                       ) -> tuple[str, dict[str, Any], str, TimeHistory | None]:
     """Run one scene in a child process that is killed after ``max_time_s`` (a hung or very slow
     simulation must not hold up the pipeline)."""
 
@@ -137,7 +138,8 @@ def _run_scene_limited(design: Any, scene: str, fidelity: Fidelity, max_time_s: 
     try:
         return q.get(timeout=max_time_s)
     except queue_mod.Empty:
-        return "timeout", {}, f"no result within {max_time_s:g} s (verify.max_time_s): the simulation was stopped"
+        return ("timeout", {}, f"no result within {max_time_s:g} s (verify.max_time_s): the simulation was stopped",
+                None)
     finally:
         if proc.is_alive():
             proc.kill()
@@ -152,13 +154,13 @@ def _verify(design: Any, scenes: tuple[str, ...], out_dir: Path, fidelity: Fidel
         return StageOutcome(name="verify", status="skipped", message="the problem names no scenes"), ()
     verdicts = []
     for scene in scenes:
-        kind, metrics, message = _run_scene_limited(design, scene, fidelity, max_time_s, verifier)
+        kind, metrics, message, history = _run_scene_limited(design, scene, fidelity, max_time_s, verifier)
         if kind == "ok":
             passed, why = verdict_of(metrics)
             message = "; ".join(m for m in (why, message) if m)
         else:
             passed = False
-        verdicts.append(Verdict(scene=scene, passed=passed, metrics=metrics, message=message))
+        verdicts.append(Verdict(scene=scene, passed=passed, metrics=metrics, message=message, history=history))
     n_pass = sum(v.passed for v in verdicts)
     return (StageOutcome(name="verify", status=f"{n_pass}/{len(verdicts)} passed", wall_s=time.perf_counter() - t0),
             tuple(verdicts))
