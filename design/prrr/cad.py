@@ -179,9 +179,12 @@ class Bracket:
         return self.clevis + self.arm_length * self.e_l
 
 
-def carriage_bracket(design: PrrrDesign) -> Bracket:
-    """The R1 bracket of ``design`` (see :class:`Bracket`); raises :class:`InvalidDesign` naming r_p
-    and θ_1p when no block face can carry it.
+def carriage_bracket(design: PrrrDesign, *, checked: bool = True) -> Bracket:
+    """The R1 bracket of ``design`` (see :class:`Bracket`); raises :class:`InvalidDesign` naming r_p,
+    θ_1p and β when no block face can carry it (``checked=False``: the side face's bracket without
+    the rules, its root as long as the face beyond the boss where the rules fail — the frame
+    model's idealised carriage for designs the CAD refuses, whose CAD-based evaluators fail on
+    their own).
 
     The clevis is an arm of the link section in the clevis layer; it runs along e_l, the line
     where the clevis plane crosses a block face's plane, so it stays at a constant distance from
@@ -211,7 +214,8 @@ def carriage_bracket(design: PrrrDesign) -> Bracket:
              ("back" if sx > 0 else "front", np.array([sx, 0.0, 0.0]), x_out if sx > 0 else -x_in,
               np.array([0.0, 1.0, 0.0]), (-hy, hy)))
     tried = []
-    for name, N, f, h, (h_lo, h_hi) in faces:
+    for k, (name, N, f, h, (h_lo, h_hi)) in enumerate(faces):
+        unchecked = not checked and k == 0
         e_l = np.cross(N, wc)
         e_l /= np.linalg.norm(e_l)
         if (0.5 * (h_lo + h_hi) - h @ Ac) * (e_l @ h) < 0.0:
@@ -225,17 +229,20 @@ def carriage_bracket(design: PrrrDesign) -> Bracket:
         slack = half_n * abs(n_p @ h)
         ends = sorted(((h_lo + slack - h @ Ac) / a, (h_hi - slack - h @ Ac) / a))
         l0, l1 = max(ends[0], R + g), ends[1]
-        if depth < 0.0:
+        forced = unchecked  # the side face, whatever the rules say
+        if forced and (depth < 0.0 or l1 - l0 < W / 2):  # an idealised root: the face's length beyond the boss
+            l0, l1 = R + g, R + g + max(l1 - l0, h_hi - h_lo)
+        elif depth < 0.0:
             tried.append(f"{name} face: the arm would cut {_mm(-depth)} mm into the block")
             continue
-        if l1 - l0 < W / 2:
+        elif l1 - l0 < W / 2:
             tried.append(f"{name} face: a root {_mm(max(l1 - l0, 0.0))} mm long (allowed ≥ link_width/2 = {_mm(W / 2)} mm)")
             continue
-        reach = N @ Ac + half_N - f  # root thickness along N
+        reach = max(N @ Ac + half_N - f, 2 * half_N)  # root thickness along N (≥ the arm's: depth ≥ 0)
         lm = 0.5 * (l0 + l1)
         contact = Ac + lm * e_l + (f - N @ Ac) * N
         zc = _box_z_extent(contact, np.stack([e_l, n_p], axis=1), (l1 - l0, 2 * half_n))
-        if max(-zc[0], zc[1]) > 2 * s_.carriage_height + 1e-12:
+        if max(-zc[0], zc[1]) > 2 * s_.carriage_height + 1e-12 and not forced:
             tried.append(f"{name} face: the root would meet the carriage up to {_mm(max(-zc[0], zc[1]))} mm off its "
                          f"centre (allowed ≤ 2·structure.carriage_height_mm = {_mm(2 * s_.carriage_height)} mm)")
             continue
