@@ -14,7 +14,11 @@ into the Cartesian stiffness for a load applied Δz above the end-effector.
 Structure of one leg i (points in the seed-digest leg construction; S is the rail point):
 
     S = D_i e_z + r_p (cos θ_1p u_i + sin θ_1p t_i)  (slider carriage on the rail; clamped, or sliding in z on the SEA spring)
-    S → A      carriage arm (d1/d2 offset)              beam, or rigid (``Offsets.RIGID``)
+    S → A      carriage arm (d1/d2 offset)              beam, or rigid (``Offsets.RIGID``); with pins (default)
+               the carriage as the CAD builds it (``design.prrr.cad.carriage_bracket``): block rigid
+               on its rail slot, the bracket's root bonded on a block face (C), root beam C → J,
+               the clevis arm bonded on the root's end face (E) and running E → Ac in the clevis
+               layer; both bonds two half-spaces (:func:`bond_stiffness`), see :func:`bracket_frame`
     A   R1     hinge about w_i
     A → B      link d3                                   beam
     B   R2     hinge about w_i
@@ -73,6 +77,8 @@ import jax.scipy.linalg
 import numpy as np
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.prrr.cad import carriage_bracket
 from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames
 
 #: Above this 1-norm condition number (Jacobi-scaled K) a result is reported as ill-conditioned.
@@ -141,6 +147,10 @@ class FrameParams(NamedTuple):
     layer: jax.Array  # layer pitch along the joint axis, link thickness + clearance [m]
     lug_offset: jax.Array  # platform lug layer above the kinematic R3 point along w, s_lug − r4 [m]
     stem_radius: jax.Array  # platform stem radius; the platform arms are stem_diameter wide [m]
+    bracket_points: jax.Array  # (3, 3) C, J, E of the R1 bracket, carriage frame (x = u', y = t', z) [m] (bracket_frame)
+    root_zref: jax.Array  # (3,) thickness direction n_p of the bracket's root beam, carriage frame
+    root_section: jax.Array  # (2,) root beam width (along the arm e_l) and thickness (along n_p) [m]
+    bracket_bonds: jax.Array  # (2, 6, 6) root-on-block and arm-on-root bond stiffness, carriage frame, [u; θ] [SI]
 
 
 def frame_params_of(design, xp=jnp) -> FrameParams:
@@ -156,7 +166,66 @@ def frame_params_of(design, xp=jnp) -> FrameParams:
                        joint_zone=xp.asarray(0.5 * float(s.boss_diameter)),
                        pin_diameter=xp.asarray(float(s.bore_diameter)), layer=xp.asarray(layer),
                        lug_offset=xp.asarray(s_lug - float(g.r4)),
-                       stem_radius=xp.asarray(0.5 * float(s.stem_diameter)))
+                       stem_radius=xp.asarray(0.5 * float(s.stem_diameter)),
+                       **{k: xp.asarray(v) for k, v in bracket_frame(design).items()})
+
+
+def bracket_frame(design) -> dict[str, np.ndarray]:
+    """The carriage's R1 bracket as the frame carries it, carriage frame [SI] (numpy).
+
+    From :func:`hapticopt.design.prrr.cad.carriage_bracket` (the CAD's one formula; unchecked, so a
+    design whose bracket the CAD refuses still gets a frame, as its links do): the block is
+    rigid (clamped on its rail slot); the root box stands on a block face, its whole end face
+    bonded there (centre C, a rectangle root_size[0] × root_size[2]); the root is a beam of its
+    own rectangular section from C along the face normal N to J, the point of its axis level with
+    the clevis arm (J → E rigid inside the root); the clevis arm (link section) is bonded over its
+    whole W × T end section at E on the root's end face and runs E → Ac in the clevis layer. Each
+    bond is :func:`bond_stiffness` of its patch (two half-spaces, as the pin necks).
+
+    Returns ``bracket_points`` (3, 3) = C, J, E; ``root_zref`` (3,) = n_p; ``root_section`` (2,)
+    = (width along e_l, thickness along n_p); ``bracket_bonds`` (2, 6, 6) = root on block, arm on root.
+    """
+    s_ = design.structure
+    try:
+        b = carriage_bracket(design)
+    except InvalidDesign:
+        b = carriage_bracket(design, checked=False)
+    e_l, N, n_p = b.root_axes.T
+    lr, hr, tr = b.root_size
+    J = b.contact_centre + (N @ b.clevis - N @ b.contact_centre) * N  # root axis, level with the arm
+    E_, nu = float(s_.youngs_modulus), float(s_.poisson_ratio)
+    k_root = bond_stiffness(lr * tr, (lr * tr**3 / 12.0, tr * lr**3 / 12.0), lr * tr * (lr**2 + tr**2) / 12.0,
+                            (N, e_l, n_p), E_, nu)  # I about e_l: distances along n_p
+    W, T = float(s_.link_width), float(s_.link_thickness)
+    w = b.axis
+    e_m = np.cross(w, e_l)
+    k_arm = bond_stiffness(W * T, (W * T**3 / 12.0, T * W**3 / 12.0), W * T * (W**2 + T**2) / 12.0,
+                           (e_l, e_m, w), E_, nu)  # I about e_m: distances along w
+    return {"bracket_points": np.stack([b.contact_centre, J, b.arm_end]), "root_zref": n_p,
+            "root_section": np.array([lr, tr]), "bracket_bonds": np.stack([k_root, k_arm])}
+
+
+def bond_stiffness(area: float, moments: tuple[float, float], polar: float, axes, E: float, nu: float) -> np.ndarray:
+    """6×6 stiffness [SI] of two elastic half-spaces bonded over a flat patch, in the axes given.
+
+    ``axes`` = (normal n, e_1, e_2) (unit, orthogonal), ``moments`` = (I_1, I_2) the patch's
+    second moments about e_1 and e_2 through its centroid, ``polar`` = J = I_1 + I_2, ``area`` = A.
+    The pin neck's construction (:func:`neck_stiffness`) with zero gap: each side an elastic
+    half-space loaded through a rigid disc (Gazetas 1991, Table 1) — K_z = 2Ea/(1−ν²) along n,
+    K_h = 8Ga/(2−ν) across it with a = √(A/π); rocking K_r = 4Ea³/(3(1−ν²)) about e_k with
+    a⁴ = 4I_k/π; torsion K_t = 16Ga³/3 with a⁴ = 2J/π — the two sides in series (halved).
+    A circular patch gives exactly ``neck_stiffness(d, 0)`` (tested).
+    """
+    G = E / (2.0 * (1.0 + nu))
+    (i1, i2), j = moments, polar
+    a_t = np.sqrt(area / np.pi)
+    a1, a2 = (4.0 * i1 / np.pi) ** 0.25, (4.0 * i2 / np.pi) ** 0.25
+    a_j = (2.0 * j / np.pi) ** 0.25
+    k_r1, k_r2 = (4.0 * E * a**3 / (3.0 * (1.0 - nu**2)) for a in (a1, a2))
+    n, e1, e2 = (np.asarray(x, dtype=float) for x in axes)
+    kt = 8.0 * G * a_t / (2.0 - nu) * (np.eye(3) - np.outer(n, n)) + 2.0 * E * a_t / (1.0 - nu**2) * np.outer(n, n)
+    kr = k_r1 * np.outer(e1, e1) + k_r2 * np.outer(e2, e2) + 16.0 * G * a_j**3 / 3.0 * np.outer(n, n)
+    return 0.5 * np.block([[kt, np.zeros((3, 3))], [np.zeros((3, 3)), kr]])
 
 
 def stack_frame_params(designs) -> FrameParams:
@@ -375,7 +444,9 @@ def _leg_layout(options: FrameOptions) -> tuple[int, dict[str, int]]:
     beam_off = options.offsets == Offsets.BEAM
     pins = bool(options.pins)
     n, idx = 6, {}
-    for name, size in (("sea", 1 if options.sea else 0), ("A", 6 if beam_off else 0), ("Ap", 6 if pins else 0),
+    carriage = beam_off and pins  # the CAD's bracket: root base, root end, arm end
+    for name, size in (("sea", 1 if options.sea else 0), ("Rb", 6 if carriage else 0), ("Rj", 6 if carriage else 0),
+                       ("Ae", 6 if carriage else 0), ("A", 6 if beam_off else 0), ("Ap", 6 if pins else 0),
                        ("phi1", int(hinge)), ("B", 6), ("B2", 6 if pins else 0), ("phi2", int(hinge)),
                        ("Bp", 6 if beam_off and not pins else 0), ("Qp", 6 if beam_off else 0),
                        ("Q2", 6 if pins else 0), ("phi3", int(hinge))):
@@ -416,11 +487,17 @@ def _map(fn, xp, *args):
     return np.stack(outs)
 
 
-def _leg_stiffness(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp=jnp,
+def _leg_stiffness(w, S, A, B, Q, bracket, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp=jnp,
                    fp: FrameParams | None = None, zones_on=1.0):
-    """Stiffness (n×n) of one leg on its DOFs [P | internal], and the node maps G (5, 6, n)."""
+    """Stiffness (n×n) of one leg on its DOFs [P | internal], and the node maps G (5, 6, n).
+
+    ``bracket`` = (points (3, 3) C, J, E; root thickness direction (3,); bonds (2, 6, 6)), world
+    axes: the carriage's R1 bracket (:func:`bracket_frame`), used with pins (the plane frame keeps
+    a carriage arm of the link section from the rail point S).
+    """
     if options.pins:
-        return _leg_stiffness_pins(w, S, A, B, Q, p, r4, d4, section, spring, zone, options, xp, fp, zones_on)
+        return _leg_stiffness_pins(w, S, A, B, Q, bracket, p, r4, d4, section, spring, zone, options, xp, fp,
+                                   zones_on)
     n, L = _leg_layout(options)
     beam_off = options.offsets == Offsets.BEAM
     Bp = Q - r4 * w
@@ -484,7 +561,7 @@ def _assemble(n, L, elems, section: Section, spring, options: FrameOptions, xp=j
     return 0.5 * (K + K.T)
 
 
-def _leg_stiffness_pins(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp,
+def _leg_stiffness_pins(w, S, A, B, Q, bracket, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp,
                         fp: FrameParams, zones_on):
     """One leg with the CAD's axial layering (``FrameOptions(pins=True)``, hapticopt.design.prrr.cad layers).
 
@@ -521,9 +598,17 @@ def _leg_stiffness_pins(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone
                                      section.poisson_ratio), xp)
     zero = 0.0 * a
     elems = []  # (G1, G2, x1, x2, zref, a1, a2, props)
+    springs = []
     if beam_off:
         G_Ac = _free(n, L["A"], xp)
-        elems.append((G_S, G_Ac, S, Ac, w, zero, a, link))  # carriage arm to the clevis layer
+        (C, Jr, E), z_root, bonds = bracket
+        G_Rb, G_Rj, G_E = _free(n, L["Rb"], xp), _free(n, L["Rj"], xp), _free(n, L["Ae"], xp)
+        root = section_properties(Section(fp.root_section[0], fp.root_section[1], section.youngs_modulus,
+                                          section.poisson_ratio), xp)
+        springs.append((G_Rb - rigid_map(C - S, xp) @ G_S, bonds[0]))  # root bonded on the rigid block at C
+        elems.append((G_Rb, G_Rj, C, Jr, z_root, zero, zero, root))  # root beam C → J
+        springs.append((G_E - rigid_map(E - Jr, xp) @ G_Rj, bonds[1]))  # arm bonded on the root's end face at E
+        elems.append((G_E, G_Ac, E, Ac, w, zero, a, link))  # clevis arm E → Ac, in the clevis layer
         G_Ql = _free(n, L["Qp"], xp)
         elems.append((G_Ql, G_P, Ql, Pa, w, a, zones_on * fp.stem_radius / sb, arm))  # platform arm
     else:
@@ -532,7 +617,6 @@ def _leg_stiffness_pins(w, S, A, B, Q, p, r4, d4, section: Section, spring, zone
     G_Pa = rigid_map(Pa - p, xp) @ G_P
     if beam_off:  # the arm's stem end rides on the rigid stem
         elems[-1] = elems[-1][:1] + (G_Pa,) + elems[-1][2:]
-    springs = []
     if options.pin_model == PinModel.NECK:
         k_neck = neck_stiffness(fp.pin_diameter, fp.layer - section.thickness, section.youngs_modulus,
                                 section.poisson_ratio, xp)
@@ -621,11 +705,20 @@ def frame_arrays(fp: FrameParams, p: jax.Array, load_height: jax.Array, options:
     theta = xp.take(ik.theta, branch, axis=0)
     pts = leg_chain(kin, ik.sliders, theta, xp=xp)
     f = leg_frames(kin.beta, xp=xp)
-    S = ik.sliders[:, None] * _EZ + fp.r_p * (xp.cos(fp.theta_1p) * f.u + xp.sin(fp.theta_1p) * f.t)
+    u_rail = xp.cos(fp.theta_1p) * f.u + xp.sin(fp.theta_1p) * f.t  # carriage frame x (u'), per leg
+    t_rail = -xp.sin(fp.theta_1p) * f.u + xp.cos(fp.theta_1p) * f.t  # carriage frame y (t')
+    S = ik.sliders[:, None] * _EZ + fp.r_p * u_rail
+    Rc = xp.stack([u_rail, t_rail, xp.broadcast_to(xp.asarray(_EZ), u_rail.shape)], axis=-1)  # (3 legs, 3, 3)
+    # the R1 bracket (carriage frame) in world axes, per leg: points, root direction, bonds
+    bp = ik.sliders[:, None, None] * _EZ + xp.einsum("lij,kj->lki", Rc, fp.bracket_points)  # (3 legs, 3, 3)
+    zr = xp.einsum("lij,j->li", Rc, fp.root_zref)
+    R6 = _blockdiag2(Rc, Rc, xp)[:, None]  # (3 legs, 1, 6, 6)
+    Kb = R6 @ fp.bracket_bonds @ xp.swapaxes(R6, -1, -2)  # (3 legs, 2, 6, 6)
 
     leg = functools.partial(_leg_stiffness, p=p, r4=kin.r4, d4=kin.d4, section=fp.section, spring=fp.spring,
                             zone=fp.joint_zone * zones_on, options=options, xp=xp, fp=fp, zones_on=zones_on)
-    K, G_nodes, nodes = _map(lambda w, s, a, b, q: leg(w, s, a, b, q), xp, f.w, S, pts.a, pts.b, pts.q)
+    K, G_nodes, nodes = _map(lambda w, s, a, b, q, pts_b, z_b, k_b: leg(w, s, a, b, q, (pts_b, z_b, k_b)), xp,
+                             f.w, S, pts.a, pts.b, pts.q, bp, zr, Kb)
     Kpp, Kpi, Kii = K[:, :6, :6], K[:, :6, 6:], K[:, 6:, 6:]
     d = 1.0 / xp.sqrt(xp.abs(xp.diagonal(Kii, axis1=-2, axis2=-1)))  # (3, n_int)
     Kii_s = d[:, :, None] * Kii * d[:, None, :]
@@ -743,7 +836,7 @@ def closed_form_tip_deflection(load: float, length: float, E: float, inertia: fl
 __all__ = [
     "COND_LIMIT", "LOAD_HEIGHT", "FrameOptions", "FrameParams", "Joints", "Offsets", "Section",
     "beam_global_stiffness", "beam_local_stiffness", "cantilever_compliance", "circle_properties",
-    "closed_form_tip_deflection",
+    "closed_form_tip_deflection", "bond_stiffness", "bracket_frame",
     "dof_count", "frame_arrays", "frame_params_of", "section_properties", "solve_frame",
     "solve_frame_batch", "solve_frame_jax", "stack_frame_params",
 ]

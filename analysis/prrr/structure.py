@@ -19,7 +19,7 @@ import numpy as np
 from hapticopt.analysis.prrr import frame_model as fm
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
-from hapticopt.design.errors import InvalidInput
+from hapticopt.design.errors import InvalidDesign, InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.analysis.fem.stress import element_stress
 from hapticopt.analysis.prrr import assembly, fea_cad
@@ -127,7 +127,7 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> S
         if blocked:
             raise InvalidInput(blocked)
         result = structural_stiffness(design)
-    except InvalidInput as exc:
+    except (InvalidInput, InvalidDesign) as exc:  # unreachable home pose; no carriage face can carry R1
         nan3 = np.full(3, np.nan)
         return StructuralStiffness(pose=np.zeros(3), load_height=fm.LOAD_HEIGHT, stiffness_load=nan3,
                                    elastic_centre=float("nan"), stiffness_elastic_centre=nan3,

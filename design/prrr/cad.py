@@ -92,7 +92,7 @@ class PrrrLayout:
     slot: float  # half size of the rail slot
     side: float  # +1 / −1: the side (sign of y) of the SEA housing, screw and motor; the clevis is on −side
     clevis: np.ndarray  # R1 clevis centre Ac, carriage frame
-    bracket_end: np.ndarray  # carriage frame
+    bracket: Bracket  # the R1 bracket (carriage frame)
     housing_y: tuple[float, float]  # SEA spring housing, carriage frame (x and z as the block)
     screw_xy: np.ndarray  # ball-screw axis, carriage frame
     motor_xy: np.ndarray  # motor axis, carriage frame
@@ -112,6 +112,12 @@ def _need(cond: bool, message) -> None:
 
 def _mm(x: float) -> str:
     return f"{x * 1e3:g}"
+
+
+def _box_z_extent(centre: np.ndarray, axes: np.ndarray, size) -> tuple[float, float]:
+    """z range [m] of a box (or, with two axes, a rectangle) of the given centre, axes (columns) and sizes."""
+    half = sum(0.5 * d * abs(axes[2, k]) for k, d in enumerate(size))
+    return float(centre[2] - half), float(centre[2] + half)
 
 
 def clevis_point(design: PrrrDesign) -> np.ndarray:
@@ -135,6 +141,117 @@ def carried_theta_1p(design: PrrrDesign, *, side: float = 1.0) -> float:
     _need(off < rho, lambda: f"geometry.r_p_mm / theta_1p_deg: the carriage ({_mm(2 * hy)} mm wide) cannot carry the "
           f"R1 clevis at {_mm(rho)} mm from the z axis")
     return math.atan2(Ac[1], Ac[0]) + side * math.asin(off / rho)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Bracket:
+    """The carriage's R1 bracket, carriage frame (x = u', y = t', z = e_z, origin on the z axis at
+    the slider height D) [m]: an L of two boxes that meet the block and each other face to face.
+
+    * **root**: a box standing on one face of the carriage block (outward normal ``normal``), its
+      whole end face bonded to that face (``contact_area``); axes (e_l, N, n_p) =
+      ``root_axes`` columns, sizes ``root_size`` along them.
+    * **arm**: the clevis plate, link section W × T in the clevis layer, along e_l (the clevis
+      plane ∩ the face plane) from the clevis centre Ac to the root's near end face at
+      ``arm_length``, where its whole W × T end section is bonded to the root (the root's
+      section contains it).
+    """
+
+    clevis: np.ndarray  # Ac (3,)
+    axis: np.ndarray  # (3,) the R1 joint axis w (normal of the clevis layer)
+    normal: np.ndarray  # N (3,): outward normal of the block face carrying the root (±x or ±y)
+    e_l: np.ndarray  # (3,) arm axis, from Ac towards the root
+    arm_length: float  # l_0: Ac to the root's near end face along e_l
+    root_centre: np.ndarray  # (3,)
+    root_axes: np.ndarray  # (3, 3) columns e_l, N, n_p = e_l × N
+    root_size: tuple[float, float, float]  # along e_l, N, n_p
+    contact_centre: np.ndarray  # (3,) centre of the root's face bonded on the block face
+    face: str  # "side" (the y face beside the rail, preferred) or "front"/"back" (the x faces)
+
+    @property
+    def contact_area(self) -> float:
+        """Bonded area of the root on the block face [m²]."""
+        return self.root_size[0] * self.root_size[2]
+
+    @property
+    def arm_end(self) -> np.ndarray:
+        """Centre of the arm's end section, on the root's near end face [m]."""
+        return self.clevis + self.arm_length * self.e_l
+
+
+def carriage_bracket(design: PrrrDesign, *, checked: bool = True) -> Bracket:
+    """The R1 bracket of ``design`` (see :class:`Bracket`); raises :class:`InvalidDesign` naming r_p,
+    θ_1p and β when no block face can carry it (``checked=False``: the side face's bracket without
+    the rules, its root as long as the face beyond the boss where the rules fail — the frame
+    model's idealised carriage for designs the CAD refuses, whose CAD-based evaluators fail on
+    their own).
+
+    The clevis is an arm of the link section in the clevis layer; it runs along e_l, the line
+    where the clevis plane crosses a block face's plane, so it stays at a constant distance from
+    that face, and it ends on a root box that stands on the face and reaches out to it (the root's
+    cross-section is the bounding box of the arm's). Faces are tried in order: the side face on
+    the clevis's side (y = ±h_y, beside the rail, where seed 002's device carries R1 and where
+    :func:`carried_theta_1p` puts the clevis), then the x face on the clevis's side. A face can
+    carry the bracket when the arm clears the block (its section lies outside the face plane) and
+    the face leaves a root at least W/2 long along e_l beyond the clevis boss (plus the
+    clearance) and puts the root's bonded end face within 2·carriage_height of the slider height.
+    The root's bonded end face lies inside the block face's horizontal extent; the block grows in
+    z to cover it (:func:`layout`).
+    """
+    g_, s_ = design.geometry, design.structure
+    T, W, g = s_.link_thickness, s_.link_width, s_.clearance
+    R = s_.boss_diameter / 2
+    hy = s_.rail_width / 2 + g + s_.carriage_wall
+    x_in, x_out = g_.r_p - hy, g_.r_p + hy
+    _, _, _, w = leg_vectors(g_.beta, 0.0)
+    Rz = _rot_z(-g_.theta_1p)
+    wc = Rz @ w
+    Ac = Rz @ np.array([g_.d1, g_.d2, 0.0]) - (T + g) * wc
+    sy = 1.0 if Ac[1] > 0.0 else -1.0  # the clevis side (layout puts the SEA housing on the other)
+    sx = 1.0 if Ac[0] >= g_.r_p else -1.0
+    # (name, N, face offset N·x, in-face horizontal axis h, its extent on the face)
+    faces = (("side", np.array([0.0, sy, 0.0]), hy, np.array([1.0, 0.0, 0.0]), (x_in, x_out)),
+             ("back" if sx > 0 else "front", np.array([sx, 0.0, 0.0]), x_out if sx > 0 else -x_in,
+              np.array([0.0, 1.0, 0.0]), (-hy, hy)))
+    tried = []
+    for k, (name, N, f, h, (h_lo, h_hi)) in enumerate(faces):
+        unchecked = not checked and k == 0
+        e_l = np.cross(N, wc)
+        e_l /= np.linalg.norm(e_l)
+        if (0.5 * (h_lo + h_hi) - h @ Ac) * (e_l @ h) < 0.0:
+            e_l = -e_l  # towards the face
+        e_m = np.cross(wc, e_l)
+        n_p = np.cross(e_l, N)
+        half_N = W / 2 * abs(e_m @ N) + T / 2 * abs(wc @ N)
+        half_n = W / 2 * abs(e_m @ n_p) + T / 2 * abs(wc @ n_p)
+        depth = N @ Ac - half_N - f  # the arm's clearance from the face plane
+        a = e_l @ h
+        slack = half_n * abs(n_p @ h)
+        ends = sorted(((h_lo + slack - h @ Ac) / a, (h_hi - slack - h @ Ac) / a))
+        l0, l1 = max(ends[0], R + g), ends[1]
+        forced = unchecked  # the side face, whatever the rules say
+        if forced and (depth < 0.0 or l1 - l0 < W / 2):  # an idealised root: the face's length beyond the boss
+            l0, l1 = R + g, R + g + max(l1 - l0, h_hi - h_lo)
+        elif depth < 0.0:
+            tried.append(f"{name} face: the arm would cut {_mm(-depth)} mm into the block")
+            continue
+        elif l1 - l0 < W / 2:
+            tried.append(f"{name} face: a root {_mm(max(l1 - l0, 0.0))} mm long (allowed ≥ link_width/2 = {_mm(W / 2)} mm)")
+            continue
+        reach = max(N @ Ac + half_N - f, 2 * half_N)  # root thickness along N (≥ the arm's: depth ≥ 0)
+        lm = 0.5 * (l0 + l1)
+        contact = Ac + lm * e_l + (f - N @ Ac) * N
+        zc = _box_z_extent(contact, np.stack([e_l, n_p], axis=1), (l1 - l0, 2 * half_n))
+        if max(-zc[0], zc[1]) > 2 * s_.carriage_height + 1e-12 and not forced:
+            tried.append(f"{name} face: the root would meet the carriage up to {_mm(max(-zc[0], zc[1]))} mm off its "
+                         f"centre (allowed ≤ 2·structure.carriage_height_mm = {_mm(2 * s_.carriage_height)} mm)")
+            continue
+        return Bracket(clevis=Ac, axis=wc, normal=N, e_l=e_l, arm_length=float(l0), root_centre=contact + reach / 2 * N,
+                       root_axes=np.stack([e_l, N, n_p], axis=1), root_size=(float(l1 - l0), float(reach), 2 * half_n),
+                       contact_centre=contact, face=name)
+    raise InvalidDesign(f"geometry.r_p_mm = {_mm(g_.r_p)}, geometry.theta_1p_deg = {math.degrees(g_.theta_1p):.4g}, "
+                        f"geometry.beta_deg = {math.degrees(g_.beta):g}: no face of the carriage block can carry the R1 "
+                        f"clevis ({'; '.join(tried)}): move the rail or change beta")
 
 
 def layout(design: PrrrDesign) -> PrrrLayout:
@@ -186,17 +303,21 @@ def layout(design: PrrrDesign) -> PrrrLayout:
           f"{'inside' if gap == 0 else f'{_mm(gap)} mm from'} the carriage block around the rail "
           f"(allowed ≥ boss radius + clearance = {_mm(R + g)} mm): move the rail (r_p, θ_1p)")
     side = -1.0 if Ac[1] > 0 else 1.0  # SEA housing on the side away from the clevis
-    # bracket end: on the clevis plane, on the block face nearest the clevis (a bar end inside the
-    # wall could reach into the rail slot, which the analytic mass model does not subtract)
-    xe, ye = qx, qy
-    ze = Ac[2] - (wc[0] * (xe - Ac[0]) + wc[1] * (ye - Ac[1])) / wc[2]
-    bracket_end = np.array([xe, ye, ze])
-    reach = W / 2 + T
+    # R1 bracket: clevis arm + root bonded flat on a block face (carriage_bracket); the block grows
+    # in z to carry the root's whole end face
+    bracket = carriage_bracket(design)
     hz = s_.carriage_height / 2
+    zc = _box_z_extent(bracket.contact_centre, bracket.root_axes[:, [0, 2]], (bracket.root_size[0], bracket.root_size[2]))
+    # the block also spans the clevis plane's height at its nearest point to the clevis ± (W/2 + T), the
+    # extent issue 15 released with: a block only as tall as the root lifts the base plate, rails and
+    # motors 17 mm for prrr-paper, and the motors then meet link2 of the next leg at the bottom of the
+    # φ140 columns (docs/cad.md, "R1 bracket")
+    ze = Ac[2] - (wc[0] * (qx - Ac[0]) + wc[1] * (qy - Ac[1])) / wc[2]
+    reach = W / 2 + T
     _need(abs(ze) <= 4 * hz + 1e-12,
-          lambda: f"geometry.beta_deg = {deg:g}: the R1 bracket would meet the carriage {_mm(abs(ze))} mm off its centre "
+          lambda: f"geometry.beta_deg = {deg:g}: the clevis plane meets the carriage {_mm(abs(ze))} mm off its centre "
           f"(allowed ≤ 2·structure.carriage_height_mm = {_mm(4 * hz)} mm); raise beta or move the rail ({where})")
-    block_z = (min(-hz, ze - reach), max(hz, ze + reach))
+    block_z = (min(-hz, ze - reach, zc[0]), max(hz, ze + reach, zc[1]))
     # --- SEA module: spring housing beside the block, ball screw through it, motor beside the housing
     housing_y = tuple(sorted((side * hy, side * (hy + s_.sea_envelope))))
     screw_xy = np.array([g_.r_p, side * (hy + s_.sea_envelope / 2)])
@@ -218,13 +339,14 @@ def layout(design: PrrrDesign) -> PrrrLayout:
     ball_z = lug_top + e_.handle_diameter / 2 + 2e-3
     # --- base and rails from the carriage's lowest/highest point over the stroke
     c_e, half = g_.c_e, g_.stroke / 2
-    carriage_lo = min(block_z[0], Ac[2] - T / 2 * math.sin(beta) - R * math.cos(beta))
-    carriage_hi = max(block_z[1], Ac[2] + T / 2 * math.sin(beta) + R * math.cos(beta))
+    root_z = _box_z_extent(bracket.root_centre, bracket.root_axes, bracket.root_size)
+    carriage_lo = min(block_z[0], root_z[0], Ac[2] - T / 2 * math.sin(beta) - R * math.cos(beta))
+    carriage_hi = max(block_z[1], root_z[1], Ac[2] + T / 2 * math.sin(beta) + R * math.cos(beta))
     z_base_top = c_e - half + carriage_lo - s_.base_clearance
     z_rail_top = c_e + half + carriage_hi + s_.base_clearance
     return PrrrLayout(T=T, W=W, R_boss=R, r_bore=r, g=g, s_clevis=s_clevis, s_link2=s_link2, s_lug=s_lug,
                       block_x=(x_in, x_out), block_y=hy, block_z=block_z, slot=half_slot, side=side, clevis=Ac,
-                      bracket_end=bracket_end, housing_y=housing_y, screw_xy=screw_xy, motor_xy=motor_xy,
+                      bracket=bracket, housing_y=housing_y, screw_xy=screw_xy, motor_xy=motor_xy,
                       lug_rho=lug_rho, arm_length=arm_length,
                       stem_bottom=stem_bottom, ball_z=ball_z, z_base_top=z_base_top, z_rail_top=z_rail_top)
 
@@ -276,18 +398,14 @@ def _carriage(design: PrrrDesign, L: PrrrLayout) -> list:
         box(((x0 + x1) / 2, 0.0, (z0 + z1) / 2), I, x1 - x0, 2 * hy, z1 - z0),
         box((g_.r_p, 0.0, (z0 + z1) / 2), I, 2 * L.slot, 2 * L.slot, z1 - z0, role=Role.HOLE),
     ]
+    b = L.bracket
     wc = _rot_z(-g_.theta_1p) @ leg_vectors(g_.beta, 0.0)[3]
-    Ac = L.clevis
-    d = L.bracket_end - Ac
-    length = float(np.linalg.norm(d))
-    Rb = frame(d, wc)
-    # analytic bar: from the clevis centre to where its axis enters the block
-    s_in = _ray_box_entry(Ac, d / length, np.array([x0, -hy, z0]), np.array([x1, hy, z1]))
-    bar = bar_with_bosses(Rb, Ac, 0.0, length, width=L.W, thickness=L.T, z=0.0, bosses=(0.0,),
-                          boss_radius=L.R_boss, bore_radius=L.r_bore)
-    # the part of the bar inside the block is counted by the block: subtract it analytically
-    inside = box(Ac + (s_in + length) / 2 * Rb[:, 0], Rb, length - s_in, L.W, L.T, role=Role.OVERLAP)
-    return prims + bar + [inside]
+    # clevis arm (link section, clevis layer) from the clevis centre to the root's near end face, and
+    # the root on the block face: the three meet face to face, so no volume is counted twice
+    arm = bar_with_bosses(frame(b.e_l, wc), b.clevis, 0.0, b.arm_length, width=L.W, thickness=L.T, z=0.0,
+                          bosses=(0.0,), boss_radius=L.R_boss, bore_radius=L.r_bore)
+    root = box(b.root_centre, b.root_axes, *b.root_size)
+    return prims + arm + [root]
 
 
 def _housing(design: PrrrDesign, L: PrrrLayout) -> list:

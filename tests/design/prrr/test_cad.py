@@ -113,3 +113,50 @@ def test_hard_cases_give_a_clear_invalid_design(paper, override, match):
     with pytest.raises(InvalidDesign, match=match) as err:
         cad_prrr.part_specs(design)
     assert "\n" not in str(err.value)
+
+
+def test_r1_bracket_is_bonded_face_to_face(paper, solids):
+    # issue-15 follow-up: the R1 bracket's root stands on a face of the carriage block (its whole end
+    # face bonded there) and the clevis arm's whole W × T end section is bonded on the root's end face
+    # (before: the bar ended on a block corner edge, bonded over 9.9 mm²; docs/cad.md "R1 bracket")
+    lay = cad_prrr.layout(paper)
+    b = lay.bracket
+    s = paper.structure
+    W, T, R, r = s.link_width, s.link_thickness, s.boss_diameter / 2, s.bore_diameter / 2
+    (x0, x1), hy, (z0, z1) = lay.block_x, lay.block_y, lay.block_z
+    assert b.face == "side" and b.normal[1] == -lay.side  # beside the rail, opposite the SEA housing
+    e_l, N, n_p = b.root_axes.T
+    # the root's bonded face lies on the block face y = −h_y and inside its extent
+    corners = [b.contact_centre + i * b.root_size[0] / 2 * e_l + j * b.root_size[2] / 2 * n_p
+               for i in (-1, 1) for j in (-1, 1)]
+    for c in corners:
+        assert c @ N == pytest.approx(hy, abs=1e-12)
+        assert x0 - 1e-12 <= c[0] <= x1 + 1e-12 and z0 - 1e-12 <= c[2] <= z1 + 1e-12
+    assert b.contact_area >= 2 * W * T  # 405 mm² for prrr-paper
+    # the arm's end section (W × T about E, axes w × e_l and w) lies in the root's end face and inside it
+    w = b.axis
+    e_m = np.cross(w, e_l)
+    lo = b.root_centre - np.array(b.root_size) / 2 @ b.root_axes.T
+    for i in (-1, 1):
+        for j in (-1, 1):
+            q = b.arm_end + i * W / 2 * e_m + j * T / 2 * w - b.root_centre
+            local = q @ b.root_axes
+            assert local[0] == pytest.approx(-b.root_size[0] / 2, abs=1e-12)
+            assert np.all(np.abs(local[1:]) <= np.array(b.root_size[1:]) / 2 + 1e-12)
+    assert b.arm_length >= R + s.clearance  # the clevis boss clears the root
+    # no volume is shared: the OpenCASCADE solid's volume is the plain sum of its pieces (closed form):
+    # block − rail slot + root + arm bar + boss disc − its cap inside the bar − bore
+    block = (x1 - x0) * 2 * hy * (z1 - z0) - (2 * lay.slot) ** 2 * (z1 - z0)
+    root = float(np.prod(b.root_size))
+    arm = (b.arm_length * W + math.pi * R * R - _cap_area(R, W / 2) - math.pi * r * r) * T
+    assert solids["carriage_1"].volume * 1e-9 == pytest.approx(block + root + arm, rel=1e-6)
+
+
+def test_bracket_face_falls_back_and_refuses_with_one_line(paper):
+    # rails on u_i with a 60 mm rail: the side face's root would run 61 mm above the carriage, the
+    # front face carries the bracket; β = 5°: no face can (both reasons named, one line)
+    wide = io.apply_overrides(paper, ["geometry.theta_1p_deg=0", "structure.rail_width_mm=60"])
+    assert cad_prrr.carriage_bracket(wide).face == "front"
+    with pytest.raises(InvalidDesign, match="beta_deg = 5: no face of the carriage block") as err:
+        cad_prrr.carriage_bracket(io.apply_overrides(paper, ["geometry.beta_deg=5"]))
+    assert "\n" not in str(err.value) and "side face" in str(err.value) and "front face" in str(err.value)
