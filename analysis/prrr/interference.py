@@ -55,6 +55,11 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> P
     try:
         removed, overlap = interference_fast.interference_fractions(design, **INTERFERENCE_SAMPLING)
     except HapticoptError as exc:  # the CAD cannot lay this design's parts out
-        return PrrrInterference(removed_fraction=float("nan"), overlap_fraction=float("nan"), wall_s=time.perf_counter() - t0,
-                                status=Status.FAILED, message=f"interference not checked: {exc}")
+        return failed(exc, t0)
     return PrrrInterference(removed_fraction=removed, overlap_fraction=overlap, wall_s=time.perf_counter() - t0)
+
+
+def failed(exc: Exception, t0: float) -> PrrrInterference:
+    """The result where the CAD cannot lay the parts out (status failed, NaN metrics)."""
+    return PrrrInterference(removed_fraction=float("nan"), overlap_fraction=float("nan"), wall_s=time.perf_counter() - t0,
+                            status=Status.FAILED, message=f"interference not checked: {exc}")

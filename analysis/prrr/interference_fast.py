@@ -363,8 +363,14 @@ def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int
     if len(pts) == 0 or not w.sum() > 0:
         return 0.0, 0.0
     res = check_points(prepare(design), pts, branch=ELBOW_BRANCH)
+    return fractions_of(w, res.collides, overlap_share(res, scale=scale))
+
+
+def fractions_of(w: np.ndarray, collides: np.ndarray, share: np.ndarray) -> tuple[float, float]:
+    """(removed, overlap) fractions from the pose weights ``w``, collision flags and overlap shares
+    (see :func:`interference_fractions`)."""
     total = w.sum()
-    return float(w[res.collides].sum() / total), float(w @ overlap_share(res, scale=scale) / total)
+    return float(w[collides].sum() / total), float(w @ share / total)
 
 
 def removed_fraction(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> float:
