@@ -317,24 +317,53 @@ def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
     owner = np.asarray(owner, dtype=int)
     Rp = np.stack([frames[name][0] for name in batch.part_names], axis=1)  # (n, parts, 3, 3)
     tp = np.stack([frames[name][1] for name in batch.part_names], axis=1)  # (n, parts, 3)
-    Rpp = Rp[:, batch.prim_part]
-    Rw = Rpp @ batch.R[owner]  # (n, P, 3, 3)
-    cw = (Rpp @ batch.o[owner][:, :, :, None])[..., 0] + tp[:, batch.prim_part]
-    half = batch.half[owner]  # (n, P, 3)
     ia, ib = batch.pair_a, batch.pair_b
-    # broad phase: world-axis-aligned boxes of every primitive (exact extents of box, cylinder, sphere)
-    P = len(batch.kind)
-    ext = _support(np.tile(batch.kind, n), Rw.reshape(-1, 3, 3), half.reshape(-1, 3),
-                   np.broadcast_to(np.eye(3), (n * P, 3, 3))).reshape(n, P, 3)
-    lo, hi = cw - ext, cw + ext
-    near = np.all((lo[:, ia] <= hi[:, ib]) & (lo[:, ib] <= hi[:, ia]), axis=-1)  # (n, K)
-    near &= np.asarray(reachable)[:, None]
-    pose, k = np.nonzero(near)
     depth = np.zeros((n, len(batch.part_pairs)))
-    if len(pose):
-        a, b = ia[k], ib[k]
-        dep = _depth(batch.kind[a], Rw[pose, a], half[pose, a], cw[pose, a],
-                     batch.kind[b], Rw[pose, b], half[pose, b], cw[pose, b])
+    # broad phase 1: world-axis-aligned boxes of every part (from its primitives' boxes in the part
+    # frame); a part box contains its primitives' boxes, so phase 2 sees the same candidates
+    P = len(batch.kind)
+    loc_ext = _support(np.tile(batch.kind, len(batch.R)), batch.R.reshape(-1, 3, 3), batch.half.reshape(-1, 3),
+                       np.broadcast_to(np.eye(3), (len(batch.R) * P, 3, 3))).reshape(len(batch.R), P, 3)
+    n_parts = len(batch.part_names)
+    plo = np.full((len(batch.R), n_parts, 3), np.inf)
+    phi = np.full((len(batch.R), n_parts, 3), -np.inf)
+    for j in range(n_parts):
+        sel = batch.prim_part == j
+        if sel.any():
+            plo[:, j] = np.min(batch.o[:, sel] - loc_ext[:, sel], axis=1)
+            phi[:, j] = np.max(batch.o[:, sel] + loc_ext[:, sel], axis=1)
+    empty = ~np.isfinite(plo)  # a part without SOLID primitives is in no tested pair (_pair_tables)
+    plo[empty], phi[empty] = 0.0, 0.0
+    pc, ph = 0.5 * (plo + phi)[owner], 0.5 * (phi - plo)[owner]  # (n, parts, 3)
+    wc = (Rp @ pc[..., None])[..., 0] + tp
+    wh = (np.abs(Rp) @ ph[..., None])[..., 0]
+    pp_a = np.array([batch.part_names.index(a) for a, _ in batch.part_pairs], dtype=int)
+    pp_b = np.array([batch.part_names.index(b) for _, b in batch.part_pairs], dtype=int)
+    part_near = np.all(np.abs(wc[:, pp_a] - wc[:, pp_b]) <= wh[:, pp_a] + wh[:, pp_b], axis=-1)
+    part_near &= np.asarray(reachable)[:, None]
+    pose, k = np.nonzero(part_near[:, batch.pair_part])
+    if len(pose) == 0:
+        return FastResult(points=pts, reachable=np.asarray(reachable), collides=np.zeros(n, dtype=bool),
+                          depth=depth, part_pairs=batch.part_pairs)
+    # broad phase 2 on the survivors: world-axis-aligned boxes of the primitives (exact extents)
+    a, b = ia[k], ib[k]
+    own = owner[pose]
+
+    def posed(prim):
+        Rpp = Rp[pose, batch.prim_part[prim]]
+        Rw = Rpp @ batch.R[own, prim]
+        cw = (Rpp @ batch.o[own, prim][:, :, None])[..., 0] + tp[pose, batch.prim_part[prim]]
+        return Rw, cw, batch.half[own, prim]
+
+    Ra, ca, ha = posed(a)
+    Rb, cb, hb = posed(b)
+    eye = np.broadcast_to(np.eye(3), (len(a), 3, 3))
+    ea, eb = _support(batch.kind[a], Ra, ha, eye), _support(batch.kind[b], Rb, hb, eye)
+    near = np.all((ca - ea <= cb + eb) & (cb - eb <= ca + ea), axis=-1)
+    if near.any():
+        s = np.flatnonzero(near)
+        a, b, pose, k = a[s], b[s], pose[s], k[s]
+        dep = _depth(batch.kind[a], Ra[s], ha[s], ca[s], batch.kind[b], Rb[s], hb[s], cb[s])
         np.maximum.at(depth, (pose, batch.pair_part[k]), np.maximum(dep, 0.0))
     return FastResult(points=pts, reachable=np.asarray(reachable), collides=np.any(depth > DEPTH_TOL, axis=1),
                       depth=depth, part_pairs=batch.part_pairs)
