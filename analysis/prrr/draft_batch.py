@@ -288,7 +288,8 @@ def _interference(designs, specs, models, check, res, t0) -> None:
     for i, d in enumerate(designs):
         # the order of interference_fast.interference_fractions: an empty sample is (0, 0) before
         # the part tables are needed
-        sample = _guard(WS.workspace_sample_weights, d, **WS.INTERFERENCE_SAMPLING)
+        sample = _guard(WS.workspace_sample_weights, d, **WS.INTERFERENCE_SAMPLING,
+                        specs=None if isinstance(specs[i], Exception) else specs[i])
         if isinstance(sample, Exception):
             res[i]["interference"] = sample
             continue
