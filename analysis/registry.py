@@ -176,3 +176,54 @@ def write_plots(design: Any, evaluation: Evaluation, out_dir: Path) -> list[Path
         if entry.name in evaluation.results:
             written.extend(run_plotter(entry, design, evaluation.results[entry.name], out_dir))
     return written
+
+
+def evaluate_batch(designs: list[Any], *, fidelity: Fidelity = Fidelity.STANDARD,
+                   only: tuple[str, ...] | None = None) -> list[Evaluation]:
+    """:func:`evaluate_all` of many designs: equal results and statuses, and the same failure
+    policy. 3-PRRR designs at draft fidelity go through the batched evaluator
+    (:mod:`hapticopt.analysis.prrr.draft_batch`, one jitted pass for the batch); any other
+    device or fidelity is evaluated one design at a time."""
+    designs = list(designs)
+    if not designs:
+        return []
+    if Fidelity(fidelity) is not Fidelity.DRAFT or any(d.device != "prrr" for d in designs):
+        return [evaluate_all(d, fidelity=fidelity, only=only) for d in designs]
+    from hapticopt.analysis.prrr import assembly, draft_batch  # jax: loaded only where a batch is evaluated
+
+    # a design that cannot be assembled (the chain does not close, the CAD cannot lay its parts out)
+    # returns early from every evaluator: it takes the single path, so its statuses are the single path's
+    blocked = {i for i, d in enumerate(designs) if assembly.check(d, with_parts=True)}
+    batched = [d for i, d in enumerate(designs) if i not in blocked]
+    found_all = iter(draft_batch.evaluate_many(batched, only=only) if batched else [])
+    out = []
+    for i, design in enumerate(designs):
+        if i in blocked:
+            out.append(evaluate_all(design, fidelity=Fidelity.DRAFT, only=only))
+            continue
+        found, times = next(found_all)
+        results: dict[str, Any] = {}
+        statuses: dict[str, Status] = {}
+        messages: dict[str, str] = {}
+        sources: dict[str, str] = {}
+        timings: dict[str, float] = {}
+        for entry in EVALUATORS["prrr"]:
+            if only is not None and entry.name not in only:
+                continue
+            result = found[entry.name]
+            try:
+                if isinstance(result, BaseException):
+                    raise result
+                names = list(result.metrics())
+            except Exception as exc:  # noqa: BLE001 - the one failure policy, as evaluate_all
+                statuses[entry.name] = Status.FAILED
+                messages[entry.name] = describe_failure(exc)
+            else:
+                results[entry.name] = result
+                statuses[entry.name] = Status(result.status)
+                messages[entry.name] = result.message
+                sources.update({name: entry.module for name in names})
+            timings[entry.name] = times.get(entry.name, 0.0)
+        out.append(Evaluation(fidelity=Fidelity.DRAFT, results=results, timings_s=timings, statuses=statuses,
+                              messages=messages, sources=sources))
+    return out

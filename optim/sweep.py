@@ -21,7 +21,6 @@ import io as _io
 import itertools
 import math
 import re
-import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, as_completed
 from dataclasses import dataclass
@@ -32,18 +31,14 @@ from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax a
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.prrr.statics import PrrrStatics, statics_arrays
-from hapticopt.analysis.prrr.workspace import closure_batch
-from hapticopt.analysis.registry import EVALUATORS, jsonable
-from hapticopt.analysis.status import Status
+from hapticopt.analysis.registry import EVALUATORS
 from hapticopt.design import io
 from hapticopt.design.atomic import atomic_path, write_text
 from hapticopt.design.errors import InvalidDesign, InvalidInput
-from hapticopt.design.prrr.kinematics import PrrrParams
 from hapticopt.design.schema import specs
 from hapticopt.design.units import TO_SI, pretty
-from hapticopt.optim.evaluation import Outcome, PointResult, PointTask, evaluate_point
-from hapticopt.optim.problem import Variable, design_at
+from hapticopt.optim.evaluation import Outcome, PointResult, PointTask, evaluate_point, evaluate_points
+from hapticopt.optim.problem import Variable
 from hapticopt.optim.recorder import Recorder, point_key
 from hapticopt.optim.runs import software_versions
 from hapticopt.design.errors import short
@@ -188,77 +183,26 @@ class SweepResult:
 
 ProgressFn = Callable[[int, int], None]  # (done, total)
 
-#: evaluators with a batched jax form, by device: one jit-compiled vmap call evaluates a whole chunk
+#: evaluators with a batched form at any fidelity, by device (3-PRRR draft sweeps batch every evaluator)
 BATCHED: dict[str, tuple[str, ...]] = {"prrr": ("statics",)}
-#: designs per batched call (the last chunk is padded to this size: one compiled shape)
+#: designs per batched call (the batched evaluator pads each call to a power of two)
 BATCH_CHUNK = 256
 
 
 def batch_supported(sweep: "Sweep") -> bool:
-    """True when every evaluator the sweep runs has a batched form (``--only`` must name them)."""
+    """True for a 3-PRRR sweep at draft fidelity (every evaluator has a batched form there:
+    :mod:`hapticopt.analysis.prrr.draft_batch`), or when ``--only`` names evaluators of
+    :data:`BATCHED` only."""
+    if sweep.base.device == "prrr" and Fidelity(sweep.fidelity) is Fidelity.DRAFT:
+        return True
     allowed = BATCHED.get(sweep.base.device, ())
     return sweep.only is not None and len(sweep.only) > 0 and all(name in allowed for name in sweep.only)
 
 
-def _statics_batch_fn() -> Callable[..., Any]:
-    import jax
-
-    def one(p: Any, k: Any, f: Any, m: Any) -> Any:
-        return statics_arrays(PrrrParams(*p), k, f, m)
-
-    return jax.jit(jax.vmap(one))
-
-
-_BATCH_FNS: dict[str, Callable[..., Any]] = {}
-
-
-def _prrr_statics_batch(designs: Sequence[Any]) -> list[tuple[dict[str, Any], str, str]]:
-    """(metrics, status, message) of :func:`hapticopt.analysis.prrr.statics.evaluate` for each
-    design, computed by one jit-compiled ``vmap`` of the same ``statics_arrays`` (jax instead of numpy)."""
-    if "statics" not in _BATCH_FNS:
-        _BATCH_FNS["statics"] = _statics_batch_fn()
-    fn = _BATCH_FNS["statics"]
-    n = len(designs)
-    pad = list(designs) + [designs[-1]] * (BATCH_CHUNK - n)
-    fields = ("beta", "d1", "d2", "d3", "d4", "r4", "b5", "stroke")
-    p = tuple(np.array([float(getattr(d.geometry, f)) for d in pad]) for f in fields)
-    out = fn(p, np.array([d.actuator.spring for d in pad]), np.array([d.actuator.force_limit for d in pad]),
-             np.array([d.end_effector.mass for d in pad]))
-    out = {k: np.asarray(v)[:n] for k, v in out.items()}
-    blocked_all = closure_batch(pad)[:n]  # as statics.evaluate: a chain that cannot close is not-assemblable
-    results = []
-    for i in range(n):
-        finite = all(np.all(np.isfinite(v[i])) for v in out.values())
-        blocked = blocked_all[i]
-        st = PrrrStatics(jacobian=out["jacobian"][i], condition=float(out["condition"][i]),
-                         condition_frobenius=float(out["condition_frobenius"][i]),
-                         effective_mass=out["effective_mass"][i], stiffness_matrix=out["stiffness_matrix"][i],
-                         stiffness_limit=out["stiffness_limit"][i], max_force=out["max_force"][i],
-                         max_pure_force=out["max_pure_force"][i],
-                         status=(Status.NOT_ASSEMBLABLE if blocked else Status.OK if finite else Status.SINGULAR),
-                         message=blocked or ("" if finite else "Jacobian is numerically singular at this β"))
-        results.append((jsonable(st.metrics()), str(st.status), st.message))
-    return results
-
-
 def _run_batched(sweep: "Sweep", xs: Sequence[tuple[float, ...]]) -> list[PointResult]:
-    """The batched twin of :func:`evaluate_point` for ``xs`` (no objective references)."""
-    out: list[PointResult | None] = [None] * len(xs)
-    valid: list[tuple[int, Any]] = []
-    for i, x in enumerate(xs):
-        try:
-            valid.append((i, design_at(sweep.base, sweep.variables, x)))
-        except InvalidDesign as exc:
-            out[i] = PointResult(x=tuple(x), outcome=Outcome.INVALID_DESIGN, message=str(exc))
-    for c in range(0, len(valid), BATCH_CHUNK):
-        chunk = valid[c:c + BATCH_CHUNK]
-        t0 = time.perf_counter()
-        evaluated = _prrr_statics_batch([d for _, d in chunk])
-        per = (time.perf_counter() - t0) / len(chunk)
-        for (i, _), (metrics, status, message) in zip(chunk, evaluated):
-            out[i] = PointResult(x=tuple(xs[i]), outcome=Outcome.OK, metrics=metrics, statuses={"statics": status},
-                                 timings_s={"statics": per})
-    return [r for r in out if r is not None]
+    """The batched twin of :func:`evaluate_point` for ``xs`` (no objective references): equal results."""
+    return evaluate_points([PointTask(base=sweep.base, variables=sweep.variables, x=tuple(x), fidelity=sweep.fidelity,
+                                      refs=(), only=sweep.only) for x in xs])
 
 
 def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = None,
@@ -270,7 +214,8 @@ def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = N
     evaluates in this process with the evaluators' batched jax forms (:func:`batch_supported`)."""
     if batch and not batch_supported(sweep):
         allowed = BATCHED.get(sweep.base.device, ())
-        raise InvalidInput(f"--batch needs --only naming evaluators with a batched form: for a {sweep.base.device} "
+        raise InvalidInput(f"--batch needs a 3-PRRR draft sweep, or --only naming evaluators with a batched form: "
+                           f"for a {sweep.base.device} design at {sweep.fidelity} "
                            f"design allowed {', '.join(allowed) if allowed else 'none'}")
     points = sweep.points()
     fid = str(sweep.fidelity)

@@ -57,11 +57,27 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> D
         return DeviceSize(mass=nan, sea_mass=nan, link_mass=nan, frame_mass=nan, height=nan,
                           wall_s=time.perf_counter() - t0, status=Status.NOT_ASSEMBLABLE, message=blocked)
     try:
-        parts = cad_prrr.mass_properties(design).parts
+        specs = cad_prrr.part_specs(design)
+    except HapticoptError as exc:
+        return failed(exc, t0)
+    return from_specs(design, specs, t0)
+
+
+def failed(exc: Exception, t0: float) -> DeviceSize:
+    """The result where the CAD cannot lay the parts out (status failed, NaN metrics)."""
+    nan = float("nan")
+    return DeviceSize(mass=nan, sea_mass=nan, link_mass=nan, frame_mass=nan, height=nan,
+                      wall_s=time.perf_counter() - t0, status=Status.FAILED, message=f"size not computed: {exc}")
+
+
+def from_specs(design: PrrrDesign, specs: dict, t0: float) -> DeviceSize:
+    """Mass split and height from the part tables ``specs`` (:func:`hapticopt.design.prrr.cad.part_specs`
+    of ``design``, shared with the batched draft evaluator's other steps)."""
+    try:
+        parts = cad_prrr.mass_properties(design, specs=specs).parts
         height = cad_prrr.device_height(design)
     except HapticoptError as exc:
-        return DeviceSize(mass=nan, sea_mass=nan, link_mass=nan, frame_mass=nan, height=nan,
-                          wall_s=time.perf_counter() - t0, status=Status.FAILED, message=f"size not computed: {exc}")
+        return failed(exc, t0)
     sea = sum(p.mass for n, p in parts.items() if n.startswith(SEA_PARTS))
     links = sum(p.mass for n, p in parts.items() if n.startswith(LINK_PARTS))
     total = sum(p.mass for p in parts.values())

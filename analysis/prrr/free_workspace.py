@@ -132,8 +132,14 @@ def column_poses(design: PrrrDesign, phi: np.ndarray, r: np.ndarray) -> np.ndarr
     """Check poses (…, 3) [m] of the columns at angles ``phi`` and radii ``r`` (broadcast):
     z = −H(r)/2 = −L/2 + r cot β, the lowest point of the smallest cylinder containing the column."""
     g = design.geometry
+    return column_poses_of(g.stroke, g.beta, phi, r)
+
+
+def column_poses_of(stroke, beta, phi, r) -> np.ndarray:
+    """:func:`column_poses` from the stroke [m] and β [rad] (scalars, or arrays broadcast with
+    ``phi`` and ``r``: one design per column in the batched draft evaluator)."""
     phi, r = np.broadcast_arrays(np.asarray(phi, dtype=float), np.asarray(r, dtype=float))
-    z = -g.stroke / 2.0 + r / math.tan(g.beta)
+    z = -np.asarray(stroke) / 2.0 + r / np.tan(beta)
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
 
 
@@ -159,31 +165,58 @@ def free_radius(design: PrrrDesign, r_max: float, *, n_phi: int, n_r: int, n_bis
     collides = _collides_fn(design, checker)
     if r_max <= 0.0:
         return 0.0, 0, 0
+    g = design.geometry
+    r_free, n_checked, n_hit = free_radius_many(
+        lambda owner, phi, r: collides(column_poses_of(g.stroke, g.beta, phi, r)),
+        np.array([r_max]), n_phi=n_phi, n_r=n_r, n_bisect=n_bisect)
+    return float(r_free[0]), int(n_checked[0]), int(n_hit[0])
+
+
+def free_radius_many(collides, r_max: np.ndarray, *, n_phi: int, n_r: int, n_bisect: int
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`free_radius` of m designs at once (each r_max > 0): ``collides(owner, phi, r)`` says
+    whether the columns (design ``owner``, angle ``phi``, radius ``r``; 1-D arrays) collide. Every
+    pass checks the columns of every design together (one call per pass: the coarse grid, then
+    each bisection). Returns R_free [m], poses checked and poses colliding, each (m,)."""
+    r_max = np.asarray(r_max, dtype=float)
+    m = len(r_max)
     phi = (np.arange(n_phi) + 0.5) * (_THIRD / n_phi)
-    radii = r_max * np.arange(0, n_r + 1) / n_r  # includes the axis (r = 0) and r_max
-    # the axis column is one pose for every ray
-    pts = np.concatenate([column_poses(design, np.zeros(1), np.zeros(1)),
-                          column_poses(design, phi[:, None], radii[None, 1:]).reshape(-1, 3)])
-    hit = collides(pts)
-    n_checked, n_hit = len(pts), int(hit.sum())
-    if hit[0]:
-        return 0.0, n_checked, n_hit
-    grid = hit[1:].reshape(n_phi, n_r)
-    first = np.where(grid.any(axis=1), grid.argmax(axis=1), n_r)  # index into radii[1:]
-    lo = radii[first]  # last free radius (radii[k] is the free one before radii[k + 1])
-    hi = np.where(first < n_r, radii[np.minimum(first + 1, n_r)], r_max)
-    open_ = first < n_r
+    radii = r_max[:, None] * np.arange(0, n_r + 1) / n_r  # (m, n_r + 1): includes the axis (r = 0) and r_max
+    # the axis column is one pose for every ray: pose 0 of each design, then its n_phi × n_r grid
+    owner = np.repeat(np.arange(m), 1 + n_phi * n_r)
+    ph = np.concatenate([np.zeros((m, 1)), np.broadcast_to(phi[:, None], (n_phi, n_r)).reshape(1, -1).repeat(m, 0)],
+                        axis=1).ravel()
+    rr = np.concatenate([np.zeros((m, 1)), np.broadcast_to(radii[:, None, 1:], (m, n_phi, n_r)).reshape(m, -1)],
+                        axis=1).ravel()
+    hit = np.asarray(collides(owner, ph, rr)).reshape(m, 1 + n_phi * n_r)
+    n_checked = np.full(m, 1 + n_phi * n_r)
+    n_hit = hit.sum(axis=1)
+    axis_hit = hit[:, 0]
+    grid = hit[:, 1:].reshape(m, n_phi, n_r)
+    first = np.where(grid.any(axis=2), grid.argmax(axis=2), n_r)  # (m, n_phi) index into radii[1:]
+    lo = np.take_along_axis(radii, first, axis=1)  # last free radius (radii[k] is the free one before radii[k + 1])
+    hi = np.where(first < n_r, np.take_along_axis(radii, np.minimum(first + 1, n_r), axis=1), r_max[:, None])
+    open_ = (first < n_r) & ~axis_hit[:, None]
     for _ in range(n_bisect):
         if not open_.any():
             break
         mid = 0.5 * (lo + hi)
-        k = np.flatnonzero(open_)
-        h = collides(column_poses(design, phi[k], mid[k]))
-        n_checked += len(k)
-        n_hit += int(h.sum())
-        hi[k] = np.where(h, mid[k], hi[k])
-        lo[k] = np.where(h, lo[k], mid[k])
-    return float(np.min(np.where(open_, lo, r_max))), n_checked, n_hit
+        d, k = np.nonzero(open_)
+        h = np.asarray(collides(d, phi[k], mid[d, k]))
+        np.add.at(n_checked, d, 1)
+        np.add.at(n_hit, d, h.astype(int))
+        hi[d, k] = np.where(h, mid[d, k], hi[d, k])
+        lo[d, k] = np.where(h, lo[d, k], mid[d, k])
+    r_free = np.min(np.where(open_, lo, r_max[:, None]), axis=1)
+    r_free = np.where(axis_hit, 0.0, r_free)
+    return r_free, n_checked, n_hit
+
+
+def reach_limit(design: PrrrDesign, core: dict) -> float:
+    """Largest radius [m] the cylinder may take by reach and stroke: r ≤ R_reach (``core``: the
+    design's :func:`hapticopt.analysis.prrr.workspace.workspace_core`) and r < L tan β / 2 (a height)."""
+    g = design.geometry
+    return min(float(core["reach_radius"]), 0.5 * g.stroke * math.tan(g.beta))
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
@@ -193,13 +226,30 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
     t0 = time.perf_counter()
-    g = design.geometry
     wp = workspace_params(design, required_diameter=required_diameter)
     core = workspace_core(wp, n_phi=48, n_r=2)
+    r_max = reach_limit(design, core)
+    if bool(core["empty"]) or r_max <= 0.0:
+        return finish(design, core, None, fidelity=fidelity, t0=t0, required_diameter=required_diameter,
+                      required_height=required_height)
+    try:
+        found = free_radius(design, r_max, n_phi=smp.n_phi, n_r=smp.n_r, n_bisect=smp.n_bisect, checker=smp.checker)
+    except HapticoptError as exc:  # the CAD cannot lay this design's parts out
+        found = exc
+    return finish(design, core, found, fidelity=fidelity, t0=t0, required_diameter=required_diameter,
+                  required_height=required_height)
+
+
+def finish(design: PrrrDesign, core: dict, found: tuple[float, int, int] | Exception | None, *, fidelity: Fidelity,
+           t0: float, required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
+           required_height: float = DEFAULT_REQUIRED_HEIGHT) -> FreeWorkspace:
+    """The result from the reach core and ``found`` = (R_free, poses, colliding), the CAD's error, or
+    None when there is no workspace to check: the one place of the verdict (single and batched)."""
+    fidelity = Fidelity(fidelity)
+    smp = SAMPLING[fidelity]
+    g = design.geometry
     footprint = float(core["footprint_diameter"])
     cot = 1.0 / math.tan(g.beta)
-    # reach and stroke: the cylinder must be reached (r ≤ R_reach) and have a height (r < L tan β / 2)
-    r_max = min(float(core["reach_radius"]), 0.5 * g.stroke * math.tan(g.beta))
 
     def result(r_free: float, poses: int, colliding: int, status: Status, message: str) -> FreeWorkspace:
         r_cyl = min(r_free, g.stroke * math.tan(g.beta) / 3.0)
@@ -221,13 +271,12 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     blocked = assembly.check(design, with_parts=True)
     if blocked:
         return unusable(Status.NOT_ASSEMBLABLE, blocked)
-    if bool(core["empty"]) or r_max <= 0.0:
+    if found is None:
         return result(0.0, 0, 0, Status.EMPTY, "no point is reached by every leg within the slider stroke")
-    try:
-        r_free, n, hit = free_radius(design, r_max, n_phi=smp.n_phi, n_r=smp.n_r, n_bisect=smp.n_bisect,
-                                     checker=smp.checker)
-    except HapticoptError as exc:  # the parts are laid out but a pose's parts cannot be placed
-        return unusable(Status.FAILED, f"collision-free workspace not computed: {exc}")
+    if isinstance(found, Exception):  # the parts are laid out but a pose's parts cannot be placed
+        return unusable(Status.FAILED, f"collision-free workspace not computed: {found}")
+    r_free, n, hit = found
+    r_max = reach_limit(design, core)
     out = result(r_free, n, hit, Status.OK, "")
     if out.height_at_required < required_height - 1e-12:
         # reach and stroke alone: the height of the required cylinder with r_free = r_max

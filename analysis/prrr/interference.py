@@ -68,12 +68,23 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> P
     try:
         removed, overlap = interference_fast.interference_fractions(design, **INTERFERENCE_SAMPLING)
     except HapticoptError as exc:  # the parts are laid out but a pose's parts cannot be placed
-        return PrrrInterference(removed_fraction=nan, overlap_fraction=nan, wall_s=time.perf_counter() - t0,
-                                status=Status.FAILED, message=f"interference not checked: {exc}")
+        return failed(exc, t0)
+    return from_fractions(removed, overlap, t0)
+
+
+def from_fractions(removed: float, overlap: float, t0: float) -> PrrrInterference:
+    """The verdict on the sampled fractions (single and batched paths): ``collides`` when any sampled
+    pose collides (a count of colliding poses, no rounding-level threshold), else ``ok``."""
     status, message = Status.OK, ""
-    if removed > 0.0:  # a count of colliding sampled poses (no rounding-level threshold)
+    if removed > 0.0:
         status = Status.COLLIDES
         message = (f"parts collide over {100.0 * removed:.3g} % of the sampled workspace volume "
                    f"(fast model, up to {INTERFERENCE_POSES} sampled poses)")
     return PrrrInterference(removed_fraction=removed, overlap_fraction=overlap, wall_s=time.perf_counter() - t0,
                             status=status, message=message)
+
+
+def failed(exc: Exception, t0: float) -> PrrrInterference:
+    """The result where a pose's parts cannot be placed (status failed, NaN metrics)."""
+    return PrrrInterference(removed_fraction=float("nan"), overlap_fraction=float("nan"), wall_s=time.perf_counter() - t0,
+                            status=Status.FAILED, message=f"interference not checked: {exc}")

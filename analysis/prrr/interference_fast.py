@@ -39,8 +39,9 @@ Usage::
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -106,41 +107,27 @@ class FastResult:
 def _skip_pairs(specs: dict[str, Any]) -> set[frozenset]:
     """The reference's skip rule (:func:`analysis.interference.prepare`): joined parts and
     parts of one rigid body."""
+    return _skip_rule(tuple(specs), tuple(spec.body for spec in specs.values()))
+
+
+def _skip_rule(names: tuple[str, ...], bodies: tuple[str, ...]) -> set[frozenset]:
     skip = set(cad_prrr.neighbours())
-    names = list(specs)
     for i, a in enumerate(names):
-        for b in names[i + 1:]:
-            if specs[a].body == specs[b].body:
-                skip.add(frozenset((a, b)))
+        for j in range(i + 1, len(names)):
+            if bodies[i] == bodies[j]:
+                skip.add(frozenset((a, names[j])))
     return skip
 
 
-def prepare(design: PrrrDesign) -> FastModel:
-    """Primitive tables of every part of ``design`` (raises :class:`InvalidDesign` where the CAD
-    cannot lay the parts out)."""
-    specs = cad_prrr.part_specs(design)
-    names = tuple(specs)
-    prim_part, kind, R, o, half = [], [], [], [], []
-    first = {}
-    for j, name in enumerate(names):
-        first[name] = len(kind)
-        for p in specs[name].primitives:
-            if p.role != Role.SOLID:
-                continue
-            a, b, c = p.dims
-            k = _KIND[p.kind]
-            h = {_BOX: (a / 2, b / 2, c / 2), _CYL: (a, a, b / 2), _SPH: (a, a, a)}[k]
-            prim_part.append(j)
-            kind.append(k)
-            R.append(np.asarray(p.R, dtype=float))
-            o.append(np.asarray(p.o, dtype=float))
-            half.append(h)
-    prim_part = np.asarray(prim_part)
-    half = np.asarray(half, dtype=float)
-    kind = np.asarray(kind)
-    skip = _skip_pairs(specs)
+@functools.lru_cache(maxsize=32)
+def _pair_tables(names: tuple[str, ...], bodies: tuple[str, ...], prim_part: tuple[int, ...]
+                 ) -> tuple[tuple[tuple[str, str], ...], np.ndarray, np.ndarray, np.ndarray]:
+    """Part pairs to test and their primitive pairs; depend only on the part names, bodies and
+    the number of SOLID primitives of each part (cached: every design of one layout shares them)."""
+    skip = _skip_rule(names, bodies)
+    prim = np.asarray(prim_part)
     part_pairs, pa, pb, pp = [], [], [], []
-    members = [np.flatnonzero(prim_part == j) for j in range(len(names))]
+    members = [np.flatnonzero(prim == j) for j in range(len(names))]
     for i, a in enumerate(names):
         ia = members[i]
         for j in range(i + 1, len(names)):
@@ -152,9 +139,68 @@ def prepare(design: PrrrDesign) -> FastModel:
             pb.append(np.tile(ib, len(ia)))
             pp.append(np.full(len(ia) * len(ib), len(part_pairs)))
             part_pairs.append((a, b))
-    return FastModel(design=design, part_names=names, part_pairs=tuple(part_pairs), prim_part=prim_part,
-                     kind=kind, R=np.asarray(R), o=np.asarray(o), half=half,
-                     pair_a=np.concatenate(pa), pair_b=np.concatenate(pb), pair_part=np.concatenate(pp))
+    out = (np.concatenate(pa), np.concatenate(pb), np.concatenate(pp))
+    for x in out:
+        x.flags.writeable = False
+    return (tuple(part_pairs), *out)
+
+
+def prepare(design: PrrrDesign, *, specs: dict[str, Any] | None = None) -> FastModel:
+    """Primitive tables of every part of ``design`` (raises :class:`InvalidDesign` where the CAD
+    cannot lay the parts out; ``specs``: :func:`hapticopt.design.prrr.cad.part_specs` of ``design``,
+    computed when omitted)."""
+    specs = cad_prrr.part_specs(design) if specs is None else specs
+    names = tuple(specs)
+    prim_part, kind, R, o, half = [], [], [], [], []
+    for j, name in enumerate(names):
+        for p in specs[name].primitives:
+            if p.role != Role.SOLID:
+                continue
+            a, b, c = p.dims
+            k = _KIND[p.kind]
+            h = {_BOX: (a / 2, b / 2, c / 2), _CYL: (a, a, b / 2), _SPH: (a, a, a)}[k]
+            prim_part.append(j)
+            kind.append(k)
+            R.append(np.asarray(p.R, dtype=float))
+            o.append(np.asarray(p.o, dtype=float))
+            half.append(h)
+    part_pairs, pa, pb, pp = _pair_tables(names, tuple(s.body for s in specs.values()), tuple(prim_part))
+    return FastModel(design=design, part_names=names, part_pairs=part_pairs, prim_part=np.asarray(prim_part),
+                     kind=np.asarray(kind), R=np.asarray(R), o=np.asarray(o), half=np.asarray(half, dtype=float),
+                     pair_a=pa, pair_b=pb, pair_part=pp)
+
+
+class PrimitiveBatch(NamedTuple):
+    """The primitive tables of many designs of one layout (same parts, same primitive kinds), stacked:
+    ``R`` (m, P, 3, 3), ``o`` (m, P, 3), ``half`` (m, P, 3); the rest shared (see :class:`FastModel`)."""
+
+    part_names: tuple[str, ...]
+    part_pairs: tuple[tuple[str, str], ...]
+    prim_part: np.ndarray
+    kind: np.ndarray
+    R: np.ndarray
+    o: np.ndarray
+    half: np.ndarray
+    pair_a: np.ndarray
+    pair_b: np.ndarray
+    pair_part: np.ndarray
+
+
+def layout_key(model: FastModel) -> tuple:
+    """Designs with equal keys share the part pairs and primitive kinds (one :class:`PrimitiveBatch`)."""
+    return model.part_names, tuple(model.prim_part.tolist()), tuple(model.kind.tolist())
+
+
+def stack_models(models: list[FastModel]) -> PrimitiveBatch:
+    """Stack the primitive tables of models with one :func:`layout_key` (ValueError otherwise)."""
+    m0 = models[0]
+    key = layout_key(m0)
+    if any(layout_key(m) != key for m in models[1:]):
+        raise ValueError("stack_models: the models have different part layouts (group them by layout_key)")
+    return PrimitiveBatch(part_names=m0.part_names, part_pairs=m0.part_pairs, prim_part=m0.prim_part,
+                          kind=m0.kind, R=np.stack([m.R for m in models]), o=np.stack([m.o for m in models]),
+                          half=np.stack([m.half for m in models]), pair_a=m0.pair_a, pair_b=m0.pair_b,
+                          pair_part=m0.pair_part)
 
 
 def part_frames_batch(design: PrrrDesign, points, *, branch: int = cad_prrr.DEFAULT_BRANCH
@@ -255,30 +301,72 @@ def _depth(kind_a, Ra, ha, ca, kind_b, Rb, hb, cb):
 def check_points(model: FastModel, points, *, branch: int = cad_prrr.DEFAULT_BRANCH) -> FastResult:
     """Interference of the tested part pairs at end-effector points (n, 3) [m]."""
     pts = np.atleast_2d(np.asarray(points, dtype=float))
-    n = len(pts)
     frames, reachable = part_frames_batch(model.design, pts, branch=branch)
-    Rp = np.stack([frames[name][0] for name in model.part_names], axis=1)  # (n, parts, 3, 3)
-    tp = np.stack([frames[name][1] for name in model.part_names], axis=1)  # (n, parts, 3)
-    Rpp = Rp[:, model.prim_part]
-    Rw = Rpp @ model.R  # (n, P, 3, 3)
-    cw = (Rpp @ model.o[:, :, None])[..., 0] + tp[:, model.prim_part]
-    ia, ib = model.pair_a, model.pair_b
-    # broad phase: world-axis-aligned boxes of every primitive (exact extents of box, cylinder, sphere)
-    P = len(model.kind)
-    ext = _support(np.tile(model.kind, n), Rw.reshape(-1, 3, 3), np.tile(model.half, (n, 1)),
-                   np.broadcast_to(np.eye(3), (n * P, 3, 3))).reshape(n, P, 3)
-    lo, hi = cw - ext, cw + ext
-    near = np.all((lo[:, ia] <= hi[:, ib]) & (lo[:, ib] <= hi[:, ia]), axis=-1)  # (n, K)
-    near &= reachable[:, None]
-    pose, k = np.nonzero(near)
-    depth = np.zeros((n, len(model.part_pairs)))
-    if len(pose):
-        a, b = ia[k], ib[k]
-        dep = _depth(model.kind[a], Rw[pose, a], model.half[a], cw[pose, a],
-                     model.kind[b], Rw[pose, b], model.half[b], cw[pose, b])
-        np.maximum.at(depth, (pose, model.pair_part[k]), np.maximum(dep, 0.0))
-    return FastResult(points=pts, reachable=reachable, collides=np.any(depth > DEPTH_TOL, axis=1),
-                      depth=depth, part_pairs=model.part_pairs)
+    return check_posed(stack_models([model]), np.zeros(len(pts), dtype=int), pts, frames, reachable)
+
+
+def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
+                frames: dict[str, tuple[np.ndarray, np.ndarray]], reachable: np.ndarray) -> FastResult:
+    """Interference at n posed configurations of the designs of ``batch``: pose k belongs to design
+    ``owner[k]``, its parts at ``frames`` (name → world rotation (n, 3, 3), origin (n, 3) [m], as
+    :func:`hapticopt.design.prrr.cad.part_frames_arrays`), ``reachable`` (n,) bool. One numpy pass
+    over every pose of every design (the batched draft evaluator's path; :func:`check_points` is
+    the one-design case)."""
+    pts = np.atleast_2d(np.asarray(points, dtype=float))
+    n = len(pts)
+    owner = np.asarray(owner, dtype=int)
+    Rp = np.stack([frames[name][0] for name in batch.part_names], axis=1)  # (n, parts, 3, 3)
+    tp = np.stack([frames[name][1] for name in batch.part_names], axis=1)  # (n, parts, 3)
+    ia, ib = batch.pair_a, batch.pair_b
+    depth = np.zeros((n, len(batch.part_pairs)))
+    # broad phase 1: world-axis-aligned boxes of every part (from its primitives' boxes in the part
+    # frame); a part box contains its primitives' boxes, so phase 2 sees the same candidates
+    P = len(batch.kind)
+    loc_ext = _support(np.tile(batch.kind, len(batch.R)), batch.R.reshape(-1, 3, 3), batch.half.reshape(-1, 3),
+                       np.broadcast_to(np.eye(3), (len(batch.R) * P, 3, 3))).reshape(len(batch.R), P, 3)
+    n_parts = len(batch.part_names)
+    plo = np.full((len(batch.R), n_parts, 3), np.inf)
+    phi = np.full((len(batch.R), n_parts, 3), -np.inf)
+    for j in range(n_parts):
+        sel = batch.prim_part == j
+        if sel.any():
+            plo[:, j] = np.min(batch.o[:, sel] - loc_ext[:, sel], axis=1)
+            phi[:, j] = np.max(batch.o[:, sel] + loc_ext[:, sel], axis=1)
+    empty = ~np.isfinite(plo)  # a part without SOLID primitives is in no tested pair (_pair_tables)
+    plo[empty], phi[empty] = 0.0, 0.0
+    pc, ph = 0.5 * (plo + phi)[owner], 0.5 * (phi - plo)[owner]  # (n, parts, 3)
+    wc = (Rp @ pc[..., None])[..., 0] + tp
+    wh = (np.abs(Rp) @ ph[..., None])[..., 0]
+    pp_a = np.array([batch.part_names.index(a) for a, _ in batch.part_pairs], dtype=int)
+    pp_b = np.array([batch.part_names.index(b) for _, b in batch.part_pairs], dtype=int)
+    part_near = np.all(np.abs(wc[:, pp_a] - wc[:, pp_b]) <= wh[:, pp_a] + wh[:, pp_b], axis=-1)
+    part_near &= np.asarray(reachable)[:, None]
+    pose, k = np.nonzero(part_near[:, batch.pair_part])
+    if len(pose) == 0:
+        return FastResult(points=pts, reachable=np.asarray(reachable), collides=np.zeros(n, dtype=bool),
+                          depth=depth, part_pairs=batch.part_pairs)
+    # broad phase 2 on the survivors: world-axis-aligned boxes of the primitives (exact extents)
+    a, b = ia[k], ib[k]
+    own = owner[pose]
+
+    def posed(prim):
+        Rpp = Rp[pose, batch.prim_part[prim]]
+        Rw = Rpp @ batch.R[own, prim]
+        cw = (Rpp @ batch.o[own, prim][:, :, None])[..., 0] + tp[pose, batch.prim_part[prim]]
+        return Rw, cw, batch.half[own, prim]
+
+    Ra, ca, ha = posed(a)
+    Rb, cb, hb = posed(b)
+    eye = np.broadcast_to(np.eye(3), (len(a), 3, 3))
+    ea, eb = _support(batch.kind[a], Ra, ha, eye), _support(batch.kind[b], Rb, hb, eye)
+    near = np.all((ca - ea <= cb + eb) & (cb - eb <= ca + ea), axis=-1)
+    if near.any():
+        s = np.flatnonzero(near)
+        a, b, pose, k = a[s], b[s], pose[s], k[s]
+        dep = _depth(batch.kind[a], Ra[s], ha[s], ca[s], batch.kind[b], Rb[s], hb[s], cb[s])
+        np.maximum.at(depth, (pose, batch.pair_part[k]), np.maximum(dep, 0.0))
+    return FastResult(points=pts, reachable=np.asarray(reachable), collides=np.any(depth > DEPTH_TOL, axis=1),
+                      depth=depth, part_pairs=batch.part_pairs)
 
 
 def overlap_share(res: FastResult, *, scale: float = OVERLAP_SCALE) -> np.ndarray:
@@ -304,8 +392,14 @@ def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int
     if len(pts) == 0 or not w.sum() > 0:
         return 0.0, 0.0
     res = check_points(prepare(design), pts, branch=ELBOW_BRANCH)
+    return fractions_of(w, res.collides, overlap_share(res, scale=scale))
+
+
+def fractions_of(w: np.ndarray, collides: np.ndarray, share: np.ndarray) -> tuple[float, float]:
+    """(removed, overlap) fractions from the pose weights ``w``, collision flags and overlap shares
+    (see :func:`interference_fractions`)."""
     total = w.sum()
-    return float(w[res.collides].sum() / total), float(w @ overlap_share(res, scale=scale) / total)
+    return float(w[collides].sum() / total), float(w @ share / total)
 
 
 def removed_fraction(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> float:

@@ -59,13 +59,30 @@ def cylinder_grid(design: PrrrDesign, radius: float, *, n_phi: int = 24, n_r: in
     """Points (m, 3) [m] of the vertical cylinder of ``radius`` about z (height L − 2R cot β,
     centred on the home pose), polar grid incl. the rim and the axis."""
     g = design.geometry
-    h = max(g.stroke - 2.0 * radius / math.tan(g.beta), 0.0)
+    return cylinder_grid_of(g.stroke, g.beta, radius, n_phi=n_phi, n_r=n_r, n_z=n_z, xp=np)
+
+
+def cylinder_grid_of(stroke, beta, radius: float, *, n_phi: int = 24, n_r: int = 6, n_z: int = 3, xp=np):
+    """:func:`cylinder_grid` from the stroke [m] and β [rad] (``xp``: numpy, or ``jax.numpy`` under
+    the batched draft evaluator's vmap)."""
+    h = xp.maximum(stroke - 2.0 * radius / xp.tan(beta), 0.0)
     phi = np.linspace(0.0, 2.0 * math.pi, n_phi, endpoint=False)
     r = np.linspace(0.0, radius, n_r + 1)[1:]
-    z = np.linspace(-h / 2, h / 2, n_z) * (1.0 - 1e-9)
-    P, R, Z = np.meshgrid(phi, r, z, indexing="ij")
-    pts = np.stack([R * np.cos(P), R * np.sin(P), Z], axis=-1).reshape(-1, 3)
-    return np.concatenate([pts, np.stack([np.zeros(n_z), np.zeros(n_z), z], axis=1)])
+    z = xp.linspace(-h / 2, h / 2, n_z) * (1.0 - 1e-9)
+    P, R = np.meshgrid(phi, r, indexing="ij")
+    P, R = np.repeat(P[..., None], n_z, axis=-1), np.repeat(R[..., None], n_z, axis=-1)
+    Z = xp.broadcast_to(z, P.shape)
+    pts = xp.stack([xp.asarray(R * np.cos(P)), xp.asarray(R * np.sin(P)), Z], axis=-1).reshape(-1, 3)
+    zero = xp.zeros(n_z)
+    return xp.concatenate([pts, xp.stack([zero, zero, z], axis=1)])
+
+
+def elbow_limit(design: PrrrDesign) -> float:
+    """|θ2| limit [rad] of the folded-elbow margin (module docstring)."""
+    g = design.geometry
+    rho_min = max(abs(g.d3 - g.d4), fold_margin(design))
+    c2 = (rho_min**2 - g.d3**2 - g.d4**2) / (2.0 * g.d3 * g.d4)
+    return math.acos(min(1.0, max(-1.0, c2)))
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
@@ -78,14 +95,21 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     if blocked:
         return PrrrJointLimits(elbow_limit=nan, used={}, stops=None, margin=nan, wall_s=time.perf_counter() - t0,
                                status=Status.NOT_ASSEMBLABLE, message=blocked)
-    g = design.geometry
-    rho_min = max(abs(g.d3 - g.d4), fold_margin(design))
-    c2 = (rho_min**2 - g.d3**2 - g.d4**2) / (2.0 * g.d3 * g.d4)
-    elbow = math.acos(min(1.0, max(-1.0, c2)))
     pts = cylinder_grid(design, required_diameter / 2.0)
     ik = inverse_kinematics(params_of(design), pts, xp=np)
     th = np.asarray(ik.theta)[:, ELBOW_BRANCH]  # (m, 3 legs, 3)
-    ok = np.asarray(ik.reachable)
+    return from_angles(design, th, np.asarray(ik.reachable), fidelity=fidelity, t0=t0,
+                       required_diameter=required_diameter)
+
+
+def from_angles(design: PrrrDesign, th: np.ndarray, ok: np.ndarray, *, fidelity: Fidelity, t0: float,
+                required_diameter: float = FW.DEFAULT_REQUIRED_DIAMETER) -> PrrrJointLimits:
+    """The result from the joint angles ``th`` (m, 3 legs, 3) [rad] of the CAD's elbow branch at the
+    :func:`cylinder_grid` points and whether each is reachable (numpy, or a row of the batched
+    draft evaluator): the one place of the verdict."""
+    fidelity = Fidelity(fidelity)
+    elbow = elbow_limit(design)
+    nan = float("nan")
     if not ok.any():
         return PrrrJointLimits(elbow_limit=elbow, used={}, stops=None, margin=nan, wall_s=time.perf_counter() - t0,
                                status=Status.EMPTY, message="the required cylinder is not reachable")

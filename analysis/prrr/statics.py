@@ -97,6 +97,13 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> P
     # path (same function, xp=jnp) serves batches and gradients and is tested equal.
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         out = statics_arrays(params_np(design), a.spring, a.force_limit, design.end_effector.mass, xp=np)
+    return from_arrays(design, out)
+
+
+def from_arrays(design: PrrrDesign, out: dict) -> PrrrStatics:
+    """The result of ``design`` from its :func:`statics_arrays` (numpy or a row of a jax batch):
+    the one place the statics verdict is made."""
+    out = {k: np.asarray(v) for k, v in out.items()}
     # the verdict: the reciprocal condition number of J, banded (analysis.conditioning), never
     # whether the numbers happened to come out finite
     verdict = conditioning.classify(out["jacobian"], what=f"the Jacobian at β = {np.degrees(design.geometry.beta):.12g}°")

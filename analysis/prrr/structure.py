@@ -100,6 +100,15 @@ def structural_stiffness(design: PrrrDesign, *, p=(0.0, 0.0, 0.0), load_height: 
         raise InvalidInput(f"load_height = {load_height!r} m is not finite: allowed any finite height (m)")
     p = np.asarray(p, dtype=float)
     out = fm.solve_frame(fm.frame_params_of(design), p=p, load_height=load_height, options=options)
+    return from_arrays(design, out, p=p, load_height=load_height, options=options)
+
+
+def from_arrays(design: PrrrDesign, out: dict, *, p, load_height: float, options: fm.FrameOptions
+                ) -> StructuralStiffness:
+    """The result of ``design`` from its :func:`hapticopt.analysis.prrr.frame_model.frame_arrays`
+    (numpy, or a row of the batched draft evaluator's jax batch): the one place of the verdict.
+    Raises :class:`InvalidInput` if the pose is outside the reach or the slider stroke."""
+    p = np.asarray(p, dtype=float)
     if not bool(out["reachable"]):
         raise InvalidInput(
             f"pose p_mm = ({', '.join(f'{x * 1e3:g}' for x in p)}) is outside the reach or slider stroke of "
@@ -128,12 +137,22 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> S
             raise InvalidInput(blocked)
         result = structural_stiffness(design)
     except (InvalidInput, InvalidDesign) as exc:  # unreachable home pose; no carriage face can carry R1
-        nan3 = np.full(3, np.nan)
-        return StructuralStiffness(pose=np.zeros(3), load_height=fm.LOAD_HEIGHT, stiffness_load=nan3,
-                                   elastic_centre=float("nan"), stiffness_elastic_centre=nan3,
-                                   compliance_ee=np.full((6, 6), np.nan), coupling_residual=float("nan"),
-                                   condition=float("nan"), options=fm.FrameOptions(),
-                                   status=Status.NOT_ASSEMBLABLE if blocked else Status.FAILED, message=str(exc))
+        return failed(str(exc), Status.NOT_ASSEMBLABLE if blocked else Status.FAILED)
+    return _finish(design, result, fidelity)
+
+
+def failed(message: str, status: Status = Status.FAILED) -> StructuralStiffness:
+    """The result where the home pose cannot be evaluated (NaN metrics): ``failed``, or
+    ``not-assemblable`` when the chain does not close."""
+    nan3 = np.full(3, np.nan)
+    return StructuralStiffness(pose=np.zeros(3), load_height=fm.LOAD_HEIGHT, stiffness_load=nan3,
+                               elastic_centre=float("nan"), stiffness_elastic_centre=nan3,
+                               compliance_ee=np.full((6, 6), np.nan), coupling_residual=float("nan"),
+                               condition=float("nan"), options=fm.FrameOptions(), status=status,
+                               message=message)
+
+
+def _finish(design: PrrrDesign, result: StructuralStiffness, fidelity: Fidelity) -> StructuralStiffness:
     if fidelity != Fidelity.FINE:
         return result
 

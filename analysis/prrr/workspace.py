@@ -70,14 +70,14 @@ from hapticopt.design.prrr import cad as cad_prrr
 _GAMMA = np.asarray(GAMMAS)
 _THIRD = 2.0 * math.pi / 3.0
 
-def base_envelope(design: PrrrDesign) -> float:
+def base_envelope(design: PrrrDesign, *, specs: dict | None = None) -> float:
     """Radius [m] of the fixed parts' and carriages' envelope in xy, as built by
     ``hapticopt.design.prrr.cad`` (base plate, rails, screws, motors, carriages with their SEA
     housings: :func:`hapticopt.design.prrr.cad.envelope_radius`). Where the CAD cannot lay the
     parts out, the base plate and the rail circle r_p + rail_width/2 (a lower bound)."""
     g, s = design.geometry, design.structure
     try:
-        return cad_prrr.envelope_radius(design)
+        return cad_prrr.envelope_radius(design, specs=specs)
     except HapticoptError:
         return max(s.base_radius, g.r_p + s.rail_width / 2.0)
 
@@ -141,14 +141,16 @@ class WorkspaceParams(NamedTuple):
 
 
 def workspace_params(design: PrrrDesign, *, required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
-                     rho_min: float | None = None, rho_max: float | None = None) -> WorkspaceParams:
+                     rho_min: float | None = None, rho_max: float | None = None,
+                     specs: dict | None = None) -> WorkspaceParams:
     """Workspace parameters of one design; ``rho_min``/``rho_max`` override the reach annulus
-    (e.g. from elbow limits: |ρ|² = d3² + d4² + 2 d3 d4 cos θ2)."""
+    (e.g. from elbow limits: |ρ|² = d3² + d4² + 2 d3 d4 cos θ2); ``specs``: the design's part
+    tables when the caller has them (:func:`base_envelope`)."""
     g, s = design.geometry, design.structure
     lo = max(abs(g.d3 - g.d4), fold_margin(design)) if rho_min is None else rho_min
     hi = g.d3 + g.d4 if rho_max is None else rho_max
     vals = (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke, lo, hi,
-            base_envelope(design), s.boss_diameter / 2.0, required_diameter / 2.0)
+            base_envelope(design, specs=specs), s.boss_diameter / 2.0, required_diameter / 2.0)
     return WorkspaceParams(*(np.float64(v) for v in vals))
 
 
@@ -551,10 +553,12 @@ def batch_arrays(wp: WorkspaceParams, *, fidelity: Fidelity = Fidelity.STANDARD)
 INTERFERENCE_SAMPLING = dict(n_phi=6, n_r=4, n_z=3)
 
 
-def workspace_sample_weights(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> tuple[np.ndarray, np.ndarray]:
+def workspace_sample_weights(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int,
+                             specs: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Workspace sample points (m, 3) [m] (:func:`sample_points`) and their volume weights (m,)
-    [m³] (polar cells: r·Δr·Δφ·Δz)."""
-    wp = workspace_params(design)
+    [m³] (polar cells: r·Δr·Δφ·Δz); ``specs``: the design's part tables when the caller has them
+    (:func:`workspace_params`)."""
+    wp = workspace_params(design, specs=specs)
     pts = sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)
     if len(pts) == 0:
         return pts, np.zeros(0)

@@ -351,11 +351,12 @@ def layout(design: PrrrDesign) -> PrrrLayout:
                       stem_bottom=stem_bottom, ball_z=ball_z, z_base_top=z_base_top, z_rail_top=z_rail_top)
 
 
-def envelope_radius(design: PrrrDesign) -> float:
+def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = None) -> float:
     """Radius [m] of the fixed parts and the carriages (with their housings) about the z axis,
-    from the part tables: the carriages only turn about z and slide along it, so their xy
-    extent is the same at every pose. Exact for boxes (corners) and vertical cylinders."""
-    specs = part_specs(design)
+    from the part tables (``specs``: :func:`part_specs` of ``design``, computed when omitted): the
+    carriages only turn about z and slide along it, so their xy extent is the same at every pose.
+    Exact for boxes (corners) and vertical cylinders."""
+    specs = part_specs(design) if specs is None else specs
     frames = part_frames_batch(design, np.zeros((1, 3)), np.zeros((1, 3, 2)), np.zeros((1, 3)))
     out = 0.0
     for name, spec in specs.items():
@@ -576,26 +577,45 @@ def part_frames_batch(design: PrrrDesign, sliders: np.ndarray, theta: np.ndarray
     (n, 3) [m], ``theta`` (n, 3 legs, ≥ 2) [rad], end-effector ``p`` (n, 3) [m]. Link frames are
     ``frame(e, w)``: columns e, w × e, w (e ⟂ w by construction)."""
     g_ = design.geometry
+    return part_frames_arrays(g_.beta, g_.d1, g_.d2, g_.d3, g_.theta_1p, sliders, theta, p)
+
+
+def part_frames_arrays(beta, d1, d2, d3, theta_1p, sliders: np.ndarray, theta: np.ndarray, p: np.ndarray
+                       ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """:func:`part_frames_batch` with the geometry as arguments [SI]: each of ``beta``, ``d1``,
+    ``d2``, ``d3``, ``theta_1p`` a scalar (one design) or an ``(n,)`` array (one design per pose,
+    the batched draft evaluator's many designs in one pass)."""
     n = len(p)
+    col = [np.reshape(np.asarray(x, dtype=float), (-1, 1)) for x in (beta, d1, d2, d3, theta_1p)]
+    beta, d1, d2, d3, theta_1p = col
+    sb, cb = np.sin(beta), np.cos(beta)
+    ez = np.broadcast_to(EZ, (n, 3))
     eye = np.broadcast_to(np.eye(3), (n, 3, 3))
     zero = np.zeros((n, 3))
     out = {"base": (eye, zero)}
     for k, (i, gamma) in enumerate(zip(LEGS, GAMMAS)):
-        u, t, v, w = leg_vectors(g_.beta, gamma)
+        c, s = math.cos(gamma), math.sin(gamma)
+        # leg_vectors(beta, gamma), one row per pose
+        u = np.broadcast_to(np.array([c, s, 0.0]), (n, 3))
+        t = np.broadcast_to(np.array([-s, c, 0.0]), (n, 3))
+        w = np.broadcast_to(np.concatenate([-cb * c, -cb * s, sb], axis=1), (n, 3))
+        v = np.broadcast_to(np.concatenate([sb * c, sb * s, cb], axis=1), (n, 3))
         D = sliders[:, k]
         th1, th2 = theta[:, k, 0], theta[:, k, 1]
         e1 = np.cos(th1)[:, None] * v + np.sin(th1)[:, None] * t
         e12 = np.cos(th1 + th2)[:, None] * v + np.sin(th1 + th2)[:, None] * t
-        A = D[:, None] * EZ + g_.d1 * u + g_.d2 * t
-        B = A + g_.d3 * e1
-        up, tp = rail_direction(design, gamma)
+        A = D[:, None] * EZ + d1 * u + d2 * t
+        B = A + d3 * e1
+        a = gamma + theta_1p  # rail_direction(design, gamma)
+        up = np.broadcast_to(np.concatenate([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1), (n, 3))
+        tp = np.broadcast_to(np.concatenate([-np.sin(a), np.cos(a), np.zeros_like(a)], axis=1), (n, 3))
         out[f"rail_{i}"] = (eye, zero)
         out[f"screw_{i}"] = (eye, zero)
         out[f"motor_{i}"] = (eye, zero)
-        out[f"carriage_{i}"] = (np.broadcast_to(np.stack([up, tp, EZ], axis=1), (n, 3, 3)), D[:, None] * EZ)
+        out[f"carriage_{i}"] = (np.stack([up, tp, ez], axis=-1), D[:, None] * EZ)
         out[f"housing_{i}"] = out[f"carriage_{i}"]
         for name, x, org in ((f"link1_{i}", e1, A), (f"link2_{i}", e12, B)):
-            out[name] = (np.stack([x, np.cross(w, x), np.broadcast_to(w, x.shape)], axis=2), org)
+            out[name] = (np.stack([x, np.cross(w, x), w], axis=2), org)
     out["platform"] = (eye, np.asarray(p, dtype=float))
     return out
 
@@ -637,6 +657,9 @@ def posed(solids: dict[str, object], frames: dict[str, np.ndarray]) -> dict[str,
     return _parts.posed(solids, frames)
 
 
-def mass_properties(design, *, method: _mp.Method = _mp.Method.ANALYTIC, solids=None) -> _mp.MassProperties:
-    """Mass properties of every part: closed forms (default) or OpenCASCADE's integrals of the solids."""
-    return _mp.of(design, specs=part_specs(design), build_solids=build_parts, method=method, solids=solids)
+def mass_properties(design, *, method: _mp.Method = _mp.Method.ANALYTIC, solids=None,
+                    specs: dict[str, PartSpec] | None = None) -> _mp.MassProperties:
+    """Mass properties of every part: closed forms (default) or OpenCASCADE's integrals of the solids
+    (``specs``: :func:`part_specs` of ``design``, computed when omitted)."""
+    specs = part_specs(design) if specs is None else specs
+    return _mp.of(design, specs=specs, build_solids=build_parts, method=method, solids=solids)

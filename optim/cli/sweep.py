@@ -70,7 +70,7 @@ def sweep(
     scheduler: Annotated[str, typer.Option("--scheduler", help="local (process pool), inline, or a Dask scheduler address tcp://HOST:PORT.")] = "local",
     workers: Annotated[Optional[int], typer.Option("--workers", help="Processes of the local pool (default: min(4, CPUs)).")] = None,
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="One PNG per metric under DIR/plots/.")] = True,
-    batch: Annotated[bool, typer.Option("--batch", help="Evaluate in one process with the evaluators' batched jax forms (3-PRRR: --only statics).")] = False,
+    batch: Annotated[bool, typer.Option("--batch", help="Evaluate in one process with the batched evaluators (3-PRRR at draft: every evaluator; other fidelities: --only statics).")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
 ) -> None:
     """Sweep one or two numeric design keys over a grid; writes sweep.csv, a plot per metric and the record."""
@@ -92,8 +92,8 @@ def sweep(
     spec = sw.Sweep(base=design, axes=axes, fidelity=level, only=only_t)
     if batch and not sw.batch_supported(spec):
         allowed = sw.BATCHED.get(design.device, ())
-        raise InvalidInput(f"--batch needs --only naming evaluators with a batched form: for a {design.device} design "
-                           f"allowed {', '.join(allowed) if allowed else 'none'}")
+        raise InvalidInput(f"--batch needs a 3-PRRR draft sweep, or --only naming evaluators with a batched form: "
+                           f"for a {design.device} design at {level} allowed {', '.join(allowed) if allowed else 'none'}")
     out_dir = out if out is not None else Path("cad_out") / f"sweep-{design.name}-{'-'.join(a.key for a in axes)}"
     check_run_dir(out_dir, resume=resume, force=force)  # nothing written before this
     console = Console(stderr=True, quiet=quiet)

@@ -121,8 +121,24 @@ def test_batched_statics_sweep_equals_the_per_point_sweep():
         assert list(a.metrics) == list(b.metrics)
         for name in a.metrics:
             assert np.allclose(a.metrics[name], b.metrics[name], rtol=1e-12, atol=1e-12), name
-    with pytest.raises(InvalidInput, match="--batch needs --only naming evaluators with a batched form"):
-        run_sweep(Sweep(base=BASE, axes=s.axes), executor=InlineExecutor(), batch=True)
+    with pytest.raises(InvalidInput, match="--batch needs a 3-PRRR draft sweep, or --only naming evaluators"):
+        run_sweep(Sweep(base=BASE, axes=s.axes, fidelity=Fidelity.STANDARD), executor=InlineExecutor(), batch=True)
+
+
+def test_batched_draft_sweep_of_every_evaluator_equals_the_per_point_sweep():
+    """A 3-PRRR draft sweep with every evaluator through the batched draft evaluator
+    (analysis.prrr.draft_batch): outcomes, statuses and metrics equal to the per-point sweep
+    (1e-9 relative; the evaluator-level sample is tests/analysis/prrr/test_draft_batch.py)."""
+    s = Sweep(base=io.load_preset("prrr-paper"), axes=(parse_axis("geometry.r_p_mm=100:125:3", BASE),))
+    per_point = run_sweep(s, executor=InlineExecutor())
+    batched = run_sweep(s, executor=InlineExecutor(), batch=True)
+    for a, b in zip(per_point.results, batched.results):
+        assert a.outcome == b.outcome and a.statuses == b.statuses and a.message == b.message
+        assert list(a.metrics) == list(b.metrics)
+        for name in a.metrics:
+            assert np.allclose(a.metrics[name], b.metrics[name], rtol=1e-9, atol=0.0, equal_nan=True), name
+    seen = {st for r in per_point.results for st in r.statuses.values()}
+    assert "ok" in seen and seen & {"collides", "not-met"}  # r_p = 100 mm: the links reach the next rail
 
 
 def test_batched_statics_sweep_says_not_assemblable_as_the_evaluator_does():

@@ -1,0 +1,351 @@
+"""Batched draft evaluation of the 3-PRRR's registry evaluators (issue 22, item 3).
+
+Many designs at draft fidelity in one pass, with the same results and statuses as the
+evaluators one by one (tested to 1e-9 relative, ``tests/analysis/prrr/test_draft_batch.py``).
+The verdicts are the evaluators' own functions (``statics.from_arrays``,
+``structure.from_arrays``, ``workspace._result``, ``free_workspace.finish``,
+``joint_limits.from_angles``, ``device_size.from_specs``): this module only computes the
+arrays they read, for a whole batch at a time.
+
+* **jax, one jitted vmap** (:func:`core_fn`): statics (``statics_arrays``), the reach-and-stroke
+  workspace (``workspace_core`` at the draft sampling; its reach radius, emptiness and footprint
+  also bound the collision-free cylinder: they do not depend on the radial sampling), the frame
+  model (``frame_arrays``, default options, home pose) and the joint angles over the required
+  cylinder (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy; the batch is
+  padded to the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a
+  new batch size within a bucket costs no trace or compile (:data:`TRACES` counts traces);
+  compiled code persists on disk (``hapticopt.design.jax_config``).
+* **numpy over all designs at once**: the interference poses (``workspace_sample_weights`` per
+  design, then one separating-axis pass, ``interference_fast.check_posed``, over every pose of
+  every design) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
+  column grid of every design in one pass, then each bisection in one pass). The column structure
+  (moving parts translate together in z, fixed parts are prisms) is what makes one pose per
+  column enough there. Pose IK is a jitted vmap over poses (padded to powers of two). The
+  broad phase prunes primitive pairs per pose, which a fixed-shape jax program cannot do; on a
+  CPU the pruned numpy pass is the faster of the two.
+* **per design (Python)**: the CAD part tables (``cad.part_specs``: the layout's buildability
+  rules raise per design), the envelope, the analytic mass model and height
+  (``device_size.from_specs``), the interference sample weights, and the ``stability``
+  evaluator (not part of this batch: closed forms and a discrete loop analysis per design).
+
+A step that raises for one design is returned as that exception (the registry turns it into
+``failed`` with its one failure policy); the other designs and steps still run.
+"""
+
+from __future__ import annotations
+
+import collections
+import functools
+import time
+from typing import Any, NamedTuple
+
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr import device_size as DS
+from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.analysis.prrr import free_workspace as FW
+from hapticopt.analysis.prrr import interference as IF
+from hapticopt.analysis.prrr import interference_fast as FAST
+from hapticopt.analysis.prrr import joint_limits as JL
+from hapticopt.analysis.prrr import stability, statics, structure
+from hapticopt.analysis.prrr import workspace as WS
+from hapticopt.design.errors import HapticoptError, InvalidInput
+from hapticopt.design.prrr import cad
+from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
+from hapticopt.design.prrr.params import PrrrDesign
+
+#: registry evaluators computed by the batch (``stability`` runs per design: see the docstring)
+BATCHED = ("statics", "structural_stiffness", "workspace", "interference", "free_workspace", "device_size",
+           "joint_limits")
+#: largest padded batch of one jitted call (larger batches run in chunks of this size)
+MAX_CHUNK = 1024
+#: smallest padded pose batch of the pose IK
+MIN_POSES = 256
+#: traces of the jitted functions by name (a trace precedes every compile; tests count them)
+TRACES: collections.Counter = collections.Counter()
+
+_REQUIRED_RADIUS = FW.DEFAULT_REQUIRED_DIAMETER / 2.0
+_SMP = WS.SAMPLING[Fidelity.DRAFT]
+_FREE = FW.SAMPLING[Fidelity.DRAFT]
+
+
+def bucket(n: int, *, least: int = 1) -> int:
+    """The padded size of a batch of ``n``: the next power of two ≥ max(n, least)."""
+    return 1 << max(0, (max(n, least) - 1).bit_length())
+
+
+class CoreInputs(NamedTuple):
+    """Stacked inputs of :func:`core_fn` (numpy, leading batch axis) [SI]."""
+
+    kin: PrrrParams
+    spring: np.ndarray  # SEA spring k [N/m]
+    force_limit: np.ndarray  # F_max per actuator [N]
+    mass: np.ndarray  # end-effector mass M [kg]
+    wp: WS.WorkspaceParams
+    fp: fm.FrameParams
+
+
+def _core(inp: CoreInputs) -> dict:
+    TRACES["core"] += 1  # runs once per trace, not per call
+    st = statics.statics_arrays(inp.kin, inp.spring, inp.force_limit, inp.mass, xp=jnp)
+    ws = WS.workspace_core(inp.wp, n_phi=_SMP.n_phi, n_r=_SMP.n_r, xp=jnp)
+    fr = fm.frame_arrays(inp.fp, jnp.zeros(3), jnp.asarray(fm.LOAD_HEIGHT), fm.FrameOptions())
+    fr = {k: v for k, v in fr.items() if k not in fm._PLOT_ONLY}
+    pts = JL.cylinder_grid_of(inp.kin.stroke, inp.kin.beta, _REQUIRED_RADIUS, xp=jnp)
+    ik = inverse_kinematics(inp.kin, pts)
+    return {"statics": st, "workspace": ws, "frame": fr,
+            "joint_theta": ik.theta[:, WS.ELBOW_BRANCH], "joint_ok": ik.reachable}
+
+
+@functools.cache
+def core_fn():
+    """The jitted, vmapped draft core (one compile per padded batch size)."""
+    return jax.jit(jax.vmap(_core))
+
+
+def _pose_ik(kin: PrrrParams, p: jax.Array):
+    TRACES["pose_ik"] += 1
+    ik = inverse_kinematics(kin, p)
+    return ik.sliders, ik.theta[WS.ELBOW_BRANCH], ik.reachable
+
+
+@functools.cache
+def pose_ik_fn():
+    """IK of one pose per row, each with its own design's parameters (jitted vmap)."""
+    return jax.jit(jax.vmap(_pose_ik))
+
+
+_KIN_FIELDS = ("beta", "d1", "d2", "d3", "d4", "r4", "b5", "stroke")
+
+
+def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams]) -> CoreInputs:
+    """Numpy stacking of the core's inputs (no jax operation per design)."""
+    geo = [d.geometry for d in designs]
+    kin = PrrrParams(*(np.array([float(getattr(g, f)) for g in geo]) for f in _KIN_FIELDS))
+    fps = [fm.frame_params_of(d, xp=np) for d in designs]
+    fp = jax.tree.map(lambda *xs: np.stack([np.asarray(x, dtype=float) for x in xs]), *fps)
+    return CoreInputs(kin=kin, spring=np.array([d.actuator.spring for d in designs]),
+                      force_limit=np.array([d.actuator.force_limit for d in designs]),
+                      mass=np.array([d.end_effector.mass for d in designs]),
+                      wp=WS.WorkspaceParams(*(np.array([float(w[k]) for w in wps]) for k in range(len(wps[0])))),
+                      fp=fp)
+
+
+def run_core(inp: CoreInputs, n: int) -> dict:
+    """The core on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK); numpy rows [:n]."""
+    size = bucket(n)
+    pad = jax.tree.map(lambda x: np.concatenate([x, np.repeat(x[-1:], size - n, axis=0)]) if size > n else x, inp)
+    out = core_fn()(pad)
+    return jax.tree.map(lambda x: np.asarray(x)[:n], out)
+
+
+class _Checker:
+    """Collision checks of poses of many designs (owner index per pose), grouped by part layout."""
+
+    def __init__(self, designs: list[PrrrDesign], models: dict[int, FAST.FastModel]) -> None:
+        self.idx = np.array(sorted(models), dtype=int)
+        geo = [d.geometry for d in designs]
+        self.geo = {f: np.array([float(getattr(g, f)) for g in geo]) for f in _KIN_FIELDS + ("theta_1p",)}
+        groups: dict[tuple, list[int]] = {}
+        for i in self.idx:
+            groups.setdefault(FAST.layout_key(models[i]), []).append(int(i))
+        self.groups = []
+        for members in groups.values():
+            local = np.full(len(designs), -1)
+            local[members] = np.arange(len(members))
+            self.groups.append((local, FAST.stack_models([models[i] for i in members])))
+
+    def __call__(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``."""
+        n = len(pts)
+        collides, reachable, depth = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)
+        if n == 0:
+            return collides, reachable, depth
+        size = bucket(n, least=MIN_POSES)
+        own = np.concatenate([owner, np.full(size - n, owner[0])])
+        p = np.concatenate([pts, np.zeros((size - n, 3))])
+        kin = PrrrParams(*(self.geo[f][own] for f in _KIN_FIELDS))
+        sliders, theta, ok = (np.asarray(x)[:n] for x in pose_ik_fn()(kin, p))
+        g = self.geo
+        frames = cad.part_frames_arrays(g["beta"][owner], g["d1"][owner], g["d2"][owner], g["d3"][owner],
+                                        g["theta_1p"][owner], sliders, theta, pts)
+        for local, batch in self.groups:
+            sel = np.flatnonzero(local[owner] >= 0)
+            if len(sel) == 0:
+                continue
+            fr = {k: (R[sel], o[sel]) for k, (R, o) in frames.items()}
+            res = FAST.check_posed(batch, local[owner[sel]], pts[sel], fr, ok[sel])
+            collides[sel] = res.collides
+            reachable[sel] = res.reachable
+            depth[sel] = res.depth.max(axis=1) if res.depth.shape[1] else 0.0
+        return collides, reachable, depth
+
+
+def _guard(fn, *args, **kw) -> Any:
+    """``fn(*args, **kw)``, or the exception it raised (the registry's failure policy applies)."""
+    try:
+        return fn(*args, **kw)
+    except Exception as exc:  # noqa: BLE001 - a failure is a value for the registry
+        return exc
+
+
+def evaluate_many(designs: list[PrrrDesign], *, only: tuple[str, ...] | None = None
+                  ) -> list[tuple[dict[str, Any], dict[str, float]]]:
+    """Draft results of ``designs``: per design (evaluator name → result or the exception raised,
+    evaluator name → seconds, the batch's wall time of that step divided by the batch size)."""
+    out: list[tuple[dict[str, Any], dict[str, float]]] = []
+    for c in range(0, len(designs), MAX_CHUNK):
+        out.extend(_chunk(list(designs[c:c + MAX_CHUNK]), only))
+    return out
+
+
+def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tuple[dict[str, Any], dict[str, float]]]:
+    n = len(designs)
+    want = [name for name in BATCHED + ("stability",) if only is None or name in only]
+    res: list[dict[str, Any]] = [{} for _ in designs]
+    tim: dict[str, float] = {}
+    draft = Fidelity.DRAFT
+
+    t0 = time.perf_counter()
+    specs: list[Any] = []
+    for d in designs:
+        specs.append(_guard(cad.part_specs, d))
+    wps = [WS.workspace_params(d, specs=None if isinstance(s, Exception) else s) for d, s in zip(designs, specs)]
+    arrays = run_core(stack_inputs(designs, wps), n)
+    t_core = time.perf_counter() - t0
+
+    def row(group: str, i: int) -> dict:
+        return {k: v[i] for k, v in arrays[group].items()}
+
+    t1 = time.perf_counter()
+    for i, d in enumerate(designs):
+        if "statics" in want:
+            res[i]["statics"] = _guard(statics.from_arrays, d, row("statics", i))
+        if "structural_stiffness" in want:
+            res[i]["structural_stiffness"] = _guard(_structure, d, row("frame", i))
+        if "workspace" in want or "free_workspace" in want:
+            res[i]["workspace"] = _guard(WS._result, row("workspace", i), _REQUIRED_RADIUS, draft)
+        if "joint_limits" in want:
+            res[i]["joint_limits"] = _guard(JL.from_angles, d, arrays["joint_theta"][i], arrays["joint_ok"][i],
+                                            fidelity=draft, t0=t1)
+        if "device_size" in want:
+            res[i]["device_size"] = (DS.failed(specs[i], t1) if isinstance(specs[i], HapticoptError)
+                                     else _guard(DS.from_specs, d, specs[i], t1))
+    t_rows = time.perf_counter() - t1
+    for name in ("statics", "structural_stiffness", "workspace", "joint_limits", "device_size"):
+        tim[name] = (t_core + t_rows) / (5 * n)
+
+    models: dict[int, FAST.FastModel] = {}
+    if "interference" in want or "free_workspace" in want:
+        for i, d in enumerate(designs):
+            if not isinstance(specs[i], Exception):
+                m = _guard(FAST.prepare, d, specs=specs[i])
+                if isinstance(m, Exception):
+                    specs[i] = m
+                else:
+                    models[i] = m
+        check = _Checker(designs, models)
+    if "interference" in want:
+        t2 = time.perf_counter()
+        _interference(designs, specs, models, check, res, t2)
+        tim["interference"] = (time.perf_counter() - t2) / n
+    if "free_workspace" in want:
+        t3 = time.perf_counter()
+        _free_workspace(designs, specs, arrays, check, res, t3)
+        tim["free_workspace"] = (time.perf_counter() - t3) / n
+    if "workspace" not in want:
+        for r in res:
+            r.pop("workspace", None)
+    if "stability" in want:
+        t4 = time.perf_counter()
+        for i, d in enumerate(designs):
+            res[i]["stability"] = _guard(stability.evaluate, d, fidelity=draft)
+        tim["stability"] = (time.perf_counter() - t4) / n
+    return [(r, {k: tim[k] for k in r}) for r in res]
+
+
+def _structure(design: PrrrDesign, out: dict) -> Any:
+    """The frame result from the batch's row; a design whose verdict is not ok is solved again by
+    the single numpy path: near a singular stiffness matrix the numbers are rounding garbage that
+    differs between LAPACK and XLA, and so could the verdict read from them (measured: β = 89.999999°
+    gave ``singular`` in numpy and ``not-positive-definite`` in jax). Rare, and it keeps the statuses equal."""
+    try:
+        result = structure.from_arrays(design, out, p=np.zeros(3), load_height=fm.LOAD_HEIGHT,
+                                       options=fm.FrameOptions())
+        if result.status is not structure.Status.OK:
+            result = structure.structural_stiffness(design)
+        return result
+    except InvalidInput as exc:
+        return structure.failed(str(exc))
+
+
+def _interference(designs, specs, models, check, res, t0) -> None:
+    owners, pts_all, weights = [], [], {}
+    for i, d in enumerate(designs):
+        # the order of interference_fast.interference_fractions: an empty sample is (0, 0) before
+        # the part tables are needed
+        sample = _guard(WS.workspace_sample_weights, d, **WS.INTERFERENCE_SAMPLING,
+                        specs=None if isinstance(specs[i], Exception) else specs[i])
+        if isinstance(sample, Exception):
+            res[i]["interference"] = sample
+            continue
+        pts, w = sample
+        if len(pts) and w.sum() > 0:
+            if isinstance(specs[i], HapticoptError):
+                res[i]["interference"] = IF.failed(specs[i], t0)
+                continue
+            if isinstance(specs[i], Exception):
+                res[i]["interference"] = specs[i]
+                continue
+            owners.append(np.full(len(pts), i))
+            pts_all.append(pts)
+        weights[i] = w
+    if owners:
+        owner = np.concatenate(owners)
+        collides, _, depth = check(owner, np.concatenate(pts_all))
+        share = np.clip(depth / FAST.OVERLAP_SCALE, 0.0, 1.0)
+    for i, w in weights.items():
+        if owners and w.sum() > 0 and np.any(owner == i):
+            sel = owner == i
+            removed, overlap = FAST.fractions_of(w, collides[sel], share[sel])
+        else:
+            removed, overlap = 0.0, 0.0
+        res[i]["interference"] = IF.from_fractions(removed, overlap, t0)
+
+
+def _free_workspace(designs, specs, arrays, check, res, t0) -> None:
+    todo, r_max = [], []
+    for i, d in enumerate(designs):
+        core = {k: v[i] for k, v in arrays["workspace"].items()}
+        rm = FW.reach_limit(d, core)
+        if bool(core["empty"]) or rm <= 0.0:
+            res[i]["free_workspace"] = _guard(FW.finish, d, core, None, fidelity=Fidelity.DRAFT, t0=t0)
+        elif isinstance(specs[i], HapticoptError):
+            res[i]["free_workspace"] = _guard(FW.finish, d, core, specs[i], fidelity=Fidelity.DRAFT, t0=t0)
+        elif isinstance(specs[i], Exception):
+            res[i]["free_workspace"] = specs[i]
+        else:
+            todo.append(i)
+            r_max.append(rm)
+    if not todo:
+        return
+    idx = np.asarray(todo)
+    stroke = np.array([designs[i].geometry.stroke for i in todo])
+    beta = np.array([designs[i].geometry.beta for i in todo])
+
+    def collides(owner, phi, r):
+        pts = FW.column_poses_of(stroke[owner], beta[owner], phi, r)
+        hit, reach, _ = check(idx[owner], pts)
+        return hit | ~reach
+
+    r_free, n_chk, n_hit = FW.free_radius_many(collides, np.asarray(r_max), n_phi=_FREE.n_phi, n_r=_FREE.n_r,
+                                               n_bisect=_FREE.n_bisect)
+    for k, i in enumerate(todo):
+        core = {kk: v[i] for kk, v in arrays["workspace"].items()}
+        res[i]["free_workspace"] = _guard(FW.finish, designs[i], core,
+                                          (float(r_free[k]), int(n_chk[k]), int(n_hit[k])),
+                                          fidelity=Fidelity.DRAFT, t0=t0)

@@ -1,0 +1,115 @@
+"""The batched draft evaluator equals the evaluators one by one (issue 22, item 3).
+
+Reference: :func:`hapticopt.analysis.registry.evaluate_all` at draft fidelity, design by design
+(the numpy single paths). Every metric agrees to 1e-9 relative (NaN where NaN), every status and
+message is equal. The sample is seeded and covers: the preset (ok), random layouts (collision-free
+cylinder missed: ``infeasible``; parts the CAD cannot lay out: ``failed``), β near 0 and 90 deg
+(the Jacobian near singularity), a stroke too short for any workspace (``empty``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr import draft_batch
+from hapticopt.analysis.registry import evaluate_all, evaluate_batch
+from hapticopt.design import io
+from hapticopt.design.errors import InvalidDesign
+
+BASE = io.load_preset("prrr-paper")
+REL = 1e-9
+
+
+def _geometry(design, **kw):
+    return dataclasses.replace(design, geometry=dataclasses.replace(design.geometry, **kw))
+
+
+def _sample() -> list:
+    rng = np.random.default_rng(22)
+    g = BASE.geometry
+    out = [BASE,
+           _geometry(BASE, beta=math.radians(89.999999)),  # tan β ~ 6e7: rcond(J) ~ 1e-8, ill-conditioned
+           _geometry(BASE, beta=math.radians(1e-12)),  # tan β ~ 2e-14: rcond(J) ~ 1e-14, singular
+           _geometry(BASE, stroke=1e-4),  # no workspace to speak of
+           _geometry(BASE, r_p=0.100)]  # the φ140 collision-free cylinder is missed (preset note)
+    while len(out) < 14:
+        kw = dict(beta=g.beta * rng.uniform(0.8, 1.2), r_p=g.r_p * rng.uniform(0.85, 1.3),
+                  d3=g.d3 * rng.uniform(0.8, 1.3), d4=g.d4 * rng.uniform(0.8, 1.3),
+                  stroke=g.stroke * rng.uniform(0.7, 1.3), theta_1p=g.theta_1p + rng.uniform(-0.3, 0.3))
+        try:
+            out.append(_geometry(BASE, **kw))
+        except InvalidDesign:
+            continue
+    return out
+
+
+def _close(a, b) -> bool:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if a.shape != b.shape:
+        return False
+    same = (a == b) | (np.isnan(a) & np.isnan(b))
+    return bool(np.all(same | (np.abs(a - b) <= REL * np.abs(b))))
+
+
+@pytest.fixture(scope="module")
+def both():
+    designs = _sample()
+    single = [evaluate_all(d, fidelity=Fidelity.DRAFT) for d in designs]
+    batched = evaluate_batch(designs, fidelity=Fidelity.DRAFT)
+    return designs, single, batched
+
+
+def test_batch_equals_single_path(both):
+    designs, single, batched = both
+    for d, s, b in zip(designs, single, batched):
+        assert b.statuses == s.statuses, d.geometry
+        assert b.messages == s.messages, d.geometry
+        ms, mb = s.metrics(), b.metrics()
+        assert list(mb) == list(ms)
+        bad = [k for k in ms if not _close(mb[k], ms[k])]
+        assert not bad, (d.geometry, {k: (ms[k], mb[k]) for k in bad})
+
+
+def test_sample_covers_the_hard_cases(both):
+    """The sample is not all-ok: singular/ill-conditioned statics, collision-free workspaces that miss
+    the required cylinder (not-met) and designs that cannot be assembled (the parts cannot be laid
+    out: the single path answers them), and colliding poses are in it."""
+    _, single, _ = both
+    seen = {(name, str(st)) for ev in single for name, st in ev.statuses.items()}
+    for case in [("statics", "ok"), ("free_workspace", "ok"), ("free_workspace", "not-met"),
+                 ("free_workspace", "not-assemblable"), ("interference", "collides")]:
+        assert case in seen, case
+    assert ("statics", "singular") in seen and ("statics", "ill-conditioned") in seen
+    assert any(ev.results["free_workspace"].colliding > 0 for ev in single if "free_workspace" in ev.results)
+
+
+def test_only_restricts_the_batch():
+    designs = _sample()[:3]
+    only = ("statics", "free_workspace")
+    for s, b in zip([evaluate_all(d, fidelity=Fidelity.DRAFT, only=only) for d in designs],
+                    evaluate_batch(designs, fidelity=Fidelity.DRAFT, only=only)):
+        assert list(b.statuses) == list(s.statuses) == list(only)
+        assert all(_close(b.metrics()[k], v) for k, v in s.metrics().items())
+
+
+def test_new_batch_size_in_a_bucket_does_not_retrace():
+    """Batch sizes 5, 6 and 8 share the padded size 8: one trace of the core at most (none when
+    an earlier test already traced it), then none for the others."""
+    designs = _sample()[:8]
+    draft_batch.evaluate_many(designs[:5])
+    before = draft_batch.TRACES["core"]
+    draft_batch.evaluate_many(designs[:6])
+    draft_batch.evaluate_many(designs[:8])
+    assert draft_batch.TRACES["core"] == before
+    assert [draft_batch.bucket(n) for n in (1, 2, 3, 5, 8, 9, 1024)] == [1, 2, 4, 8, 8, 16, 1024]
+
+
+def test_other_fidelities_fall_back_to_the_single_path():
+    ev = evaluate_batch([BASE], fidelity=Fidelity.STANDARD, only=("statics",))[0]
+    assert ev.fidelity is Fidelity.STANDARD
+    assert _close(ev.metrics()["jacobian_condition"], evaluate_all(BASE, only=("statics",)).metrics()["jacobian_condition"])
