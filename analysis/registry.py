@@ -26,6 +26,7 @@ import numpy as np
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidDesign
+from hapticopt.design import offscreen
 from hapticopt.design.paths import check_name, inside
 
 
@@ -163,6 +164,7 @@ def run_plotter(entry: EvaluatorEntry, design: Any, result: Any, out_dir: Path) 
     plotter = entry.plotter()
     if plotter is None:
         return []
+    offscreen.configure()  # the plotters draw with pyvista: no X probe, no VTK warning
     return [inside(out_dir, p) for p in plotter(design, result, out_dir)]
 
 

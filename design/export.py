@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticopt.design import atomic
+from hapticopt.design import atomic, offscreen
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.paths import check_name, inside
 from hapticopt.design import mass_properties as mp
@@ -128,6 +128,7 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False) ->
 
 def render_png(stl_files: list[Path], target: Path, *, title: str = "") -> None:
     """Off-screen pyvista picture of the given STL parts, written atomically."""
+    offscreen.configure()  # before the first render window: no X probe, no VTK warning
     import pyvista as pv
 
     plotter = pv.Plotter(off_screen=True, window_size=(1024, 768))

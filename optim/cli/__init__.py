@@ -9,6 +9,7 @@ import typer
 
 from hapticopt.optim.cli import compare as cli_compare
 from hapticopt.optim.cli import common
+from hapticopt.design import offscreen
 from hapticopt.optim.cli import evaluate as cli_evaluate
 from hapticopt.optim.cli import export as cli_export
 from hapticopt.optim.cli import optimise as cli_optimise
@@ -39,6 +40,7 @@ def _root(
 ) -> None:
     """Design optimisation of haptic mechanisms: describe, evaluate, optimise, export, verify."""
     common.DEBUG.set(debug)
+    offscreen.configure()  # every picture off screen, in this process and the workers it starts
 
 
 app.command("evaluate")(cli_evaluate.evaluate)
