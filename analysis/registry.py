@@ -16,7 +16,7 @@ from __future__ import annotations
 import importlib
 import time
 import traceback
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -330,17 +330,22 @@ class Evaluation:
                          for name, st in self.statuses.items() if st is Status.FAILED)
 
 
+#: ``progress(evaluator, done, total)``: called before each evaluator runs and once at the end ('', n, n)
+StepFn = Callable[[str, int, int], None]
+
+
 def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
-                 only: tuple[str, ...] | None = None) -> Evaluation:
+                 only: tuple[str, ...] | None = None, progress: StepFn | None = None) -> Evaluation:
     """Run every evaluator registered for the design's device (or those named in ``only``)."""
+    entries = [e for e in EVALUATORS[design.device] if only is None or e.name in only]
     results: dict[str, Any] = {}
     timings: dict[str, float] = {}
     statuses: dict[str, Status] = {}
     messages: dict[str, str] = {}
     sources: dict[str, str] = {}
-    for entry in EVALUATORS[design.device]:
-        if only is not None and entry.name not in only:
-            continue
+    for k, entry in enumerate(entries):
+        if progress is not None:
+            progress(entry.name, k, len(entries))
         t0 = time.perf_counter()
         try:
             result = entry.load().evaluate(design, fidelity=fidelity)
@@ -354,6 +359,8 @@ def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
             messages[entry.name] = result.message
             sources.update({name: entry.module for name in names})
         timings[entry.name] = time.perf_counter() - t0
+    if progress is not None:
+        progress("", len(entries), len(entries))
     return Evaluation(fidelity=fidelity, results=results, timings_s=timings, statuses=statuses,
                       messages=messages, sources=sources)
 

@@ -10,8 +10,8 @@ import typer
 from hapticopt.optim.cli.common import one_line_errors
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.problem import INT_RANGES, load_problem
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from hapticopt.optim.cli import render
+from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.optim.problem import problem_names
 from hapticopt.optim.recorder import check_run_dir
 
@@ -51,7 +51,7 @@ def optimise(
 
     from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline
 
-    console = Console(stderr=True, quiet=quiet)
+    console = render.console(stderr=True, quiet=quiet)
     if prob.is_multi_objective:
         with console.status("tracing the Pareto front", spinner="dots") as status:
             res = run_front_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
@@ -70,9 +70,8 @@ def optimise(
                        "on chosen.toml")
         typer.echo(f"report: {out_dir / 'report.html'}")
         return
-    with Progress(TextColumn("[bold]{task.fields[stage]}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  TextColumn("{task.description}"), console=console, transient=False, disable=quiet) as progress:
-        task = progress.add_task("", total=prob.optimiser.max_evals, stage="baseline")
+    with make_progress(console, disable=quiet) as bar:
+        line = StageLine(bar, "baseline")
 
         def on_point(rec, best, n_evaluated):  # called from the driver (any thread)
             if best is None:
@@ -82,14 +81,25 @@ def optimise(
                 feas = "feasible" if best.max_violation <= prob.optimiser.constraint_tol else \
                     f"infeasible (violation {100 * best.max_violation:.2g} %)"
                 desc = f"best {prob.objective.metric.text} = {obj:.6g} ({feas})"
-            progress.update(task, completed=min(rec.index + 1, prob.optimiser.max_evals), description=desc)
+            line.count(min(rec.index + 1, prob.optimiser.max_evals))
+            line.note(desc)
 
         def on_stage(name):
-            progress.update(task, stage=name)
+            totals = {"optimise": prob.optimiser.max_evals}
+            texts = {"baseline": f"start design at {prob.fidelity_optimise}"
+                                 + ("" if prob.fidelity_final == prob.fidelity_optimise
+                                    else f" and {prob.fidelity_final}") + " fidelity",
+                     "optimise": f"{prob.optimiser.algorithm} at {prob.fidelity_optimise} fidelity",
+                     "final": f"optimum at {prob.fidelity_final} fidelity", "plots": "evaluator pictures",
+                     "export": "STEP, STL, MJCF, render", "verify": "closed loop in the problem's scenes",
+                     "report": "report.html, result.json"}
+            line.stage(name, totals.get(name, 1), texts.get(name, ""))
 
         result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler, workers=workers,
-                              progress=on_point, export=export, verify=verify, on_stage=on_stage)
-        progress.update(task, stage="done")
+                              progress=on_point, export=export, verify=verify, on_stage=on_stage,
+                              on_step=line.step)
+        line.stage("done", 1, f"{out_dir / 'report.html'}")
+        line.count(1)
     obj = prob.objective.metric
     b, o = obj.value(result.baseline.metrics), obj.value(result.optimum.metrics)
     typer.echo(f"{prob.name}: {result.run.status}; {obj.text} baseline {b:.6g} -> optimum {o:.6g} "
