@@ -252,10 +252,12 @@ UNIT_SYMBOLS: dict[str, str] = {
 
 def metric_unit(name: str) -> str:
     """The unit a metric's name ends with, as printed (``stiffness_limit_N_per_mm`` → ``N/mm``,
+    ``growth_rate_per_s`` → ``1/s``,
     ``*_deg`` → ``deg``, ``*_pct`` → ``%``); '' for a dimensionless metric. ``name[i]`` allowed."""
     parts = name.split("[")[0].split("_")
-    if len(parts) >= 4 and parts[-2] == "per" and parts[-3] in UNIT_SYMBOLS and parts[-1] in UNIT_SYMBOLS:
-        return f"{UNIT_SYMBOLS[parts[-3]]}/{UNIT_SYMBOLS[parts[-1]]}"
+    if len(parts) >= 3 and parts[-2] == "per" and parts[-1] in UNIT_SYMBOLS:
+        top = UNIT_SYMBOLS.get(parts[-3], "1")  # growth_rate_per_s: 1/s
+        return f"{top}/{UNIT_SYMBOLS[parts[-1]]}"
     if len(parts) >= 2 and parts[-1] in UNIT_SYMBOLS:
         return UNIT_SYMBOLS[parts[-1]]
     return ""

@@ -12,6 +12,7 @@ from typing import Annotated, Any, Optional
 import typer
 
 from hapticopt.analysis import verify as closed_loop_verify
+from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
 import numpy as np
 from hapticopt.design.atomic import atomic_path
@@ -97,13 +98,36 @@ def verify(
                                "status": str(result.status), "message": result.message,
                                "plots": [str(p) for p in written]}, indent=2))
         return
-    for k, v in metrics.items():
-        if k.startswith("zwidth_stable") and isinstance(v, list):
-            continue
-        typer.echo(f"{k:32s} {v}")
-    typer.echo(f"status: {result.status}" + (f" — {result.message}" if result.message else ""))
+    _print_verify(design.name, sc.name, level, metrics, str(result.status), result.message, written)
+
+
+#: verify keys shown as lines of their own, not in the metric table (resolution_reason: backend_reason's
+#: older name, kept in --json only)
+_OWN_LINES = ("backend", "backend_reason", "resolution_reason", "effects", "notes", "paper_quantity", "paper_axes",
+              "paper_metric", "paper_value", "paper_source")
+
+
+def _print_verify(design: str, scene: str, level: Fidelity, metrics: dict[str, Any], status: str, message: str,
+                  written: list[Path]) -> None:
+    console = render.console()
+    console.print(f"{design} in scene {scene} ({level} fidelity, {metrics.get('backend', '?')} backend)")
+    if metrics.get("backend_reason"):
+        console.print(f"backend: {metrics['backend_reason']}")
+    if metrics.get("effects"):
+        console.print(f"effects: {render.value(metrics['effects'])}")
+    shown = {k: v for k, v in metrics.items() if k not in _OWN_LINES
+             and not (k.startswith("zwidth_stable") and isinstance(v, list))}  # the map's cells: --json
+    console.print(render.metrics_table(None, shown))
+    if "paper_quantity" in metrics:
+        q = str(metrics["paper_quantity"])
+        axes = f" along {metrics['paper_axes']}" if metrics.get("paper_axes") else ""
+        console.print(f"paper: {q}{axes} = {render.metric(q, metrics.get('paper_metric'))} here, "
+                      f"{render.metric(q, metrics.get('paper_value'))} in {metrics.get('paper_source', 'the paper')}")
+    for note in metrics.get("notes") or []:
+        console.print(f"note: {note}")
+    console.print(f"status: {status}" + (f" — {message}" if message else ""))
     for p in written:
-        typer.echo(f"wrote {p}")
+        console.print(f"wrote {p}")
 
 
 def _override_controller(sc: Any, period_ms: float | None, force_gain: float | None) -> Any:

@@ -43,6 +43,7 @@ def test_every_entry_has_descriptions_and_a_fidelity_note():
     ("structural_fea_max_von_mises_MPa_per_N", "MPa/N"),  # not "N": the whole "A_per_B" suffix
     ("stiffness_limit_N_per_mm[2]", "N/mm"), ("jacobian_condition", ""), ("workspace_coverage", ""),
     ("jacobian_condition_min", ""),  # "min" is not a unit
+    ("growth_rate_per_s", "1/s"),  # a rate, not a time
 ])
 def test_metric_unit_from_the_suffix(name: str, unit: str):
     assert registry.metric_unit(name) == unit
