@@ -12,6 +12,7 @@ from hapticopt.optim.cli import common
 from hapticopt.design import offscreen
 from hapticopt.optim.cli import evaluate as cli_evaluate
 from hapticopt.optim.cli import export as cli_export
+from hapticopt.optim.cli import metrics as cli_metrics
 from hapticopt.optim.cli import optimise as cli_optimise
 from hapticopt.optim.cli import runs as cli_runs
 from hapticopt.optim.cli import sweep as cli_sweep
@@ -54,6 +55,7 @@ app.command("show")(cli_runs.show)
 app.command("sweep")(cli_sweep.sweep)
 app.command("compare")(cli_compare.compare)
 app.command("design-map")(cli_verify.design_map)
+app.command("metrics")(cli_metrics.metrics)
 
 
 def main() -> None:
