@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -33,6 +34,7 @@ def optimise(
     export: Annotated[bool, typer.Option("--export/--no-export", help="Export STEP/STL/MJCF of the optimum.")] = True,
     verify: Annotated[bool, typer.Option("--verify/--no-verify", help="Verify the optimum in closed loop on the problem's scenes.")] = True,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the run's result.json (instead of the summary lines).")] = False,
 ) -> None:
     """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front)."""
 
@@ -57,6 +59,9 @@ def optimise(
             res = run_front_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
                                      workers=workers,
                                      progress=lambda label, n: status.update(f"Pareto front: {label} done, {n} evaluated"))
+        if as_json:
+            typer.echo(json.dumps(res, indent=2, default=str))
+            return
         f1, f2 = (o["metric"] for o in res["objectives"])
         typer.echo(f"{prob.name}: Pareto front of {f1} and {f2}: {len(res['front'])} points "
                    f"(ε-constraint, {len(res['runs'])} runs); {res['n_evaluated']} evaluated, {res['n_replayed']} replayed")
@@ -100,6 +105,9 @@ def optimise(
                               on_step=line.step)
         line.stage("done", 1, f"{out_dir / 'report.html'}")
         line.count(1)
+    if as_json:
+        typer.echo((out_dir / "result.json").read_text(encoding="utf-8"), nl=False)
+        return
     obj = prob.objective.metric
     b, o = obj.value(result.baseline.metrics), obj.value(result.optimum.metrics)
     typer.echo(f"{prob.name}: {result.run.status}; {obj.text} baseline {b:.6g} -> optimum {o:.6g} "
@@ -115,9 +123,19 @@ def optimise(
 
 
 @one_line_errors
-def problems() -> None:
+def problems(
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON list [{name, device, description, objectives, "
+                                                         "variables}].")] = False,
+) -> None:
     """List the bundled optimisation problems."""
-
+    rows = []
     for name in problem_names():
         p = load_problem(name)
-        typer.echo(f"{name:22s} {p.device:7s} {p.description}")
+        objectives = [o.metric.text for o in p.objectives] if p.is_multi_objective else [p.objective.metric.text]
+        rows.append({"name": name, "device": p.device, "description": p.description, "objectives": objectives,
+                     "variables": [v.key for v in p.variables]})
+    if as_json:
+        typer.echo(json.dumps(rows, indent=2, ensure_ascii=False))
+        return
+    render.console().print(render.table(None, ("problem", "device", "description"),
+                                        ((r["name"], r["device"], r["description"]) for r in rows)))
