@@ -102,14 +102,49 @@ def metric(name: str, v: Any) -> str:
 
 
 def table(title: str | None, columns: Sequence[str], rows: Iterable[Sequence[str]], *,
-          right: Sequence[str] = ()) -> Table:
-    """A table whose cells wrap (long names fold onto the next line) instead of being cut."""
+          numbers: bool = False) -> Table:
+    """A table whose cells wrap (long names fold onto the next line) instead of being cut.
+
+    ``numbers``: every cell is a number, kept whole on one line (the column is at least as wide
+    as its widest cell, right-aligned); only the headers fold.
+    """
+    rows = [list(r) for r in rows]
     t = Table(title=title, title_justify="left")
-    for c in columns:
-        t.add_column(c, overflow="fold", justify="right" if c in right else "left")
+    for j, c in enumerate(columns):
+        widest = max((len(r[j]) for r in rows), default=0) if numbers else None
+        t.add_column(c, overflow="fold", justify="right" if numbers else "left", min_width=widest)
     for r in rows:
         t.add_row(*r)
     return t
+
+
+#: narrowest a folded header column is allowed to get [characters]
+HEADER_MIN = 8
+
+
+def number_tables(title: str | None, columns: Sequence[str], rows: Iterable[Sequence[str]], *,
+                  width: int) -> list[Table]:
+    """A table of numbers too wide for ``width`` columns, split into blocks of columns that fit,
+    each repeating the first (key) column — the numbers are never cut or folded."""
+    rows = [list(r) for r in rows]
+    need = [max(HEADER_MIN, *(len(r[j]) for r in rows)) + 3 for j in range(len(columns))]  # + borders, padding
+    groups: list[list[int]] = []
+    used = 1 + need[0]
+    for j in range(1, len(columns)):
+        if not groups or used + need[j] > width:
+            groups.append([])
+            used = 1 + need[0]
+        groups[-1].append(j)
+        used += need[j]
+    if not groups:
+        groups = [[]]
+    out = []
+    for k, group in enumerate(groups):
+        cols = [0, *group]
+        part = f" ({k + 1}/{len(groups)})" if len(groups) > 1 else ""
+        out.append(table(f"{title}{part}" if title else None, [columns[j] for j in cols],
+                         ([r[j] for j in cols] for r in rows), numbers=True))
+    return out
 
 
 def metrics_table(title: str | None, metrics: Mapping[str, Any], *, skip: Iterable[str] = ()) -> Table:

@@ -13,7 +13,6 @@ import typer
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.atomic import write_text
 from hapticopt.design.errors import InvalidInput
-from hapticopt.analysis.registry import metric_unit
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
 from hapticopt.optim.cli.progress import StageLine, make_progress
@@ -45,9 +44,11 @@ def run_sweep(design: Any, name: str, out_dir: Path, fidelity: Any) -> list[Path
     mu, mf = rows[0]["upper_counterweight_kg"], rows[0]["forearm_counterweight_kg"]
     boundary = master_tradeoff.unbalance_boundary(design, fidelity=fidelity) * (mu + mf)
     plot_path = master_plots.sweep_plot(rows, plot_target, boundary_mass=boundary)
-    render.console(stderr=True).print(render.table(
-        f"{design.name}: counterweight sweep (seed 003 trade-off)", [f"{k} [{metric_unit(k) or '-'}]" for k in rows[0]],
-        ([render.number(v) for v in r.values()] for r in rows)))
+    err = render.console(stderr=True)
+    for t in render.number_tables(f"{design.name}: counterweight sweep (seed 003 trade-off; units in the names)",
+                                  list(rows[0]), ([render.number(v) for v in r.values()] for r in rows),
+                                  width=err.width):
+        err.print(t)
     return [table_path, plot_path]
 
 
