@@ -55,10 +55,20 @@ def optimise(
 
     console = render.console(stderr=True, quiet=quiet)
     if prob.is_multi_objective:
-        with console.status("tracing the Pareto front", spinner="dots") as status:
+        with make_progress(console, disable=quiet) as bar:
+            runs = prob.pareto.points if prob.pareto else 1
+            line = StageLine(bar, "front", runs)
+            line.note(f"ε-constraint runs at {prob.fidelity_optimise} fidelity, then the chosen design at "
+                      f"{prob.fidelity_final}")
+            done = [0]
+
+            def on_run(label, n):
+                done[0] += 1
+                line.count(min(done[0], runs))
+                line.note(f"run {label} done, {n} evaluated")
+
             res = run_front_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
-                                     workers=workers,
-                                     progress=lambda label, n: status.update(f"Pareto front: {label} done, {n} evaluated"))
+                                     workers=workers, progress=on_run)
         if as_json:
             typer.echo(json.dumps(res, indent=2, default=str))
             return

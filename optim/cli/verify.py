@@ -14,6 +14,7 @@ import typer
 from hapticopt.analysis import verify as closed_loop_verify
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+from hapticopt.optim.cli.progress import StageLine, make_progress
 import numpy as np
 from hapticopt.design.atomic import atomic_path
 from hapticopt.analysis.prrr import design_map as firmware_map
@@ -86,12 +87,17 @@ def verify(
     sc = _override_controller(sc, period_ms, force_gain)
     if plots is not None:
         writable_dir(plots, "--plots")
-    result = closed_loop_verify.simulate(design, sc, fidelity=level, backend=force)
-    metrics = result.metrics()
-    metrics["resolution_reason"] = metrics.get("backend_reason", "")
-    metrics["notes"] = list(result.notes)
-    if sc.stability == StabilityCriterion.DECAY and metrics["backend"] == "lumped":  # also map its Z-width
-        metrics.update(zwidth.zwidth_map(design, sc, fidelity=level).metrics())
+    err = render.console(stderr=True)
+    with make_progress(err, transient=True, disable=as_json or not err.is_terminal) as bar:
+        line = StageLine(bar, "simulate")
+        line.note(f"{design.name} in {sc.name} at {level} fidelity")
+        result = closed_loop_verify.simulate(design, sc, fidelity=level, backend=force)
+        metrics = result.metrics()
+        metrics["resolution_reason"] = metrics.get("backend_reason", "")  # its older name, kept for --json users
+        metrics["notes"] = list(result.notes)
+        if sc.stability == StabilityCriterion.DECAY and metrics["backend"] == "lumped":  # also map its Z-width
+            line.stage("z-width", 1, "stable region over wall stiffness × damping")
+            metrics.update(zwidth.zwidth_map(design, sc, fidelity=level).metrics())
     written = _plot(result, plots, sc.name) if plots is not None else []
     if as_json:
         typer.echo(json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
