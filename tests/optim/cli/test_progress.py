@@ -56,3 +56,28 @@ def test_optimise_progress_names_stages_with_count_and_elapsed(tmp_path, monkeyp
     # baseline at both fidelities of the problem (draft to optimise, standard final), counted in evaluators
     assert any(re.search(r"baseline .* \d/8 \d+:\d\d:\d\d (draft|standard): ", ln) for ln in lines), lines
     assert any(re.search(r"optimise .* \d+/12 \d+:\d\d:\d\d best jacobian_condition", ln) for ln in lines), lines
+
+
+def _terminal_stderr(monkeypatch) -> io.StringIO:
+    """Route the commands' stderr console to an 80-column terminal we can read."""
+    buf = io.StringIO()
+    monkeypatch.setattr(render, "console", lambda stderr=False, quiet=False: Console(
+        file=buf if stderr else io.StringIO(), width=80, force_terminal=stderr, color_system=None, quiet=quiet))
+    return buf
+
+
+def test_evaluate_shows_its_evaluators(monkeypatch):
+    buf = _terminal_stderr(monkeypatch)
+    res = CliRunner().invoke(app, ["evaluate", "--preset", "prrr-paper", "--fidelity", "draft"])
+    assert res.exit_code == 0, res.output
+    lines = [ln for ln in _frames(buf.getvalue()) if ELAPSED.search(ln)]
+    assert any(re.search(r"^evaluate .* \d/8 \d+:\d\d:\d\d draft: [a-z_]+", ln) for ln in lines), lines
+
+
+def test_export_shows_its_steps(monkeypatch, tmp_path):
+    buf = _terminal_stderr(monkeypatch)
+    res = CliRunner().invoke(app, ["export", "--preset", "master-paper", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    lines = [ln for ln in _frames(buf.getvalue()) if ELAPSED.search(ln)]
+    assert any(re.search(r"^export .* 0/4 \d+:\d\d:\d\d cad", ln) for ln in lines), lines
+    assert all(len(ln) <= 80 for ln in lines)
