@@ -44,7 +44,7 @@ class Collision:
 
 @dataclass(frozen=True, kw_only=True)
 class InterferenceResult:
-    """Interference at one pose. ``status`` is OK when no pair collides, FAILED otherwise
+    """Interference at one pose. ``status`` is OK when no pair collides, COLLIDES otherwise
     (the message names the pairs); unreachable poses give status EMPTY."""
 
     pose_mm: tuple[float, float, float]
@@ -158,7 +158,7 @@ def _result(p: np.ndarray, collisions: tuple[Collision, ...]) -> InterferenceRes
     if not collisions:
         return InterferenceResult(pose_mm=pose, collisions=(), status=Status.OK)
     msg = "; ".join(f"{c.a} × {c.b}: {c.overlap_mm3:.4g} mm³" for c in collisions)
-    return InterferenceResult(pose_mm=pose, collisions=collisions, status=Status.FAILED,
+    return InterferenceResult(pose_mm=pose, collisions=collisions, status=Status.COLLIDES,
                               message=f"interference at ({', '.join(f'{x:g}' for x in pose)}) mm: {msg}")
 
 

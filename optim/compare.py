@@ -1,7 +1,8 @@
 """Side-by-side comparison of designs evaluated at one fidelity.
 
 A design is named by a file (design TOML), a bundled preset, or a run directory (its
-``optimum.toml``, else the final design recorded in its ``evaluations.sqlite``). Each is
+``optimum.toml``, else its ``best_infeasible.toml`` — labelled so —, else the final design recorded in its
+``evaluations.sqlite``). Each is
 evaluated by the registry's one loop (:func:`hapticopt.analysis.registry.evaluate_all`); the
 comparison lists every scalar metric and every component of a vector metric with its unit, each
 design's value, and its delta from the first design (absolute and relative), then each
@@ -65,6 +66,9 @@ def resolve(arg: str) -> Named:
     if path.is_dir():
         if (path / "optimum.toml").is_file():
             return Named(label=arg, source=f"run {arg} (optimum.toml)", design=io.load_design(path / "optimum.toml"))
+        if (path / "best_infeasible.toml").is_file():
+            return Named(label=arg, source=f"run {arg} (best_infeasible.toml: infeasible at the final fidelity)",
+                         design=io.load_design(path / "best_infeasible.toml"))
         if (path / FILENAME).is_file():
             with RunReader(path) as reader:
                 final = reader.design("final")

@@ -44,7 +44,8 @@ class Outcome(StrEnum):
     OK = "ok"
     INVALID_DESIGN = "invalid_design"  # the variables violate a design rule (e.g. bore ≥ boss)
     EVALUATOR_FAILED = "evaluator_failed"  # an evaluator raised, or returned a status whose numbers do not
-    # hold (failed, singular, ill-conditioned, not positive definite, unstable: Status.metrics_hold)
+    # hold (failed, not-assemblable, singular, ill-conditioned, not-positive-definite, unstable, inconclusive:
+    # Status.metrics_hold; not-met and collides keep their numbers, the optimiser steers on them)
     NONFINITE = "nonfinite"  # a picked metric is NaN/inf
 
 

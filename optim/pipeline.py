@@ -1,7 +1,9 @@
 """The whole job: optimise → re-evaluate the best at fine fidelity → export → verify → report.
 
 ``run_pipeline(problem, out_dir=…)`` writes into ``out_dir``: ``evaluations.sqlite`` (the
-recorder), ``optimum.toml`` (the optimised design), ``result.json``, the export files
+recorder), ``optimum.toml`` (the optimised design, when it is feasible at the final fidelity:
+every constraint holds and every evaluator's numbers hold, :func:`holds`; otherwise the best
+point is written as ``best_infeasible.toml`` and no ``optimum.toml`` exists), ``result.json``, the export files
 (STEP/STL/MJCF/PNG from :mod:`hapticopt.design.export`), evaluator and verification pictures
 under ``plots/``, ``convergence.svg``, ``report.md`` and ``report.html``. Stage wall times are
 measured and reported; a stage that fails is reported with its reason, never silently.
@@ -19,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
 from hapticopt.design import io
 from hapticopt.design.atomic import write_text
 from hapticopt.optim.driver import EvalRecord, ProgressFn
@@ -36,7 +39,7 @@ from hapticopt.design.atomic import file_set, remove_stale_temp_files
 from hapticopt.design.paths import writable_dir
 from hapticopt.optim.executor import check_scheduler, make_executor, watch_parent
 from hapticopt.optim import driver, pareto, pareto_report, report
-from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, Verdict
+from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, TimeHistory, Verdict
 from hapticopt.design import export as design_export
 from hapticopt.analysis import verify as closed_loop_verify
 
@@ -51,6 +54,26 @@ def evaluate_design(design: Any, fidelity: Fidelity, on_step: StepFn | None = No
     return DesignEvaluation(fidelity=fidelity, metrics=ev.metrics(), modules=dict(ev.sources),
                             statuses={k: str(v) for k, v in ev.statuses.items()}, messages=dict(ev.messages),
                             timings_s=dict(ev.timings_s), results=dict(ev.results))
+
+
+#: the design file of a run's result, feasible or not (single objective; a Pareto front's choice)
+OPTIMUM_FILE, INFEASIBLE_FILE = "optimum.toml", "best_infeasible.toml"
+CHOSEN_FILE, CHOSEN_INFEASIBLE_FILE = "chosen.toml", "chosen_infeasible.toml"
+
+
+def holds(constraints: tuple[tuple[str, float, bool], ...], statuses: dict[str, str]) -> bool:
+    """Whether a final point is feasible: every constraint holds, and every evaluator's numbers
+    hold (:attr:`Status.metrics_hold`: a ``not-met`` or ``collides`` of an evaluator the problem does
+    not constrain is reported, not counted; ``failed``, ``singular``, ``not-assemblable`` … are)."""
+    return all(ok for _, _, ok in constraints) and all(status_holds(s) for s in statuses.values())
+
+
+def status_holds(word: str) -> bool:
+    """Whether an evaluator status word of a record means its numbers hold (unknown words: no)."""
+    try:
+        return Status.parse(word).metrics_hold
+    except ValueError:  # a word this version does not know is not a number to trust
+        return False
 
 
 def evaluators_for(problem: Problem, evaluation: DesignEvaluation) -> tuple[str, ...]:
@@ -97,17 +120,18 @@ def verdict_of(metrics: dict[str, Any]) -> tuple[bool, str]:
 
 
 def _scene_worker(design: Any, scene: str, fidelity: Fidelity, queue: Any, verifier: Any, parent_pid: int) -> None:
-    """Child process: run one scene, send back (metrics, message) or an error line."""
+    """Child process: run one scene, send back (metrics, message, time history) or an error line."""
     watch_parent(parent_pid)
     try:
         result = verifier(design, scene) if verifier is not None else run_scene(design, scene, fidelity)
-        queue.put(("ok", jsonable(result.metrics()), str(getattr(result, "message", ""))))
+        history = TimeHistory.from_traces(getattr(result, "traces", None))
+        queue.put(("ok", jsonable(result.metrics()), str(getattr(result, "message", "")), history))
     except Exception as exc:  # noqa: BLE001 - sent to the parent as a failed verdict
-        queue.put(("error", {}, f"{type(exc).__name__}: {exc}"))
+        queue.put(("error", {}, f"{type(exc).__name__}: {exc}", None))
 
 
 def _run_scene_limited(design: Any, scene: str, fidelity: Fidelity, max_time_s: float, verifier: Any = None
-                       ) -> tuple[str, dict[str, Any], str]:
+                       ) -> tuple[str, dict[str, Any], str, TimeHistory | None]:
     """Run one scene in a child process that is killed after ``max_time_s`` (a hung or very slow
     simulation must not hold up the pipeline)."""
 
@@ -119,7 +143,8 @@ def _run_scene_limited(design: Any, scene: str, fidelity: Fidelity, max_time_s: 
     try:
         return q.get(timeout=max_time_s)
     except queue_mod.Empty:
-        return "timeout", {}, f"no result within {max_time_s:g} s (verify.max_time_s): the simulation was stopped"
+        return ("timeout", {}, f"no result within {max_time_s:g} s (verify.max_time_s): the simulation was stopped",
+                None)
     finally:
         if proc.is_alive():
             proc.kill()
@@ -137,13 +162,13 @@ def _verify(design: Any, scenes: tuple[str, ...], out_dir: Path, fidelity: Fidel
     for k, scene in enumerate(scenes):
         if on_step is not None:
             on_step(scene, k, len(scenes))
-        kind, metrics, message = _run_scene_limited(design, scene, fidelity, max_time_s, verifier)
+        kind, metrics, message, history = _run_scene_limited(design, scene, fidelity, max_time_s, verifier)
         if kind == "ok":
             passed, why = verdict_of(metrics)
             message = "; ".join(m for m in (why, message) if m)
         else:
             passed = False
-        verdicts.append(Verdict(scene=scene, passed=passed, metrics=metrics, message=message))
+        verdicts.append(Verdict(scene=scene, passed=passed, metrics=metrics, message=message, history=history))
     if on_step is not None:
         on_step("", len(scenes), len(scenes))
     n_pass = sum(v.passed for v in verdicts)
@@ -268,16 +293,20 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
                                              description=f"optimum of problem {problem.name}")
         optimum = evaluate_design(optimum_design, problem.fidelity_final, at(problem.fidelity_final))
         cons = _constraints_at(problem, optimum.metrics)
-        feasible_final = all(ok for _, _, ok in cons) and all(s != "failed" for s in optimum.statuses.values())
+        feasible_final = holds(cons, optimum.statuses)
         obj_base = problem.objective.metric.value(baseline.metrics)
         obj_opt = problem.objective.metric.value(optimum.metrics)
         sign = 1.0 if problem.objective.sense.value == "minimise" else -1.0
         improved = math.isfinite(obj_opt) and (not math.isfinite(obj_base) or sign * obj_opt < sign * obj_base)
-        io.save_design(optimum_design, inside(out, "optimum.toml"))
+        result_file = OPTIMUM_FILE if feasible_final else INFEASIBLE_FILE
+        for stale in (OPTIMUM_FILE, INFEASIBLE_FILE):  # a resumed or forced run leaves one answer
+            if stale != result_file:
+                inside(out, stale).unlink(missing_ok=True)
+        io.save_design(optimum_design, inside(out, result_file))
         rec.record_design("final", fidelity=str(problem.fidelity_final), x=best.x if best else problem.start,
                           design_toml=io.dumps(optimum_design), metrics=optimum.metrics, statuses=optimum.statuses)
         rec.set_status("finished")
-    files["optimum"] = "optimum.toml"
+    files["optimum" if feasible_final else "best_infeasible"] = result_file
     stages.append(StageOutcome(name="final", status="ok" if feasible_final else "infeasible",
                                message=f"re-evaluated at {problem.fidelity_final} fidelity",
                                wall_s=time.perf_counter() - t))
@@ -391,7 +420,7 @@ def _run_front_locked(problem: Problem, out: Path, *, resume: bool, force: bool,
                                             description=f"chosen design on the Pareto front of {problem.name}")
         final = evaluate_design(chosen_design, problem.fidelity_final)
         cons = _constraints_at(problem, final.metrics)
-        feasible_final = all(ok for _, _, ok in cons) and all(s != "failed" for s in final.statuses.values())
+        feasible_final = holds(cons, final.statuses)
         rec.record_design("chosen", fidelity=str(problem.fidelity_final), x=chosen.x if chosen else problem.start,
                           design_toml=io.dumps(chosen_design), metrics=final.metrics, statuses=final.statuses)
         for p in result.front:
@@ -403,7 +432,11 @@ def _run_front_locked(problem: Problem, out: Path, *, resume: bool, force: bool,
         raise
     finally:
         rec.close()
-    io.save_design(chosen_design, inside(out, "chosen.toml"))
+    chosen_file = CHOSEN_FILE if feasible_final else CHOSEN_INFEASIBLE_FILE
+    for stale in (CHOSEN_FILE, CHOSEN_INFEASIBLE_FILE):
+        if stale != chosen_file:
+            inside(out, stale).unlink(missing_ok=True)
+    io.save_design(chosen_design, inside(out, chosen_file))
     files = pareto_report.write(result, problem, out, chosen_metrics=final.metrics, chosen_feasible=feasible_final,
                                 fidelity_final=str(problem.fidelity_final))
     payload = {
@@ -421,7 +454,8 @@ def _run_front_locked(problem: Problem, out: Path, *, resume: bool, force: bool,
         "runs": [{"run": label, "epsilon": None if math.isnan(eps) else eps, "status": res.status,
                   "n_evaluated": res.n_evaluated, "n_replayed": res.n_replayed} for label, eps, res in result.runs],
         "n_evaluated": result.n_evaluated, "n_replayed": result.n_replayed, "wall_s": result.wall_s,
-        "files": {"chosen": "chosen.toml", "recorder": "evaluations.sqlite", **files},
+        "files": {"chosen" if feasible_final else "chosen_infeasible": chosen_file, "recorder": "evaluations.sqlite",
+                  **files},
     }
     write_text(inside(out, "result.json"), json.dumps(payload, indent=2, default=str) + "\n")
     return payload

@@ -1,7 +1,7 @@
 """Optimisation problems: a TOML file naming a base design, variables, objective and constraints.
 
-A problem is a frozen value. The TOML layout (see ``optim/problems/*.toml`` and
-``docs/optimisation.md``)::
+A problem is a frozen value. The TOML layout (every key and its range: ``docs/problems.md``;
+examples: ``optim/problems/*.toml``)::
 
     name = "prrr-workspace"
     description = "..."
@@ -71,6 +71,19 @@ OPTIMUM_SUFFIX = "-optimum"
 PROBLEM_NAME_MAX = NAME_MAX - len(OPTIMUM_SUFFIX)
 _TOP_KEYS = {"name", "description", "device", "base", "base_file", "variables", "objective", "objectives",
              "constraints", "optimiser", "fidelity", "verify", "pareto"}
+#: the keys each table of a problem file accepts (docs/problems.md documents every one; a test compares)
+TABLE_KEYS: dict[str, frozenset[str]] = {
+    "": frozenset(_TOP_KEYS),
+    "variables": frozenset({"key", "lower", "upper", "start"}),
+    "objective": frozenset({"metric", "sense"}),
+    "objectives": frozenset({"metric", "sense"}),
+    "constraints": frozenset({"metric", "min", "max"}),
+    "optimiser": frozenset({"algorithm", "local", "starts", "seed", "xtol_rel", "ftol_rel", "max_evals", "max_time_s",
+                            "constraint_tol"}),
+    "fidelity": frozenset({"optimise", "final", "verify"}),
+    "verify": frozenset({"scenes", "max_time_s"}),
+    "pareto": frozenset({"points", "choose", "weights"}),
+}
 
 
 class Sense(StrEnum):
@@ -442,15 +455,15 @@ def problem_from_dict(data: Mapping[str, Any], *, source: str = "problem", base_
         if objectives[0].metric.text == objectives[1].metric.text:
             raise InvalidInput(f"{source}: objectives[1].metric = {objectives[1].metric.text!r} repeats objectives[0]")
         objective = objectives[0]
-        pareto = _pareto(_table(data, "pareto", source, {"points", "choose", "weights"}), source)
+        pareto = _pareto(_table(data, "pareto", source, set(TABLE_KEYS["pareto"])), source)
     constraints = _constraints(data.get("constraints", []), source)
-    optimiser = _optimiser(_table(data, "optimiser", source, {f.name for f in dataclasses.fields(OptimiserConfig)}),
+    optimiser = _optimiser(_table(data, "optimiser", source, set(TABLE_KEYS["optimiser"])),
                            source, bool(constraints))
-    fid = _table(data, "fidelity", source, {"optimise", "final", "verify"})
+    fid = _table(data, "fidelity", source, set(TABLE_KEYS["fidelity"]))
     fidelity_optimise = _enum(Fidelity, fid.get("optimise", "draft"), f"{source}: fidelity.optimise")
     fidelity_final = _enum(Fidelity, fid.get("final", "fine"), f"{source}: fidelity.final")
     fidelity_verify = _enum(Fidelity, fid.get("verify", "standard"), f"{source}: fidelity.verify")
-    ver = _table(data, "verify", source, {"scenes", "max_time_s"})
+    ver = _table(data, "verify", source, set(TABLE_KEYS["verify"]))
     verify_max_time_s = _number(ver.get("max_time_s", 60.0), f"{source}: verify.max_time_s")
     if not 0 < verify_max_time_s <= MAX_TIME_S:
         raise InvalidInput(f"{source}: verify.max_time_s = {verify_max_time_s:g} is out of range: allowed "
@@ -503,7 +516,7 @@ def _variables(raw: Any, base: Any, source: str) -> tuple[Variable, ...]:
         if not isinstance(table, Mapping):
             raise InvalidInput(f"{where} must be a table with key, lower, upper")
         for k in table:
-            if k not in ("key", "lower", "upper", "start"):
+            if k not in TABLE_KEYS["variables"]:
                 raise InvalidInput(f"{where}.{short_key(k)} is not a known key: allowed key, lower, upper, start")
         key = table.get("key")
         if not isinstance(key, str) or key.count(".") != 1:
@@ -557,7 +570,7 @@ def _objective(raw: Any, source: str) -> Objective:
     if not isinstance(raw, Mapping):
         raise InvalidInput(f"{source}: [objective] must be a table with metric and sense")
     for k in raw:
-        if k not in ("metric", "sense"):
+        if k not in TABLE_KEYS["objective"]:
             raise InvalidInput(f"{source}: objective.{short_key(k)} is not a known key: allowed metric, sense")
     if "metric" not in raw:
         raise InvalidInput(f"{source}: objective.metric is missing, e.g. metric = \"jacobian_condition\"")
@@ -575,7 +588,7 @@ def _constraints(raw: Any, source: str) -> tuple[Constraint, ...]:
         if not isinstance(table, Mapping):
             raise InvalidInput(f"{where} must be a table with metric and min and/or max")
         for k in table:
-            if k not in ("metric", "min", "max"):
+            if k not in TABLE_KEYS["constraints"]:
                 raise InvalidInput(f"{where}.{short_key(k)} is not a known key: allowed metric, min, max")
         if "metric" not in table:
             raise InvalidInput(f"{where}.metric is missing")

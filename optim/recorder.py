@@ -31,6 +31,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+from hapticopt.analysis.status import upgrade
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.evaluation import Outcome, PointResult
 
@@ -156,7 +157,7 @@ class Recorder:
                 x=tuple(json.loads(x)), outcome=Outcome(outcome), message=message,
                 values=tuple(json.loads(vals)),
                 gradients=None if grads is None else tuple(tuple(r) for r in json.loads(grads)),
-                gradient_source=gsrc, metrics=json.loads(metrics), statuses=json.loads(statuses),
+                gradient_source=gsrc, metrics=json.loads(metrics), statuses=upgrade(json.loads(statuses)),
                 timings_s=json.loads(timings))
         self.n_repeated = 0  # evaluations of a point this run had already recorded (should stay 0)
 

@@ -1,28 +1,45 @@
 """The run report: ``DIR/report.md`` and ``DIR/report.html`` (images linked relatively).
 
-Sections: summary, design table (baseline vs optimum), metric table (both at the final
-fidelity), constraint activity, convergence plot (``convergence.svg``, drawn here as plain SVG:
-no plotting dependency), starts and their nlopt statuses, pictures (evaluator plots and the
-export render), closed-loop verdicts, stage wall times and time per evaluator.
+Sections: summary (objective in the user's sense, an honest improvement verdict, the optimiser
+as configured), design variables, metrics and constraints (units in a column of their own), the
+convergence plot (``convergence.svg``: one colour per start, feasible and infeasible points
+marked), the starts (feasibility, objective at each start's result), the closed-loop verdicts as
+a table (scene, verdict, key numbers) with each verified scene's time histories
+(``plots/loop-*.png``: position, hand force, actuator force against its reference), the export
+renders, the evaluator pictures, stage wall times and time per evaluator.
+
+Figures are drawn with matplotlib (installed with pyvista), imported lazily.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import html
+import io as _io
 import math
+import re
 import statistics
 import time
 from pathlib import Path
 from typing import Any
 
-from hapticopt.design.atomic import write_text
+import numpy as np
+
+from hapticopt.design.atomic import atomic_path, write_text
 from hapticopt.design.paths import inside
 from hapticopt.design.units import from_si, pretty
-from hapticopt.optim.results import PipelineResult, StageOutcome
+from hapticopt.optim.problem import Algorithm, OptimiserConfig, Problem
+from hapticopt.optim.results import PipelineResult, StageOutcome, TimeHistory, Verdict
+from hapticopt.optim.sweep import unit_of_metric
 
 #: a constraint whose normalised margin is within this is reported as active
 ACTIVE_TOL = 1e-3
+
+#: verification metrics that describe the run rather than the device (left out of "key numbers")
+_BOOKKEEPING = {"ticks", "plant_substeps", "wall_time_s", "controller_period_ms", "mujoco_timestep_ms", "stable"}
+
+#: a cell is a string or a list of lines
+Cell = str | list[str]
 
 
 def _fmt(value: Any) -> str:
@@ -37,67 +54,262 @@ def _fmt(value: Any) -> str:
     return str(value)
 
 
+def metric_unit(name: str) -> str:
+    """The unit of a metric or metric reference as printed (``stiffness_limit_N_per_mm[0]`` → ``N/mm``,
+    ``min(max_force_N)`` → ``N``, ``stiffness_error_pct`` → ``%``; ``-`` for a dimensionless one)."""
+    m = re.fullmatch(r"\s*(?:min|max)\(\s*(\w+)\s*\)\s*", name)
+    base = (m.group(1) if m else name).split("[")[0]
+    if base.endswith("_pct"):
+        return "%"
+    return pretty(unit_of_metric(base))
+
+
 def svg_frame(width: int, height: int, left: int, top: int, plot_w: int, plot_h: int) -> list[str]:
-    """Opening lines of a report figure: the SVG element, a white page and the plot area's border."""
+    """Opening lines of a plain-SVG figure: the SVG element, a white page and the plot area's border."""
     return [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
             f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="11">',
             f'<rect x="0" y="0" width="{width}" height="{height}" fill="white"/>',
             f'<rect x="{left}" y="{top}" width="{plot_w}" height="{plot_h}" fill="none" stroke="#444"/>']
 
 
-def convergence_svg(history: Any, *, sense_max: bool, width: int = 640, height: int = 320) -> str:
-    """SVG of every point's objective (grey: feasible, red: infeasible) and the best-so-far line."""
-    pts = [(r.index, r.objective, r.feasible) for r in history if math.isfinite(r.objective)]
-    ml, mr, mt, mb = 70, 20, 20, 45
-    w, h = width - ml - mr, height - mt - mb
-    parts = svg_frame(width, height, ml, mt, w, h)
-    if not pts:
-        parts.append(f'<text x="{ml + 10}" y="{mt + 20}">no finite objective values</text></svg>')
-        return "\n".join(parts)
-    n = max(p[0] for p in pts) + 1
-    ys = [p[1] for p in pts]
-    lo, hi = min(ys), max(ys)
-    if hi - lo < 1e-12 * max(1.0, abs(hi)):
-        lo, hi = lo - 0.5, hi + 0.5
-    pad = 0.05 * (hi - lo)
-    lo, hi = lo - pad, hi + pad
+def _pyplot() -> Any:
+    import matplotlib
 
-    def sx(i: float) -> float:
-        return ml + w * (i / max(1, n - 1))
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
 
-    def sy(v: float) -> float:
-        return mt + h * (1.0 - (v - lo) / (hi - lo))
+    return plt
 
-    for k in range(5):  # y ticks
-        v = lo + (hi - lo) * k / 4
-        parts.append(f'<line x1="{ml - 4}" y1="{sy(v):.1f}" x2="{ml + w}" y2="{sy(v):.1f}" stroke="#ddd"/>')
-        parts.append(f'<text x="{ml - 6}" y="{sy(v) + 4:.1f}" text-anchor="end">{v:.4g}</text>')
-    for k in range(5):  # x ticks
-        i = (n - 1) * k / 4
-        parts.append(f'<text x="{sx(i):.1f}" y="{mt + h + 15}" text-anchor="middle">{i:.0f}</text>')
-    parts.append(f'<text x="{ml + w / 2}" y="{height - 8}" text-anchor="middle">evaluation</text>')
-    for i, v, feas in pts:
-        colour = "#999" if feas else "#d33"
-        parts.append(f'<circle cx="{sx(i):.1f}" cy="{sy(v):.1f}" r="2" fill="{colour}"/>')
-    best = None
-    line = []
-    for i, v, feas in pts:
-        if feas and (best is None or (v > best if sense_max else v < best)):
-            best = v
+
+def _save(fig: Any, target: Path, fmt: str) -> None:
+    import matplotlib
+
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "hapticopt"}), atomic_path(target) as tmp:
+        fig.savefig(tmp, format=fmt, dpi=100, metadata={"Date": None} if fmt == "svg" else None)
+    _pyplot().close(fig)
+
+
+# ----------------------------------------------------------------------------- convergence
+def convergence_figure(history: Any, *, metric: str, sense_max: bool) -> Any:
+    """Matplotlib figure of every point's objective in the user's sense, one colour per start
+    (filled: feasible, open: infeasible) and the best feasible value so far."""
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import MaxNLocator
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8.0, 4.2), constrained_layout=True)
+    unit = metric_unit(metric)
+    pts = [r for r in history if math.isfinite(r.objective)]
+    n_bad = len(history) - len(pts)
+    colours = plt.get_cmap("tab10").colors
+    starts = sorted({r.start for r in history})
+    for s in starts:
+        c = colours[s % len(colours)]
+        feas = [(r.index, r.objective) for r in pts if r.start == s and r.feasible]
+        infeas = [(r.index, r.objective) for r in pts if r.start == s and not r.feasible]
+        if feas:
+            ax.scatter(*zip(*feas), s=16, color=c, zorder=3)
+        if infeas:
+            ax.scatter(*zip(*infeas), s=22, facecolors="none", edgecolors=[c], marker="o", linewidths=1.0, zorder=3)
+    best, line = None, []
+    for r in sorted(pts, key=lambda r: r.index):
+        if r.feasible and (best is None or (r.objective > best if sense_max else r.objective < best)):
+            best = r.objective
         if best is not None:
-            line.append(f"{sx(i):.1f},{sy(best):.1f}")
+            line.append((r.index, best))
     if line:
-        parts.append(f'<polyline points="{" ".join(line)}" fill="none" stroke="#1565c0" stroke-width="2"/>')
-    parts.append(f'<text x="{ml + w - 4}" y="{mt + 14}" text-anchor="end" fill="#1565c0">best feasible so far</text>')
-    parts.append(f'<text x="{ml + w - 4}" y="{mt + 28}" text-anchor="end" fill="#d33">infeasible point</text>')
-    parts.append("</svg>")
-    return "\n".join(parts)
+        ax.step(*zip(*line), where="post", color="black", lw=1.5, zorder=2)
+    ax.set_xlabel("evaluation (order of request) [-]")
+    ax.set_ylabel(f"{metric} [{unit}]")
+    ax.set_title(f"objective ({'maximised' if sense_max else 'minimised'}), {len(starts)} start(s)"
+                 + (f"; {n_bad} point(s) without a finite objective not shown" if n_bad else ""), fontsize=10)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True, nbins=8))
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=7))
+    ax.grid(True, alpha=0.3)
+    handles = [Line2D([], [], ls="", marker="o", color=colours[s % len(colours)], label=f"start {s}") for s in starts]
+    handles += [Line2D([], [], ls="", marker="o", color="grey", label="feasible point"),
+                Line2D([], [], ls="", marker="o", markerfacecolor="none", markeredgecolor="grey",
+                       label="infeasible point"),
+                Line2D([], [], color="black", lw=1.5, label="best feasible so far")]
+    fig.legend(handles=handles, loc="outside right center", fontsize=8, frameon=False)
+    if not pts:
+        ax.text(0.5, 0.5, "no finite objective values", transform=ax.transAxes, ha="center")
+    return fig
 
 
-def _tables(p: "PipelineResult") -> dict[str, tuple[list[str], list[list[str]]]]:
+def convergence_svg(history: Any, *, metric: str, sense_max: bool) -> str:
+    """The convergence figure as SVG text (text kept as text: searchable, and testable)."""
+    import matplotlib
+
+    fig = convergence_figure(history, metric=metric, sense_max=sense_max)
+    buf = _io.StringIO()
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "hapticopt"}):
+        fig.savefig(buf, format="svg", metadata={"Date": None})
+    _pyplot().close(fig)
+    return buf.getvalue()
+
+
+# ------------------------------------------------------------------------- time histories
+_AXES = (("x", "tab:blue"), ("y", "tab:orange"), ("z", "tab:green"))
+
+
+def _nonzero(a: Any) -> list[int]:
+    return [] if a is None else [i for i in range(a.shape[1]) if np.any(a[:, i] != 0.0)]
+
+
+def history_figure(v: Verdict) -> Any:
+    """Position, hand force, and actuator force against its reference over time for one scene."""
+    h: TimeHistory | None = v.history
+    assert h is not None
+    plt = _pyplot()
+    rows = [("position", "position [mm]"), ("hand_force", "force on the hand [N]")]
+    if h.actuator_force is not None or h.force_reference is not None:
+        rows.append(("actuator", "actuator force [N]"))
+    fig, axes = plt.subplots(len(rows), 1, sharex=True, figsize=(8.0, 2.1 * len(rows) + 0.8),
+                             constrained_layout=True)
+    for ax, (what, label) in zip(axes, rows):
+        if what == "actuator":
+            comps = sorted(set(_nonzero(h.actuator_force)) | set(_nonzero(h.force_reference)))
+            for i in comps:
+                name, c = _AXES[i]
+                if h.actuator_force is not None:
+                    ax.plot(h.t, h.actuator_force[:, i], color=c, lw=1.2, label=f"{name} actual")
+                if h.force_reference is not None:
+                    ax.plot(h.t, h.force_reference[:, i], color=c, lw=1.0, ls="--", label=f"{name} reference")
+        else:
+            data = getattr(h, what)
+            comps = _nonzero(data)
+            for i in comps:
+                name, c = _AXES[i]
+                ax.plot(h.t, data[:, i], color=c, lw=1.2, label=name)
+        if not comps:
+            ax.text(0.5, 0.5, "zero throughout", transform=ax.transAxes, ha="center", va="center", color="grey")
+        elif len(comps) < 3:
+            ax.set_title("components not shown are zero throughout", fontsize=8, loc="right", color="grey")
+        if h.stopped_at_s is not None:
+            ax.axvline(h.stopped_at_s, color="red", ls=":", lw=1.2, label="run stopped (instability detected)")
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    axes[-1].set_xlabel("time t [s]")
+    every = f"one sample per {h.stride} controller ticks, " if h.stride > 1 else ""
+    fig.suptitle(f"{v.scene}: {'PASS' if v.passed else 'FAIL'} ({every}controller period {h.period_s * 1e3:g} ms)",
+                 fontsize=10)
+    return fig
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(text).stem if text.endswith(".toml") else text).strip("_.")[:60] or "scene"
+
+
+def write_histories(verdicts: tuple[Verdict, ...], dest: Path) -> dict[str, str]:
+    """``plots/loop-<i>-<scene>.png`` for every verdict with a time history; scene -> relative path."""
+    out: dict[str, str] = {}
+    for i, v in enumerate(verdicts):
+        if v.history is None or len(v.history.t) < 2:
+            continue
+        rel = f"plots/loop-{i}-{_slug(v.scene)}.png"
+        target = inside(dest, rel)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        _save(history_figure(v), target, "png")
+        out[v.scene] = rel
+    return out
+
+
+# ---------------------------------------------------------------------------------- words
+def optimiser_text(cfg: OptimiserConfig, *, constrained: bool) -> str:
+    """The optimiser as it runs: the local algorithm is named only where it is used (AUGLAG's
+    subsidiary, the polish after a global search) — as :mod:`hapticopt.optim.driver` picks it."""
+    alg = cfg.algorithm
+    if alg is Algorithm.AUGLAG:
+        return f"AUGLAG with subsidiary {cfg.local.value}"
+    if alg.is_global:
+        polish = cfg.local if (not constrained or cfg.local.handles_constraints) else Algorithm.LN_COBYLA
+        why = "" if polish is cfg.local else f" ({cfg.local.value} cannot handle constraints)"
+        return f"{alg.value}, then local polish with {polish.value}{why}"
+    return alg.value
+
+
+def _feasible(problem: Problem, metrics: dict[str, Any]) -> tuple[bool, list[str]]:
+    """(all constraints hold, the violated ones' texts) at the problem's constraint tolerance."""
+    bad = []
+    for c in problem.constraints:
+        v = c.metric.value(metrics)
+        if not (math.isfinite(v) and c.normalised(v) <= problem.optimiser.constraint_tol):
+            bad.append(c.text)
+    return not bad, bad
+
+
+def improvement_text(p: PipelineResult) -> tuple[str, str]:
+    """(short verdict, sentence): better / not better only where both designs are feasible."""
     prob = p.problem
-    out: dict[str, tuple[list[str], list[list[str]]]] = {}
-    rows = []
+    obj = prob.objective.metric
+    b, o = obj.value(p.baseline.metrics), obj.value(p.optimum.metrics)
+    base_ok, base_bad = _feasible(prob, p.baseline.metrics)
+    unit = metric_unit(obj.text)
+    better = prob.objective.sense.value == "maximise"
+    delta = ""
+    if math.isfinite(b) and math.isfinite(o):
+        d = o - b
+        rel = f", {100 * d / abs(b):+.3g} %" if b != 0 else ""
+        delta = f" (change {d:+.4g}{'' if unit == '-' else ' ' + unit}{rel})"
+    if not p.feasible_final:
+        return "infeasible", f"the optimum does not satisfy every constraint at {prob.fidelity_final} fidelity: no " \
+                             f"improvement is claimed{delta}"
+    if not base_ok:
+        return "feasible (baseline infeasible)", (f"the baseline violates {', '.join(base_bad)}; the optimum satisfies "
+                                                  f"every constraint, so it is not comparable on the objective "
+                                                  f"alone{delta}")
+    if not (math.isfinite(b) and math.isfinite(o)):
+        return "not comparable", "an objective value is missing"
+    if (o > b) if better else (o < b):
+        return "improved", f"improved{delta}"
+    return "not improved", f"not improved{delta}"
+
+
+# --------------------------------------------------------------------------------- tables
+def _start_rows(p: PipelineResult) -> tuple[list[str], list[list[Cell]]]:
+    prob = p.problem
+    obj = prob.objective.metric
+    unit = metric_unit(obj.text)
+    best = p.run.best
+    rows: list[list[Cell]] = []
+    for s in p.run.starts:
+        own = [r for r in p.run.history if r.start == s.start]
+        at = [r for r in own if tuple(r.x) == tuple(s.x)]
+        rec = at[-1] if at else None
+        feas_pts = [r for r in own if r.feasible and math.isfinite(r.objective)]
+        if feas_pts:
+            pick = max if prob.objective.sense.value == "maximise" else min
+            best_own = _fmt(pick(r.objective for r in feas_pts))
+        else:
+            best_own = "none feasible"
+        viol = (max((max(r, 0.0) for r in rec.constraints), default=0.0) if rec is not None else math.nan)
+        xs = [f"{v.key}: {_fmt(a)} → {_fmt(b)} {pretty(v.unit)}" for v, a, b in zip(prob.variables, s.x0, s.x)]
+        label = str(s.start) + (" (best)" if best is not None and best.start == s.start and best.x == s.x else "")
+        rows.append([label, xs, _fmt(rec.objective) if rec else "—", _fmt(rec.feasible) if rec else "—",
+                     f"{100 * viol:.3g} %" if math.isfinite(viol) else "—", best_own, str(s.status),
+                     str(s.n_points), s.message])
+    head = ["start", "variables: start → result", f"objective at result [{unit}]", "feasible",
+            "largest violation", f"best feasible in start [{unit}]", "nlopt status", "points", "message"]
+    return head, rows
+
+
+def _key_numbers(metrics: dict[str, Any]) -> list[str]:
+    out = []
+    for k, val in metrics.items():
+        if k in _BOOKKEEPING or isinstance(val, bool) or not isinstance(val, (int, float)):
+            continue
+        unit = metric_unit(k)
+        out.append(f"{k} = {_fmt(float(val))}" + ("" if unit == "-" else f" {unit}"))
+    return out
+
+
+def _tables(p: PipelineResult) -> dict[str, tuple[list[str], list[list[Cell]]]]:
+    prob = p.problem
+    out: dict[str, tuple[list[str], list[list[Cell]]]] = {}
+    rows: list[list[Cell]] = []
     for v in prob.variables:
         sec_b = getattr(prob.base, v.section)
         sec_o = getattr(p.optimum_design, v.section)
@@ -108,26 +320,28 @@ def _tables(p: "PipelineResult") -> dict[str, tuple[list[str], list[list[str]]]]
     out["design"] = (["variable", "unit", "lower", "upper", "baseline", "optimum"], rows)
     rows = []
     for name in sorted(set(p.baseline.metrics) | set(p.optimum.metrics)):
-        rows.append([name, _fmt(p.baseline.metrics.get(name, float("nan"))),
+        rows.append([name, metric_unit(name), _fmt(p.baseline.metrics.get(name, float("nan"))),
                      _fmt(p.optimum.metrics.get(name, float("nan")))])
-    out["metrics"] = (["metric", "baseline", "optimum"], rows)
+    out["metrics"] = (["metric", "unit", f"baseline ({prob.fidelity_final})", f"optimum ({prob.fidelity_final})"],
+                      rows)
     rows = []
+    tol = prob.optimiser.constraint_tol
     for c, (text, value, ok) in zip(prob.constraints, p.constraints_final):
         margin = -c.normalised(value) if math.isfinite(value) else float("nan")
-        active = math.isfinite(margin) and abs(margin) <= max(ACTIVE_TOL, prob.optimiser.constraint_tol)
+        active = math.isfinite(margin) and abs(margin) <= max(ACTIVE_TOL, tol)
         base_v = c.metric.value(p.baseline.metrics)
-        rows.append([text, _fmt(base_v), _fmt(value), f"{100 * margin:+.3g} %" if math.isfinite(margin) else "—",
-                     "active" if active else ("satisfied" if ok else "VIOLATED")])
-    out["constraints"] = (["constraint", "baseline", "optimum", "margin", "state"], rows)
-    rows = [[str(s.start), ", ".join(_fmt(x) for x in s.x0), ", ".join(_fmt(x) for x in s.x), _fmt(s.f),
-             str(s.status), str(s.n_points), s.message] for s in p.run.starts]
-    out["starts"] = (["start", "x0", "x", "f", "status", "points", "message"], rows)
-    rows = [[v.scene, "PASS" if v.passed else "FAIL",
-             ", ".join(f"{k}={_fmt(val)}" for k, val in v.metrics.items() if not isinstance(val, (list, dict)))[:300],
-             v.message] for v in p.verdicts]
-    out["verdicts"] = (["scene", "verdict", "metrics", "message"], rows)
+        base_ok = math.isfinite(base_v) and c.normalised(base_v) <= tol
+        rows.append([text, metric_unit(c.metric.text), _fmt(base_v), "satisfied" if base_ok else "VIOLATED",
+                     _fmt(value), f"{100 * margin:+.3g} %" if math.isfinite(margin) else "—",
+                     "active" if active and ok else ("satisfied" if ok else "VIOLATED")])
+    out["constraints"] = (["constraint", "unit", "baseline", "baseline state", "optimum", "margin (of |limit|)",
+                           "optimum state"], rows)
+    out["starts"] = _start_rows(p)
+    rows = [[v.scene, "PASS" if v.passed else "FAIL", str(v.metrics.get("backend", "—")),
+             _key_numbers(v.metrics) or ["—"], v.message] for v in p.verdicts]
+    out["verdicts"] = (["scene", "verdict", "plant", "key numbers", "reason"], rows)
     rows = [[s.name, s.status, f"{s.wall_s:.3f}", s.message] for s in p.stages]
-    out["stages"] = (["stage", "status", "wall [s]", "message"], rows)
+    out["stages"] = (["stage", "status", "wall time [s]", "message"], rows)
     per: dict[str, list[float]] = {}
     for r in p.run.history:
         if str(r.source) == "evaluated":
@@ -140,93 +354,135 @@ def _tables(p: "PipelineResult") -> dict[str, tuple[list[str], list[list[str]]]]
     return out
 
 
-def _md_table(head: list[str], rows: list[list[str]]) -> str:
+def _md_cell(c: Cell) -> str:
+    text = "<br>".join(c) if isinstance(c, list) else c
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def _md_table(head: list[str], rows: list[list[Cell]]) -> str:
     if not rows:
         return "_(none)_\n"
-    esc = [[c.replace("|", "\\|") for c in r] for r in rows]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(r) + " |" for r in esc]
+    lines += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in rows]
     return "\n".join(lines) + "\n"
 
 
-def _html_table(head: list[str], rows: list[list[str]]) -> str:
+def _html_cell(c: Cell) -> str:
+    if isinstance(c, list):
+        return "<br>".join(html.escape(x) for x in c)
+    return html.escape(c)
+
+
+def _html_table(head: list[str], rows: list[list[Cell]]) -> str:
     if not rows:
         return "<p><em>(none)</em></p>"
     h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows)
+    body = "".join("<tr>" + "".join(f"<td>{_html_cell(c)}</td>" for c in r) + "</tr>" for r in rows)
     return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
 
 
 _CSS = """body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
-table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 8px;text-align:left;
-font-size:13px}th{background:#f0f0f0}img{max-width:100%;border:1px solid #ddd;margin:4px}
+table{border-collapse:collapse;margin:0.5em 0 1.5em;max-width:100%}td,th{border:1px solid #ccc;padding:3px 8px;
+text-align:left;font-size:13px;vertical-align:top;overflow-wrap:anywhere}th{background:#f0f0f0}
+img{max-width:100%;height:auto;border:1px solid #ddd;margin:4px}figure{margin:0 0 1.5em}
+figcaption{font-size:13px;color:#555}
 .ok{color:#2e7d32}.bad{color:#c62828}code{background:#f5f5f5;padding:1px 3px}"""
 
 
-def write(p: "PipelineResult", *, extra_stage: tuple[str, float] | None = None,
+def _figure_html(src: str, alt: str, caption: str) -> str:
+    return (f'<figure><img src="{html.escape(src)}" alt="{html.escape(alt)}"><figcaption>{html.escape(caption)}'
+            "</figcaption></figure>")
+
+
+def write(p: PipelineResult, *, extra_stage: tuple[str, float] | None = None,
           dest: Path | None = None) -> dict[str, str]:
-    """Write convergence.svg, report.md and report.html into ``dest`` (default: the run directory;
-    the pipeline passes a :func:`design.atomic.file_set` staging folder); returns role -> file."""
+    """Write convergence.svg, the time histories (plots/loop-*.png), report.md and report.html into
+    ``dest`` (default: the run directory; the pipeline passes a :func:`design.atomic.file_set`
+    staging folder); returns role -> file."""
     out = p.out_dir if dest is None else Path(dest)
     prob = p.problem
-    write_text(inside(out, "convergence.svg"), convergence_svg(p.run.history, sense_max=prob.objective.sense.value == "maximise"))
+    obj = prob.objective.metric
+    sense_max = prob.objective.sense.value == "maximise"
+    write_text(inside(out, "convergence.svg"), convergence_svg(p.run.history, metric=obj.text, sense_max=sense_max))
+    loops = write_histories(p.verdicts, out)
     if extra_stage is not None:
         name, t0 = extra_stage
         p = dataclasses.replace(p, stages=p.stages + (StageOutcome(name=name, status="ok",
                                                                    wall_s=time.perf_counter() - t0),))
     tables = _tables(p)
-    images = [f for s in p.stages for f in s.files if f.lower().endswith((".png", ".svg", ".jpg"))]
-    exports = [f for s in p.stages if s.name == "export" for f in s.files]
-    obj = prob.objective.metric
+    renders = [f for s in p.stages if s.name == "export" for f in s.files if f.lower().endswith((".png", ".svg"))]
+    pictures = [f for s in p.stages if s.name != "export" for f in s.files
+                if f.lower().endswith((".png", ".svg", ".jpg"))]
+    exports = [f for s in p.stages if s.name == "export" for f in s.files if f not in renders]
+    unit = metric_unit(obj.text)
     b, o = obj.value(p.baseline.metrics), obj.value(p.optimum.metrics)
+    verdict, why = improvement_text(p)
+    n_pass = sum(v.passed for v in p.verdicts)
     verdict_line = ("no closed-loop verification ran" if not p.verdicts else
-                    f"{sum(v.passed for v in p.verdicts)}/{len(p.verdicts)} closed-loop scenes passed")
+                    f"{n_pass}/{len(p.verdicts)} closed-loop scenes passed")
     summary = [
-        f"Problem **{prob.name}** ({prob.device}, base {prob.base_source}): {prob.description}",
-        f"Objective: {prob.objective.sense.value} `{obj.text}` — baseline {_fmt(b)}, optimum {_fmt(o)} "
-        f"({'improved' if p.improved else 'NOT improved'}) at {prob.fidelity_final} fidelity.",
+        f"Problem {prob.name} ({prob.device}, base {prob.base_source}): {prob.description}",
+        f"Objective: {prob.objective.sense.value} {obj.text} [{unit}] — baseline {_fmt(b)}, optimum {_fmt(o)} "
+        f"at {prob.fidelity_final} fidelity: {why}.",
         f"Constraints at {prob.fidelity_final} fidelity: "
         f"{'all satisfied' if p.feasible_final else 'NOT all satisfied'}; {verdict_line}.",
-        f"Optimiser: {prob.optimiser.algorithm.value} (local {prob.optimiser.local.value}), "
-        f"{prob.optimiser.starts} start(s), seed {prob.optimiser.seed}; status {p.run.status}; "
+        f"Optimiser: {optimiser_text(prob.optimiser, constrained=bool(prob.constraints))}, "
+        f"{prob.optimiser.starts} start(s), seed {prob.optimiser.seed}; run status {p.run.status}; "
         f"{p.run.n_evaluated} evaluations ({p.run.n_replayed} replayed from the recorder, "
         f"{p.run.n_cached} repeated points) at {prob.fidelity_optimise} fidelity in {p.run.wall_s:.2f} s.",
     ] + [f"Note: {n}" for n in p.run.notes]
-    sections = [("Design", "design"), ("Metrics", "metrics"), ("Constraint activity", "constraints"),
-                ("Starts", "starts"), ("Closed-loop verification", "verdicts"), ("Stage wall times", "stages"),
-                ("Time per evaluator", "timings")]
-    # markdown
+    conv_caption = (f"Convergence: {obj.text} [{unit}] of every evaluated point in order of request, one colour per "
+                    "start; filled markers satisfy every constraint, open markers violate one; the black line is "
+                    f"the best feasible value so far ({prob.fidelity_optimise} fidelity).")
+    titles = {"design": "Design variables", "metrics": "Metrics", "constraints": "Constraints",
+              "starts": "Starts", "verdicts": "Closed-loop verification", "stages": "Stage wall times",
+              "timings": "Time per evaluator"}
+    starts_note = (f"Objective in the user's sense ({prob.objective.sense.value}); a start's result is the point "
+                   "nlopt returned; feasible means every constraint holds within the constraint tolerance "
+                   f"({prob.optimiser.constraint_tol:g} of each limit).")
+    # ------------------------------------------------------------------ markdown
     md = [f"# Optimisation report: {prob.name}", ""] + [f"- {s}" for s in summary] + [""]
-    for title, key in sections[:3]:
-        md += [f"## {title}", "", _md_table(*tables[key])]
-    md += ["## Convergence", "", "![convergence](convergence.svg)", ""]
-    md += ["## Starts", "", _md_table(*tables["starts"])]
-    md += ["## Pictures", ""] + ([f"![{Path(f).stem}]({f})" for f in images] or ["_(none)_"]) + [""]
+    for key in ("design", "metrics", "constraints"):
+        md += [f"## {titles[key]}", "", _md_table(*tables[key])]
+    md += ["## Convergence", "", "![convergence](convergence.svg)", "", conv_caption, ""]
+    md += ["## Starts", "", starts_note, "", _md_table(*tables["starts"])]
+    md += ["## Closed-loop verification", "", _md_table(*tables["verdicts"])]
+    for v in p.verdicts:
+        if v.scene in loops:
+            md += [f"![{v.scene}]({loops[v.scene]})", "", f"Time histories of {v.scene}.", ""]
+    md += ["## Renders", ""] + ([f"![{Path(f).stem}]({f})" for f in renders] or ["_(none)_"]) + [""]
+    md += ["## Evaluator pictures", ""] + ([f"![{Path(f).stem}]({f})" for f in pictures] or ["_(none)_"]) + [""]
     if exports:
         md += ["## Exported files", ""] + [f"- [{f}]({f})" for f in exports] + [""]
-    for title, key in sections[4:]:
-        md += [f"## {title}", "", _md_table(*tables[key])]
+    for key in ("stages", "timings"):
+        md += [f"## {titles[key]}", "", _md_table(*tables[key])]
     write_text(inside(out, "report.md"), "\n".join(md))
-    # html
+    # ---------------------------------------------------------------------- html
     h = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+         '<meta name="viewport" content="width=device-width, initial-scale=1">',
          f"<title>Optimisation report: {html.escape(prob.name)}</title><style>{_CSS}</style></head><body>",
          f"<h1>Optimisation report: {html.escape(prob.name)}</h1><ul>"]
-    for s in summary:
-        s_html = html.escape(s).replace("**", "")
-        h.append(f"<li>{s_html}</li>")
+    h += [f"<li>{html.escape(s)}</li>" for s in summary]
     h.append("</ul>")
-    for title, key in sections[:3]:
-        h += [f"<h2>{title}</h2>", _html_table(*tables[key])]
-    h += ["<h2>Convergence</h2>", '<img src="convergence.svg" alt="convergence plot">']
-    h += ["<h2>Starts</h2>", _html_table(*tables["starts"])]
-    h.append("<h2>Pictures</h2>")
-    h += [f'<figure><img src="{html.escape(f)}" alt="{html.escape(Path(f).stem)}"><figcaption>'
-          f"{html.escape(f)}</figcaption></figure>" for f in images] or ["<p><em>(none)</em></p>"]
+    for key in ("design", "metrics", "constraints"):
+        h += [f"<h2>{titles[key]}</h2>", _html_table(*tables[key])]
+    h += ["<h2>Convergence</h2>", _figure_html("convergence.svg", "convergence plot", conv_caption)]
+    h += ["<h2>Starts</h2>", f"<p>{html.escape(starts_note)}</p>", _html_table(*tables["starts"])]
+    h += ["<h2>Closed-loop verification</h2>", _html_table(*tables["verdicts"])]
+    h += [_figure_html(loops[v.scene], f"time histories of {v.scene}",
+                       f"{v.scene}: position, force on the operator's hand, actuator force (solid) against its "
+                       "reference (dashed) over time.") for v in p.verdicts if v.scene in loops]
+    h.append("<h2>Renders</h2>")
+    h += [_figure_html(f, Path(f).stem, f) for f in renders] or ["<p><em>(none)</em></p>"]
+    h.append("<h2>Evaluator pictures</h2>")
+    h += [_figure_html(f, Path(f).stem, f) for f in pictures] or ["<p><em>(none)</em></p>"]
     if exports:
         h += ["<h2>Exported files</h2><ul>"] + [f'<li><a href="{html.escape(f)}">{html.escape(f)}</a></li>'
                                                   for f in exports] + ["</ul>"]
-    for title, key in sections[4:]:
-        h += [f"<h2>{title}</h2>", _html_table(*tables[key])]
+    for key in ("stages", "timings"):
+        h += [f"<h2>{titles[key]}</h2>", _html_table(*tables[key])]
     h.append("</body></html>")
     write_text(inside(out, "report.html"), "\n".join(h))
-    return {"report_md": "report.md", "report_html": "report.html", "convergence": "convergence.svg"}
+    files = {"report_md": "report.md", "report_html": "report.html", "convergence": "convergence.svg"}
+    files.update({f"loop {scene}": rel for scene, rel in loops.items()})
+    return files

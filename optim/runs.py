@@ -24,6 +24,7 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
+from hapticopt.analysis.status import upgrade
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.units import pretty
@@ -167,7 +168,7 @@ class RunReader:
     def cases(self) -> list[Case]:
         """Every recorded evaluation, in the order they were recorded."""
         return [Case(id=i, session=s, start=st, stage=stg, fidelity=fid, x=tuple(json.loads(x)), outcome=o,
-                     message=msg, metrics=json.loads(m), statuses=json.loads(sts), timings_s=json.loads(t))
+                     message=msg, metrics=json.loads(m), statuses=upgrade(json.loads(sts)), timings_s=json.loads(t))
                 for i, s, st, stg, fid, x, o, msg, m, sts, t in self._rows(
                     "SELECT id, session, start, stage, fidelity, x, outcome, message, metrics, statuses, timings "
                     "FROM evaluations ORDER BY id")]
@@ -179,7 +180,7 @@ class RunReader:
         if "designs" not in self._tables:
             return []
         return [RecordedDesign(session=s, role=r, fidelity=f, x=tuple(json.loads(x)), design_toml=d,
-                               metrics=json.loads(m), statuses=json.loads(st))
+                               metrics=json.loads(m), statuses=upgrade(json.loads(st)))
                 for s, r, f, x, d, m, st in self._rows(
                     "SELECT session, role, fidelity, x, design, metrics, statuses FROM designs ORDER BY id")]
 

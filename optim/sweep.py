@@ -33,6 +33,7 @@ import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr.statics import PrrrStatics, statics_arrays
+from hapticopt.analysis.prrr.workspace import closure_batch
 from hapticopt.analysis.registry import EVALUATORS, jsonable
 from hapticopt.analysis.status import Status
 from hapticopt.design import io
@@ -224,16 +225,18 @@ def _prrr_statics_batch(designs: Sequence[Any]) -> list[tuple[dict[str, Any], st
     out = fn(p, np.array([d.actuator.spring for d in pad]), np.array([d.actuator.force_limit for d in pad]),
              np.array([d.end_effector.mass for d in pad]))
     out = {k: np.asarray(v)[:n] for k, v in out.items()}
+    blocked_all = closure_batch(pad)[:n]  # as statics.evaluate: a chain that cannot close is not-assemblable
     results = []
     for i in range(n):
         finite = all(np.all(np.isfinite(v[i])) for v in out.values())
+        blocked = blocked_all[i]
         st = PrrrStatics(jacobian=out["jacobian"][i], condition=float(out["condition"][i]),
                          condition_frobenius=float(out["condition_frobenius"][i]),
                          effective_mass=out["effective_mass"][i], stiffness_matrix=out["stiffness_matrix"][i],
                          stiffness_limit=out["stiffness_limit"][i], max_force=out["max_force"][i],
                          max_pure_force=out["max_pure_force"][i],
-                         status=Status.OK if finite else Status.SINGULAR,
-                         message="" if finite else "Jacobian is numerically singular at this β")
+                         status=(Status.NOT_ASSEMBLABLE if blocked else Status.OK if finite else Status.SINGULAR),
+                         message=blocked or ("" if finite else "Jacobian is numerically singular at this β"))
         results.append((jsonable(st.metrics()), str(st.status), st.message))
     return results
 

@@ -67,6 +67,13 @@ class Variant(enum.Enum):
 DEFAULT_VARIANT = Variant.AS_INTENDED
 
 
+class Predictor(enum.Enum):
+    """Where the firmware's AR coefficients come from (``[controller] predictor`` of a scene)."""
+
+    FIXED = "fixed"  #: the configured coefficients (default (2, −1): linear extrapolation)
+    ONLINE = "online"  #: least squares over the last ``window`` positions at every update (section 4)
+
+
 class ARStatus(enum.Enum):
     FITTED = "fitted"  #: least-squares fit with rcond above AR_RCOND_BAND
     FIXED = "fixed"  #: the configured coefficients, no fit

@@ -87,8 +87,15 @@ def setup(design: HandleDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.S
     law = wall_law(scene)
     op = scene.operator if Effect.OPERATOR in fx else NO_OPERATOR
     h = replace(from_design(design), period_s=cs.period, operator=op)
+    order = cs.ar_order if cs.ar_order is not None else int(design.firmware.ar_order)
+    window = cs.ar_window if cs.ar_window is not None else int(design.firmware.ar_window)
+    if window < 2 * order:
+        raise InvalidInput(f"scene {scene.name}: controller.ar_window = {window} is out of range: allowed ≥ "
+                           f"2·ar_order = {2 * order} (samples; ar_order {order} from the "
+                           f"{'scene' if cs.ar_order is not None else 'design'})")
     fw = HandleFirmwareConfig(period_s=cs.period, upsampling=cs.interpolation, variant=cs.interpolation_variant,
-                              ar_coefficients=cs.ar_coefficients, wall=law)
+                              ar_coefficients=cs.ar_coefficients, wall=law, predictor=cs.predictor,
+                              ar_order=order, ar_window=window)
     sub = scene.substeps // cs.interpolation if scene.substeps else SUBSTEPS[Fidelity(fidelity)]
     delay = int(round(scene.time_delay / cs.period)) if Effect.TIME_DELAY in fx else 0
     mo = scene.motion
@@ -128,8 +135,13 @@ class HandleLoopResult:
     message: str = ""
     notes: tuple[str, ...] = ()
     traces: Traces | None = field(default=None, repr=False, compare=False)
+    predictor: dict[str, Any] = field(default_factory=dict)  #: ``HandleFirmware.predictor_report()``
 
     def metrics(self) -> dict[str, Any]:
+        st = self.setup
+        return {**self._core_metrics(), **self.predictor}
+
+    def _core_metrics(self) -> dict[str, Any]:
         st = self.setup
         return {
             "stable": bool(self.stable),
@@ -152,8 +164,8 @@ class HandleLoopResult:
         }
 
 
-def run(st: HandleSetup) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """(t, x, ẋ, hand force on the handle, stop tick or −1) per tick."""
+def run(st: HandleSetup) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, dict[str, Any]]:
+    """(t, x, ẋ, hand force on the handle, stop tick or −1) per tick, and the predictor's report."""
     h, fw = st.handle, st.firmware
     L, s, T = fw.upsampling, st.substeps, fw.period_s
     dt = T / (L * s)
@@ -189,13 +201,13 @@ def run(st: HandleSetup) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
             stop = i
             break
     n = N if stop < 0 else stop + 1
-    return np.arange(n) * T, x_t[:n], v_t[:n], fh_t[:n], stop
+    return np.arange(n) * T, x_t[:n], v_t[:n], fh_t[:n], stop, ctl.predictor_report()
 
 
 def simulate(design: HandleDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD) -> HandleLoopResult:
     t_start = time.perf_counter()
     st = setup(design, scene, fidelity=fidelity)
-    t, x, v, fh, stop = run(st)
+    t, x, v, fh, stop, predictor = run(st)
     law = st.firmware.wall
     if law.kind is WallKind.BILATERAL:
         depth = np.abs(x - law.anchor_m)
@@ -236,4 +248,4 @@ def simulate(design: HandleDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
     return HandleLoopResult(stable=stable, growth_rate_per_s=sigma, unstable_at=float(t[-1]) if stop >= 0 else None,
                             max_penetration=pen, contact_losses=losses, lost_contact_late=late, setup=st,
                             wall_time=time.perf_counter() - t_start, status=status, message=msg,
-                            notes=st.resolution.notes, traces=tr)
+                            notes=st.resolution.notes, traces=tr, predictor=predictor)

@@ -4,7 +4,10 @@ Per update i (period T), from the measured tip position x_i:
 
 1. velocity by backward difference v_i = (x_i − x_{i−1})/T (seed 000 section 1);
 2. predicted positions x̂_{i+1}, x̂_{i+2} by the AR recursion (``analysis.control.upsampling.predict``)
-   with the scene's fixed coefficients (default (2, −1));
+   with the scene's fixed coefficients (default (2, −1)) or, with ``predictor = online`` (seed 000's
+   method), coefficients fitted by least squares to the last ``ar_window`` positions at this update
+   (``analysis.control.upsampling.fit_ar``; a short or unexciting history falls back to (2, −1), and
+   every update's fit status is counted — :meth:`HandleFirmware.predictor_report`);
 3. the wall's shaft force at the measured and predicted positions, f = law(x, v) (:class:`WallLaw`);
 4. L = l2/l1 output samples from the eq (23) spline of the scene's variant
    (``analysis.control.upsampling.spline_weights``; ``none`` holds f_i).
@@ -60,9 +63,14 @@ class HandleFirmwareConfig:
     variant: up.Variant
     ar_coefficients: tuple[float, ...]
     wall: WallLaw
+    predictor: up.Predictor = up.Predictor.FIXED
+    ar_order: int = 2  #: p, online predictor only [samples]
+    ar_window: int = 16  #: regression window, online predictor only [samples]
 
     def __post_init__(self) -> None:
         up.spline_weights(self.upsampling, self.variant)  # validates L
+        if self.predictor is up.Predictor.ONLINE:
+            up.fit_ar(np.zeros(1), order=self.ar_order, window=self.ar_window)  # validates p and the window
         if not (math.isfinite(self.period_s) and self.period_s > 0.0):
             raise ValueError(f"period_s = {self.period_s!r}: allowed finite values > 0 [s]")
 
@@ -74,12 +82,19 @@ class HandleFirmware:
         self.cfg = cfg
         self._W = up.spline_weights(cfg.upsampling, cfg.variant)
         self._a = np.asarray(cfg.ar_coefficients, dtype=float)
+        self._online = cfg.predictor is up.Predictor.ONLINE
         self._hist: list[float] | None = None
         self._f = (0.0, 0.0)  # f_{i−2}, f_{i−1}
+        self._counts = {s: 0 for s in up.ARStatus}
+        self._coef_sum = np.zeros(cfg.ar_order if self._online else self._a.size)
+        self._residuals: list[float] = []
+        self._last = up.ARFit(self._a.copy(), up.ARStatus.FIXED, math.nan, math.nan)
 
     def reset(self, x0: float) -> None:
         """At power-up the history is the first reading (at rest)."""
         n = max(self._a.size, 2)
+        if self._online:
+            n = max(self.cfg.ar_window, self.cfg.ar_order + 1, 2)
         self._hist = [float(x0)] * n
         f0 = self.cfg.wall.force(float(x0), 0.0)
         self._f = (f0, f0)
@@ -94,7 +109,37 @@ class HandleFirmware:
         if self.cfg.variant is up.Variant.NONE:
             P = np.array([self._f[0], self._f[1], fi, 0.0, 0.0])
         else:
-            x1, x2 = up.predict(self._a, h, steps=2)
+            a = self._a
+            if self._online:
+                fit = up.fit_ar(h, order=self.cfg.ar_order, window=self.cfg.ar_window)
+                self._counts[fit.status] += 1
+                self._last = fit
+                a = fit.coefficients
+                if fit.status is up.ARStatus.FITTED:
+                    self._coef_sum += a
+                    self._residuals.append(fit.residual_rms_m)
+            x1, x2 = up.predict(a, h, steps=2)
             P = np.array([self._f[0], self._f[1], fi, law.force(x1, (x1 - h[-1]) / T), law.force(x2, (x2 - x1) / T)])
         self._f = (self._f[1], fi)
         return self._W @ P
+
+    def predictor_report(self) -> dict[str, object]:
+        """How the predictor ran: the source of its coefficients, for an online fit the share of
+        updates that fitted (others fell back to (2, −1)), the mean fitted coefficients and the
+        median rms one-step residual [m], and the last update's coefficients and status."""
+        if not self._online:
+            return {"predictor": "fixed", "ar_coefficients": tuple(float(v) for v in self._a)}
+        n = sum(self._counts.values())
+        fitted = self._counts[up.ARStatus.FITTED]
+        return {
+            "predictor": "online",
+            "ar_order": self.cfg.ar_order,
+            "ar_window": self.cfg.ar_window,
+            "ar_updates": n,
+            "ar_fitted_fraction": fitted / n if n else math.nan,
+            "ar_fallbacks": {s.value: c for s, c in self._counts.items() if c and s is not up.ARStatus.FITTED},
+            "ar_mean_coefficients": tuple(float(v) for v in self._coef_sum / fitted) if fitted else (),
+            "ar_median_residual_rms_m": float(np.median(self._residuals)) if self._residuals else math.nan,
+            "ar_last_coefficients": tuple(float(v) for v in self._last.coefficients),
+            "ar_last_status": self._last.status.value,
+        }

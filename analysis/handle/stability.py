@@ -436,9 +436,12 @@ class StabilityResult:
 def evaluate(design: HandleDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> StabilityResult:
     """Registry evaluator: eq 15–22 and the exact sampled loop for the described handle, wall and hand.
 
-    Status ``ok`` when the exact boundary was found (the limit is a number); ``unstable`` when no
-    wall stiffness is stable (the handle with this B_e and hand is unstable alone: limits NaN).
-    The design's own wall is judged separately (``wall_stable``, ``wall_margin``).
+    Status ``ok`` when the exact boundary was found and the design's own wall K_e lies below it;
+    ``not-met`` (numbers kept) when the boundary was found but the design's wall is not below it
+    by the margin band (the rendered wall is unstable or marginal: ``wall_stable`` false,
+    ``wall_margin`` says by how much);
+    ``unstable`` when no wall stiffness is stable (the handle with this B_e and hand is unstable
+    alone: limits NaN); ``failed`` when the scan found no boundary.
     """
     del fidelity  # closed forms and eigenvalues: no accuracy knob
     h = from_design(design)
@@ -451,10 +454,12 @@ def evaluate(design: HandleDesign, *, fidelity: Fidelity = Fidelity.STANDARD) ->
     vs_k = tuple(sweep(operator_stiffness_N_per_m=k) for k in SWEEP_OPERATOR_STIFFNESS_N_PER_M)
     if s.status is LimitStatus.OK:
         return StabilityResult(summary=s, eq19_limit_N_per_mm=eq19, vs_period_N_per_mm=vs_T,
-                               vs_wall_damping_N_per_mm=vs_B, vs_operator_stiffness_N_per_mm=vs_k, status=Status.OK,
+                               vs_wall_damping_N_per_mm=vs_B, vs_operator_stiffness_N_per_mm=vs_k,
+                               status=Status.OK if s.verdict is Verdict.STABLE else Status.NOT_MET,
                                message="" if s.verdict is Verdict.STABLE else
-                               f"the design's wall K_e = {h.wall_stiffness_N_per_m / N_PER_MM:g} N/mm is above the limit "
-                               f"{s.exact_limit_N_per_mm:.4g} N/mm")
+                               f"the rendered wall is {s.verdict.value}: the design's K_e = "
+                               f"{h.wall_stiffness_N_per_m / N_PER_MM:g} N/mm against the limit "
+                               f"{s.exact_limit_N_per_mm:.4g} N/mm (margin {s.margin:.3g}, stable above {MARGIN_BAND:g})")
     why = ("no wall stiffness is stable: the handle with this B_e and hand is unstable on its own"
            if s.status is LimitStatus.UNSTABLE_WITHOUT_WALL else "stable up to the scan's end (1e4 × 2b/(T r/R))")
     return StabilityResult(summary=s, eq19_limit_N_per_mm=math.nan, vs_period_N_per_mm=vs_T,

@@ -28,7 +28,7 @@ from typing import Any
 from hapticopt.design import bundled, tomlsafe
 from hapticopt.design.errors import InvalidInput, short, short_key
 from hapticopt.design.paths import check_name
-from hapticopt.analysis.control.upsampling import DEFAULT_VARIANT, Variant
+from hapticopt.analysis.control.upsampling import DEFAULT_VARIANT, Predictor, Variant
 from hapticopt.analysis.loop.operator import Operator, OperatorKind
 
 
@@ -168,6 +168,12 @@ class ControllerSettings:
     # which eq (23) spline segment (analysis.control.upsampling.Variant); default: the one that does
     # not lower the stable stiffness (docs/seed000.md)
     interpolation_variant: Variant = DEFAULT_VARIANT
+    # seed 000 section 4: the AR coefficients fixed (ar_coefficients) or fitted online to the last
+    # ar_window positions at every update; None = the device's default (the handle: its design's
+    # [firmware] ar_order / ar_window; otherwise 2 and 16)
+    predictor: Predictor = Predictor.FIXED
+    ar_order: int | None = None  # p [samples]
+    ar_window: int | None = None  # regression window [samples], ≥ 2p
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -373,6 +379,18 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
         ar_t = tuple(float(x) for x in ar)
     else:
         raise InvalidInput(f"{where}: controller.ar_coefficients = {short(ar)} must be a list of 1 to 3 finite numbers")
+    predictor = c.choice("predictor", Predictor, Predictor.FIXED)
+    ar_order = c.integer("ar_order", 0, lo=1, hi=16) if c.table.get("ar_order") is not None else None
+    ar_window = c.integer("ar_window", 0, lo=2, hi=4096) if c.table.get("ar_window") is not None else None
+    if predictor is Predictor.FIXED and (ar_order is not None or ar_window is not None):
+        raise InvalidInput(f"{where}: controller.ar_order / ar_window apply to predictor = \"online\" only "
+                           f"(predictor = \"fixed\" uses ar_coefficients)")
+    if predictor is Predictor.ONLINE and ar is not None:
+        raise InvalidInput(f"{where}: controller.ar_coefficients = {short(ar)} applies to predictor = \"fixed\" only "
+                           f"(predictor = \"online\" fits them; set ar_order and ar_window instead)")
+    if ar_order is not None and ar_window is not None and ar_window < 2 * ar_order:
+        raise InvalidInput(f"{where}: controller.ar_window = {ar_window} is out of range: allowed ≥ 2·ar_order = "
+                           f"{2 * ar_order} (samples; at least as many regression equations as coefficients)")
     controller = ControllerSettings(
         mode=c.choice("mode", FirmwareMode, FirmwareMode.IMPEDANCE),
         period=c.num("period_ms", 1.0, scale=1e-3, lo=0.0, hi=100.0, lo_open=True, unit="ms"),
@@ -387,6 +405,9 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
         interpolation=c.integer("interpolation", 1, lo=1, hi=64),
         ar_coefficients=ar_t,
         interpolation_variant=c.choice("interpolation_variant", Variant, DEFAULT_VARIANT),
+        predictor=predictor,
+        ar_order=ar_order,
+        ar_window=ar_window,
     )
     c.done()
 

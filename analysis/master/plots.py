@@ -1,6 +1,7 @@
-"""Pictures of the master's balance and transparency results (pyvista off-screen; no matplotlib,
-which is not a dependency: pyvista's 2-D charts cover line plots and it is already installed).
-Only ``--plots`` and the pipeline's report call these, through the registry; evaluators never draw.
+"""Pictures of the master's workspace (pyvista off screen, 3-D), balance, transparency and
+counterweight trade-off (matplotlib: labelled axes with units, log frequency axes in Hz, twin axes
+where units differ; matplotlib comes with pyvista). Only ``--plots`` and the pipeline's report
+call these, through the registry; evaluators never draw.
 """
 
 from __future__ import annotations
@@ -24,18 +25,25 @@ def _save(plotter, target: Path) -> Path:
     return target
 
 
-def _chart_plotter(chart):
-    import pyvista as pv
+def _pyplot():
+    import matplotlib
 
-    pl = pv.Plotter(off_screen=True, window_size=(900, 700))
-    pl.add_chart(chart)
-    return pl
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save_fig(fig, target: Path) -> Path:
+    with atomic_path(target) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+    _pyplot().close(fig)
+    return target
 
 
 def balance_plots(design, result, out_dir: Path) -> list[Path]:
     """Unbalance-force map over the workspace (x–z plane) and the admissible CoM region."""
-    import pyvista as pv
-
+    plt = _pyplot()
     out_dir.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     # --- force map: the design's own CoM offset, or the worst direction on the circle if balanced
@@ -54,81 +62,89 @@ def balance_plots(design, result, out_dir: Path) -> list[Path]:
     g = design.geometry
     x = g.upper_arm * np.cos(t2) + g.forearm * np.sin(T3)
     z = g.shoulder_height + g.upper_arm * np.sin(t2) - g.forearm * np.cos(T3)
-    grid = pv.StructuredGrid(x * 1e3, np.zeros_like(x), z * 1e3)
-    grid["unbalance force [N]"] = F.ravel(order="F")
-    pl = pv.Plotter(off_screen=True, window_size=(900, 700))
-    pl.add_mesh(grid, scalars="unbalance force [N]", cmap="viridis")
-    pl.view_xz()
-    pl.show_bounds(xtitle="x [mm]", ztitle="z [mm]")
-    pl.add_text(f"{design.name}: |F| = |J⁻ᵀG| at θ1 = 0 ({label}); max {F.max():.3g} N", font_size=10)
-    written.append(_save(pl, out_dir / f"{design.name}_unbalance_force_map.png"))
+    fig, ax = plt.subplots(figsize=(8.0, 5.5), constrained_layout=True)
+    mesh = ax.pcolormesh(x * 1e3, z * 1e3, F, shading="gouraud", cmap="viridis")
+    fig.colorbar(mesh, ax=ax, label="unbalance force |F| [N]", shrink=0.8)
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("z [mm]")
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_title(f"{design.name}: unbalance force |F| = |J⁻ᵀG| over the workspace at θ1 = 0\n"
+                 f"({label}); max {F.max():.3g} N", fontsize=9)
+    written.append(_save_fig(fig, out_dir / f"{design.name}_unbalance_force_map.png"))
     # --- admissible CoM region with the unbalance circle and the paper-style ellipse
     psi = np.append(result.region_angles, result.region_angles[0])
     rr = np.append(result.region_radii, result.region_radii[0]) * 1e3
-    chart = pv.Chart2D(x_label="P_x [mm]", y_label="P_z [mm]")
-    chart.line(rr * np.cos(psi), rr * np.sin(psi), color="b", width=2.0, label="exact region (|F| ≤ 0.1 N)")
+    fig, ax = plt.subplots(figsize=(6.5, 6.0), constrained_layout=True)
+    ax.plot(rr * np.cos(psi), rr * np.sin(psi), color="b", lw=2.0, label="exact region (|F| ≤ 0.1 N)")
     c = np.linspace(0, 2 * np.pi, 200)
     r = result.radius * 1e3
-    chart.line(r * np.cos(c), r * np.sin(c), color="r", width=2.0, label=f"unbalance circle r = {r:.3g} mm")
-    a, b = (x * 1e3 for x in result.ellipse_axes)
+    ax.plot(r * np.cos(c), r * np.sin(c), color="r", lw=2.0, label=f"unbalance circle, r = {r:.3g} mm")
+    a, b = (v * 1e3 for v in result.ellipse_axes)
     if a > 0 and b > 0:
         ex = a * np.cos(c) / np.sqrt(2) + b * np.sin(c) / np.sqrt(2)
         ey = a * np.cos(c) / np.sqrt(2) - b * np.sin(c) / np.sqrt(2)
-        chart.line(ex, ey, color="orange", style="--", label=f"45° ellipse fit ({100 * result.ellipse_overlap:.0f} % IoU)")
-    chart.scatter([result.com_offset[0] * 1e3], [result.com_offset[1] * 1e3], color="k", size=10, label="design")
-    written.append(_save(_chart_plotter(chart), out_dir / f"{design.name}_unbalance_region.png"))
+        ax.plot(ex, ey, color="orange", ls="--", label=f"45° ellipse fit ({100 * result.ellipse_overlap:.0f} % IoU)")
+    ax.plot([result.com_offset[0] * 1e3], [result.com_offset[1] * 1e3], "ko", ms=6, label="design CoM offset")
+    ax.set_xlabel("CoM offset P_x [mm]")
+    ax.set_ylabel("CoM offset P_z [mm]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper right", fontsize=8)
+    ax.set_title(f"{design.name}: admissible centre-of-mass offsets", fontsize=10)
+    written.append(_save_fig(fig, out_dir / f"{design.name}_unbalance_region.png"))
     return written
 
 
 def transparency_plots(design, result, out_dir: Path) -> list[Path]:
-    """|G_T(f)| along x and z at the evaluated pose, with the ±3 dB band."""
-    import pyvista as pv
-
+    """|G_T(f)| along x and z at the evaluated pose, with the ±3 dB band (log frequency axis in Hz)."""
+    plt = _pyplot()
     out_dir.mkdir(parents=True, exist_ok=True)
     f = np.geomspace(0.05, 50.0, 300)
     G = np.abs(mt.transfer(result.coefficients, f, result.setup))[0]  # (2 axes, f)
-    chart = pv.Chart2D(x_label="f [Hz] (log10)", y_label="|G_T| [dB]")
-    lf = np.log10(f)
+    fig, ax = plt.subplots(figsize=(7.5, 4.5), constrained_layout=True)
     for k, (name, col) in enumerate((("x", "b"), ("z", "r"))):
-        chart.line(lf, 20 * np.log10(G[k]), color=col, width=2.0,
-                   label=f"{name}: bandwidth {result.bandwidth[k]:.3g} Hz")
-    for level in (3.0, -3.0):
-        chart.line(lf[[0, -1]], [level, level], color="gray", style="--")
-    return [_save(_chart_plotter(chart), out_dir / f"{design.name}_transparency.png")]
+        ax.semilogx(f, 20 * np.log10(G[k]), color=col, lw=2.0, label=f"{name}: bandwidth {result.bandwidth[k]:.3g} Hz")
+        if np.isfinite(result.bandwidth[k]):
+            ax.axvline(result.bandwidth[k], color=col, ls=":", lw=1.0)
+    ax.axhspan(-3.0, 3.0, color="0.85", zorder=0, label="±3 dB band")
+    ax.set_xlabel("frequency f [Hz]")
+    ax.set_ylabel("transparency |G_T| [dB]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(f"{design.name}: transparency transfer function", fontsize=10)
+    return [_save_fig(fig, out_dir / f"{design.name}_transparency.png")]
 
 
 def sweep_plot(rows: list[dict], out: Path, *, boundary_mass: float | None = None) -> Path:
-    """Seed 003's trade-off: bandwidth (x, z) and maximum unbalance force against the total
-    counterweight mass, the 0.1 N unbalance boundary marked (vertical line at ``boundary_mass`` [kg])
-    and the first sample whose CoM offset reaches the unbalance radius (dotted)."""
-    import pyvista as pv
-
+    """Seed 003's trade-off: bandwidth (x, z; left axis, Hz) and maximum unbalance force (right
+    axis, N) against the total counterweight mass, the 0.1 N unbalance boundary marked (vertical
+    line at ``boundary_mass`` [kg]) and the first sample whose CoM offset reaches the unbalance
+    radius (dotted)."""
+    plt = _pyplot()
     m = np.array([r["counterweight_mass_kg"] for r in rows]) * 1e3
     bx = np.array([r["transparency_bandwidth_x_Hz"] for r in rows])
     bz = np.array([r["transparency_bandwidth_z_Hz"] for r in rows])
     f = np.array([r["max_unbalance_force_N"] for r in rows])
-    top = pv.Chart2D(x_label="total counterweight mass [g]", y_label="transparency bandwidth [Hz]")
-    top.line(m, bx, color="b", width=2.0, label="bandwidth x")
-    top.line(m, bz, color="r", width=2.0, label="bandwidth z")
-    bot = pv.Chart2D(x_label="total counterweight mass [g]", y_label="max unbalance force [N]")
-    bot.line(m, f, color="k", width=2.0, label="max unbalance force")
-    bot.line([m.min(), m.max()], [0.1, 0.1], color="gray", style="--", label="0.1 N (10 % JND)")
+    fig, ax = plt.subplots(figsize=(8.0, 5.0), constrained_layout=True)
+    right = ax.twinx()
+    lines = ax.plot(m, bx, color="b", lw=2.0, label="bandwidth x [Hz] (left)")
+    lines += ax.plot(m, bz, color="r", lw=2.0, label="bandwidth z [Hz] (left)")
+    lines += right.plot(m, f, color="k", lw=2.0, label="max unbalance force [N] (right)")
+    lines.append(right.axhline(0.1, color="gray", ls="--", label="0.1 N (10 % JND) (right)"))
     if boundary_mass is not None:
         b = boundary_mass * 1e3
-        lo_b = min(bx.min(), bz.min())
-        top.line([b, b], [0.95 * lo_b, 1.05 * max(bx.max(), bz.max())], color="orange", style="--",
-                 label=f"unbalance boundary {b:.1f} g")
-        bot.line([b, b], [0.0, f.max()], color="orange", style="--", label=f"unbalance boundary {b:.1f} g")
+        lines.append(ax.axvline(b, color="orange", ls="--", label=f"unbalance boundary {b:.1f} g"))
     on = [r["counterweight_mass_kg"] * 1e3 for r in rows if r["com_offset_mm"] >= r["unbalance_radius_mm"]]
     if on:
-        top.line([on[0], on[0]], [0.95 * min(bx.min(), bz.min()), 1.05 * max(bx.max(), bz.max())], color="m",
-                 style=":", label="CoM beyond the unbalance radius (to the left)")
-    pl = pv.Plotter(off_screen=True, window_size=(900, 1000), shape=(2, 1))
-    pl.subplot(0, 0)
-    pl.add_chart(top)
-    pl.subplot(1, 0)
-    pl.add_chart(bot)
-    return _save(pl, out)
+        lines.append(ax.axvline(on[0], color="m", ls=":", label="CoM beyond the unbalance radius (to the left)"))
+    ax.set_xlabel("total counterweight mass [g]")
+    ax.set_ylabel("transparency bandwidth [Hz]")
+    right.set_ylabel("max unbalance force [N]")
+    right.set_ylim(bottom=0.0)
+    ax.grid(True, alpha=0.3)
+    ax.legend(handles=lines, loc="best", fontsize=8)
+    ax.set_title("counterweight trade-off (seed 003)", fontsize=10)
+    return _save_fig(fig, out)
 
 
 def workspace_plots(design, result, out_dir: Path) -> list[Path]:
@@ -145,18 +161,23 @@ def workspace_plots(design, result, out_dir: Path) -> list[Path]:
     p = np.asarray(mk.forward_kinematics(prm, q)) * 1e3
     inv_kappa = 1.0 / mw.condition_field(design, q)
     target = Path(out_dir) / f"{design.name}_workspace.png"
-    pl = pv.Plotter(off_screen=True, window_size=(900, 700))
+    pl = pv.Plotter(off_screen=True, window_size=(1000, 700))
+    # VTK's fonts have no Greek subscripts: the colour-bar title is plain ASCII
     pl.add_points(pv.PolyData(p), scalars=inv_kappa, point_size=5, render_points_as_spheres=True,
-                  scalar_bar_args={"title": "1/κ₂"})
+                  scalar_bar_args={"title": "1/cond(J) [-]", "fmt": "%.2f", "vertical": True, "position_x": 0.86,
+                                   "position_y": 0.2, "width": 0.06, "height": 0.6, "title_font_size": 14,
+                                   "label_font_size": 12, "n_labels": 5})
     if result.volume > 0:
         c = np.asarray(result.box_centre) * 1e3
         b = np.asarray(result.box) * 1e3
         bounds = [c[0] - b[0] / 2, c[0] + b[0] / 2, c[1] - b[1] / 2, c[1] + b[1] / 2, c[2] - b[2] / 2, c[2] + b[2] / 2]
         pl.add_mesh(pv.Box(bounds=bounds), style="wireframe", color="red", line_width=2)
     pl.add_axes()
-    pl.show_bounds(xtitle="x [mm]", ytitle="y [mm]", ztitle="z [mm]")
-    pl.add_text(f"{design.name}: coverage {result.coverage:.3f}, GCI {result.global_conditioning_index:.3f}",
-                font_size=10)
+    pl.show_bounds(xtitle="x [mm]", ytitle="y [mm]", ztitle="z [mm]", n_xlabels=4, n_ylabels=4, n_zlabels=4,
+                   fmt="%.0f", location="outer", font_size=10, bold=False)
+    pl.add_text(f"{design.name}: workspace points (colour: inverse condition number), required box (red);\n"
+                f"coverage {result.coverage:.3f}, GCI {result.global_conditioning_index:.3f}", font_size=10)
+    pl.camera.zoom(0.85)
     with atomic_path(target) as tmp:
         pl.screenshot(str(tmp))
     pl.close()

@@ -49,6 +49,11 @@ from hapticopt.design.master.params import MasterDesign
 
 #: Required box edge lengths [m] (seed 003: a 200 × 200 × 200 mm workspace).
 DEFAULT_BOX = (0.200, 0.200, 0.200)
+#: Covered share of the best-placed box that meets the requirement. Not 1: coverage counts
+#: midpoint cells (error O(1/n)) and places the box on a grid of centres, so seed 003's cube,
+#: which the paper's master holds, scores 0.9967 at standard and 0.9983 at fine fidelity
+#: (master-paper); the bundled problem master-transparency constrains the same 0.99.
+REQUIRED_COVERAGE = 0.99
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -247,6 +252,10 @@ def _result(out: dict, box: tuple[float, float, float], fidelity: Fidelity) -> M
     if not verdict.ok:
         status, message = verdict.status, verdict.message + " (the joint ranges reach a singular configuration)"
         kmax = min(kmax, 1e300)
+    elif float(arr["coverage"]) < REQUIRED_COVERAGE:  # the requirement this evaluator reports (numbers kept)
+        status = Status.NOT_MET
+        message = (f"the best-placed {' × '.join(f'{b * 1e3:g}' for b in box)} mm box is {100 * float(arr['coverage']):.3g} % "
+                   f"covered: required ≥ {100 * REQUIRED_COVERAGE:g} %")
     return MasterWorkspace(
         volume=volume,
         centroid=tuple(float(c) for c in arr["centroid"]),
@@ -264,7 +273,12 @@ def _result(out: dict, box: tuple[float, float, float], fidelity: Fidelity) -> M
 
 def evaluate(design: MasterDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
              box: tuple[float, float, float] = DEFAULT_BOX) -> MasterWorkspace:
-    """Workspace, coverage of ``box`` (edges [m]) and conditioning of ``design``."""
+    """Workspace, coverage of ``box`` (edges [m]) and conditioning of ``design``.
+
+    Status ``ok`` when the best-placed box is covered to :data:`REQUIRED_COVERAGE`; ``not-met``
+    (numbers kept) when it is not; ``empty`` when the joint ranges enclose no volume;
+    ``singular`` / ``ill-conditioned`` when they reach a singular configuration.
+    """
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
     out = _compiled(smp, False)(mk.params_of(design), jnp.asarray(box, dtype=float))

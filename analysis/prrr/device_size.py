@@ -14,6 +14,7 @@ import time
 from dataclasses import dataclass
 
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr import assembly
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import HapticoptError
 from hapticopt.design.prrr import cad as cad_prrr
@@ -42,14 +43,23 @@ class DeviceSize:
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> DeviceSize:
-    """Mass split and height (closed forms, the same at every fidelity)."""
+    """Mass split and height (closed forms, the same at every fidelity).
+
+    Status ``ok`` when computed (the seed gives no limit to hold them to); ``not-assemblable``
+    (NaN) when the chain does not close or the CAD cannot lay the parts out
+    (:mod:`hapticopt.analysis.prrr.assembly`); ``failed`` when the mass model refuses the parts.
+    """
     Fidelity(fidelity)
     t0 = time.perf_counter()
+    nan = float("nan")
+    blocked = assembly.check(design, with_parts=True)
+    if blocked:
+        return DeviceSize(mass=nan, sea_mass=nan, link_mass=nan, frame_mass=nan, height=nan,
+                          wall_s=time.perf_counter() - t0, status=Status.NOT_ASSEMBLABLE, message=blocked)
     try:
         parts = cad_prrr.mass_properties(design).parts
         height = cad_prrr.device_height(design)
     except HapticoptError as exc:
-        nan = float("nan")
         return DeviceSize(mass=nan, sea_mass=nan, link_mass=nan, frame_mass=nan, height=nan,
                           wall_s=time.perf_counter() - t0, status=Status.FAILED, message=f"size not computed: {exc}")
     sea = sum(p.mass for n, p in parts.items() if n.startswith(SEA_PARTS))

@@ -10,10 +10,13 @@ counts (integers when quantisation is on). Per tick:
    + friction compensation F_fc·tanh(ṗ̂/v_ε) in x and y, + weight compensation in z
 4. f_r = Jᵀ F_r                                           (spring-force references per leg)
 5. per-SEA force loop F = K_p (f_r − k x̂) + K_i ∫(f_r − k x̂) (rigid: F = f_r/η; ideal: F = f_r)
-6. optional seed 000 prediction f_{i+1} = Σ a_j f_{i−j} (and f_{i+2} by the same recursion) and cubic
-   B-spline (eq 23) giving L output samples per period; ``interpolation_variant`` picks the segment
-   (``analysis.control.upsampling.Variant``; default as intended, the one that does not lower the
-   stable stiffness: docs/seed000.md, 3-PRRR section)
+6. optional seed 000 prediction and cubic B-spline (eq 23) giving L output samples per period;
+   ``interpolation_variant`` picks the segment (``analysis.control.upsampling.Variant``; default as
+   intended, the one that does not lower the stable stiffness: docs/seed000.md, 3-PRRR section).
+   ``predictor`` fixed: the command is extrapolated, f_{i+1} = Σ a_j f_{i−j} (and f_{i+2} by the same
+   recursion); online (the paper's method): an AR(p) model fitted per axis by least squares to the last
+   ``ar_window`` positions predicts p̂_{i+1}, p̂_{i+2}, and steps 2–5 run at the predicted positions (the
+   spring deflection held at this tick's reading, the integral chained over the predicted errors)
 7. motor-force saturation |F| ≤ F_max/η (anti-windup: the integral is clamped too)
 
 The law is a pure function :func:`step` on arrays (jax, compiled once per structure, batched
@@ -34,9 +37,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
-from hapticopt.analysis.control.upsampling import DEFAULT_VARIANT, Variant, spline_weights
+from hapticopt.analysis.control.upsampling import (AR_RCOND_BAND, DEFAULT_VARIANT, Predictor, Variant,
+                                                   fallback_coefficients, spline_weights)
 from hapticopt.design.prrr.kinematics import jacobian
 from hapticopt.analysis.loop.scene import BoxMode, Effect, EnvKind, Resolution, Scene
+from hapticopt.design.errors import InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.design.units import GRAVITY
 
@@ -74,6 +79,16 @@ class FirmwareConfig:
     ar: tuple[float, ...] = (2.0, -1.0)
     interpolation_variant: Variant = DEFAULT_VARIANT
     velocity_alpha: float = 0.0  # low-pass pole of the velocity estimate, exp(−2π f_c T)
+    # seed 000's predictor as the paper runs it (interpolation > 1 only): AR(ar_order) fitted per axis to the
+    # last ar_window positions at every tick, the rendered force and the force loop's command computed at
+    # the predicted positions (``online_predictions``); FIXED extrapolates the command with ``ar``
+    predictor: Predictor = Predictor.FIXED
+    ar_order: int = 2
+    ar_window: int = 16
+
+    @property
+    def online(self) -> bool:
+        return self.predictor is Predictor.ONLINE and self.interpolation > 1
 
 
 class Gains(NamedTuple):
@@ -108,6 +123,7 @@ class State(NamedTuple):
     velocity: jax.Array  # (…, 3) [m/s]
     integral: jax.Array  # (…, 3) [N]
     history: jax.Array  # (…, 3, 3) last three outputs f_{i−2}, f_{i−1}, f_i (interpolation)
+    positions: jax.Array | None = None  # (…, ar_window, 3) last positions, oldest first (online predictor)
 
 
 def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: float | None = None
@@ -123,6 +139,11 @@ def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: f
     else:
         loop = ForceLoop.RIGID
     alpha = math.exp(-2.0 * math.pi * cs.velocity_filter * T) if cs.velocity_filter > 0 else 0.0
+    order = cs.ar_order if cs.ar_order is not None else 2
+    window = cs.ar_window if cs.ar_window is not None else 16
+    if window < 2 * order:
+        raise InvalidInput(f"scene {scene.name}: controller.ar_window = {window} is out of range: allowed ≥ "
+                           f"2·ar_order = {2 * order} (samples; at least as many regression equations as coefficients)")
     cfg = FirmwareConfig(
         period=T, env=env.kind, box_mode=env.box_mode, force_loop=loop,
         integral=loop == ForceLoop.SEA and cs.integral_gain > 0,
@@ -130,7 +151,7 @@ def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: f
         friction_compensation=Effect.COULOMB_FRICTION in fx and cs.friction_compensation > 0,
         gravity_compensation=Effect.GRAVITY in fx and cs.gravity_compensation,
         interpolation=cs.interpolation, ar=cs.ar_coefficients, velocity_alpha=alpha,
-        interpolation_variant=cs.interpolation_variant,
+        interpolation_variant=cs.interpolation_variant, predictor=cs.predictor, ar_order=order, ar_window=window,
     )
     J = np.asarray(jacobian(design.geometry.beta, xp=np))
     limit = a.force_limit if loop == ForceLoop.IDEAL else a.force_limit / a.efficiency
@@ -152,8 +173,11 @@ def init_state(cfg: FirmwareConfig, gains: Gains, slider_counts: jax.Array) -> S
     """State at power-up: the first reading is the previous position; nothing integrated."""
     p = (slider_counts * gains.resolution) @ gains.J.T
     zeros = jnp.zeros_like(p)
+    positions = None
+    if cfg.online:  # at power-up the history is the first reading (at rest): the fit falls back until motion
+        positions = jnp.broadcast_to(p[..., None, :], p.shape[:-1] + (cfg.ar_window, 3)) + 0.0
     return State(tick=jnp.asarray(0), p_prev=p, velocity=zeros, integral=zeros,
-                 history=jnp.zeros(p.shape[:-1] + (3, 3)))
+                 history=jnp.zeros(p.shape[:-1] + (3, 3)), positions=positions)
 
 
 def interpolation_weights(cfg: FirmwareConfig) -> np.ndarray:
@@ -170,25 +194,17 @@ def predictions(ar: tuple[float, ...], history, xp=np):
     return pred, pred2
 
 
-def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Array, deflection_counts: jax.Array
-         ) -> tuple[State, jax.Array, jax.Array]:
-    """One control period. Returns (new state, commands (…, L, 3) [N], F_r (…, 3) [N])."""
-    T = cfg.period if gains.period is None else gains.period
-    p = (slider_counts * gains.resolution) @ gains.J.T
-    diff = (p - state.p_prev) / T
-    if cfg.velocity_alpha > 0.0:  # structure: whether the filter exists; its pole may be an argument
-        alpha = cfg.velocity_alpha if gains.velocity_alpha is None else gains.velocity_alpha
-        v = alpha * state.velocity + (1.0 - alpha) * diff
-    else:
-        v = diff
+def _render(cfg: FirmwareConfig, gains: Gains, p, v, tick, T, *, trace: bool = True):
+    """F_r (…, 3) [N] at position p, velocity v, tick (step 3 of the module docstring)."""
+    note = _traced if trace else (lambda name: None)
     delta = p - gains.anchor
     if cfg.env == EnvKind.FREE:
         F = jnp.zeros_like(p)
     elif cfg.env == EnvKind.SPRING:
-        _traced("spring")
+        note("spring")
         F = -gains.stiffness * delta - gains.damping * v
     elif cfg.env == EnvKind.BOX:
-        _traced("box")
+        note("box")
         depth = jnp.abs(delta) - gains.half_size  # > 0: beyond the wall on that axis
         sgn = jnp.sign(delta)
         if cfg.box_mode == BoxMode.INSIDE:  # eq 13, inside: every axis beyond its wall pushes back
@@ -199,24 +215,58 @@ def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Arr
             pick = jnp.arange(3) == axis
             F = jnp.where(inside & pick, gains.wall_stiffness * sgn * (-depth) - gains.wall_damping * v, 0.0)
     else:  # FORCE: prescribed force reference
-        _traced("force")
-        t = state.tick * T
+        note("force")
+        t = tick * T
         F = gains.force_amplitude * jnp.sin(gains.force_omega[..., None] * t + gains.force_phase) + jnp.zeros_like(p)
     if cfg.friction_compensation:
-        _traced("friction_compensation")
+        note("friction_compensation")
         comp = gains.friction_comp * jnp.tanh(v / gains.friction_comp_velocity)
         F = F + comp * jnp.array([1.0, 1.0, 0.0])
     if cfg.gravity_compensation:
-        _traced("gravity_compensation")
+        note("gravity_compensation")
         F = F + gains.weight * jnp.array([0.0, 0.0, 1.0])
-    f_ref = F @ gains.J  # Jᵀ F_r, per leg
-    integral = state.integral
+    return F
+
+
+def fit_ar_axes(positions, order: int):
+    """Least-squares AR(order) coefficients per axis of ``positions`` (…, W, 3), oldest first, as
+    :func:`hapticopt.analysis.control.upsampling.fit_ar` fits one axis: (…, 3, order) coefficients and a
+    (…, 3) mask of the axes that fitted (rcond of the regression above ``AR_RCOND_BAND``); the others get
+    the fallback (2, −1, 0, …)."""
+    W = positions.shape[-2]
+    n_eq = W - order
+    x = jnp.swapaxes(positions, -1, -2)  # (…, 3, W)
+    X = jnp.stack([x[..., order - 1 - j: order - 1 - j + n_eq] for j in range(order)], axis=-1)  # (…, 3, n_eq, p)
+    y = x[..., order:]
+    U, sv, Vt = jnp.linalg.svd(X, full_matrices=False)
+    smax = sv[..., 0]
+    rc = jnp.where(smax > 0.0, sv[..., -1] / jnp.where(smax > 0.0, smax, 1.0), 0.0)
+    ok = rc > AR_RCOND_BAND
+    safe = jnp.where(ok[..., None], sv, 1.0)
+    coef = jnp.einsum("...ji,...j->...i", Vt, jnp.einsum("...ji,...j->...i", U, y) / safe)
+    fallback = jnp.asarray(fallback_coefficients(order))
+    return jnp.where(ok[..., None], coef, fallback), ok
+
+
+def online_predictions(cfg: FirmwareConfig, positions):
+    """(p̂_{i+1}, p̂_{i+2}, fitted mask) by the per-axis AR fit of the last ``ar_window`` positions."""
+    a, ok = fit_ar_axes(positions, cfg.ar_order)  # (…, 3, p)
+    newest = [positions[..., -1 - j, :] for j in range(cfg.ar_order)]  # p_i, p_{i−1}, …
+    p1 = sum(a[..., j] * newest[j] for j in range(cfg.ar_order))
+    newest2 = [p1] + newest[:-1]
+    p2 = sum(a[..., j] * newest2[j] for j in range(cfg.ar_order))
+    return p1, p2, ok
+
+
+def _force_loop(cfg: FirmwareConfig, gains: Gains, f_ref, deflection_counts, integral, T, *, trace: bool = True):
+    """(command before interpolation, integral) from the spring-force references f_ref (step 5)."""
+    note = _traced if trace else (lambda name: None)
     if cfg.force_loop == ForceLoop.SEA:
-        _traced("force_loop")
+        note("force_loop")
         err = f_ref - gains.spring * (deflection_counts * gains.resolution)
         out = gains.kp[..., None] * err
         if cfg.integral:
-            _traced("integral")
+            note("integral")
             integral = integral + gains.ki[..., None] * T * err
             if cfg.saturation:
                 integral = jnp.clip(integral, -gains.motor_limit, gains.motor_limit)
@@ -225,11 +275,51 @@ def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Arr
         out = f_ref / gains.efficiency
     else:
         out = f_ref
-    history = state.history
+    return out, integral
+
+
+def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Array, deflection_counts: jax.Array
+         ) -> tuple[State, jax.Array, jax.Array]:
+    """One control period. Returns (new state, commands (…, L, 3) [N], F_r (…, 3) [N])."""
+    T = cfg.period if gains.period is None else gains.period
+    p = (slider_counts * gains.resolution) @ gains.J.T
+    diff = (p - state.p_prev) / T
+    alpha = None
+    if cfg.velocity_alpha > 0.0:  # structure: whether the filter exists; its pole may be an argument
+        alpha = cfg.velocity_alpha if gains.velocity_alpha is None else gains.velocity_alpha
+        v = alpha * state.velocity + (1.0 - alpha) * diff
+    else:
+        v = diff
+    F = _render(cfg, gains, p, v, state.tick, T)
+    f_ref = F @ gains.J  # Jᵀ F_r, per leg
+    out, integral = _force_loop(cfg, gains, f_ref, deflection_counts, state.integral, T)
+    history, positions = state.history, state.positions
     if cfg.interpolation > 1:
         _traced("interpolation")
         history = jnp.concatenate([history[..., 1:, :], out[..., None, :]], axis=-2)
-        pred, pred2 = predictions(cfg.ar, history)
+        if cfg.online:
+            # seed 000 as the paper runs it: predict the positions, render the force there, and give the
+            # force loop's command at the predicted positions
+            _traced("online_predictor")
+            positions = jnp.concatenate([positions[..., 1:, :], p[..., None, :]], axis=-2)
+            p1, p2, _ = online_predictions(cfg, positions)
+
+            def vel(v_prev, new, old):
+                d = (new - old) / T
+                return d if alpha is None else alpha * v_prev + (1.0 - alpha) * d
+
+            v1 = vel(v, p1, p)
+            v2 = vel(v1, p2, p1)
+            preds, ik = [], integral
+            for k, (pk, vk) in enumerate(((p1, v1), (p2, v2)), start=1):
+                Fk = _render(cfg, gains, pk, vk, state.tick + k, T, trace=False)
+                # the command the force loop would give at tick i + k: the integral runs on (chained
+                # over the predicted errors), the spring deflection is this tick's measurement
+                uk, ik = _force_loop(cfg, gains, Fk @ gains.J, deflection_counts, ik, T, trace=False)
+                preds.append(uk)
+            pred, pred2 = preds
+        else:
+            pred, pred2 = predictions(cfg.ar, history)
         ctrl = jnp.concatenate([history, pred[..., None, :], pred2[..., None, :]], axis=-2)  # (…, 5, 3)
         W = jnp.asarray(interpolation_weights(cfg))
         cmd = jnp.einsum("lj,...jk->...lk", W, ctrl)
@@ -238,7 +328,7 @@ def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Arr
     if cfg.saturation:
         _traced("saturation")
         cmd = jnp.clip(cmd, -gains.motor_limit, gains.motor_limit)
-    new = State(tick=state.tick + 1, p_prev=p, velocity=v, integral=integral, history=history)
+    new = State(tick=state.tick + 1, p_prev=p, velocity=v, integral=integral, history=history, positions=positions)
     return new, cmd, F
 
 

@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 
+from hapticopt.analysis.control import upsampling as up
 from hapticopt.analysis.prrr import firmware
 from hapticopt.analysis.prrr.firmware import FirmwareConfig, ForceLoop, Gains
 from hapticopt.analysis.loop.scene import BoxMode, EnvKind
@@ -59,6 +60,8 @@ class NumpyController:
         self._v = np.zeros(3)
         self._integral = np.zeros(3)
         self._history = np.zeros((3, 3))
+        self._positions = np.tile(p, (self.cfg.ar_window, 1)) if self.cfg.online else None
+        self.fit_counts: dict[up.ARStatus, int] = {}  # per axis and tick (online predictor)
         self._ready = True
         self._sp = p.tolist()
         self._sv = [0.0, 0.0, 0.0]
@@ -133,16 +136,9 @@ class NumpyController:
         self.last_force = np.array(F)
         return np.array([out])
 
-    def step_generic(self, slider_counts: np.ndarray, deflection_counts: np.ndarray) -> np.ndarray:
-        """Commands (L, 3) [N] for this period from the counts read at its start (numpy 3-vectors)."""
-        cfg = self.cfg
-        if not self._ready:
-            self.reset(slider_counts)
-        T = cfg.period
-        p = (np.asarray(slider_counts, dtype=np.float64) * self._res) @ self._JT
-        diff = (p - self._p_prev) / T
-        a = cfg.velocity_alpha
-        v = a * self._v + (1.0 - a) * diff if a > 0.0 else diff
+    def _render(self, p: np.ndarray, v: np.ndarray, tick: int) -> np.ndarray:
+        """F_r at position p, velocity v, tick (:func:`hapticopt.analysis.prrr.firmware._render`)."""
+        cfg, T = self.cfg, self.cfg.period
         delta = p - self._anchor
         if cfg.env == EnvKind.FREE:
             F = np.zeros(3)
@@ -158,18 +154,20 @@ class NumpyController:
                 pick = np.arange(3) == int(np.argmax(depth))
                 F = np.where(inside & pick, self._Kb * sgn * (-depth) - self._Bb * v, 0.0)
         else:
-            F = self._famp * np.sin(self._fomega * (self._tick * T))
+            F = self._famp * np.sin(self._fomega * (tick * T) + np.asarray(self._fphase))
         if cfg.friction_compensation:
             F = F + self._fc * np.tanh(v / self._fcv) * _XY
         if cfg.gravity_compensation:
             F = F + self._weight * _Z
-        f_ref = F @ self._J
-        integral = self._integral
+        return F
+
+    def _force_loop(self, f_ref: np.ndarray, deflection_counts, integral: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        cfg = self.cfg
         if cfg.force_loop == ForceLoop.SEA:
             err = f_ref - self._spring * (np.asarray(deflection_counts, dtype=np.float64) * self._res)
             out = self._kp * err
             if cfg.integral:
-                integral = integral + self._ki * T * err
+                integral = integral + self._ki * cfg.period * err
                 if cfg.saturation:
                     integral = np.clip(integral, -self._limit, self._limit)
                 out = out + integral
@@ -177,10 +175,52 @@ class NumpyController:
             out = f_ref / self._eta
         else:
             out = f_ref
+        return out, integral
+
+    def _online_predictions(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(p̂_{i+1}, p̂_{i+2}) per axis by ``upsampling.fit_ar`` over the last ar_window positions."""
+        cfg = self.cfg
+        coef = np.empty((3, cfg.ar_order))
+        for k in range(3):
+            fit = up.fit_ar(positions[:, k], order=cfg.ar_order, window=cfg.ar_window)
+            coef[k] = fit.coefficients
+            self.fit_counts[fit.status] = self.fit_counts.get(fit.status, 0) + 1
+        newest = positions[::-1][: cfg.ar_order]  # (p, 3): p_i, p_{i−1}, …
+        p1 = np.sum(coef.T * newest, axis=0)
+        newest2 = np.concatenate([p1[None], newest[:-1]], axis=0)
+        p2 = np.sum(coef.T * newest2, axis=0)
+        return p1, p2
+
+    def step_generic(self, slider_counts: np.ndarray, deflection_counts: np.ndarray) -> np.ndarray:
+        """Commands (L, 3) [N] for this period from the counts read at its start (numpy 3-vectors)."""
+        cfg = self.cfg
+        if not self._ready:
+            self.reset(slider_counts)
+        T = cfg.period
+        p = (np.asarray(slider_counts, dtype=np.float64) * self._res) @ self._JT
+        diff = (p - self._p_prev) / T
+        a = cfg.velocity_alpha
+        v = a * self._v + (1.0 - a) * diff if a > 0.0 else diff
+        F = self._render(p, v, self._tick)
+        f_ref = F @ self._J
+        out, integral = self._force_loop(f_ref, deflection_counts, self._integral)
         history = self._history
         if self._W is not None:
             history = np.concatenate([history[1:], out[None]], axis=0)
-            pred, pred2 = firmware.predictions(cfg.ar, history)
+            if cfg.online:
+                self._positions = np.concatenate([self._positions[1:], p[None]], axis=0)
+                p1, p2 = self._online_predictions(self._positions)
+
+                def vel(v_prev: np.ndarray, new: np.ndarray, old: np.ndarray) -> np.ndarray:
+                    d = (new - old) / T
+                    return a * v_prev + (1.0 - a) * d if a > 0.0 else d
+
+                v1 = vel(v, p1, p)
+                v2 = vel(v1, p2, p1)
+                pred, ik = self._force_loop(self._render(p1, v1, self._tick + 1) @ self._J, deflection_counts, integral)
+                pred2, _ = self._force_loop(self._render(p2, v2, self._tick + 2) @ self._J, deflection_counts, ik)
+            else:
+                pred, pred2 = firmware.predictions(cfg.ar, history)
             ctrl = np.concatenate([history, pred[None], pred2[None]], axis=0)
             cmd = self._W @ ctrl
         else:

@@ -42,8 +42,10 @@ Metrics (engineering units at the edge):
 * ``workspace_free_footprint_ratio`` — free cylinder diameter over the footprint diameter.
 
 Status: ``ok`` when the required cylinder (φ140 × 89 mm, seed 002 Table 1) is reachable and
-collision-free; ``infeasible`` (numbers kept: an optimiser steers on them) when it is not;
-``empty`` when no workspace exists; ``failed`` when the CAD cannot lay the parts out.
+collision-free; ``not-met`` (numbers kept: an optimiser steers on them) when reach and stroke
+alone miss it, ``collides`` (numbers kept) when reach and stroke hold it but parts collide in it;
+``empty`` when no workspace exists; ``not-assemblable`` (NaN) when the chain does not close or
+the CAD cannot lay the parts out (:mod:`hapticopt.analysis.prrr.assembly`).
 """
 
 from __future__ import annotations
@@ -57,8 +59,10 @@ import numpy as np
 from hapticopt.analysis import interference
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr import interference_fast
-from hapticopt.analysis.prrr.workspace import (
+from hapticopt.analysis.prrr import assembly
+from hapticopt.analysis.prrr.workspace import (  # noqa: F401  (DEFAULT_REQUIRED_HEIGHT re-exported)
     DEFAULT_REQUIRED_DIAMETER,
+    DEFAULT_REQUIRED_HEIGHT,
     ELBOW_BRANCH,
     workspace_core,
     workspace_params,
@@ -67,8 +71,6 @@ from hapticopt.analysis.status import Status
 from hapticopt.design.errors import HapticoptError
 from hapticopt.design.prrr.params import PrrrDesign
 
-#: required height of the collision-free cylinder [m] (seed 002 Table 1: workspace φ140 × 89 mm)
-DEFAULT_REQUIRED_HEIGHT = 0.089
 _THIRD = 2.0 * math.pi / 3.0
 
 
@@ -210,20 +212,31 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
                              colliding=colliding, fidelity=fidelity, wall_s=time.perf_counter() - t0,
                              status=status, message=message)
 
+    def unusable(status: Status, message: str) -> FreeWorkspace:
+        out = result(0.0, 0, 0, status, message)
+        nan = float("nan")
+        return FreeWorkspace(**{**out.__dict__, "free_radius": nan, "cylinder_diameter": nan,
+                                "cylinder_height": nan, "height_at_required": nan})
+
+    blocked = assembly.check(design, with_parts=True)
+    if blocked:
+        return unusable(Status.NOT_ASSEMBLABLE, blocked)
     if bool(core["empty"]) or r_max <= 0.0:
         return result(0.0, 0, 0, Status.EMPTY, "no point is reached by every leg within the slider stroke")
     try:
         r_free, n, hit = free_radius(design, r_max, n_phi=smp.n_phi, n_r=smp.n_r, n_bisect=smp.n_bisect,
                                      checker=smp.checker)
-    except HapticoptError as exc:  # the CAD cannot lay this design's parts out
-        out = result(0.0, 0, 0, Status.FAILED, f"collision-free workspace not computed: {exc}")
-        nan = float("nan")
-        return FreeWorkspace(**{**out.__dict__, "free_radius": nan, "cylinder_diameter": nan,
-                                "cylinder_height": nan, "height_at_required": nan})
+    except HapticoptError as exc:  # the parts are laid out but a pose's parts cannot be placed
+        return unusable(Status.FAILED, f"collision-free workspace not computed: {exc}")
     out = result(r_free, n, hit, Status.OK, "")
     if out.height_at_required < required_height - 1e-12:
-        return FreeWorkspace(**{**out.__dict__, "status": Status.INFEASIBLE, "message": (
+        # reach and stroke alone: the height of the required cylinder with r_free = r_max
+        h_reach = max(g.stroke - 2.0 * required_diameter / 2.0 * cot, 0.0) \
+            if required_diameter / 2.0 <= r_max else 0.0
+        cause = Status.COLLIDES if h_reach >= required_height - 1e-12 else Status.NOT_MET
+        why = (f"{hit} of {n} checked poses collide ({smp.checker} check)" if cause is Status.COLLIDES else
+               f"reach and stroke alone give it {h_reach * 1e3:.4g} mm of height")
+        return FreeWorkspace(**{**out.__dict__, "status": cause, "message": (
             f"the collision-free workspace misses the required φ{required_diameter * 1e3:g} × "
-            f"{required_height * 1e3:g} mm cylinder: free radius {r_free * 1e3:.4g} mm, "
-            f"{hit} of {n} checked poses collide ({smp.checker} check)")})
+            f"{required_height * 1e3:g} mm cylinder: free radius {r_free * 1e3:.4g} mm, {why}")})
     return out

@@ -28,8 +28,11 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import HapticoptError
 from hapticopt.design.prrr.params import PrrrDesign
-from hapticopt.analysis.prrr import interference_fast
+from hapticopt.analysis.prrr import assembly, interference_fast
 from hapticopt.analysis.prrr.workspace import INTERFERENCE_SAMPLING
+
+#: most poses of the check: 3 thirds · n_phi · n_r · n_z (fewer where the workspace is thinner)
+INTERFERENCE_POSES = 3 * INTERFERENCE_SAMPLING["n_phi"] * INTERFERENCE_SAMPLING["n_r"] * INTERFERENCE_SAMPLING["n_z"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -48,13 +51,29 @@ class PrrrInterference:
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> PrrrInterference:
-    """Fast interference over the workspace samples (same model and samples at every fidelity)."""
+    """Fast interference over the workspace samples (same model and samples at every fidelity).
+
+    Status ``ok`` when no sampled pose makes two parts collide; ``collides`` (numbers kept: the
+    optimiser constrains them) when some do; ``not-assemblable`` (NaN) when the chain does not
+    close or the CAD cannot lay the parts out (:mod:`hapticopt.analysis.prrr.assembly`).
+    """
 
     Fidelity(fidelity)
     t0 = time.perf_counter()
+    nan = float("nan")
+    blocked = assembly.check(design, with_parts=True)
+    if blocked:
+        return PrrrInterference(removed_fraction=nan, overlap_fraction=nan, wall_s=time.perf_counter() - t0,
+                                status=Status.NOT_ASSEMBLABLE, message=blocked)
     try:
         removed, overlap = interference_fast.interference_fractions(design, **INTERFERENCE_SAMPLING)
-    except HapticoptError as exc:  # the CAD cannot lay this design's parts out
-        return PrrrInterference(removed_fraction=float("nan"), overlap_fraction=float("nan"), wall_s=time.perf_counter() - t0,
+    except HapticoptError as exc:  # the parts are laid out but a pose's parts cannot be placed
+        return PrrrInterference(removed_fraction=nan, overlap_fraction=nan, wall_s=time.perf_counter() - t0,
                                 status=Status.FAILED, message=f"interference not checked: {exc}")
-    return PrrrInterference(removed_fraction=removed, overlap_fraction=overlap, wall_s=time.perf_counter() - t0)
+    status, message = Status.OK, ""
+    if removed > 0.0:  # a count of colliding sampled poses (no rounding-level threshold)
+        status = Status.COLLIDES
+        message = (f"parts collide over {100.0 * removed:.3g} % of the sampled workspace volume "
+                   f"(fast model, up to {INTERFERENCE_POSES} sampled poses)")
+    return PrrrInterference(removed_fraction=removed, overlap_fraction=overlap, wall_s=time.perf_counter() - t0,
+                            status=status, message=message)

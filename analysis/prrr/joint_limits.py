@@ -15,7 +15,8 @@ Seed 002 gives no joint limits. Three sources bound each leg's revolute joints:
 
 Reported: the range each joint sweeps over the collision-free cylinder (IK on a grid of it, the
 CAD's elbow branch), and the smallest margin to the limits above (negative: a limit cuts the
-cylinder; status ``infeasible``).
+cylinder; status ``not-met``, as when part of the cylinder is out of reach; ``not-assemblable``
+when the chain does not close, or, at fine fidelity, the CAD cannot lay the parts out).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import numpy as np
 
 from hapticopt.analysis import interference
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.prrr import free_workspace as FW
+from hapticopt.analysis.prrr import assembly, free_workspace as FW
 from hapticopt.analysis.prrr.workspace import ELBOW_BRANCH, fold_margin
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import HapticoptError
@@ -72,6 +73,11 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     """Joint ranges over the required cylinder against the hardware limits."""
     fidelity = Fidelity(fidelity)
     t0 = time.perf_counter()
+    nan = float("nan")
+    blocked = assembly.check(design, with_parts=fidelity is Fidelity.FINE)  # the parts' stops: fine only
+    if blocked:
+        return PrrrJointLimits(elbow_limit=nan, used={}, stops=None, margin=nan, wall_s=time.perf_counter() - t0,
+                               status=Status.NOT_ASSEMBLABLE, message=blocked)
     g = design.geometry
     rho_min = max(abs(g.d3 - g.d4), fold_margin(design))
     c2 = (rho_min**2 - g.d3**2 - g.d4**2) / (2.0 * g.d3 * g.d4)
@@ -80,7 +86,6 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     ik = inverse_kinematics(params_of(design), pts, xp=np)
     th = np.asarray(ik.theta)[:, ELBOW_BRANCH]  # (m, 3 legs, 3)
     ok = np.asarray(ik.reachable)
-    nan = float("nan")
     if not ok.any():
         return PrrrJointLimits(elbow_limit=elbow, used={}, stops=None, margin=nan, wall_s=time.perf_counter() - t0,
                                status=Status.EMPTY, message="the required cylinder is not reachable")
@@ -103,9 +108,14 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
                 lo, hi = used[j]
                 margin = min(margin, lo - lim.lo, lim.hi - hi)
     status, message = Status.OK, ""
+    problems = []
+    if not ok.all():  # the ranges below hold for the reachable part only
+        problems.append(f"{int((~ok).sum())} of {len(ok)} grid points of the φ{required_diameter * 1e3:g} mm "
+                        f"cylinder are out of reach or stroke")
     if margin < 0.0:
-        status = Status.INFEASIBLE
-        message = (f"a joint limit cuts the φ{required_diameter * 1e3:g} mm cylinder by "
-                   f"{math.degrees(-margin):.3g} deg")
+        problems.append(f"a joint limit cuts the φ{required_diameter * 1e3:g} mm cylinder by "
+                        f"{math.degrees(-margin):.3g} deg")
+    if problems:
+        status, message = Status.NOT_MET, "; ".join(problems)
     return PrrrJointLimits(elbow_limit=elbow, used=used, stops=stops, margin=margin,
                            wall_s=time.perf_counter() - t0, status=status, message=message)

@@ -27,7 +27,7 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import brentq
 
-from hapticopt.analysis.prrr import statics as prrr_statics
+from hapticopt.analysis.prrr import assembly, statics as prrr_statics
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.prrr.kinematics import jacobian
 from hapticopt.analysis import conditioning
@@ -225,6 +225,10 @@ class StabilityResult:
     message: str = ""
 
     def metrics(self) -> dict[str, object]:
+        """Engineering-unit metrics; NaN unless the status is ok."""
+        if self.status is not Status.OK:
+            nan = float("nan")
+            return {"force_loop_bandwidth_Hz": nan, "closed_loop_stiffness_limit_N_per_mm": [nan] * 3}
         return {
             "force_loop_bandwidth_Hz": float(self.force_loop_bandwidth),
             "closed_loop_stiffness_limit_N_per_mm": [float(x) * 1e-3 for x in self.continuous_limits],
@@ -232,12 +236,18 @@ class StabilityResult:
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, kp: float = 45.0) -> StabilityResult:
-    """Force-loop bandwidth and closed-loop stiffness limits of ``design`` at K_p (seed 002's 45)."""
+    """Force-loop bandwidth and closed-loop stiffness limits of ``design`` at K_p (seed 002's 45).
+
+    Status ``not-assemblable`` (metrics NaN) when the chain does not close
+    (:func:`hapticopt.analysis.prrr.assembly.closure`): the decoupled per-axis loop assumes it.
+    """
     del fidelity  # closed forms
+    blocked = assembly.closure(design)
     return StabilityResult(
         force_gain=kp, force_loop_bandwidth=force_loop_bandwidth(design, kp),
         stiffness_limits=stiffness_limits(design),
         continuous_limits=np.array([stiffness_limit_closed_form(design, kp, a) for a in range(3)]),
+        status=Status.NOT_ASSEMBLABLE if blocked else Status.OK, message=blocked,
     )
 
 

@@ -14,22 +14,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from hapticopt.analysis import conditioning
+from hapticopt.analysis.prrr import assembly
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.design.prrr.kinematics import PrrrParams, jacobian, jacobian_inverse
+from hapticopt.design.prrr.kinematics import (  # noqa: F401  (condition_* re-exported)
+    PrrrParams, condition_2norm, condition_frobenius, jacobian, jacobian_inverse)
 from hapticopt.analysis.status import Status
 from hapticopt.design.prrr.params import PrrrDesign
-
-
-def condition_2norm(J: jax.Array, xp=jnp) -> jax.Array:
-    """cond₂(J) = σ_max/σ_min. Has a kink where singular values coincide: no gradients through it."""
-    s = xp.linalg.svd(J, compute_uv=False)
-    return s[..., 0] / s[..., -1]
-
-
-def condition_frobenius(J: jax.Array, xp=jnp) -> jax.Array:
-    """Smooth condition number ‖J‖_F‖J⁻¹‖_F / 3 (= 1 exactly where cond₂ = 1); use for gradients."""
-    Ji = xp.linalg.inv(J)
-    return xp.sqrt(xp.sum(J**2, axis=(-2, -1)) * xp.sum(Ji**2, axis=(-2, -1))) / 3.0
 
 
 def statics_arrays(params: PrrrParams, spring: jax.Array, force_limit: jax.Array, mass: jax.Array,
@@ -95,7 +85,12 @@ def params_np(design: PrrrDesign) -> PrrrParams:
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> PrrrStatics:
-    """Statics of ``design``. Exact closed forms: every fidelity gives the same result."""
+    """Statics of ``design``. Exact closed forms: every fidelity gives the same result.
+
+    Status ``not-assemblable`` (metrics NaN, the arrays kept for callers that need the closed
+    forms) when J is well conditioned but the chain does not close
+    (:func:`hapticopt.analysis.prrr.assembly.closure`); otherwise the conditioning verdict of J.
+    """
     del fidelity  # closed form
     a = design.actuator
     # numpy path: a single design needs no jit compile (the CLI's start-up budget); the jax
@@ -109,6 +104,12 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> P
     if verdict.ok and not finite:
         verdict = conditioning.Conditioning(status=Status.SINGULAR, rcond=verdict.rcond,
                                             message="the statics are not finite at this design")
+    status, message = verdict.status, verdict.message
+    # the constant-J closed forms hold only for a chain that closes; a J verdict other than ok already
+    # says the numbers are meaningless and keeps its (issue 14) word
+    blocked = assembly.closure(design) if verdict.ok else ""
+    if blocked:
+        status, message = Status.NOT_ASSEMBLABLE, blocked
     return PrrrStatics(
         jacobian=out["jacobian"],
         condition=float(out["condition"]),
@@ -118,6 +119,6 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> P
         stiffness_limit=out["stiffness_limit"],
         max_force=out["max_force"],
         max_pure_force=out["max_pure_force"],
-        status=verdict.status,
-        message=verdict.message,
+        status=status,
+        message=message,
     )

@@ -22,7 +22,7 @@ from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.analysis.fem.stress import element_stress
-from hapticopt.analysis.prrr import fea_cad
+from hapticopt.analysis.prrr import assembly, fea_cad
 from hapticopt.design.prrr.cad import DEFAULT_BRANCH
 
 
@@ -115,18 +115,25 @@ def structural_stiffness(design: PrrrDesign, *, p=(0.0, 0.0, 0.0), load_height: 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> StructuralStiffness:
     """Structural stiffness at the home pose, load Δz = 58 mm (seed 002 Table 3).
 
+    ``not-assemblable`` (metrics NaN) when the chain does not close
+    (:func:`hapticopt.analysis.prrr.assembly.closure`); ``failed`` when it closes but not at the
+    home pose (the load case is defined there).
+
     ``fine`` adds the solid FEA of the CAD with bonded pins (CAD elbow branch) and the
     bonded-joint frame model at that branch.
     """
+    blocked = assembly.closure(design)
     try:
+        if blocked:
+            raise InvalidInput(blocked)
         result = structural_stiffness(design)
     except InvalidInput as exc:
         nan3 = np.full(3, np.nan)
         return StructuralStiffness(pose=np.zeros(3), load_height=fm.LOAD_HEIGHT, stiffness_load=nan3,
                                    elastic_centre=float("nan"), stiffness_elastic_centre=nan3,
                                    compliance_ee=np.full((6, 6), np.nan), coupling_residual=float("nan"),
-                                   condition=float("nan"), options=fm.FrameOptions(), status=Status.FAILED,
-                                   message=str(exc))
+                                   condition=float("nan"), options=fm.FrameOptions(),
+                                   status=Status.NOT_ASSEMBLABLE if blocked else Status.FAILED, message=str(exc))
     if fidelity != Fidelity.FINE:
         return result
 

@@ -60,8 +60,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, jacobian
-from hapticopt.analysis.prrr.statics import condition_2norm
+from hapticopt.design.prrr.kinematics import PrrrParams, condition_2norm, inverse_kinematics, jacobian
 from hapticopt.analysis.status import Status
 from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
 from hapticopt.design.errors import HapticoptError
@@ -90,6 +89,8 @@ ELBOW_BRANCH = 1
 #: Default required cylinder diameter for ``workspace_height_at_diameter_mm`` [m]
 #: (seed 002 Table 1: workspace φ140 × 89 mm).
 DEFAULT_REQUIRED_DIAMETER = 0.140
+#: Default required height of that cylinder [m] (seed 002 Table 1: workspace φ140 × 89 mm).
+DEFAULT_REQUIRED_HEIGHT = 0.089
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -358,6 +359,45 @@ def jacobian_constancy(design: PrrrDesign, *, n_phi: int = 24, n_r: int = 6, n_z
     return float(dev.max()), len(pts)
 
 
+#: rays per third of the circle of the closure test (the workspace's draft volume sampling)
+CLOSURE_RAYS = 48
+
+
+def _closure_params(design: PrrrDesign) -> WorkspaceParams:
+    """Workspace parameters with the pure kinematic annulus (no fold margin); the envelope, which
+    does not change emptiness, is left at 0 (no CAD call)."""
+    g, s = design.geometry, design.structure
+    vals = (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke, abs(g.d3 - g.d4), g.d3 + g.d4, 0.0,
+            s.boss_diameter / 2.0, DEFAULT_REQUIRED_DIAMETER / 2.0)
+    return WorkspaceParams(*(np.float64(v) for v in vals))
+
+
+@functools.lru_cache(maxsize=256)
+def closure(design: PrrrDesign) -> str:
+    """'' when some pose closes every leg within its reach and slider stroke, else why not."""
+    if not bool(workspace_core(_closure_params(design), n_phi=CLOSURE_RAYS, n_r=2)["empty"]):
+        return ""
+    return _closure_message(design)
+
+
+def closure_batch(designs: list[PrrrDesign]) -> list[str]:
+    """:func:`closure` of many designs in one vmapped, jitted call (compiled once per batch size)."""
+    if not designs:
+        return []
+    empty = np.asarray(_batched(CLOSURE_RAYS, 2)(stack([_closure_params(d) for d in designs]))["empty"])
+    return [_closure_message(d) if e else "" for d, e in zip(designs, empty)]
+
+
+def _closure_message(design: PrrrDesign) -> str:
+    g = design.geometry
+    # the nearest the z axis (the home pose) comes to a leg's reach: |ρ| of the axis point
+    c_u = g.d1 - (g.b5 + g.r4) * math.cos(g.beta)
+    rho_axis = math.hypot(c_u / math.sin(g.beta), g.d2)
+    return (f"the chain does not close: no end-effector position is reached by every leg within "
+            f"|d3 − d4| ≤ |ρ| ≤ d3 + d4 = {(g.d3 + g.d4) * 1e3:.4g} mm and the slider stroke "
+            f"{g.stroke * 1e3:.4g} mm (|ρ| = {rho_axis * 1e3:.4g} mm at the home pose)")
+
+
 @dataclass(frozen=True, kw_only=True)
 class PrrrWorkspace:
     """Workspace of one 3-PRRR design [SI]."""
@@ -404,7 +444,8 @@ class PrrrWorkspace:
         return out
 
 
-def _result(arrays: dict, required_radius: float, fidelity: Fidelity) -> PrrrWorkspace:
+def _result(arrays: dict, required_radius: float, fidelity: Fidelity,
+            required_height: float = DEFAULT_REQUIRED_HEIGHT) -> PrrrWorkspace:
     vals = {k: float(np.asarray(v)) for k, v in arrays.items()}
     if not all(math.isfinite(v) for v in vals.values()):  # never report NaN: zero and say so
         return PrrrWorkspace(volume=0.0, reach_radius=0.0, cylinder_diameter=0.0, cylinder_height=0.0,
@@ -415,9 +456,14 @@ def _result(arrays: dict, required_radius: float, fidelity: Fidelity) -> PrrrWor
     status, message = Status.OK, ""
     if empty:
         status, message = Status.EMPTY, "no point is reached by every leg within the slider stroke"
-    elif vals["height_at_required"] <= 0.0:
-        message = (f"a cylinder of diameter {2e3 * required_radius:g} mm does not fit "
-                   f"(reach radius {vals['reach_radius'] * 1e3:.4g} mm)")
+    elif vals["height_at_required"] < required_height:
+        # the requirement this evaluator reports: the φD × H cylinder fits reach and stroke
+        # (a margin of the height in metres, decades above rounding; 89 mm vs prrr-paper's 89.17 mm)
+        status = Status.NOT_MET
+        fits = (f"height {vals['height_at_required'] * 1e3:.4g} mm at that diameter"
+                if vals["height_at_required"] > 0.0 else "that diameter does not fit")
+        message = (f"the required φ{2e3 * required_radius:g} × {required_height * 1e3:g} mm cylinder does not fit "
+                   f"reach and stroke: {fits} (reach radius {vals['reach_radius'] * 1e3:.4g} mm)")
     zero = 0.0 if empty else 1.0
     return PrrrWorkspace(
         volume=zero * vals["volume"],
@@ -436,11 +482,16 @@ def _result(arrays: dict, required_radius: float, fidelity: Fidelity) -> PrrrWor
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
              required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
+             required_height: float = DEFAULT_REQUIRED_HEIGHT,
              interference: bool | None = None) -> PrrrWorkspace:
     """Workspace of ``design``: reach and stroke at every level; at fine fidelity also the
     numerical check of the constant Jacobian and link interference.
 
-    ``required_diameter`` [m]: the diameter of ``workspace_height_at_diameter_mm``.
+    ``required_diameter`` [m]: the diameter of ``workspace_height_at_diameter_mm``;
+    ``required_height`` [m]: the height it must reach. Status ``ok`` when that cylinder fits
+    reach and stroke; ``not-met`` (numbers kept) when it does not; ``empty`` when no point is
+    reached; ``not-assemblable`` when the chain does not close at all
+    (:func:`hapticopt.analysis.prrr.assembly.closure`; the metrics are then 0, exactly).
     ``interference``: check link interference with the manifold3d reference on the 216 poses of
     :data:`INTERFERENCE_SAMPLING` (default: the fidelity's setting, fine only); it gives
     ``workspace_free_volume_mm3`` (``workspace_volume_mm3`` is reach-and-stroke at every level).
@@ -451,17 +502,20 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
     wp = workspace_params(design, required_diameter=required_diameter)
-    result = _result(workspace_core(wp, n_phi=smp.n_phi, n_r=smp.n_r, xp=np), required_diameter / 2.0, fidelity)
+    result = _assembled(design, _result(workspace_core(wp, n_phi=smp.n_phi, n_r=smp.n_r, xp=np),
+                                        required_diameter / 2.0, fidelity, required_height))
     if fidelity is Fidelity.FINE:
         dev, n = jacobian_constancy(design)
         result = dataclasses.replace(result, condition_deviation=dev, condition_points=n)
-    if (smp.interference if interference is None else interference) and result.status == Status.OK:
+    if (smp.interference if interference is None else interference) and result.status.metrics_hold \
+            and result.status is not Status.EMPTY:
         result = _with_interference(design, result)
     return result
 
 
 def evaluate_batch(designs: list[PrrrDesign], *, fidelity: Fidelity = Fidelity.STANDARD,
-                   required_diameter: float = DEFAULT_REQUIRED_DIAMETER) -> list[PrrrWorkspace]:
+                   required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
+                   required_height: float = DEFAULT_REQUIRED_HEIGHT) -> list[PrrrWorkspace]:
     """Reach-and-stroke workspace of many designs in one vmapped, jitted call (the fine-level
     Jacobian check and interference are not batched). Agrees with :func:`evaluate` to
     rounding on every batched metric."""
@@ -469,7 +523,17 @@ def evaluate_batch(designs: list[PrrrDesign], *, fidelity: Fidelity = Fidelity.S
     if not designs:
         return []
     wp = stack([workspace_params(d, required_diameter=required_diameter) for d in designs])
-    return [_result(r, required_diameter / 2.0, fidelity) for r in batch_arrays(wp, fidelity=fidelity)]
+    return [_assembled(d, _result(r, required_diameter / 2.0, fidelity, required_height))
+            for d, r in zip(designs, batch_arrays(wp, fidelity=fidelity))]
+
+
+def _assembled(design: PrrrDesign, result: PrrrWorkspace) -> PrrrWorkspace:
+    """``result``, or ``not-assemblable`` when the chain does not close (its metrics, 0, stay)."""
+    from_status = result.status in (Status.OK, Status.NOT_MET, Status.EMPTY)
+    blocked = closure(design) if from_status else ""
+    if not blocked:
+        return result
+    return dataclasses.replace(result, status=Status.NOT_ASSEMBLABLE, message=blocked)
 
 
 def batch_arrays(wp: WorkspaceParams, *, fidelity: Fidelity = Fidelity.STANDARD) -> list[dict[str, np.ndarray]]:

@@ -103,6 +103,18 @@ def jacobian(beta: jax.Array, xp=jnp) -> jax.Array:
     ]) / 3.0
 
 
+def condition_2norm(J: jax.Array, xp=jnp) -> jax.Array:
+    """cond₂(J) = σ_max/σ_min. Has a kink where singular values coincide: no gradients through it."""
+    s = xp.linalg.svd(J, compute_uv=False)
+    return s[..., 0] / s[..., -1]
+
+
+def condition_frobenius(J: jax.Array, xp=jnp) -> jax.Array:
+    """Smooth condition number ‖J‖_F‖J⁻¹‖_F / 3 (= 1 exactly where cond₂ = 1); use for gradients."""
+    Ji = xp.linalg.inv(J)
+    return xp.sqrt(xp.sum(J**2, axis=(-2, -1)) * xp.sum(Ji**2, axis=(-2, -1))) / 3.0
+
+
 class IkSolution(NamedTuple):
     """Inverse kinematics of points ``p`` (..., 3) for both elbow branches."""
 

@@ -1,9 +1,9 @@
 """The 3-PRRR constant-Jacobian translational parallel robot driven by SEAs (seed 002).
 
 Three vertical prismatic (P) joints at γ = 0, +2π/3, −2π/3 about the z axis, each followed by
-three revolute joints with parallel axes inclined at β to the xy plane. Geometry follows the
-seed digest's leg construction (``../shared/docs/seed-digest.md``, "A leg geometry consistent
-with eq (1)"). All values are SI; TOML keys carry engineering units.
+three revolute joints with parallel axes inclined at β to the xy plane. Geometry follows a leg
+construction consistent with seed 002's eq (1) and its constant c_e (``docs/workspace.md``;
+the papers: ``docs/references.md``). All values are SI; TOML keys carry engineering units.
 
 Slider stroke convention (the paper does not state its zero): the stroke of length
 ``stroke`` is centred on the slider position of the home pose p = 0, so every slider

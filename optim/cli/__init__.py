@@ -21,6 +21,7 @@ from hapticopt.optim.cli import verify as cli_verify
 app = typer.Typer(
     name="hapticopt",
     help="Design optimisation of haptic mechanisms: describe, evaluate, optimise, export, verify.",
+    epilog=common.EXIT_CODES_HELP,
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
@@ -44,18 +45,18 @@ def _root(
     offscreen.configure()  # every picture off screen, in this process and the workers it starts
 
 
-app.command("evaluate")(cli_evaluate.evaluate)
-app.command("presets")(cli_evaluate.presets)
-app.command("export")(cli_export.export)
-app.command("optimise")(cli_optimise.optimise)
-app.command("problems")(cli_optimise.problems)
-app.command("verify")(cli_verify.verify)
-app.command("runs")(cli_runs.runs)
-app.command("show")(cli_runs.show)
-app.command("sweep")(cli_sweep.sweep)
-app.command("compare")(cli_compare.compare)
-app.command("design-map")(cli_verify.design_map)
-app.command("metrics")(cli_metrics.metrics)
+app.command("evaluate", epilog=common.EXIT_CODES_HELP)(cli_evaluate.evaluate)
+app.command("presets", epilog=common.EXIT_CODES_HELP)(cli_evaluate.presets)
+app.command("export", epilog=common.EXIT_CODES_HELP)(cli_export.export)
+app.command("optimise", epilog=common.EXIT_CODES_HELP)(cli_optimise.optimise)
+app.command("problems", epilog=common.EXIT_CODES_HELP)(cli_optimise.problems)
+app.command("verify", epilog=common.EXIT_CODES_HELP)(cli_verify.verify)
+app.command("runs", epilog=common.EXIT_CODES_HELP)(cli_runs.runs)
+app.command("show", epilog=common.EXIT_CODES_HELP)(cli_runs.show)
+app.command("sweep", epilog=common.EXIT_CODES_HELP)(cli_sweep.sweep)
+app.command("compare", epilog=common.EXIT_CODES_HELP)(cli_compare.compare)
+app.command("design-map", epilog=common.EXIT_CODES_HELP)(cli_verify.design_map)
+app.command("metrics", epilog=common.EXIT_CODES_HELP)(cli_metrics.metrics)
 
 
 def main() -> None:

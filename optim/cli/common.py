@@ -2,9 +2,16 @@
 
 Every command is wrapped in :func:`one_line_errors`, the only place where an exception becomes
 text for the user: one line on stderr and an exit code, never a traceback (``hapticopt --debug
-COMMAND`` adds the traceback). Exit codes: 0 done; 2 bad input or an operating-system fault
-(unreadable file, read-only or full disk, ``--out`` is a file — the OS reason is in the line);
-3 an internal error (a bug: the line names the exception and where it was raised).
+COMMAND`` adds the traceback). Exit codes (:data:`EXIT_CODES_HELP`, every command's ``--help``):
+
+* 0 — done, and every requirement the command reports holds;
+* 2 — bad input or an operating-system fault (unreadable file, read-only or full disk, ``--out``
+  is a file — the OS reason is in the line);
+* 3 — done, but the result breaks a requirement or constraint (:func:`not_met`): ``evaluate`` with
+  an evaluator status other than ``ok``, ``optimise`` whose final point (or Pareto choice) is
+  infeasible at the final fidelity, ``verify`` with a verdict other than ``ok``; every output is
+  still written;
+* 4 — an internal error (a bug: the line names the exception and where it was raised).
 """
 
 from __future__ import annotations
@@ -24,8 +31,23 @@ from hapticopt.design import io
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+EXIT_OK = 0
 EXIT_BAD_INPUT = 2
-EXIT_INTERNAL = 3
+EXIT_NOT_MET = 3
+EXIT_INTERNAL = 4
+
+#: the exit codes, as every command's ``--help`` epilog states them (``\b``: click keeps the lines)
+EXIT_CODES_HELP = (
+    "\b\nExit codes:\n"
+    "  0  done; every requirement the command reports holds\n"
+    "  2  bad input or an operating-system fault (one stderr line says which)\n"
+    "  3  done, but the result breaks a requirement or constraint\n"
+    "     (evaluate: a status other than ok; optimise: an infeasible final\n"
+    "     point, written as best_infeasible.toml, or Pareto choice, written as\n"
+    "     chosen_infeasible.toml; verify: a verdict other than ok); outputs\n"
+    "     are still written. Other commands never exit 3.\n"
+    "  4  internal error (a bug; hapticopt --debug shows the traceback)"
+)
 #: longest error line printed [characters]; values inside are already shortened with reprlib
 MAX_LINE = 1000
 
@@ -39,6 +61,18 @@ def fail(message: str, code: int = EXIT_BAD_INPUT) -> None:
     """Print one error line to stderr and exit with ``code`` (2 by default)."""
     typer.echo(f"error: {_one_line(message)}", err=True)
     raise typer.Exit(code=code)
+
+
+def not_met(what: str) -> None:
+    """The command is done but its result breaks a requirement: one ``not met:`` line on stderr
+    (stdout, e.g. ``--json``, stays as printed) and exit code 3."""
+    typer.echo(f"not met: {_one_line(what)}", err=True)
+    raise typer.Exit(code=EXIT_NOT_MET)
+
+
+def statuses_not_ok(statuses: dict[str, str]) -> str:
+    """``name (status), …`` of the statuses other than ``ok`` ('' when all are ok)."""
+    return ", ".join(f"{name} ({status})" for name, status in statuses.items() if status != "ok")
 
 
 #: set by the root command's ``--debug`` option for this invocation

@@ -9,7 +9,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors, statuses_not_ok
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.registry import EVALUATORS, evaluate_all, write_plots
 from hapticopt.optim.cli import render
@@ -30,7 +30,7 @@ def evaluate(
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write pictures of the evaluators' results to this directory.")] = None,
     sweep: Annotated[Optional[str], typer.Option("--sweep", help="Named trade-off sweep (master: counterweight, the seed-003 trade-off of bandwidth and unbalance force against counterweight mass); writes a plot and a CSV table to --plots DIR or the current directory. Any numeric key: `hapticopt sweep`.")] = None,
 ) -> None:
-    """Evaluate a design and print its metrics (units in the metric names)."""
+    """Evaluate a design and print its metrics (units in the metric names) and each evaluator's status (exit 3 unless every status is ok)."""
     t_start = time.perf_counter()
 
     try:
@@ -68,6 +68,8 @@ def evaluate(
             "plots": [str(p) for p in written],
         }
         typer.echo(json.dumps(payload, indent=2))
+        if statuses_not_ok(status):
+            not_met(statuses_not_ok(status))
         return
 
     console = render.console()
@@ -85,6 +87,8 @@ def evaluate(
     console.print(f"time: {render.number(timings['total'], 3)} s"
                   + (" (slowest: " + ", ".join(f"{k} {render.number(v, 2)} s" for v, k in slow) + ")" if slow else "")
                   + "; --json has every timing")
+    if statuses_not_ok(status):
+        not_met(statuses_not_ok(status))
 
 
 @one_line_errors

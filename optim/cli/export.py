@@ -98,7 +98,7 @@ def _check_many(design, n: int) -> str:
         k = max(1, round((n / 3) ** (1 / 3)))  # 3·k_phi·k_r·k_z ≈ n
         pts = sample_points(workspace_params(design), n_phi=k, n_r=k, n_z=max(1, round(n / (3 * k * k))))
     res = interference.check_poses(design, pts)
-    bad = [r for r in res if r.status == Status.FAILED]
+    bad = [r for r in res if r.status == Status.COLLIDES]
     if not bad:
         return f"none at {len(res)} workspace poses"
     pairs = sorted({f"{a} × {b}" for r in bad for a, b in r.pairs})

@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from hapticopt.optim.cli.common import one_line_errors
+from hapticopt.optim.cli.common import not_met, one_line_errors
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.problem import INT_RANGES, load_problem
 from hapticopt.optim.cli import render
@@ -36,7 +36,7 @@ def optimise(
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print the run's result.json (instead of the summary lines).")] = False,
 ) -> None:
-    """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front)."""
+    """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front). Exit 3 when the final point breaks a constraint (written as best_infeasible.toml)."""
 
     prob = load_problem(problem)
     if max_evals is not None:
@@ -51,7 +51,7 @@ def optimise(
     out_dir = out if out is not None else Path("cad_out") / prob.name
     check_run_dir(out_dir, resume=resume, force=force)  # before anything is computed or written
 
-    from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline
+    from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline, status_holds
 
     console = render.console(stderr=True, quiet=quiet)
     if prob.is_multi_objective:
@@ -69,21 +69,25 @@ def optimise(
 
             res = run_front_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
                                      workers=workers, progress=on_run)
+        ch = res["chosen"]
         if as_json:
             typer.echo(json.dumps(res, indent=2, default=str))
-            return
-        f1, f2 = (o["metric"] for o in res["objectives"])
-        typer.echo(f"{prob.name}: Pareto front of {f1} and {f2}: {len(res['front'])} points "
-                   f"(ε-constraint, {len(res['runs'])} runs); {res['n_evaluated']} evaluated, {res['n_replayed']} replayed")
-        ch = res["chosen"]
-        if ch is not None:
-            typer.echo(f"  chosen ({prob.pareto.choose if prob.pareto else 'knee'}): {f1} = {ch['objectives'][0]:.6g}, "
-                       f"{f2} = {ch['objectives'][1]:.6g}; constraints at {prob.fidelity_final} fidelity "
-                       f"{'satisfied' if ch['feasible_at_final_fidelity'] else 'NOT satisfied'} -> {out_dir / 'chosen.toml'}")
-        if export or verify:
-            typer.echo("  export/verify: not run for a Pareto front — run `hapticopt export` / `hapticopt verify` "
-                       "on chosen.toml")
-        typer.echo(f"report: {out_dir / 'report.html'}")
+        else:
+            f1, f2 = (o["metric"] for o in res["objectives"])
+            typer.echo(f"{prob.name}: Pareto front of {f1} and {f2}: {len(res['front'])} points "
+                       f"(ε-constraint, {len(res['runs'])} runs); {res['n_evaluated']} evaluated, {res['n_replayed']} replayed")
+            if ch is not None:
+                typer.echo(f"  chosen ({prob.pareto.choose if prob.pareto else 'knee'}): {f1} = {ch['objectives'][0]:.6g}, "
+                           f"{f2} = {ch['objectives'][1]:.6g}; constraints at {prob.fidelity_final} fidelity "
+                           f"{'satisfied' if ch['feasible_at_final_fidelity'] else 'NOT satisfied'} -> "
+                           f"{out_dir / (res['files'].get('chosen') or res['files']['chosen_infeasible'])}")
+            if export or verify:
+                typer.echo("  export/verify: not run for a Pareto front — run `hapticopt export` / `hapticopt verify` "
+                           "on chosen.toml")
+            typer.echo(f"report: {out_dir / 'report.html'}")
+        if ch is not None and not ch["feasible_at_final_fidelity"]:
+            not_met(f"the chosen design breaks a constraint at {prob.fidelity_final} fidelity "
+                    f"(written as {out_dir / 'chosen_infeasible.toml'})")
         return
     with make_progress(console, disable=quiet) as bar:
         line = StageLine(bar, "baseline")
@@ -115,21 +119,26 @@ def optimise(
                               on_step=line.step)
         line.stage("done", 1, f"{out_dir / 'report.html'}")
         line.count(1)
-    if as_json:
+    if as_json:  # the exit code below still says whether the requirement holds
         typer.echo((out_dir / "result.json").read_text(encoding="utf-8"), nl=False)
-        return
-    obj = prob.objective.metric
-    b, o = obj.value(result.baseline.metrics), obj.value(result.optimum.metrics)
-    typer.echo(f"{prob.name}: {result.run.status}; {obj.text} baseline {b:.6g} -> optimum {o:.6g} "
-               f"({'improved' if result.improved else 'not improved'}); constraints at {prob.fidelity_final} fidelity "
-               f"{'satisfied' if result.feasible_final else 'NOT satisfied'}; "
-               f"{result.run.n_evaluated} evaluated, {result.run.n_replayed} replayed")
-    for v in result.verdicts:
-        typer.echo(f"  verify {v.scene}: {'PASS' if v.passed else 'FAIL'} {v.message}")
-    for s in result.stages:
-        if s.status in ("skipped", "failed"):
-            typer.echo(f"  {s.name}: {s.status} — {s.message}")
-    typer.echo(f"report: {out_dir / 'report.html'}")
+    else:
+        obj = prob.objective.metric
+        b, o = obj.value(result.baseline.metrics), obj.value(result.optimum.metrics)
+        typer.echo(f"{prob.name}: {result.run.status}; {obj.text} baseline {b:.6g} -> optimum {o:.6g} "
+                   f"({'improved' if result.improved else 'not improved'}); constraints at {prob.fidelity_final} fidelity "
+                   f"{'satisfied' if result.feasible_final else 'NOT satisfied'}; "
+                   f"{result.run.n_evaluated} evaluated, {result.run.n_replayed} replayed")
+        for v in result.verdicts:
+            typer.echo(f"  verify {v.scene}: {'PASS' if v.passed else 'FAIL'} {v.message}")
+        for s in result.stages:
+            if s.status in ("skipped", "failed"):
+                typer.echo(f"  {s.name}: {s.status} — {s.message}")
+        typer.echo(f"report: {out_dir / 'report.html'}")
+    if not result.feasible_final:
+        broken = [t for t, _, ok in result.constraints_final if not ok]
+        bad = [f"{k} ({s})" for k, s in result.optimum.statuses.items() if not status_holds(s)]
+        not_met(f"the final point is infeasible at {prob.fidelity_final} fidelity: "
+                + ", ".join(broken + bad) + f" (written as {out_dir / 'best_infeasible.toml'}, not optimum.toml)")
 
 
 @one_line_errors

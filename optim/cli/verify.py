@@ -13,7 +13,7 @@ import typer
 
 from hapticopt.analysis import verify as closed_loop_verify
 from hapticopt.optim.cli import render
-from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors
 from hapticopt.optim.cli.progress import StageLine, make_progress
 import numpy as np
 from hapticopt.design.atomic import atomic_path
@@ -69,7 +69,7 @@ def verify(
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, scene, metrics, status, message}.")] = False,
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write pictures of the run to this directory.")] = None,
 ) -> None:
-    """Simulate the design in closed loop with the firmware controller in a scene."""
+    """Simulate the design in closed loop with the firmware controller in a scene (exit 3 unless the verdict is ok)."""
 
     try:
         level = Fidelity(fidelity)
@@ -103,8 +103,10 @@ def verify(
         typer.echo(json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
                                "status": str(result.status), "message": result.message,
                                "plots": [str(p) for p in written]}, indent=2))
+        _exit_on_verdict(result, sc.name)
         return
     _print_verify(design.name, sc.name, level, metrics, str(result.status), result.message, written)
+    _exit_on_verdict(result, sc.name)
 
 
 #: verify keys shown as lines of their own, not in the metric table (resolution_reason: backend_reason's
@@ -134,6 +136,12 @@ def _print_verify(design: str, scene: str, level: Fidelity, metrics: dict[str, A
     console.print(f"status: {status}" + (f" — {message}" if message else ""))
     for p in written:
         console.print(f"wrote {p}")
+
+
+def _exit_on_verdict(result: Any, scene: str) -> None:
+    """Exit 3 unless the closed-loop verdict is ok (unstable, inconclusive, failed)."""
+    if str(result.status) != "ok":
+        not_met(f"verify {scene}: {result.status}" + (f" — {result.message}" if result.message else ""))
 
 
 def _override_controller(sc: Any, period_ms: float | None, force_gain: float | None) -> Any:

@@ -24,7 +24,7 @@ def test_a_colliding_design_names_the_parts():
     # rails on u_i (θ_1p = 0, the layout before issue 15), three times as wide, cross the links at home
     d = io.apply_overrides(io.load_preset("prrr-paper"), ["geometry.theta_1p_deg=0", "structure.rail_width_mm=60"])
     res = itf.check_pose(d, (0.0, 0.0, 0.0))
-    assert res.status == Status.FAILED
+    assert res.status == Status.COLLIDES
     assert res.pairs
     a, b = res.pairs[0]
     assert f"{a} × {b}" in res.message

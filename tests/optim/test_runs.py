@@ -111,3 +111,20 @@ def test_reader_errors_are_one_line(tmp_path):
     (tmp_path / FILENAME).write_text("not sqlite")
     with pytest.raises(InvalidInput, match="not a readable run record"):
         RunReader(tmp_path)
+
+
+def test_an_older_status_word_reads_back_as_todays(tmp_path):
+    """Records written before issue 21 say ``infeasible`` where ``not-met`` is now written
+    (analysis/status.py LEGACY); the file itself is not changed by reading it."""
+    import json
+    import sqlite3
+
+    shutil.copy(DATA / "pre-layout-run" / FILENAME, tmp_path / FILENAME)
+    with sqlite3.connect(tmp_path / FILENAME) as db:  # the word an old free_workspace evaluator wrote
+        db.execute("UPDATE evaluations SET statuses = ? WHERE id = (SELECT MIN(id) FROM evaluations)",
+                   (json.dumps({"statics": "ok", "free_workspace": "infeasible"}),))
+    before = _checksums(tmp_path)
+    with RunReader(tmp_path) as r:
+        first = r.cases()[0]
+    assert first.statuses == {"statics": "ok", "free_workspace": "not-met"}
+    assert _checksums(tmp_path) == before

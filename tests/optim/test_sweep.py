@@ -123,3 +123,13 @@ def test_batched_statics_sweep_equals_the_per_point_sweep():
             assert np.allclose(a.metrics[name], b.metrics[name], rtol=1e-12, atol=1e-12), name
     with pytest.raises(InvalidInput, match="--batch needs --only naming evaluators with a batched form"):
         run_sweep(Sweep(base=BASE, axes=s.axes), executor=InlineExecutor(), batch=True)
+
+
+def test_batched_statics_sweep_says_not_assemblable_as_the_evaluator_does():
+    # d2 = 300 mm cannot close the chain (tests/analysis/prrr/test_assembly.py derives why)
+    s = _sweep("geometry.d2_mm=80:300:3")
+    per_point = run_sweep(s, executor=InlineExecutor())
+    batched = run_sweep(s, executor=InlineExecutor(), batch=True)
+    assert [r.statuses for r in batched.results] == [r.statuses for r in per_point.results]
+    assert batched.results[-1].statuses == {"statics": "not-assemblable"}
+    assert batched.results[0].statuses == {"statics": "ok"}

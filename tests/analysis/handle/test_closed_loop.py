@@ -93,3 +93,34 @@ def test_bad_scenes_are_one_line():
     with pytest.raises(InvalidInput, match=r"^scene t: effects.sampling = false is not simulated on the handle"):
         cl.simulate(D, scene_from_dict({"name": "t", "device": "handle", "effects": {"sampling": False},
                                         "environment": {"kind": "spring", "stiffness_N_per_mm": [1, 0, 0]}}))
+
+
+def test_online_predictor_in_the_scene():
+    # predictor = online (seed 000 section 4's fitted AR) at L = 4: as intended holds the wall at 1.5 × the
+    # single-rate limit and as printed fails at 0.5 × — the ordering the fixed-coefficient lifted analysis gives
+    # (×3.85 / ×0.445, docs/seed000.md; the online simulation measured 10.44 / 1.149 N/mm there)
+    lim = hs.stiffness_limit(H.with_(wall_damping_N_s_per_m=0.0)).value_N_per_mm
+
+    def online(scene, **ctl):
+        from dataclasses import replace
+        c = replace(scene.controller, predictor=up.Predictor.ONLINE, **ctl)
+        return replace(scene, controller=c)
+
+    ok = cl.simulate(D, online(wall_scene(1.5 * lim, L=4)))
+    assert ok.stable, ok.message
+    m = ok.metrics()
+    assert m["predictor"] == "online" and (m["ar_order"], m["ar_window"]) == (2, 16)  # the design's [firmware]
+    assert m["ar_fitted_fraction"] > 0.9 and len(m["ar_mean_coefficients"]) == 2
+    assert not cl.simulate(D, online(wall_scene(0.5 * lim, L=4, variant="as_printed"))).stable
+    # order and window from the scene override the design's; a window < 2·order is one line
+    m3 = cl.simulate(D, online(wall_scene(1.5 * lim, L=4, duration_s=0.5), ar_order=3, ar_window=24)).metrics()
+    assert (m3["ar_order"], m3["ar_window"]) == (3, 24)
+    with pytest.raises(InvalidInput, match=r"^scene t: controller.ar_window = 16 is out of range: allowed ≥ 2·ar_order = 18"):
+        cl.simulate(D, online(wall_scene(1.0, duration_s=0.5), ar_order=9))
+
+
+def test_bundled_ball_scene_runs_the_online_predictor():
+    r = cl.simulate(D, load_scene("handle-ball"))
+    m = r.metrics()
+    assert r.stable and m["predictor"] == "online" and m["ar_updates"] == r.setup.ticks
+    assert m["ar_fitted_fraction"] > 0.99  # only the updates at rest before the first contact fall back

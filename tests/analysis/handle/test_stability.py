@@ -244,3 +244,17 @@ def test_registry_evaluator_status_means_what_it_says():
     d = io.apply_overrides(io.load_preset("handle-paper"), ["wall.damping_Ns_per_m=2000"])
     r = hs.evaluate(d)  # B_e far beyond the Z-width: no stiffness is stable
     assert r.status is Status.UNSTABLE and math.isnan(r.metrics()["max_stable_stiffness_N_per_mm"])
+
+
+def test_the_designs_own_wall_above_the_limit_is_not_met():
+    # handle-paper: K_e = 2 N/mm below the exact limit 2.665 N/mm (eq 19 gives 2.67 N/mm) -> ok;
+    # 5 N/mm is above it: the rendered wall is unstable, the limits are still numbers
+    from hapticopt.analysis.status import Status
+    from hapticopt.design import io
+
+    paper = io.load_preset("handle-paper")
+    assert hs.evaluate(paper).status is Status.OK
+    r = hs.evaluate(io.apply_overrides(paper, ["wall.stiffness_N_per_mm=5"]))
+    assert r.status is Status.NOT_MET and "the rendered wall is unstable" in r.message
+    m = r.metrics()
+    assert not m["wall_stable"] and m["max_stable_stiffness_N_per_mm"] == pytest.approx(2.665, rel=1e-3)

@@ -13,6 +13,7 @@ from hapticopt.analysis.loop.scene import (
     scene_from_dict,
     scene_names,
 )
+from hapticopt.design import io
 from hapticopt.design.errors import InputFileError, InvalidInput, UnknownName
 
 
@@ -245,3 +246,26 @@ def test_seed002_experiment_scenes_parse():
 def test_seed002_scene_validation(extra, match):
     with pytest.raises(InvalidInput, match=match.replace("[", r"\[").replace("]", r"\]")):
         scene_from_dict({"name": "s", **extra})
+
+
+@pytest.mark.parametrize("ctl, match", [
+    ({"predictor": "psychic"}, r"controller.predictor = 'psychic' is not known: allowed fixed, online"),
+    ({"ar_order": 2}, r"ar_order / ar_window apply to predictor = \"online\" only"),
+    ({"predictor": "online", "ar_coefficients": [2, -1]}, r"ar_coefficients = \[2, -1\] applies to predictor = \"fixed\" only"),
+    ({"predictor": "online", "ar_order": 4, "ar_window": 7}, r"ar_window = 7 is out of range: allowed ≥ 2·ar_order = 8"),
+    ({"predictor": "online", "ar_order": 17}, r"ar_order = 17 must be a whole number: allowed 1 ≤ ar_order ≤ 16"),
+])
+def test_predictor_keys_are_checked(ctl, match):
+    with pytest.raises(InvalidInput, match=match):
+        scene_from_dict({"name": "t", "device": "handle", "controller": ctl})
+
+
+def test_the_3prrr_online_predictor_window_is_checked():
+    # the 3-PRRR's defaults are AR(2) over 16 positions; an order whose 2·p exceeds the window is one line
+    from hapticopt.analysis.prrr import firmware
+    sc = scene_from_dict({"name": "t", "controller": {"predictor": "online", "interpolation": 4}})
+    cfg, _ = firmware.build(io.load_preset("prrr-paper"), sc, resolve(sc))
+    assert cfg.online and (cfg.ar_order, cfg.ar_window) == (2, 16)
+    sc = scene_from_dict({"name": "t", "controller": {"predictor": "online", "interpolation": 4, "ar_order": 9}})
+    with pytest.raises(InvalidInput, match=r"^scene t: controller.ar_window = 16 is out of range: allowed ≥ 2·ar_order = 18"):
+        firmware.build(io.load_preset("prrr-paper"), sc, resolve(sc))

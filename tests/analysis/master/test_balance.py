@@ -137,4 +137,15 @@ def test_hard_cases_have_finite_metrics(design, case):
     if case == "no_mass":
         assert r.status is Status.FAILED
     else:
-        assert r.status is Status.OK and r.max_force > mb.FORCE_JND_N
+        assert r.status is Status.NOT_MET and r.max_force > mb.FORCE_JND_N  # above the JND: the requirement misses
+
+
+def test_unbalance_above_the_jnd_is_not_met(master_paper):
+    # seed 003: the unbalance force must stay ≤ 0.1 N (10 % JND of 1 N); without the upper counterweight
+    # the paper's balance is lost (its balance point P = 0 needs both, design/master/params)
+    from hapticopt.design import io
+
+    r = mb.evaluate(io.apply_overrides(master_paper, ["counterweights.upper_mass_kg=0"]))
+    assert r.max_force > mb.FORCE_JND_N and r.status is Status.NOT_MET
+    assert "allowed ≤ 0.1 N" in r.message and r.metrics()["max_unbalance_force_N"] == r.max_force  # numbers kept
+    assert mb.evaluate(master_paper).status is Status.OK  # balanced: max force ~1e-16 N

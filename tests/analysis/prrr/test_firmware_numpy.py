@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.control.upsampling import Predictor, Variant
 from hapticopt.analysis.prrr import closed_loop, firmware
 from hapticopt.analysis.prrr.firmware_numpy import NumpyController
 from hapticopt.analysis.loop.scene import BoxMode, EnvKind, FirmwareMode, load_scene, scene_names
@@ -37,6 +38,13 @@ def _variants():
         ("force", dataclasses.replace(cfg, env=EnvKind.FORCE), g),
         ("free-comp", dataclasses.replace(cfg, env=EnvKind.FREE, friction_compensation=True,
                                           gravity_compensation=True, velocity_alpha=0.5), g),
+        # seed 000's online position predictor: fit per axis, render and force loop at the predicted positions
+        ("online", dataclasses.replace(cfg, interpolation=4, predictor=Predictor.ONLINE, ar_order=2, ar_window=8), g),
+        ("online-integral-box", dataclasses.replace(cfg, interpolation=3, predictor=Predictor.ONLINE, ar_order=3,
+                                                    ar_window=10, integral=True, env=EnvKind.BOX,
+                                                    velocity_alpha=0.5), g),
+        ("online-force", dataclasses.replace(cfg, interpolation=2, predictor=Predictor.ONLINE, env=EnvKind.FORCE,
+                                             interpolation_variant=Variant.AS_PRINTED), g),
     ]
     return out
 
@@ -54,3 +62,34 @@ def test_numpy_law_equals_reference(name, cfg, gains):
     for a, b in zip(s, dfl):
         np.testing.assert_allclose(fast.step(a, b), ref.step(a, b), rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose(fast.last_force, ref.last_force, rtol=1e-12, atol=1e-9)
+
+
+def test_the_jax_ar_fit_is_the_shared_fit_per_axis():
+    # firmware.fit_ar_axes (jax, SVD) against analysis.control.upsampling.fit_ar (numpy lstsq), axis by axis:
+    # a random walk (fits), a constant axis (unexciting: fallback (2, −1)), and a damped sinusoid whose AR(2)
+    # coefficients are 2e^{−σT}cos ωT and −e^{−2σT} (closed form)
+    from hapticopt.analysis.control import upsampling as up
+    rng = np.random.default_rng(5)
+    T, k = 1e-3, np.arange(16)
+    pos = np.stack([np.cumsum(rng.normal(size=16)) * 1e-4, np.full(16, 3e-3),
+                    1e-3 * np.exp(-3.0 * k * T) * np.cos(70.0 * k * T)], axis=1)
+    coef, ok = firmware.fit_ar_axes(jnp.asarray(pos), 2)
+    for ax in range(3):
+        ref = up.fit_ar(pos[:, ax], order=2, window=16)
+        np.testing.assert_allclose(np.asarray(coef[ax]), ref.coefficients, rtol=1e-9)
+        assert bool(ok[ax]) == (ref.status is up.ARStatus.FITTED)
+    assert not bool(ok[1]) and np.allclose(coef[1], (2.0, -1.0))
+    np.testing.assert_allclose(coef[2], (2.0 * np.exp(-3.0 * T) * np.cos(70.0 * T), -np.exp(-6.0 * T)), rtol=1e-6)
+
+
+def test_online_variants_fit_on_the_random_walk():
+    # the equality test above exercises real fits, not only the fallback
+    cfg, g = next((c, g) for n, c, g in _variants() if n == "online")
+    fast = NumpyController(cfg, g)
+    rng = np.random.default_rng(11)
+    s = np.cumsum(np.round(rng.normal(0, 400, (60, 3))), axis=0)
+    fast.reset(s[0])
+    for a in s:
+        fast.step(a, np.zeros(3))
+    from hapticopt.analysis.control.upsampling import ARStatus
+    assert fast.fit_counts.get(ARStatus.FITTED, 0) > 100  # of 180 axis-ticks; the first few are at rest

@@ -170,11 +170,12 @@ def test_pose_at_the_reach_boundary(paper):
         ss.structural_stiffness(paper, p=(0.0, y_edge - 1e-3, 0.0))
 
 
-def test_evaluate_reports_unreachable_home_as_failed(paper):
-    # d3 + d4 < d2: no leg reaches the home pose -> a FAILED value, not an exception
+def test_evaluate_reports_a_chain_that_cannot_close_as_not_assemblable(paper):
+    # d3 + d4 = 60 mm < d2: no pose closes the chain (analysis/prrr/assembly.py) -> a value, not an exception
     short = _with(paper, "geometry", d3=0.03, d4=0.03)
     r = ss.evaluate(short)
-    assert r.status == Status.FAILED and "outside the reach" in r.message
+    assert r.status == Status.NOT_ASSEMBLABLE and "does not close" in r.message
+    assert np.isnan(r.metrics()["structural_stiffness_N_per_mm"]).all()
 
 
 @pytest.mark.hardcase

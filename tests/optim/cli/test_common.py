@@ -24,8 +24,8 @@ def _one_line(res) -> str:
     (OSError(errno.ENOSPC, "No space left on device", "/x/out.step"), 2, ["No space left on device", "/x/out.step"]),
     (OSError(errno.EROFS, "Read-only file system", "/ro/a"), 2, ["Read-only file system"]),
     (PermissionError(errno.EACCES, "Permission denied", "/p"), 2, ["Permission denied"]),
-    (RuntimeError("boom\nsecond line"), 3, ["internal error: RuntimeError: boom second line", "--debug"]),
-    (RecursionError("maximum recursion depth exceeded"), 3, ["internal error: RecursionError"]),
+    (RuntimeError("boom\nsecond line"), 4, ["internal error: RuntimeError: boom second line", "--debug"]),
+    (RecursionError("maximum recursion depth exceeded"), 4, ["internal error: RecursionError"]),
 ])
 def test_any_exception_is_one_line_and_an_exit_code(monkeypatch, exc, code, words):
     def raiser(*args, **kwargs):
@@ -44,7 +44,7 @@ def test_debug_adds_the_traceback(monkeypatch):
 
     monkeypatch.setattr(cli_evaluate, "evaluate_all", raiser)
     res = runner.invoke(app, ["--debug", "evaluate", "--preset", "prrr-paper"])
-    assert res.exit_code == 3 and "Traceback" in res.stderr and res.stderr.strip().endswith(
+    assert res.exit_code == 4 and "Traceback" in res.stderr and res.stderr.strip().endswith(
         "(hapticopt --debug shows the traceback)")
 
 
@@ -70,3 +70,18 @@ def test_optimise_options_are_bounded_before_any_work(tmp_path, args, words):
     line = _one_line(res)
     assert all(w in line for w in words), line
     assert not (tmp_path / "run" / "evaluations.sqlite").exists()
+
+
+def test_every_command_documents_the_exit_codes():
+    from hapticopt.optim.cli import common
+
+    assert (common.EXIT_OK, common.EXIT_BAD_INPUT, common.EXIT_NOT_MET, common.EXIT_INTERNAL) == (0, 2, 3, 4)
+    commands = [c.name for c in app.registered_commands]
+    assert len(commands) >= 11
+    for name in [None, *commands]:
+        res = runner.invoke(app, ([name] if name else []) + ["--help"], env={"COLUMNS": "120"})
+        assert res.exit_code == 0, name
+        text = " ".join(res.stdout.split())
+        for words in ("Exit codes:", "0 done; every requirement", "2 bad input", "3 done, but the result breaks",
+                      "best_infeasible.toml", "4 internal error"):
+            assert words in text, (name, words)

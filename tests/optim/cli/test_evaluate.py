@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -35,8 +36,31 @@ def test_evaluate_preset_json_has_reference_metrics():
 
 def test_set_changes_design():
     res = invoke("evaluate", "--preset", "prrr-paper", "--set", "geometry.beta_deg=35.26", "--json")
-    assert res.exit_code == 0, res.output
+    # at the isotropic β the φ140 mm cylinder no longer fits (reach radius 52.3 mm): exit 3, JSON intact
+    assert res.exit_code == 3, res.output
     assert json.loads(res.stdout)["metrics"]["jacobian_condition"] == pytest.approx(1.0, abs=1e-3)
+    assert res.stderr.startswith("not met: ") and "workspace (not-met)" in res.stderr
+
+
+def test_a_design_that_cannot_be_assembled_exits_3_and_says_so():
+    # issue 21: prrr-paper with d2 = 300 mm exited 0 with "statics: ok" (tests/analysis/prrr/test_assembly.py
+    # derives why no pose closes the chain)
+    res = invoke("evaluate", "--preset", "prrr-paper", "--set", "geometry.d2_mm=300", "--fidelity", "draft", "--json")
+    assert res.exit_code == 3, res.output
+    out = json.loads(res.stdout)
+    assert set(out["status"].values()) == {"not-assemblable"}
+    assert "does not close" in out["messages"]["statics"]
+    assert math.isnan(out["metrics"]["jacobian_condition"])  # no plausible-looking number
+    assert len(res.stderr.strip().splitlines()) == 1 and "statics (not-assemblable)" in res.stderr
+
+
+def test_a_missed_workspace_requirement_is_not_met_in_the_table():
+    # issue 21: "workspace: ok — a cylinder of diameter 140 mm does not fit"
+    res = invoke("evaluate", "--preset", "prrr-paper", "--set", "geometry.d3_mm=60", "--set", "geometry.d4_mm=60",
+                 "--fidelity", "draft")
+    assert res.exit_code == 3
+    assert "workspace: not-met — the required φ140 × 89 mm cylinder does not fit" in res.stdout
+    assert "workspace: ok" not in res.stdout
 
 
 def test_table_output_names_metrics_with_units():

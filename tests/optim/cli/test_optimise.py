@@ -149,3 +149,21 @@ def test_two_objective_problem_traces_a_front(tmp_path):
     assert again.exit_code == 2 and "already holds a run" in again.stderr
     resumed = invoke("optimise", str(problem), "--out", str(out), "--scheduler", "inline", "--quiet", "--resume")
     assert resumed.exit_code == 0 and "0 evaluated" in resumed.stdout
+
+
+def test_an_infeasible_final_point_is_best_infeasible_and_exits_3(tmp_path):
+    # max_force_N[2] = 3 F_max = 3581 N at every β (seed 002 Table 1: z force of the three SEAs in
+    # parallel, independent of β), so a 10 kN minimum cannot hold anywhere
+    prob = tmp_path / "impossible.toml"
+    prob.write_text((DATA / "beta-isotropic.toml").read_text().replace("min = 1000.0", "min = 10000.0")
+                    .replace('name = "beta-isotropic"', 'name = "impossible"'))
+    out = tmp_path / "run"
+    res = invoke("optimise", str(prob), "--out", str(out), "--scheduler", "inline", "--no-export", "--no-verify",
+                 "--quiet", "--max-evals", "6")
+    assert res.exit_code == 3, res.output
+    assert "NOT satisfied" in res.stdout
+    assert res.stderr.startswith("not met: the final point is infeasible") and "max_force_N[2]" in res.stderr
+    assert (out / "best_infeasible.toml").is_file() and not (out / "optimum.toml").exists()
+    result = json.loads((out / "result.json").read_text())
+    assert not result["feasible_at_final_fidelity"] and result["files"]["best_infeasible"] == "best_infeasible.toml"
+    assert "optimum" not in result["files"]

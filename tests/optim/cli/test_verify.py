@@ -156,3 +156,13 @@ def test_verify_force_gain_override_changes_the_result():
     hi, T_hi = residual("--force-gain", "400", "--period-ms", "0.5")
     lo, T_lo = residual("--force-gain", "45", "--period-ms", "0.5")
     assert T_hi == T_lo == 0.5 and hi < lo
+
+
+def test_a_verdict_other_than_ok_exits_3():
+    # seed 000 eq 18–19: the stable wall stiffness falls as 1/T (2.67 N/mm at T = 1 ms, the handle's
+    # stability evaluator); at T = 10 ms the scene's K_e = 2 N/mm is far above it: unstable, exit 3
+    res = runner.invoke(app, ["verify", "--preset", "handle-paper", "--scene", "handle-wall", "--period-ms", "10",
+                              "--json"])
+    assert res.exit_code == 3, res.output
+    assert json.loads(res.stdout)["status"] == "unstable"
+    assert res.stderr.startswith("not met: verify handle-wall: unstable")
