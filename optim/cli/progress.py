@@ -50,12 +50,14 @@ class StageLine:
     def stage(self, name: str, total: int = 1, text: str = "") -> None:
         """Start stage ``name`` of ``total`` steps (1 for a stage without steps of its own)."""
         self.progress.update(self.task, stage=name, total=total, completed=0, description=text)
+        self.progress.refresh()  # a new stage is drawn at once, however short it is
 
     def step(self, what: str, done: int, total: int) -> None:
         fields: dict[str, Any] = {"total": total, "completed": done}
         if what:
             fields["description"] = what
         self.progress.update(self.task, **fields)
+        self.progress.refresh()  # steps are few (evaluators, export steps, scenes): each one is drawn
 
     def note(self, text: str) -> None:
         self.progress.update(self.task, description=text)
