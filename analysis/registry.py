@@ -16,7 +16,7 @@ from __future__ import annotations
 import importlib
 import time
 import traceback
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,8 +25,31 @@ import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
-from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.errors import InvalidDesign, InvalidInput
+from hapticopt.design import offscreen
 from hapticopt.design.paths import check_name, inside
+
+
+#: every fidelity level; a metric reported only at some levels names them
+ALL_LEVELS: tuple[Fidelity, ...] = tuple(Fidelity)
+
+
+@dataclass(frozen=True)
+class MetricDoc:
+    """What a metric means (the glossary's one source): its name (unit in the suffix), a one-line
+    description, and the fidelity levels at which its evaluator reports it."""
+
+    name: str
+    description: str
+    fidelities: tuple[Fidelity, ...] = ALL_LEVELS
+
+    @property
+    def unit(self) -> str:
+        return metric_unit(self.name)
+
+
+def _m(name: str, description: str, *levels: str) -> MetricDoc:
+    return MetricDoc(name, description, tuple(Fidelity(f) for f in levels) if levels else ALL_LEVELS)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -34,6 +57,8 @@ class EvaluatorEntry:
     name: str  # short name used in reports and timings
     module: str  # dotted module path exposing evaluate()
     plot: str | None = None  # "module:function" drawing this evaluator's result, or None
+    fidelity: str = ""  # what the fidelity levels change (the glossary's "fidelity" column)
+    metrics: tuple[MetricDoc, ...] = ()  # every metric it can report (tests/analysis/test_registry.py checks)
 
     def load(self) -> Any:
         return importlib.import_module(self.module)
@@ -46,33 +71,217 @@ class EvaluatorEntry:
 
 
 _A = "hapticopt.analysis."
+_FINE = ("fine",)
+_STD_FINE = ("standard", "fine")
 
 #: device -> evaluators in report order. Add a line here to plug an evaluator into
-#: ``hapticopt evaluate``, the optimiser and the pipeline.
+#: ``hapticopt evaluate``, the optimiser and the pipeline; describe its metrics in the same entry
+#: (``hapticopt metrics`` and docs/metrics.md are generated from them).
 EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
     "prrr": (
-        EvaluatorEntry(name="statics", module=_A + "prrr.statics"),
+        EvaluatorEntry(name="statics", module=_A + "prrr.statics",
+                       fidelity="closed forms (constant Jacobian): the same at every level",
+                       metrics=(
+            _m("jacobian_condition", "2-norm condition number of the constant Jacobian J (1 = isotropic; seed 002 eq 2)"),
+            _m("jacobian_condition_frobenius", "Frobenius-norm condition number of J, normalised (smooth: the optimiser's form)"),
+            _m("max_force_N", "largest end-effector force per axis x, y, z with the other components free (actuator force limit through J⁻ᵀ)"),
+            _m("max_pure_force_N", "largest force along each axis alone (x, y, z) that no actuator exceeds"),
+            _m("stiffness_limit_N_per_mm", "largest renderable stiffness per axis x, y, z from the SEA springs, diag J⁻ᵀ(kI)J⁻¹ (seed 002 eq 14–15)"),
+            _m("effective_mass_kg", "3×3 equivalent mass matrix of the moving parts at the end-effector (seed 002 eq 7)"),
+        )),
         EvaluatorEntry(name="structural_stiffness", module=_A + "prrr.structure",
-                       plot=_A + "prrr.plots:structure_plots"),
-        EvaluatorEntry(name="workspace", module=_A + "prrr.workspace", plot=_A + "prrr.plots:workspace_plots"),
-        EvaluatorEntry(name="interference", module=_A + "prrr.interference"),
-        EvaluatorEntry(name="free_workspace", module=_A + "prrr.free_workspace"),
-        EvaluatorEntry(name="device_size", module=_A + "prrr.device_size"),
-        EvaluatorEntry(name="joint_limits", module=_A + "prrr.joint_limits"),
-        EvaluatorEntry(name="stability", module=_A + "prrr.stability"),
+                       plot=_A + "prrr.plots:structure_plots",
+                       fidelity="draft/standard: Timoshenko frame model; fine: also the solid FEA of the CAD (tens of seconds)",
+                       metrics=(
+            _m("structural_stiffness_N_per_mm", "Cartesian stiffness x, y, z of the linkage for a force applied at the load height above the end-effector, sliders locked (seed 002 Table 3)"),
+            _m("elastic_centre_mm", "height above the end-effector where a lateral force and the platform rotation decouple"),
+            _m("structural_stiffness_at_elastic_centre_N_per_mm", "Cartesian stiffness x, y, z for a force applied at the elastic centre"),
+            _m("structural_load_height_mm", "height of the load point above the end-effector (seed 002: 58 mm)"),
+            _m("structural_condition", "condition estimate of the frame stiffness matrix (large: singular or ill-conditioned)"),
+            _m("structural_stiffness_fea_bonded_N_per_mm", "stiffness x, y, z at the load point from the solid FEA of the CAD with bonded pins", *_FINE),
+            _m("structural_stiffness_frame_bonded_N_per_mm", "the frame model's stiffness with bonded joints at the CAD's elbow branch (the model the FEA checks)", *_FINE),
+            _m("structural_fea_dofs", "degrees of freedom of the solid FEA mesh", *_FINE),
+            _m("structural_fea_wall_s", "wall time of the solid FEA", *_FINE),
+            _m("structural_fea_max_von_mises_MPa_per_N", "largest von Mises stress of the FEA per newton of lateral (x) load", *_FINE),
+            _m("structural_fea_max_von_mises_at_mm", "where that stress occurs (x, y, z)", *_FINE),
+        )),
+        EvaluatorEntry(name="workspace", module=_A + "prrr.workspace", plot=_A + "prrr.plots:workspace_plots",
+                       fidelity="angular quadrature and radial sampling grow with the level; fine adds the Jacobian "
+                                "constancy check and the manifold3d interference reference",
+                       metrics=(
+            _m("workspace_volume_mm3", "volume reached by every leg within the slider stroke (reach ∩ stroke)"),
+            _m("workspace_cylinder_diameter_mm", "diameter of the largest-volume vertical cylinder about z inside the workspace"),
+            _m("workspace_cylinder_height_mm", "height of that cylinder"),
+            _m("workspace_height_at_diameter_mm", "height of a cylinder of the required diameter (0: it does not fit)"),
+            _m("workspace_required_diameter_mm", "required workspace diameter (design input; seed 002: 140 mm)"),
+            _m("footprint_diameter_mm", "diameter of the device body in xy: fixed parts and carriages (seed 002's device size)"),
+            _m("link_sweep_diameter_mm", "diameter swept by the links over the reach region (CAD's elbow branch)"),
+            _m("workspace_footprint_ratio", "workspace cylinder diameter over footprint diameter (seed 002 Table 1: 140/260)"),
+            _m("jacobian_condition_deviation", "largest relative deviation of the finite-difference cond₂(J) over the workspace from the constant one", *_FINE),
+            _m("workspace_interference_removed_fraction", "share of the sampled workspace volume lost to part collisions (manifold3d meshes)", *_FINE),
+            _m("workspace_free_volume_mm3", "workspace volume after removing the colliding share", *_FINE),
+        )),
+        EvaluatorEntry(name="interference", module=_A + "prrr.interference",
+                       fidelity="the same convex-primitive model at every level (conservative against manifold3d)",
+                       metrics=(
+            _m("interference_removed_fraction", "share of the sampled workspace volume whose poses make two parts collide (0 … 1)"),
+            _m("interference_overlap_fraction", "continuous companion: poses weighted by their deepest overlap up to 1 mm (0 … 1)"),
+        )),
+        EvaluatorEntry(name="free_workspace", module=_A + "prrr.free_workspace",
+                       fidelity="draft/standard: sampling with the fast separating-axis checker; fine: manifold3d meshes (the reference)",
+                       metrics=(
+            _m("workspace_free_radius_mm", "radius about z within which every column is reached and collision-free"),
+            _m("workspace_free_cylinder_diameter_mm", "diameter of the largest-volume collision-free vertical cylinder about z"),
+            _m("workspace_free_cylinder_height_mm", "height of that cylinder"),
+            _m("workspace_free_height_at_diameter_mm", "height of the collision-free cylinder of the required diameter (0: not free)"),
+            _m("workspace_free_footprint_ratio", "collision-free cylinder diameter over footprint diameter (seed 002's design goal)"),
+        )),
+        EvaluatorEntry(name="device_size", module=_A + "prrr.device_size",
+                       fidelity="analytic mass model of the part tables: the same at every level",
+                       metrics=(
+            _m("device_mass_kg", "mass of every part (seed 002 Table 1: 4.4 kg)"),
+            _m("device_mass_sea_modules_kg", "mass of the three SEA modules (motor with belt, ball screw, spring housing)"),
+            _m("device_mass_links_kg", "mass of the moving links and the platform"),
+            _m("device_mass_frame_kg", "mass of the base plate, rails and carriages"),
+            _m("device_height_mm", "height from the base plate's bottom to the rail tops (seed 002 Table 1: 231 mm)"),
+        )),
+        EvaluatorEntry(name="joint_limits", module=_A + "prrr.joint_limits",
+                       fidelity="fine also turns each joint until its parts meet (manifold3d stops)",
+                       metrics=(
+            _m("joint_elbow_limit_deg", "largest elbow angle |θ2| kept a joint-boss radius from the folded singularity"),
+            _m("joint_limit_margin_deg", "smallest margin of the joint ranges used over the free cylinder to their limits (negative: a limit cuts it)"),
+            _m("joint_range_r1_deg", "range [min, max] joint R1 sweeps over the collision-free cylinder (every leg alike)"),
+            _m("joint_range_r2_deg", "range [min, max] joint R2 (elbow) sweeps over the collision-free cylinder"),
+            _m("joint_range_r3_deg", "range [min, max] joint R3 sweeps over the collision-free cylinder"),
+        )),
+        EvaluatorEntry(name="stability", module=_A + "prrr.stability",
+                       fidelity="closed forms: the same at every level",
+                       metrics=(
+            _m("force_loop_bandwidth_Hz", "−3 dB bandwidth of the SEA force loop with the output locked (seed 002 eq 8; 38.5 Hz at K_p = 45)"),
+            _m("closed_loop_stiffness_limit_N_per_mm", "largest stable virtual stiffness x, y, z of the continuous closed loop at the force gain, zero virtual damping (Routh–Hurwitz)"),
+        )),
     ),
     "master": (
-        EvaluatorEntry(name="workspace", module=_A + "master.workspace", plot=_A + "master.plots:workspace_plots"),
-        EvaluatorEntry(name="balance", module=_A + "master.balance", plot=_A + "master.plots:balance_plots"),
+        EvaluatorEntry(name="workspace", module=_A + "master.workspace", plot=_A + "master.plots:workspace_plots",
+                       fidelity="Gauss points, box samples and search cells grow with the level",
+                       metrics=(
+            _m("workspace_volume_mm3", "volume of the joint-range workspace (change of variables, Gauss–Legendre)"),
+            _m("workspace_coverage", "fraction of the required box covered by the workspace, box placed where it covers most (0 … 1)"),
+            _m("workspace_required_box_mm", "edge lengths x, y, z of the required box (design input)"),
+            _m("workspace_centroid_mm", "centroid x, y, z of the workspace"),
+            _m("workspace_box_centre_mm", "centre x, y, z of the best-placed required box"),
+            _m("global_conditioning_index", "workspace mean of 1/κ(J) (1 = isotropic everywhere)"),
+            _m("jacobian_condition_min", "smallest condition number κ(J) over the workspace"),
+            _m("jacobian_condition_max", "largest condition number κ(J) over the workspace"),
+        )),
+        EvaluatorEntry(name="balance", module=_A + "master.balance", plot=_A + "master.plots:balance_plots",
+                       fidelity="pose grid, zoom levels and force directions grow with the level",
+                       metrics=(
+            _m("max_unbalance_force_N", "largest gravity force at the handle over the workspace with the motors off (seed 003 eq 5)"),
+            _m("unbalance_radius_mm", "largest CoM offset whose unbalance force stays below 0.1 N everywhere (seed 003 eq 12)"),
+            _m("com_offset_mm", "offset (P_x, P_z) of the arm's centre of mass from the balanced point"),
+            _m("com_inside_unbalance_radius", "whether the CoM offset lies inside the unbalance region"),
+            _m("unbalance_ellipse_axes_mm", "semi-axes of the exact unbalance region (an ellipse in P_x, P_z)"),
+            _m("unbalance_ellipse_overlap_pct", "overlap of the exact region with seed 003's circle of the unbalance radius"),
+            _m("unbalance_ellipse_fit_mm", "semi-axes of the ellipse fitted to the sampled region boundary"),
+            _m("unbalance_ellipse_tilt_deg", "tilt of the fitted ellipse"),
+            _m("balancing_counterweights_kg", "counterweight masses (upper, forearm) that would put the CoM on the balanced point"),
+            _m("moving_mass_kg", "mass M of the moving arm (seed 003: 1.30 kg)"),
+        )),
         EvaluatorEntry(name="transparency", module=_A + "master.transparency",
-                       plot=_A + "master.plots:transparency_plots"),
+                       plot=_A + "master.plots:transparency_plots",
+                       fidelity="draft: the reference pose only; standard/fine: also the worst case over a joint grid",
+                       metrics=(
+            _m("transparency_bandwidth_Hz", "first frequency where |F_H/F_D| leaves 0 ± 3 dB, along x and z at the reference pose (seed 003 eq 13–15)"),
+            _m("transparency_bandwidth_min_Hz", "the lower of the two transparency bandwidths"),
+            _m("apparent_mass_kg", "apparent mass of the arm along x and z at the reference pose"),
+            _m("transparency_bandwidth_worst_Hz", "lowest transparency bandwidth x, z over the workspace grid", *_STD_FINE),
+        )),
     ),
     "handle": (
-        EvaluatorEntry(name="stability", module=_A + "handle.stability"),
-        EvaluatorEntry(name="upsampling", module=_A + "handle.upsampled"),
-        EvaluatorEntry(name="zwidth", module=_A + "handle.zwidth", plot=_A + "handle.plots:zwidth_plots"),
+        EvaluatorEntry(name="stability", module=_A + "handle.stability",
+                       fidelity="closed forms and the exact sampled loop: the same at every level",
+                       metrics=(
+            _m("max_stable_stiffness_N_per_mm", "largest stable wall stiffness K_e of the exact sampled loop (zero-order hold)"),
+            _m("pade_stable_stiffness_N_per_mm", "the same limit with seed 000's Padé hold (eq 15–19)"),
+            _m("pade_minus_exact_pct", "Padé limit relative to the exact one"),
+            _m("eq19_stable_stiffness_N_per_mm", "seed 000's eq 19 closed form of the limit"),
+            _m("wall_stable", "whether the described wall (K_e, B_e) is stable with the hand"),
+            _m("wall_margin", "stability margin of the described wall: slowest modal decay rate over the mechanical rate b/m (> 0 stable)"),
+            _m("eq22_operator_stiffness_N_per_mm", "seed 000's eq 22 critical operator stiffness for the described wall"),
+            _m("critical_operator_stiffness_N_per_mm", "the exact-hold critical operator stiffness (NaN if none up to 10⁶ N/mm)"),
+            _m("max_stable_stiffness_vs_period_N_per_mm", "stiffness limit at each controller period of sweep_period_ms"),
+            _m("sweep_period_ms", "controller periods of that sweep"),
+            _m("max_stable_stiffness_vs_wall_damping_N_per_mm", "stiffness limit at each wall damping of sweep_wall_damping_Ns_per_m"),
+            _m("sweep_wall_damping_Ns_per_m", "wall dampings of that sweep"),
+            _m("max_stable_stiffness_vs_operator_stiffness_N_per_mm", "stiffness limit at each operator stiffness of sweep_operator_stiffness_N_per_mm"),
+            _m("sweep_operator_stiffness_N_per_mm", "operator stiffnesses of that sweep"),
+        )),
+        EvaluatorEntry(name="upsampling", module=_A + "handle.upsampled",
+                       fidelity="lifted multi-rate loop, exact: the same at every level",
+                       metrics=(
+            _m("upsampling", "upsampling factor L = l2/l1 of the firmware"),
+            _m("max_stable_stiffness_none_N_per_mm", "largest stable wall stiffness without upsampling (lifted loop)"),
+            _m("max_stable_stiffness_as_printed_N_per_mm", "the limit with seed 000's eq 23 spline as printed"),
+            _m("upsampling_as_printed_vs_none_pct", "as-printed limit relative to no upsampling"),
+            _m("max_stable_stiffness_as_intended_N_per_mm", "the limit with eq 23 as intended (update point to predicted point)"),
+            _m("upsampling_as_intended_vs_none_pct", "as-intended limit relative to no upsampling"),
+            _m("upsampling_default_variant", "the variant the firmware uses"),
+        )),
+        EvaluatorEntry(name="zwidth", module=_A + "handle.zwidth", plot=_A + "handle.plots:zwidth_plots",
+                       fidelity="grid points per axis: draft 10, standard 20, fine 40",
+                       metrics=(
+            _m("zwidth_wall_damping_Ns_per_m", "wall dampings B_e of the Z-width grid"),
+            _m("zwidth_boundary_N_per_mm", "largest stable wall stiffness K_e at each B_e (null: none stable)"),
+            _m("zwidth_peak_stiffness_N_per_mm", "highest point of that boundary"),
+            _m("zwidth_peak_damping_Ns_per_m", "B_e at the peak"),
+            _m("zwidth_max_stable_damping_Ns_per_m", "largest B_e with a stable K_e"),
+            _m("zwidth_stable_fraction", "stable share of the (B_e, K_e) grid cells (0 … 1)"),
+        )),
     ),
 }
+
+
+#: unit tokens a metric name may end with (``_N``, ``_N_per_mm``, ``_MPa_per_N`` …) -> printed symbol
+UNIT_SYMBOLS: dict[str, str] = {
+    "mm": "mm", "m": "m", "um": "µm", "mm3": "mm³", "deg": "deg", "rad": "rad", "kg": "kg", "g": "g",
+    "N": "N", "Nm": "N·m", "Ns": "N·s", "Nms": "N·m·s", "Hz": "Hz", "s": "s", "ms": "ms", "MPa": "MPa",
+    "GPa": "GPa", "pct": "%",
+}
+
+
+def metric_unit(name: str) -> str:
+    """The unit a metric's name ends with, as printed (``stiffness_limit_N_per_mm`` → ``N/mm``,
+    ``growth_rate_per_s`` → ``1/s``,
+    ``*_deg`` → ``deg``, ``*_pct`` → ``%``); '' for a dimensionless metric. ``name[i]`` allowed."""
+    parts = name.split("[")[0].split("_")
+    if len(parts) >= 3 and parts[-2] == "per" and parts[-1] in UNIT_SYMBOLS:
+        top = UNIT_SYMBOLS.get(parts[-3], "1")  # growth_rate_per_s: 1/s
+        return f"{top}/{UNIT_SYMBOLS[parts[-1]]}"
+    if len(parts) >= 2 and parts[-1] in UNIT_SYMBOLS:
+        return UNIT_SYMBOLS[parts[-1]]
+    return ""
+
+
+def metric_docs(device: str) -> dict[str, tuple[EvaluatorEntry, MetricDoc]]:
+    """Metric name -> (its evaluator, its description) for one device."""
+    return {m.name: (e, m) for e in EVALUATORS[device] for m in e.metrics}
+
+
+def glossary(device: str | None = None) -> list[dict[str, Any]]:
+    """Every metric of one device (or all), in report order: device, evaluator, module, name, unit,
+    description, fidelity levels and what the levels change. The source of ``hapticopt metrics``
+    and docs/metrics.md."""
+    if device is not None and device not in EVALUATORS:
+        raise InvalidInput(f"--device = {device!r} is not a device: allowed {', '.join(EVALUATORS)}")
+    rows = []
+    for dev in ([device] if device is not None else list(EVALUATORS)):
+        for e in EVALUATORS[dev]:
+            for m in e.metrics:
+                rows.append({"device": dev, "evaluator": e.name, "module": e.module, "metric": m.name,
+                             "unit": m.unit, "description": m.description,
+                             "fidelities": [str(f) for f in m.fidelities], "fidelity_note": e.fidelity})
+    return rows
 
 
 def jsonable(value: Any) -> Any:
@@ -123,17 +332,22 @@ class Evaluation:
                          for name, st in self.statuses.items() if st is Status.FAILED)
 
 
+#: ``progress(evaluator, done, total)``: called before each evaluator runs and once at the end ('', n, n)
+StepFn = Callable[[str, int, int], None]
+
+
 def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
-                 only: tuple[str, ...] | None = None) -> Evaluation:
+                 only: tuple[str, ...] | None = None, progress: StepFn | None = None) -> Evaluation:
     """Run every evaluator registered for the design's device (or those named in ``only``)."""
+    entries = [e for e in EVALUATORS[design.device] if only is None or e.name in only]
     results: dict[str, Any] = {}
     timings: dict[str, float] = {}
     statuses: dict[str, Status] = {}
     messages: dict[str, str] = {}
     sources: dict[str, str] = {}
-    for entry in EVALUATORS[design.device]:
-        if only is not None and entry.name not in only:
-            continue
+    for k, entry in enumerate(entries):
+        if progress is not None:
+            progress(entry.name, k, len(entries))
         t0 = time.perf_counter()
         try:
             result = entry.load().evaluate(design, fidelity=fidelity)
@@ -147,6 +361,8 @@ def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
             messages[entry.name] = result.message
             sources.update({name: entry.module for name in names})
         timings[entry.name] = time.perf_counter() - t0
+    if progress is not None:
+        progress("", len(entries), len(entries))
     return Evaluation(fidelity=fidelity, results=results, timings_s=timings, statuses=statuses,
                       messages=messages, sources=sources)
 
@@ -163,6 +379,7 @@ def run_plotter(entry: EvaluatorEntry, design: Any, result: Any, out_dir: Path) 
     plotter = entry.plotter()
     if plotter is None:
         return []
+    offscreen.configure()  # the plotters draw with pyvista: no X probe, no VTK warning
     return [inside(out_dir, p) for p in plotter(design, result, out_dir)]
 
 

@@ -17,13 +17,14 @@ previous export set as it was and no partial set behind.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hapticopt.design import atomic
+from hapticopt.design import atomic, offscreen
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.paths import check_name, inside
 from hapticopt.design import mass_properties as mp
@@ -68,8 +69,24 @@ def build_assembly(design: Any, p=None) -> tuple[dict[str, Any], dict[str, np.nd
     return solids, cad.part_frames(design, pose)
 
 
-def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False) -> ExportResult:
-    """Write the export set of ``design`` posed at end-effector position ``p`` [m] into ``out_dir``."""
+#: the steps of :func:`export`, in order (``on_step(step, done, total)`` names them)
+STEPS = ("cad", "mass properties + MJCF", "STEP", "STL", "render")
+
+
+def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False,
+           on_step: Callable[[str, int, int], None] | None = None) -> ExportResult:
+    """Write the export set of ``design`` posed at end-effector position ``p`` [m] into ``out_dir``.
+
+    ``on_step(step, done, total)`` is called before each step of :data:`STEPS` (the render only
+    with ``render``) and once at the end with ``('', total, total)``.
+    """
+    steps = STEPS if render else STEPS[:-1]
+
+    def step(name: str) -> None:
+        if on_step is not None:
+            on_step(name, steps.index(name) if name else len(steps), len(steps))
+
+    step("cad")  # importing build123d (OpenCASCADE) is part of it: seconds in a cold process
     from build123d import Compound, export_step, export_stl
 
     out_dir = Path(out_dir)
@@ -90,6 +107,7 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False) ->
     placed = cad.posed(solids, frames)
     timings["cad"] = time.perf_counter() - t0
     t = time.perf_counter()
+    step("mass properties + MJCF")
     masses = mp.from_cad(design, solids=solids, specs=specs)
     mjcf = _mjcf(design, p, masses)
     timings["mass_properties+mjcf"] = time.perf_counter() - t
@@ -101,12 +119,14 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False) ->
             return stage / target.relative_to(out_dir)
 
         t = time.perf_counter()
+        step("STEP")
         assembly = Compound(children=list(placed.values()), label=design.name)
         with atomic.atomic_path(staged(step_path)) as tmp:
             export_step(assembly, tmp)
         files.append(step_path)
         timings["step"] = time.perf_counter() - t
         t = time.perf_counter()
+        step("STL")
         for name, solid in placed.items():
             target = inside(out_dir, Path("parts") / f"{name}.stl")
             with atomic.atomic_path(staged(target)) as tmp:
@@ -119,15 +139,18 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False) ->
         files.append(json_path)
         if render:
             t = time.perf_counter()
+            step("render")
             render_png([staged(f) for f in files if f.suffix == ".stl"], staged(png_path), title=design.name)
             files.append(png_path)
             timings["render"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
+    step("")
     return ExportResult(out_dir=out_dir, files=tuple(files), timings_s=timings, total_mass_kg=masses.total_mass)
 
 
 def render_png(stl_files: list[Path], target: Path, *, title: str = "") -> None:
     """Off-screen pyvista picture of the given STL parts, written atomically."""
+    offscreen.configure()  # before the first render window: no X probe, no VTK warning
     import pyvista as pv
 
     plotter = pv.Plotter(off_screen=True, window_size=(1024, 768))

@@ -44,9 +44,13 @@ from hapticopt.design import export as design_export
 from hapticopt.analysis import verify as closed_loop_verify
 
 
-def evaluate_design(design: Any, fidelity: Fidelity) -> DesignEvaluation:
+#: ``on_step(what, done, total)``: progress inside a stage (an evaluator, an export step, a scene)
+StepFn = Callable[[str, int, int], None]
+
+
+def evaluate_design(design: Any, fidelity: Fidelity, on_step: StepFn | None = None) -> DesignEvaluation:
     """Every registered evaluator on ``design`` (the registry's one loop and failure policy)."""
-    ev = evaluate_all(design, fidelity=fidelity)
+    ev = evaluate_all(design, fidelity=fidelity, progress=on_step)
     return DesignEvaluation(fidelity=fidelity, metrics=ev.metrics(), modules=dict(ev.sources),
                             statuses={k: str(v) for k, v in ev.statuses.items()}, messages=dict(ev.messages),
                             timings_s=dict(ev.timings_s), results=dict(ev.results))
@@ -85,11 +89,12 @@ def evaluators_for(problem: Problem, evaluation: DesignEvaluation) -> tuple[str,
 
 
 # ------------------------------------------------------------------------------ stages
-def _export(design: Any, out_dir: Path) -> StageOutcome:
+def _export(design: Any, out_dir: Path, on_step: StepFn | None = None) -> StageOutcome:
     """STEP, STLs, MJCF, mass properties and the render of ``design`` into ``out_dir``."""
 
     t0 = time.perf_counter()
-    result = design_export.export(design, out_dir, render=True)
+    hook = {} if on_step is None else {"on_step": on_step}
+    result = design_export.export(design, out_dir, render=True, **hook)
     files = sorted(str(Path(p).resolve().relative_to(out_dir.resolve())) for p in result.files)
     return StageOutcome(name="export", status="ok", wall_s=time.perf_counter() - t0, files=tuple(files))
 
@@ -148,12 +153,15 @@ def _run_scene_limited(design: Any, scene: str, fidelity: Fidelity, max_time_s: 
 
 
 def _verify(design: Any, scenes: tuple[str, ...], out_dir: Path, fidelity: Fidelity, max_time_s: float,
-            verifier: Callable[[Any, str], Any] | None = None) -> tuple[StageOutcome, tuple[Verdict, ...]]:
+            verifier: Callable[[Any, str], Any] | None = None,
+            on_step: StepFn | None = None) -> tuple[StageOutcome, tuple[Verdict, ...]]:
     t0 = time.perf_counter()
     if not scenes:
         return StageOutcome(name="verify", status="skipped", message="the problem names no scenes"), ()
     verdicts = []
-    for scene in scenes:
+    for k, scene in enumerate(scenes):
+        if on_step is not None:
+            on_step(scene, k, len(scenes))
         kind, metrics, message, history = _run_scene_limited(design, scene, fidelity, max_time_s, verifier)
         if kind == "ok":
             passed, why = verdict_of(metrics)
@@ -161,6 +169,8 @@ def _verify(design: Any, scenes: tuple[str, ...], out_dir: Path, fidelity: Fidel
         else:
             passed = False
         verdicts.append(Verdict(scene=scene, passed=passed, metrics=metrics, message=message, history=history))
+    if on_step is not None:
+        on_step("", len(scenes), len(scenes))
     n_pass = sum(v.passed for v in verdicts)
     return (StageOutcome(name="verify", status=f"{n_pass}/{len(verdicts)} passed", wall_s=time.perf_counter() - t0),
             tuple(verdicts))
@@ -179,8 +189,13 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
                  scheduler: str = "local",
                  workers: int | None = None, progress: ProgressFn | None = None, export: bool = True,
                  verify: bool = True, on_stage: Callable[[str], None] | None = None,
-                 verifier: Callable[[Any, str], Any] | None = None) -> PipelineResult:
+                 verifier: Callable[[Any, str], Any] | None = None, on_step: StepFn | None = None) -> PipelineResult:
     """Run every stage; returns the result and writes the run directory.
+
+    ``on_stage(name)`` is called as each stage starts (baseline, optimise, final, plots, export,
+    verify, report); ``on_step(what, done, total)`` inside the stages that have steps (baseline and
+    final: the evaluators, labelled ``fidelity: evaluator``; export: its steps; verify: the scenes).
+    ``progress`` reports the optimiser's evaluations.
 
     ``verifier(design, scene_name) -> result with .metrics()`` replaces the closed-loop runner
     :func:`run_scene` (a module-level function: it runs in a child process). An existing record
@@ -196,7 +211,7 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
         remove_stale_temp_files(out)
         return _run_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
                            progress=progress,
-                           export=export, verify=verify, on_stage=on_stage, verifier=verifier)
+                           export=export, verify=verify, on_stage=on_stage, verifier=verifier, on_step=on_step)
 
 
 def _baseline_payload(ev: DesignEvaluation) -> dict[str, Any]:
@@ -210,20 +225,21 @@ def _baseline_from(payload: dict[str, Any]) -> DesignEvaluation:
                             timings_s=payload["timings_s"])
 
 
-def _recorded_evaluation(rec: Recorder, design: Any, fidelity: Fidelity, name: str) -> DesignEvaluation:
+def _recorded_evaluation(rec: Recorder, design: Any, fidelity: Fidelity, name: str,
+                         on_step: StepFn | None = None) -> DesignEvaluation:
     """``evaluate_design(design, fidelity)``, replayed from the recorder when an earlier session has it."""
     key = f"{name}|{fidelity}"
     found = rec.lookup_stage(key)
     if found is not None:
         return _baseline_from(found)
-    ev = evaluate_design(design, fidelity)
+    ev = evaluate_design(design, fidelity, on_step)
     rec.record_stage(key, _baseline_payload(ev))
     return ev
 
 
 def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str, workers: int | None,
                 progress: ProgressFn | None, export: bool, verify: bool, on_stage: Callable[[str], None] | None,
-                verifier: Callable[[Any, str], Any] | None) -> PipelineResult:
+                verifier: Callable[[Any, str], Any] | None, on_step: StepFn | None = None) -> PipelineResult:
     stages: list[StageOutcome] = []
     files: dict[str, str] = {}
 
@@ -232,17 +248,24 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
             on_stage(name)
         return time.perf_counter()
 
+    def at(fidelity: Fidelity) -> StepFn | None:  # evaluator steps labelled with their fidelity
+        if on_step is None:
+            return None
+        return lambda what, done, total: on_step(f"{fidelity}: {what}" if what else "", done, total)
+
     # the recorder exists before the baseline: a run killed during the baseline resumes too
     with make_executor(scheduler, workers=workers) as executor, \
             Recorder(out, fingerprint=problem.fingerprint(), resume=resume, force=force,
                      search_fingerprint=problem.search_fingerprint()) as rec:
         # baseline at the optimisation fidelity: which metrics exist, from which evaluator
         t = stage("baseline")
-        base_opt = _recorded_evaluation(rec, problem.base, problem.fidelity_optimise, "baseline")
+        base_opt = _recorded_evaluation(rec, problem.base, problem.fidelity_optimise, "baseline",
+                                        at(problem.fidelity_optimise))
         check_metrics(problem, base_opt.metrics)
         only = evaluators_for(problem, base_opt)
         baseline = (base_opt if problem.fidelity_final == problem.fidelity_optimise
-                    else _recorded_evaluation(rec, problem.base, problem.fidelity_final, "baseline"))
+                    else _recorded_evaluation(rec, problem.base, problem.fidelity_final, "baseline",
+                                              at(problem.fidelity_final)))
         stages.append(StageOutcome(name="baseline", status="ok", wall_s=time.perf_counter() - t))
 
         rec.describe({**problem_info(problem), "status": "running"})
@@ -268,7 +291,7 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         optimum_design = problem.design_at(best.x) if best is not None else problem.base
         optimum_design = dataclasses.replace(optimum_design, name=f"{problem.name}-optimum",
                                              description=f"optimum of problem {problem.name}")
-        optimum = evaluate_design(optimum_design, problem.fidelity_final)
+        optimum = evaluate_design(optimum_design, problem.fidelity_final, at(problem.fidelity_final))
         cons = _constraints_at(problem, optimum.metrics)
         feasible_final = holds(cons, optimum.statuses)
         obj_base = problem.objective.metric.value(baseline.metrics)
@@ -291,20 +314,23 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
     t = stage("plots")
     plot_files: list[str] = []
     (out / "plots").mkdir(exist_ok=True)
-    for entry in EVALUATORS[problem.device]:
-        if entry.plotter() is None or entry.name not in optimum.results:
-            continue
+    drawn = [e for e in EVALUATORS[problem.device] if e.plot is not None and e.name in optimum.results]
+    for k, entry in enumerate(drawn):
+        if on_step is not None:
+            on_step(entry.name, k, len(drawn))
         try:
             for path in run_plotter(entry, optimum_design, optimum.results[entry.name], out / "plots"):
                 plot_files.append(str(Path(path).resolve().relative_to(out.resolve())))
         except Exception as exc:  # noqa: BLE001 - a picture that fails is reported, the run goes on
             stages.append(StageOutcome(name=f"plot {entry.name}", status="failed", message=describe_failure(exc)))
+    if on_step is not None:
+        on_step("", len(drawn), len(drawn))
     stages.append(StageOutcome(name="plots", status="ok", wall_s=time.perf_counter() - t, files=tuple(plot_files)))
 
     if export:
         t = stage("export")
         try:
-            ex = _export(optimum_design, out)
+            ex = _export(optimum_design, out, on_step)
         except Exception as exc:  # noqa: BLE001 - a failed export is reported in the report
             ex = StageOutcome(name="export", status="failed", message=describe_failure(exc))
         stages.append(dataclasses.replace(ex, wall_s=time.perf_counter() - t))
@@ -312,7 +338,7 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
     if verify:
         t = stage("verify")
         vs, verdicts = _verify(optimum_design, problem.scenes, out, problem.fidelity_verify,
-                                   problem.verify_max_time_s, verifier)
+                                   problem.verify_max_time_s, verifier, on_step)
         stages.append(dataclasses.replace(vs, wall_s=time.perf_counter() - t))
 
     t = stage("report")

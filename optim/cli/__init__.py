@@ -9,8 +9,10 @@ import typer
 
 from hapticopt.optim.cli import compare as cli_compare
 from hapticopt.optim.cli import common
+from hapticopt.design import offscreen
 from hapticopt.optim.cli import evaluate as cli_evaluate
 from hapticopt.optim.cli import export as cli_export
+from hapticopt.optim.cli import metrics as cli_metrics
 from hapticopt.optim.cli import optimise as cli_optimise
 from hapticopt.optim.cli import runs as cli_runs
 from hapticopt.optim.cli import sweep as cli_sweep
@@ -40,6 +42,7 @@ def _root(
 ) -> None:
     """Design optimisation of haptic mechanisms: describe, evaluate, optimise, export, verify."""
     common.DEBUG.set(debug)
+    offscreen.configure()  # every picture off screen, in this process and the workers it starts
 
 
 app.command("evaluate", epilog=common.EXIT_CODES_HELP)(cli_evaluate.evaluate)
@@ -53,6 +56,7 @@ app.command("show", epilog=common.EXIT_CODES_HELP)(cli_runs.show)
 app.command("sweep", epilog=common.EXIT_CODES_HELP)(cli_sweep.sweep)
 app.command("compare", epilog=common.EXIT_CODES_HELP)(cli_compare.compare)
 app.command("design-map", epilog=common.EXIT_CODES_HELP)(cli_verify.design_map)
+app.command("metrics", epilog=common.EXIT_CODES_HELP)(cli_metrics.metrics)
 
 
 def main() -> None:

@@ -5,29 +5,19 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-from typing import Annotated, Any, Optional
+from typing import Annotated, Optional
 
 import typer
 
 from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors, statuses_not_ok
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.registry import evaluate_all, write_plots
+from hapticopt.analysis.registry import EVALUATORS, evaluate_all, write_plots
+from hapticopt.optim.cli import render
+from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.paths import writable_dir
-from rich.console import Console
-from rich.table import Table
 from hapticopt.optim.cli.sweep import run_sweep
-
-
-def _fmt(value: Any) -> str:
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, float):
-        return f"{value:.6g}"
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_fmt(v) for v in value) + "]"
-    return str(value)
 
 
 @one_line_errors
@@ -53,7 +43,13 @@ def evaluate(
         writable_dir(plots, "--plots")
     if sweep is not None:
         writable_dir(plots if plots is not None else Path("."), "--plots")
-    evaluation = evaluate_all(design, fidelity=level)
+    err = render.console(stderr=True)
+    with make_progress(err, transient=True, disable=as_json or not err.is_terminal) as bar:
+        line = StageLine(bar, "evaluate", len(EVALUATORS[design.device]))
+        line.note(f"{design.name} at {level} fidelity")
+        evaluation = evaluate_all(design, fidelity=level,
+                                  progress=lambda what, done, total: line.step(
+                                      f"{level}: {what}" if what else "", done, total))
     timings = {"imports": t_import - t_start, **evaluation.timings_s}
     written = write_plots(design, evaluation, plots) if plots is not None else []
     if sweep is not None:
@@ -76,27 +72,36 @@ def evaluate(
             not_met(statuses_not_ok(status))
         return
 
-    console = Console()
-    table = Table(title=f"{design.name} ({design.device}, {level} fidelity)")
-    table.add_column("metric")
-    table.add_column("value", overflow="fold")
-    for name, value in metrics.items():
-        table.add_row(name, _fmt(value))
-    console.print(table)
+    console = render.console()
+    console.print(render.metrics_table(f"{design.name} ({design.device}, {level} fidelity)", metrics))
+    bad = {k: v for k, v in status.items() if v != "ok"}
+    if not bad:
+        console.print(f"evaluators: all {len(status)} ok")
     for name, st in status.items():
         message = evaluation.messages.get(name, "")
-        console.print(f"{name}: {st}" + (f" — {message}" if message else ""))
+        if st != "ok" or message:
+            console.print(f"{name}: {st}" + (f" — {message}" if message else ""))
     for path in written:
         console.print(f"wrote {path}")
-    console.print("timings_s: " + ", ".join(f"{k} {v:.3f}" for k, v in timings.items()))
+    slow = sorted(((v, k) for k, v in timings.items() if k not in ("imports", "total")), reverse=True)[:3]
+    console.print(f"time: {render.number(timings['total'], 3)} s"
+                  + (" (slowest: " + ", ".join(f"{k} {render.number(v, 2)} s" for v, k in slow) + ")" if slow else "")
+                  + "; --json has every timing")
     if statuses_not_ok(status):
         not_met(statuses_not_ok(status))
 
 
 @one_line_errors
-def presets() -> None:
+def presets(
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON list [{name, device, description}].")] = False,
+) -> None:
     """List the bundled design presets."""
-
+    rows = []
     for name in io.preset_names():
         design = io.load_preset(name)
-        typer.echo(f"{name:16s} {design.device:7s} {design.description}")
+        rows.append({"name": name, "device": design.device, "description": design.description})
+    if as_json:
+        typer.echo(json.dumps(rows, indent=2))
+        return
+    render.console().print(render.table(None, ("preset", "device", "description"),
+                                        ((r["name"], r["device"], r["description"]) for r in rows)))

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
 
+from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+from hapticopt.optim.cli.progress import StageLine, make_progress
 import math
 import numpy as np
 from hapticopt.design.errors import InvalidInput
@@ -41,10 +44,12 @@ def export(
     set_: Annotated[Optional[list[str]], typer.Option("--set", help="Override a TOML key, e.g. --set structure.link_width_mm=16 (repeatable).")] = None,
     out: Annotated[Optional[Path], typer.Option("--out", help="Output directory [default: cad_out/<design-name>/].")] = None,
     pose: Annotated[Optional[str], typer.Option("--pose", help="End-effector position X,Y,Z in mm [default: home].")] = None,
-    render: Annotated[bool, typer.Option("--render", help="Also write <name>.png (pyvista, off-screen).")] = False,
+    render_png: Annotated[bool, typer.Option("--render", help="Also write <name>.png (pyvista, off-screen).")] = False,
     poses: Annotated[int, typer.Option("--poses", help="Check interference (manifold3d) at N workspace poses "
                                        "instead of only the exported pose (3-PRRR: the reach-and-stroke "
                                        "workspace samples).", min=0)] = 0,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, device, out_dir, files, total_mass_kg, "
+                                                         "interference, timings_s}.")] = False,
 ) -> None:
     """Export the CAD of a design: DIR/<name>.step, DIR/parts/*.stl, DIR/<name>.xml, DIR/mass_properties.json."""
     t0 = time.perf_counter()
@@ -52,19 +57,33 @@ def export(
     p = parse_pose_mm(pose) if pose is not None else None
 
     out_dir = writable_dir(out if out is not None else Path("cad_out") / design.name)
-    result = run_export(design, out_dir, p=p, render=render)
-    where = "the home pose" if p is None else f"the pose ({pose}) mm"
-    if poses > 0:
-        message = _check_many(design, poses)
-    else:
-        check = interference.check_pose(design, result_pose(design, p))
-        message = (f"none at {where}" if check.ok else f"{check.message} (at {where})") + \
-            " — only this pose was checked; --poses N checks the workspace"
-    for f in result.files:
+    err = render.console(stderr=True)
+    with make_progress(err, transient=True, disable=as_json or not err.is_terminal) as bar:
+        line = StageLine(bar, "export")
+        result = run_export(design, out_dir, p=p, render=render_png, on_step=line.step)
+        where = "the home pose" if p is None else f"the pose ({pose}) mm"
+        line.stage("check", 1, f"interference at {poses} workspace poses" if poses > 0 else f"interference at {where}")
+        if poses > 0:
+            message = _check_many(design, poses)
+        else:
+            check = interference.check_pose(design, result_pose(design, p))
+            message = (f"none at {where}" if check.ok else f"{check.message} (at {where})") + \
+                " — only this pose was checked; --poses N checks the workspace"
+    wall = time.perf_counter() - t0
+    if as_json:
+        typer.echo(json.dumps({"design": design.name, "device": design.device, "out_dir": str(out_dir),
+                               "files": [str(f) for f in result.files], "total_mass_kg": result.total_mass_kg,
+                               "interference": message, "timings_s": {**result.timings_s, "wall": wall}}, indent=2))
+        return
+    stl = [f for f in result.files if f.suffix == ".stl"]
+    others = [f for f in result.files if f.suffix != ".stl"]
+    for f in others:
         typer.echo(f"wrote {f}")
-    typer.echo(f"total mass {result.total_mass_kg:.4g} kg; interference: {message}")
-    typer.echo("timings_s: " + ", ".join(f"{k} {v:.2f}" for k, v in result.timings_s.items())
-               + f", wall {time.perf_counter() - t0:.2f}")
+    if stl:
+        typer.echo(f"wrote {len(stl)} part STLs in {stl[0].parent}")
+    typer.echo(f"total mass {render.number(result.total_mass_kg)} kg; interference: {message}")
+    typer.echo(f"time: {render.number(wall, 3)} s (" + ", ".join(
+        f"{k} {render.number(v, 2)} s" for k, v in result.timings_s.items() if k != "total") + ")")
 
 
 def _check_many(design, n: int) -> str:

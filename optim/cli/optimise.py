@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -10,8 +11,8 @@ import typer
 from hapticopt.optim.cli.common import not_met, one_line_errors
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.problem import INT_RANGES, load_problem
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from hapticopt.optim.cli import render
+from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.optim.problem import problem_names
 from hapticopt.optim.recorder import check_run_dir
 
@@ -33,6 +34,7 @@ def optimise(
     export: Annotated[bool, typer.Option("--export/--no-export", help="Export STEP/STL/MJCF of the optimum.")] = True,
     verify: Annotated[bool, typer.Option("--verify/--no-verify", help="Verify the optimum in closed loop on the problem's scenes.")] = True,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the run's result.json (instead of the summary lines).")] = False,
 ) -> None:
     """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front). Exit 3 when the final point breaks a constraint (written as best_infeasible.toml)."""
 
@@ -51,32 +53,44 @@ def optimise(
 
     from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline, status_holds
 
-    console = Console(stderr=True, quiet=quiet)
+    console = render.console(stderr=True, quiet=quiet)
     if prob.is_multi_objective:
-        with console.status("tracing the Pareto front", spinner="dots") as status:
+        with make_progress(console, disable=quiet) as bar:
+            runs = prob.pareto.points if prob.pareto else 1
+            line = StageLine(bar, "front", runs)
+            line.note(f"ε-constraint runs at {prob.fidelity_optimise} fidelity, then the chosen design at "
+                      f"{prob.fidelity_final}")
+            done = [0]
+
+            def on_run(label, n):
+                done[0] += 1
+                line.count(min(done[0], runs))
+                line.note(f"run {label} done, {n} evaluated")
+
             res = run_front_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
-                                     workers=workers,
-                                     progress=lambda label, n: status.update(f"Pareto front: {label} done, {n} evaluated"))
-        f1, f2 = (o["metric"] for o in res["objectives"])
-        typer.echo(f"{prob.name}: Pareto front of {f1} and {f2}: {len(res['front'])} points "
-                   f"(ε-constraint, {len(res['runs'])} runs); {res['n_evaluated']} evaluated, {res['n_replayed']} replayed")
+                                     workers=workers, progress=on_run)
         ch = res["chosen"]
-        if ch is not None:
-            typer.echo(f"  chosen ({prob.pareto.choose if prob.pareto else 'knee'}): {f1} = {ch['objectives'][0]:.6g}, "
-                       f"{f2} = {ch['objectives'][1]:.6g}; constraints at {prob.fidelity_final} fidelity "
-                       f"{'satisfied' if ch['feasible_at_final_fidelity'] else 'NOT satisfied'} -> "
-                       f"{out_dir / (res['files'].get('chosen') or res['files']['chosen_infeasible'])}")
-        if export or verify:
-            typer.echo("  export/verify: not run for a Pareto front — run `hapticopt export` / `hapticopt verify` "
-                       "on chosen.toml")
-        typer.echo(f"report: {out_dir / 'report.html'}")
+        if as_json:
+            typer.echo(json.dumps(res, indent=2, default=str))
+        else:
+            f1, f2 = (o["metric"] for o in res["objectives"])
+            typer.echo(f"{prob.name}: Pareto front of {f1} and {f2}: {len(res['front'])} points "
+                       f"(ε-constraint, {len(res['runs'])} runs); {res['n_evaluated']} evaluated, {res['n_replayed']} replayed")
+            if ch is not None:
+                typer.echo(f"  chosen ({prob.pareto.choose if prob.pareto else 'knee'}): {f1} = {ch['objectives'][0]:.6g}, "
+                           f"{f2} = {ch['objectives'][1]:.6g}; constraints at {prob.fidelity_final} fidelity "
+                           f"{'satisfied' if ch['feasible_at_final_fidelity'] else 'NOT satisfied'} -> "
+                           f"{out_dir / (res['files'].get('chosen') or res['files']['chosen_infeasible'])}")
+            if export or verify:
+                typer.echo("  export/verify: not run for a Pareto front — run `hapticopt export` / `hapticopt verify` "
+                           "on chosen.toml")
+            typer.echo(f"report: {out_dir / 'report.html'}")
         if ch is not None and not ch["feasible_at_final_fidelity"]:
             not_met(f"the chosen design breaks a constraint at {prob.fidelity_final} fidelity "
                     f"(written as {out_dir / 'chosen_infeasible.toml'})")
         return
-    with Progress(TextColumn("[bold]{task.fields[stage]}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  TextColumn("{task.description}"), console=console, transient=False, disable=quiet) as progress:
-        task = progress.add_task("", total=prob.optimiser.max_evals, stage="baseline")
+    with make_progress(console, disable=quiet) as bar:
+        line = StageLine(bar, "baseline")
 
         def on_point(rec, best, n_evaluated):  # called from the driver (any thread)
             if best is None:
@@ -86,26 +100,40 @@ def optimise(
                 feas = "feasible" if best.max_violation <= prob.optimiser.constraint_tol else \
                     f"infeasible (violation {100 * best.max_violation:.2g} %)"
                 desc = f"best {prob.objective.metric.text} = {obj:.6g} ({feas})"
-            progress.update(task, completed=min(rec.index + 1, prob.optimiser.max_evals), description=desc)
+            line.count(min(rec.index + 1, prob.optimiser.max_evals))
+            line.note(desc)
 
         def on_stage(name):
-            progress.update(task, stage=name)
+            totals = {"optimise": prob.optimiser.max_evals}
+            texts = {"baseline": f"start design at {prob.fidelity_optimise}"
+                                 + ("" if prob.fidelity_final == prob.fidelity_optimise
+                                    else f" and {prob.fidelity_final}") + " fidelity",
+                     "optimise": f"{prob.optimiser.algorithm} at {prob.fidelity_optimise} fidelity",
+                     "final": f"optimum at {prob.fidelity_final} fidelity", "plots": "evaluator pictures",
+                     "export": "STEP, STL, MJCF, render", "verify": "closed loop in the problem's scenes",
+                     "report": "report.html, result.json"}
+            line.stage(name, totals.get(name, 1), texts.get(name, ""))
 
         result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler, workers=workers,
-                              progress=on_point, export=export, verify=verify, on_stage=on_stage)
-        progress.update(task, stage="done")
-    obj = prob.objective.metric
-    b, o = obj.value(result.baseline.metrics), obj.value(result.optimum.metrics)
-    typer.echo(f"{prob.name}: {result.run.status}; {obj.text} baseline {b:.6g} -> optimum {o:.6g} "
-               f"({'improved' if result.improved else 'not improved'}); constraints at {prob.fidelity_final} fidelity "
-               f"{'satisfied' if result.feasible_final else 'NOT satisfied'}; "
-               f"{result.run.n_evaluated} evaluated, {result.run.n_replayed} replayed")
-    for v in result.verdicts:
-        typer.echo(f"  verify {v.scene}: {'PASS' if v.passed else 'FAIL'} {v.message}")
-    for s in result.stages:
-        if s.status in ("skipped", "failed"):
-            typer.echo(f"  {s.name}: {s.status} — {s.message}")
-    typer.echo(f"report: {out_dir / 'report.html'}")
+                              progress=on_point, export=export, verify=verify, on_stage=on_stage,
+                              on_step=line.step)
+        line.stage("done", 1, f"{out_dir / 'report.html'}")
+        line.count(1)
+    if as_json:  # the exit code below still says whether the requirement holds
+        typer.echo((out_dir / "result.json").read_text(encoding="utf-8"), nl=False)
+    else:
+        obj = prob.objective.metric
+        b, o = obj.value(result.baseline.metrics), obj.value(result.optimum.metrics)
+        typer.echo(f"{prob.name}: {result.run.status}; {obj.text} baseline {b:.6g} -> optimum {o:.6g} "
+                   f"({'improved' if result.improved else 'not improved'}); constraints at {prob.fidelity_final} fidelity "
+                   f"{'satisfied' if result.feasible_final else 'NOT satisfied'}; "
+                   f"{result.run.n_evaluated} evaluated, {result.run.n_replayed} replayed")
+        for v in result.verdicts:
+            typer.echo(f"  verify {v.scene}: {'PASS' if v.passed else 'FAIL'} {v.message}")
+        for s in result.stages:
+            if s.status in ("skipped", "failed"):
+                typer.echo(f"  {s.name}: {s.status} — {s.message}")
+        typer.echo(f"report: {out_dir / 'report.html'}")
     if not result.feasible_final:
         broken = [t for t, _, ok in result.constraints_final if not ok]
         bad = [f"{k} ({s})" for k, s in result.optimum.statuses.items() if not status_holds(s)]
@@ -114,9 +142,19 @@ def optimise(
 
 
 @one_line_errors
-def problems() -> None:
+def problems(
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON list [{name, device, description, objectives, "
+                                                         "variables}].")] = False,
+) -> None:
     """List the bundled optimisation problems."""
-
+    rows = []
     for name in problem_names():
         p = load_problem(name)
-        typer.echo(f"{name:22s} {p.device:7s} {p.description}")
+        objectives = [o.metric.text for o in p.objectives] if p.is_multi_objective else [p.objective.metric.text]
+        rows.append({"name": name, "device": p.device, "description": p.description, "objectives": objectives,
+                     "variables": [v.key for v in p.variables]})
+    if as_json:
+        typer.echo(json.dumps(rows, indent=2, ensure_ascii=False))
+        return
+    render.console().print(render.table(None, ("problem", "device", "description"),
+                                        ((r["name"], r["device"], r["description"]) for r in rows)))

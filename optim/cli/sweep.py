@@ -4,18 +4,18 @@ executor, recorded like a run: :mod:`hapticopt.optim.sweep`) and ``hapticopt eva
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Annotated, Any, Optional
 
 import typer
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.table import Table
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.atomic import write_text
 from hapticopt.design.errors import InvalidInput
+from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.optim.executor import make_executor
 from hapticopt.optim import sweep as sw
 from hapticopt.optim.recorder import Recorder, check_run_dir
@@ -44,12 +44,11 @@ def run_sweep(design: Any, name: str, out_dir: Path, fidelity: Any) -> list[Path
     mu, mf = rows[0]["upper_counterweight_kg"], rows[0]["forearm_counterweight_kg"]
     boundary = master_tradeoff.unbalance_boundary(design, fidelity=fidelity) * (mu + mf)
     plot_path = master_plots.sweep_plot(rows, plot_target, boundary_mass=boundary)
-    table = Table(title=f"{design.name}: counterweight sweep (seed 003 trade-off)")
-    for key in rows[0]:
-        table.add_column(key)
-    for r in rows:
-        table.add_row(*(f"{v:.4g}" for v in r.values()))
-    Console(stderr=True).print(table)
+    err = render.console(stderr=True)
+    for t in render.number_tables(f"{design.name}: counterweight sweep (seed 003 trade-off; units in the names)",
+                                  list(rows[0]), ([render.number(v) for v in r.values()] for r in rows),
+                                  width=err.width):
+        err.print(t)
     return [table_path, plot_path]
 
 
@@ -72,6 +71,8 @@ def sweep(
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="One PNG per metric under DIR/plots/.")] = True,
     batch: Annotated[bool, typer.Option("--batch", help="Evaluate in one process with the batched evaluators (3-PRRR at draft: every evaluator; other fidelities: --only statics).")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, axes, fidelity, points, ok, evaluated, "
+                                                         "replayed, out_dir, files} instead of the summary.")] = False,
 ) -> None:
     """Sweep one or two numeric design keys over a grid; writes sweep.csv, a plot per metric and the record."""
     try:
@@ -96,18 +97,17 @@ def sweep(
                            f"for a {design.device} design at {level} allowed {', '.join(allowed) if allowed else 'none'}")
     out_dir = out if out is not None else Path("cad_out") / f"sweep-{design.name}-{'-'.join(a.key for a in axes)}"
     check_run_dir(out_dir, resume=resume, force=force)  # nothing written before this
-    console = Console(stderr=True, quiet=quiet)
+    console = render.console(stderr=True, quiet=quiet)
     with Recorder(out_dir, fingerprint=spec.fingerprint(), resume=resume, force=force,
                   search_fingerprint=spec.fingerprint()) as rec:
         rec.describe({**spec.info(), "status": "running"})
-        with Progress(TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                      console=console, disable=quiet) as progress:
-            task = progress.add_task("", total=spec.n_points)
+        with make_progress(console, disable=quiet) as bar:
+            line = StageLine(bar, "sweep", spec.n_points)
+            line.note(f"{' × '.join(a.key for a in axes)} at {level} fidelity")
             try:
                 with make_executor(scheduler, workers=workers) as executor:
                     result = sw.run_sweep(spec, executor=executor, recorder=rec,
-                                          progress=lambda done, total: progress.update(task, completed=done),
-                                          batch=batch)
+                                          progress=lambda done, total: line.count(done, total), batch=batch)
             except BaseException:
                 rec.set_status("interrupted")
                 raise
@@ -115,6 +115,12 @@ def sweep(
                         max_evals=spec.n_points)
     written = sw.write_outputs(result, out_dir, plots=plots)
     n_fail = spec.n_points - result.n_ok
+    if as_json:
+        typer.echo(json.dumps({"design": design.name, "axes": [{"key": a.key, "n": a.n} for a in axes],
+                               "fidelity": str(level), "points": spec.n_points, "ok": result.n_ok,
+                               "evaluated": result.n_evaluated, "replayed": result.n_replayed,
+                               "out_dir": str(out_dir), "files": [str(p) for p in written]}, indent=2))
+        return
     typer.echo(f"sweep of {design.name} over {' × '.join(f'{a.key} ({a.n})' for a in axes)} at {level} fidelity: "
                f"{spec.n_points} points, {result.n_ok} ok, {n_fail} not ok; {result.n_evaluated} evaluated, "
                f"{result.n_replayed} replayed")

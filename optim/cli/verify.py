@@ -12,7 +12,9 @@ from typing import Annotated, Any, Optional
 import typer
 
 from hapticopt.analysis import verify as closed_loop_verify
+from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors
+from hapticopt.optim.cli.progress import StageLine, make_progress
 import numpy as np
 from hapticopt.design.atomic import atomic_path
 from hapticopt.analysis.prrr import design_map as firmware_map
@@ -85,12 +87,17 @@ def verify(
     sc = _override_controller(sc, period_ms, force_gain)
     if plots is not None:
         writable_dir(plots, "--plots")
-    result = closed_loop_verify.simulate(design, sc, fidelity=level, backend=force)
-    metrics = result.metrics()
-    metrics["resolution_reason"] = metrics.get("backend_reason", "")
-    metrics["notes"] = list(result.notes)
-    if sc.stability == StabilityCriterion.DECAY and metrics["backend"] == "lumped":  # also map its Z-width
-        metrics.update(zwidth.zwidth_map(design, sc, fidelity=level).metrics())
+    err = render.console(stderr=True)
+    with make_progress(err, transient=True, disable=as_json or not err.is_terminal) as bar:
+        line = StageLine(bar, "simulate")
+        line.note(f"{design.name} in {sc.name} at {level} fidelity")
+        result = closed_loop_verify.simulate(design, sc, fidelity=level, backend=force)
+        metrics = result.metrics()
+        metrics["resolution_reason"] = metrics.get("backend_reason", "")  # its older name, kept for --json users
+        metrics["notes"] = list(result.notes)
+        if sc.stability == StabilityCriterion.DECAY and metrics["backend"] == "lumped":  # also map its Z-width
+            line.stage("z-width", 1, "stable region over wall stiffness × damping")
+            metrics.update(zwidth.zwidth_map(design, sc, fidelity=level).metrics())
     written = _plot(result, plots, sc.name) if plots is not None else []
     if as_json:
         typer.echo(json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
@@ -98,14 +105,37 @@ def verify(
                                "plots": [str(p) for p in written]}, indent=2))
         _exit_on_verdict(result, sc.name)
         return
-    for k, v in metrics.items():
-        if k.startswith("zwidth_stable") and isinstance(v, list):
-            continue
-        typer.echo(f"{k:32s} {v}")
-    typer.echo(f"status: {result.status}" + (f" — {result.message}" if result.message else ""))
-    for p in written:
-        typer.echo(f"wrote {p}")
+    _print_verify(design.name, sc.name, level, metrics, str(result.status), result.message, written)
     _exit_on_verdict(result, sc.name)
+
+
+#: verify keys shown as lines of their own, not in the metric table (resolution_reason: backend_reason's
+#: older name, kept in --json only)
+_OWN_LINES = ("backend", "backend_reason", "resolution_reason", "effects", "notes", "paper_quantity", "paper_axes",
+              "paper_metric", "paper_value", "paper_source")
+
+
+def _print_verify(design: str, scene: str, level: Fidelity, metrics: dict[str, Any], status: str, message: str,
+                  written: list[Path]) -> None:
+    console = render.console()
+    console.print(f"{design} in scene {scene} ({level} fidelity, {metrics.get('backend', '?')} backend)")
+    if metrics.get("backend_reason"):
+        console.print(f"backend: {metrics['backend_reason']}")
+    if metrics.get("effects"):
+        console.print(f"effects: {render.value(metrics['effects'])}")
+    shown = {k: v for k, v in metrics.items() if k not in _OWN_LINES
+             and not (k.startswith("zwidth_stable") and isinstance(v, list))}  # the map's cells: --json
+    console.print(render.metrics_table(None, shown))
+    if "paper_quantity" in metrics:
+        q = str(metrics["paper_quantity"])
+        axes = f" along {metrics['paper_axes']}" if metrics.get("paper_axes") else ""
+        console.print(f"paper: {q}{axes} = {render.metric(q, metrics.get('paper_metric'))} here, "
+                      f"{render.metric(q, metrics.get('paper_value'))} in {metrics.get('paper_source', 'the paper')}")
+    for note in metrics.get("notes") or []:
+        console.print(f"note: {note}")
+    console.print(f"status: {status}" + (f" — {message}" if message else ""))
+    for p in written:
+        console.print(f"wrote {p}")
 
 
 def _exit_on_verdict(result: Any, scene: str) -> None:
