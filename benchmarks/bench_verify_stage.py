@@ -1,8 +1,8 @@
 """The pipeline's verify stage (issue 22 target: ≤ 2 s for `hapticopt optimise prrr-workspace`, the
 `make run` problem): its three scenes on the recorded optimum, side by side in one process —
 
-* ``process_per_scene``: the previous implementation (a spawned process per scene, copied here as the
-  reference), ≈ 2.5 s of start-up per scene;
+* ``process_per_scene``: the previous implementation (a spawned process per scene), ≈ 2.5 s of
+  start-up per scene;
 * ``worker_cold``: :func:`hapticopt.optim.pipeline._verify` starting its one worker inside the stage;
 * ``worker_warm``: the stage as the pipeline runs it, the worker started before the optimisation
   (its imports overlap with it), so the stage pays for the simulations only.
@@ -13,50 +13,28 @@ docs/performance.md (medians of 5, interleaved).
 
 from __future__ import annotations
 
-import multiprocessing
 import os
-import queue as queue_mod
 import statistics
 import time
 from pathlib import Path
 
-import pytest
 
 from hapticopt.design import io
 from hapticopt.optim import pipeline
-from hapticopt.optim.executor import watch_parent
+from hapticopt.optim.worker import SupervisedWorker
 from hapticopt.optim.problem import load_problem
 
 OPTIMUM = Path(__file__).resolve().parents[1] / "tests" / "optim" / "data" / "prrr-workspace-optimum.toml"
 TARGET_S = 2.0
 
 
-def _old_child(design, scene, fidelity, q, parent_pid):
-    watch_parent(parent_pid)
-    try:
-        result = pipeline.run_scene(design, scene, fidelity)
-        q.put(("ok", pipeline.jsonable(result.metrics()), ""))
-    except Exception as exc:  # noqa: BLE001
-        q.put(("error", {}, f"{type(exc).__name__}: {exc}"))
-
-
 def process_per_scene(design, scenes, fidelity, max_time_s):
-    """The verify stage before issue 22 (optim/pipeline.py ``_run_scene_limited``), for comparison."""
+    """The verify stage before issue 22 (a spawned process per scene: start-up, imports, one scene), for
+    comparison: a fresh worker per scene costs the same."""
     out = []
     for scene in scenes:
-        ctx = multiprocessing.get_context("spawn")
-        q = ctx.Queue()
-        proc = ctx.Process(target=_old_child, args=(design, scene, fidelity, q, os.getpid()), daemon=True)
-        proc.start()
-        try:
-            out.append(q.get(timeout=max_time_s))
-        except queue_mod.Empty:
-            out.append(("timeout", {}, ""))
-        finally:
-            if proc.is_alive():
-                proc.kill()
-            proc.join(5)
-            q.close()
+        with SupervisedWorker() as w:
+            out.append(w.call(pipeline._scene_task, (design, scene, fidelity, None), timeout_s=max_time_s))
     return out
 
 
@@ -69,7 +47,7 @@ def measure(rounds: int = 5) -> dict[str, list[float]]:
         t = time.perf_counter()
         old = process_per_scene(design, scenes, fid, limit)
         times["process_per_scene"].append(time.perf_counter() - t)
-        assert all(k == "ok" for k, _, _ in old)
+        assert all(o.kind == "ok" for o in old)
         t = time.perf_counter()
         _, verdicts = pipeline._verify(design, scenes, Path("."), fid, limit)
         times["worker_cold"].append(time.perf_counter() - t)
