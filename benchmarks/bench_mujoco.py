@@ -84,3 +84,40 @@ def test_master_wall(benchmark):
     benchmark.pedantic(lambda: out.append(mujoco_master.simulate(master, scene)), rounds=3, iterations=1)
     wall = statistics.median(r.wall_time for r in out)
     benchmark.extra_info.update(real_time_factor=scene.duration / wall, wall_s=wall, load_average=os.getloadavg()[0])
+
+
+def _master_loop_and_raw(fidelity: Fidelity, rounds: int = 5) -> tuple[list[float], list[float]]:
+    """The master-wall closed loop (``MasterPlant.run``) and raw ``mj_step`` of the same model for the same
+    ticks and substeps, interleaved: (loop walls, raw walls) [s]."""
+    from hapticopt.analysis.master import mujoco_plant as mm
+    from hapticopt.analysis.loop.scene import Effect, resolve
+
+    master = io.load_preset("master-paper")
+    scene = load_scene("master-wall")
+    res = resolve(scene)
+    T = scene.controller.period
+    plant = mm.MasterPlant(master, scene, res, period=T, fidelity=fidelity)
+    ctl = mm.controller_for(master, scene, res, plant.x0, plant.q0, T)
+    N = int(round(scene.duration / T))
+    loop, raw = [], []
+    for _ in range(rounds):
+        t0 = time.perf_counter()
+        plant.run(ctl, ticks=N, frequency=scene.motion.frequency, quantize=Effect.QUANTIZATION in res.effects)
+        loop.append(time.perf_counter() - t0)
+        plant.reset()
+        m, d = plant.model, plant.data
+        t0 = time.perf_counter()
+        for _ in range(N):
+            mujoco.mj_step(m, d, nstep=plant.substeps)
+        raw.append(time.perf_counter() - t0)
+    return loop, raw
+
+
+@pytest.mark.parametrize("fidelity", [Fidelity.DRAFT, Fidelity.STANDARD], ids=lambda f: f.value)
+def test_master_loop_overhead(benchmark, fidelity):
+    """The master's closed loop over raw mj_step on the same model (issue 22 target ≤ 1.10×, not met: the
+    Python controller, docs/performance.md), side by side."""
+    out = benchmark.pedantic(lambda: _master_loop_and_raw(fidelity), rounds=1, iterations=1)
+    loop, raw = (statistics.median(x) for x in out)
+    benchmark.extra_info.update(loop_s=loop, raw_mj_step_s=raw, loop_overhead=loop / raw,
+                                load_average=os.getloadavg()[0])

@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -30,14 +29,13 @@ from hapticopt.analysis.registry import EVALUATORS, describe_failure, evaluate_a
 from hapticopt.design.paths import inside
 from hapticopt.optim.driver import SMOOTH_SURROGATES
 from hapticopt.analysis.loop.scene import load_scene
-import multiprocessing
-import queue as queue_mod
 from hapticopt.optim.reaper import children_die_with_this_process
 from hapticopt.optim.recorder import Recorder, check_run_dir, run_lock
 from hapticopt.optim.runs import problem_info
 from hapticopt.design.atomic import file_set, remove_stale_temp_files
 from hapticopt.design.paths import writable_dir
-from hapticopt.optim.executor import check_scheduler, make_executor, watch_parent
+from hapticopt.optim.executor import check_scheduler, make_executor
+from hapticopt.optim.worker import SupervisedWorker
 from hapticopt.optim import driver, pareto, pareto_report, report
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, TimeHistory, Verdict
 from hapticopt.design import export as design_export
@@ -119,58 +117,59 @@ def verdict_of(metrics: dict[str, Any]) -> tuple[bool, str]:
     return True, "stable" + (f", stiffness error {err:.3g} %" if isinstance(err, (int, float)) else "")
 
 
-def _scene_worker(design: Any, scene: str, fidelity: Fidelity, queue: Any, verifier: Any, parent_pid: int) -> None:
-    """Child process: run one scene, send back (metrics, message, time history) or an error line."""
-    watch_parent(parent_pid)
-    try:
-        result = verifier(design, scene) if verifier is not None else run_scene(design, scene, fidelity)
-        history = TimeHistory.from_traces(getattr(result, "traces", None))
-        queue.put(("ok", jsonable(result.metrics()), str(getattr(result, "message", "")), history))
-    except Exception as exc:  # noqa: BLE001 - sent to the parent as a failed verdict
-        queue.put(("error", {}, f"{type(exc).__name__}: {exc}", None))
+def _scene_task(design: Any, scene: str, fidelity: Fidelity, verifier: Any
+                ) -> tuple[dict[str, Any], str, TimeHistory | None]:
+    """In the verification worker: one scene → (metrics, message, time history for the report)."""
+    result = verifier(design, scene) if verifier is not None else run_scene(design, scene, fidelity)
+    history = TimeHistory.from_traces(getattr(result, "traces", None))
+    return jsonable(result.metrics()), str(getattr(result, "message", "")), history
 
 
-def _run_scene_limited(design: Any, scene: str, fidelity: Fidelity, max_time_s: float, verifier: Any = None
-                       ) -> tuple[str, dict[str, Any], str, TimeHistory | None]:
-    """Run one scene in a child process that is killed after ``max_time_s`` (a hung or very slow
-    simulation must not hold up the pipeline)."""
+def warm_verification() -> None:
+    """In the verification worker, once at its start: the imports (this module's) and jax's runtime."""
+    from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+    import jax.numpy as jnp
 
-    ctx = multiprocessing.get_context("spawn")
-    q = ctx.Queue()
-    proc = ctx.Process(target=_scene_worker, args=(design, scene, fidelity, q, verifier, os.getpid()),
-                       daemon=True)
-    proc.start()
-    try:
-        return q.get(timeout=max_time_s)
-    except queue_mod.Empty:
-        return ("timeout", {}, f"no result within {max_time_s:g} s (verify.max_time_s): the simulation was stopped",
-                None)
-    finally:
-        if proc.is_alive():
-            proc.kill()
-        proc.join(5)
-        q.close()
+    jnp.zeros(1).block_until_ready()
+
+
+def verification_worker() -> SupervisedWorker:
+    """The one process the verify stage runs its scenes in (:mod:`hapticopt.optim.worker`)."""
+    return SupervisedWorker(warm=warm_verification)
 
 
 def _verify(design: Any, scenes: tuple[str, ...], out_dir: Path, fidelity: Fidelity, max_time_s: float,
-            verifier: Callable[[Any, str], Any] | None = None,
+            verifier: Callable[[Any, str], Any] | None = None, worker: SupervisedWorker | None = None,
             on_step: StepFn | None = None) -> tuple[StageOutcome, tuple[Verdict, ...]]:
+    """Each scene in turn in one long-lived child process (``worker``, started here if not given),
+    ``max_time_s`` each: a scene that hangs is killed there, one that crashes the process (a segfault,
+    the OOM killer) fails its verdict, and the next scene gets a fresh process."""
     t0 = time.perf_counter()
     if not scenes:
         return StageOutcome(name="verify", status="skipped", message="the problem names no scenes"), ()
+    own = worker is None
+    worker = verification_worker() if worker is None else worker
     verdicts = []
-    for k, scene in enumerate(scenes):
+    try:
+        for k, scene in enumerate(scenes):
+            if on_step is not None:
+                on_step(scene, k, len(scenes))
+            o = worker.call(_scene_task, (design, scene, fidelity, verifier), timeout_s=max_time_s)
+            history = None
+            if o.kind == "ok":
+                metrics, message, history = o.value
+                passed, why = verdict_of(metrics)
+                message = "; ".join(m for m in (why, message) if m)
+            else:
+                metrics, passed = {}, False
+                message = (f"no result within {max_time_s:g} s (verify.max_time_s): the simulation was stopped"
+                           if o.kind == "timeout" else o.message)
+            verdicts.append(Verdict(scene=scene, passed=passed, metrics=metrics, message=message, history=history))
         if on_step is not None:
-            on_step(scene, k, len(scenes))
-        kind, metrics, message, history = _run_scene_limited(design, scene, fidelity, max_time_s, verifier)
-        if kind == "ok":
-            passed, why = verdict_of(metrics)
-            message = "; ".join(m for m in (why, message) if m)
-        else:
-            passed = False
-        verdicts.append(Verdict(scene=scene, passed=passed, metrics=metrics, message=message, history=history))
-    if on_step is not None:
-        on_step("", len(scenes), len(scenes))
+            on_step("", len(scenes), len(scenes))
+    finally:
+        if own:
+            worker.close()
     n_pass = sum(v.passed for v in verdicts)
     return (StageOutcome(name="verify", status=f"{n_pass}/{len(verdicts)} passed", wall_s=time.perf_counter() - t0),
             tuple(verdicts))
@@ -198,7 +197,7 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     ``progress`` reports the optimiser's evaluations.
 
     ``verifier(design, scene_name) -> result with .metrics()`` replaces the closed-loop runner
-    :func:`run_scene` (a module-level function: it runs in a child process). An existing record
+    :func:`run_scene` (a module-level function: it runs in the verification child process). An existing record
     in ``out_dir`` is continued with ``resume``, replaced with ``force``, and otherwise refused.
     """
     check_run_dir(out_dir, resume=resume, force=force)
@@ -207,11 +206,14 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     check_scheduler(scheduler)
     out = writable_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with run_lock(out), children_die_with_this_process():
+    with run_lock(out), children_die_with_this_process(), verification_worker() as verify_worker:
         remove_stale_temp_files(out)
+        if verify and problem.scenes:
+            verify_worker.start()  # now: its imports overlap with the optimisation, not the verify stage
         return _run_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
                            progress=progress,
-                           export=export, verify=verify, on_stage=on_stage, verifier=verifier, on_step=on_step)
+                           export=export, verify=verify, on_stage=on_stage, verifier=verifier, on_step=on_step,
+                           verify_worker=verify_worker)
 
 
 def _baseline_payload(ev: DesignEvaluation) -> dict[str, Any]:
@@ -239,7 +241,8 @@ def _recorded_evaluation(rec: Recorder, design: Any, fidelity: Fidelity, name: s
 
 def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str, workers: int | None,
                 progress: ProgressFn | None, export: bool, verify: bool, on_stage: Callable[[str], None] | None,
-                verifier: Callable[[Any, str], Any] | None, on_step: StepFn | None = None) -> PipelineResult:
+                verifier: Callable[[Any, str], Any] | None, on_step: StepFn | None = None,
+                verify_worker: SupervisedWorker | None = None) -> PipelineResult:
     stages: list[StageOutcome] = []
     files: dict[str, str] = {}
 
@@ -338,7 +341,7 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
     if verify:
         t = stage("verify")
         vs, verdicts = _verify(optimum_design, problem.scenes, out, problem.fidelity_verify,
-                                   problem.verify_max_time_s, verifier, on_step)
+                               problem.verify_max_time_s, verifier, verify_worker, on_step)
         stages.append(dataclasses.replace(vs, wall_s=time.perf_counter() - t))
 
     t = stage("report")

@@ -3,7 +3,7 @@
     PYTHONPATH=... python scripts/kill_resume.py [N_KILLS] [SEED] [STAGE,STAGE,...] [MAX_DELAY_S]
 
 For each kill: a fresh run directory; the pipeline (tests/optim/data/pipeline_run.py --export:
-baseline, optimise on a 2-worker pool, final, plots, export, verification in a child process,
+baseline, optimise on a 2-worker pool, final, plots, export, verification in its worker process,
 report) is killed with SIGKILL a random 0–1.5 s after a stage begins (the stages in turn, so
 every stage is hit; "start" is the process start, before the run directory exists); then resumed
 to the end. Checked: children gone within 5 s, the resumed result equal to the uninterrupted one,

@@ -91,6 +91,14 @@ def master_xml(design: MasterDesign, res: Resolution, scene: Scene, solver: Solv
     return xml
 
 
+def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
+    """``idx`` as a slice when it is a contiguous ascending run (a slice reads and writes without a copy)."""
+    idx = np.asarray(idx)
+    if idx.size and np.all(np.diff(idx) == 1):
+        return slice(int(idx[0]), int(idx[-1]) + 1)
+    return idx
+
+
 def start_pose(design: MasterDesign) -> np.ndarray:
     """Calibration / start pose of the master scenes: the middle of the θ3 and φ ranges (issue 5)."""
 
@@ -161,9 +169,12 @@ class MasterPlant:
         qa = self.act_qpos
         q0 = self.q0
 
+        qpos_ = d.qpos
+        rint = np.rint  # what np.round does at 0 decimals, without its wrapper
+
         def counts() -> np.ndarray:
-            c = (d.qpos[qa] - q0) * scale
-            return np.round(c) if quantize else c
+            c = (qpos_[qa] - q0) * scale
+            return rint(c) if quantize else c
 
         controller.reset(counts())
         mo = self.scene.motion
@@ -186,28 +197,45 @@ class MasterPlant:
             eq_type = int(mj.mjtConstraint.mjCNSTR_EQUALITY)
         stop = -1
         n = self.n_closure
+        # per tick only raw values are copied into preallocated rows; views and slices are made once
+        qpos, qvel, qacc, ctrl = d.qpos, d.qvel, d.qacc, d.ctrl
+        xsite = d.site_xpos[self.site]  # a view: MuJoCo updates it in place
+        EFR = np.zeros((N, n))  # closure residual rows (|·|.max per tick after the loop)
+        has_ef = np.zeros(N, dtype=bool)
+        if self.hand:
+            hq, hd = _as_slice(hq), _as_slice(hd)
+            qs, qfa = m.qpos_spring, d.qfrc_applied
+        hand_rows: slice | np.ndarray | None = None  # efc rows of the hand's connect
+        hand_ne = -1  # d.ne they were found at
+        step = mj.mj_step
+        substeps = self.substeps
         for k in range(N):
             cmd = controller.step(counts())
             if delay:
                 delay.append(cmd)
                 cmd = delay.pop(0)
-            d.ctrl[:] = cmd[0]
+            ctrl[:] = cmd[0]
             if self.hand:
-                m.qpos_spring[hq] = REF[k]
-                d.qfrc_applied[hd] = DREF[k]
-            mj.mj_step(m, d, nstep=self.substeps)
-            P[k] = d.site_xpos[self.site]
-            V[k] = d.qvel[hd] if self.hand else 0.0
+                qs[hq] = REF[k]
+                qfa[hd] = DREF[k]
+            step(m, d, substeps)
+            P[k] = xsite
             TAU[k] = cmd[0]
             FREF[k] = controller.last_force
-            if d.efc_pos.shape[0] >= n:
-                EF[k] = np.abs(d.efc_pos[:n]).max()
+            efc_pos = d.efc_pos
+            if efc_pos.shape[0] >= n:
+                EFR[k] = efc_pos[:n]
+                has_ef[k] = True
             clock[k] = d.time
             if self.hand:
-                HQ[k], HV[k], HA[k] = d.qpos[hq], d.qvel[hd], d.qacc[hd]
-                rows = np.nonzero((d.efc_type == eq_type) & (d.efc_id == eq_hand))[0]
-                if rows.size == 3:  # the connect's force on the hand (body1); the handle feels its opposite
-                    EQF[k] = -d.efc_force[rows]
+                HQ[k], HV[k], HA[k] = qpos[hq], qvel[hd], qacc[hd]
+                ne = d.ne
+                if ne != hand_ne:  # the equality rows lead efc in equality order: found again when they change
+                    rows = np.nonzero((d.efc_type == eq_type) & (d.efc_id == eq_hand))[0]
+                    hand_rows = _as_slice(rows) if rows.size == 3 else None
+                    hand_ne = ne
+                if hand_rows is not None:  # the connect's force on the hand (body1); the handle feels its opposite
+                    EQF[k] = -d.efc_force[hand_rows]
             if k % 100 == 99 or k == N - 1:
                 lo = max(0, k - 99)
                 bad = (~np.all(np.isfinite(P[lo:k + 1]), axis=-1)
@@ -216,6 +244,8 @@ class MasterPlant:
                 if bad.any():
                     stop = lo + int(np.argmax(bad))
                     break
+        if n:
+            EF[has_ef] = np.abs(EFR[has_ef]).max(axis=-1)
         if self.hand:
             # the hand's force on the handle: the hand connect's constraint force, at the same instant as
             # the recorded handle position (kinematics and efc_force of the last substep's start). The

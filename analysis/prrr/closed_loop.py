@@ -20,14 +20,16 @@ cycle), and for decay scenes energy growth between the last two windows.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from threadpoolctl import ThreadpoolController
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.prrr import firmware, statics as prrr_statics
@@ -35,6 +37,7 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr.lumped_plant import (
     FRICTION_ITERS,
     LumpedModel,
+    PlantMode,
     build_model,
     discretise,
     observables,
@@ -287,24 +290,224 @@ def report_value(report: Any, tr: Traces, sl: slice, b: int, stiffness_error: fl
 def observation_matrix(m: LumpedModel) -> tuple[np.ndarray, np.ndarray]:
     """(O, o0) with [p, ṗ, F_hand, F_act] = [x, u, λ] O + o0, from :func:`lumped_plant.observables`."""
     n = m.n
+    Z = np.vstack([np.zeros(n + 6), np.eye(n + 6)])  # the origin, then every unit vector: one batched call
+    y = np.concatenate(observables(m, Z[:, :n], Z[:, n:n + 3], Z[:, n + 3:])[:4], axis=-1)
+    return y[1:] - y[0], y[0]
 
-    def at(z: np.ndarray) -> np.ndarray:
-        return np.concatenate(observables(m, z[:n], z[n:n + 3], z[n + 3:])[:4])
 
-    o0 = at(np.zeros(n + 6))
-    O = np.stack([at(e) - o0 for e in np.eye(n + 6)])
-    return O, o0
+@dataclass(frozen=True)
+class LoopStructure:
+    """What a compiled closed loop depends on besides numbers: the static shapes, flags and the effects
+    switched on (hashable; one compiled chunk per value, :func:`compiled_chunk`).
+
+    Everything numeric (the discretised plant, the observation matrix, the energy form, J, the friction
+    limits, the explosion threshold, the gains, the period and the velocity-filter pole) is an argument of
+    the compiled function, never a constant in it: a second design, scene duration (same chunk) or gain
+    set with the same structure reuses the compiled loop.
+    """
+
+    cfg: firmware.FirmwareConfig  # period 0 and velocity_alpha 0/1 (whether the filter exists): both arguments
+    mode: str  # lumped_plant.PlantMode
+    n: int  # plant states
+    out_pos: tuple[int, int] | None  # slices as (start, stop)
+    out_vel: tuple[int, int] | None
+    motor_pos: tuple[int, int] | None
+    friction_rows: int  # rows of the friction map S (0: no Coulomb friction)
+    substeps: int
+    delay_ticks: int
+    quantize: bool
+    record: bool
+    chunk: int  # ticks per compiled call
+    reciprocal: bool  # friction sweeps multiply by 1/G_ii (the period-free design map) instead of dividing
+
+
+def _pair(s: slice | None) -> tuple[int, int] | None:
+    return None if s is None else (s.start, s.stop)
+
+
+def _slice(p: tuple[int, int] | None) -> slice | None:
+    return None if p is None else slice(*p)
+
+
+def structure_of(st: Setup, *, record: bool, chunk: int, period_free: bool = False) -> LoopStructure:
+    """The :class:`LoopStructure` of ``st`` (see :class:`Simulator`)."""
+    m = st.model
+    cfg = dataclasses.replace(st.cfg, period=0.0, velocity_alpha=1.0 if st.cfg.velocity_alpha > 0.0 else 0.0)
+    return LoopStructure(cfg=cfg, mode=str(m.mode), n=m.n, out_pos=_pair(m.out_pos), out_vel=_pair(m.out_vel),
+                         motor_pos=_pair(m.motor_pos),
+                         friction_rows=0 if m.friction_map is None else int(m.friction_map.shape[0]),
+                         substeps=st.substeps, delay_ticks=st.delay_ticks, quantize=st.quantize, record=record,
+                         chunk=chunk, reciprocal=period_free)
+
+
+def loop_constants(st: Setup, disc=None) -> dict[str, Any]:
+    """The numeric arguments of the compiled loop of ``st`` (plant discretised over one substep)."""
+    m = st.model
+    d = discretise(m, st.period / st.substeps) if disc is None else disc
+    f64 = lambda a: np.asarray(a, dtype=np.float64)  # noqa: E731  (numpy: jit takes it as an argument as is)
+    O, o0 = observation_matrix(m)
+    S = m.friction_map
+    factor = 1e6 if st.scene.stability == StabilityCriterion.DECAY else 1e3
+    out = {"AdT": f64(d.Ad.T), "BudT": f64(d.Bud.T), "BldT": f64(d.Bld.T), "cd": f64(d.cd), "O": f64(O),
+           "o0": f64(o0), "Q": f64(m.Q), "J": f64(m.J), "spring": f64(m.spring),
+           "explode": f64(factor * st.energy_scale), "G": None, "ST": None, "limit": None}
+    if S is not None:
+        out.update(G=f64(S @ d.Bld[m.out_vel] @ S.T), ST=f64(S.T),
+                   limit=f64(np.broadcast_to(np.asarray(m.friction_limit, dtype=float), (S.shape[0],))))
+    return out
+
+
+class _PlantView(NamedTuple):
+    """The fields of :class:`LumpedModel` that :func:`sensor_values` reads, with the spring traced."""
+
+    mode: PlantMode
+    out_pos: slice | None
+    motor_pos: slice | None
+    spring: Any
+
+
+#: how often a closed loop was traced (tests: a second run of the same structure must not retrace)
+TRACE_COUNT = {"chunk": 0}
+_COMPILED: dict[LoopStructure, Any] = {}
+
+
+def clear_compiled() -> None:
+    """Forget every compiled loop (tests; a fresh compile of the next run)."""
+    _COMPILED.clear()
+    _COMPILED_INIT.clear()
+
+
+def compiled_chunk(key: LoopStructure):
+    """The jitted ``chunk(gains, consts, carry) -> (carry, outputs)`` of ``key``, built once per process."""
+    fn = _COMPILED.get(key)
+    if fn is None:
+        fn = _COMPILED[key] = jax.jit(_make_chunk(key))
+    return fn
+
+
+def _make_chunk(key: LoopStructure):
+    cfg = key.cfg
+    n_sub, L = key.substeps, cfg.interpolation
+    per = n_sub // L
+    friction = key.friction_rows > 0
+    quantize, record, delay_ticks = key.quantize, key.record, key.delay_ticks
+    mode = PlantMode(key.mode)
+    out_pos, out_vel, motor_pos = _slice(key.out_pos), _slice(key.out_vel), _slice(key.motor_pos)
+    pos_rows = [s for s in (out_pos, motor_pos) if s is not None]
+
+    def advance(c, x, lam, applied):
+        AdT, BudT, BldT, cd = c["AdT"], c["BudT"], c["BldT"], c["cd"]
+
+        def sub(j, carry):
+            x, lam = carry
+            u = applied[:, j // per] if L > 1 else applied[:, 0]
+            xf = x @ AdT + u @ BudT + cd
+            if friction:
+                lam = solve_friction(jnp, xf[:, out_vel] @ c["ST"], c["G"], c["limit"], lam, FRICTION_ITERS,
+                                     divide=not key.reciprocal)
+                xf = xf + (lam @ c["ST"].T) @ BldT
+            return xf, lam
+
+        if n_sub == 1:
+            return sub(0, (x, lam))
+        return jax.lax.fori_loop(0, n_sub, sub, (x, lam))
+
+    def tick(gains, c, carry, _):
+        x, cs, buf, u_last, lam, alive, stop, k = carry
+        view = _PlantView(mode=mode, out_pos=out_pos, motor_pos=motor_pos, spring=c["spring"])
+        slider, defl = sensor_values(view, x, u_last, xp=jnp)
+        sc, dc = slider / gains.resolution, defl / gains.resolution
+        if quantize:
+            sc, dc = jnp.round(sc), jnp.round(dc)
+        cs2, cmd, F = firmware.step(cfg, gains, cs, sc, dc)
+        if delay_ticks:
+            applied = buf[0]
+            buf2 = jnp.concatenate([buf[1:], cmd[None]], axis=0)
+        else:
+            applied, buf2 = cmd, buf
+        x2, lam2 = advance(c, x, lam, applied)
+        u_end = applied[:, -1]
+        energy = 0.5 * jnp.einsum("bi,ij,bj->b", x2, c["Q"], x2)
+        if out_pos is not None:
+            p = x2[:, out_pos] @ c["J"].T
+            energy = energy + 0.5 * jnp.sum(gains.stiffness * p**2, axis=-1)
+        finite = jnp.all(jnp.isfinite(x2), axis=-1)
+        runaway = jnp.zeros_like(finite)
+        for s in pos_rows:
+            runaway = runaway | jnp.any(jnp.abs(x2[:, s]) > 1.0, axis=-1)
+        bad = ~finite | runaway | ~(energy < c["explode"])
+        ok = alive & ~bad
+        keep = lambda new, old: jnp.where(ok.reshape(ok.shape + (1,) * (new.ndim - 1)), new, old)  # noqa: E731
+        x_out = keep(x2, x)
+        # the controller state needs no freeze: with the plant frozen its inputs are constant, so it
+        # stays finite (the integral grows at most linearly) and its commands no longer reach anything
+        cs_out = cs2
+        lam_out = keep(lam2, lam)
+        u_out = keep(u_end, u_last)
+        stop = jnp.where(alive & bad, k, stop)
+        if cfg.saturation:
+            sat = jnp.any(jnp.abs(cmd) >= gains.motor_limit * (1 - 1e-12), axis=(-2, -1)) & ok
+        else:
+            sat = jnp.zeros_like(ok)
+        out = {"energy": jnp.where(ok, energy, 0.0), "saturated": sat}
+        if record:
+            lam_s = lam_out @ c["ST"].T if friction else lam_out  # slider-space friction force
+            y = jnp.concatenate([x_out, u_out, lam_s], axis=-1) @ c["O"] + c["o0"]
+            out.update(position=y[:, 0:3], velocity=y[:, 3:6], hand_force=y[:, 6:9], actuator_force=y[:, 9:12],
+                       force_reference=F)
+        return (x_out, cs_out, buf2, u_out, lam_out, ok, stop, k + 1), out
+
+    def chunk(gains, c, carry):
+        TRACE_COUNT["chunk"] += 1  # Python runs here only while jax traces
+        return jax.lax.scan(lambda cr, _: tick(gains, c, cr, _), carry, None, length=key.chunk, unroll=UNROLL)
+
+    return chunk
+
+
+_COMPILED_INIT: dict[tuple[LoopStructure, int], Any] = {}
+
+
+def compiled_init(key: LoopStructure, batch: int):
+    """The jitted ``init(gains, spring, x0) -> carry`` of ``key`` for ``batch`` controllers."""
+    fn = _COMPILED_INIT.get((key, batch))
+    if fn is None:
+        fn = _COMPILED_INIT[(key, batch)] = jax.jit(_make_init(key, batch))
+    return fn
+
+
+def _make_init(key: LoopStructure, batch: int):
+    mode = PlantMode(key.mode)
+    out_pos, motor_pos = _slice(key.out_pos), _slice(key.motor_pos)
+    L = key.cfg.interpolation
+
+    def init(gains, spring, x0):
+        x = jnp.tile(x0, (batch, 1))
+        u0 = jnp.zeros((batch, 3))
+        slider, _ = sensor_values(_PlantView(mode=mode, out_pos=out_pos, motor_pos=motor_pos, spring=spring),
+                                  x, u0, xp=jnp)
+        sc = slider / gains.resolution
+        if key.quantize:
+            sc = jnp.round(sc)
+        cs = firmware.init_state(key.cfg, gains, sc)
+        buf = jnp.zeros((key.delay_ticks, batch, L, 3)) if key.delay_ticks else jnp.zeros((0,))
+        n_fr = key.friction_rows or 3
+        return (x, cs, buf, u0, jnp.zeros((batch, n_fr)), jnp.ones(batch, dtype=bool),
+                jnp.full(batch, -1), jnp.asarray(0))
+
+    return init
 
 
 class Simulator:
     """Compiled closed loop of one :class:`Setup` on the lumped plant, batched over gains.
 
     ``run(gains)`` takes :class:`hapticopt.analysis.prrr.firmware.Gains` whose entries may carry a leading batch
-    axis (e.g. stiffness (B, 3)); the plant matrices are compiled in as constants.
+    axis (e.g. stiffness (B, 3)). The compiled loop is built once per :class:`LoopStructure` and process
+    (:func:`compiled_chunk`); the plant matrices, gains, period and thresholds are its arguments, so a
+    second Simulator of the same structure (another design, other gains or numbers) neither retraces nor
+    recompiles.
 
-    ``period_free=True`` compiles the period out instead: the discretised plant and the firmware's T
-    (and velocity-filter pole) become arguments, so one compiled loop runs any setup that differs
-    from ``st`` only in the controller period (``run(gains, batch, setup=other)``; the design map).
+    ``period_free=True`` also lets ``run(gains, batch, setup=other)`` run any setup that differs from
+    ``st`` only in the controller period (the design map).
     """
 
     def __init__(self, st: Setup, *, record: bool = True, chunk: int = CHUNK_TICKS, period_free: bool = False) -> None:
@@ -313,97 +516,9 @@ class Simulator:
         self.chunk = min(chunk, st.ticks)
         self.period_free = period_free
         self.disc = discretise(st.model, st.period / st.substeps)
-        fn = self._make_chunk()
-        if period_free:
-            self._chunk_fn = jax.jit(fn)
-        else:
-            mats = self._mats(st, self.disc, traced=False)
-            self._chunk_fn = jax.jit(lambda gains, carry: fn(gains, mats, carry))
-
-    def _mats(self, st: Setup, d, *, traced: bool):
-        """(AdT, BudT, BldT, cd, G) of the plant discretised over one substep of ``st``."""
-        m = st.model
-        G = m.friction_map @ d.Bld[m.out_vel] @ m.friction_map.T if m.friction_map is not None else None
-        mats = tuple(jnp.asarray(a) for a in (d.Ad.T, d.Bud.T, d.Bld.T, d.cd))
-        return mats + ((jnp.asarray(G) if traced and G is not None else G),)
-
-    def _make_chunk(self):
-        st, m, cfg = self.st, self.model, self.st.cfg
-        n_sub, L = st.substeps, cfg.interpolation
-        per = n_sub // L
-        friction = m.friction_map is not None
-        S = m.friction_map
-        ST = jnp.asarray(S.T) if friction else None
-        quantize, record = st.quantize, self.record
-        J = m.J
-        pos_rows = [s for s in (m.out_pos, m.motor_pos) if s is not None]
-        # every recorded observable is affine in [x, u, λ]: one matrix product per tick
-        O, o0 = (jnp.asarray(a) for a in observation_matrix(m))
-
-        def advance(mats, x, lam, applied):
-            AdT, BudT, BldT, cd, G = mats
-
-            def sub(j, carry):
-                x, lam = carry
-                u = applied[:, j // per] if L > 1 else applied[:, 0]
-                xf = x @ AdT + u @ BudT + cd
-                if friction:
-                    lam = solve_friction(jnp, xf[:, m.out_vel] @ ST, G, m.friction_limit, lam, FRICTION_ITERS)
-                    xf = xf + (lam @ ST.T) @ BldT
-                return xf, lam
-
-            if n_sub == 1:
-                return sub(0, (x, lam))
-            return jax.lax.fori_loop(0, n_sub, sub, (x, lam))
-
-        def tick(gains, mats, carry, _):
-            x, cs, buf, u_last, lam, alive, stop, k = carry
-            slider, defl = sensor_values(m, x, u_last, xp=jnp)
-            sc, dc = slider / gains.resolution, defl / gains.resolution
-            if quantize:
-                sc, dc = jnp.round(sc), jnp.round(dc)
-            cs2, cmd, F = firmware.step(cfg, gains, cs, sc, dc)
-            if st.delay_ticks:
-                applied = buf[0]
-                buf2 = jnp.concatenate([buf[1:], cmd[None]], axis=0)
-            else:
-                applied, buf2 = cmd, buf
-            x2, lam2 = advance(mats, x, lam, applied)
-            u_end = applied[:, -1]
-            energy = 0.5 * jnp.einsum("bi,ij,bj->b", x2, m.Q, x2)
-            if m.out_pos is not None:
-                p = x2[:, m.out_pos] @ J.T
-                energy = energy + 0.5 * jnp.sum(gains.stiffness * p**2, axis=-1)
-            finite = jnp.all(jnp.isfinite(x2), axis=-1)
-            runaway = jnp.zeros_like(finite)
-            for s in pos_rows:
-                runaway = runaway | jnp.any(jnp.abs(x2[:, s]) > 1.0, axis=-1)
-            bad = ~finite | runaway | ~(energy < self.explode)
-            ok = alive & ~bad
-            keep = lambda new, old: jnp.where(ok.reshape(ok.shape + (1,) * (new.ndim - 1)), new, old)  # noqa: E731
-            x_out = keep(x2, x)
-            # the controller state needs no freeze: with the plant frozen its inputs are constant, so it
-            # stays finite (the integral grows at most linearly) and its commands no longer reach anything
-            cs_out = cs2
-            lam_out = keep(lam2, lam)
-            u_out = keep(u_end, u_last)
-            stop = jnp.where(alive & bad, k, stop)
-            if cfg.saturation:
-                sat = jnp.any(jnp.abs(cmd) >= gains.motor_limit * (1 - 1e-12), axis=(-2, -1)) & ok
-            else:
-                sat = jnp.zeros_like(ok)
-            out = {"energy": jnp.where(ok, energy, 0.0), "saturated": sat}
-            if record:
-                lam_s = lam_out @ ST.T if friction else lam_out  # slider-space friction force
-                y = jnp.concatenate([x_out, u_out, lam_s], axis=-1) @ O + o0
-                out.update(position=y[:, 0:3], velocity=y[:, 3:6], hand_force=y[:, 6:9], actuator_force=y[:, 9:12],
-                           force_reference=F)
-            return (x_out, cs_out, buf2, u_out, lam_out, ok, stop, k + 1), out
-
-        def chunk(gains, mats, carry):
-            return jax.lax.scan(lambda c, _: tick(gains, mats, c, _), carry, None, length=self.chunk, unroll=UNROLL)
-
-        return chunk
+        self.structure = structure_of(st, record=record, chunk=self.chunk, period_free=period_free)
+        self._consts = loop_constants(st, self.disc)
+        self._chunk_fn = compiled_chunk(self.structure)
 
     @property
     def model(self) -> LumpedModel:
@@ -415,19 +530,8 @@ class Simulator:
         return factor * self.st.energy_scale
 
     def initial_carry(self, gains: firmware.Gains, batch: int):
-        st, m = self.st, self.st.model
-        x = jnp.tile(jnp.asarray(m.x0), (batch, 1))
-        u0 = jnp.zeros((batch, 3))
-        slider, _ = sensor_values(m, x, u0, xp=jnp)
-        sc = slider / gains.resolution
-        if st.quantize:
-            sc = jnp.round(sc)
-        cs = firmware.init_state(st.cfg, gains, sc)
-        L = st.cfg.interpolation
-        buf = jnp.zeros((st.delay_ticks, batch, L, 3)) if st.delay_ticks else jnp.zeros((0,))
-        n_fr = 3 if m.friction_map is None else m.friction_map.shape[0]
-        return (x, cs, buf, u0, jnp.zeros((batch, n_fr)), jnp.ones(batch, dtype=bool),
-                jnp.full(batch, -1), jnp.asarray(0))
+        """The loop's state at power-up for ``batch`` controllers (compiled once per structure and batch)."""
+        return compiled_init(self.structure, batch)(gains, self._consts["spring"], np.asarray(self.st.model.x0))
 
     def run(self, gains: firmware.Gains | None = None, batch: int = 1, *, setup: Setup | None = None) -> Traces:
         """Run the scene's duration; stops between chunks once every batch element is unstable.
@@ -436,27 +540,23 @@ class Simulator:
         """
         st = self.st if setup is None else setup
         gains = st.gains if gains is None else gains
-        if self.period_free:
-            if st.cfg != dataclasses.replace(self.st.cfg, period=st.cfg.period, velocity_alpha=st.cfg.velocity_alpha) \
-                    or (st.substeps, st.delay_ticks, st.quantize) != (self.st.substeps, self.st.delay_ticks,
-                                                                      self.st.quantize) \
-                    or (st.cfg.velocity_alpha > 0.0) != (self.st.cfg.velocity_alpha > 0.0):
-                raise ValueError("Simulator.run(setup=…): the setup differs from the compiled one in more than the period")
-            d = self.disc if setup is None else discretise(st.model, st.period / st.substeps)
-            mats = self._mats(st, d, traced=True)
-            gains = gains._replace(period=jnp.asarray(st.period), velocity_alpha=jnp.asarray(st.cfg.velocity_alpha))
-            step = lambda g, c: self._chunk_fn(g, mats, c)  # noqa: E731
-        else:
-            if setup is not None:
+        consts = self._consts
+        if setup is not None:
+            if not self.period_free:
                 raise ValueError("Simulator.run(setup=…) needs period_free=True")
-            step = self._chunk_fn
+            if st.cfg != dataclasses.replace(self.st.cfg, period=st.cfg.period, velocity_alpha=st.cfg.velocity_alpha) \
+                    or structure_of(st, record=self.record, chunk=self.chunk, period_free=True) != self.structure:
+                raise ValueError("Simulator.run(setup=…): the setup differs from the compiled one in more than the period")
+            consts = loop_constants(st) | {"explode": consts["explode"]}
+        gains = gains._replace(period=np.float64(st.period), velocity_alpha=np.float64(st.cfg.velocity_alpha))
+        step = lambda g, c: self._chunk_fn(g, consts, c)  # noqa: E731
         carry = self.initial_carry(gains, batch)
         outs = []
         n_chunks = math.ceil(st.ticks / self.chunk)
         for _ in range(n_chunks):
             carry, out = step(gains, carry)
             outs.append(out)
-            if not bool(jnp.any(carry[5])):
+            if not np.asarray(carry[5]).any():  # every batch element has stopped
                 break
         cat = {k: np.concatenate([np.asarray(o[k]) for o in outs])[: st.ticks] for k in outs[0]}
         N = cat["energy"].shape[0]
@@ -509,9 +609,20 @@ def run_with_plant(plant: Plant, controller: firmware.FirmwareController, st: Se
     return Traces(period=st.period, energy=energy, saturated=sat, stop_tick=np.array([stop]), **rec)
 
 
+@functools.lru_cache(maxsize=1)
+def _blas() -> ThreadpoolController:
+    return ThreadpoolController()  # once: it enumerates the loaded BLAS libraries (≈ 0.2 ms)
+
+
 def simulate_lumped(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD) -> ClosedLoopResult:
-    """The scene on the lumped SEA plant, fused with the firmware in one compiled loop."""
-    st = setup(design, scene, fidelity=fidelity)
-    t0 = time.perf_counter()
-    tr = Simulator(st).run()
-    return metrics_from_traces(tr, st, 0, wall_time=time.perf_counter() - t0)
+    """The scene on the lumped SEA plant, fused with the firmware in one compiled loop.
+
+    The host-side work (plant matrices, the fit in the metrics) is on matrices of at most 3000 × 3: BLAS
+    runs single-threaded here, since threads woken for them spin against the next calls on a loaded
+    2-core machine (measured: 15–30 ms per call, more than the 12 ms simulation; docs/performance.md).
+    """
+    with _blas().limit(limits=1, user_api="blas"):
+        st = setup(design, scene, fidelity=fidelity)
+        t0 = time.perf_counter()
+        tr = Simulator(st).run()
+        return metrics_from_traces(tr, st, 0, wall_time=time.perf_counter() - t0)

@@ -155,7 +155,8 @@ def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: f
     )
     J = np.asarray(jacobian(design.geometry.beta, xp=np))
     limit = a.force_limit if loop == ForceLoop.IDEAL else a.force_limit / a.efficiency
-    f64 = lambda v: jnp.asarray(v, dtype=jnp.float64)  # noqa: E731
+    # numpy float64: jitted steps take them as arguments as is (no per-entry device transfer here)
+    f64 = lambda v: np.asarray(v, dtype=np.float64)  # noqa: E731
     gains = Gains(
         J=f64(J), resolution=f64(a.encoder_resolution), spring=f64(a.spring), efficiency=f64(a.efficiency),
         stiffness=f64(env.stiffness), damping=f64(env.damping), anchor=f64(env.anchor), half_size=f64(env.half_size),

@@ -73,13 +73,16 @@ class NumpyController:
             return self._step_scalar(slider_counts, deflection_counts)
         return self.step_generic(slider_counts, deflection_counts)
 
-    def _step_scalar(self, slider_counts: np.ndarray, deflection_counts: np.ndarray) -> np.ndarray:
-        """:meth:`step_generic` on Python floats (interpolation 1, no outside-box walls)."""
+    def _step_scalar(self, slider_counts: np.ndarray | list[float], deflection_counts: np.ndarray | list[float]
+                     ) -> np.ndarray:
+        """:meth:`step_generic` on Python floats (interpolation 1, no outside-box walls); the counts may come
+        as Python lists (the MuJoCo loop passes them so, saving two conversions per tick)."""
         cfg = self.cfg
         if not self._ready:
             self.reset(slider_counts)
         T, r, J = cfg.period, self._res, self._Jl
-        sc = [c * r for c in np.asarray(slider_counts, dtype=np.float64).tolist()]
+        sl = slider_counts if type(slider_counts) is list else np.asarray(slider_counts, dtype=np.float64).tolist()
+        sc = [c * r for c in sl]
         p = [sc[0] * J[i][0] + sc[1] * J[i][1] + sc[2] * J[i][2] for i in range(3)]  # (s·res) @ Jᵀ
         pp, vo = self._sp, self._sv
         a = cfg.velocity_alpha
@@ -114,7 +117,8 @@ class NumpyController:
         lim = self._limit
         if cfg.force_loop == ForceLoop.SEA:
             ks, kp = self._spring, self._kp
-            dc = np.asarray(deflection_counts, dtype=np.float64).tolist()
+            dc = (deflection_counts if type(deflection_counts) is list
+                  else np.asarray(deflection_counts, dtype=np.float64).tolist())
             err = [f_ref[j] - ks * (dc[j] * r) for j in range(3)]
             out = [kp * e for e in err]
             if cfg.integral:

@@ -236,18 +236,26 @@ def discretise(model: LumpedModel, h: float) -> Discrete:
     return Discrete(h=h, Ad=E[:n, :n], Bud=E[:n, n:n + 3], Bld=E[:n, n + 3:n + 6], cd=E[:n, n + 6])
 
 
-def solve_friction(xp, v_free, G, limit, lam0, iters: int):
+def solve_friction(xp, v_free, G, limit, lam0, iters: int, *, divide: bool = False):
     """Box LCP of Coulomb friction, vectorised over leading axes (numpy or jax.numpy as ``xp``).
 
     Find λ ∈ [−F_c, F_c]ᵐ with v = v_free + λ Gᵀ such that λ_i = −F_c·sign(v_i) where v_i ≠ 0
     (maximum dissipation). ``G`` (m, m) maps friction forces to end-of-substep friction-coordinate
     velocities (symmetric positive semi-definite: S M⁻¹ Sᵀ h; singular for the nine R joints of a
     3-DOF platform, where the QP's velocities are still unique). ``limit``: a scalar or (m,).
-    Projected Gauss–Seidel from ``lam0``.
+    Projected Gauss–Seidel from ``lam0``. ``G`` and ``limit`` may be traced arguments of a compiled
+    loop (``limit`` then of shape (m,)); ``divide``: a traced ``G`` still divides by G_ii as the
+    constant path does (bit-for-bit), instead of multiplying by reciprocals read once.
     """
     m = G.shape[0]
-    lim = [float(x) for x in np.broadcast_to(np.asarray(limit, dtype=float), (m,))]
+    if isinstance(limit, (np.ndarray, float, int)):
+        lim = [float(x) for x in np.broadcast_to(np.asarray(limit, dtype=float), (m,))]
+    else:  # a traced (m,) argument
+        lim = [limit[i] for i in range(m)]
     if isinstance(G, np.ndarray):  # constants: divide (bit-for-bit the reference path)
+        step = [lambda vi, i=i: vi / G[i, i] for i in range(m)]
+    elif divide:  # a traced G, divided like the constants
+        G = _Entries([[G[i, j] for j in range(m)] for i in range(m)])
         step = [lambda vi, i=i: vi / G[i, i] for i in range(m)]
     else:  # a traced G (the period-free loop): read its entries and reciprocals once, outside the sweeps
         G = _Entries([[G[i, j] for j in range(m)] for i in range(m)])

@@ -274,7 +274,7 @@ class MujocoPlant:
         if mo_idx is not None:
             S[np.arange(3, 6), mo_idx] = inv_res
             S[np.arange(3, 6), sl_idx] = -inv_res
-        rnd = np.round
+        rnd = np.rint  # what np.round does at 0 decimals, without its wrapper
 
         def counts() -> tuple[np.ndarray, np.ndarray]:
             if not self.ideal:
@@ -296,6 +296,7 @@ class MujocoPlant:
 
         sc, _ = counts()
         controller.reset(sc)
+        direct = not self.ideal and getattr(controller, "scalar", False)
         L = st.cfg.interpolation
         delay: list[np.ndarray] = [np.zeros((L, 3))] * st.delay_ticks
         nq, nv = m.nq, m.nv
@@ -333,8 +334,15 @@ class MujocoPlant:
         while k < N:
             end = min(N, start + check_every)
             for k in range(start, end):
-                sc, dc = counts()
-                cmd = controller.step(sc, dc)
+                if direct:  # both encoders by one product; the scalar controller takes Python lists
+                    y = S @ qpos
+                    if quantize:
+                        y = rnd(y)
+                    yl = y.tolist()
+                    cmd = controller.step(yl[:3], yl[3:])
+                else:
+                    sc, dc = counts()
+                    cmd = controller.step(sc, dc)
                 if delay:
                     delay.append(cmd)
                     cmd = delay.pop(0)

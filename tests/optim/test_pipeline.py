@@ -99,6 +99,26 @@ def test_export_and_verify_stages_call_the_landed_modules(tmp_path, monkeypatch)
     assert res.verdicts[1].history.stopped_at_s == pytest.approx(0.6)  # fake_verifier.STOP_TICK × PERIOD_S
 
 
+def test_verify_scenes_share_one_worker_and_survive_a_crash_and_a_hang(tmp_path, monkeypatch):
+    """Issue 22: the scenes run in one worker process; a scene that segfaults or hangs fails its own verdict
+    only, and the scenes after it run in a fresh process (the safety the process per scene gave)."""
+    monkeypatch.syspath_prepend(str(DATA))
+    import fake_verifier
+
+    from hapticopt.analysis.fidelity import Fidelity
+    from hapticopt.optim.pipeline import _verify, verification_worker
+
+    scenes = ("free-space", "soft-scene", "segfaults", "free-space", "hangs", "free-space")
+    with verification_worker() as w:
+        stage, verdicts = _verify(None, scenes, tmp_path, Fidelity.DRAFT, 3.0, fake_verifier.crashes, w)
+        assert w.starts == 3  # one, then one after the crash, one after the hang
+    assert [v.passed for v in verdicts] == [True, False, False, True, False, True]
+    assert verdicts[1].metrics["stiffness_error_pct"] == 25.0
+    assert verdicts[2].metrics == {} and verdicts[2].message == "the worker process died (killed by SIGSEGV)"
+    assert "no result within 3 s" in verdicts[4].message
+    assert stage.status == "3/6 passed"
+
+
 @pytest.mark.slow
 def test_bundled_prrr_problem_improves_on_the_paper_design(tmp_path):
     import dataclasses

@@ -72,6 +72,7 @@ def test_fused_runner_matches_plain_reference_loop(prrr_paper):
 def test_off_effect_is_not_evaluated(prrr_paper):
     """Instrumentation: terms of switched-off effects are never traced into the compiled loop."""
     sc = dataclasses.replace(load_scene("free-space"), duration=0.01)
+    cl.clear_compiled()  # loops are compiled once per structure and process: trace these afresh
     firmware.TRACE_COUNTS.clear()
     verify.simulate(prrr_paper, _drop(sc, Effect.COULOMB_FRICTION, Effect.GRAVITY, Effect.SATURATION))
     assert not {"friction_compensation", "gravity_compensation", "saturation"} & set(firmware.TRACE_COUNTS)
@@ -83,6 +84,42 @@ def test_off_effect_is_not_evaluated(prrr_paper):
     assert st_off.model.coulomb == 0.0  # off: no friction solve is compiled in
     verify.simulate(prrr_paper, sc)
     assert {"friction_compensation", "gravity_compensation", "saturation"} <= set(firmware.TRACE_COUNTS)
+
+
+def _other_numbers(design):
+    """``design`` with every number the loop uses changed and its structure kept."""
+    return dataclasses.replace(
+        design,
+        actuator=dataclasses.replace(design.actuator, spring=design.actuator.spring * 1.3,
+                                     motor_mass=design.actuator.motor_mass * 0.8),
+        end_effector=dataclasses.replace(design.end_effector, mass=design.end_effector.mass * 1.5))
+
+
+def test_compiled_once_per_structure(prrr_paper):
+    """Issue 22: a second run with other numbers (design, scene stiffness, duration within the same chunk
+    length) reuses the compiled loop, and its result equals a fresh compile bit for bit; another structure
+    (an effect switched off) is compiled anew."""
+    sc = dataclasses.replace(load_scene("stiffness-25"), duration=1.2)  # both runs > cl.CHUNK_TICKS ticks
+    cl.clear_compiled()
+    first = verify.simulate(prrr_paper, sc)
+    traced = cl.TRACE_COUNT["chunk"]
+    assert traced >= 1 and first.stable
+    other_sc = dataclasses.replace(sc, duration=2.0, environment=dataclasses.replace(
+        sc.environment, stiffness=tuple(1.2 * k for k in sc.environment.stiffness)))
+    other = _other_numbers(prrr_paper)
+    reused = verify.simulate(other, other_sc)
+    assert cl.TRACE_COUNT["chunk"] == traced  # no retrace
+    assert reused.rendered_stiffness != pytest.approx(first.rendered_stiffness, rel=1e-3)  # other numbers ran
+    cl.clear_compiled()
+    import jax
+
+    jax.clear_caches()
+    fresh = verify.simulate(other, other_sc)
+    assert cl.TRACE_COUNT["chunk"] == traced + 1
+    for name in ("position", "hand_force", "actuator_force", "force_reference", "energy", "saturated", "stop_tick"):
+        np.testing.assert_array_equal(getattr(reused.traces, name), getattr(fresh.traces, name), err_msg=name)
+    verify.simulate(other, _drop(other_sc, Effect.GRAVITY))
+    assert cl.TRACE_COUNT["chunk"] == traced + 2  # another structure: traced once more
 
 
 def test_sampling_off_converges_to_continuous_time(prrr_paper):

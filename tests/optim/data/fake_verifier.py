@@ -39,3 +39,13 @@ def run_scene(design, scene):
     if scene == "slow-scene":  # a verification that takes a while: a window to kill the pipeline in
         time.sleep(1.0)
     return Result(scene != "unstable-scene", 25.0 if scene == "soft-scene" else 4.0)
+
+
+def crashes(design, scene):
+    """A scene whose simulation kills its process (a segfault in a native library)."""
+    import os
+    import signal
+
+    if scene == "segfaults":
+        os.kill(os.getpid(), signal.SIGSEGV)
+    return run_scene(design, scene)
