@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
-from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
@@ -35,8 +34,6 @@ from hapticopt.design.units import TO_SI
 from hapticopt.analysis.status import Status
 from hapticopt.optim.problem import MetricRef, Variable, design_at
 from hapticopt.design.schema import specs
-from hapticopt.design.prrr.kinematics import PrrrParams
-from hapticopt.analysis.prrr.statics import statics_arrays
 import importlib
 
 
@@ -142,6 +139,10 @@ def _si(design: Any, values: Mapping[str, Any], key: str) -> Any:
 
 def _prrr_statics_jax(design: Any, values: Mapping[str, Any]) -> dict[str, Any]:
     """Differentiable twin of :func:`hapticopt.analysis.prrr.statics.evaluate` (same names and units)."""
+    # jax-based modules, imported where used: a process that never asks for a gradient pays no jax import
+    from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+    from hapticopt.analysis.prrr.statics import statics_arrays
+    from hapticopt.design.prrr.kinematics import PrrrParams
 
     g = "geometry."
     params = PrrrParams(*(_si(design, values, g + k) for k in
@@ -172,6 +173,7 @@ def jax_twin(module_name: str) -> Callable[[Any, Mapping[str, Any]], Mapping[str
 
 
 def _pick_jax(raw: Any, ref: MetricRef) -> Any:
+    from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
     import jax.numpy as jnp
 
     if ref.reduce == "min":
@@ -187,6 +189,7 @@ def _pick_jax(raw: Any, ref: MetricRef) -> Any:
 @functools.lru_cache(maxsize=16)
 def _jacobian_fn(base: Any, variables: tuple[Variable, ...], refs: tuple[MetricRef, ...],
                  jax_sources: tuple[tuple[str, str], ...]) -> Callable[[np.ndarray], np.ndarray]:
+    from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
     import jax
     import jax.numpy as jnp
 

@@ -12,7 +12,6 @@ from rich.table import Table
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.errors import InvalidInput
-from hapticopt.optim import compare as cmp
 from hapticopt.optim.cli.common import one_line_errors
 
 
@@ -28,6 +27,8 @@ def compare(
     changed_only: Annotated[bool, typer.Option("--changed-only", help="Table: only metrics that differ.")] = False,
 ) -> None:
     """Evaluate designs at one fidelity and show every metric side by side with deltas, units and statuses."""
+    from hapticopt.optim import compare as cmp  # heavy (evaluators, jax): imported when the command runs
+
     try:
         level = Fidelity(fidelity)
     except ValueError:

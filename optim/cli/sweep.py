@@ -17,7 +17,6 @@ from hapticopt.design.atomic import write_text
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
 from hapticopt.optim.executor import make_executor
-from hapticopt.optim import sweep as sw
 from hapticopt.optim.recorder import Recorder, check_run_dir
 from hapticopt.design.paths import check_name, inside
 
@@ -74,6 +73,8 @@ def sweep(
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
 ) -> None:
     """Sweep one or two numeric design keys over a grid; writes sweep.csv, a plot per metric and the record."""
+    from hapticopt.optim import sweep as sw  # heavy (evaluators, jax): imported when the command runs
+
     try:
         level = Fidelity(fidelity)
     except ValueError:

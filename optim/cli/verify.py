@@ -11,12 +11,9 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from hapticopt.analysis import verify as closed_loop_verify
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
 import numpy as np
 from hapticopt.design.atomic import atomic_path
-from hapticopt.analysis.prrr import design_map as firmware_map
-from hapticopt.analysis.prrr import zwidth
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop.scene import Backend, StabilityCriterion, load_scene
 from hapticopt.design.errors import InvalidInput
@@ -68,6 +65,9 @@ def verify(
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write pictures of the run to this directory.")] = None,
 ) -> None:
     """Simulate the design in closed loop with the firmware controller in a scene."""
+    from hapticopt.analysis import verify as closed_loop_verify  # heavy (plants, jax): when the command runs
+    from hapticopt.analysis.prrr import zwidth
+
 
     try:
         level = Fidelity(fidelity)
@@ -155,6 +155,8 @@ def design_map(
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write the design-map figure to this directory.")] = None,
 ) -> None:
     """Map the firmware over (controller period T, force-loop gain K_p): free-space residual, K limit, bandwidth."""
+    from hapticopt.analysis.prrr import design_map as firmware_map  # heavy (jax): when the command runs
+
     try:
         level = Fidelity(fidelity)
     except ValueError:
