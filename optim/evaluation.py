@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -32,6 +33,8 @@ from hapticopt.analysis.registry import evaluate_all
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.units import TO_SI
 from hapticopt.analysis.status import Status
+from hapticopt.optim import cache as evaluation_cache
+from hapticopt.optim.cache import EvaluationCache
 from hapticopt.optim.problem import MetricRef, Variable, design_at
 from hapticopt.design.schema import specs
 import importlib
@@ -61,6 +64,7 @@ class PointTask:
     only: tuple[str, ...] | None = None  # evaluator names to run (None: all for the device)
     gradient: GradientMode = GradientMode.NONE
     jax_sources: tuple[tuple[str, str], ...] = ()  # metric name -> evaluator module with a jax twin
+    cache: str | None = None  # evaluation cache file (hapticopt.optim.cache) for the design's evaluation, or None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -74,6 +78,18 @@ class PointResult:
     metrics: dict[str, Any] = field(default_factory=dict)
     statuses: dict[str, str] = field(default_factory=dict)
     timings_s: dict[str, float] = field(default_factory=dict)
+    provenance: str = ""  # '' evaluated here; else where the metrics came from (the evaluation cache)
+
+
+#: open evaluation caches of this process, by (file, pid): a forked worker opens its own connection
+_CACHES: dict[tuple[str, int], EvaluationCache] = {}
+
+
+def _cache(path: str) -> EvaluationCache:
+    key = (path, os.getpid())
+    if key not in _CACHES:
+        _CACHES[key] = EvaluationCache(path)
+    return _CACHES[key]
 
 
 def run_evaluators(design: Any, fidelity: Fidelity, only: tuple[str, ...] | None
@@ -92,7 +108,15 @@ def evaluate_point(task: PointTask) -> PointResult:
     except InvalidDesign as exc:
         return PointResult(x=x, outcome=Outcome.INVALID_DESIGN, message=str(exc),
                            values=tuple(math.nan for _ in task.refs))
-    metrics, statuses, timings, failure = run_evaluators(design, task.fidelity, task.only)
+    provenance = ""
+    if task.cache is not None:
+        ev = evaluation_cache.evaluate(design, task.fidelity, cache=_cache(task.cache), only=task.only,
+                                       written_by="hapticopt sweep")
+        metrics, statuses, timings, provenance = ev.metrics, ev.statuses, dict(ev.timings_s), ev.provenance
+        failure = "; ".join(f"{name}: {ev.messages.get(name) or 'failed'}"
+                            for name, st in statuses.items() if st == str(Status.FAILED))
+    else:
+        metrics, statuses, timings, failure = run_evaluators(design, task.fidelity, task.only)
     values = tuple(ref.value(metrics) for ref in task.refs)
     not_holding = [f"{name}: {st}" for name, st in statuses.items()
                    if not Status(st).metrics_hold and Status(st) is not Status.FAILED]
@@ -120,7 +144,8 @@ def evaluate_point(task: PointTask) -> PointResult:
         else:
             outcome, message = Outcome.NONFINITE, "non-finite gradient"
     return PointResult(x=x, outcome=outcome, message=message, values=values, gradients=gradients,
-                       gradient_source=source, metrics=metrics, statuses=statuses, timings_s=timings)
+                       gradient_source=source, metrics=metrics, statuses=statuses, timings_s=timings,
+                       provenance=provenance)
 
 
 # ------------------------------------------------------------------------------------ jax twins

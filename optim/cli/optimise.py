@@ -7,7 +7,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from hapticopt.optim.cli.common import one_line_errors
+from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, one_line_errors
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.problem import INT_RANGES, load_problem
 from rich.console import Console
@@ -33,6 +33,8 @@ def optimise(
     export: Annotated[bool, typer.Option("--export/--no-export", help="Export STEP/STL/MJCF of the optimum.")] = True,
     verify: Annotated[bool, typer.Option("--verify/--no-verify", help="Verify the optimum in closed loop on the problem's scenes.")] = True,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
+    cache: Annotated[Optional[Path], typer.Option("--cache", help=CACHE_HELP.replace("DIR", "OUT"))] = None,
+    no_cache: Annotated[bool, typer.Option("--no-cache", help=NO_CACHE_HELP)] = False,
 ) -> None:
     """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front)."""
 
@@ -48,6 +50,7 @@ def optimise(
         raise InvalidInput(f"--workers = {workers} is out of range: allowed 1 ≤ --workers ≤ {MAX_WORKERS}")
     out_dir = out if out is not None else Path("cad_out") / prob.name
     check_run_dir(out_dir, resume=resume, force=force)  # before anything is computed or written
+    cache_path = cache_file(cache, no_cache, out_dir)
 
     from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline
 
@@ -55,7 +58,7 @@ def optimise(
     if prob.is_multi_objective:
         with console.status("tracing the Pareto front", spinner="dots") as status:
             res = run_front_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
-                                     workers=workers,
+                                     workers=workers, cache=cache_path,
                                      progress=lambda label, n: status.update(f"Pareto front: {label} done, {n} evaluated"))
         f1, f2 = (o["metric"] for o in res["objectives"])
         typer.echo(f"{prob.name}: Pareto front of {f1} and {f2}: {len(res['front'])} points "
@@ -88,7 +91,7 @@ def optimise(
             progress.update(task, stage=name)
 
         result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler, workers=workers,
-                              progress=on_point, export=export, verify=verify, on_stage=on_stage)
+                              progress=on_point, export=export, verify=verify, on_stage=on_stage, cache=cache_path)
         progress.update(task, stage="done")
     obj = prob.objective.metric
     b, o = obj.value(result.baseline.metrics), obj.value(result.optimum.metrics)
@@ -96,6 +99,9 @@ def optimise(
                f"({'improved' if result.improved else 'not improved'}); constraints at {prob.fidelity_final} fidelity "
                f"{'satisfied' if result.feasible_final else 'NOT satisfied'}; "
                f"{result.run.n_evaluated} evaluated, {result.run.n_replayed} replayed")
+    for s in result.stages:
+        if s.name == "baseline" and s.message:
+            typer.echo(f"  baseline: {s.message}")
     for v in result.verdicts:
         typer.echo(f"  verify {v.scene}: {'PASS' if v.passed else 'FAIL'} {v.message}")
     for s in result.stages:
