@@ -21,6 +21,7 @@ import typer
 
 from hapticopt.design.errors import HapticoptError, InvalidInput
 from hapticopt.design import io
+from hapticopt.optim.cache import FILENAME as CACHE_FILENAME
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -108,9 +109,6 @@ def is_tty() -> bool:
     return sys.stdout.isatty()
 
 
-#: file name of the evaluation cache in a run directory (hapticopt.optim.cache.FILENAME; not imported here so
-#: that the CLI's start-up does not load the evaluators)
-CACHE_FILENAME = "evaluation-cache.sqlite"
 CACHE_HELP = ("Evaluation cache file: a design's whole evaluation at a fidelity, reused when the same design, "
               "fidelity and code meet again (default: DIR/" + CACHE_FILENAME + "; give one FILE to share it "
               "among runs and commands).")

@@ -13,6 +13,7 @@ from rich.table import Table
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.errors import InvalidInput
+from hapticopt.optim.cache import EvaluationCache
 from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, one_line_errors
 
 
@@ -46,8 +47,6 @@ def compare(
     named = [cmp.resolve(d) for d in designs]
     run_dirs = [Path(d) for d in designs if Path(d).is_dir()]
     cache_path = cache_file(cache, no_cache, run_dirs[0] if run_dirs else None)
-    from hapticopt.optim.cache import EvaluationCache
-
     with EvaluationCache(cache_path) if cache_path is not None else contextlib.nullcontext() as ecache:
         result = cmp.compare(named, fidelity=level, cache=ecache)
     written = cmp.write_report(result, report, renders=renders) if report is not None else []
