@@ -2,8 +2,10 @@
 
 A design is named by a file (design TOML), a bundled preset, or a run directory (its
 ``optimum.toml``, else its ``best_infeasible.toml`` — labelled so —, else the final design recorded in its
-``evaluations.sqlite``). Each is
-evaluated by the registry's one loop (:func:`hapticopt.analysis.registry.evaluate_all`); the
+``evaluations.sqlite``). Each is evaluated by the registry's one loop
+(:func:`hapticopt.analysis.registry.evaluate_all`), through
+the evaluation cache when one is given (:mod:`hapticopt.optim.cache`: a design evaluated before at
+this fidelity, by a run or an earlier compare, is not recomputed, and the output says so); the
 comparison lists every scalar metric and every component of a vector metric with its unit, each
 design's value, and its delta from the first design (absolute and relative), then each
 evaluator's status per design, and the design keys that differ.
@@ -20,7 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.registry import evaluate_all
+from hapticopt.optim import cache as evaluation_cache
+from hapticopt.optim.cache import EvaluationCache
 from hapticopt.design import io
 from hapticopt.design.atomic import write_text
 from hapticopt.design.errors import InvalidInput, UnknownName
@@ -58,6 +61,7 @@ class Comparison:
     statuses: tuple[dict[str, str], ...]  # evaluator -> status, per design
     messages: tuple[dict[str, str], ...]
     design_rows: tuple[tuple[str, str, tuple[float, ...]], ...]  # (section.key, unit, values) that differ
+    provenance: tuple[str, ...] = ()  # per design: '' computed here, else where its values came from (the cache)
 
 
 def resolve(arg: str) -> Named:
@@ -92,12 +96,15 @@ def _rel(delta: float, ref: float) -> float:
     return delta / abs(ref)
 
 
-def compare(designs: Sequence[Named], *, fidelity: Fidelity = Fidelity.STANDARD) -> Comparison:
-    """Evaluate each design at ``fidelity`` and line up their metrics (first design = reference)."""
+def compare(designs: Sequence[Named], *, fidelity: Fidelity = Fidelity.STANDARD,
+            cache: EvaluationCache | None = None) -> Comparison:
+    """Evaluate each design at ``fidelity`` (through ``cache`` when given) and line up their metrics
+    (first design = reference)."""
     if len(designs) < 2:
         raise InvalidInput(f"compare needs at least 2 designs, got {len(designs)}")
-    evaluations = [evaluate_all(d.design, fidelity=fidelity) for d in designs]
-    per_design = [dict(kv for name, value in ev.metrics().items() for kv in scalars(name, value))
+    evaluations = [evaluation_cache.evaluate(d.design, fidelity, cache=cache, written_by="hapticopt compare")
+                   for d in designs]
+    per_design = [dict(kv for name, value in ev.metrics.items() for kv in scalars(name, value))
                   for ev in evaluations]
     # a metric of an evaluator that did not end ok is NaN there (statuses mean what they say)
     names: dict[str, None] = {}
@@ -121,10 +128,14 @@ def compare(designs: Sequence[Named], *, fidelity: Fidelity = Fidelity.STANDARD)
     return Comparison(designs=tuple(designs), fidelity=fidelity, rows=tuple(rows),
                       statuses=tuple({k: str(v) for k, v in ev.statuses.items()} for ev in evaluations),
                       messages=tuple({k: v for k, v in ev.messages.items() if v} for ev in evaluations),
-                      design_rows=tuple(design_rows))
+                      design_rows=tuple(design_rows), provenance=tuple(ev.provenance for ev in evaluations))
 
 
 # ------------------------------------------------------------------------------ output
+def _provenance(c: Comparison) -> tuple[str, ...]:
+    return c.provenance if len(c.provenance) == len(c.designs) else ("",) * len(c.designs)
+
+
 def fmt(v: float) -> str:
     return "—" if not math.isfinite(v) else f"{v:.6g}"
 
@@ -153,7 +164,8 @@ def as_json(c: Comparison) -> dict[str, Any]:
     return {
         "fidelity": str(c.fidelity),
         "designs": [{"label": d.label, "source": d.source, "name": d.design.name, "device": d.design.device,
-                     "statuses": s, "messages": m} for d, s, m in zip(c.designs, c.statuses, c.messages)],
+                     "statuses": s, "messages": m, "evaluation": p or "computed"}
+                    for d, s, m, p in zip(c.designs, c.statuses, c.messages, _provenance(c))],
         "metrics": [{"metric": r.metric, "unit": r.unit, "values": [num(v) for v in r.values],
                      "deltas": [num(v) for v in r.deltas], "relative": [num(v) for v in r.relative]}
                     for r in c.rows],
@@ -164,7 +176,8 @@ def as_json(c: Comparison) -> dict[str, Any]:
 def markdown(c: Comparison, renders: Sequence[str | None] = ()) -> str:
     labels = [d.label for d in c.designs]
     lines = [f"# Comparison at {c.fidelity} fidelity", ""]
-    lines += [f"- **{d.label}**: {d.source} ({d.design.device}, name {d.design.name})" for d in c.designs]
+    lines += [f"- **{d.label}**: {d.source} ({d.design.device}, name {d.design.name})" + (f"; values {p}" if p else "")
+              for d, p in zip(c.designs, _provenance(c))]
     lines += ["", "## Metrics (Δ from " + labels[0] + ")", "",
               "| metric | unit | " + " | ".join([labels[0]] + [f"{b} | Δ {b}" for b in labels[1:]]) + " |",
               "|---|---|" + "---:|" * (1 + 2 * (len(labels) - 1))]

@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
-from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
@@ -33,10 +33,10 @@ from hapticopt.analysis.registry import evaluate_all, evaluate_batch
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.units import TO_SI
 from hapticopt.analysis.status import Status
+from hapticopt.optim import cache as evaluation_cache
+from hapticopt.optim.cache import EvaluationCache
 from hapticopt.optim.problem import MetricRef, Variable, design_at
 from hapticopt.design.schema import specs
-from hapticopt.design.prrr.kinematics import PrrrParams
-from hapticopt.analysis.prrr.statics import statics_arrays
 import importlib
 
 
@@ -65,6 +65,7 @@ class PointTask:
     only: tuple[str, ...] | None = None  # evaluator names to run (None: all for the device)
     gradient: GradientMode = GradientMode.NONE
     jax_sources: tuple[tuple[str, str], ...] = ()  # metric name -> evaluator module with a jax twin
+    cache: str | None = None  # evaluation cache file (hapticopt.optim.cache) for the design's evaluation, or None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -78,6 +79,18 @@ class PointResult:
     metrics: dict[str, Any] = field(default_factory=dict)
     statuses: dict[str, str] = field(default_factory=dict)
     timings_s: dict[str, float] = field(default_factory=dict)
+    provenance: str = ""  # '' evaluated here; else where the metrics came from (the evaluation cache)
+
+
+#: open evaluation caches of this process, by (file, pid): a forked worker opens its own connection
+_CACHES: dict[tuple[str, int], EvaluationCache] = {}
+
+
+def _cache(path: str) -> EvaluationCache:
+    key = (path, os.getpid())
+    if key not in _CACHES:
+        _CACHES[key] = EvaluationCache(path)
+    return _CACHES[key]
 
 
 def run_evaluators(design: Any, fidelity: Fidelity, only: tuple[str, ...] | None
@@ -96,8 +109,16 @@ def evaluate_point(task: PointTask) -> PointResult:
     except InvalidDesign as exc:
         return PointResult(x=x, outcome=Outcome.INVALID_DESIGN, message=str(exc),
                            values=tuple(math.nan for _ in task.refs))
-    metrics, statuses, timings, failure = run_evaluators(design, task.fidelity, task.only)
-    return _point(task, x, metrics, statuses, timings, failure)
+    provenance = ""
+    if task.cache is not None:
+        ev = evaluation_cache.evaluate(design, task.fidelity, cache=_cache(task.cache), only=task.only,
+                                       written_by="hapticopt sweep")
+        metrics, statuses, timings, provenance = ev.metrics, ev.statuses, dict(ev.timings_s), ev.provenance
+        failure = "; ".join(f"{name}: {ev.messages.get(name) or 'failed'}"
+                            for name, st in statuses.items() if st == str(Status.FAILED))
+    else:
+        metrics, statuses, timings, failure = run_evaluators(design, task.fidelity, task.only)
+    return _point(task, x, metrics, statuses, timings, failure, provenance)
 
 
 def evaluate_points(tasks: Sequence[PointTask]) -> list[PointResult]:
@@ -125,7 +146,7 @@ def evaluate_points(tasks: Sequence[PointTask]) -> list[PointResult]:
 
 
 def _point(task: PointTask, x: tuple[float, ...], metrics: dict[str, Any], statuses: dict[str, str],
-           timings: dict[str, float], failure: str) -> PointResult:
+           timings: dict[str, float], failure: str, provenance: str = "") -> PointResult:
     """The outcome, picked values and (if asked) gradients of one evaluated design point."""
     values = tuple(ref.value(metrics) for ref in task.refs)
     not_holding = [f"{name}: {st}" for name, st in statuses.items()
@@ -154,7 +175,8 @@ def _point(task: PointTask, x: tuple[float, ...], metrics: dict[str, Any], statu
         else:
             outcome, message = Outcome.NONFINITE, "non-finite gradient"
     return PointResult(x=x, outcome=outcome, message=message, values=values, gradients=gradients,
-                       gradient_source=source, metrics=metrics, statuses=statuses, timings_s=timings)
+                       gradient_source=source, metrics=metrics, statuses=statuses, timings_s=timings,
+                       provenance=provenance)
 
 
 # ------------------------------------------------------------------------------------ jax twins
@@ -173,6 +195,10 @@ def _si(design: Any, values: Mapping[str, Any], key: str) -> Any:
 
 def _prrr_statics_jax(design: Any, values: Mapping[str, Any]) -> dict[str, Any]:
     """Differentiable twin of :func:`hapticopt.analysis.prrr.statics.evaluate` (same names and units)."""
+    # jax-based modules, imported where used: a process that never asks for a gradient pays no jax import
+    from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+    from hapticopt.analysis.prrr.statics import statics_arrays
+    from hapticopt.design.prrr.kinematics import PrrrParams
 
     g = "geometry."
     params = PrrrParams(*(_si(design, values, g + k) for k in
@@ -203,6 +229,7 @@ def jax_twin(module_name: str) -> Callable[[Any, Mapping[str, Any]], Mapping[str
 
 
 def _pick_jax(raw: Any, ref: MetricRef) -> Any:
+    from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
     import jax.numpy as jnp
 
     if ref.reduce == "min":
@@ -218,6 +245,7 @@ def _pick_jax(raw: Any, ref: MetricRef) -> Any:
 @functools.lru_cache(maxsize=16)
 def _jacobian_fn(base: Any, variables: tuple[Variable, ...], refs: tuple[MetricRef, ...],
                  jax_sources: tuple[tuple[str, str], ...]) -> Callable[[np.ndarray], np.ndarray]:
+    from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
     import jax
     import jax.numpy as jnp
 

@@ -11,6 +11,7 @@ measured and reported; a stage that fails is reported with its reason, never sil
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -25,7 +26,7 @@ from hapticopt.design import io
 from hapticopt.design.atomic import write_text
 from hapticopt.optim.driver import EvalRecord, ProgressFn
 from hapticopt.optim.problem import Problem, check_metrics
-from hapticopt.analysis.registry import EVALUATORS, describe_failure, evaluate_all, jsonable, run_plotter
+from hapticopt.analysis.registry import EVALUATORS, describe_failure, jsonable, run_plotter
 from hapticopt.design.paths import inside
 from hapticopt.optim.driver import SMOOTH_SURROGATES
 from hapticopt.analysis.loop.scene import load_scene
@@ -40,18 +41,23 @@ from hapticopt.optim import driver, pareto, pareto_report, report
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, TimeHistory, Verdict
 from hapticopt.design import export as design_export
 from hapticopt.analysis import verify as closed_loop_verify
+from hapticopt.optim import cache as evaluation_cache
+from hapticopt.optim.cache import EvaluationCache
 
 
 #: ``on_step(what, done, total)``: progress inside a stage (an evaluator, an export step, a scene)
 StepFn = Callable[[str, int, int], None]
 
 
-def evaluate_design(design: Any, fidelity: Fidelity, on_step: StepFn | None = None) -> DesignEvaluation:
-    """Every registered evaluator on ``design`` (the registry's one loop and failure policy)."""
-    ev = evaluate_all(design, fidelity=fidelity, progress=on_step)
-    return DesignEvaluation(fidelity=fidelity, metrics=ev.metrics(), modules=dict(ev.sources),
-                            statuses={k: str(v) for k, v in ev.statuses.items()}, messages=dict(ev.messages),
-                            timings_s=dict(ev.timings_s), results=dict(ev.results))
+def evaluate_design(design: Any, fidelity: Fidelity, on_step: StepFn | None = None, *,
+                    cache: EvaluationCache | None = None, reuse: bool = True) -> DesignEvaluation:
+    """Every registered evaluator on ``design`` (the registry's one loop and failure policy),
+    through the evaluation ``cache`` when one is given (:func:`hapticopt.optim.cache.evaluate`)."""
+    ev = evaluation_cache.evaluate(design, fidelity, cache=cache, reuse=reuse, written_by="hapticopt optimise",
+                                   progress=on_step)
+    return DesignEvaluation(fidelity=fidelity, metrics=ev.metrics, modules=ev.modules, statuses=ev.statuses,
+                            messages=ev.messages, timings_s=ev.timings_s, results=ev.results,
+                            provenance=ev.provenance)
 
 
 #: the design file of a run's result, feasible or not (single objective; a Pareto front's choice)
@@ -188,7 +194,8 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
                  scheduler: str = "local",
                  workers: int | None = None, progress: ProgressFn | None = None, export: bool = True,
                  verify: bool = True, on_stage: Callable[[str], None] | None = None,
-                 verifier: Callable[[Any, str], Any] | None = None, on_step: StepFn | None = None) -> PipelineResult:
+                 verifier: Callable[[Any, str], Any] | None = None, on_step: StepFn | None = None,
+                 cache: str | Path | None = None) -> PipelineResult:
     """Run every stage; returns the result and writes the run directory.
 
     ``on_stage(name)`` is called as each stage starts (baseline, optimise, final, plots, export,
@@ -199,6 +206,8 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     ``verifier(design, scene_name) -> result with .metrics()`` replaces the closed-loop runner
     :func:`run_scene` (a module-level function: it runs in the verification child process). An existing record
     in ``out_dir`` is continued with ``resume``, replaced with ``force``, and otherwise refused.
+    ``cache`` is the evaluation cache file (:mod:`hapticopt.optim.cache`; None: no cache): the base
+    design's evaluations are served from it when there, and the optimum's final evaluation is stored.
     """
     check_run_dir(out_dir, resume=resume, force=force)
 
@@ -213,36 +222,47 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
         return _run_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
                            progress=progress,
                            export=export, verify=verify, on_stage=on_stage, verifier=verifier, on_step=on_step,
-                           verify_worker=verify_worker)
+                           verify_worker=verify_worker, cache=cache)
 
 
 def _baseline_payload(ev: DesignEvaluation) -> dict[str, Any]:
     return {"fidelity": str(ev.fidelity), "metrics": jsonable(ev.metrics), "modules": ev.modules,
-            "statuses": ev.statuses, "messages": ev.messages, "timings_s": ev.timings_s}
+            "statuses": ev.statuses, "messages": ev.messages, "timings_s": ev.timings_s,
+            "provenance": ev.provenance}
 
 
 def _baseline_from(payload: dict[str, Any]) -> DesignEvaluation:
     return DesignEvaluation(fidelity=Fidelity(payload["fidelity"]), metrics=payload["metrics"],
                             modules=payload["modules"], statuses=payload["statuses"], messages=payload["messages"],
-                            timings_s=payload["timings_s"])
+                            timings_s=payload["timings_s"], provenance=payload.get("provenance", ""))
 
 
 def _recorded_evaluation(rec: Recorder, design: Any, fidelity: Fidelity, name: str,
-                         on_step: StepFn | None = None) -> DesignEvaluation:
-    """``evaluate_design(design, fidelity)``, replayed from the recorder when an earlier session has it."""
+                         on_step: StepFn | None = None, cache: EvaluationCache | None = None) -> DesignEvaluation:
+    """``evaluate_design(design, fidelity)``, replayed from the recorder when an earlier session has it,
+    else served from the evaluation cache when it has it."""
     key = f"{name}|{fidelity}"
     found = rec.lookup_stage(key)
     if found is not None:
-        return _baseline_from(found)
-    ev = evaluate_design(design, fidelity, on_step)
+        first = found.get("provenance")
+        return dataclasses.replace(_baseline_from(found), provenance="replayed from the run record"
+                                   + (f" (it came {first})" if first else ""))
+    ev = evaluate_design(design, fidelity, on_step, cache=cache)
     rec.record_stage(key, _baseline_payload(ev))
     return ev
+
+
+def _provenance_note(*evaluations: DesignEvaluation) -> str:
+    """Where each baseline evaluation came from: computed, replayed from the run record (``--resume``)
+    or served from the evaluation cache (then the cache entry is named)."""
+    unique = {id(ev): ev for ev in evaluations}.values()
+    return "; ".join(f"{ev.fidelity} fidelity " + (ev.provenance or "computed") for ev in unique)
 
 
 def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str, workers: int | None,
                 progress: ProgressFn | None, export: bool, verify: bool, on_stage: Callable[[str], None] | None,
                 verifier: Callable[[Any, str], Any] | None, on_step: StepFn | None = None,
-                verify_worker: SupervisedWorker | None = None) -> PipelineResult:
+                verify_worker: SupervisedWorker | None = None, cache: str | Path | None = None) -> PipelineResult:
     stages: list[StageOutcome] = []
     files: dict[str, str] = {}
 
@@ -259,17 +279,19 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
     # the recorder exists before the baseline: a run killed during the baseline resumes too
     with make_executor(scheduler, workers=workers) as executor, \
             Recorder(out, fingerprint=problem.fingerprint(), resume=resume, force=force,
-                     search_fingerprint=problem.search_fingerprint()) as rec:
+                     search_fingerprint=problem.search_fingerprint()) as rec, \
+            (EvaluationCache(cache) if cache is not None else contextlib.nullcontext()) as ecache:
         # baseline at the optimisation fidelity: which metrics exist, from which evaluator
         t = stage("baseline")
         base_opt = _recorded_evaluation(rec, problem.base, problem.fidelity_optimise, "baseline",
-                                        at(problem.fidelity_optimise))
+                                        at(problem.fidelity_optimise), ecache)
         check_metrics(problem, base_opt.metrics)
         only = evaluators_for(problem, base_opt)
         baseline = (base_opt if problem.fidelity_final == problem.fidelity_optimise
                     else _recorded_evaluation(rec, problem.base, problem.fidelity_final, "baseline",
-                                              at(problem.fidelity_final)))
-        stages.append(StageOutcome(name="baseline", status="ok", wall_s=time.perf_counter() - t))
+                                              at(problem.fidelity_final), ecache))
+        stages.append(StageOutcome(name="baseline", status="ok", wall_s=time.perf_counter() - t,
+                                   message=_provenance_note(base_opt, baseline)))
 
         rec.describe({**problem_info(problem), "status": "running"})
         rec.record_design("baseline", fidelity=str(problem.fidelity_optimise), x=problem.start,
@@ -294,7 +316,9 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         optimum_design = problem.design_at(best.x) if best is not None else problem.base
         optimum_design = dataclasses.replace(optimum_design, name=f"{problem.name}-optimum",
                                              description=f"optimum of problem {problem.name}")
-        optimum = evaluate_design(optimum_design, problem.fidelity_final, at(problem.fidelity_final))
+        # computed (the plots need the evaluators' result objects), stored for compare and later runs
+        optimum = evaluate_design(optimum_design, problem.fidelity_final, at(problem.fidelity_final),
+                                  cache=ecache, reuse=False)
         cons = _constraints_at(problem, optimum.metrics)
         feasible_final = holds(cons, optimum.statuses)
         obj_base = problem.objective.metric.value(baseline.metrics)
@@ -380,7 +404,8 @@ def _write_result_json(p: PipelineResult, dest: Path) -> None:
 
 def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False, force: bool = False,
                        scheduler: str = "local", workers: int | None = None,
-                       progress: Callable[[str, int], None] | None = None) -> dict[str, Any]:
+                       progress: Callable[[str, int], None] | None = None,
+                       cache: str | Path | None = None) -> dict[str, Any]:
     """A two-objective problem: trace the front (:func:`optim.pareto.run_front`), re-evaluate the
     chosen design at the final fidelity, write ``chosen.toml``, ``front.csv``, ``front.svg``,
     ``result.json`` and the report. Returns the ``result.json`` payload."""
@@ -390,13 +415,15 @@ def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = 
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out), children_die_with_this_process():
         remove_stale_temp_files(out)
-        return _run_front_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
-                                 progress=progress)
+        with (EvaluationCache(cache) if cache is not None else contextlib.nullcontext()) as ecache:
+            return _run_front_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
+                                     progress=progress, cache=ecache)
 
 
 def _run_front_locked(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str,
-                      workers: int | None, progress: Callable[[str, int], None] | None) -> dict[str, Any]:
-    base_opt = evaluate_design(problem.base, problem.fidelity_optimise)
+                      workers: int | None, progress: Callable[[str, int], None] | None,
+                      cache: EvaluationCache | None = None) -> dict[str, Any]:
+    base_opt = evaluate_design(problem.base, problem.fidelity_optimise, cache=cache)
     check_metrics(problem, base_opt.metrics)
     single = dataclasses.replace(problem, objectives=(), pareto=None)
     needed = {base_opt.modules[r.name] for r in problem.all_metric_refs() if r.name in base_opt.modules}
@@ -421,7 +448,7 @@ def _run_front_locked(problem: Problem, out: Path, *, resume: bool, force: bool,
         chosen_design = problem.design_at(chosen.x) if chosen is not None else problem.base
         chosen_design = dataclasses.replace(chosen_design, name=f"{problem.name}-chosen",
                                             description=f"chosen design on the Pareto front of {problem.name}")
-        final = evaluate_design(chosen_design, problem.fidelity_final)
+        final = evaluate_design(chosen_design, problem.fidelity_final, cache=cache)
         cons = _constraints_at(problem, final.metrics)
         feasible_final = holds(cons, final.statuses)
         rec.record_design("chosen", fidelity=str(problem.fidelity_final), x=chosen.x if chosen else problem.start,

@@ -25,6 +25,7 @@ class DesignEvaluation:
     messages: dict[str, str]
     timings_s: dict[str, float]
     results: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    provenance: str = ""  # '' computed in this run; else where the values came from (the evaluation cache)
 
 
 @dataclass(frozen=True, kw_only=True)

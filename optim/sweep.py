@@ -177,6 +177,11 @@ class SweepResult:
     n_replayed: int
 
     @property
+    def n_cached(self) -> int:
+        """Points whose metrics came from the evaluation cache (counted in ``n_evaluated``)."""
+        return sum(bool(r.provenance) for r in self.results)
+
+    @property
     def n_ok(self) -> int:
         return sum(r.outcome is Outcome.OK for r in self.results)
 
@@ -208,10 +213,12 @@ def _run_batched(sweep: "Sweep", xs: Sequence[tuple[float, ...]]) -> list[PointR
 def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = None,
               progress: ProgressFn | None = None,
               evaluate_fn: Callable[[PointTask], PointResult] = evaluate_point,
-              timeout_s: float | None = None, batch: bool = False) -> SweepResult:
+              timeout_s: float | None = None, batch: bool = False, cache: str | Path | None = None) -> SweepResult:
     """Evaluate every grid point (recorded points are replayed); results in grid order.
     ``timeout_s`` bounds the wait for the executor (:class:`TimeoutError` past it). ``batch``
-    evaluates in this process with the evaluators' batched jax forms (:func:`batch_supported`)."""
+    evaluates in this process with the evaluators' batched jax forms (:func:`batch_supported`).
+    ``cache``: the evaluation cache file (:mod:`hapticopt.optim.cache`) the workers consult and fill
+    (not the batched forms); a point served from it is recorded with stage ``sweep (evaluation cache)``."""
     if batch and not batch_supported(sweep):
         allowed = BATCHED.get(sweep.base.device, ())
         raise InvalidInput(f"--batch needs a 3-PRRR draft sweep, or --only naming evaluators with a batched form: "
@@ -245,7 +252,8 @@ def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = N
                 progress(done, len(points))
         todo = []
     futures = {executor.submit(evaluate_fn, PointTask(base=sweep.base, variables=sweep.variables, x=points[i],
-                                                      fidelity=sweep.fidelity, refs=(), only=sweep.only)): i
+                                                      fidelity=sweep.fidelity, refs=(), only=sweep.only,
+                                                      cache=None if cache is None else str(cache))): i
                for i in todo}
     for fut in as_completed(futures, timeout=timeout_s):
         i = futures[fut]
@@ -254,7 +262,8 @@ def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = N
         except Exception as exc:  # a worker crash is a handled outcome
             res = PointResult(x=points[i], outcome=Outcome.EVALUATOR_FAILED, message=f"{type(exc).__name__}: {exc}")
         if recorder is not None:
-            recorder.record(keys[i], res, start=0, stage="sweep", fidelity=fid)
+            recorder.record(keys[i], res, start=0, stage="sweep (evaluation cache)" if res.provenance else "sweep",
+                            fidelity=fid)
         results[i] = res
         done += 1
         if progress is not None:

@@ -40,7 +40,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
-from scipy.optimize import brentq
 
 #: uniform cubic B-spline basis of eq (23), rows for u³, u², u, 1 (already divided by 6)
 BSPLINE_BASIS = np.array([[-1.0, 3.0, -3.0, 1.0], [3.0, -6.0, 3.0, 0.0], [-3.0, 0.0, 3.0, 0.0],
@@ -302,6 +301,7 @@ def lifted_stiffness_limit(plant: Plant, fw: Firmware, *, reference_N_per_m: flo
     The bracket's ends are classified by the sign of ``lifted_margin`` (a decay rate, 1/s); the
     root is then found to ``rtol`` by Brent's method, so no verdict rests on a rounding-level value
     unless the bracket itself does (reported in ``stable_below``/``unstable_at``)."""
+    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
     if not (np.isfinite(reference_N_per_m) and reference_N_per_m > 0.0):
         raise ValueError(f"reference_N_per_m = {reference_N_per_m!r}: allowed finite > 0 [N/m]")
     fast = _zoh(plant.A, plant.b, fw.period_s / fw.upsampling)

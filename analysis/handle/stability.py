@@ -47,8 +47,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.integrate
-from scipy.optimize import brentq
 
 from hapticopt.analysis.control.upsampling import GrowthEstimate, growth_rate
 from hapticopt.analysis.fidelity import Fidelity
@@ -196,6 +194,7 @@ def stiffness_limit(handle: Handle, *, hold: Hold = Hold.EXACT, delay_samples: i
     (K_ref = 2b/(T r/R), Colgate's bound at the shaft); the first unstable point and the last
     stable one bracket the root of the margin, found by Brent's method.
     """
+    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
     rate = handle.damping_N_s_per_m / handle.mass_kg
     if hold is Hold.PADE:
         h0 = dataclasses.replace(handle, wall_stiffness_N_per_m=0.0)
@@ -338,6 +337,7 @@ def simulate_wall(handle: Handle, *, hold: Hold, duration_s: float, x0_m: float 
     ``Hold.PADE`` integrates the paper's continuous loop with an adaptive Runge–Kutta (DOP853)
     — independent of the eigenvalue analysis; ``Hold.EXACT`` steps the sampled loop (ZOH, no delay).
     """
+    import scipy.integrate  # lazy: it imports scipy.optimize
     if not (np.isfinite(duration_s) and duration_s > 20 * handle.period_s):
         raise ValueError(f"duration_s = {duration_s!r}: must exceed 20 periods T = {handle.period_s} [s]")
     T = handle.period_s

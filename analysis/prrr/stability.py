@@ -25,7 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-from scipy.optimize import brentq
 
 from hapticopt.analysis.prrr import assembly, statics as prrr_statics
 from hapticopt.analysis.fidelity import Fidelity
@@ -46,6 +45,7 @@ def force_loop_tf(design: PrrrDesign, kp: float) -> tuple[np.ndarray, np.ndarray
 
 def force_loop_bandwidth(design: PrrrDesign, kp: float) -> float:
     """−3 dB bandwidth of eq (8) relative to its DC gain [Hz]."""
+    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
     num, den = force_loop_tf(design, kp)
     mag = lambda w: abs(np.polyval(num, 1j * w) / np.polyval(den, 1j * w))  # noqa: E731
     target = mag(0.0) / math.sqrt(2.0)
@@ -365,6 +365,7 @@ def sampled_force_loop_bandwidth(design: PrrrDesign, *, T: float, kp: float) -> 
     """(stable, −3 dB bandwidth [Hz] below the DC gain) of the sampled force loop; the bandwidth is
     NaN when the loop is unstable, and the Nyquist frequency 1/(2T) when the gain never drops 3 dB
     below it."""
+    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
     Phi, Gam, C = sampled_force_loop(design, T=T, kp=kp)
     if spectral_radius(Phi) >= 1.0:
         return False, math.nan

@@ -28,6 +28,7 @@ import typer
 
 from hapticopt.design.errors import HapticoptError, InvalidInput
 from hapticopt.design import io
+from hapticopt.optim.cache import FILENAME as CACHE_FILENAME
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -140,3 +141,23 @@ def load_design_arg(file: Path | None, preset: str | None, assignments: list[str
 
 def is_tty() -> bool:
     return sys.stdout.isatty()
+
+
+CACHE_HELP = ("Evaluation cache file: a design's whole evaluation at a fidelity, reused when the same design, "
+              "fidelity and code meet again (default: DIR/" + CACHE_FILENAME + "; give one FILE to share it "
+              "among runs and commands).")
+NO_CACHE_HELP = "Neither read nor write the evaluation cache: every evaluation is computed."
+
+
+def cache_file(cache: Path | None, no_cache: bool, default_dir: Path | None) -> Path | None:
+    """The evaluation cache file of ``--cache FILE`` / ``--no-cache`` (None: no cache); ``default_dir``
+    holds the default file (None: no default)."""
+    if no_cache and cache is not None:
+        raise InvalidInput("--cache and --no-cache contradict each other: give one")
+    if no_cache:
+        return None
+    if cache is None:
+        return None if default_dir is None else Path(default_dir) / CACHE_FILENAME
+    if cache.is_dir():
+        raise InvalidInput(f"--cache = {str(cache)!r} is a directory: give a file, e.g. {Path(cache) / CACHE_FILENAME}")
+    return cache

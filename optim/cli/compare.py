@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 from typing import Annotated, Optional
@@ -12,8 +13,8 @@ from rich.table import Table
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.errors import InvalidInput
-from hapticopt.optim import compare as cmp
-from hapticopt.optim.cli.common import one_line_errors
+from hapticopt.optim.cache import EvaluationCache
+from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, one_line_errors
 
 
 @one_line_errors
@@ -26,8 +27,13 @@ def compare(
     report: Annotated[Optional[Path], typer.Option("--report", help="Also write the comparison to FILE.md or FILE.html.")] = None,
     renders: Annotated[bool, typer.Option("--renders", help="With --report: a picture of each design (CAD export; seconds per design).")] = False,
     changed_only: Annotated[bool, typer.Option("--changed-only", help="Table: only metrics that differ.")] = False,
+    cache: Annotated[Optional[Path], typer.Option("--cache", help=CACHE_HELP.replace(
+        "DIR/", "the first run directory among the designs, if any: RUN/"))] = None,
+    no_cache: Annotated[bool, typer.Option("--no-cache", help=NO_CACHE_HELP)] = False,
 ) -> None:
     """Evaluate designs at one fidelity and show every metric side by side with deltas, units and statuses."""
+    from hapticopt.optim import compare as cmp  # heavy (evaluators, jax): imported when the command runs
+
     try:
         level = Fidelity(fidelity)
     except ValueError:
@@ -39,7 +45,10 @@ def compare(
     if report is not None and report.suffix not in (".md", ".html"):
         raise InvalidInput(f"--report = {str(report)!r} must end in .md or .html")
     named = [cmp.resolve(d) for d in designs]
-    result = cmp.compare(named, fidelity=level)
+    run_dirs = [Path(d) for d in designs if Path(d).is_dir()]
+    cache_path = cache_file(cache, no_cache, run_dirs[0] if run_dirs else None)
+    with EvaluationCache(cache_path) if cache_path is not None else contextlib.nullcontext() as ecache:
+        result = cmp.compare(named, fidelity=level, cache=ecache)
     written = cmp.write_report(result, report, renders=renders) if report is not None else []
     if as_json:
         typer.echo(json.dumps(cmp.as_json(result), indent=2))
@@ -62,10 +71,10 @@ def compare(
             cells += [cmp.fmt(r.values[i]), cmp.fmt_short(r.deltas[i], r.relative[i])]
         table.add_row(r.metric, r.unit, *cells)
     console.print(table)
-    for d, st, msg in zip(named, result.statuses, result.messages):
+    for d, st, msg, prov in zip(named, result.statuses, result.messages, result.provenance):
         bad = {k: v for k, v in st.items() if v != "ok"}
         line = "all evaluators ok" if not bad else "; ".join(f"{k}: {v}" + (f" — {msg[k]}" if k in msg else "")
                                                              for k, v in bad.items())
-        console.print(f"{d.label} ({d.source}): {line}")
+        console.print(f"{d.label} ({d.source}): {line}" + (f"; values {prov}" if prov else ""))
     for path in written[:1]:
         console.print(f"wrote {path}")

@@ -16,9 +16,6 @@ import math
 import numpy as np
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.paths import writable_dir
-from hapticopt.analysis import interference
-from hapticopt.design.export import export as run_export
-from hapticopt.design.export import _cad
 from hapticopt.analysis.status import Status
 
 
@@ -53,6 +50,9 @@ def export(
 ) -> None:
     """Export the CAD of a design: DIR/<name>.step, DIR/parts/*.stl, DIR/<name>.xml, DIR/mass_properties.json."""
     t0 = time.perf_counter()
+    from hapticopt.analysis import interference  # heavy (CAD, jax): imported when the command runs
+    from hapticopt.design.export import export as run_export
+
     design = load_design_arg(file, preset, set_)
     p = parse_pose_mm(pose) if pose is not None else None
 
@@ -88,6 +88,8 @@ def export(
 
 def _check_many(design, n: int) -> str:
     """Interference (manifold3d) at about ``n`` workspace poses: one line naming how many collide."""
+    from hapticopt.analysis import interference
+
     if design.device != "prrr":
         from hapticopt.design.master import cad as cad_master
 
@@ -108,5 +110,6 @@ def _check_many(design, n: int) -> str:
 def result_pose(design, p):
     if p is not None:
         return p
+    from hapticopt.design.export import _cad
 
     return _cad(design).home_point(design)

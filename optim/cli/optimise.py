@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from hapticopt.optim.cli.common import not_met, one_line_errors
+from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, not_met, one_line_errors
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.problem import INT_RANGES, load_problem
 from hapticopt.optim.cli import render
@@ -35,6 +35,8 @@ def optimise(
     verify: Annotated[bool, typer.Option("--verify/--no-verify", help="Verify the optimum in closed loop on the problem's scenes.")] = True,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print the run's result.json (instead of the summary lines).")] = False,
+    cache: Annotated[Optional[Path], typer.Option("--cache", help=CACHE_HELP.replace("DIR", "OUT"))] = None,
+    no_cache: Annotated[bool, typer.Option("--no-cache", help=NO_CACHE_HELP)] = False,
 ) -> None:
     """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front). Exit 3 when the final point breaks a constraint (written as best_infeasible.toml)."""
 
@@ -50,6 +52,7 @@ def optimise(
         raise InvalidInput(f"--workers = {workers} is out of range: allowed 1 ≤ --workers ≤ {MAX_WORKERS}")
     out_dir = out if out is not None else Path("cad_out") / prob.name
     check_run_dir(out_dir, resume=resume, force=force)  # before anything is computed or written
+    cache_path = cache_file(cache, no_cache, out_dir)
 
     from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline, status_holds
 
@@ -68,7 +71,7 @@ def optimise(
                 line.note(f"run {label} done, {n} evaluated")
 
             res = run_front_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
-                                     workers=workers, progress=on_run)
+                                     workers=workers, cache=cache_path, progress=on_run)
         ch = res["chosen"]
         if as_json:
             typer.echo(json.dumps(res, indent=2, default=str))
@@ -116,7 +119,7 @@ def optimise(
 
         result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler, workers=workers,
                               progress=on_point, export=export, verify=verify, on_stage=on_stage,
-                              on_step=line.step)
+                              on_step=line.step, cache=cache_path)
         line.stage("done", 1, f"{out_dir / 'report.html'}")
         line.count(1)
     if as_json:  # the exit code below still says whether the requirement holds
@@ -128,6 +131,9 @@ def optimise(
                    f"({'improved' if result.improved else 'not improved'}); constraints at {prob.fidelity_final} fidelity "
                    f"{'satisfied' if result.feasible_final else 'NOT satisfied'}; "
                    f"{result.run.n_evaluated} evaluated, {result.run.n_replayed} replayed")
+        for s in result.stages:
+            if s.name == "baseline" and s.message:
+                typer.echo(f"  baseline: {s.message}")
         for v in result.verdicts:
             typer.echo(f"  verify {v.scene}: {'PASS' if v.passed else 'FAIL'} {v.message}")
         for s in result.stages:

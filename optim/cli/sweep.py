@@ -14,10 +14,9 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.atomic import write_text
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.cli import render
-from hapticopt.optim.cli.common import load_design_arg, one_line_errors
+from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, load_design_arg, one_line_errors
 from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.optim.executor import make_executor
-from hapticopt.optim import sweep as sw
 from hapticopt.optim.recorder import Recorder, check_run_dir
 from hapticopt.design.paths import check_name, inside
 
@@ -73,8 +72,12 @@ def sweep(
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, axes, fidelity, points, ok, evaluated, "
                                                          "replayed, out_dir, files} instead of the summary.")] = False,
+    cache: Annotated[Optional[Path], typer.Option("--cache", help=CACHE_HELP.replace("DIR", "OUT"))] = None,
+    no_cache: Annotated[bool, typer.Option("--no-cache", help=NO_CACHE_HELP)] = False,
 ) -> None:
     """Sweep one or two numeric design keys over a grid; writes sweep.csv, a plot per metric and the record."""
+    from hapticopt.optim import sweep as sw  # heavy (evaluators, jax): imported when the command runs
+
     try:
         level = Fidelity(fidelity)
     except ValueError:
@@ -97,6 +100,7 @@ def sweep(
                            f"for a {design.device} design at {level} allowed {', '.join(allowed) if allowed else 'none'}")
     out_dir = out if out is not None else Path("cad_out") / f"sweep-{design.name}-{'-'.join(a.key for a in axes)}"
     check_run_dir(out_dir, resume=resume, force=force)  # nothing written before this
+    cache_path = cache_file(cache, no_cache, out_dir)
     console = render.console(stderr=True, quiet=quiet)
     with Recorder(out_dir, fingerprint=spec.fingerprint(), resume=resume, force=force,
                   search_fingerprint=spec.fingerprint()) as rec:
@@ -107,7 +111,8 @@ def sweep(
             try:
                 with make_executor(scheduler, workers=workers) as executor:
                     result = sw.run_sweep(spec, executor=executor, recorder=rec,
-                                          progress=lambda done, total: line.count(done, total), batch=batch)
+                                          progress=lambda done, total: line.count(done, total), batch=batch,
+                                          cache=cache_path)
             except BaseException:
                 rec.set_status("interrupted")
                 raise
@@ -123,6 +128,7 @@ def sweep(
         return
     typer.echo(f"sweep of {design.name} over {' × '.join(f'{a.key} ({a.n})' for a in axes)} at {level} fidelity: "
                f"{spec.n_points} points, {result.n_ok} ok, {n_fail} not ok; {result.n_evaluated} evaluated, "
-               f"{result.n_replayed} replayed")
+               f"{result.n_replayed} replayed" + (f" ({result.n_cached} from the evaluation cache {cache_path})"
+                                                   if result.n_cached else ""))
     n_plots = len(written) - 1
     typer.echo(f"table: {written[0]}" + (f"; {n_plots} plots in {out_dir / 'plots'}" if n_plots else ""))

@@ -11,14 +11,11 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from hapticopt.analysis import verify as closed_loop_verify
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors
 from hapticopt.optim.cli.progress import StageLine, make_progress
 import numpy as np
 from hapticopt.design.atomic import atomic_path
-from hapticopt.analysis.prrr import design_map as firmware_map
-from hapticopt.analysis.prrr import zwidth
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop.scene import Backend, StabilityCriterion, load_scene
 from hapticopt.design.errors import InvalidInput
@@ -70,6 +67,9 @@ def verify(
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write pictures of the run to this directory.")] = None,
 ) -> None:
     """Simulate the design in closed loop with the firmware controller in a scene (exit 3 unless the verdict is ok)."""
+    from hapticopt.analysis import verify as closed_loop_verify  # heavy (plants, jax): when the command runs
+    from hapticopt.analysis.prrr import zwidth
+
 
     try:
         level = Fidelity(fidelity)
@@ -193,6 +193,8 @@ def design_map(
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write the design-map figure to this directory.")] = None,
 ) -> None:
     """Map the firmware over (controller period T, force-loop gain K_p): free-space residual, K limit, bandwidth."""
+    from hapticopt.analysis.prrr import design_map as firmware_map  # heavy (jax): when the command runs
+
     try:
         level = Fidelity(fidelity)
     except ValueError:

@@ -265,3 +265,26 @@ def test_killed_at_random_moments_then_resumed(tmp_path):
     assert killing.leftovers(run) == []
     assert json.loads((run / "result.json").read_text())["n_evaluated"] == res["n_evaluated"]
     del n1, killed
+
+
+def test_the_base_design_is_evaluated_once_across_runs(tmp_path):
+    """Evaluation cache (issue 22): a second run into the same --out (--force), and a run of another
+    problem on the same base design, serve the base design's evaluations from the cache, bit for bit,
+    and say so in the stage message and result.json; without a cache they are computed."""
+    out, cache = tmp_path / "run", tmp_path / "run" / "evaluation-cache.sqlite"
+    problem = load_problem(DATA / "beta-isotropic.toml")
+    kw = dict(scheduler="inline", export=False, verify=False)
+    first = run_pipeline(problem, out_dir=out, cache=cache, **kw)
+    second = run_pipeline(problem, out_dir=out, force=True, cache=cache, **kw)
+    note = lambda res: next(s.message for s in res.stages if s.name == "baseline")  # noqa: E731
+    assert note(first) == "draft fidelity computed; standard fidelity computed"
+    assert note(second).count(f"from the evaluation cache {cache}") == 2
+    assert json.dumps(second.baseline.metrics) == json.dumps(first.baseline.metrics)  # repr: every bit of every float
+    stage = next(s for s in json.loads((out / "result.json").read_text())["stages"] if s["stage"] == "baseline")
+    assert "from the evaluation cache" in stage["message"]
+    other_text = (DATA / "beta-isotropic.toml").read_text().replace('name = "beta-isotropic"', 'name = "beta-other"')
+    (tmp_path / "other.toml").write_text(other_text.replace('metric = "max_force_N[2]"', 'metric = "max_force_N[1]"'))
+    other = run_pipeline(load_problem(tmp_path / "other.toml"), out_dir=tmp_path / "other", cache=cache, **kw)
+    assert note(other).count("from the evaluation cache") == 2
+    fresh = run_pipeline(problem, out_dir=out, force=True, cache=None, **kw)
+    assert note(fresh) == "draft fidelity computed; standard fidelity computed"

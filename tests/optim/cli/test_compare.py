@@ -82,7 +82,7 @@ def test_bad_compare_one_line_exit_2(args, match, tmp_path):
 
 
 def test_compare_a_run_without_optimum_toml_uses_the_recorded_final_design(tmp_path):
-    from hapticopt.optim.cli.compare import cmp
+    from hapticopt.optim import compare as cmp
 
     res = runner.invoke(app, ["optimise", str(Path(__file__).parents[1] / "data" / "beta-isotropic.toml"), "--out",
                               str(tmp_path), "--scheduler", "inline", "--no-export", "--no-verify", "--quiet",
@@ -93,3 +93,17 @@ def test_compare_a_run_without_optimum_toml_uses_the_recorded_final_design(tmp_p
     assert named.source.endswith("(recorded final design)")
     assert math.isclose(math.degrees(named.design.geometry.beta), json.loads(
         (tmp_path / "result.json").read_text())["best_x"]["geometry.beta_deg"], rel_tol=1e-12)
+
+
+def test_compare_reuses_the_evaluation_cache_and_says_so(run_dir, tmp_path):
+    cache = tmp_path / "c.sqlite"
+    args = ["compare", "prrr-paper", str(run_dir), "--fidelity", "draft", "--json", "--cache", str(cache)]
+    first = runner.invoke(app, args)
+    again = runner.invoke(app, args)
+    assert first.exit_code == 0 and again.exit_code == 0, first.output + again.output
+    a, b = json.loads(first.stdout), json.loads(again.stdout)
+    assert [d["evaluation"] for d in a["designs"]] == ["computed", "computed"]
+    assert all(d["evaluation"].startswith(f"from the evaluation cache {cache}") for d in b["designs"])
+    assert a["metrics"] == b["metrics"]
+    off = runner.invoke(app, args[:-2] + ["--no-cache"])
+    assert off.exit_code == 0 and [d["evaluation"] for d in json.loads(off.stdout)["designs"]] == ["computed"] * 2

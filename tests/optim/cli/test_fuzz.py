@@ -119,13 +119,13 @@ def stubs(monkeypatch):
     """Stand-ins for the expensive work behind a valid input (they only say they were reached)."""
     from hapticopt.optim import pipeline
     from hapticopt.optim.cli import evaluate as cli_evaluate
-    from hapticopt.optim.cli import verify as cli_verify
+    from hapticopt.analysis import verify as closed_loop_verify  # the CLI imports it when `verify` runs
 
     def reached(*args, **kwargs):
         raise Reached
 
     monkeypatch.setattr(cli_evaluate, "evaluate_all", reached)
-    monkeypatch.setattr(cli_verify.closed_loop_verify, "simulate", reached)
+    monkeypatch.setattr(closed_loop_verify, "simulate", reached)
     monkeypatch.setattr(pipeline, "run_pipeline", reached)
 
 

@@ -44,3 +44,17 @@ def test_bad_sweep_one_line_exit_2_no_files(tmp_path, axis, match):
     (line,) = res.stderr.strip().splitlines()
     assert line.startswith("error: ") and match in line
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_a_second_sweep_serves_points_from_the_evaluation_cache(tmp_path):
+    cache = tmp_path / "shared.sqlite"
+    args = ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=50:70:3", "--only", "statics", "--scheduler",
+            "inline", "--quiet", "--no-plots", "--cache", str(cache)]
+    first = runner.invoke(app, args + ["--out", str(tmp_path / "a")])
+    second = runner.invoke(app, args + ["--out", str(tmp_path / "b")])
+    assert first.exit_code == 0 and second.exit_code == 0, first.output + second.output
+    assert "from the evaluation cache" not in first.stdout
+    assert f"3 evaluated, 0 replayed (3 from the evaluation cache {cache})" in second.stdout
+    assert (tmp_path / "a" / "sweep.csv").read_text() == (tmp_path / "b" / "sweep.csv").read_text()
+    with RunReader(tmp_path / "b") as r:
+        assert [c.stage for c in r.cases()] == ["sweep (evaluation cache)"] * 3
