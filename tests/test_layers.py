@@ -49,6 +49,7 @@ LAZY: dict[str, str] = {
     "scipy.optimize": "root finding in a few evaluators; +0.4 s to import",
     "nlopt": "only the optimiser needs it",
     "threadpoolctl": "BLAS thread control around the FEA solve",
+    "sksparse": "optional CHOLMOD backend of the FEA's direct solve (scikit-sparse; SuperLU without it)",
 }
 
 
