@@ -173,7 +173,8 @@ def solve_spd(A, rhs: np.ndarray, *, near_nullspace: np.ndarray, blocked: bool =
                        timings={"check": time.perf_counter() - t0},
                        message=f"stiffness diagonal {d[i]:.3g} at unknown {i} is not positive: a DOF without stiffness")
     s = 1.0 / np.sqrt(d)
-    S = sp.csr_matrix(A.multiply(s[:, None]).multiply(s[None, :]))
+    rows = np.repeat(np.arange(n), np.diff(A.indptr))
+    S = sp.csr_matrix((A.data * s[rows] * s[A.indices], A.indices.copy(), A.indptr.copy()), shape=A.shape)
     rigid = _rigid_rayleigh(S, np.asarray(near_nullspace, dtype=float) / s[:, None])
     t_check = time.perf_counter() - t0
     if not rigid >= RCOND_SINGULAR:
