@@ -32,9 +32,9 @@ which is meant for mechanism Jacobians and frame matrices, not discretised opera
 singular band applies here, and the estimate is reported. A non-ok solve returns NaN solutions,
 so the stiffness computed from them is NaN and the caller's status is not ok.
 
-BLAS threads are set explicitly around factorisation and solves (threadpoolctl): two for a direct
-solve, one for AMG-CG, where two OpenBLAS threads spun against each other under load on the 2-core
-machine (docs/pitfalls.md).
+BLAS threads are set explicitly around factorisation and solves (threadpoolctl,
+:data:`BLAS_THREADS`): on the 2-core machine two OpenBLAS threads spin against each other under
+load (docs/pitfalls.md).
 """
 
 from __future__ import annotations
@@ -60,11 +60,11 @@ class Method(StrEnum):
 
 #: largest system [unknowns] that ``Method.AUTO`` factors directly (docs/structure.md, "Linear solver")
 DIRECT_MAX_UNKNOWNS = 400_000
-#: BLAS threads during a direct factorisation and its solves: the supernodal kernels gain from both
-#: cores (1.1–1.3× over one thread at load 7–8 on the 2-core machine, docs/structure.md)
-BLAS_THREADS_DIRECT = 2
-#: BLAS threads during AMG-CG: one (two spun against each other under load, 2.5–3.4× slower; docs/pitfalls.md)
-BLAS_THREADS_AMG = 1
+#: BLAS threads during factorisation and solves: one. Two gained nothing consistent for the direct
+#: solve on the 2-core machine (0.77× at CAD level 0, 1.1–1.3× at level 2, load 7–8; docs/structure.md)
+#: and spun against each other in AMG-CG under load (2.5–3.4× slower, docs/pitfalls.md); one thread
+#: also leaves the other core to a parallel evaluation
+BLAS_THREADS = 1
 #: AMG-CG: coarsest grid size [unknowns] solved directly
 AMG_MAX_COARSE = 500
 #: AMG-CG: iteration limit per load case
@@ -158,7 +158,7 @@ def solve_spd(A, rhs: np.ndarray, *, near_nullspace: np.ndarray, blocked: bool =
     modes expressed in the unknowns (AMG's B, and the singularity check). ``blocked``: the
     unknowns come in node blocks of 3 (AMG aggregates nodes). ``tol``: CG's relative residual
     (AMG-CG only; a direct solve is exact to rounding). ``threads``: BLAS threads (default
-    :data:`BLAS_THREADS_DIRECT` or :data:`BLAS_THREADS_AMG`). See the module docstring for the verdicts.
+    :data:`BLAS_THREADS`). See the module docstring for the verdicts.
     """
     from threadpoolctl import threadpool_limits
 
@@ -185,9 +185,7 @@ def solve_spd(A, rhs: np.ndarray, *, near_nullspace: np.ndarray, blocked: bool =
                        rigid=rigid, timings={"check": t_check},
                        message=(f"stiffness is singular: a rigid-body motion is unrestrained (Rayleigh quotient "
                                 f"{rigid:.3g} < {RCOND_SINGULAR:g}; missing or insufficient supports?)"))
-    if threads is None:
-        threads = BLAS_THREADS_DIRECT if chosen is Method.DIRECT else BLAS_THREADS_AMG
-    with threadpool_limits(limits=int(threads), user_api="blas"):
+    with threadpool_limits(limits=BLAS_THREADS if threads is None else int(threads), user_api="blas"):
         if chosen is Method.DIRECT:
             return _direct(A, S, s, F, backend=backend, rigid=rigid, t0=t0, t_check=t_check)
         return _amg_cg(A, F, near_nullspace, blocked=blocked, tol=tol, rigid=rigid, t0=t0, t_check=t_check)
