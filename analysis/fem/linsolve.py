@@ -23,7 +23,8 @@ Verdicts come from explicit numbers (docs/pitfalls.md), in this order, with eith
    :data:`~hapticopt.analysis.conditioning.RCOND_SINGULAR` proves rcond₂(S) below it: an
    unrestrained rigid motion (missing or insufficient clamp) — ``singular``;
 3. direct only: the 1-norm rcond estimate of S below ``RCOND_SINGULAR`` (any other mechanism,
-   e.g. a part that floats) — ``singular``; AMG-CG only: CG that does not reach its tolerance
+   e.g. a part that floats) — ``singular``; a relative residual above
+   :data:`DIRECT_RESIDUAL_LIMIT` — ``failed``; AMG-CG only: CG that does not reach its tolerance
    in :data:`CG_MAXITER` iterations — ``failed`` with the residual reached.
 
 Healthy FE stiffness matrices have rcond₁(S) ≈ 1e-9 (CAD solid, 3·10⁴–8·10⁴ unknowns; it falls as
@@ -71,6 +72,9 @@ AMG_MAX_COARSE = 500
 CG_MAXITER = 3000
 #: Hager/Higham estimate: at most this many steps (each two solves on the factor)
 HAGER_STEPS = 5
+#: a direct solve whose relative residual exceeds this failed (a backward-stable factorisation of a
+#: matrix above the singular band leaves ~1e-12 and less; ten decades above rounding)
+DIRECT_RESIDUAL_LIMIT = 1e-6
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -227,6 +231,11 @@ def _direct(A, S, s, F, *, backend: str, rigid: float, t0: float, t_check: float
     res = tuple(float(np.linalg.norm(A @ X[:, k] - F[:, k]) / max(np.linalg.norm(F[:, k]), 1e-300))
                 for k in range(F.shape[1]))
     timings["solve"] = time.perf_counter() - t2
+    if not max(res) <= DIRECT_RESIDUAL_LIMIT:
+        return _failed(F.shape[1], S.shape[0], status=Status.FAILED, method=Method.DIRECT, backend=backend,
+                       rcond=rcond, rigid=rigid, timings=timings,
+                       message=(f"direct solve ({backend}) left a relative residual {max(res):.3g} > "
+                                f"{DIRECT_RESIDUAL_LIMIT:g}"))
     return LinearSolution(x=X, status=Status.OK, method=Method.DIRECT, backend=backend, rcond=rcond,
                           rigid_rayleigh=rigid, iterations=(0,) * F.shape[1], residuals=res, timings_s=timings)
 

@@ -214,7 +214,7 @@ def solve_elasticity(mesh: TetMesh, *, youngs_modulus: float, poisson_ratio: flo
     # skfem numbers the components of a DOF location consecutively; clamping removes whole
     # locations, so the free DOFs stay in node blocks of 3: aggregate nodes, not scalars
     blocked = I.size % 3 == 0 and np.all(I[0::3] % 3 == 0) and np.all(np.diff(I.reshape(-1, 3), axis=1) == 1)
-    lin = linsolve.solve_spd(A, F[I], near_nullspace=B, blocked=bool(blocked), tol=tol, method=method)
+    lin = solve_system(A, B, F[I], blocked=bool(blocked), tol=tol, method=method)
     U = np.zeros_like(F) if lin.status is Status.OK else np.full_like(F, np.nan)
     U[I] = lin.x
     return ElasticSolution(basis=basis, displacements=U, loads=F, n_dofs=int(basis.N), iterations=lin.iterations,
@@ -232,8 +232,17 @@ def solver_timings(lin: linsolve.LinearSolution) -> dict[str, float]:
 def solve_system(A, B: np.ndarray, rhs: np.ndarray, *, blocked: bool, tol: float,
                  method: Method = Method.AUTO) -> linsolve.LinearSolution:
     """A reduced stiffness system with near-nullspace ``B`` (the rigid-body modes in its unknowns),
-    every column of ``rhs``: :func:`hapticopt.analysis.fem.linsolve.solve_spd`."""
-    return linsolve.solve_spd(A, rhs, near_nullspace=B, blocked=blocked, tol=tol, method=method)
+    every column of ``rhs``: :func:`hapticopt.analysis.fem.linsolve.solve_spd`.
+
+    A singular system comes back as a value (status singular, NaN solutions: the stiffness the
+    callers compute from it is NaN, their status not ok). A solve that failed to converge or to
+    reach its residual raises ``RuntimeError`` with the solver's message, as CG's non-convergence
+    did before: the evaluators turn it into a ``failed`` status with that message.
+    """
+    lin = linsolve.solve_spd(A, rhs, near_nullspace=B, blocked=blocked, tol=tol, method=method)
+    if lin.status is Status.FAILED:
+        raise RuntimeError(lin.message)
+    return lin
 
 
 @dataclass(frozen=True, kw_only=True)

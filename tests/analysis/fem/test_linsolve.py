@@ -152,3 +152,16 @@ def test_elasticity_solution_reports_its_solver(bar_mesh):
                                loads=fea.tip_shear_loads(bar_mesh, B * T))
     assert sol.status is Status.OK and sol.solver in ("cholmod", "superlu")
     assert set(sol.timings_s) == {"assemble", "setup", "solve"} and math.isfinite(sol.rcond)
+
+
+def test_cg_that_does_not_converge_is_failed_not_a_number(monkeypatch):
+    # one CG iteration allowed on a 2 000-spring chain (condition ~1e6): far from the 1e-7 residual
+    monkeypatch.setattr(linsolve, "CG_MAXITER", 1)
+    n = 2_000
+    f = np.zeros(n)
+    f[-1] = 1.0
+    lin = linsolve.solve_spd(chain(n), f, near_nullspace=np.ones((n, 1)), method=Method.AMG_CG)
+    assert lin.status is Status.FAILED and "did not converge" in lin.message and np.all(np.isnan(lin.x))
+    # the FEA's entry point raises it (the evaluators make it a `failed` status with this message)
+    with pytest.raises(RuntimeError, match="CG did not converge on load case 0"):
+        fea.solve_system(chain(n), np.ones((n, 1)), f[:, None], blocked=False, tol=1e-7, method=Method.AMG_CG)
