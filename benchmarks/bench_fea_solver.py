@@ -13,7 +13,8 @@ compliance C = Fᵀ X (3 × 3) of every solver must equal the direct solve's to 
 * ``superlu``: the direct path without CHOLMOD; ``amg-cg``: the new AMG-CG (used above the size limit).
 
 ``test_direct_vs_legacy_ratio`` times ``auto`` and ``legacy-amg-cg`` alternately (5 rounds each,
-medians) in one run, records the ratio (target ≥ 3×) and 1 vs 2 BLAS threads of the direct solve.
+medians) in one run, records the ratio (target ≥ 3×) and 1 vs 2 BLAS threads of the direct solve;
+``test_fine_cad_fea_end_to_end_ratio`` does the same for the whole CAD FEA of the fine level.
 
 Run: ``make bench`` or ``pytest benchmarks/bench_fea_solver.py --benchmark-enable``; the table of
 docs/structure.md ("Linear solver"): ``python benchmarks/bench_fea_solver.py --levels 0 1 2``.
@@ -146,6 +147,37 @@ def test_direct_vs_legacy_ratio(benchmark, system):
                                 backend="cholmod" if linsolve.cholmod_available() else "superlu",
                                 load_average=os.getloadavg()[0])
     assert ratio >= 3.0
+
+
+def test_fine_cad_fea_end_to_end_ratio(benchmark, system):
+    """The whole level-``DEFAULT_LEVEL`` CAD FEA (mesh, assembly, reduction, solve), legacy AMG-CG vs the
+    size-chosen solver swapped in at ``fea.solve_system``, alternately, medians of 5 (CAD build warm)."""
+    design = io.load_preset("prrr-paper")
+    real = fea.solve_system
+
+    def legacy(A, B, rhs, *, blocked, tol, method=Method.AUTO):
+        X = legacy_amg_cg(A, B, rhs, blocked=blocked, tol=tol)
+        return linsolve.LinearSolution(x=X, status=Status.OK, method=Method.AMG_CG, backend="legacy-amg-cg",
+                                       rcond=float("nan"), rigid_rayleigh=float("nan"), iterations=(),
+                                       residuals=(), timings_s={})
+
+    stiff = {}
+
+    def run(name):
+        def f():
+            fea.solve_system = legacy if name == "legacy-amg-cg" else real
+            try:
+                stiff[name] = fea_cad.cad_fea(design, level=fea_cad.DEFAULT_LEVEL).stiffness_load
+            finally:
+                fea.solve_system = real
+        return f
+
+    med = benchmark.pedantic(interleaved_medians, args=({k: run(k) for k in ("legacy-amg-cg", "auto")},),
+                             rounds=1, iterations=1)
+    np.testing.assert_allclose(stiff["auto"], stiff["legacy-amg-cg"], rtol=1e-6)
+    benchmark.extra_info.update(level=fea_cad.DEFAULT_LEVEL, medians_s=med,
+                                ratio_legacy_over_new=med["legacy-amg-cg"] / med["auto"],
+                                load_average=os.getloadavg()[0])
 
 
 def main() -> None:
