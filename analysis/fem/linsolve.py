@@ -47,10 +47,9 @@ from enum import StrEnum
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import cg, splu
-
 from hapticopt.analysis.conditioning import RCOND_SINGULAR
 from hapticopt.analysis.status import Status
+from scipy.sparse.linalg import cg, splu
 
 
 class Method(StrEnum):
@@ -263,7 +262,7 @@ def _amg_cg(A, F, B, *, blocked: bool, tol: float, rigid: float, t0: float, t_ch
     for k in range(F.shape[1]):
         count = [0]
 
-        def cb(_xk):
+        def cb(_xk, count=count):
             count[0] += 1
 
         x, info = cg(A, F[:, k], rtol=tol, atol=0.0, M=M, maxiter=CG_MAXITER, callback=cb)

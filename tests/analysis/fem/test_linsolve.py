@@ -9,7 +9,6 @@ import math
 import numpy as np
 import pytest
 import scipy.sparse as sp
-
 from hapticopt.analysis.fem import linsolve
 from hapticopt.analysis.fem import solid as fea
 from hapticopt.analysis.fem.linsolve import Method
