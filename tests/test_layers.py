@@ -50,6 +50,7 @@ LAZY: dict[str, str] = {
     "scipy.integrate": "one ODE check of the handle's stability; it imports scipy.optimize",
     "nlopt": "only the optimiser needs it",
     "threadpoolctl": "BLAS thread control around the FEA solve",
+    "sksparse": "optional CHOLMOD backend of the FEA's direct solve (scikit-sparse; SuperLU without it)",
 }
 
 

@@ -34,6 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hapticopt.analysis.fem import solid as fea
+from hapticopt.analysis.fem.linsolve import Method
+from hapticopt.analysis.status import Status
 import scipy.sparse as sp
 
 
@@ -258,14 +260,19 @@ class ReleasedSolution:
     iterations: tuple[int, ...]
     residuals: tuple[float, ...]
     timings_s: dict[str, float]
+    solver: str = ""  # linear-solver backend (hapticopt.analysis.fem.linsolve)
+    status: Status = Status.OK  # singular: no equilibrium (fields NaN)
+    rcond: float = float("nan")
+    message: str = ""
 
 
 def solve_released(split: SplitMesh, *, youngs_modulus: float, poisson_ratio: float, fixed: list[str], region,
-                   centre, wrenches: np.ndarray, tol: float = 1e-7, amg_blocks: bool = False) -> ReleasedSolution:
+                   centre, wrenches: np.ndarray, tol: float = 1e-7, amg_blocks: bool = False,
+                   method: Method = Method.AUTO) -> ReleasedSolution:
     """:func:`hapticopt.analysis.fem.solid.solve_with_rigid_region` with the hinge ties of ``split`` eliminated too.
 
-    ``amg_blocks``: aggregate 3×3 blocks (the s unknowns padded into triples) instead of scalar
-    DOFs; scalar aggregation needed fewer CG iterations here (docs/structure_hinge.md).
+    ``amg_blocks`` (AMG-CG only): aggregate 3×3 blocks (the s unknowns padded into triples) instead
+    of scalar DOFs; scalar aggregation needed fewer CG iterations here (docs/structure_hinge.md).
     """
     t0 = time.perf_counter()
     _, basis, K, D = fea.assemble_clamped(split.mesh, youngs_modulus=youngs_modulus, poisson_ratio=poisson_ratio,
@@ -279,9 +286,9 @@ def solve_released(split: SplitMesh, *, youngs_modulus: float, poisson_ratio: fl
     I = red.free
     blocked = I.size % 3 == 0 and np.all(I[0::3] % 3 == 0) and np.all(np.diff(I.reshape(-1, 3), axis=1) == 1)
     t2 = time.perf_counter()
-    X, its, res, t_setup = fea.amg_cg(A, red.B, rhs, blocked=bool(blocked) and amg_blocks, tol=tol)
-    t3 = time.perf_counter()
-    return ReleasedSolution(basis=basis, displacements=np.asarray(red.T @ X), master=X[n_head:], n_dofs=int(A.shape[0]),
-                            n_ties=red.n_ties, iterations=tuple(its), residuals=tuple(res),
-                            timings_s={"assemble": t1 - t0, "reduce": t2 - t1, "amg_setup": t_setup,
-                                       "solve": t3 - t2 - t_setup})
+    lin = fea.solve_system(A, red.B, rhs, blocked=bool(blocked) and amg_blocks, tol=tol, method=method)
+    return ReleasedSolution(basis=basis, displacements=np.asarray(red.T @ lin.x), master=lin.x[n_head:],
+                            n_dofs=int(A.shape[0]), n_ties=red.n_ties, iterations=lin.iterations,
+                            residuals=lin.residuals,
+                            timings_s={"assemble": t1 - t0, "reduce": t2 - t1, **fea.solver_timings(lin)},
+                            solver=lin.backend, status=lin.status, rcond=lin.rcond, message=lin.message)

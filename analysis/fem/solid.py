@@ -1,16 +1,18 @@
-"""Solid FEA: gmsh tetrahedra, scikit-fem quadratic elasticity, pyamg-preconditioned CG.
+"""Solid FEA: gmsh tetrahedra, scikit-fem quadratic elasticity, sparse direct or AMG-CG solve.
 
-Pipeline (pitfalls: named physical groups, quadratic tetrahedra, AMG with rigid-body modes):
+Pipeline (pitfalls: named physical groups, quadratic tetrahedra, measure direct vs AMG):
 
 1. gmsh (OpenCASCADE kernel, geometry in mm) builds and meshes the solid; supports are named
    physical surfaces ("clamp", "tip", "support_leg<i>"), the body the physical volume "solid".
 2. scikit-fem assembles linear elasticity with ``ElementVector(ElementTetP2())`` (10-node
    tetrahedra; linear ones lock in bending).
-3. Dirichlet DOFs are condensed out; the system is solved by conjugate gradients preconditioned
-   with pyamg smoothed aggregation whose near-nullspace B holds the six rigid-body modes.
+3. Dirichlet DOFs are condensed out; the system is solved by :mod:`hapticopt.analysis.fem.linsolve`:
+   a sparse Cholesky/LU factorisation up to its size limit (one factor for all load cases),
+   conjugate gradients preconditioned with pyamg smoothed aggregation (near-nullspace B: the
+   six rigid-body modes) above it; an unsupported solid gets a singular status, not a number.
 
 The generic pieces live here: meshing helpers, P2 assembly with clamped surfaces, rigid-body
-modes, AMG-CG, a rigid load region, the cantilever check (:func:`cantilever_fea`, compared with
+modes, the linear solve, a rigid load region, the cantilever check (:func:`cantilever_fea`, compared with
 Timoshenko's closed form) and Richardson extrapolation. Device solids build on them:
 :mod:`hapticopt.analysis.prrr.fea_frame` (the frame-equivalent solid) and
 :mod:`hapticopt.analysis.prrr.fea_cad` (the CAD solid with pins and hinges).
@@ -24,8 +26,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.sparse.linalg import cg
 import scipy.sparse as sp
+
+from hapticopt.analysis.fem import linsolve
+from hapticopt.analysis.fem.linsolve import Method
+from hapticopt.analysis.status import Status
 
 
 #: ratio of successive mesh sizes in the refinement studies
@@ -120,6 +125,10 @@ class ElasticSolution:
     iterations: tuple[int, ...]
     residuals: tuple[float, ...]
     timings_s: dict[str, float]
+    solver: str = ""  # linear-solver backend (hapticopt.analysis.fem.linsolve)
+    status: Status = Status.OK  # singular: no equilibrium (displacements NaN)
+    rcond: float = float("nan")  # 1-norm reciprocal condition estimate of the scaled system (direct solves)
+    message: str = ""
 
 
 def component_dofs(basis) -> list[np.ndarray]:
@@ -183,19 +192,17 @@ def tip_shear_loads(mesh: TetMesh, area: float):
 
 
 def solve_elasticity(mesh: TetMesh, *, youngs_modulus: float, poisson_ratio: float, fixed: str | list[str],
-                     loads, tol: float = 1e-7) -> ElasticSolution:
+                     loads, tol: float = 1e-7, method: Method = Method.AUTO) -> ElasticSolution:
     """Linear elasticity with P2 tetrahedra; ``fixed`` named node sets clamped.
 
     ``loads(basis) -> (n_dofs, n_cases)`` builds the load vectors on the quadratic basis.
     Quadrature of order 2 (exact for the stiffness of straight-sided P2 tetrahedra: ∇u·∇v is
-    quadratic; ~3× faster assembly than skfem's default order 4). One smoothed-aggregation
-    hierarchy (rigid-body modes as B, energy-minimising prolongation smoothing, strength
-    threshold 0.02 (P2 stencils otherwise give ~65-node aggregates), one forward Gauss–Seidel
-    sweep before and one backward after (a symmetric V-cycle at half the default cost); together
-    −45 % CG time on the CAD solid, docs/structure.md) serves every load case;
-    CG stops at relative residual ``tol`` (the compliance error is ~tol², negligible).
+    quadratic; ~3× faster assembly than skfem's default order 4). The condensed system is solved
+    by :func:`hapticopt.analysis.fem.linsolve.solve_spd` (one factorisation, or one AMG hierarchy,
+    for every load case; ``method`` AUTO chooses by size); ``tol`` is CG's relative residual
+    when AMG-CG runs (the compliance error is ~tol², negligible). A singular system (missing
+    clamp) gives NaN displacements and ``status`` singular.
     """
-    import pyamg
     from skfem import condense
 
     t0 = time.perf_counter()
@@ -203,70 +210,39 @@ def solve_elasticity(mesh: TetMesh, *, youngs_modulus: float, poisson_ratio: flo
     t1 = time.perf_counter()
     F = np.atleast_2d(np.asarray(loads(basis)).T).T
     A, _, _, I = condense(K, F[:, 0], D=D)
-    A = A.tocsr()
     B = rigid_body_modes(basis, centre=mesh.points.mean(axis=1))[I]
     # skfem numbers the components of a DOF location consecutively; clamping removes whole
     # locations, so the free DOFs stay in node blocks of 3: aggregate nodes, not scalars
     blocked = I.size % 3 == 0 and np.all(I[0::3] % 3 == 0) and np.all(np.diff(I.reshape(-1, 3), axis=1) == 1)
-    A_amg = A.tobsr(blocksize=(3, 3)) if blocked else A
-    ml = pyamg.smoothed_aggregation_solver(A_amg, B=B, symmetry="hermitian", max_coarse=300,
-                                           strength=("symmetric", {"theta": 0.02}),
-                                           smooth=("energy", {"krylov": "cg", "maxiter": 2, "degree": 1,
-                                                              "weighting": "local"}),
-                                           presmoother=("block_gauss_seidel", {"sweep": "forward"}),
-                                           postsmoother=("block_gauss_seidel", {"sweep": "backward"}))
-    M = ml.aspreconditioner(cycle="V")
-    t2 = time.perf_counter()
-    U = np.zeros_like(F)
-    its, res = [], []
-    for k in range(F.shape[1]):
-        b = F[I, k]
-        count = [0]
-
-        def cb(_xk):
-            count[0] += 1
-
-        x, info = cg(A, b, rtol=tol, atol=0.0, M=M, maxiter=2000, callback=cb)
-        if info != 0:
-            raise RuntimeError(f"CG did not converge (info={info}) on load case {k}")
-        U[I, k] = x
-        its.append(count[0])
-        res.append(float(np.linalg.norm(A @ x - b) / max(np.linalg.norm(b), 1e-300)))
-    t3 = time.perf_counter()
-    return ElasticSolution(basis=basis, displacements=U, loads=F, n_dofs=int(basis.N), iterations=tuple(its),
-                           residuals=tuple(res),
-                           timings_s={"assemble": t1 - t0, "amg_setup": t2 - t1, "solve": t3 - t2})
+    lin = solve_system(A, B, F[I], blocked=bool(blocked), tol=tol, method=method)
+    U = np.zeros_like(F) if lin.status is Status.OK else np.full_like(F, np.nan)
+    U[I] = lin.x
+    return ElasticSolution(basis=basis, displacements=U, loads=F, n_dofs=int(basis.N), iterations=lin.iterations,
+                           residuals=lin.residuals, timings_s={"assemble": t1 - t0, **solver_timings(lin)},
+                           solver=lin.backend, status=lin.status, rcond=lin.rcond, message=lin.message)
 
 
-def amg_cg(A, B, rhs: np.ndarray, *, blocked: bool, tol: float) -> tuple[np.ndarray, list[int], list[float], float]:
-    """SA-AMG (settings as in :func:`solve_elasticity`) + CG for every column of ``rhs``."""
-    import pyamg
+def solver_timings(lin: linsolve.LinearSolution) -> dict[str, float]:
+    """"setup" (checks + factorisation and condition estimate, or the AMG hierarchy) and "solve"."""
+    t = lin.timings_s
+    return {"setup": t.get("check", 0.0) + t.get("factor", 0.0) + t.get("condition", 0.0) + t.get("amg_setup", 0.0),
+            "solve": t.get("solve", 0.0)}
 
-    t0 = time.perf_counter()
-    A = A.tocsr()
-    ml = pyamg.smoothed_aggregation_solver(A.tobsr(blocksize=(3, 3)) if blocked else A, B=B, symmetry="hermitian",
-                                           max_coarse=300, strength=("symmetric", {"theta": 0.02}),
-                                           smooth=("energy", {"krylov": "cg", "maxiter": 2, "degree": 1,
-                                                              "weighting": "local"}),
-                                           presmoother=("block_gauss_seidel", {"sweep": "forward"}),
-                                           postsmoother=("block_gauss_seidel", {"sweep": "backward"}))
-    M = ml.aspreconditioner(cycle="V")
-    t_setup = time.perf_counter() - t0
-    X = np.zeros_like(rhs)
-    its, res = [], []
-    for k in range(rhs.shape[1]):
-        count = [0]
 
-        def cb(_xk):
-            count[0] += 1
+def solve_system(A, B: np.ndarray, rhs: np.ndarray, *, blocked: bool, tol: float,
+                 method: Method = Method.AUTO) -> linsolve.LinearSolution:
+    """A reduced stiffness system with near-nullspace ``B`` (the rigid-body modes in its unknowns),
+    every column of ``rhs``: :func:`hapticopt.analysis.fem.linsolve.solve_spd`.
 
-        x, info = cg(A, rhs[:, k], rtol=tol, atol=0.0, M=M, maxiter=3000, callback=cb)
-        if info != 0:
-            raise RuntimeError(f"CG did not converge (info={info}) on load case {k}")
-        X[:, k] = x
-        its.append(count[0])
-        res.append(float(np.linalg.norm(A @ x - rhs[:, k]) / max(np.linalg.norm(rhs[:, k]), 1e-300)))
-    return X, its, res, t_setup
+    A singular system comes back as a value (status singular, NaN solutions: the stiffness the
+    callers compute from it is NaN, their status not ok). A solve that failed to converge or to
+    reach its residual raises ``RuntimeError`` with the solver's message, as CG's non-convergence
+    did before: the evaluators turn it into a ``failed`` status with that message.
+    """
+    lin = linsolve.solve_spd(A, rhs, near_nullspace=B, blocked=blocked, tol=tol, method=method)
+    if lin.status is Status.FAILED:
+        raise RuntimeError(lin.message)
+    return lin
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -280,15 +256,22 @@ class RigidRegionSolution:
     iterations: tuple[int, ...]
     residuals: tuple[float, ...]
     timings_s: dict[str, float]
+    solver: str = ""
+    status: Status = Status.OK
+    rcond: float = float("nan")
+    message: str = ""
 
 
 def solve_with_rigid_region(mesh: TetMesh, *, youngs_modulus: float, poisson_ratio: float, fixed: list[str],
-                            region, centre, wrenches: np.ndarray, tol: float = 1e-7) -> RigidRegionSolution:
+                            region, centre, wrenches: np.ndarray, tol: float = 1e-7,
+                            method: Method = Method.AUTO) -> RigidRegionSolution:
     """Linear elasticity (P2) where the DOFs selected by ``region(basis) -> bool (n_dofs,)`` move
     as one rigid body: u = u_c + θ × (x − centre) (an exact multi-point constraint, u = T q; the
     reduced stiffness is Tᵀ K T). ``wrenches`` (6, n_cases) [N; N·m] about ``centre`` load the
     six master DOFs. The compliance is then a true energy quantity (no nodal point loads), so it
     converges monotonically under refinement, unlike a least-squares fit of a loaded node set.
+    Solved by :func:`hapticopt.analysis.fem.linsolve.solve_spd` (``method``; NaN fields and
+    ``status`` singular for an unsupported solid).
     """
 
     t0 = time.perf_counter()
@@ -312,12 +295,11 @@ def solve_with_rigid_region(mesh: TetMesh, *, youngs_modulus: float, poisson_rat
     rhs = np.vstack([np.zeros((n, wrenches.shape[1])), np.asarray(wrenches, dtype=float)])
     blocked = n % 3 == 0 and np.all(I[0::3] % 3 == 0) and np.all(np.diff(I.reshape(-1, 3), axis=1) == 1)
     t2 = time.perf_counter()
-    X, its, res, t_setup = amg_cg(A, B, rhs, blocked=bool(blocked), tol=tol)
-    t3 = time.perf_counter()
-    return RigidRegionSolution(basis=basis, displacements=np.asarray(T @ X), master=X[n:], n_dofs=int(A.shape[0]),
-                               iterations=tuple(its), residuals=tuple(res),
-                               timings_s={"assemble": t1 - t0, "reduce": t2 - t1, "amg_setup": t_setup,
-                                          "solve": t3 - t2 - t_setup})
+    lin = solve_system(A, B, rhs, blocked=bool(blocked), tol=tol, method=method)
+    return RigidRegionSolution(basis=basis, displacements=np.asarray(T @ lin.x), master=lin.x[n:],
+                               n_dofs=int(A.shape[0]), iterations=lin.iterations, residuals=lin.residuals,
+                               timings_s={"assemble": t1 - t0, "reduce": t2 - t1, **solver_timings(lin)},
+                               solver=lin.backend, status=lin.status, rcond=lin.rcond, message=lin.message)
 
 
 # ----------------------------------------------------------------------------- cantilever
