@@ -156,10 +156,12 @@ def test_interference_evaluator_reports_the_fast_fraction_and_workspace_stays_ch
         F.interference_fractions(paper, **W.INTERFERENCE_SAMPLING)[1], rel=1e-12)
     assert "workspace_interference_removed_fraction" not in W.evaluate(paper, fidelity="draft").metrics()
     assert evaluate_all(paper, fidelity="draft", only=("interference",)).statuses["interference"] == Status.OK
-    # links too short to reach: an empty workspace loses nothing (a finite 0, not an error)
+    # links too short to reach: the chain cannot close (|ρ| ≥ d1-offset > d3 + d4 = 10 mm everywhere), so the
+    # design cannot be assembled — said by its status with NaN fractions, not an error and not a fake 0
     tiny = io.apply_overrides(paper, ["geometry.d3_mm=5", "geometry.d4_mm=5"])
     empty = prrr_interference.evaluate(tiny)
-    assert empty.status == Status.OK and empty.removed_fraction == 0.0 and empty.overlap_fraction == 0.0
+    assert empty.status == Status.NOT_ASSEMBLABLE and "does not close" in empty.message
+    assert np.isnan(empty.removed_fraction) and np.isnan(empty.overlap_fraction)
 
 
 def test_overlap_share_is_the_clipped_depth_ramp():
