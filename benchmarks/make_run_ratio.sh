@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# `make run` of this checkout against an older revision, side by side (interleaved pairs, one machine,
+# one hour): the three commands of `make run` from an empty cad_out, each revision imported through a
+# package shim so both use this checkout's .venv. Prints one line per run and the per-pair ratios.
+#   usage: benchmarks/make_run_ratio.sh OLD_REVISION [PAIRS]      (e.g. c2550d8 3)
+set -euo pipefail
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+OLD=${1:?an older revision to compare with}; PAIRS=${2:-3}
+PY="$ROOT/.venv/bin/python"
+TMP=$(mktemp -d); trap 'git -C "$ROOT" worktree remove --force "$TMP/old" >/dev/null 2>&1 || true; rm -rf "$TMP"' EXIT
+git -C "$ROOT" worktree add -q --detach "$TMP/old" "$OLD"
+shim() {  # shim DIR SRC: hapticopt.{design,analysis,optim} from SRC
+    mkdir -p "$1/hapticopt"; echo '"""shim"""' > "$1/hapticopt/__init__.py"
+    for p in design analysis optim; do ln -sfn "$2/$p" "$1/hapticopt/$p"; done
+}
+shim "$TMP/shim-old" "$TMP/old"; shim "$TMP/shim-new" "$ROOT"
+run() {  # run SHIM WORKDIR -> seconds of the three commands
+    rm -rf "$2"; mkdir -p "$2"; cd "$2"
+    local H=(env PYTHONPATH="$1" "$PY" -c 'import sys; from hapticopt.optim.cli import main; sys.argv=["hapticopt"]+sys.argv[1:]; main()')
+    local t0; t0=$(date +%s.%N)
+    "${H[@]}" evaluate --preset prrr-paper >/dev/null 2>&1 || true   # exit 3 is a verdict, not a failure here
+    "${H[@]}" export --preset prrr-paper --render >/dev/null 2>&1
+    "${H[@]}" optimise prrr-workspace --quiet >/dev/null 2>&1 || true
+    python3 -c "import time; print(f'{time.time() - $t0:.1f}')"
+}
+for i in $(seq "$PAIRS"); do
+    o=$(run "$TMP/shim-old" "$TMP/run-old"); n=$(run "$TMP/shim-new" "$TMP/run-new")
+    python3 -c "print(f'pair $i: old {$o:.1f} s, new {$n:.1f} s, ratio {$n / $o:.2f}')"
+done
