@@ -325,6 +325,14 @@ def _tables(p: PipelineResult) -> dict[str, tuple[list[str], list[list[Cell]]]]:
     out["metrics"] = (["metric", "unit", f"baseline ({prob.fidelity_final})", f"optimum ({prob.fidelity_final})"],
                       rows)
     rows = []
+    for name in list(dict.fromkeys([*p.baseline.statuses, *p.optimum.statuses])):
+        why = "; ".join(f"{who}: {m}" for who, m in (("baseline", p.baseline.messages.get(name, "")),
+                                                     ("optimum", p.optimum.messages.get(name, ""))) if m)
+        rows.append([name, str(p.baseline.statuses.get(name, "—")), str(p.optimum.statuses.get(name, "—")),
+                     why or "—"])
+    out["statuses"] = (["evaluator", f"baseline ({prob.fidelity_final})", f"optimum ({prob.fidelity_final})",
+                        "message"], rows)
+    rows = []
     tol = prob.optimiser.constraint_tol
     for c, (text, value, ok) in zip(prob.constraints, p.constraints_final):
         margin = -c.normalised(value) if math.isfinite(value) else float("nan")
@@ -426,6 +434,11 @@ def write(p: PipelineResult, *, extra_stage: tuple[str, float] | None = None,
         f"at {prob.fidelity_final} fidelity: {why}.",
         f"Constraints at {prob.fidelity_final} fidelity: "
         f"{'all satisfied' if p.feasible_final else 'NOT all satisfied'}; {verdict_line}.",
+        f"Evaluators at {prob.fidelity_final} fidelity: " + (
+            "every status ok" if all(str(v) == "ok" for v in p.optimum.statuses.values()) else
+            "optimum " + ", ".join(f"{k} {v}" for k, v in p.optimum.statuses.items() if str(v) != "ok")
+            + " (see Evaluator statuses; an evaluator the problem does not constrain does not make the optimum "
+            "infeasible)"),
         f"Optimiser: {optimiser_text(prob.optimiser, constrained=bool(prob.constraints))}, "
         f"{prob.optimiser.starts} start(s), seed {prob.optimiser.seed}; run status {p.run.status}; "
         f"{p.run.n_evaluated} evaluations ({p.run.n_replayed} replayed from the recorder, "
@@ -434,7 +447,8 @@ def write(p: PipelineResult, *, extra_stage: tuple[str, float] | None = None,
     conv_caption = (f"Convergence: {obj.text} [{unit}] of every evaluated point in order of request, one colour per "
                     "start; filled markers satisfy every constraint, open markers violate one; the black line is "
                     f"the best feasible value so far ({prob.fidelity_optimise} fidelity).")
-    titles = {"design": "Design variables", "metrics": "Metrics", "constraints": "Constraints",
+    titles = {"design": "Design variables", "statuses": "Evaluator statuses", "metrics": "Metrics",
+              "constraints": "Constraints",
               "starts": "Starts", "verdicts": "Closed-loop verification", "stages": "Stage wall times",
               "timings": "Time per evaluator"}
     starts_note = (f"Objective in the user's sense ({prob.objective.sense.value}); a start's result is the point "
@@ -442,7 +456,7 @@ def write(p: PipelineResult, *, extra_stage: tuple[str, float] | None = None,
                    f"({prob.optimiser.constraint_tol:g} of each limit).")
     # ------------------------------------------------------------------ markdown
     md = [f"# Optimisation report: {prob.name}", ""] + [f"- {s}" for s in summary] + [""]
-    for key in ("design", "metrics", "constraints"):
+    for key in ("design", "statuses", "metrics", "constraints"):
         md += [f"## {titles[key]}", "", _md_table(*tables[key])]
     md += ["## Convergence", "", "![convergence](convergence.svg)", "", conv_caption, ""]
     md += ["## Starts", "", starts_note, "", _md_table(*tables["starts"])]
@@ -464,7 +478,7 @@ def write(p: PipelineResult, *, extra_stage: tuple[str, float] | None = None,
          f"<h1>Optimisation report: {html.escape(prob.name)}</h1><ul>"]
     h += [f"<li>{html.escape(s)}</li>" for s in summary]
     h.append("</ul>")
-    for key in ("design", "metrics", "constraints"):
+    for key in ("design", "statuses", "metrics", "constraints"):
         h += [f"<h2>{titles[key]}</h2>", _html_table(*tables[key])]
     h += ["<h2>Convergence</h2>", _figure_html("convergence.svg", "convergence plot", conv_caption)]
     h += ["<h2>Starts</h2>", f"<p>{html.escape(starts_note)}</p>", _html_table(*tables["starts"])]
