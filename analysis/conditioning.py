@@ -65,19 +65,16 @@ def classify(A: np.ndarray, *, what: str, symmetric: bool = False, positive_defi
     """The conditioning verdict of matrix ``A`` (named ``what`` in the message)."""
     A = np.asarray(A, dtype=float)
     r = rcond(A, symmetric=symmetric)
-    if r < RCOND_SINGULAR:
-        return Conditioning(status=Status.SINGULAR, rcond=r,
-                            message=f"{what} is singular: reciprocal condition number {r:.3g} < {RCOND_SINGULAR:g}")
-    if r < RCOND_ILL:
-        return Conditioning(status=Status.ILL_CONDITIONED, rcond=r,
-                            message=f"{what} is ill-conditioned: reciprocal condition number {r:.3g} < {RCOND_ILL:g}")
+    verdict = classify_rcond(r, what=what)
+    if verdict.status is not Status.OK:
+        return verdict
     if symmetric and positive_definite:
         d = 1.0 / np.sqrt(np.abs(np.diagonal(A)))
         lam = np.linalg.eigvalsh(d[:, None] * A * d[None, :])
         if lam[0] < -RCOND_ILL * abs(lam[-1]) or (np.any(np.diagonal(A) <= 0.0)):
             return Conditioning(status=Status.NOT_POSITIVE_DEFINITE, rcond=r,
                                 message=f"{what} is not positive definite: smallest scaled eigenvalue {lam[0]:.3g}")
-    return Conditioning(status=Status.OK, rcond=r)
+    return verdict
 
 
 def classify_rcond(r: float, *, what: str) -> Conditioning:

@@ -336,10 +336,11 @@ class Evaluation:
 StepFn = Callable[[str, int, int], None]
 
 
-def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
-                 only: tuple[str, ...] | None = None, progress: StepFn | None = None) -> Evaluation:
-    """Run every evaluator registered for the design's device (or those named in ``only``)."""
-    entries = [e for e in EVALUATORS[design.device] if only is None or e.name in only]
+def _collect(fidelity: Fidelity, entries: list[EvaluatorEntry], produce: Callable[[EvaluatorEntry], Any],
+             timing: Callable[[EvaluatorEntry, float], float], progress: StepFn | None = None) -> Evaluation:
+    """The one failure policy: ``produce(entry)`` gives the evaluator's result (or raises, or returns
+    the exception it raised); a failure is a ``failed`` status with its message, not a crash.
+    ``timing(entry, measured_s)`` gives the seconds recorded for it."""
     results: dict[str, Any] = {}
     timings: dict[str, float] = {}
     statuses: dict[str, Status] = {}
@@ -350,7 +351,9 @@ def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
             progress(entry.name, k, len(entries))
         t0 = time.perf_counter()
         try:
-            result = entry.load().evaluate(design, fidelity=fidelity)
+            result = produce(entry)
+            if isinstance(result, BaseException):
+                raise result
             names = list(result.metrics())
         except Exception as exc:  # noqa: BLE001 - the one failure policy: a status, not a crash
             statuses[entry.name] = Status.FAILED
@@ -360,11 +363,23 @@ def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
             statuses[entry.name] = Status(result.status)
             messages[entry.name] = result.message
             sources.update({name: entry.module for name in names})
-        timings[entry.name] = time.perf_counter() - t0
+        timings[entry.name] = timing(entry, time.perf_counter() - t0)
     if progress is not None:
         progress("", len(entries), len(entries))
     return Evaluation(fidelity=fidelity, results=results, timings_s=timings, statuses=statuses,
                       messages=messages, sources=sources)
+
+
+def _entries(device: str, only: tuple[str, ...] | None) -> list[EvaluatorEntry]:
+    return [e for e in EVALUATORS[device] if only is None or e.name in only]
+
+
+def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
+                 only: tuple[str, ...] | None = None, progress: StepFn | None = None) -> Evaluation:
+    """Run every evaluator registered for the design's device (or those named in ``only``)."""
+    return _collect(fidelity, _entries(design.device, only),
+                    lambda entry: entry.load().evaluate(design, fidelity=fidelity),
+                    lambda entry, measured: measured, progress)
 
 
 def run_plotter(entry: EvaluatorEntry, design: Any, result: Any, out_dir: Path) -> list[Path]:
@@ -419,28 +434,6 @@ def evaluate_batch(designs: list[Any], *, fidelity: Fidelity = Fidelity.STANDARD
             out.append(evaluate_all(design, fidelity=Fidelity.DRAFT, only=only))
             continue
         found, times = next(found_all)
-        results: dict[str, Any] = {}
-        statuses: dict[str, Status] = {}
-        messages: dict[str, str] = {}
-        sources: dict[str, str] = {}
-        timings: dict[str, float] = {}
-        for entry in EVALUATORS["prrr"]:
-            if only is not None and entry.name not in only:
-                continue
-            result = found[entry.name]
-            try:
-                if isinstance(result, BaseException):
-                    raise result
-                names = list(result.metrics())
-            except Exception as exc:  # noqa: BLE001 - the one failure policy, as evaluate_all
-                statuses[entry.name] = Status.FAILED
-                messages[entry.name] = describe_failure(exc)
-            else:
-                results[entry.name] = result
-                statuses[entry.name] = Status(result.status)
-                messages[entry.name] = result.message
-                sources.update({name: entry.module for name in names})
-            timings[entry.name] = times.get(entry.name, 0.0)
-        out.append(Evaluation(fidelity=Fidelity.DRAFT, results=results, timings_s=timings, statuses=statuses,
-                              messages=messages, sources=sources))
+        out.append(_collect(Fidelity.DRAFT, _entries("prrr", only), lambda entry: found[entry.name],
+                            lambda entry, _: times.get(entry.name, 0.0)))
     return out

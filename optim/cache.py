@@ -48,7 +48,6 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
@@ -59,6 +58,7 @@ import hapticopt.design
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.registry import evaluate_all
 from hapticopt.analysis.status import Status
+from hapticopt.optim.versions import package_versions
 
 #: default file name, in the run directory beside ``evaluations.sqlite``
 FILENAME = "evaluation-cache.sqlite"
@@ -114,16 +114,6 @@ def canonical(value: Any) -> Any:
     raise TypeError(f"cannot key a {type(value).__name__} value for the evaluation cache")
 
 
-def _library_versions() -> dict[str, str]:
-    out = {}
-    for name in NUMERIC_LIBRARIES:
-        try:
-            out[name] = version(name)
-        except PackageNotFoundError:
-            out[name] = "absent"
-    return out
-
-
 @functools.lru_cache(maxsize=1)
 def code_version() -> str:
     """SHA-256 of what an evaluation's numbers depend on besides the design (see the module text).
@@ -142,7 +132,7 @@ def code_version() -> str:
                 h.update(b"\0")
     env = {"python": sys.version, "implementation": platform.python_implementation(),
            "machine": platform.machine(), "OPENBLAS_CORETYPE": os.environ.get("OPENBLAS_CORETYPE", ""),
-           **_library_versions()}
+           **package_versions(NUMERIC_LIBRARIES)}
     h.update(json.dumps(env, sort_keys=True).encode())
     return h.hexdigest()
 

@@ -3,9 +3,7 @@
 
 from __future__ import annotations
 
-import csv
 import html
-import io as _io
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -16,7 +14,7 @@ from hapticopt.design.units import pretty
 from hapticopt.optim.pareto import FrontPoint, FrontResult
 from hapticopt.optim.problem import Problem
 from hapticopt.optim.report import _CSS, _fmt, _html_table, _md_table, svg_frame
-from hapticopt.optim.sweep import metric_label
+from hapticopt.optim.sweep import metric_label, rows_csv
 
 
 def front_svg(result: FrontResult, problem: Problem, *, width: int = 640, height: int = 420) -> str:
@@ -84,14 +82,7 @@ def front_rows(result: FrontResult, problem: Problem) -> tuple[list[str], list[l
 
 
 def front_csv(result: FrontResult, problem: Problem) -> str:
-    cols, rows = front_rows(result, problem)
-    buf = _io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(cols)
-    for r in rows:
-        w.writerow(["" if isinstance(v, float) and math.isnan(v) else (repr(v) if isinstance(v, float) else v)
-                    for v in r])
-    return buf.getvalue()
+    return rows_csv(*front_rows(result, problem))
 
 
 def write(result: FrontResult, problem: Problem, out: Path, *, chosen_metrics: dict[str, Any],

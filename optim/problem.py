@@ -506,6 +506,21 @@ def _pareto(table: dict[str, Any], source: str) -> ParetoConfig:
     return ParetoConfig(points=points, choose=choose, weights=weights)
 
 
+def numeric_key(base: Any, key: str, where: str, *, role: str) -> tuple[str, str, Any]:
+    """(section, field name, spec) of the numeric design key ``section.key`` of ``base``; one line naming
+    ``where`` and the allowed sections/keys otherwise (``role``: what the key is for, e.g. "a variable")."""
+    section, tkey = key.split(".")
+    if section not in base.SECTIONS:
+        raise InvalidInput(f"{where}: {section} is not a section of a {base.device} design: "
+                           f"allowed {', '.join(base.SECTIONS)}")
+    by_key = {s.key: (fname, s) for fname, s in specs(getattr(base, section)).items()}
+    if tkey not in by_key:
+        raise InvalidInput(f"{where} is not {role} of the design: allowed keys in [{section}] are "
+                           f"{', '.join(sorted(by_key))}")
+    fname, spec = by_key[tkey]
+    return section, fname, spec
+
+
 def _variables(raw: Any, base: Any, source: str) -> tuple[Variable, ...]:
     if not isinstance(raw, list) or not raw:
         raise InvalidInput(f"{source}: [[variables]] must list at least one design variable, e.g. key = \"geometry.beta_deg\"")
@@ -521,18 +536,10 @@ def _variables(raw: Any, base: Any, source: str) -> tuple[Variable, ...]:
         key = table.get("key")
         if not isinstance(key, str) or key.count(".") != 1:
             raise InvalidInput(f"{where}.key = {short(key)} must name section.key, e.g. \"geometry.beta_deg\"")
-        section, tkey = key.split(".")
-        if section not in base.SECTIONS:
-            raise InvalidInput(f"{where}.key = {short(key)}: {section} is not a section of a {base.device} design: "
-                               f"allowed {', '.join(base.SECTIONS)}")
-        by_key = {s.key: (fname, s) for fname, s in specs(getattr(base, section)).items()}
-        if tkey not in by_key:
-            raise InvalidInput(f"{where}.key = {short(key)} is not a variable of the design: allowed keys in "
-                               f"[{section}] are {', '.join(sorted(by_key))}")
+        section, fname, spec = numeric_key(base, key, f"{where}.key = {short(key)}", role="a variable")
         if key in seen:
             raise InvalidInput(f"{where}.key = {short(key)} appears twice")
         seen.add(key)
-        fname, spec = by_key[tkey]
         lower = _number(table["lower"], f"{where}.lower") if "lower" in table else spec.lo
         upper = _number(table["upper"], f"{where}.upper") if "upper" in table else spec.hi
         if not (math.isfinite(lower) and math.isfinite(upper)):

@@ -20,7 +20,6 @@ import platform
 import sqlite3
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
@@ -30,19 +29,14 @@ from hapticopt.design.errors import InvalidInput
 from hapticopt.design.units import pretty
 from hapticopt.optim.problem import Constraint, MetricRef, Op, Problem
 from hapticopt.optim.recorder import FILENAME
+from hapticopt.optim.versions import package_versions
 
 #: packages whose versions a record states
 VERSIONED = ("hapticopt", "numpy", "scipy", "jax", "nlopt", "dask")
 
 
 def software_versions() -> dict[str, str]:
-    out = {"python": platform.python_version()}
-    for name in VERSIONED:
-        try:
-            out[name] = version(name)
-        except PackageNotFoundError:
-            out[name] = "not installed"
-    return out
+    return {"python": platform.python_version(), **package_versions(VERSIONED)}
 
 
 def problem_info(problem: Problem, *, kind: str = "optimise") -> dict[str, Any]:

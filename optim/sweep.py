@@ -35,10 +35,9 @@ from hapticopt.analysis.registry import EVALUATORS
 from hapticopt.design import io
 from hapticopt.design.atomic import atomic_path, write_text
 from hapticopt.design.errors import InvalidDesign, InvalidInput
-from hapticopt.design.schema import specs
 from hapticopt.design.units import TO_SI, pretty
 from hapticopt.optim.evaluation import Outcome, PointResult, PointTask, evaluate_point, evaluate_points
-from hapticopt.optim.problem import Variable
+from hapticopt.optim.problem import Variable, numeric_key
 from hapticopt.optim.recorder import Recorder, point_key
 from hapticopt.optim.runs import software_versions
 from hapticopt.design.errors import short
@@ -84,15 +83,7 @@ def parse_axis(text: str, base: Any) -> Axis:
     if key.count(".") != 1:
         raise InvalidInput(f"sweep axis {short(key)} is not a numeric design key: give section.key, e.g. geometry.beta_deg "
                            f"(sections of a {base.device} design: {', '.join(base.SECTIONS)})")
-    section, tkey = key.split(".")
-    if section not in base.SECTIONS:
-        raise InvalidInput(f"sweep axis {key}: {section} is not a section of a {base.device} design: "
-                           f"allowed {', '.join(base.SECTIONS)}")
-    by_key = {s.key: (fname, s) for fname, s in specs(getattr(base, section)).items()}
-    if tkey not in by_key:
-        raise InvalidInput(f"sweep axis {key} is not a numeric key of the design: allowed keys in [{section}] are "
-                           f"{', '.join(sorted(by_key))}")
-    fname, spec = by_key[tkey]
+    section, fname, spec = numeric_key(base, key, f"sweep axis {key}", role="a numeric key")
     lo, hi = float(lo_s), float(hi_s)
     try:
         n = int(n_s)
@@ -316,8 +307,8 @@ def table(result: SweepResult) -> tuple[list[str], list[list[Any]]]:
     return header, rows
 
 
-def csv_text(result: SweepResult) -> str:
-    header, rows = table(result)
+def rows_csv(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """CSV text of a table: floats written exactly (repr), NaN as an empty cell."""
     buf = _io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)
@@ -325,6 +316,10 @@ def csv_text(result: SweepResult) -> str:
         w.writerow(["" if isinstance(v, float) and math.isnan(v) else (repr(v) if isinstance(v, float) else v)
                     for v in row])
     return buf.getvalue()
+
+
+def csv_text(result: SweepResult) -> str:
+    return rows_csv(*table(result))
 
 
 def write_outputs(result: SweepResult, out_dir: Path, *, plots: bool = True) -> list[Path]:

@@ -86,27 +86,23 @@ def check(run_dir: Path, *, width: int = 1200, timeout_s: float = 60.0, screensh
     failures: list[str] = []
 
     class Handler(http.server.SimpleHTTPRequestHandler):
+        def _send_html(self, body: bytes) -> None:
+            self.send_response(200)
+            self.send_header("Content-Type", "text/html; charset=utf-8")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
         def do_GET(self) -> None:  # noqa: N802 - http.server API
             if self.path.startswith("/__check__.html"):
-                body = CHECKER.replace("WIDTH", str(int(width))).encode()
-                self.send_response(200)
-                self.send_header("Content-Type", "text/html; charset=utf-8")
-                self.send_header("Content-Length", str(len(body)))
-                self.end_headers()
-                self.wfile.write(body)
-                return
-            if self.path.split("?")[0] == "/report.html":  # the report with the probe put first
+                self._send_html(CHECKER.replace("WIDTH", str(int(width))).encode())
+            elif self.path.split("?")[0] == "/report.html":  # the report with the probe put first
                 text = (run_dir / "report.html").read_text(encoding="utf-8")
                 head = text.find("<head>")
                 at = head + len("<head>") if head >= 0 else 0
-                body = (text[:at] + PROBE + text[at:]).encode()
-                self.send_response(200)
-                self.send_header("Content-Type", "text/html; charset=utf-8")
-                self.send_header("Content-Length", str(len(body)))
-                self.end_headers()
-                self.wfile.write(body)
-                return
-            super().do_GET()
+                self._send_html((text[:at] + PROBE + text[at:]).encode())
+            else:
+                super().do_GET()
 
         def log_request(self, code: int | str = "-", size: int | str = "-") -> None:
             if isinstance(code, int) or str(code).isdigit():

@@ -20,6 +20,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import math
 from dataclasses import dataclass
 
@@ -114,6 +116,20 @@ def max_real_flexible_eigenvalue(A: np.ndarray) -> float:
     return float(np.max(flexible.real)) if flexible.size else -math.inf
 
 
+def _bisect_boundary(stable: Callable[[float], bool], lo: float, hi: float, *, rtol: float,
+                     cap: float = math.inf) -> float:
+    """The boundary of ``stable`` above ``lo`` (stable): ``hi`` doubled until unstable (inf beyond
+    ``cap``), then bisected to ``rtol`` relative."""
+    while stable(hi):
+        lo, hi = hi, 2.0 * hi
+        if hi > cap:
+            return math.inf
+    while hi - lo > rtol * hi:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
 def continuous_stiffness_limit(design: PrrrDesign, *, kp: float, axis: int, damping: float = 0.0,
                                rtol: float = 1e-9) -> float:
     """Largest stable K_v on ``axis`` by bisection on the eigenvalues of :func:`continuous_closed_loop` [N/m]."""
@@ -123,15 +139,7 @@ def continuous_stiffness_limit(design: PrrrDesign, *, kp: float, axis: int, damp
         Kv[axis], Bv[axis] = K, damping
         return max_real_flexible_eigenvalue(continuous_closed_loop(design, stiffness=Kv, damping=Bv, kp=kp)) < 0.0
 
-    lo, hi = 0.0, stiffness_limits(design)[axis]
-    while stable(hi):
-        lo, hi = hi, 2.0 * hi
-        if hi > 1e15:
-            return math.inf
-    while hi - lo > rtol * hi:
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-    return 0.5 * (lo + hi)
+    return _bisect_boundary(stable, 0.0, float(stiffness_limits(design)[axis]), rtol=rtol, cap=1e15)
 
 
 # -------------------------------------------------------------------------------- seed 000 cubic
@@ -198,15 +206,10 @@ def sampled_wall_boundary(*, mass: float, damping: float, virtual_damping: float
                                   T=T, alpha=alpha)
         return float(np.max(np.abs(np.linalg.eigvals(Phi)))) < 1.0
 
-    lo, hi = 0.0, max(2.0 * damping / T, 1.0)
-    if not stable(lo + 1e-12 * hi):
+    hi = max(2.0 * damping / T, 1.0)
+    if not stable(1e-12 * hi):
         return 0.0
-    while stable(hi):
-        lo, hi = hi, 2.0 * hi
-    while hi - lo > rtol * hi:
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-    return 0.5 * (lo + hi)
+    return _bisect_boundary(stable, 0.0, hi, rtol=rtol)
 
 
 def colgate_passive(*, damping: float, stiffness: float, virtual_damping: float, T: float) -> bool:
@@ -336,15 +339,7 @@ def sampled_stiffness_limit(design: PrrrDesign, *, axis: int, T: float, kp: floa
     lo = 1e-6 * float(stiffness_limits(design)[axis])
     if not stable(lo):
         return 0.0
-    hi = float(stiffness_limits(design)[axis])
-    while stable(hi):
-        lo, hi = hi, 2.0 * hi
-        if hi > 1e12:
-            return math.inf
-    while hi - lo > rtol * hi:
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-    return 0.5 * (lo + hi)
+    return _bisect_boundary(stable, lo, float(stiffness_limits(design)[axis]), rtol=rtol, cap=1e12)
 
 
 def sampled_force_loop(design: PrrrDesign, *, T: float, kp: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

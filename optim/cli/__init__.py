@@ -45,18 +45,12 @@ def _root(
     offscreen.configure()  # every picture off screen, in this process and the workers it starts
 
 
-app.command("evaluate", epilog=common.EXIT_CODES_HELP)(cli_evaluate.evaluate)
-app.command("presets", epilog=common.EXIT_CODES_HELP)(cli_evaluate.presets)
-app.command("export", epilog=common.EXIT_CODES_HELP)(cli_export.export)
-app.command("optimise", epilog=common.EXIT_CODES_HELP)(cli_optimise.optimise)
-app.command("problems", epilog=common.EXIT_CODES_HELP)(cli_optimise.problems)
-app.command("verify", epilog=common.EXIT_CODES_HELP)(cli_verify.verify)
-app.command("runs", epilog=common.EXIT_CODES_HELP)(cli_runs.runs)
-app.command("show", epilog=common.EXIT_CODES_HELP)(cli_runs.show)
-app.command("sweep", epilog=common.EXIT_CODES_HELP)(cli_sweep.sweep)
-app.command("compare", epilog=common.EXIT_CODES_HELP)(cli_compare.compare)
-app.command("design-map", epilog=common.EXIT_CODES_HELP)(cli_verify.design_map)
-app.command("metrics", epilog=common.EXIT_CODES_HELP)(cli_metrics.metrics)
+for _name, _command in (("evaluate", cli_evaluate.evaluate), ("presets", cli_evaluate.presets),
+                         ("export", cli_export.export), ("optimise", cli_optimise.optimise),
+                         ("problems", cli_optimise.problems), ("verify", cli_verify.verify), ("runs", cli_runs.runs),
+                         ("show", cli_runs.show), ("sweep", cli_sweep.sweep), ("compare", cli_compare.compare),
+                         ("design-map", cli_verify.design_map), ("metrics", cli_metrics.metrics)):
+    app.command(_name, epilog=common.EXIT_CODES_HELP)(_command)
 
 
 def main() -> None:

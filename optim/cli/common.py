@@ -26,7 +26,8 @@ from typing import Any, TypeVar
 
 import typer
 
-from hapticopt.design.errors import HapticoptError, InvalidInput
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.design.errors import HapticoptError, InvalidInput, short
 from hapticopt.design import io
 from hapticopt.optim.cache import FILENAME as CACHE_FILENAME
 
@@ -161,3 +162,12 @@ def cache_file(cache: Path | None, no_cache: bool, default_dir: Path | None) -> 
     if cache.is_dir():
         raise InvalidInput(f"--cache = {str(cache)!r} is a directory: give a file, e.g. {Path(cache) / CACHE_FILENAME}")
     return cache
+
+
+def parse_fidelity(text: str) -> Fidelity:
+    """``--fidelity`` as a level; one line naming the allowed levels otherwise."""
+    try:
+        return Fidelity(text)
+    except ValueError:
+        allowed = ", ".join(f.value for f in Fidelity)
+        raise InvalidInput(f"--fidelity = {short(text)} is not a fidelity level: allowed {allowed}") from None

@@ -11,10 +11,9 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.cache import EvaluationCache
-from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, one_line_errors
+from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, one_line_errors, parse_fidelity
 
 
 @one_line_errors
@@ -34,10 +33,7 @@ def compare(
     """Evaluate designs at one fidelity and show every metric side by side with deltas, units and statuses."""
     from hapticopt.optim import compare as cmp  # heavy (evaluators, jax): imported when the command runs
 
-    try:
-        level = Fidelity(fidelity)
-    except ValueError:
-        raise InvalidInput(f"--fidelity = {fidelity!r} is not a fidelity level: allowed draft, standard, fine") from None
+    level = parse_fidelity(fidelity)
     if len(designs) < 2:
         raise InvalidInput(f"compare needs at least 2 designs, got {len(designs)}")
     if renders and report is None:

@@ -9,8 +9,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors, statuses_not_ok
-from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors, parse_fidelity, statuses_not_ok
 from hapticopt.analysis.registry import EVALUATORS, evaluate_all, write_plots
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.progress import StageLine, make_progress
@@ -33,10 +32,7 @@ def evaluate(
     """Evaluate a design and print its metrics (units in the metric names) and each evaluator's status (exit 3 unless every status is ok)."""
     t_start = time.perf_counter()
 
-    try:
-        level = Fidelity(fidelity)
-    except ValueError:
-        raise InvalidInput(f"--fidelity = {fidelity!r} is not a fidelity level: allowed draft, standard, fine") from None
+    level = parse_fidelity(fidelity)
     t_import = time.perf_counter()
     design = load_design_arg(file, preset, set_)
     if plots is not None:

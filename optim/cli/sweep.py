@@ -10,11 +10,12 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.atomic import write_text
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.cli import render
-from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, load_design_arg, one_line_errors
+from hapticopt.optim.cli.common import (
+    CACHE_HELP, NO_CACHE_HELP, cache_file, load_design_arg, one_line_errors, parse_fidelity,
+)
 from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.optim.executor import make_executor
 from hapticopt.optim.recorder import Recorder, check_run_dir
@@ -78,10 +79,7 @@ def sweep(
     """Sweep one or two numeric design keys over a grid; writes sweep.csv, a plot per metric and the record."""
     from hapticopt.optim import sweep as sw  # heavy (evaluators, jax): imported when the command runs
 
-    try:
-        level = Fidelity(fidelity)
-    except ValueError:
-        raise InvalidInput(f"--fidelity = {fidelity!r} is not a fidelity level: allowed draft, standard, fine") from None
+    level = parse_fidelity(fidelity)
     file = None
     axes_text = list(args)
     if axes_text and "=" not in axes_text[0]:

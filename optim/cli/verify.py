@@ -12,7 +12,7 @@ from typing import Annotated, Any, Optional
 import typer
 
 from hapticopt.optim.cli import render
-from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors
+from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors, parse_fidelity
 from hapticopt.optim.cli.progress import StageLine, make_progress
 import numpy as np
 from hapticopt.design.atomic import atomic_path
@@ -71,10 +71,7 @@ def verify(
     from hapticopt.analysis.prrr import zwidth
 
 
-    try:
-        level = Fidelity(fidelity)
-    except ValueError:
-        raise InvalidInput(f"--fidelity = {short(fidelity)} is not a fidelity level: allowed draft, standard, fine") from None
+    level = parse_fidelity(fidelity)
     if backend not in ("auto", "lumped", "multibody"):
         raise InvalidInput(f"--backend = {short(backend)} is not a backend: allowed auto, lumped, multibody")
     force = None if backend == "auto" else Backend(backend)
@@ -195,10 +192,7 @@ def design_map(
     """Map the firmware over (controller period T, force-loop gain K_p): free-space residual, K limit, bandwidth."""
     from hapticopt.analysis.prrr import design_map as firmware_map  # heavy (jax): when the command runs
 
-    try:
-        level = Fidelity(fidelity)
-    except ValueError:
-        raise InvalidInput(f"--fidelity = {short(fidelity)} is not a fidelity level: allowed draft, standard, fine") from None
+    level = parse_fidelity(fidelity)
     if not (math.isfinite(duration_s) and 0.6 <= duration_s <= 60.0):
         raise InvalidInput(f"--duration-s = {duration_s:g} is out of range: allowed 0.6 ≤ duration_s ≤ 60 s")
     Ts = _grid(periods_ms, "--periods-ms", "ms", 1e-3)
