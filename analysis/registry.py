@@ -58,6 +58,7 @@ class EvaluatorEntry:
     module: str  # dotted module path exposing evaluate()
     plot: str | None = None  # "module:function" drawing this evaluator's result, or None
     fidelity: str = ""  # what the fidelity levels change (the glossary's "fidelity" column)
+    slow_at: tuple[str, ...] = ()  # fidelities at which it takes seconds (the pipeline runs it in a second process)
     metrics: tuple[MetricDoc, ...] = ()  # every metric it can report (tests/analysis/test_registry.py checks)
 
     def load(self) -> Any:
@@ -92,6 +93,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
         EvaluatorEntry(name="structural_stiffness", module=_A + "prrr.structure",
                        plot=_A + "prrr.plots:structure_plots",
                        fidelity="draft/standard: Timoshenko frame model; fine: also the solid FEA of the CAD (tens of seconds)",
+                       slow_at=_FINE,
                        metrics=(
             _m("structural_stiffness_N_per_mm", "Cartesian stiffness x, y, z of the linkage for a force applied at the load height above the end-effector, sliders locked (seed 002 Table 3)"),
             _m("elastic_centre_mm", "height above the end-effector where a lateral force and the platform rotation decouple"),

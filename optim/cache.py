@@ -56,7 +56,7 @@ import numpy as np
 import hapticopt.analysis
 import hapticopt.design
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.registry import evaluate_all
+from hapticopt.analysis.registry import EVALUATORS, evaluate_all
 from hapticopt.analysis.status import Status
 from hapticopt.optim.versions import package_versions
 
@@ -284,6 +284,21 @@ class CachedEvaluation:
                 "modules": self.modules, "timings_s": self.timings_s}
 
 
+def cached(design: Any, fidelity: Fidelity, cache: EvaluationCache | None,
+           only: tuple[str, ...] | None = None) -> CachedEvaluation | None:
+    """``design``'s evaluation at ``fidelity`` (by the evaluators ``only``) from ``cache``, or None."""
+    if cache is None or not cache.enabled:
+        return None
+    key = cache_key(design, fidelity, only)
+    hit = cache.lookup(key)
+    if hit is None:
+        return None
+    p = hit.payload
+    return CachedEvaluation(fidelity=Fidelity(fidelity), metrics=p["metrics"], statuses=p["statuses"],
+                            messages=p["messages"], modules=p["modules"], timings_s=p["timings_s"],
+                            provenance=hit.provenance(cache.path, key))
+
+
 def evaluate(design: Any, fidelity: Fidelity, *, cache: EvaluationCache | None, only: tuple[str, ...] | None = None,
              written_by: str = "hapticopt", reuse: bool = True,
              progress: Callable[[str, int, int], None] | None = None) -> CachedEvaluation:
@@ -292,20 +307,59 @@ def evaluate(design: Any, fidelity: Fidelity, *, cache: EvaluationCache | None, 
     ``reuse=False`` always computes (the caller needs the evaluators' result objects, e.g. for
     pictures) and still stores the values for later callers. ``progress(what, done, total)`` is
     :func:`~hapticopt.analysis.registry.evaluate_all`'s (called only when the evaluators run)."""
-    key = None
-    if cache is not None and cache.enabled:
-        key = cache_key(design, fidelity, only)
-        hit = cache.lookup(key) if reuse else None
-        if hit is not None:
-            p = hit.payload
-            return CachedEvaluation(fidelity=Fidelity(fidelity), metrics=p["metrics"], statuses=p["statuses"],
-                                    messages=p["messages"], modules=p["modules"], timings_s=p["timings_s"],
-                                    provenance=hit.provenance(cache.path, key))
+    found = cached(design, fidelity, cache, only) if reuse else None
+    if found is not None:
+        return found
     ev = evaluate_all(design, fidelity=fidelity, only=only, progress=progress)
     out = CachedEvaluation(fidelity=Fidelity(fidelity), metrics=ev.metrics(),
                            statuses={k: str(v) for k, v in ev.statuses.items()}, messages=dict(ev.messages),
                            modules=dict(ev.sources), timings_s=dict(ev.timings_s), results=dict(ev.results))
-    if key is not None and cache is not None and Status.FAILED not in ev.statuses.values():
-        cache.store(key, out.payload(), device=design.device, design=design.name, fidelity=str(fidelity), only=only,
-                    written_by=written_by)
+    store(cache, design, out, only=only, written_by=written_by)
     return out
+
+
+def store(cache: EvaluationCache | None, design: Any, ev: CachedEvaluation, *, only: tuple[str, ...] | None = None,
+          written_by: str = "hapticopt") -> None:
+    """Store the computed evaluation ``ev`` of ``design`` (by the evaluators ``only``; None: all) in
+    ``cache`` under its key — unless an evaluator raised (``failed``) or there is no cache."""
+    if cache is None or not cache.enabled or str(Status.FAILED) in ev.statuses.values():
+        return
+    cache.store(cache_key(design, ev.fidelity, only), ev.payload(), device=design.device, design=design.name,
+                fidelity=str(ev.fidelity), only=only, written_by=written_by)
+
+
+def merge(design: Any, parts: list[CachedEvaluation]) -> CachedEvaluation:
+    """One evaluation of ``design`` from ``parts`` computed by disjoint sets of its device's evaluators
+    (e.g. in two processes): every dict in the registry's order, as :func:`evaluate_all` gives them,
+    so that the merged values equal one evaluation by all of them (results are kept where present).
+    A metric is found by the module that produced it: the evaluators of a device name distinct metrics."""
+    fidelities = {p.fidelity for p in parts}
+    if len(fidelities) != 1:
+        raise ValueError(f"cannot merge evaluations at different fidelities {sorted(map(str, fidelities))}")
+    owner: dict[str, CachedEvaluation] = {}
+    for part in parts:
+        for name in part.statuses:
+            if name in owner:
+                raise ValueError(f"evaluator {name} is in two parts of the evaluation")
+            owner[name] = part
+    metrics: dict[str, Any] = {}
+    modules: dict[str, str] = {}
+    statuses: dict[str, str] = {}
+    messages: dict[str, str] = {}
+    timings: dict[str, float] = {}
+    results: dict[str, Any] = {}
+    for entry in EVALUATORS[design.device]:
+        part = owner.get(entry.name)
+        if part is None:
+            continue
+        statuses[entry.name] = part.statuses[entry.name]
+        messages[entry.name] = part.messages[entry.name]
+        timings[entry.name] = part.timings_s[entry.name]
+        if entry.name in part.results:
+            results[entry.name] = part.results[entry.name]
+        for metric, module in part.modules.items():  # this entry's metrics (evaluate_all: in entry order)
+            if module == entry.module:
+                metrics[metric] = part.metrics[metric]
+                modules[metric] = module
+    return CachedEvaluation(fidelity=fidelities.pop(), metrics=metrics, statuses=statuses, messages=messages,
+                            modules=modules, timings_s=timings, results=results)

@@ -17,6 +17,7 @@ import json
 import math
 import time
 from collections.abc import Callable
+from concurrent.futures import Executor, Future
 from pathlib import Path
 from typing import Any
 
@@ -35,14 +36,16 @@ from hapticopt.optim.recorder import Recorder, check_run_dir, run_lock
 from hapticopt.optim.runs import problem_info
 from hapticopt.design.atomic import file_set, remove_stale_temp_files
 from hapticopt.design.paths import writable_dir
-from hapticopt.optim.executor import check_scheduler, make_executor
+from hapticopt.optim.executor import InlineExecutor, check_scheduler, make_executor
+from hapticopt.optim import side as side_process
+from hapticopt.optim.side import side_executor
 from hapticopt.optim.worker import SupervisedWorker
 from hapticopt.optim import driver, pareto, pareto_report, report
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, TimeHistory, Verdict
 from hapticopt.design import export as design_export
 from hapticopt.analysis import verify as closed_loop_verify
 from hapticopt.optim import cache as evaluation_cache
-from hapticopt.optim.cache import EvaluationCache
+from hapticopt.optim.cache import CachedEvaluation, EvaluationCache
 
 
 #: ``on_step(what, done, total)``: progress inside a stage (an evaluator, an export step, a scene)
@@ -215,14 +218,15 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     check_scheduler(scheduler)
     out = writable_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with run_lock(out), children_die_with_this_process(), verification_worker() as verify_worker:
+    with run_lock(out), children_die_with_this_process(), verification_worker() as verify_worker, \
+            side_executor(scheduler) as side:
         remove_stale_temp_files(out)
         if verify and problem.scenes:
             verify_worker.start()  # now: its imports overlap with the optimisation, not the verify stage
         return _run_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
                            progress=progress,
                            export=export, verify=verify, on_stage=on_stage, verifier=verifier, on_step=on_step,
-                           verify_worker=verify_worker, cache=cache)
+                           verify_worker=verify_worker, cache=cache, side=side)
 
 
 def _baseline_payload(ev: DesignEvaluation) -> dict[str, Any]:
@@ -237,19 +241,37 @@ def _baseline_from(payload: dict[str, Any]) -> DesignEvaluation:
                             timings_s=payload["timings_s"], provenance=payload.get("provenance", ""))
 
 
+def _replayed(rec: Recorder, key: str) -> DesignEvaluation | None:
+    """The evaluation recorded under ``key`` by an earlier session of the run, or None."""
+    found = rec.lookup_stage(key)
+    if found is None:
+        return None
+    first = found.get("provenance")
+    return dataclasses.replace(_baseline_from(found), provenance="replayed from the run record"
+                               + (f" (it came {first})" if first else ""))
+
+
+def _design_evaluation(ev: CachedEvaluation) -> DesignEvaluation:
+    return DesignEvaluation(fidelity=ev.fidelity, metrics=ev.metrics, modules=ev.modules, statuses=ev.statuses,
+                            messages=ev.messages, timings_s=ev.timings_s, results=ev.results,
+                            provenance=ev.provenance)
+
+
 def _recorded_evaluation(rec: Recorder, design: Any, fidelity: Fidelity, name: str,
                          on_step: StepFn | None = None, cache: EvaluationCache | None = None) -> DesignEvaluation:
     """``evaluate_design(design, fidelity)``, replayed from the recorder when an earlier session has it,
     else served from the evaluation cache when it has it."""
     key = f"{name}|{fidelity}"
-    found = rec.lookup_stage(key)
+    found = _replayed(rec, key)
     if found is not None:
-        first = found.get("provenance")
-        return dataclasses.replace(_baseline_from(found), provenance="replayed from the run record"
-                                   + (f" (it came {first})" if first else ""))
+        return found
     ev = evaluate_design(design, fidelity, on_step, cache=cache)
     rec.record_stage(key, _baseline_payload(ev))
     return ev
+
+
+#: what the baseline stage says of an evaluation computed in the side process meanwhile
+BESIDE = "computed beside the optimisation (in worker processes)"
 
 
 def _provenance_note(*evaluations: DesignEvaluation) -> str:
@@ -262,7 +284,9 @@ def _provenance_note(*evaluations: DesignEvaluation) -> str:
 def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str, workers: int | None,
                 progress: ProgressFn | None, export: bool, verify: bool, on_stage: Callable[[str], None] | None,
                 verifier: Callable[[Any, str], Any] | None, on_step: StepFn | None = None,
-                verify_worker: SupervisedWorker | None = None, cache: str | Path | None = None) -> PipelineResult:
+                verify_worker: SupervisedWorker | None = None, cache: str | Path | None = None,
+                side: Executor | None = None) -> PipelineResult:
+    side = InlineExecutor() if side is None else side
     stages: list[StageOutcome] = []
     files: dict[str, str] = {}
 
@@ -283,15 +307,44 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
             (EvaluationCache(cache) if cache is not None else contextlib.nullcontext()) as ecache:
         # baseline at the optimisation fidelity: which metrics exist, from which evaluator
         t = stage("baseline")
+        # the base design at the final fidelity: replayed or served from the cache at once, else computed
+        # while the draft baseline and the optimisation run — its slow evaluators in the side process, the
+        # others in the optimisation's pool ahead of its points — and collected at the final stage
+        fid = problem.fidelity_final
+        final_key = f"baseline|{fid}"
+        baseline: DesignEvaluation | None = None
+        pending_base: list[tuple[tuple[str, ...], Future]] = []
+        slow = side_process.slow_evaluators(problem.device, fid)
+        rest = tuple(e.name for e in EVALUATORS[problem.device] if e.name not in slow)
+        beside = not side_process.in_process(side)
+
+        def submit_base(names: tuple[str, ...], where: Executor) -> None:
+            if names:
+                pending_base.append((names, where.submit(side_process.evaluate, problem.base, fid, names)))
+
+        if fid != problem.fidelity_optimise:
+            baseline = _replayed(rec, final_key)
+            if baseline is None:
+                hit = evaluation_cache.cached(problem.base, fid, ecache)
+                if hit is not None:
+                    baseline = _design_evaluation(hit)
+                    rec.record_stage(final_key, _baseline_payload(baseline))
+                elif beside:  # a head start: the side process imports and meshes during the draft baseline
+                    submit_base(slow, side)
         base_opt = _recorded_evaluation(rec, problem.base, problem.fidelity_optimise, "baseline",
                                         at(problem.fidelity_optimise), ecache)
         check_metrics(problem, base_opt.metrics)
         only = evaluators_for(problem, base_opt)
-        baseline = (base_opt if problem.fidelity_final == problem.fidelity_optimise
-                    else _recorded_evaluation(rec, problem.base, problem.fidelity_final, "baseline",
-                                              at(problem.fidelity_final), ecache))
-        stages.append(StageOutcome(name="baseline", status="ok", wall_s=time.perf_counter() - t,
-                                   message=_provenance_note(base_opt, baseline)))
+        if fid == problem.fidelity_optimise:
+            baseline = base_opt
+        elif baseline is None:
+            if not beside:
+                submit_base(slow, side)
+            submit_base(rest, executor)
+        note = _provenance_note(base_opt, *(() if baseline is None else (baseline,)))
+        if baseline is None:
+            note += f"; {fid} fidelity " + (BESIDE if beside else "computed")
+        stages.append(StageOutcome(name="baseline", status="ok", wall_s=time.perf_counter() - t, message=note))
 
         rec.describe({**problem_info(problem), "status": "running"})
         rec.record_design("baseline", fidelity=str(problem.fidelity_optimise), x=problem.start,
@@ -316,9 +369,30 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         optimum_design = problem.design_at(best.x) if best is not None else problem.base
         optimum_design = dataclasses.replace(optimum_design, name=f"{problem.name}-optimum",
                                              description=f"optimum of problem {problem.name}")
-        # computed (the plots need the evaluators' result objects), stored for compare and later runs
-        optimum = evaluate_design(optimum_design, problem.fidelity_final, at(problem.fidelity_final),
-                                  cache=ecache, reuse=False)
+        if baseline is None:  # computed beside the optimisation: collected (computed here if a process died)
+            parts = [side_process.collect(f, lambda names=names: side_process.evaluate(problem.base, fid, names))[0]
+                     for names, f in pending_base]
+            computed = evaluation_cache.merge(problem.base, parts)
+            evaluation_cache.store(ecache, problem.base, computed, written_by="hapticopt optimise")
+            baseline = _design_evaluation(computed)
+            rec.record_stage(final_key, _baseline_payload(baseline))
+        # computed (the plots need the evaluators' result objects), stored for compare and later runs: the
+        # slow evaluators in the side process with their pictures, then the export there; the others here
+        (out / "plots").mkdir(exist_ok=True)
+        there = slow if beside else ()
+        here = tuple(e.name for e in EVALUATORS[problem.device] if e.name not in there)
+        pending_final = side.submit(side_process.evaluate, optimum_design, fid, there, out / "plots") if there else None
+        pending_export = side.submit(side_process.export, optimum_design, out) if export and beside else None
+        parts = [evaluation_cache.evaluate(optimum_design, fid, cache=None, only=here, progress=at(fid))]
+        side_drawn: dict[str, tuple[list[str], str]] = {}
+        if there:
+            side_ev, drawn = side_process.collect(pending_final, lambda: side_process.evaluate(optimum_design, fid,
+                                                                                                there, out / "plots"))
+            parts.append(side_ev)
+            side_drawn = {name: (files, failure) for name, files, failure in drawn}
+        merged = evaluation_cache.merge(optimum_design, parts)
+        evaluation_cache.store(ecache, optimum_design, merged, written_by="hapticopt optimise")
+        optimum = _design_evaluation(merged)
         cons = _constraints_at(problem, optimum.metrics)
         feasible_final = holds(cons, optimum.statuses)
         obj_base = problem.objective.metric.value(baseline.metrics)
@@ -335,32 +409,48 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         rec.set_status("finished")
     files["optimum" if feasible_final else "best_infeasible"] = result_file
     stages.append(StageOutcome(name="final", status="ok" if feasible_final else "infeasible",
-                               message=f"re-evaluated at {problem.fidelity_final} fidelity",
+                               message=f"re-evaluated at {problem.fidelity_final} fidelity"
+                                       + (f" ({', '.join(there)} in a second process)" if there else ""),
                                wall_s=time.perf_counter() - t))
 
     t = stage("plots")
     plot_files: list[str] = []
-    (out / "plots").mkdir(exist_ok=True)
-    drawn = [e for e in EVALUATORS[problem.device] if e.plot is not None and e.name in optimum.results]
+    drawn = [e for e in EVALUATORS[problem.device] if e.plot is not None
+             and (e.name in optimum.results or e.name in side_drawn)]
     for k, entry in enumerate(drawn):
         if on_step is not None:
             on_step(entry.name, k, len(drawn))
         try:
-            for path in run_plotter(entry, optimum_design, optimum.results[entry.name], out / "plots"):
+            if entry.name in side_drawn:  # drawn in the side process with its evaluation
+                paths, failure = side_drawn[entry.name]
+                if failure:
+                    raise RuntimeError(failure)
+            else:
+                paths = run_plotter(entry, optimum_design, optimum.results[entry.name], out / "plots")
+            for path in paths:
                 plot_files.append(str(Path(path).resolve().relative_to(out.resolve())))
         except Exception as exc:  # noqa: BLE001 - a picture that fails is reported, the run goes on
-            stages.append(StageOutcome(name=f"plot {entry.name}", status="failed", message=describe_failure(exc)))
+            message = str(exc) if entry.name in side_drawn else describe_failure(exc)
+            stages.append(StageOutcome(name=f"plot {entry.name}", status="failed", message=message))
     if on_step is not None:
         on_step("", len(drawn), len(drawn))
     stages.append(StageOutcome(name="plots", status="ok", wall_s=time.perf_counter() - t, files=tuple(plot_files)))
 
     if export:
         t = stage("export")
-        try:
-            ex = _export(optimum_design, out, on_step)
-        except Exception as exc:  # noqa: BLE001 - a failed export is reported in the report
-            ex = StageOutcome(name="export", status="failed", message=describe_failure(exc))
-        stages.append(dataclasses.replace(ex, wall_s=time.perf_counter() - t))
+        if beside:  # its own time there, and what this process waited for it
+            status, message, exported, wall_s = side_process.collect(
+                pending_export, lambda: side_process.export(optimum_design, out))
+            waited = time.perf_counter() - t
+            where = f"in a second process beside the final evaluation and the plots ({waited:.3f} s waited here)"
+            message = "; ".join(m for m in (message, where) if m)
+            stages.append(StageOutcome(name="export", status=status, message=message, wall_s=wall_s, files=exported))
+        else:
+            try:
+                ex = _export(optimum_design, out, on_step)
+            except Exception as exc:  # noqa: BLE001 - a failed export is reported in the report
+                ex = StageOutcome(name="export", status="failed", message=describe_failure(exc))
+            stages.append(dataclasses.replace(ex, wall_s=time.perf_counter() - t))
     verdicts: tuple[Verdict, ...] = ()
     if verify:
         t = stage("verify")

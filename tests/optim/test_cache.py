@@ -132,6 +132,43 @@ def test_reuse_false_computes_and_still_stores(tmp_path, handle):
         assert C.evaluate(handle, Fidelity.DRAFT, cache=cache).provenance
 
 
+@pytest.mark.parametrize("preset, fidelity", [("handle-paper", Fidelity.DRAFT), ("prrr-paper", Fidelity.DRAFT)])
+def test_merged_parts_equal_one_evaluation(preset, fidelity):
+    """An evaluation computed in two parts (the pipeline's side process and main process) merges into
+    the evaluation of all evaluators at once: the same keys in the same order, every float bit."""
+    from hapticopt.analysis.registry import EVALUATORS
+
+    design = io.load_preset(preset)
+    whole = C.evaluate(design, fidelity, cache=None)
+    names = [e.name for e in EVALUATORS[design.device]]
+    first = tuple(names[1::2])  # interleaved with the rest in the registry's order
+    parts = [C.evaluate(design, fidelity, cache=None, only=first),
+             C.evaluate(design, fidelity, cache=None, only=tuple(n for n in names if n not in first))]
+    merged = C.merge(design, parts[::-1])
+    for key in ("metrics", "statuses", "messages", "modules"):
+        assert json.dumps(bits(getattr(merged, key))) == json.dumps(bits(getattr(whole, key))), key
+    assert list(merged.timings_s) == list(whole.timings_s) and set(merged.results) == set(whole.results)
+
+
+def test_merge_refuses_overlapping_parts_and_mixed_fidelities(handle):
+    a = C.evaluate(handle, Fidelity.DRAFT, cache=None, only=("stability",))
+    with pytest.raises(ValueError, match="two parts"):
+        C.merge(handle, [a, a])
+    with pytest.raises(ValueError, match="different fidelities"):
+        C.merge(handle, [a, C.evaluate(handle, Fidelity.STANDARD, cache=None, only=("zwidth",))])
+
+
+def test_store_keeps_an_evaluation_under_its_key_unless_one_failed(tmp_path, handle):
+    ev = C.evaluate(handle, Fidelity.DRAFT, cache=None)
+    with EvaluationCache(tmp_path / "c.sqlite") as cache:
+        C.store(cache, handle, dataclasses.replace(ev, statuses={**ev.statuses, "zwidth": "failed"}))
+        assert C.cached(handle, Fidelity.DRAFT, cache) is None and cache.stored == 0
+        C.store(cache, handle, ev)
+        hit = C.cached(handle, Fidelity.DRAFT, cache)
+        assert hit is not None and bits(hit.metrics) == bits(ev.metrics) and hit.provenance
+        assert C.cached(handle, Fidelity.DRAFT, cache, only=("zwidth",)) is None  # another key
+
+
 # ------------------------------------------------------------------------------------ faults
 def test_a_corrupt_file_is_ignored_with_one_warning(tmp_path, handle, capsys):
     path = tmp_path / "c.sqlite"

@@ -134,6 +134,25 @@ def test_bundled_prrr_problem_improves_on_the_paper_design(tmp_path):
     assert all(ok for _, _, ok in res.constraints_final)
 
 
+@pytest.mark.slow
+def test_local_runs_overlap_in_a_side_process_with_the_inline_numbers(tmp_path, beta_run):
+    """The local scheduler: the base design's final-fidelity evaluation queued in the optimisation's
+    pool, the export in the side process (optim/side.py). Every number equals the inline run's
+    (each evaluation is a pure function of design and fidelity), the export files are there."""
+    res = run_pipeline(load_problem(DATA / "beta-isotropic.toml"), out_dir=tmp_path, scheduler="local", workers=2,
+                       export=True, verify=False)
+    for ev in ("baseline", "optimum"):
+        for key in ("metrics", "statuses", "messages", "modules"):
+            assert json.dumps(getattr(getattr(res, ev), key)) == json.dumps(getattr(getattr(beta_run, ev), key))
+    assert res.run.best.x == beta_run.run.best.x
+    stage = {s.name: s for s in res.stages}
+    assert stage["baseline"].message == ("draft fidelity computed; standard fidelity computed beside the "
+                                         "optimisation (in worker processes)")
+    assert stage["export"].status == "ok" and "in a second process" in stage["export"].message
+    assert any(f.endswith(".step") for f in stage["export"].files)
+    assert all((tmp_path / f).is_file() for f in stage["export"].files)
+
+
 @pytest.fixture(scope="module")
 def verified_run(tmp_path_factory, beta_run):
     """A short run whose verification returns time histories (the stand-in runner of fake_verifier)."""
