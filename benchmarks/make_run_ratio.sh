@@ -3,10 +3,13 @@
 # one hour): the three commands of `make run` from an empty cad_out, each revision imported through a
 # package shim so both use this checkout's .venv. Prints one line per run and the per-pair ratios.
 #   usage: benchmarks/make_run_ratio.sh OLD_REVISION [PAIRS]      (e.g. c2550d8 3)
+#   HAPTICOPT_PY=/path/to/python: the interpreter (default: this checkout's .venv; a git worktree without
+#   its own .venv names the main checkout's)
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 OLD=${1:?an older revision to compare with}; PAIRS=${2:-3}
-PY="$ROOT/.venv/bin/python"
+PY="${HAPTICOPT_PY:-$ROOT/.venv/bin/python}"
+[ -x "$PY" ] || { echo "no Python at $PY: set HAPTICOPT_PY" >&2; exit 2; }
 TMP=$(mktemp -d); trap 'git -C "$ROOT" worktree remove --force "$TMP/old" >/dev/null 2>&1 || true; rm -rf "$TMP"' EXIT
 git -C "$ROOT" worktree add -q --detach "$TMP/old" "$OLD"
 shim() {  # shim DIR SRC: hapticopt.{design,analysis,optim} from SRC
