@@ -271,7 +271,7 @@ def _recorded_evaluation(rec: Recorder, design: Any, fidelity: Fidelity, name: s
 
 
 #: what the baseline stage says of an evaluation computed in the side process meanwhile
-BESIDE = "computed beside the optimisation (in worker processes)"
+BESIDE = "computed in worker processes beside the optimisation and the final evaluation"
 
 
 def _provenance_note(*evaluations: DesignEvaluation) -> str:
@@ -308,8 +308,9 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         # baseline at the optimisation fidelity: which metrics exist, from which evaluator
         t = stage("baseline")
         # the base design at the final fidelity: replayed or served from the cache at once, else computed
-        # while the draft baseline and the optimisation run — its slow evaluators in the side process, the
-        # others in the optimisation's pool ahead of its points — and collected at the final stage
+        # beside the run — its slow evaluators in the side process from the start, the others in the
+        # optimisation's pool once the optimisation is done (not ahead of its points: each start waits for
+        # its points in turn) — and collected at the final stage
         fid = problem.fidelity_final
         final_key = f"baseline|{fid}"
         baseline: DesignEvaluation | None = None
@@ -337,9 +338,8 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         only = evaluators_for(problem, base_opt)
         if fid == problem.fidelity_optimise:
             baseline = base_opt
-        elif baseline is None:
-            if not beside:
-                submit_base(slow, side)
+        elif baseline is None and not beside:
+            submit_base(slow, side)
             submit_base(rest, executor)
         note = _provenance_note(base_opt, *(() if baseline is None else (baseline,)))
         if baseline is None:
@@ -364,6 +364,8 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
                                            f"{result.n_cached} repeated points served from cache",
                                    wall_s=time.perf_counter() - t))
 
+        if baseline is None and beside:
+            submit_base(rest, executor)
         t = stage("final")
         best = result.best
         optimum_design = problem.design_at(best.x) if best is not None else problem.base

@@ -146,8 +146,8 @@ def test_local_runs_overlap_in_a_side_process_with_the_inline_numbers(tmp_path, 
             assert json.dumps(getattr(getattr(res, ev), key)) == json.dumps(getattr(getattr(beta_run, ev), key))
     assert res.run.best.x == beta_run.run.best.x
     stage = {s.name: s for s in res.stages}
-    assert stage["baseline"].message == ("draft fidelity computed; standard fidelity computed beside the "
-                                         "optimisation (in worker processes)")
+    assert stage["baseline"].message == ("draft fidelity computed; standard fidelity computed in worker processes "
+                                         "beside the optimisation and the final evaluation")
     assert stage["export"].status == "ok" and "in a second process" in stage["export"].message
     assert any(f.endswith(".step") for f in stage["export"].files)
     assert all((tmp_path / f).is_file() for f in stage["export"].files)
