@@ -254,18 +254,23 @@ def test_bond_of_a_disc_is_the_zero_gap_neck():
 
 def test_bracket_frame_is_the_cads_bracket(paper):
     # the frame carries R1 on the CAD's bracket (design.prrr.cad.carriage_bracket, one formula):
-    # C on the block face, J on the root's axis level with the arm, E the arm's end on the root
+    # C the bonded patch's centre on the block face, J on the root plate's axis (C along −e_f) level
+    # with the arm, E the arm's end on the root
     from hapticopt.design.prrr import cad
 
     b = cad.carriage_bracket(paper)
     br = fm.bracket_frame(paper)
     C, J, E = br["bracket_points"]
     lay = cad.layout(paper)
+    e_l, e_f, e_n = b.root_axes.T
     np.testing.assert_allclose(C @ b.normal, lay.block_y, atol=1e-15)  # on the side face y = −h_y
     np.testing.assert_allclose(E, lay.bracket.arm_end, atol=1e-15)
-    np.testing.assert_allclose((J - E) @ b.e_l, b.root_size[0] / 2, rtol=1e-12)  # J → E inside the root
-    np.testing.assert_allclose((J - C) @ b.normal, b.normal @ (b.clevis - C), rtol=1e-12)
-    np.testing.assert_allclose(br["root_section"], (b.root_size[0], b.root_size[2]), rtol=1e-15)
+    np.testing.assert_allclose((J - E) @ e_l, b.root_size[0] / 2, rtol=1e-12)  # J → E inside the root
+    np.testing.assert_allclose((J - b.clevis) @ e_f, 0.0, atol=1e-15)  # level with the arm's axis
+    np.testing.assert_allclose(np.cross(J - C, e_f), 0.0, atol=1e-15)  # the root beam runs along the plate
+    assert abs((J - b.clevis) @ b.axis) <= paper.structure.link_thickness / 2  # inside the clevis layer
+    np.testing.assert_allclose(br["root_section"], (b.root_size[0], paper.structure.link_thickness), rtol=1e-15)
+    np.testing.assert_allclose(abs(br["root_zref"] @ b.axis), 1.0, rtol=1e-15)
     for K in br["bracket_bonds"]:  # symmetric positive definite springs
         np.testing.assert_allclose(K, K.T, atol=1e-9 * np.abs(K).max())
         assert np.all(np.linalg.eigvalsh(K) > 0)
