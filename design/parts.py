@@ -237,7 +237,7 @@ def volume_properties_many(groups) -> list[VolumeProps]:
     co = np.einsum("nij,nj->ni", R, c_loc)  # centroid offset from the primitive origin
     c = o + co
     # ∫(|r|²I − r rᵀ) about the part origin, r = o + s: I_o + v(|o|² + 2 o·co) I − v(o oᵀ + o coᵀ + co oᵀ)
-    J = np.einsum("nij,njk,nlk->nil", R, I_loc, R)
+    J = R @ I_loc @ R.transpose(0, 2, 1)
     scal = v * (np.einsum("ni,ni->n", o, o) + 2.0 * np.einsum("ni,ni->n", o, co))
     J[:, 0, 0] += scal
     J[:, 1, 1] += scal

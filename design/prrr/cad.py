@@ -342,8 +342,8 @@ def layout(design: PrrrDesign) -> PrrrLayout:
           f"{'inside' if gap == 0 else f'{_mm(gap)} mm from'} the carriage block around the rail "
           f"(allowed ≥ boss radius + clearance = {_mm(R + g)} mm): move the rail (r_p, θ_1p)")
     side = -1.0 if Ac[1] > 0 else 1.0  # SEA housing on the side away from the clevis
-    # R1 bracket: clevis arm + root bonded flat on a block face (carriage_bracket); the block grows
-    # in z to carry the root's whole end face
+    # R1 bracket: clevis arm + root plate let into a block face, both in the clevis layer
+    # (carriage_bracket); the block grows in z to carry the whole bonded patch
     bracket = carriage_bracket(design)
     hz = s_.carriage_height / 2
     zc = _box_z_extent(bracket.contact_centre, bracket.contact_axes, bracket.contact_size)
