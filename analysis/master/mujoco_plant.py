@@ -149,6 +149,7 @@ class MasterPlant:
         self.site = m.site("handle").id
         self.n_closure = 3  # the parallelogram connect's rows come first
         self._full_q0 = full_qpos(self.q0)
+        self.loop_engine, self.loop_reason = "python", "run() not called yet"
 
     def reset(self) -> None:
         mj, d = self._mujoco, self.data
@@ -191,7 +192,7 @@ class MasterPlant:
         lay = mc.layout()
         off = np.array([lay.time, lay.nefc, lay.efc_pos, lay.efc_force, lay.efc_type, lay.efc_id], dtype=np.int64)
         ip = lambda x: np.ascontiguousarray(x, dtype=np.intp)  # noqa: E731
-        f3 = lambda x: np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=np.float64), (3,)))  # noqa: E731
+        f3 = lambda x: np.array(np.broadcast_to(np.asarray(x, dtype=np.float64), (3,)))  # noqa: E731  (a writable copy: one kernel type)
         if self.hand:
             hq, hd = ip(self.hand_qpos), ip(self.hand_dof)
             eq_hand, eq_type = m.equality("hand").id, int(self._mujoco.mjtConstraint.mjCNSTR_EQUALITY)
@@ -403,6 +404,8 @@ class MasterResult:
     status: Status
     message: str
     traces: Traces | None = field(default=None, repr=False, compare=False)
+    loop_engine: str = "python"  # "compiled" (numba) or "python"
+    loop_reason: str = ""  # why that engine ran
 
     @property
     def health(self) -> Health:
@@ -421,6 +424,7 @@ class MasterResult:
             "mujoco_warnings": list(self.warnings), "controller_period_ms": self.period * 1e3,
             "plant_substeps": self.substeps, "mujoco_timestep_ms": self.timestep * 1e3,
             "mujoco_integrator": self.integrator, "wall_time_s": self.wall_time,
+            "closed_loop_engine": self.loop_engine if self.loop_engine == "compiled" else f"python: {self.loop_reason}",
         })
         return out
 
@@ -444,8 +448,9 @@ def _fit(A: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD, reason: str | None = None,
-             solver: SolverSettings | None = None) -> MasterResult:
-    """Run a master scene with the master firmware in the loop on the MuJoCo plant."""
+             solver: SolverSettings | None = None, compiled: bool = True) -> MasterResult:
+    """Run a master scene with the master firmware in the loop on the MuJoCo plant (``compiled``: the compiled loop
+    where it can run the controller, see :meth:`MasterPlant.run`)."""
 
     if getattr(design, "device", None) != "master":
         raise InvalidInput(f"scene {scene.name} is a master scene; design {getattr(design, 'name', '?')!r} is a "
@@ -480,7 +485,7 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
         gains = []
         for f in freqs:
             n = int(round(scene.sweep_periods / f / T))
-            r = plant.run(ctl, ticks=n, frequency=float(f), quantize=Effect.QUANTIZATION in fx, delay_ticks=delay)
+            r = plant.run(ctl, ticks=n, frequency=float(f), quantize=Effect.QUANTIZATION in fx, delay_ticks=delay, compiled=compiled)
             runs.append(r)
             if r["stop"][0] >= 0:
                 gains.append(math.nan)
@@ -502,7 +507,7 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
         })
     else:
         r = plant.run(ctl, ticks=max(1, int(round(scene.duration / T))), frequency=scene.motion.frequency,
-                      quantize=Effect.QUANTIZATION in fx, delay_ticks=delay)
+                      quantize=Effect.QUANTIZATION in fx, delay_ticks=delay, compiled=compiled)
         runs.append(r)
         n = r["position"].shape[0]
         stop = int(r["stop"][0])
@@ -583,4 +588,5 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
         scene=scene.name, stable=stable, unstable_at=unstable_at, measures=measures, violation=violation,
         warnings=warns, effects=tuple(res.effect_names()), notes=res.notes, reason=reason or res.reason,
         substeps=plant.substeps, timestep=float(plant.model.opt.timestep), integrator=plant.solver.integrator.value,
-        period=T, wall_time=wall, status=status, message="; ".join(problems), traces=traces)
+        period=T, wall_time=wall, status=status, message="; ".join(problems), traces=traces,
+        loop_engine=plant.loop_engine, loop_reason=plant.loop_reason)

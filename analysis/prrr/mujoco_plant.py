@@ -138,6 +138,7 @@ class MujocoPlant:
         self._hand = options.hand
         if self._hand is not None:
             self._hand_spring_adr = np.asarray(self.mj.hand_qpos)  # qpos_spring shares qpos layout
+        self.loop_engine, self.loop_reason = "python", "run() not called yet"
         self.reset()
 
     # ----------------------------------------------------------------------------- interface
@@ -436,7 +437,7 @@ class MujocoPlant:
         flg = np.array([st.quantize, has_motor, env, cfg.friction_compensation, cfg.gravity_compensation, loop,
                         cfg.integral, cfg.saturation, self._hand is not None, self._eq_rows, st.delay_ticks],
                        dtype=np.int64)
-        f3 = lambda x: np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=np.float64), (3,)))  # noqa: E731
+        f3 = lambda x: np.array(np.broadcast_to(np.asarray(x, dtype=np.float64), (3,)))  # noqa: E731  (a writable copy: one kernel type)
         state = np.zeros(12)
         state[0:3] = c._sp
         ist = np.zeros(2, dtype=np.int64)
@@ -542,6 +543,8 @@ class MultibodyResult:
     wall_time: float  # [s]
     status: Status
     message: str
+    loop_engine: str = "python"  # "compiled" (numba) or "python"
+    loop_reason: str = ""  # why that engine ran
 
     @property
     def health_ok(self) -> bool:
@@ -563,14 +566,16 @@ class MultibodyResult:
             "mujoco_warnings": list(self.warnings), "plant_substeps": self.substeps,
             "mujoco_timestep_ms": self.timestep * 1e3, "mujoco_integrator": self.integrator,
             "platform_model": self.platform, "link_masses": self.link_masses, "wall_time_s": self.wall_time,
+            "closed_loop_engine": self.loop_engine if self.loop_engine == "compiled" else f"python: {self.loop_reason}",
         })
         return out
 
 
 def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
              platform: Platform = Platform.FREE, link_masses: LinkMasses | None = None,
-             solver: SolverSettings | None = None, reason: str | None = None) -> MultibodyResult:
-    """Run ``scene`` on ``design`` with the firmware controller in the loop on the MuJoCo plant."""
+             solver: SolverSettings | None = None, reason: str | None = None, compiled: bool = True) -> MultibodyResult:
+    """Run ``scene`` on ``design`` with the firmware controller in the loop on the MuJoCo plant (``compiled``: the
+    compiled loop where it can run the controller, see :meth:`MujocoPlant.run`)."""
 
     choice = choose_backend(scene, force=Backend.MULTIBODY)
     res = choice.resolution
@@ -586,7 +591,7 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
     st = dataclasses.replace(st, resolution=res, substeps=plant.substeps)
     controller = NumpyController(st.cfg, st.gains)
     t0 = time.perf_counter()
-    traces = plant.run(controller, st)
+    traces = plant.run(controller, st, compiled=compiled)
     wall = time.perf_counter() - t0
     loop = closed_loop.metrics_from_traces(traces, st, 0, backend="multibody", wall_time=wall)
     warns = plant.warnings()
@@ -607,7 +612,7 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
         loop=loop, health=health, warnings=warns, substeps=plant.substeps, timestep=float(plant.model.opt.timestep),
         integrator=options.solver.integrator.value, platform=options.platform.value,
         link_masses=options.link_masses.value, reason=reason or choice.reason, wall_time=wall,
-        status=status, message=message,
+        status=status, message=message, loop_engine=plant.loop_engine, loop_reason=plant.loop_reason,
     )
 
 
