@@ -167,3 +167,18 @@ def warm_up() -> str | None:
     k = kernels()
     k.warm()
     return None
+
+
+def needed_by(scene_names) -> bool:
+    """Whether any of these bundled scenes runs on a MuJoCo plant (so a worker about to run them should
+    :func:`warm_up` first). A name that does not load counts as not needing it (its run reports the error)."""
+    from hapticopt.analysis.loop.scene import Backend, load_scene, resolve
+    from hapticopt.design.errors import InvalidInput
+
+    for name in scene_names:
+        try:
+            if resolve(load_scene(name)).backend == Backend.MULTIBODY:
+                return True
+        except (InvalidInput, OSError, KeyError, ValueError):
+            continue
+    return False
