@@ -30,6 +30,7 @@ from hapticopt.optim.problem import Problem, check_metrics
 from hapticopt.analysis.registry import EVALUATORS, describe_failure, jsonable, run_plotter
 from hapticopt.design.paths import inside
 from hapticopt.optim.driver import SMOOTH_SURROGATES
+from hapticopt.analysis.loop import mujoco_compiled
 from hapticopt.analysis.loop.scene import load_scene
 from hapticopt.optim.reaper import children_die_with_this_process
 from hapticopt.optim.recorder import Recorder, check_run_dir, run_lock
@@ -141,16 +142,12 @@ def warm_verification(compiled_loops: bool = False) -> None:
 
     jnp.zeros(1).block_until_ready()
     if compiled_loops:
-        from hapticopt.analysis.loop import mujoco_compiled
-
         mujoco_compiled.warm_up()  # unavailable: the plants run their Python loops and say why
 
 
 def verification_worker(scenes: Sequence[str] = ()) -> SupervisedWorker:
     """The one process the verify stage runs its scenes in (:mod:`hapticopt.optim.worker`); it warms the compiled
     MuJoCo loops at start when one of ``scenes`` runs on a MuJoCo plant."""
-    from hapticopt.analysis.loop import mujoco_compiled
-
     if mujoco_compiled.needed_by(scenes):
         return SupervisedWorker(warm=functools.partial(warm_verification, True))
     return SupervisedWorker(warm=warm_verification)

@@ -12,7 +12,10 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from hapticopt.analysis.loop.mujoco_compiled import ENV_BOX, ENV_FORCE, ENV_FREE, ENV_SPRING, LOOP_RIGID, LOOP_SEA
+#: environment kinds of the compiled 3-PRRR / master firmwares
+ENV_FREE, ENV_SPRING, ENV_BOX, ENV_FORCE = 0, 1, 2, 3
+#: force loops of the compiled 3-PRRR firmware (hapticopt.analysis.prrr.firmware.ForceLoop)
+LOOP_SEA, LOOP_RIGID, LOOP_IDEAL = 0, 1, 2
 
 # void mj_step(const mjModel* m, mjData* d): pointers passed as integers (same registers on x86-64 / arm64)
 _mj_step = types.ExternalFunction("mj_step", types.void(types.intp, types.intp))

@@ -41,10 +41,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: environment kinds of the compiled 3-PRRR / master firmwares
-ENV_FREE, ENV_SPRING, ENV_BOX, ENV_FORCE = 0, 1, 2, 3
-#: force loops of the compiled 3-PRRR firmware (hapticopt.analysis.prrr.firmware.ForceLoop)
-LOOP_SEA, LOOP_RIGID, LOOP_IDEAL = 0, 1, 2
+from hapticopt.analysis.loop.scene import Backend, load_scene, resolve
+from hapticopt.design.errors import InvalidInput
 
 
 @dataclass(frozen=True)
@@ -149,7 +147,8 @@ def availability() -> str | None:
 
 
 def kernels():
-    """The compiled kernels module (imported on first use: numba loads only when a plant runs)."""
+    """The compiled kernels module (imported on first use: numba loads only when a plant runs); its ``ENV_*`` and
+    ``LOOP_*`` codes name the law's branches."""
     reason = availability()
     if reason is not None:
         raise RuntimeError(reason)
@@ -172,9 +171,6 @@ def warm_up() -> str | None:
 def needed_by(scene_names) -> bool:
     """Whether any of these bundled scenes runs on a MuJoCo plant (so a worker about to run them should
     :func:`warm_up` first). A name that does not load counts as not needing it (its run reports the error)."""
-    from hapticopt.analysis.loop.scene import Backend, load_scene, resolve
-    from hapticopt.design.errors import InvalidInput
-
     for name in scene_names:
         try:
             if resolve(load_scene(name)).backend == Backend.MULTIBODY:

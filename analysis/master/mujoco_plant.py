@@ -39,6 +39,7 @@ import numpy as np
 from hapticopt.analysis.loop.traces import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.master.firmware import MasterController, MasterFirmwareConfig
+from hapticopt.analysis.loop import mujoco_compiled as mc
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
 from hapticopt.analysis.loop.scene import (
     DynamicsCompensation,
@@ -163,8 +164,6 @@ class MasterPlant:
 
     def _kernels(self, controller: MasterController, compiled: bool) -> Any:
         """The compiled kernels when they can run ``controller`` (else None); records the engine and why."""
-        from hapticopt.analysis.loop import mujoco_compiled as mc
-
         cfg = controller.cfg
         why = None
         if not compiled:
@@ -186,10 +185,8 @@ class MasterPlant:
     def _native_args(self, controller, quantize, delay_ticks, REF, DREF, P, TAU, FREF, EFR, has_ef, clock,
                      HQ, HV, HA, EQF):
         """Arguments of :func:`master_chunk`: (before start/end/nstep, after)."""
-        from hapticopt.analysis.loop import mujoco_compiled as mc
-
         m, d, cfg = self.model, self.data, controller.cfg
-        lay = mc.layout()
+        lay, kc = mc.layout(), mc.kernels()
         off = np.array([lay.time, lay.nefc, lay.efc_pos, lay.efc_force, lay.efc_type, lay.efc_id], dtype=np.int64)
         ip = lambda x: np.ascontiguousarray(x, dtype=np.intp)  # noqa: E731
         f3 = lambda x: np.array(np.broadcast_to(np.asarray(x, dtype=np.float64), (3,)))  # noqa: E731  (a writable copy: one kernel type)
@@ -200,7 +197,7 @@ class MasterPlant:
             hq = hd = np.zeros(3, dtype=np.intp)
             REF = DREF = np.zeros((1, 3))
             eq_hand, eq_type = -1, -1
-        env = {EnvKind.FREE: mc.ENV_FREE, EnvKind.SPRING: mc.ENV_SPRING, EnvKind.BOX: mc.ENV_BOX}[cfg.env]
+        env = {EnvKind.FREE: kc.ENV_FREE, EnvKind.SPRING: kc.ENV_SPRING, EnvKind.BOX: kc.ENV_BOX}[cfg.env]
         par = np.array([cfg.counts_per_rev / (2.0 * math.pi), controller._scale, cfg.period, cfg.velocity_alpha,
                         cfg.upper_arm, cfg.forearm, cfg.shoulder_height, cfg.wall_stiffness, cfg.wall_damping,
                         cfg.torque_limit, cfg.gravity_g1, cfg.gravity_g2])

@@ -31,6 +31,7 @@ import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+from hapticopt.analysis.loop import mujoco_compiled as mc
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
 from hapticopt.analysis.loop.operator import Operator
 from hapticopt.analysis.prrr.mujoco_model import LinkMasses, ModelOptions, Platform, PrrrMj, build, set_pose
@@ -394,8 +395,6 @@ class MujocoPlant:
 
     def _kernels(self, controller: Any, compiled: bool) -> Any:
         """The compiled kernels when they can run ``controller`` (else None); records the engine and why."""
-        from hapticopt.analysis.loop import mujoco_compiled as mc
-
         why = None
         if not compiled:
             why = "compiled=False (the Python reference loop)"
@@ -412,11 +411,9 @@ class MujocoPlant:
 
     def _native_args(self, controller, st, N, REF, DREF, Qp, Qv, Qa, KE, clock, CMD, Fref, EF):
         """Arguments of :func:`prrr_chunk`: (before start/end/nstep, after)."""
-        from hapticopt.analysis.loop import mujoco_compiled as mc
-
         m, d, c = self.model, self.data, controller
         cfg = c.cfg
-        lay = mc.layout()
+        lay, kc = mc.layout(), mc.kernels()
         off = np.array([lay.time, lay.nefc, lay.efc_pos], dtype=np.int64)
         ip = lambda x: np.ascontiguousarray(x, dtype=np.intp)  # noqa: E731
         sl_idx = ip(self.mj.slider_qpos)
@@ -428,9 +425,9 @@ class MujocoPlant:
         else:
             spr = hd = np.zeros(3, dtype=np.intp)
             REF = DREF = np.zeros((1, 3))
-        env = {EnvKind.FREE: mc.ENV_FREE, EnvKind.SPRING: mc.ENV_SPRING, EnvKind.BOX: mc.ENV_BOX,
-               EnvKind.FORCE: mc.ENV_FORCE}[cfg.env]
-        loop = {ForceLoop.SEA: mc.LOOP_SEA, ForceLoop.RIGID: mc.LOOP_RIGID, ForceLoop.IDEAL: mc.LOOP_IDEAL}[cfg.force_loop]
+        env = {EnvKind.FREE: kc.ENV_FREE, EnvKind.SPRING: kc.ENV_SPRING, EnvKind.BOX: kc.ENV_BOX,
+               EnvKind.FORCE: kc.ENV_FORCE}[cfg.env]
+        loop = {ForceLoop.SEA: kc.LOOP_SEA, ForceLoop.RIGID: kc.LOOP_RIGID, ForceLoop.IDEAL: kc.LOOP_IDEAL}[cfg.force_loop]
         par = np.array([1.0 / float(st.gains.resolution), c._res, cfg.period, cfg.velocity_alpha, c._Kb, c._Bb,
                         c._fomega, c._fc, c._fcv, c._weight, c._spring, c._kp, c._ki * cfg.period, c._limit, c._eta,
                         self.gain])
