@@ -155,8 +155,11 @@ def _prrr_loop_and_raw(fidelity: Fidelity, rounds: int = 5) -> dict[str, list[fl
 
 
 def _ratios(out: dict[str, list[float]]) -> dict[str, float]:
+    """Medians of the per-round ratios (each round's loops and raw run back to back: a load change between rounds
+    cancels) and of the walls."""
     med = {k: statistics.median(v) for k, v in out.items()}
-    return {"compiled_over_raw": med["compiled"] / med["raw"], "python_over_raw": med["python"] / med["raw"],
+    per = {e: statistics.median(a / r for a, r in zip(out[e], out["raw"])) for e in ("compiled", "python")}
+    return {"compiled_over_raw": per["compiled"], "python_over_raw": per["python"],
             "compiled_s": med["compiled"], "python_s": med["python"], "raw_mj_step_s": med["raw"],
             "load_average": os.getloadavg()[0]}
 

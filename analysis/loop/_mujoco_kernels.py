@@ -72,8 +72,16 @@ def prrr_chunk(m_addr, d_addr, off, start, end, nstep,
                sl_idx, mo_idx, spr_idx, hd_idx, REF, DREF,
                par, flg, J, K, B, anchor, half, famp, fphase,
                st, ist, dbuf,
-               Qp, Qv, Qa, KE, clock, CMD, Fref, EF):
-    """Ticks [start, end) of ``MujocoPlant.run`` with ``NumpyController._step_scalar`` (interpolation 1).
+               Qp, Qv, Qa, KE, clock, CMD, Fref, EF,
+               ee_idx, mo_e, Kst, chk_f, chk_i):
+    """Ticks from ``start`` (a window boundary) of ``MujocoPlant.run`` with ``NumpyController._step_scalar``
+    (interpolation 1), window by window (``check_every`` ticks), until the end of the first window that holds a
+    possibly bad tick (returned: the plant checks that window exactly) or ``end`` (returns −1: no tick was).
+
+    "Possibly bad" is the plant's ``_window_bad`` rule with margins (MuJoCo's clock reset, a non-finite or
+    |p| ≥ 1 m end-effector, the energy over ``explode`` less a margin of 1e-9 of its terms' sum), so a window it
+    passes is clean however numpy rounds and sums the same quantities; chk_f: explode, spring, T; chk_i:
+    check_every, whether the spring deflection (mo_e − slider) counts.
 
     par: inv_res, res, T, alpha, Kb, Bb, fomega, fc, fcv, weight, spring, kp, kiT, lim, eta, gain;
     flg: quantize, has_motor, env, friction, gravity, loop, integral, saturation, has_hand, n_eq, delay;
@@ -93,6 +101,9 @@ def prrr_chunk(m_addr, d_addr, off, start, end, nstep,
     fr = np.empty(3)
     out = np.empty(3)
     cmd = np.empty(3)
+    explode, spring_e, Tp = chk_f[0], chk_f[1], chk_f[2]
+    every, mo_chk = chk_i[0], chk_i[1]
+    suspect = False
     for k in range(start, end):
         # encoders: slider counts and spring deflection counts (motor − slider), rounded when quantised
         for i in range(3):
@@ -190,6 +201,26 @@ def prrr_chunk(m_addr, d_addr, off, start, end, nstep,
             efc = _ptr(d_addr + off_efc_pos)
             for j in range(n_eq):
                 EF[k, j] = _f64(efc, j)
+        # prefilter of the window check (conservative: see the docstring)
+        e = KE[k]
+        scale = abs(e)
+        for i in range(3):
+            x = qpos[ee_idx[i]]
+            if not (abs(x) < 1.0 - 1e-12):  # also NaN
+                suspect = True
+            t = 0.5 * (Kst[i] * (x * x))
+            e += t
+            scale += abs(t)
+            if mo_chk:
+                dfl = qpos[mo_e[i]] - qpos[sl_idx[i]]
+                t = 0.5 * spring_e * (dfl * dfl)
+                e += t
+                scale += abs(t)
+        if not (e < explode - 1e-9 * scale) or clock[k] < (k + 0.5) * Tp * (1.0 + 1e-9):
+            suspect = True
+        if suspect and ((k + 1) % every == 0 or k + 1 == end):
+            return k + 1
+    return -1
 
 
 # --------------------------------------------------------------------------------------- master
@@ -311,6 +342,6 @@ def warm() -> None:
     x = np.zeros(3, dtype=np.int64)
     a2, a3 = np.zeros((1, 3)), np.zeros((1, 1, 3))
     prrr_chunk(0, 0, x, 0, 0, 1, f, f, f, f, f, f, f, x, x, x, x, a2, a2, f, i, np.zeros((3, 3)), f, f, f, f, f, f,
-               f, i, a2, a2, a2, a2, f, f, a3, a2, a2)
+               f, i, a2, a2, a2, a2, f, f, a3, a2, a2, x, x, f, f, i)
     master_chunk(0, 0, i, 0, 0, 1, f, f, f, f, f, f, a2, 0, x, x, x, a2, a2, f, i, f, f, f, f, f,
                  f, i, a2, a2, a2, a2, a2, np.zeros(1, dtype=np.bool_), f, a2, a2, a2, a2)

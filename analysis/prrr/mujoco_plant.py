@@ -140,6 +140,7 @@ class MujocoPlant:
         if self._hand is not None:
             self._hand_spring_adr = np.asarray(self.mj.hand_qpos)  # qpos_spring shares qpos layout
         self.loop_engine, self.loop_reason = "python", "run() not called yet"
+        self._pose0: np.ndarray | None = None  # qpos set_pose gives at the scene's start (cached by reset)
         self.reset()
 
     # ----------------------------------------------------------------------------- interface
@@ -147,7 +148,13 @@ class MujocoPlant:
         mj, d = self._mujoco, self.data
         mj.mj_resetData(self.model, d)
         p0 = np.asarray(self.scene.initial_offset, dtype=float)
-        set_pose(self.mj, d, p0)
+        if self._pose0 is None:  # the IK (jax) once per plant; later resets restore what set_pose wrote
+            set_pose(self.mj, d, p0)
+            self._pose0 = d.qpos.copy()
+        else:
+            d.qpos[:] = self._pose0
+            d.qvel[:] = 0.0
+            mj.mj_forward(self.model, d)
         self.t = 0.0
         self.u = np.zeros(3)
         self._worst = [0.0, 0.0, 0.0]  # violation [m], rotation [rad], closure [m]
@@ -335,11 +342,16 @@ class MujocoPlant:
         energy_buf = d.energy  # a view on MjData's buffer, updated in place by mj_step
         if kern is not None:
             nat = self._native_args(controller, st, N, REF if hand is not None else None,
-                                    DREF if hand is not None else None, Qp, Qv, Qa, KE, clock, CMD, Fref, EF)
+                                    DREF if hand is not None else None, Qp, Qv, Qa, KE, clock, CMD, Fref, EF,
+                                    K, explode, check_every)
         while k < N:
             end = min(N, start + check_every)
-            if kern is not None:
-                kern.prrr_chunk(*nat[0], start, end, per, *nat[1])
+            if kern is not None:  # runs windows on until one holds a possibly bad tick (exact check below) or N
+                end = kern.prrr_chunk(*nat[0], start, N, per, *nat[1])
+                if end < 0:  # no tick was possibly bad: none is (the prefilter is conservative)
+                    end = N
+                    break
+                start = ((end - 1) // check_every) * check_every  # that window
             for k in range(start, end) if kern is None else ():
                 if direct:  # the scalar controller takes Python lists
                     sc, dc = counts()
@@ -409,7 +421,7 @@ class MujocoPlant:
         self.loop_reason = why or "compiled loop (numba): firmware law and mj_step in one native loop"
         return None if why else mc.kernels()
 
-    def _native_args(self, controller, st, N, REF, DREF, Qp, Qv, Qa, KE, clock, CMD, Fref, EF):
+    def _native_args(self, controller, st, N, REF, DREF, Qp, Qv, Qa, KE, clock, CMD, Fref, EF, K, explode, check_every):
         """Arguments of :func:`prrr_chunk`: (before start/end/nstep, after)."""
         m, d, c = self.model, self.data, controller
         cfg = c.cfg
@@ -439,10 +451,17 @@ class MujocoPlant:
         state[0:3] = c._sp
         ist = np.zeros(2, dtype=np.int64)
         dbuf = np.zeros((max(1, st.delay_ticks), 3))
+        # the window check's prefilter (_window_bad's quantities): end-effector, spring deflection, its stiffness
+        ee = ip(self._ee_pos)
+        mo_chk = self.mj.motor_qpos is not None
+        chk_f = np.array([explode, self.spring, self.period])
+        chk_i = np.array([check_every, mo_chk], dtype=np.int64)
+        mo_e = ip(self.mj.motor_qpos) if mo_chk else sl_idx
         pre = (m._address, d._address, off)
         post = (d.qpos, d.qvel, d.qacc, d.ctrl, d.energy, m.qpos_spring, d.qfrc_applied, sl_idx, mo_idx, spr, hd,
                 REF, DREF, par, flg, np.ascontiguousarray(c._J, dtype=np.float64), f3(c._K), f3(c._B), f3(c._anchor),
-                f3(c._half), f3(c._famp), f3(c._fphase), state, ist, dbuf, Qp, Qv, Qa, KE, clock, CMD, Fref, EF)
+                f3(c._half), f3(c._famp), f3(c._fphase), state, ist, dbuf, Qp, Qv, Qa, KE, clock, CMD, Fref, EF,
+                ee, mo_e, f3(K), chk_f, chk_i)
         return pre, post
 
     def _native_done(self, controller, nat, CMD, last, end) -> None:

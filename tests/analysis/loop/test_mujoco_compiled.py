@@ -184,3 +184,15 @@ def test_warm_up_loads_the_kernels_the_plants_use():
     prrr_mj.simulate(PRRR, scene, fidelity=Fidelity.DRAFT)
     master_mj.simulate(MASTER, dataclasses.replace(load_scene("master-wall"), duration=0.02), fidelity=Fidelity.DRAFT)
     assert len(k.prrr_chunk.signatures) == 1 and len(k.master_chunk.signatures) == 1
+
+
+def test_prrr_reset_restores_the_start_pose_exactly():
+    """MujocoPlant.reset solves the IK once and restores its qpos afterwards: the same MjData state as a fresh plant."""
+    scene = dataclasses.replace(load_scene("stiffness-25-links"), duration=0.05)
+    plant, st = _prrr_plant(scene, Fidelity.DRAFT)
+    first = {k: getattr(plant.data, k).copy() for k in ("qpos", "qvel", "qacc", "xpos", "efc_pos", "qfrc_applied")}
+    plant.run(NumpyController(st.cfg, st.gains), st)
+    plant.reset()
+    for k, v in first.items():
+        np.testing.assert_array_equal(getattr(plant.data, k), v, err_msg=k)
+    np.testing.assert_array_equal(plant.model.qpos_spring, _prrr_plant(scene, Fidelity.DRAFT)[0].model.qpos_spring)
