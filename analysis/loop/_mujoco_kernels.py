@@ -229,8 +229,12 @@ def master_chunk(m_addr, d_addr, off, start, end, nstep,
                  qpos, qvel, qacc, ctrl, qs, qfa, site_xpos, site,
                  qa, hq, hd, REF, DREF, par, flg, q0, K, B, anchor, half,
                  st, ist, dbuf,
-                 P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF):
-    """Ticks [start, end) of ``MasterPlant.run`` with ``MasterController.step`` (no dynamics compensation).
+                 P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF, x0, chk_f, every):
+    """Ticks from ``start`` (a window boundary) of ``MasterPlant.run`` with ``MasterController.step`` (no dynamics
+    compensation), window by window (``every`` ticks), until the end of the first window holding a possibly bad
+    tick (returned: the plant checks that window exactly) or ``end`` (returns −1: no tick was). "Possibly bad":
+    the plant's rule with margins (non-finite handle, further than RUNAWAY·(1 − 1e-12) from x0, MuJoCo's clock
+    reset); chk_f: RUNAWAY, T.
 
     par: count scale (counts per rad), angle scale (rad per count), T, alpha, L5, L4, h, Kb, Bb, lim, g1, g2;
     flg: quantize, env, gravity compensation, saturation, has_hand, n_closure, eq_hand, eq_type, delay;
@@ -249,6 +253,8 @@ def master_chunk(m_addr, d_addr, off, start, end, nstep,
     tau = np.empty(3)
     cmd = np.empty(3)
     rows = np.empty(3, dtype=np.intp)
+    runaway, Tp = chk_f[0], chk_f[1]
+    suspect = False
     for k in range(start, end):
         for i in range(3):  # encoder counts → joint angles (controller.joint_angles)
             c = (qpos[qa[i]] - q0[i]) * cscale
@@ -334,6 +340,14 @@ def master_chunk(m_addr, d_addr, off, start, end, nstep,
                 ef = _ptr(d_addr + off_force)
                 for j in range(3):
                     EQF[k, j] = -_f64(ef, rows[j])
+        for j in range(3):  # prefilter of the window check (conservative: see the docstring)
+            if not (abs(P[k, j] - x0[j]) <= runaway * (1.0 - 1e-12)):  # also NaN / inf
+                suspect = True
+        if clock[k] < (k + 0.5) * Tp * (1.0 + 1e-9):
+            suspect = True
+        if suspect and ((k + 1) % every == 0 or k + 1 == end):
+            return k + 1
+    return -1
 
 
 def warm() -> None:
@@ -344,4 +358,4 @@ def warm() -> None:
     prrr_chunk(0, 0, x, 0, 0, 1, f, f, f, f, f, f, f, x, x, x, x, a2, a2, f, i, np.zeros((3, 3)), f, f, f, f, f, f,
                f, i, a2, a2, a2, a2, f, f, a3, a2, a2, x, x, f, f, i)
     master_chunk(0, 0, i, 0, 0, 1, f, f, f, f, f, f, a2, 0, x, x, x, a2, a2, f, i, f, f, f, f, f,
-                 f, i, a2, a2, a2, a2, a2, np.zeros(1, dtype=np.bool_), f, a2, a2, a2, a2)
+                 f, i, a2, a2, a2, a2, a2, np.zeros(1, dtype=np.bool_), f, a2, a2, a2, a2, f, f, 1)

@@ -143,6 +143,10 @@ def availability() -> str | None:
         layout()
     except (OSError, RuntimeError) as e:
         return f"MuJoCo not reachable from compiled code: {e}"
+    try:  # numba raises at decoration when no cache folder is writable (NUMBA_CACHE_DIR, __pycache__, ~/.cache)
+        from hapticopt.analysis.loop import _mujoco_kernels  # noqa: F401
+    except (OSError, RuntimeError) as e:
+        return f"the compiled loops' module did not load: {e}"
     return None
 
 
@@ -152,7 +156,7 @@ def kernels():
     reason = availability()
     if reason is not None:
         raise RuntimeError(reason)
-    from hapticopt.analysis.loop import _mujoco_kernels
+    from hapticopt.analysis.loop import _mujoco_kernels  # loaded by availability()
 
     return _mujoco_kernels
 

@@ -211,7 +211,7 @@ class MasterPlant:
         post = (d.qpos, d.qvel, d.qacc, d.ctrl, m.qpos_spring, d.qfrc_applied, d.site_xpos, int(self.site),
                 ip(self.act_qpos), hq, hd, REF, DREF, par, flg, f3(cfg.q0), f3(controller._K), f3(controller._B),
                 f3(controller._anchor), f3(controller._half), st, ist, dbuf,
-                P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF)
+                P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF, f3(self.x0), np.array([RUNAWAY, self.period]), 100)
         return pre, post
 
     def run(self, controller: MasterController, *, ticks: int, frequency: float, quantize: bool,
@@ -272,15 +272,19 @@ class MasterPlant:
             nat = self._native_args(controller, quantize, delay_ticks, REF if self.hand else None,
                                     DREF if self.hand else None, P, TAU, FREF, EFR, has_ef, clock,
                                     *((HQ, HV, HA, EQF) if self.hand else (np.zeros((1, 3)),) * 4))
-            for lo in range(0, N, 100):  # the Python loop's check windows: ticks [lo, lo + 100)
-                hi = min(N, lo + 100)
-                kern.master_chunk(*nat[0], lo, hi, substeps, *nat[1])
+            lo = 0
+            while lo < N:  # windows on until one holds a possibly bad tick (checked exactly here) or N
+                hi = kern.master_chunk(*nat[0], lo, N, substeps, *nat[1])
+                if hi < 0:  # no tick was possibly bad: none is (the prefilter is conservative)
+                    break
+                lo = ((hi - 1) // 100) * 100  # the Python loop's check window [lo, lo + 100) holding it
                 bad = (~np.all(np.isfinite(P[lo:hi]), axis=-1)
                        | np.any(np.abs(P[lo:hi] - self.x0) > RUNAWAY, axis=-1)
                        | (clock[lo:hi] < (np.arange(lo, hi) + 0.5) * T))
                 if bad.any():
                     stop = lo + int(np.argmax(bad))
                     break
+                lo = hi
             st = nat[1][20]
             controller._p_prev, controller._v, controller.last_force = st[0:3].copy(), st[3:6].copy(), st[6:9].copy()
         for k in range(N) if kern is None else ():

@@ -388,7 +388,7 @@ class MujocoPlant:
             start = end
             k = end
         if kern is not None:
-            self._native_done(controller, nat, CMD, stop if stop >= 0 else N - 1, end)
+            self._native_done(controller, nat, CMD, end)
         self.t = (N if stop < 0 else stop + 1) * L * h
         last = N if stop < 0 else stop + 1  # health over every tick run up to and including the stop
         self._health_from(EF[:last], Qp[:last])
@@ -464,7 +464,7 @@ class MujocoPlant:
                 ee, mo_e, f3(K), chk_f, chk_i)
         return pre, post
 
-    def _native_done(self, controller, nat, CMD, last, end) -> None:
+    def _native_done(self, controller, nat, CMD, end) -> None:
         """After a compiled run: the plant's held command and the controller's state as the Python loop leaves them."""
         state, ist = nat[1][22], nat[1][23]
         self.u = CMD[end - 1, 0].copy()

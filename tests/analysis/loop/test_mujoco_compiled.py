@@ -196,3 +196,15 @@ def test_prrr_reset_restores_the_start_pose_exactly():
     for k, v in first.items():
         np.testing.assert_array_equal(getattr(plant.data, k), v, err_msg=k)
     np.testing.assert_array_equal(plant.model.qpos_spring, _prrr_plant(scene, Fidelity.DRAFT)[0].model.qpos_spring)
+
+
+def test_master_unstable_run_stops_at_the_same_tick():
+    """A wall 10⁴× master-wall's (10 kN/mm), no torque limit: MuJoCo's BADQACC reset stops both loops at one tick."""
+    w = load_scene("master-wall")
+    scene = dataclasses.replace(w, environment=dataclasses.replace(w.environment, wall_stiffness=1e7), duration=0.3,
+                                effects=w.effects - {Effect.SATURATION})
+    ref = master_mj.simulate(MASTER, scene, fidelity=Fidelity.DRAFT, compiled=False)
+    fast = master_mj.simulate(MASTER, scene, fidelity=Fidelity.DRAFT)
+    assert fast.loop_engine == "compiled" and ref.traces.stop_tick[0] >= 0 and not ref.stable
+    assert any("BADQACC" in x for x in fast.warnings)
+    _assert_same_master(ref, fast)
