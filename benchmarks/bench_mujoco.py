@@ -158,8 +158,11 @@ def _ratios(out: dict[str, list[float]]) -> dict[str, float]:
     """Medians of the per-round ratios (each round's loops and raw run back to back: a load change between rounds
     cancels) and of the walls."""
     med = {k: statistics.median(v) for k, v in out.items()}
-    per = {e: statistics.median(a / r for a, r in zip(out[e], out["raw"])) for e in ("compiled", "python")}
+    rounds = {e: [a / r for a, r in zip(out[e], out["raw"])] for e in ("compiled", "python")}
+    per = {e: statistics.median(v) for e, v in rounds.items()}
+    q = statistics.quantiles(rounds["compiled"], n=4) if len(rounds["compiled"]) > 1 else [per["compiled"]] * 3
     return {"compiled_over_raw": per["compiled"], "python_over_raw": per["python"],
+            "compiled_over_raw_quartiles": (q[0], q[2]),
             "compiled_s": med["compiled"], "python_s": med["python"], "raw_mj_step_s": med["raw"],
             "load_average": os.getloadavg()[0]}
 
@@ -187,5 +190,7 @@ if __name__ == "__main__":  # python benchmarks/bench_mujoco.py [rounds]: the ra
     for name, fn in (("3-PRRR stiffness-25 FREE", _prrr_loop_and_raw), ("master-wall", _master_loop_and_raw)):
         for fid in (Fidelity.DRAFT, Fidelity.STANDARD):
             r = _ratios(fn(fid, rounds=n))
-            print(f"{name:26s} {fid.value:8s} compiled/raw {r['compiled_over_raw']:.3f}  python/raw "
-                  f"{r['python_over_raw']:.3f}  (median of {n}, load {r['load_average']:.2f})", flush=True)
+            q1, q3 = r["compiled_over_raw_quartiles"]
+            print(f"{name:26s} {fid.value:8s} compiled/raw {r['compiled_over_raw']:.3f} (quartiles {q1:.3f}-{q3:.3f})"
+                  f"  python/raw {r['python_over_raw']:.3f}  (median of {n} per-round ratios, load "
+                  f"{r['load_average']:.2f})", flush=True)
