@@ -305,28 +305,49 @@ def check_points(model: FastModel, points, *, branch: int = cad_prrr.DEFAULT_BRA
     return check_posed(stack_models([model]), np.zeros(len(pts), dtype=int), pts, frames, reachable)
 
 
+#: poses per pass of :func:`check_posed` (bounds the per-(pose, primitive) world tables: ~4 MB
+#: of rotations per 1,000 poses of a 51-primitive layout)
+CHUNK_POSES = 4096
+
+
+@functools.lru_cache(maxsize=32)
+def _part_pair_csr(part_names: tuple[str, ...], part_pairs: tuple[tuple[str, str], ...], pair_part: bytes
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per part pair: its two part indices, the first primitive pair and the number of primitive
+    pairs (``pair_part`` is sorted: :func:`_pair_tables` appends each part pair's block in order)."""
+    pp = np.frombuffer(pair_part, dtype=np.int64)
+    count = np.bincount(pp, minlength=len(part_pairs))
+    start = np.cumsum(count) - count
+    pp_a = np.array([part_names.index(a) for a, _ in part_pairs], dtype=int)
+    pp_b = np.array([part_names.index(b) for _, b in part_pairs], dtype=int)
+    return pp_a, pp_b, start, count
+
+
 def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
                 frames: dict[str, tuple[np.ndarray, np.ndarray]], reachable: np.ndarray) -> FastResult:
     """Interference at n posed configurations of the designs of ``batch``: pose k belongs to design
     ``owner[k]``, its parts at ``frames`` (name → world rotation (n, 3, 3), origin (n, 3) [m], as
     :func:`hapticopt.design.prrr.cad.part_frames_arrays`), ``reachable`` (n,) bool. One numpy pass
-    over every pose of every design (the batched draft evaluator's path; :func:`check_points` is
-    the one-design case)."""
+    over every pose of every design, in chunks of :data:`CHUNK_POSES` poses (the batched draft
+    evaluator's path; :func:`check_points` is the one-design case).
+
+    Per chunk: world-axis-aligned boxes of every part (from its primitives' boxes in the part frame)
+    over every tested part pair; the world rotation, centre and exact world extents of every
+    primitive at every pose, computed once; the primitive pairs of the part pairs that survive,
+    tested on those extents (a part box contains its primitives' boxes, so this sees the same
+    candidates as testing every primitive pair); the separating axes (:func:`_depth`) on the rest."""
     pts = np.atleast_2d(np.asarray(points, dtype=float))
     n = len(pts)
     owner = np.asarray(owner, dtype=int)
-    Rp = np.stack([frames[name][0] for name in batch.part_names], axis=1)  # (n, parts, 3, 3)
-    tp = np.stack([frames[name][1] for name in batch.part_names], axis=1)  # (n, parts, 3)
-    ia, ib = batch.pair_a, batch.pair_b
+    reachable = np.asarray(reachable)
     depth = np.zeros((n, len(batch.part_pairs)))
-    # broad phase 1: world-axis-aligned boxes of every part (from its primitives' boxes in the part
-    # frame); a part box contains its primitives' boxes, so phase 2 sees the same candidates
     P = len(batch.kind)
-    loc_ext = _support(np.tile(batch.kind, len(batch.R)), batch.R.reshape(-1, 3, 3), batch.half.reshape(-1, 3),
-                       np.broadcast_to(np.eye(3), (len(batch.R) * P, 3, 3))).reshape(len(batch.R), P, 3)
+    m = len(batch.R)
+    loc_ext = _support(np.tile(batch.kind, m), batch.R.reshape(-1, 3, 3), batch.half.reshape(-1, 3),
+                       np.broadcast_to(np.eye(3), (m * P, 3, 3))).reshape(m, P, 3)
     n_parts = len(batch.part_names)
-    plo = np.full((len(batch.R), n_parts, 3), np.inf)
-    phi = np.full((len(batch.R), n_parts, 3), -np.inf)
+    plo = np.full((m, n_parts, 3), np.inf)
+    phi = np.full((m, n_parts, 3), -np.inf)
     for j in range(n_parts):
         sel = batch.prim_part == j
         if sel.any():
@@ -334,39 +355,54 @@ def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
             phi[:, j] = np.max(batch.o[:, sel] + loc_ext[:, sel], axis=1)
     empty = ~np.isfinite(plo)  # a part without SOLID primitives is in no tested pair (_pair_tables)
     plo[empty], phi[empty] = 0.0, 0.0
-    pc, ph = 0.5 * (plo + phi)[owner], 0.5 * (phi - plo)[owner]  # (n, parts, 3)
+    pc_all, ph_all = 0.5 * (plo + phi), 0.5 * (phi - plo)  # (m, parts, 3)
+    pp_a, pp_b, start, count = _part_pair_csr(batch.part_names, batch.part_pairs,
+                                              np.asarray(batch.pair_part, dtype=np.int64).tobytes())
+    kind_all = np.tile(batch.kind, CHUNK_POSES)
+    for s in range(0, n, CHUNK_POSES):
+        e = min(n, s + CHUNK_POSES)
+        _check_chunk(batch, owner[s:e], frames, s, e, reachable[s:e], depth[s:e], pc_all, ph_all,
+                     pp_a, pp_b, start, count, kind_all[: (e - s) * P])
+    return FastResult(points=pts, reachable=reachable, collides=np.any(depth > DEPTH_TOL, axis=1),
+                      depth=depth, part_pairs=batch.part_pairs)
+
+
+def _check_chunk(batch, owner, frames, s, e, reachable, depth, pc_all, ph_all, pp_a, pp_b, start, count,
+                 kind_flat) -> None:
+    """:func:`check_posed` on poses s:e (``depth`` is that chunk's view, updated in place)."""
+    c = e - s
+    P = len(batch.kind)
+    Rp = np.stack([frames[name][0][s:e] for name in batch.part_names], axis=1)  # (c, parts, 3, 3)
+    tp = np.stack([frames[name][1][s:e] for name in batch.part_names], axis=1)  # (c, parts, 3)
+    pc, ph = pc_all[owner], ph_all[owner]
     wc = (Rp @ pc[..., None])[..., 0] + tp
     wh = (np.abs(Rp) @ ph[..., None])[..., 0]
-    pp_a = np.array([batch.part_names.index(a) for a, _ in batch.part_pairs], dtype=int)
-    pp_b = np.array([batch.part_names.index(b) for _, b in batch.part_pairs], dtype=int)
     part_near = np.all(np.abs(wc[:, pp_a] - wc[:, pp_b]) <= wh[:, pp_a] + wh[:, pp_b], axis=-1)
-    part_near &= np.asarray(reachable)[:, None]
-    pose, k = np.nonzero(part_near[:, batch.pair_part])
-    if len(pose) == 0:
-        return FastResult(points=pts, reachable=np.asarray(reachable), collides=np.zeros(n, dtype=bool),
-                          depth=depth, part_pairs=batch.part_pairs)
-    # broad phase 2 on the survivors: world-axis-aligned boxes of the primitives (exact extents)
-    a, b = ia[k], ib[k]
-    own = owner[pose]
-
-    def posed(prim):
-        Rpp = Rp[pose, batch.prim_part[prim]]
-        Rw = Rpp @ batch.R[own, prim]
-        cw = (Rpp @ batch.o[own, prim][:, :, None])[..., 0] + tp[pose, batch.prim_part[prim]]
-        return Rw, cw, batch.half[own, prim]
-
-    Ra, ca, ha = posed(a)
-    Rb, cb, hb = posed(b)
-    eye = np.broadcast_to(np.eye(3), (len(a), 3, 3))
-    ea, eb = _support(batch.kind[a], Ra, ha, eye), _support(batch.kind[b], Rb, hb, eye)
+    part_near &= reachable[:, None]
+    pose, j = np.nonzero(part_near)
+    cnt = count[j]
+    total = int(cnt.sum())
+    if total == 0:
+        return
+    # every primitive pair of the surviving part pairs, in (pose, primitive pair) order
+    pose = np.repeat(pose, cnt)
+    k = np.repeat(start[j] - (np.cumsum(cnt) - cnt), cnt) + np.arange(total)
+    # world rotation, centre and exact world extents of every primitive at every pose of the chunk
+    Rpp = Rp[:, batch.prim_part]  # (c, P, 3, 3)
+    Rw = (Rpp @ batch.R[owner]).reshape(c * P, 3, 3)
+    cw = ((Rpp @ batch.o[owner][..., None])[..., 0] + tp[:, batch.prim_part]).reshape(c * P, 3)
+    hw = batch.half[owner].reshape(c * P, 3)
+    ext = _support(kind_flat, Rw, hw, np.broadcast_to(np.eye(3), (c * P, 3, 3)))
+    ia = pose * P + batch.pair_a[k]
+    ib = pose * P + batch.pair_b[k]
+    ca, cb, ea, eb = cw[ia], cw[ib], ext[ia], ext[ib]
     near = np.all((ca - ea <= cb + eb) & (cb - eb <= ca + ea), axis=-1)
-    if near.any():
-        s = np.flatnonzero(near)
-        a, b, pose, k = a[s], b[s], pose[s], k[s]
-        dep = _depth(batch.kind[a], Ra[s], ha[s], ca[s], batch.kind[b], Rb[s], hb[s], cb[s])
-        np.maximum.at(depth, (pose, batch.pair_part[k]), np.maximum(dep, 0.0))
-    return FastResult(points=pts, reachable=np.asarray(reachable), collides=np.any(depth > DEPTH_TOL, axis=1),
-                      depth=depth, part_pairs=batch.part_pairs)
+    if not near.any():
+        return
+    t = np.flatnonzero(near)
+    ia, ib = ia[t], ib[t]
+    dep = _depth(kind_flat[ia], Rw[ia], hw[ia], ca[t], kind_flat[ib], Rw[ib], hw[ib], cb[t])
+    np.maximum.at(depth, (pose[t], batch.pair_part[k[t]]), np.maximum(dep, 0.0))
 
 
 def overlap_share(res: FastResult, *, scale: float = OVERLAP_SCALE) -> np.ndarray:
