@@ -45,6 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr import assembly
 from hapticopt.analysis.prrr import device_size as DS
 from hapticopt.analysis.prrr import frame_model as fm
 from hapticopt.analysis.prrr import free_workspace as FW
@@ -185,6 +186,10 @@ class _Checker:
         return collides, reachable, depth
 
 
+class _Blocked(Exception):
+    """Stands for the part tables of a design whose parts cannot be laid out (``assembly.parts``)."""
+
+
 def _guard(fn, *args, **kw) -> Any:
     """``fn(*args, **kw)``, or the exception it raised (the registry's failure policy applies)."""
     try:
@@ -211,9 +216,13 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
     draft = Fidelity.DRAFT
 
     t0 = time.perf_counter()
+    # a design whose parts cannot be laid out (its chain closes: the registry sends the others to the
+    # single path) is batched for the kinematic evaluators; the evaluators of its parts return their
+    # own early ``not-assemblable`` (their single path, no part tables built)
+    no_parts = {i for i, d in enumerate(designs) if assembly.parts(d)}
     specs: list[Any] = []
-    for d in designs:
-        specs.append(_guard(cad.part_specs, d))
+    for i, d in enumerate(designs):
+        specs.append(_Blocked() if i in no_parts else _guard(cad.part_specs, d))
     wps = [WS.workspace_params(d, specs=None if isinstance(s, Exception) else s) for d, s in zip(designs, specs)]
     arrays = run_core(stack_inputs(designs, wps), n)
     t_core = time.perf_counter() - t0
@@ -233,7 +242,8 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
             res[i]["joint_limits"] = _guard(JL.from_angles, d, arrays["joint_theta"][i], arrays["joint_ok"][i],
                                             fidelity=draft, t0=t1)
         if "device_size" in want:
-            res[i]["device_size"] = (DS.failed(specs[i], t1) if isinstance(specs[i], HapticoptError)
+            res[i]["device_size"] = (_guard(DS.evaluate, d, fidelity=draft) if i in no_parts
+                                     else DS.failed(specs[i], t1) if isinstance(specs[i], HapticoptError)
                                      else _guard(DS.from_specs, d, specs[i], t1))
     t_rows = time.perf_counter() - t1
     for name in ("statics", "structural_stiffness", "workspace", "joint_limits", "device_size"):
@@ -249,6 +259,10 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
                 else:
                     models[i] = m
         check = _Checker(designs, models)
+    for name, module in (("interference", IF), ("free_workspace", FW)):
+        if name in want:
+            for i in no_parts:
+                res[i][name] = _guard(module.evaluate, designs[i], fidelity=draft)
     if "interference" in want:
         t2 = time.perf_counter()
         _interference(designs, specs, models, check, res, t2)
@@ -286,6 +300,8 @@ def _structure(design: PrrrDesign, out: dict) -> Any:
 def _interference(designs, specs, models, check, res, t0) -> None:
     owners, pts_all, weights = [], [], {}
     for i, d in enumerate(designs):
+        if isinstance(specs[i], _Blocked):
+            continue
         # the order of interference_fast.interference_fractions: an empty sample is (0, 0) before
         # the part tables are needed
         sample = _guard(WS.workspace_sample_weights, d, **WS.INTERFERENCE_SAMPLING,
@@ -320,6 +336,8 @@ def _interference(designs, specs, models, check, res, t0) -> None:
 def _free_workspace(designs, specs, arrays, check, res, t0) -> None:
     todo, r_max = [], []
     for i, d in enumerate(designs):
+        if isinstance(specs[i], _Blocked):
+            continue
         core = {k: v[i] for k, v in arrays["workspace"].items()}
         rm = FW.reach_limit(d, core)
         if bool(core["empty"]) or rm <= 0.0:

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -48,6 +50,32 @@ def _sample() -> list:
     return out
 
 
+#: the bounds of the bundled problem the sweeps and the optimiser draw from (read from its file, so a
+#: change there moves this sample with it)
+PROBLEM = Path(__file__).resolve().parents[3] / "optim" / "problems" / "prrr-workspace.toml"
+
+
+def _problem_sample(n: int, seed: int) -> list:
+    """``n`` designs drawn uniformly within the bounds of :data:`PROBLEM` (seeded; designs the
+    parameter rules refuse are redrawn): colliding, not-assemblable and empty ones among them."""
+    rng = np.random.default_rng(seed)
+    variables = tomllib.loads(PROBLEM.read_text())["variables"]
+    out = []
+    while len(out) < n:
+        kw = {}
+        for v in variables:
+            section, name = v["key"].split(".")
+            assert section == "geometry", v
+            x = rng.uniform(v["lower"], v["upper"])
+            field, unit = name.rsplit("_", 1)
+            kw[field] = {"mm": x / 1000.0, "deg": math.radians(x)}[unit]
+        try:
+            out.append(_geometry(BASE, **kw))
+        except InvalidDesign:
+            continue
+    return out
+
+
 def _close(a, b) -> bool:
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     if a.shape != b.shape:
@@ -73,6 +101,36 @@ def test_batch_equals_single_path(both):
         assert list(mb) == list(ms)
         bad = [k for k in ms if not _close(mb[k], ms[k])]
         assert not bad, (d.geometry, {k: (ms[k], mb[k]) for k in bad})
+
+
+def _assert_equal(designs, single, batched) -> None:
+    for d, s, b in zip(designs, single, batched, strict=True):
+        assert b.statuses == s.statuses, d.geometry
+        assert b.messages == s.messages, d.geometry
+        ms, mb = s.metrics(), b.metrics()
+        assert list(mb) == list(ms)
+        bad = [k for k in ms if not _close(mb[k], ms[k])]
+        assert not bad, (d.geometry, {k: (ms[k], mb[k]) for k in bad})
+
+
+def test_batch_equals_single_path_within_the_problem_bounds():
+    """40 seeded designs within the bounds of the bundled workspace problem (and one whose chain
+    does not close): equal statuses,
+    messages and metrics, and the sample holds colliding designs, not-met cylinders, designs whose
+    parts cannot be laid out (batched: the kinematic evaluators run) and chains that do not close
+    (single path)."""
+    # + prrr-paper with d2 = 300 mm: |ρ| ≥ 300 mm > d3 + d4 = 171 mm, the chain does not close
+    designs = _problem_sample(40, seed=2203) + [_geometry(BASE, d2=0.300)]
+    single = [evaluate_all(d, fidelity=Fidelity.DRAFT) for d in designs]
+    _assert_equal(designs, single, evaluate_batch(designs, fidelity=Fidelity.DRAFT))
+    seen = {(name, str(st)) for ev in single for name, st in ev.statuses.items()}
+    for case in [("interference", "collides"), ("interference", "ok"), ("free_workspace", "not-met"),
+                 ("device_size", "not-assemblable"), ("device_size", "ok")]:
+        assert case in seen, case
+    parts_only = [ev for ev in single if str(ev.statuses["device_size"]) == "not-assemblable"
+                  and str(ev.statuses["statics"]) != "not-assemblable"]
+    assert parts_only, "no design whose parts alone block it"
+    assert ("statics", "not-assemblable") in seen
 
 
 def test_sample_covers_the_hard_cases(both):
