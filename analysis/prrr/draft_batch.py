@@ -259,13 +259,15 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
                 else:
                     models[i] = m
         check = _Checker(designs, models)
-    for name, module in (("interference", IF), ("free_workspace", FW)):
-        if name in want:
-            for i in no_parts:
-                res[i][name] = _guard(module.evaluate, designs[i], fidelity=draft)
+    for i in no_parts:
+        if "interference" in want:
+            res[i]["interference"] = _guard(IF.evaluate, designs[i], fidelity=draft)
+        if "free_workspace" in want:  # its verdict reads the batch's core: not-assemblable before the check
+            res[i]["free_workspace"] = _guard(FW.finish, designs[i], {k: v[i] for k, v in arrays["workspace"].items()},
+                                              None, fidelity=draft, t0=t1)
     if "interference" in want:
         t2 = time.perf_counter()
-        _interference(designs, specs, models, check, res, t2)
+        _interference(designs, specs, wps, check, res, t2)
         tim["interference"] = (time.perf_counter() - t2) / n
     if "free_workspace" in want:
         t3 = time.perf_counter()
@@ -297,15 +299,14 @@ def _structure(design: PrrrDesign, out: dict) -> Any:
         return structure.failed(str(exc))
 
 
-def _interference(designs, specs, models, check, res, t0) -> None:
+def _interference(designs, specs, wps, check, res, t0) -> None:
     owners, pts_all, weights = [], [], {}
     for i, d in enumerate(designs):
         if isinstance(specs[i], _Blocked):
             continue
         # the order of interference_fast.interference_fractions: an empty sample is (0, 0) before
         # the part tables are needed
-        sample = _guard(WS.workspace_sample_weights, d, **WS.INTERFERENCE_SAMPLING,
-                        specs=None if isinstance(specs[i], Exception) else specs[i])
+        sample = _guard(WS.workspace_sample_weights, d, **WS.INTERFERENCE_SAMPLING, wp=wps[i])
         if isinstance(sample, Exception):
             res[i]["interference"] = sample
             continue

@@ -226,6 +226,17 @@ def _support(kind, R, half, n):
     return np.where(k == _BOX, box, np.where(k == _CYL, cyl, half[:, 0, None]))
 
 
+def _world_extent(kind, R, half):
+    """Half extents (m, 3) of primitives along the world axes: :func:`_support` on the unit axes,
+    whose projections ``n @ R`` are the rows of ``R`` themselves (no product formed)."""
+    loc = np.abs(R)
+    box = loc[..., 0] * half[:, 0, None] + loc[..., 1] * half[:, 1, None] + loc[..., 2] * half[:, 2, None]
+    az = loc[..., 2]
+    cyl = half[:, 2, None] * az + half[:, 0, None] * np.sqrt(np.clip(1.0 - az * az, 0.0, None))
+    k = kind[:, None]
+    return np.where(k == _BOX, box, np.where(k == _CYL, cyl, half[:, 0, None]))
+
+
 def _unit(x):
     nrm = np.sqrt(np.sum(x * x, axis=-1, keepdims=True))
     return np.where(nrm > 1e-12, x / np.where(nrm > 1e-12, nrm, 1.0), 0.0)
@@ -375,11 +386,12 @@ def _check_chunk(batch, owner, frames, s, e, reachable, depth, pc_all, ph_all, p
     Rp = np.stack([frames[name][0][s:e] for name in batch.part_names], axis=1)  # (c, parts, 3, 3)
     tp = np.stack([frames[name][1][s:e] for name in batch.part_names], axis=1)  # (c, parts, 3)
     pc, ph = pc_all[owner], ph_all[owner]
-    wc = (Rp @ pc[..., None])[..., 0] + tp
-    wh = (np.abs(Rp) @ ph[..., None])[..., 0]
-    part_near = np.all(np.abs(wc[:, pp_a] - wc[:, pp_b]) <= wh[:, pp_a] + wh[:, pp_b], axis=-1)
-    part_near &= reachable[:, None]
-    pose, j = np.nonzero(part_near)
+    # (parts, 3, poses) layout: the part-pair gathers below copy whole rows
+    wc = np.ascontiguousarray(((Rp @ pc[..., None])[..., 0] + tp).transpose(1, 2, 0))
+    wh = np.ascontiguousarray(((np.abs(Rp) @ ph[..., None])[..., 0]).transpose(1, 2, 0))
+    part_near = np.all(np.abs(wc[pp_a] - wc[pp_b]) <= wh[pp_a] + wh[pp_b], axis=1)  # (part pairs, poses)
+    part_near &= reachable[None, :]
+    j, pose = np.nonzero(part_near)
     cnt = count[j]
     total = int(cnt.sum())
     if total == 0:
@@ -392,16 +404,17 @@ def _check_chunk(batch, owner, frames, s, e, reachable, depth, pc_all, ph_all, p
     Rw = (Rpp @ batch.R[owner]).reshape(c * P, 3, 3)
     cw = ((Rpp @ batch.o[owner][..., None])[..., 0] + tp[:, batch.prim_part]).reshape(c * P, 3)
     hw = batch.half[owner].reshape(c * P, 3)
-    ext = _support(kind_flat, Rw, hw, np.broadcast_to(np.eye(3), (c * P, 3, 3)))
+    ext = _world_extent(kind_flat, Rw, hw)
+    box = np.concatenate([cw - ext, cw + ext], axis=1)  # (c·P, 6): world box low corner, high corner
     ia = pose * P + batch.pair_a[k]
     ib = pose * P + batch.pair_b[k]
-    ca, cb, ea, eb = cw[ia], cw[ib], ext[ia], ext[ib]
-    near = np.all((ca - ea <= cb + eb) & (cb - eb <= ca + ea), axis=-1)
+    ba, bb = box[ia], box[ib]
+    near = np.all((ba[:, :3] <= bb[:, 3:]) & (bb[:, :3] <= ba[:, 3:]), axis=-1)
     if not near.any():
         return
     t = np.flatnonzero(near)
     ia, ib = ia[t], ib[t]
-    dep = _depth(kind_flat[ia], Rw[ia], hw[ia], ca[t], kind_flat[ib], Rw[ib], hw[ib], cb[t])
+    dep = _depth(kind_flat[ia], Rw[ia], hw[ia], cw[ia], kind_flat[ib], Rw[ib], hw[ib], cw[ib])
     np.maximum.at(depth, (pose[t], batch.pair_part[k[t]]), np.maximum(dep, 0.0))
 
 

@@ -554,11 +554,12 @@ INTERFERENCE_SAMPLING = dict(n_phi=6, n_r=4, n_z=3)
 
 
 def workspace_sample_weights(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int,
-                             specs: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+                             specs: dict | None = None, wp: WorkspaceParams | None = None
+                             ) -> tuple[np.ndarray, np.ndarray]:
     """Workspace sample points (m, 3) [m] (:func:`sample_points`) and their volume weights (m,)
     [m³] (polar cells: r·Δr·Δφ·Δz); ``specs``: the design's part tables when the caller has them
-    (:func:`workspace_params`)."""
-    wp = workspace_params(design, specs=specs)
+    (:func:`workspace_params`); ``wp``: its default :func:`workspace_params` when the caller has them."""
+    wp = workspace_params(design, specs=specs) if wp is None else wp
     pts = sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)
     if len(pts) == 0:
         return pts, np.zeros(0)
