@@ -64,8 +64,10 @@ BATCHED = ("statics", "structural_stiffness", "workspace", "interference", "free
            "joint_limits")
 #: largest padded batch of one jitted call (larger batches run in chunks of this size)
 MAX_CHUNK = 1024
-#: smallest padded pose batch of the pose IK
+#: the two padded pose batches of the pose IK: up to MIN_POSES poses in one call of that size, more
+#: in calls of POSE_CHUNK (the last one padded), so no batch size ever compiles a third shape
 MIN_POSES = 256
+POSE_CHUNK = 4096
 #: traces of the jitted functions by name (a trace precedes every compile; tests count them)
 TRACES: collections.Counter = collections.Counter()
 
@@ -160,17 +162,27 @@ class _Checker:
             local[members] = np.arange(len(members))
             self.groups.append((local, FAST.stack_models([models[i] for i in members])))
 
+    def pose_ik(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sliders (n, 3), elbow-branch joint angles (n, 3, 3) and reachability (n,) of poses ``pts``
+        of designs ``owner``: padded calls of MIN_POSES or POSE_CHUNK poses."""
+        n = len(pts)
+        size = MIN_POSES if n <= MIN_POSES else POSE_CHUNK
+        parts = []
+        for s in range(0, n, size):
+            m = min(size, n - s)
+            own = np.concatenate([owner[s:s + m], np.full(size - m, owner[s])])
+            p = np.concatenate([pts[s:s + m], np.zeros((size - m, 3))])
+            kin = PrrrParams(*(self.geo[f][own] for f in _KIN_FIELDS))
+            parts.append([np.asarray(x)[:m] for x in pose_ik_fn()(kin, p)])
+        return tuple(np.concatenate(col) for col in zip(*parts))
+
     def __call__(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``."""
         n = len(pts)
         collides, reachable, depth = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)
         if n == 0:
             return collides, reachable, depth
-        size = bucket(n, least=MIN_POSES)
-        own = np.concatenate([owner, np.full(size - n, owner[0])])
-        p = np.concatenate([pts, np.zeros((size - n, 3))])
-        kin = PrrrParams(*(self.geo[f][own] for f in _KIN_FIELDS))
-        sliders, theta, ok = (np.asarray(x)[:n] for x in pose_ik_fn()(kin, p))
+        sliders, theta, ok = self.pose_ik(owner, pts)
         g = self.geo
         frames = cad.part_frames_arrays(g["beta"][owner], g["d1"][owner], g["d2"][owner], g["d3"][owner],
                                         g["theta_1p"][owner], sliders, theta, pts)

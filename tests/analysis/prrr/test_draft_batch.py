@@ -18,10 +18,11 @@ import numpy as np
 import pytest
 
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.prrr import draft_batch
+from hapticopt.analysis.prrr import draft_batch, statics
 from hapticopt.analysis.registry import evaluate_all, evaluate_batch
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.prrr.kinematics import inverse_kinematics
 
 BASE = io.load_preset("prrr-paper")
 REL = 1e-9
@@ -153,6 +154,36 @@ def test_only_restricts_the_batch():
                     evaluate_batch(designs, fidelity=Fidelity.DRAFT, only=only)):
         assert list(b.statuses) == list(s.statuses) == list(only)
         assert all(_close(b.metrics()[k], v) for k, v in s.metrics().items())
+
+
+def test_pose_ik_has_two_shapes_for_every_batch_size():
+    """The pose IK runs in padded calls of MIN_POSES or POSE_CHUNK poses only: once both are traced,
+    batches of 3, 7 and 11 designs (other pose counts in every pass) do not trace it again (the
+    core traces once per power-of-two bucket of designs: the test below), and the chunked IK
+    equals the numpy IK row by row."""
+    designs = _problem_sample(11, seed=7)
+    draft_batch.evaluate_many(designs[:1])  # every pass ≤ MIN_POSES poses
+    draft_batch.evaluate_many(designs[:11])  # > MIN_POSES poses in the interference pass
+    before = draft_batch.TRACES["pose_ik"]
+    assert before >= 1
+    for k in (3, 7, 11):
+        draft_batch.evaluate_many(designs[:k])
+    assert draft_batch.TRACES["pose_ik"] == before
+    check = draft_batch._Checker(designs, {})
+    rng = np.random.default_rng(3)
+    n = draft_batch.POSE_CHUNK + 5  # two chunks, the second padded
+    owner = rng.integers(0, len(designs), n)
+    pts = rng.uniform(-0.05, 0.05, (n, 3))
+    sliders, theta, ok = check.pose_ik(owner, pts)
+    picked = np.concatenate([rng.choice(draft_batch.POSE_CHUNK, 8, replace=False),
+                             np.arange(draft_batch.POSE_CHUNK, n)])  # both chunks
+    assert ok[picked].any()
+    for i in picked:
+        ik = inverse_kinematics(statics.params_np(designs[owner[i]]), pts[i:i + 1], xp=np)
+        assert np.array_equal(np.asarray(ik.reachable)[0], ok[i])
+        if ok[i]:
+            assert np.allclose(np.asarray(ik.sliders)[0], sliders[i], rtol=REL, atol=1e-15)
+            assert np.allclose(np.asarray(ik.theta)[0, 1], theta[i], rtol=REL, atol=1e-12)
 
 
 def test_new_batch_size_in_a_bucket_does_not_retrace():
