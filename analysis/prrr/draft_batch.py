@@ -45,6 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
 from hapticopt.analysis.prrr import assembly
 from hapticopt.analysis.prrr import device_size as DS
 from hapticopt.analysis.prrr import frame_model as fm
@@ -291,9 +292,21 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
     if "stability" in want:
         t4 = time.perf_counter()
         for i, d in enumerate(designs):
-            res[i]["stability"] = _guard(stability.evaluate, d, fidelity=draft)
+            res[i]["stability"] = _guard(stability.evaluate, d, fidelity=draft, limits=_limits(d, arrays, i, res[i]))
         tim["stability"] = (time.perf_counter() - t4) / n
     return [(r, {k: tim[k] for k in r}) for r in res]
+
+
+def _limits(design: PrrrDesign, arrays: dict, i: int, found: dict) -> np.ndarray | None:
+    """The stiffness limits of the batch's statics row for ``stability``, where the statics verdict
+    on that row is ok; None (the single path's numpy statics) otherwise: near a singular J the
+    numbers are rounding garbage that differs between numpy and XLA."""
+    st = found.get("statics")
+    if st is None:
+        st = _guard(statics.from_arrays, design, {k: v[i] for k, v in arrays["statics"].items()})
+    if isinstance(st, Exception) or st.status is not Status.OK:
+        return None
+    return arrays["statics"]["stiffness_limit"][i]
 
 
 def _structure(design: PrrrDesign, out: dict) -> Any:
