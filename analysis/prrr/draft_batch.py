@@ -93,22 +93,38 @@ class CoreInputs(NamedTuple):
     fp: fm.FrameParams
 
 
-def _core(inp: CoreInputs) -> dict:
+#: the core's groups of arrays and the evaluators that read them (the core computes only the groups
+#: the batch's evaluators need: a sweep ``--only free_workspace`` does not pay for the frame model)
+CORE_GROUPS = {"statics": ("statics", "stability"), "workspace": ("workspace", "free_workspace"),
+               "frame": ("structural_stiffness",), "joint": ("joint_limits",)}
+
+
+def groups_for(want: list[str] | tuple[str, ...]) -> tuple[str, ...]:
+    """The core groups the evaluators ``want`` read (in :data:`CORE_GROUPS` order)."""
+    return tuple(g for g, names in CORE_GROUPS.items() if any(name in want for name in names))
+
+
+def _core(inp: CoreInputs, groups: tuple[str, ...]) -> dict:
     TRACES["core"] += 1  # runs once per trace, not per call
-    st = statics.statics_arrays(inp.kin, inp.spring, inp.force_limit, inp.mass, xp=jnp)
-    ws = WS.workspace_core(inp.wp, n_phi=_SMP.n_phi, n_r=_SMP.n_r, xp=jnp)
-    fr = fm.frame_arrays(inp.fp, jnp.zeros(3), jnp.asarray(fm.LOAD_HEIGHT), fm.FrameOptions())
-    fr = {k: v for k, v in fr.items() if k not in fm._PLOT_ONLY}
-    pts = JL.cylinder_grid_of(inp.kin.stroke, inp.kin.beta, _REQUIRED_RADIUS, xp=jnp)
-    ik = inverse_kinematics(inp.kin, pts)
-    return {"statics": st, "workspace": ws, "frame": fr,
-            "joint_theta": ik.theta[:, WS.ELBOW_BRANCH], "joint_ok": ik.reachable}
+    out = {}
+    if "statics" in groups:
+        out["statics"] = statics.statics_arrays(inp.kin, inp.spring, inp.force_limit, inp.mass, xp=jnp)
+    if "workspace" in groups:
+        out["workspace"] = WS.workspace_core(inp.wp, n_phi=_SMP.n_phi, n_r=_SMP.n_r, xp=jnp)
+    if "frame" in groups:
+        fr = fm.frame_arrays(inp.fp, jnp.zeros(3), jnp.asarray(fm.LOAD_HEIGHT), fm.FrameOptions())
+        out["frame"] = {k: v for k, v in fr.items() if k not in fm._PLOT_ONLY}
+    if "joint" in groups:
+        pts = JL.cylinder_grid_of(inp.kin.stroke, inp.kin.beta, _REQUIRED_RADIUS, xp=jnp)
+        ik = inverse_kinematics(inp.kin, pts)
+        out["joint_theta"], out["joint_ok"] = ik.theta[:, WS.ELBOW_BRANCH], ik.reachable
+    return out
 
 
 @functools.cache
-def core_fn():
-    """The jitted, vmapped draft core (one compile per padded batch size)."""
-    return jax.jit(jax.vmap(_core))
+def core_fn(groups: tuple[str, ...] = tuple(CORE_GROUPS)):
+    """The jitted, vmapped draft core of ``groups`` (one compile per padded batch size and groups)."""
+    return jax.jit(jax.vmap(functools.partial(_core, groups=groups)))
 
 
 def _pose_ik(kin: PrrrParams, p: jax.Array):
@@ -126,24 +142,32 @@ def pose_ik_fn():
 _KIN_FIELDS = ("beta", "d1", "d2", "d3", "d4", "r4", "b5", "stroke")
 
 
-def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams]) -> CoreInputs:
-    """Numpy stacking of the core's inputs (no jax operation per design)."""
+def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams] | None,
+                 groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> CoreInputs:
+    """Numpy stacking of the core's inputs (no jax operation per design); the workspace and frame
+    inputs only where ``groups`` read them (None otherwise: an empty pytree node)."""
     geo = [d.geometry for d in designs]
     kin = PrrrParams(*(np.array([float(getattr(g, f)) for g in geo]) for f in _KIN_FIELDS))
-    fps = [fm.frame_params_of(d, xp=np) for d in designs]
-    fp = jax.tree.map(lambda *xs: np.stack([np.asarray(x, dtype=float) for x in xs]), *fps)
+    fp = None
+    if "frame" in groups:
+        fps = [fm.frame_params_of(d, xp=np) for d in designs]
+        fp = jax.tree.map(lambda *xs: np.stack([np.asarray(x, dtype=float) for x in xs]), *fps)
+    wp = None
+    if "workspace" in groups:
+        wp = WS.WorkspaceParams(*(np.array([float(w[k]) for w in wps]) for k in range(len(wps[0]))))
     return CoreInputs(kin=kin, spring=np.array([d.actuator.spring for d in designs]),
                       force_limit=np.array([d.actuator.force_limit for d in designs]),
-                      mass=np.array([d.end_effector.mass for d in designs]),
-                      wp=WS.WorkspaceParams(*(np.array([float(w[k]) for w in wps]) for k in range(len(wps[0])))),
-                      fp=fp)
+                      mass=np.array([d.end_effector.mass for d in designs]), wp=wp, fp=fp)
 
 
-def run_core(inp: CoreInputs, n: int) -> dict:
-    """The core on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK); numpy rows [:n]."""
+def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> dict:
+    """The core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK);
+    numpy rows [:n]."""
+    if not groups:
+        return {}
     size = bucket(n)
     pad = jax.tree.map(lambda x: np.concatenate([x, np.repeat(x[-1:], size - n, axis=0)]) if size > n else x, inp)
-    out = core_fn()(pad)
+    out = core_fn(groups)(pad)
     return jax.tree.map(lambda x: np.asarray(x)[:n], out)
 
 
@@ -232,12 +256,16 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
     # a design whose parts cannot be laid out (its chain closes: the registry sends the others to the
     # single path) is batched for the kinematic evaluators; the evaluators of its parts return their
     # own early ``not-assemblable`` (their single path, no part tables built)
-    no_parts = {i for i, d in enumerate(designs) if assembly.parts(d)}
+    groups = groups_for(want)
+    with_parts = any(name in want for name in ("workspace", "free_workspace", "interference", "device_size"))
+    no_parts = {i for i, d in enumerate(designs) if assembly.parts(d)} if with_parts else set()
     specs: list[Any] = []
     for i, d in enumerate(designs):
-        specs.append(_Blocked() if i in no_parts else _guard(cad.part_specs, d))
-    wps = [WS.workspace_params(d, specs=None if isinstance(s, Exception) else s) for d, s in zip(designs, specs)]
-    arrays = run_core(stack_inputs(designs, wps), n)
+        specs.append(_Blocked() if i in no_parts else _guard(cad.part_specs, d) if with_parts else None)
+    wps = None
+    if "workspace" in groups or "interference" in want:
+        wps = [WS.workspace_params(d, specs=None if isinstance(s, Exception) else s) for d, s in zip(designs, specs)]
+    arrays = run_core(stack_inputs(designs, wps, groups), n, groups)
     t_core = time.perf_counter() - t0
 
     def row(group: str, i: int) -> dict:
@@ -301,6 +329,8 @@ def _limits(design: PrrrDesign, arrays: dict, i: int, found: dict) -> np.ndarray
     """The stiffness limits of the batch's statics row for ``stability``, where the statics verdict
     on that row is ok; None (the single path's numpy statics) otherwise: near a singular J the
     numbers are rounding garbage that differs between numpy and XLA."""
+    if "statics" not in arrays:
+        return None
     st = found.get("statics")
     if st is None:
         st = _guard(statics.from_arrays, design, {k: v[i] for k, v in arrays["statics"].items()})
