@@ -376,14 +376,18 @@ def _interference(designs, specs, wps, check, res, t0) -> None:
             owners.append(np.full(len(pts), i))
             pts_all.append(pts)
         weights[i] = w
+    span: dict[int, slice] = {}  # each checked design's poses: one contiguous run, in design order
     if owners:
         owner = np.concatenate(owners)
         collides, _, depth = check(owner, np.concatenate(pts_all))
         share = np.clip(depth / FAST.OVERLAP_SCALE, 0.0, 1.0)
+        start = 0
+        for o in owners:
+            span[int(o[0])] = slice(start, start + len(o))
+            start += len(o)
     for i, w in weights.items():
-        if owners and w.sum() > 0 and np.any(owner == i):
-            sel = owner == i
-            removed, overlap = FAST.fractions_of(w, collides[sel], share[sel])
+        if i in span:
+            removed, overlap = FAST.fractions_of(w, collides[span[i]], share[span[i]])
         else:
             removed, overlap = 0.0, 0.0
         res[i]["interference"] = IF.from_fractions(removed, overlap, t0)

@@ -374,7 +374,9 @@ def _closure_params(design: PrrrDesign) -> WorkspaceParams:
     return WorkspaceParams(*(np.float64(v) for v in vals))
 
 
-@functools.lru_cache(maxsize=256)
+#: cached for a whole chunk of the batched draft evaluator (1024 designs, each asked ~6 times:
+#: registry, statics, stability, structure and the part evaluators); 256 thrashed at batch 1024
+@functools.lru_cache(maxsize=4096)
 def closure(design: PrrrDesign) -> str:
     """'' when some pose closes every leg within its reach and slider stroke, else why not."""
     if not bool(workspace_core(_closure_params(design), n_phi=CLOSURE_RAYS, n_r=2)["empty"]):
