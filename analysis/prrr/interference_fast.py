@@ -286,6 +286,21 @@ def _closest(kind, R, half, c, x):
     return c[:, None] + near @ np.swapaxes(R, 1, 2)
 
 
+#: a pair counts as separated by :func:`_separated` when an axis shows a gap wider than this [m]
+#: (far above the rounding of the projections, ~1e-17 m, so _depth's own evaluation of that axis,
+#: in another array layout, is negative too)
+SEPARATION_MARGIN = 1e-12
+
+
+def _separated(kind_a, Ra, ha, ca, kind_b, Rb, hb, cb):
+    """Pairs (m,) that one of :func:`_depth`'s candidate axes separates by more than
+    :data:`SEPARATION_MARGIN`: both frames' axes and the centre-to-centre direction (7 of its 16
+    cheap axes). Their depth is then negative: a pre-filter that changes no clipped depth."""
+    d = cb - ca
+    axes = np.concatenate([np.swapaxes(Ra, 1, 2), np.swapaxes(Rb, 1, 2), _unit(d)[:, None]], axis=1)
+    return _overlap(kind_a, Ra, ha, kind_b, Rb, hb, d, axes) < -SEPARATION_MARGIN
+
+
 def _depth(kind_a, Ra, ha, ca, kind_b, Rb, hb, cb):
     """Smallest overlap [m] of the projections over the candidate axes (≤ 0: separated).
 
@@ -414,6 +429,12 @@ def _check_chunk(batch, owner, frames, s, e, reachable, depth, pc_all, ph_all, p
         return
     t = np.flatnonzero(near)
     ia, ib = ia[t], ib[t]
+    # a pair separated on one of _depth's own axes has a depth ≤ 0 there, which adds nothing to
+    # ``depth`` (its floor is 0): the seven cheapest axes first (~99 % of the pairs), _depth on the rest
+    keep = ~_separated(kind_flat[ia], Rw[ia], hw[ia], cw[ia], kind_flat[ib], Rw[ib], hw[ib], cw[ib])
+    if not keep.any():
+        return
+    t, ia, ib = t[keep], ia[keep], ib[keep]
     dep = _depth(kind_flat[ia], Rw[ia], hw[ia], cw[ia], kind_flat[ib], Rw[ib], hw[ib], cw[ib])
     np.maximum.at(depth, (pose[t], batch.pair_part[k[t]]), np.maximum(dep, 0.0))
 
