@@ -393,6 +393,34 @@ def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
                       depth=depth, part_pairs=batch.part_pairs)
 
 
+def _rotations_and_extents(batch, owner, Rp, Rpp, hw, kind_flat) -> tuple[np.ndarray, np.ndarray]:
+    """World rotations (c·P, 3, 3) and world extents (c·P, 3) of every primitive at every pose.
+
+    A part whose rotation is the same at every pose of a design in the chunk (the base's parts, the
+    carriages and housings, which only slide, and the platform, which only translates) has its
+    primitives' rotations and extents computed at one pose per design and copied: the same
+    products of the same numbers, so the same values as computing them at every pose."""
+    c, P = Rpp.shape[:2]
+    _, first, inv = np.unique(owner, return_index=True, return_inverse=True)
+    rep = first[inv]  # each pose's design's first pose in the chunk
+    fixed = np.all(Rp == Rp[rep], axis=(0, 2, 3))[batch.prim_part]  # (P,) rotation constant per design
+    Rw = np.empty((c, P, 3, 3))
+    ext = np.empty((c, P, 3))
+    hw3 = hw.reshape(c, P, 3)
+    kind3 = kind_flat.reshape(c, P)
+    for sel, rows in ((np.flatnonzero(~fixed), slice(None)), (np.flatnonzero(fixed), first)):
+        if len(sel) == 0:
+            continue
+        R = Rpp[rows][:, sel] @ batch.R[owner[rows]][:, sel]  # (poses or designs, |sel|, 3, 3)
+        x = _world_extent(kind3[rows][:, sel].ravel(), R.reshape(-1, 3, 3), hw3[rows][:, sel].reshape(-1, 3))
+        x = x.reshape(len(R), len(sel), 3)
+        if isinstance(rows, slice):
+            Rw[:, sel], ext[:, sel] = R, x
+        else:
+            Rw[:, sel], ext[:, sel] = R[inv], x[inv]
+    return Rw.reshape(c * P, 3, 3), ext.reshape(c * P, 3)
+
+
 def _check_chunk(batch, owner, frames, s, e, reachable, depth, pc_all, ph_all, pp_a, pp_b, start, count,
                  kind_flat) -> None:
     """:func:`check_posed` on poses s:e (``depth`` is that chunk's view, updated in place)."""
@@ -416,10 +444,9 @@ def _check_chunk(batch, owner, frames, s, e, reachable, depth, pc_all, ph_all, p
     k = np.repeat(start[j] - (np.cumsum(cnt) - cnt), cnt) + np.arange(total)
     # world rotation, centre and exact world extents of every primitive at every pose of the chunk
     Rpp = Rp[:, batch.prim_part]  # (c, P, 3, 3)
-    Rw = (Rpp @ batch.R[owner]).reshape(c * P, 3, 3)
     cw = ((Rpp @ batch.o[owner][..., None])[..., 0] + tp[:, batch.prim_part]).reshape(c * P, 3)
     hw = batch.half[owner].reshape(c * P, 3)
-    ext = _world_extent(kind_flat, Rw, hw)
+    Rw, ext = _rotations_and_extents(batch, owner, Rp, Rpp, hw, kind_flat)
     box = np.concatenate([cw - ext, cw + ext], axis=1)  # (c·P, 6): world box low corner, high corner
     ia = pose * P + batch.pair_a[k]
     ib = pose * P + batch.pair_b[k]
