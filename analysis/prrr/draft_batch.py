@@ -1,35 +1,43 @@
 """Batched draft evaluation of the 3-PRRR's registry evaluators (issue 22, item 3).
 
 Many designs at draft fidelity in one pass, with the same results and statuses as the
-evaluators one by one (tested to 1e-9 relative, ``tests/analysis/prrr/test_draft_batch.py``).
+evaluators one by one (tested to 1e-9 relative, ``tests/analysis/prrr/test_draft_batch.py``, on
+hand-picked hard cases and on a seeded sample within the bundled problem's bounds).
 The verdicts are the evaluators' own functions (``statics.from_arrays``,
 ``structure.from_arrays``, ``workspace._result``, ``free_workspace.finish``,
-``joint_limits.from_angles``, ``device_size.from_specs``): this module only computes the
-arrays they read, for a whole batch at a time.
+``joint_limits.from_angles``, ``device_size.from_specs``, ``stability.evaluate``): this module
+only computes the arrays they read, for a whole batch at a time.
 
-* **jax, one jitted vmap** (:func:`core_fn`): statics (``statics_arrays``), the reach-and-stroke
-  workspace (``workspace_core`` at the draft sampling; its reach radius, emptiness and footprint
-  also bound the collision-free cylinder: they do not depend on the radial sampling), the frame
-  model (``frame_arrays``, default options, home pose) and the joint angles over the required
-  cylinder (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy; the batch is
-  padded to the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a
-  new batch size within a bucket costs no trace or compile (:data:`TRACES` counts traces);
-  compiled code persists on disk (``hapticopt.design.jax_config``).
+* **jax, one jitted vmap** (:func:`core_fn`) of the groups the wanted evaluators read
+  (:func:`groups_for`): statics (``statics_arrays``), the reach-and-stroke workspace
+  (``workspace_core`` at the draft sampling; its reach radius, emptiness and footprint also bound
+  the collision-free cylinder: they do not depend on the radial sampling), the frame model
+  (``frame_arrays``, default options, home pose) and the joint angles over the required cylinder
+  (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy; the batch is padded to
+  the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a new batch
+  size within a bucket costs no trace or compile (:data:`TRACES` counts traces); compiled code
+  persists on disk (``hapticopt.design.jax_config``). The stability evaluator takes its stiffness
+  limits from the statics row (where that row's verdict is ok).
 * **numpy over all designs at once**: the interference poses (``workspace_sample_weights`` per
   design, then one separating-axis pass, ``interference_fast.check_posed``, over every pose of
   every design) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
   column grid of every design in one pass, then each bisection in one pass). The column structure
   (moving parts translate together in z, fixed parts are prisms) is what makes one pose per
-  column enough there. Pose IK is a jitted vmap over poses (padded to powers of two). The
-  broad phase prunes primitive pairs per pose, which a fixed-shape jax program cannot do; on a
-  CPU the pruned numpy pass is the faster of the two.
+  column enough there. Pose IK is a jitted vmap over poses in padded calls of :data:`MIN_POSES`
+  or :data:`POSE_CHUNK` poses (two shapes for every batch size). ``check_posed`` prunes primitive
+  pairs per pose (part boxes, primitive boxes, seven separating axes), which a fixed-shape jax
+  program cannot do; on a CPU the pruned numpy pass is the faster of the two (measured:
+  docs/workspace_interference.md).
 * **per design (Python)**: the CAD part tables (``cad.part_specs``: the layout's buildability
-  rules raise per design), the envelope, the analytic mass model and height
-  (``device_size.from_specs``), the interference sample weights, and the ``stability``
-  evaluator (not part of this batch: closed forms and a discrete loop analysis per design).
+  rules raise per design), the envelope (``workspace_params``), the analytic mass model and height
+  (``device_size.from_specs``), the interference sample weights, the force-loop bandwidth of
+  ``stability`` and the verdicts.
 
-A step that raises for one design is returned as that exception (the registry turns it into
-``failed`` with its one failure policy); the other designs and steps still run.
+A design whose chain does not close takes the single path (``registry.evaluate_batch``); one whose
+parts the CAD cannot lay out is batched for the kinematic evaluators, and the part evaluators
+give their own early ``not-assemblable``. A step that raises for one design is returned as that
+exception (the registry turns it into ``failed`` with its one failure policy); the other designs
+and steps still run.
 """
 
 from __future__ import annotations

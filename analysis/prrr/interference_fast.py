@@ -23,9 +23,13 @@ the same part tables (:func:`hapticopt.design.prrr.cad.part_specs`), without mes
   :data:`analysis.interference.NOISE_MM3` (1 mm³); here a pair collides when that depth
   exceeds :data:`DEPTH_TOL` (0.1 mm). Shallow corner contacts (depth 0.1–0.8 mm, < 1 mm³) are
   therefore collisions here and noise there: the fast model is the stricter of the two.
-* **Speed.** World-axis-aligned bounds of every primitive (exact support extents) over all
-  (pose, primitive pair) first; the 16 cheap axes on the survivors, the 40 sampled axes only
-  on curved pairs still overlapping, each one numpy pass. Poses come from the numpy
+* **Speed.** World-axis-aligned boxes of every part over every tested part pair first; the
+  world-axis-aligned bounds of the primitives (exact support extents, computed once per pose and
+  primitive) on the primitive pairs of the surviving part pairs; then the seven cheapest of the
+  candidate axes (both frames, centre to centre), which separate ~99 % of what is left and change
+  no result (a separated pair's depth is negative, the depth table's floor is 0); the 16 cheap
+  axes on the rest, the 40 sampled axes only on curved pairs still overlapping; each stage one
+  numpy pass over a chunk of poses. Poses come from the numpy
   inverse kinematics (:func:`hapticopt.design.prrr.kinematics.inverse_kinematics`, ``xp=numpy``), in the
   CAD's elbow branch.
 
