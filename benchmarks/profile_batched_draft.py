@@ -1,7 +1,8 @@
 """Where the batched draft evaluator's time goes: seconds per stage of one ``registry.evaluate_batch``
 of ``n`` designs (``bench_batched_draft.designs``), each stage timed by wrapping its function in
 this process (nested stages overlap: ``check_posed`` runs inside ``_interference`` and
-``_free_workspace``). ``python benchmarks/profile_batched_draft.py [n]`` (default 1024); run once
+``_free_workspace``). ``python benchmarks/profile_batched_draft.py [n [evaluator…]]`` (default 1024, every
+evaluator; names after n: ``only``); run once
 to compile, the second run is printed."""
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ def wrap(mod, name: str, label: str | None = None) -> None:
     setattr(mod, name, timed)
 
 
-def main(n: int) -> None:
+def main(n: int, only: tuple[str, ...] | None = None) -> None:
     for name in ("run_core", "stack_inputs", "_interference", "_free_workspace", "_structure"):
         wrap(DB, name)
     for mod, name in ((DB.cad, "part_specs"), (DB.cad, "part_frames_arrays"), (DB.WS, "workspace_params"),
@@ -44,10 +45,10 @@ def main(n: int) -> None:
                       (DB.JL, "from_angles"), (DB.FW, "finish"), (registry, "_collect")):
         wrap(mod, name)
     ds = designs(n)
-    registry.evaluate_batch(ds, fidelity=Fidelity.DRAFT)
+    registry.evaluate_batch(ds, fidelity=Fidelity.DRAFT, only=only)
     T.clear()
     t0 = time.perf_counter()
-    registry.evaluate_batch(ds, fidelity=Fidelity.DRAFT)
+    registry.evaluate_batch(ds, fidelity=Fidelity.DRAFT, only=only)
     total = time.perf_counter() - t0
     print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}; {n} designs: {total:.3f} s, "
           f"{n / total:.1f} designs/s")
@@ -56,4 +57,4 @@ def main(n: int) -> None:
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 1024)
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else 1024, tuple(sys.argv[2:]) or None)
