@@ -231,6 +231,49 @@ class _Checker:
         return collides, reachable, depth
 
 
+_CORNERS = np.array([[i, j, k] for i in (-1.0, 1.0) for j in (-1.0, 1.0) for k in (-1.0, 1.0)])
+
+
+def envelopes(designs: list[PrrrDesign], models: dict[int, FAST.FastModel], specs: list[Any]) -> dict[int, float]:
+    """:func:`hapticopt.design.prrr.cad.envelope_radius` [m] of the designs with primitive tables
+    (index → radius), from those tables for every design of one part layout at once: the SOLID
+    primitives of the base's and the carriages' parts at the home pose (``cad.part_frames_arrays``),
+    box corners, cylinder end centres + radius, sphere centre + radius, largest distance from z
+    (tested equal to the per-design function)."""
+    out: dict[int, float] = {}
+    layouts: dict[tuple, list[int]] = {}
+    for i, m in models.items():
+        layouts.setdefault(FAST.layout_key(m), []).append(i)
+    for members in layouts.values():
+        m0 = models[members[0]]
+        body = [specs[members[0]][name].body for name in m0.part_names]
+        fixed_part = np.array([b == "base" or b.startswith("carriage_") for b in body])
+        sel = np.flatnonzero(fixed_part[m0.prim_part])
+        if len(sel) == 0:
+            out.update({i: 0.0 for i in members})
+            continue
+        k = len(members)
+        g = {f: np.array([float(getattr(designs[i].geometry, f)) for i in members])
+             for f in ("beta", "d1", "d2", "d3", "theta_1p")}
+        frames = cad.part_frames_arrays(g["beta"], g["d1"], g["d2"], g["d3"], g["theta_1p"], np.zeros((k, 3)),
+                                        np.zeros((k, 3, 2)), np.zeros((k, 3)))
+        part = m0.prim_part[sel]
+        Rf = np.stack([np.asarray(frames[m0.part_names[j]][0], dtype=float) for j in part], axis=1)  # (k, S, 3, 3)
+        of = np.stack([np.asarray(frames[m0.part_names[j]][1], dtype=float) for j in part], axis=1)  # (k, S, 3)
+        R = Rf @ np.stack([models[i].R[sel] for i in members])
+        o = (Rf @ np.stack([models[i].o[sel] for i in members])[..., None])[..., 0] + of
+        half = np.stack([models[i].half[sel] for i in members])  # box: a/2, b/2, c/2; cylinder: a, a, b/2
+        kind = m0.kind[sel]
+        corners = o[:, :, None] + (_CORNERS[None, None] * half[:, :, None]) @ np.swapaxes(R, -1, -2)
+        box = np.max(np.hypot(corners[..., 0], corners[..., 1]), axis=-1)
+        ends = o[:, :, None] + np.array([-1.0, 1.0])[None, None, :, None] * half[:, :, None, 2:] * R[:, :, None, :, 2]
+        cyl = np.max(np.hypot(ends[..., 0], ends[..., 1]), axis=-1) + half[..., 0]
+        sph = np.hypot(o[..., 0], o[..., 1]) + half[..., 0]
+        r = np.where(kind == FAST._BOX, box, np.where(kind == FAST._CYL, cyl, sph))
+        out.update({i: max(0.0, float(x)) for i, x in zip(members, r.max(axis=1))})
+    return out
+
+
 class _Blocked(Exception):
     """Stands for the part tables of a design whose parts cannot be laid out (``assembly.parts``)."""
 
@@ -270,9 +313,21 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
     specs: list[Any] = []
     for i, d in enumerate(designs):
         specs.append(_Blocked() if i in no_parts else _guard(cad.part_specs, d) if with_parts else None)
+    # primitive tables (interference, free workspace) and the envelope of every design at once from them
+    models: dict[int, FAST.FastModel] = {}
+    model_errors: dict[int, Exception] = {}
     wps = None
     if "workspace" in groups or "interference" in want:
-        wps = [WS.workspace_params(d, specs=None if isinstance(s, Exception) else s) for d, s in zip(designs, specs)]
+        for i, d in enumerate(designs):
+            if specs[i] is not None and not isinstance(specs[i], Exception):
+                m = _guard(FAST.prepare, d, specs=specs[i])
+                if isinstance(m, Exception):
+                    model_errors[i] = m
+                else:
+                    models[i] = m
+        env = envelopes(designs, models, specs)
+        wps = [WS.workspace_params(d, specs=None if isinstance(s, Exception) else s, envelope=env.get(i))
+               for i, (d, s) in enumerate(zip(designs, specs))]
     arrays = run_core(stack_inputs(designs, wps, groups), n, groups)
     t_core = time.perf_counter() - t0
 
@@ -298,15 +353,9 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
     for name in ("statics", "structural_stiffness", "workspace", "joint_limits", "device_size"):
         tim[name] = (t_core + t_rows) / (5 * n)
 
-    models: dict[int, FAST.FastModel] = {}
     if "interference" in want or "free_workspace" in want:
-        for i, d in enumerate(designs):
-            if not isinstance(specs[i], Exception):
-                m = _guard(FAST.prepare, d, specs=specs[i])
-                if isinstance(m, Exception):
-                    specs[i] = m
-                else:
-                    models[i] = m
+        for i, err in model_errors.items():
+            specs[i] = err
         check = _Checker(designs, models)
     for i in no_parts:
         if "interference" in want:

@@ -142,15 +142,17 @@ class WorkspaceParams(NamedTuple):
 
 def workspace_params(design: PrrrDesign, *, required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
                      rho_min: float | None = None, rho_max: float | None = None,
-                     specs: dict | None = None) -> WorkspaceParams:
+                     specs: dict | None = None, envelope: float | None = None) -> WorkspaceParams:
     """Workspace parameters of one design; ``rho_min``/``rho_max`` override the reach annulus
     (e.g. from elbow limits: |ρ|² = d3² + d4² + 2 d3 d4 cos θ2); ``specs``: the design's part
-    tables when the caller has them (:func:`base_envelope`)."""
+    tables when the caller has them (:func:`base_envelope`); ``envelope``: its :func:`base_envelope`
+    when the caller has it [m] (the batched draft evaluator computes every design's at once)."""
     g, s = design.geometry, design.structure
     lo = max(abs(g.d3 - g.d4), fold_margin(design)) if rho_min is None else rho_min
     hi = g.d3 + g.d4 if rho_max is None else rho_max
     vals = (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke, lo, hi,
-            base_envelope(design, specs=specs), s.boss_diameter / 2.0, required_diameter / 2.0)
+            base_envelope(design, specs=specs) if envelope is None else envelope, s.boss_diameter / 2.0,
+            required_diameter / 2.0)
     return WorkspaceParams(*(np.float64(v) for v in vals))
 
 

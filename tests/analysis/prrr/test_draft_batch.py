@@ -18,10 +18,11 @@ import numpy as np
 import pytest
 
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.prrr import draft_batch, statics
+from hapticopt.analysis.prrr import assembly, draft_batch, interference_fast, statics
 from hapticopt.analysis.registry import evaluate_all, evaluate_batch
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.prrr import cad
 from hapticopt.design.prrr.kinematics import inverse_kinematics
 
 BASE = io.load_preset("prrr-paper")
@@ -132,6 +133,21 @@ def test_batch_equals_single_path_within_the_problem_bounds():
                   and str(ev.statuses["statics"]) != "not-assemblable"]
     assert parts_only, "no design whose parts alone block it"
     assert ("statics", "not-assemblable") in seen
+
+
+def test_envelopes_equal_the_cad_envelope():
+    """The batch's envelopes (every design of a layout at once, from the primitive tables) equal
+    ``cad.envelope_radius`` design by design to 1e-12 relative (24 designs within the problem bounds
+    whose parts are laid out, and prrr-paper)."""
+    designs = [d for d in _problem_sample(80, seed=11) + [BASE] if not assembly.parts(d)][-24:]
+    assert len(designs) == 24
+    specs = [cad.part_specs(d) for d in designs]
+    models = {i: interference_fast.prepare(d, specs=s) for i, (d, s) in enumerate(zip(designs, specs))}
+    env = draft_batch.envelopes(designs, models, specs)
+    assert sorted(env) == list(range(len(designs)))
+    for i, d in enumerate(designs):
+        ref = cad.envelope_radius(d, specs=specs[i])
+        assert abs(env[i] - ref) <= 1e-12 * ref, (d.geometry, env[i], ref)
 
 
 def test_sample_covers_the_hard_cases(both):
