@@ -397,32 +397,39 @@ def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
                       depth=depth, part_pairs=batch.part_pairs)
 
 
-def _rotations_and_extents(batch, owner, Rp, Rpp, hw, kind_flat) -> tuple[np.ndarray, np.ndarray]:
-    """World rotations (c·P, 3, 3) and world extents (c·P, 3) of every primitive at every pose.
+def _posed_primitives(batch, owner, Rp, hw, kind_flat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World rotations (c·P, 3, 3), world extents (c·P, 3) and rotated centres (c, P, 3) (the part
+    rotation times the primitive's centre in the part frame; add the part origin for the world
+    centre) of every primitive at every pose of the chunk.
 
     A part whose rotation is the same at every pose of a design in the chunk (the base's parts, the
-    carriages and housings, which only slide, and the platform, which only translates) has its
-    primitives' rotations and extents computed at one pose per design and copied: the same
-    products of the same numbers, so the same values as computing them at every pose."""
-    c, P = Rpp.shape[:2]
+    carriages and housings, which only slide, and the platform, which only translates) has these
+    computed at one pose per design and copied: the same products of the same numbers, so the same
+    values as computing them at every pose."""
+    c = len(owner)
+    P = len(batch.kind)
     _, first, inv = np.unique(owner, return_index=True, return_inverse=True)
     rep = first[inv]  # each pose's design's first pose in the chunk
     fixed = np.all(Rp == Rp[rep], axis=(0, 2, 3))[batch.prim_part]  # (P,) rotation constant per design
     Rw = np.empty((c, P, 3, 3))
     ext = np.empty((c, P, 3))
+    ro = np.empty((c, P, 3))
     hw3 = hw.reshape(c, P, 3)
     kind3 = kind_flat.reshape(c, P)
     for sel, rows in ((np.flatnonzero(~fixed), slice(None)), (np.flatnonzero(fixed), first)):
         if len(sel) == 0:
             continue
-        R = Rpp[rows][:, sel] @ batch.R[owner[rows]][:, sel]  # (poses or designs, |sel|, 3, 3)
-        x = _world_extent(kind3[rows][:, sel].ravel(), R.reshape(-1, 3, 3), hw3[rows][:, sel].reshape(-1, 3))
-        x = x.reshape(len(R), len(sel), 3)
+        r = np.arange(c)[rows][:, None]
+        s = sel[None, :]
+        Rf = Rp[r, batch.prim_part[s]]  # (poses or designs, |sel|, 3, 3), each operand gathered in one step
+        R = Rf @ batch.R[owner[r], s]
+        o = (Rf @ batch.o[owner[r], s][..., None])[..., 0]
+        x = _world_extent(kind3[r, s].ravel(), R.reshape(-1, 3, 3), hw3[r, s].reshape(-1, 3)).reshape(len(R), len(sel), 3)
         if isinstance(rows, slice):
-            Rw[:, sel], ext[:, sel] = R, x
+            Rw[:, sel], ext[:, sel], ro[:, sel] = R, x, o
         else:
-            Rw[:, sel], ext[:, sel] = R[inv], x[inv]
-    return Rw.reshape(c * P, 3, 3), ext.reshape(c * P, 3)
+            Rw[:, sel], ext[:, sel], ro[:, sel] = R[inv], x[inv], o[inv]
+    return Rw.reshape(c * P, 3, 3), ext.reshape(c * P, 3), ro
 
 
 def _check_chunk(batch, owner, frames, s, e, reachable, depth, pc_all, ph_all, pp_a, pp_b, start, count,
@@ -447,10 +454,9 @@ def _check_chunk(batch, owner, frames, s, e, reachable, depth, pc_all, ph_all, p
     pose = np.repeat(pose, cnt)
     k = np.repeat(start[j] - (np.cumsum(cnt) - cnt), cnt) + np.arange(total)
     # world rotation, centre and exact world extents of every primitive at every pose of the chunk
-    Rpp = Rp[:, batch.prim_part]  # (c, P, 3, 3)
-    cw = ((Rpp @ batch.o[owner][..., None])[..., 0] + tp[:, batch.prim_part]).reshape(c * P, 3)
     hw = batch.half[owner].reshape(c * P, 3)
-    Rw, ext = _rotations_and_extents(batch, owner, Rp, Rpp, hw, kind_flat)
+    Rw, ext, ro = _posed_primitives(batch, owner, Rp, hw, kind_flat)
+    cw = (ro + tp[:, batch.prim_part]).reshape(c * P, 3)
     box = np.concatenate([cw - ext, cw + ext], axis=1)  # (c·P, 6): world box low corner, high corner
     ia = pose * P + batch.pair_a[k]
     ib = pose * P + batch.pair_b[k]
