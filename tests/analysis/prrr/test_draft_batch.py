@@ -139,7 +139,7 @@ def test_envelopes_equal_the_cad_envelope():
     """The batch's envelopes (every design of a layout at once, from the primitive tables) equal
     ``cad.envelope_radius`` design by design to 1e-12 relative (24 designs within the problem bounds
     whose parts are laid out, and prrr-paper)."""
-    designs = [d for d in _problem_sample(80, seed=11) + [BASE] if not assembly.parts(d)][-24:]
+    designs = [d for d in _problem_sample(120, seed=11) + [BASE] if not assembly.parts(d)][-24:]
     assert len(designs) == 24
     specs = [cad.part_specs(d) for d in designs]
     models = {i: interference_fast.prepare(d, specs=s) for i, (d, s) in enumerate(zip(designs, specs))}
