@@ -1,7 +1,9 @@
 """numba kernels of :mod:`hapticopt.analysis.loop.mujoco_compiled` (imported only through it, after
 ``libmujoco`` is loaded for the linker). Each kernel runs ticks [start, end) of one plant's loop and
 mirrors the Python loop and controller it replaces operation by operation (same order, no fused
-multiply-add: numba does not contract without ``fastmath``), so the records are bit-identical."""
+multiply-add: numba does not contract without ``fastmath``), so the records are bit-identical — except the
+master's dynamics compensation (:func:`_compensation`: the same torque in closed form where the reference takes
+central differences; the records agree within the reference's own rounding envelope)."""
 
 from __future__ import annotations
 
@@ -327,18 +329,17 @@ def _compensation(c1, s1, c2, s2, c3, s3, qd, qdd, kin, bfr, bw, bm, bcom, bI, r
     """M̂(q) q̂̈ + Ĉ(q, q̂̇) q̂̇ into out (3,): the torque of ``firmware.compensation_torque`` in closed form, from the
     cosines and sines of q (the kinematics' own: no further trig call).
 
-    M̂ = Σ_b w_b (m J_vᵀJ_v + J_ωᵀ I J_ω) + diag(rotor) as ``dynamics_numpy.body_mass_matrices`` (the rotational term in
-    body axes: J_ω = vee(Rᵀ ∂R/∂q), equal in exact arithmetic to the reference's world-axes form). The reference takes
-    Ĉ q̂̇ = Ṁ q̂̇ − ½ ∂(q̂̇ᵀ M̂ q̂̇)/∂q by central differences of M̂ (h = 1e-6 rad, 7 mass matrices); here the same
-    vector is summed body by body as the Lagrange equations give it at q̈ = 0:
-    Σ_b w_b (J_vᵀ m a_b + J_ωᵀ (I α_b + ω_b × I ω_b)), with ω_b = J_ω q̂̇ and the velocity-product accelerations
-    a_b = D²c_b, α_b = vee of the skew part of Rᵀ D²R (D² along q̂̇: :func:`_frames_dd`). The difference to the
-    reference is its truncation O(h²) and its rounding (ε|M̂|/h): both below the reference's own sensitivity to its
-    rounding (measured, docs/performance.md §2)."""
+    The reference sums M̂ = Σ_b w_b (m J_vᵀJ_v + J_ωᵀ R I Rᵀ J_ω) + diag(rotor) (``dynamics_numpy.body_mass_matrices``)
+    and takes Ĉ q̂̇ = Ṁ q̂̇ − ½ ∂(q̂̇ᵀ M̂ q̂̇)/∂q by central differences of M̂ (h = 1e-6 rad, 7 mass matrices). The same
+    torque, as Lagrange's equations give it body by body (Newton–Euler projected on the joints):
+    Σ_b w_b (J_vᵀ m (J_v q̂̈ + a_b) + J_ωᵀ (I (J_ω q̂̈ + α_b) + ω_b × I ω_b)) + rotor q̂̈, in body axes (J_ω = vee(Rᵀ ∂R/∂q),
+    ω_b = J_ω q̂̇), with the velocity-product accelerations a_b = D²c_b and α_b = vee of the skew part of Rᵀ D²R (D²
+    along q̂̇: :func:`_frames_dd`). The frames' derivatives are exact (the reference's complex step gives them to
+    rounding); the difference to the reference is its central difference's truncation O(h²) and rounding (ε|M̂|/h):
+    both below the reference's own sensitivity to its rounding (measured, docs/performance.md §2)."""
     O, dO, R, dR, O2, R2, Jv, Jw = sc
     _frames(c1, s1, c2, s2, c3, s3, kin[0], kin[1], kin[2], kin[3], O, dO, R, dR)
     _frames_dd(c1, s1, c2, s2, c3, s3, qd, kin[0], kin[1], kin[2], O2, R2)
-    m00 = m01 = m02 = m11 = m12 = m22 = 0.0
     t0 = t1 = t2 = 0.0
     for b in range(bfr.shape[0]):
         w = bw[b]
@@ -355,32 +356,14 @@ def _compensation(c1, s1, c2, s2, c3, s3, qd, qdd, kin, bfr, bw, bm, bcom, bI, r
             Jw[2, k] = R[f, 0, 1] * dR[f, 0, 0, k] + R[f, 1, 1] * dR[f, 1, 0, k] + R[f, 2, 1] * dR[f, 2, 0, k]
         I = bI[b]
         wm = w * bm[b]
-        # mass matrix (upper triangle): m J_vᵀJ_v + J_ωᵀ I J_ω
-        IJ00 = I[0, 0] * Jw[0, 0] + I[0, 1] * Jw[1, 0] + I[0, 2] * Jw[2, 0]
-        IJ10 = I[1, 0] * Jw[0, 0] + I[1, 1] * Jw[1, 0] + I[1, 2] * Jw[2, 0]
-        IJ20 = I[2, 0] * Jw[0, 0] + I[2, 1] * Jw[1, 0] + I[2, 2] * Jw[2, 0]
-        IJ01 = I[0, 0] * Jw[0, 1] + I[0, 1] * Jw[1, 1] + I[0, 2] * Jw[2, 1]
-        IJ11 = I[1, 0] * Jw[0, 1] + I[1, 1] * Jw[1, 1] + I[1, 2] * Jw[2, 1]
-        IJ21 = I[2, 0] * Jw[0, 1] + I[2, 1] * Jw[1, 1] + I[2, 2] * Jw[2, 1]
-        IJ02 = I[0, 0] * Jw[0, 2] + I[0, 1] * Jw[1, 2] + I[0, 2] * Jw[2, 2]
-        IJ12 = I[1, 0] * Jw[0, 2] + I[1, 1] * Jw[1, 2] + I[1, 2] * Jw[2, 2]
-        IJ22 = I[2, 0] * Jw[0, 2] + I[2, 1] * Jw[1, 2] + I[2, 2] * Jw[2, 2]
-        m00 += wm * (Jv[0, 0] * Jv[0, 0] + Jv[1, 0] * Jv[1, 0] + Jv[2, 0] * Jv[2, 0]) + w * (
-            Jw[0, 0] * IJ00 + Jw[1, 0] * IJ10 + Jw[2, 0] * IJ20)
-        m01 += wm * (Jv[0, 0] * Jv[0, 1] + Jv[1, 0] * Jv[1, 1] + Jv[2, 0] * Jv[2, 1]) + w * (
-            Jw[0, 0] * IJ01 + Jw[1, 0] * IJ11 + Jw[2, 0] * IJ21)
-        m02 += wm * (Jv[0, 0] * Jv[0, 2] + Jv[1, 0] * Jv[1, 2] + Jv[2, 0] * Jv[2, 2]) + w * (
-            Jw[0, 0] * IJ02 + Jw[1, 0] * IJ12 + Jw[2, 0] * IJ22)
-        m11 += wm * (Jv[0, 1] * Jv[0, 1] + Jv[1, 1] * Jv[1, 1] + Jv[2, 1] * Jv[2, 1]) + w * (
-            Jw[0, 1] * IJ01 + Jw[1, 1] * IJ11 + Jw[2, 1] * IJ21)
-        m12 += wm * (Jv[0, 1] * Jv[0, 2] + Jv[1, 1] * Jv[1, 2] + Jv[2, 1] * Jv[2, 2]) + w * (
-            Jw[0, 1] * IJ02 + Jw[1, 1] * IJ12 + Jw[2, 1] * IJ22)
-        m22 += wm * (Jv[0, 2] * Jv[0, 2] + Jv[1, 2] * Jv[1, 2] + Jv[2, 2] * Jv[2, 2]) + w * (
-            Jw[0, 2] * IJ02 + Jw[1, 2] * IJ12 + Jw[2, 2] * IJ22)
-        # velocity-product accelerations: a = D²O + D²R com; ω = J_ω q̂̇; α = vee(skew(Rᵀ D²R))
-        a0 = O2[f, 0] + (R2[f, 0, 0] * cx + R2[f, 0, 1] * cy + R2[f, 0, 2] * cz)
-        a1 = O2[f, 1] + (R2[f, 1, 0] * cx + R2[f, 1, 1] * cy + R2[f, 1, 2] * cz)
-        a2 = O2[f, 2] + (R2[f, 2, 0] * cx + R2[f, 2, 1] * cy + R2[f, 2, 2] * cz)
+        # CoM acceleration Jv q̂̈ + a, a = D²O + D²R com (the velocity-product part)
+        a0 = (Jv[0, 0] * qdd[0] + Jv[0, 1] * qdd[1] + Jv[0, 2] * qdd[2]) + (
+            O2[f, 0] + (R2[f, 0, 0] * cx + R2[f, 0, 1] * cy + R2[f, 0, 2] * cz))
+        a1 = (Jv[1, 0] * qdd[0] + Jv[1, 1] * qdd[1] + Jv[1, 2] * qdd[2]) + (
+            O2[f, 1] + (R2[f, 1, 0] * cx + R2[f, 1, 1] * cy + R2[f, 1, 2] * cz))
+        a2 = (Jv[2, 0] * qdd[0] + Jv[2, 1] * qdd[1] + Jv[2, 2] * qdd[2]) + (
+            O2[f, 2] + (R2[f, 2, 0] * cx + R2[f, 2, 1] * cy + R2[f, 2, 2] * cz))
+        # body-axes ω = J_ω q̂̇ and angular acceleration J_ω q̂̈ + α, α = vee(skew(Rᵀ D²R))
         w0 = Jw[0, 0] * qd[0] + Jw[0, 1] * qd[1] + Jw[0, 2] * qd[2]
         w1 = Jw[1, 0] * qd[0] + Jw[1, 1] * qd[1] + Jw[1, 2] * qd[2]
         w2 = Jw[2, 0] * qd[0] + Jw[2, 1] * qd[1] + Jw[2, 2] * qd[2]
@@ -390,20 +373,22 @@ def _compensation(c1, s1, c2, s2, c3, s3, qd, qdd, kin, bfr, bw, bm, bcom, bI, r
         x20 = R[f, 0, 2] * R2[f, 0, 0] + R[f, 1, 2] * R2[f, 1, 0] + R[f, 2, 2] * R2[f, 2, 0]
         x10 = R[f, 0, 1] * R2[f, 0, 0] + R[f, 1, 1] * R2[f, 1, 0] + R[f, 2, 1] * R2[f, 2, 0]
         x01 = R[f, 0, 0] * R2[f, 0, 1] + R[f, 1, 0] * R2[f, 1, 1] + R[f, 2, 0] * R2[f, 2, 1]
-        al0, al1, al2 = 0.5 * (x21 - x12), 0.5 * (x02 - x20), 0.5 * (x10 - x01)
+        al0 = (Jw[0, 0] * qdd[0] + Jw[0, 1] * qdd[1] + Jw[0, 2] * qdd[2]) + 0.5 * (x21 - x12)
+        al1 = (Jw[1, 0] * qdd[0] + Jw[1, 1] * qdd[1] + Jw[1, 2] * qdd[2]) + 0.5 * (x02 - x20)
+        al2 = (Jw[2, 0] * qdd[0] + Jw[2, 1] * qdd[1] + Jw[2, 2] * qdd[2]) + 0.5 * (x10 - x01)
         Iw0 = I[0, 0] * w0 + I[0, 1] * w1 + I[0, 2] * w2
         Iw1 = I[1, 0] * w0 + I[1, 1] * w1 + I[1, 2] * w2
         Iw2 = I[2, 0] * w0 + I[2, 1] * w1 + I[2, 2] * w2
         h0 = I[0, 0] * al0 + I[0, 1] * al1 + I[0, 2] * al2 + (w1 * Iw2 - w2 * Iw1)
         h1 = I[1, 0] * al0 + I[1, 1] * al1 + I[1, 2] * al2 + (w2 * Iw0 - w0 * Iw2)
         h2 = I[2, 0] * al0 + I[2, 1] * al1 + I[2, 2] * al2 + (w0 * Iw1 - w1 * Iw0)
+        # the body's wrench projected on the joints: J_vᵀ m acc + J_ωᵀ (I α + ω × I ω)
         t0 += wm * (Jv[0, 0] * a0 + Jv[1, 0] * a1 + Jv[2, 0] * a2) + w * (Jw[0, 0] * h0 + Jw[1, 0] * h1 + Jw[2, 0] * h2)
         t1 += wm * (Jv[0, 1] * a0 + Jv[1, 1] * a1 + Jv[2, 1] * a2) + w * (Jw[0, 1] * h0 + Jw[1, 1] * h1 + Jw[2, 1] * h2)
         t2 += wm * (Jv[0, 2] * a0 + Jv[1, 2] * a1 + Jv[2, 2] * a2) + w * (Jw[0, 2] * h0 + Jw[1, 2] * h1 + Jw[2, 2] * h2)
-    m00, m11, m22 = m00 + rotor[0], m11 + rotor[1], m22 + rotor[2]
-    out[0] = m00 * qdd[0] + m01 * qdd[1] + m02 * qdd[2] + t0
-    out[1] = m01 * qdd[0] + m11 * qdd[1] + m12 * qdd[2] + t1
-    out[2] = m02 * qdd[0] + m12 * qdd[1] + m22 * qdd[2] + t2
+    out[0] = t0 + rotor[0] * qdd[0]
+    out[1] = t1 + rotor[1] * qdd[1]
+    out[2] = t2 + rotor[2] * qdd[2]
 
 
 @njit(cache=True)

@@ -240,8 +240,9 @@ class MasterPlant:
         """Closed loop for ``ticks`` periods with the hand reference at ``frequency`` [Hz]; raw records.
 
         ``compiled`` (default): the ticks run in the compiled loop of :mod:`hapticopt.analysis.loop.mujoco_compiled`
-        when it can run this controller (no dynamics compensation) — bit-identical records; else, or with
-        ``compiled=False``, in Python. :attr:`loop_engine` / :attr:`loop_reason` say which ran and why."""
+        when it can run this controller — bit-identical records without dynamics compensation; with it (Ĉ q̂̇ in
+        closed form there, by central differences of M̂ here) within the reference's own rounding envelope
+        (docs/performance.md §2); else, or with ``compiled=False``, in Python. :attr:`loop_engine` / :attr:`loop_reason` say which ran and why."""
         mj, m, d = self._mujoco, self.model, self.data
         self.reset()
         scale = controller.cfg.counts_per_rev / (2.0 * math.pi)
