@@ -226,10 +226,6 @@ def prrr_chunk(m_addr, d_addr, off, start, end, nstep,
 
 
 # --------------------------------------------------------------------------------------- master
-#: central-difference step of ∂M̂/∂q (hapticopt.analysis.master.firmware._H_COMP)
-H_COMP = 1e-6
-
-
 @njit(cache=True)
 def _frames(c1, s1, c2, s2, c3, s3, L5, L4, dl, hs, O, dO, R, dR):
     """The six link frames of ``dynamics_numpy.frames`` from the joint angles' cosines and sines, and their exact
