@@ -5,7 +5,8 @@ The plants' Python loops (``hapticopt.analysis.prrr.mujoco_plant.MujocoPlant.run
 once per firmware tick with the command held; the Python firmware and the per-tick bookkeeping
 between the calls cost 1.2–2.5× raw ``mj_step``. Here the same tick loop runs in numba
 (``@njit(cache=True)``): the encoder read, the firmware law (term by term and in the order of the
-Python controllers, so the traces are bit-identical), the delay line, the hand reference, the
+Python controllers, so the traces are bit-identical; the master's dynamics compensation, whose reference
+differences M̂ numerically, in closed form: within the reference's rounding envelope), the delay line, the hand reference, the
 ``mj_step`` calls and the per-tick records into preallocated arrays. Python runs once per chunk
 of ticks (the plants' instability checks stay vectorised numpy between chunks).
 

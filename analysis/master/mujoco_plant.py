@@ -100,6 +100,12 @@ def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
     return idx
 
 
+def _one_hot(sel: Any) -> bool:
+    """Whether every row of a body-to-frame selection is one-hot (each body on exactly one link frame)."""
+    sel = np.asarray(sel)
+    return sel.ndim == 2 and bool(np.all((sel == 0.0) | (sel == 1.0)) and np.all(sel.sum(axis=1) == 1.0))
+
+
 def start_pose(design: MasterDesign) -> np.ndarray:
     """Calibration / start pose of the master scenes: the middle of the θ3 and φ ranges (issue 5)."""
 
@@ -170,8 +176,8 @@ class MasterPlant:
             why = "compiled=False (the Python reference loop)"
         elif type(controller) is not MasterController:
             why = f"controller {type(controller).__name__} has no compiled law (MasterController has)"
-        elif cfg.compensation_model is not None:
-            why = "dynamics compensation (M̂ q̂̈ + Ĉ q̂̇ of the numpy mass model) is not compiled"
+        elif cfg.compensation_model is not None and not _one_hot(cfg.compensation_model.frame):
+            why = "the compensation model's bodies are not each on one link frame (the compiled law selects one)"
         elif cfg.env not in (EnvKind.FREE, EnvKind.SPRING, EnvKind.BOX):
             why = f"environment {cfg.env.value} has no compiled law"
         elif not np.array_equal(np.asarray(cfg.q0, dtype=float), self.q0):
@@ -201,17 +207,32 @@ class MasterPlant:
         par = np.array([cfg.counts_per_rev / (2.0 * math.pi), controller._scale, cfg.period, cfg.velocity_alpha,
                         cfg.upper_arm, cfg.forearm, cfg.shoulder_height, cfg.wall_stiffness, cfg.wall_damping,
                         cfg.torque_limit, cfg.gravity_g1, cfg.gravity_g2])
+        comp = cfg.compensation_model is not None
         flg = np.array([quantize, env, cfg.gravity_compensation, cfg.saturation, self.hand, self.n_closure,
-                        eq_hand, eq_type, delay_ticks], dtype=np.int64)
-        st = np.zeros(9)
+                        eq_hand, eq_type, delay_ticks, comp], dtype=np.int64)
+        st = np.zeros(18)
         st[0:3] = controller._p_prev
-        ist = np.zeros(1, dtype=np.int64)
+        st[3:6] = controller._v
+        st[9:12], st[12:15], st[15:18] = controller._q_prev, controller._qd, controller._qdd
+        ist = np.array([0, controller._samples], dtype=np.int64)
+        cm = cfg.compensation_model
+        if comp:  # the compensation model's bodies (hapticopt.analysis.master.dynamics.MassModel) as plain arrays
+            kin = np.array([float(cm.kin.upper_arm), float(cm.kin.forearm), float(cm.kin.driver_link),
+                            float(cm.kin.shoulder_height)])
+            body = (ip(np.argmax(np.asarray(cm.frame), axis=1)), np.array(controller._weights, dtype=np.float64),
+                    np.array(cm.mass, dtype=np.float64), np.array(cm.com, dtype=np.float64).reshape(-1, 3),
+                    np.array(cm.inertia, dtype=np.float64).reshape(-1, 3, 3), f3(cm.rotor_inertia))
+        else:
+            kin = np.zeros(4)
+            body = (np.zeros(1, dtype=np.intp), np.zeros(1), np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3, 3)),
+                    np.zeros(3))
         dbuf = np.zeros((max(1, delay_ticks), 3))
         pre = (m._address, d._address, off)
         post = (d.qpos, d.qvel, d.qacc, d.ctrl, m.qpos_spring, d.qfrc_applied, d.site_xpos, int(self.site),
                 ip(self.act_qpos), hq, hd, REF, DREF, par, flg, f3(cfg.q0), f3(controller._K), f3(controller._B),
                 f3(controller._anchor), f3(controller._half), st, ist, dbuf,
-                P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF, f3(self.x0), np.array([RUNAWAY, self.period]), 100)
+                P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF, f3(self.x0), np.array([RUNAWAY, self.period]), 100,
+                kin, *body, kc.comp_scratch())
         return pre, post
 
     def run(self, controller: MasterController, *, ticks: int, frequency: float, quantize: bool,
@@ -219,8 +240,9 @@ class MasterPlant:
         """Closed loop for ``ticks`` periods with the hand reference at ``frequency`` [Hz]; raw records.
 
         ``compiled`` (default): the ticks run in the compiled loop of :mod:`hapticopt.analysis.loop.mujoco_compiled`
-        when it can run this controller (no dynamics compensation) — bit-identical records; else, or with
-        ``compiled=False``, in Python. :attr:`loop_engine` / :attr:`loop_reason` say which ran and why."""
+        when it can run this controller — bit-identical records without dynamics compensation; with it (Ĉ q̂̇ in
+        closed form there, by central differences of M̂ here) within the reference's own rounding envelope
+        (docs/performance.md §2); else, or with ``compiled=False``, in Python. :attr:`loop_engine` / :attr:`loop_reason` say which ran and why."""
         mj, m, d = self._mujoco, self.model, self.data
         self.reset()
         scale = controller.cfg.counts_per_rev / (2.0 * math.pi)
@@ -285,8 +307,11 @@ class MasterPlant:
                     stop = lo + int(np.argmax(bad))
                     break
                 lo = hi
-            st = nat[1][20]
+            st, ist = nat[1][20], nat[1][21]
             controller._p_prev, controller._v, controller.last_force = st[0:3].copy(), st[3:6].copy(), st[6:9].copy()
+            if controller.cfg.compensation_model is not None:
+                controller._q_prev, controller._qd, controller._qdd = st[9:12].copy(), st[12:15].copy(), st[15:18].copy()
+                controller._samples = int(ist[1])
         for k in range(N) if kern is None else ():
             cmd = controller.step(counts())
             if delay:
