@@ -425,9 +425,13 @@ def evaluate_batch(designs: list[Any], *, fidelity: Fidelity = Fidelity.STANDARD
         return [evaluate_all(d, fidelity=fidelity, only=only) for d in designs]
     from hapticopt.analysis.prrr import assembly, draft_batch  # jax: loaded only where a batch is evaluated
 
-    # a design that cannot be assembled (the chain does not close, the CAD cannot lay its parts out)
-    # returns early from every evaluator: it takes the single path, so its statuses are the single path's
-    blocked = {i for i, d in enumerate(designs) if assembly.check(d, with_parts=True)}
+    # a design whose chain does not close returns early from every evaluator: it takes the single path,
+    # so its statuses are the single path's (one whose parts the CAD cannot lay out is batched: the
+    # batch gives its part evaluators their own early not-assemblable)
+    if len(designs) > draft_batch.MAX_CHUNK:  # chunk by chunk: each chunk's closures stay cached
+        return [ev for c in range(0, len(designs), draft_batch.MAX_CHUNK)
+                for ev in evaluate_batch(designs[c:c + draft_batch.MAX_CHUNK], fidelity=fidelity, only=only)]
+    blocked = {i for i, d in enumerate(designs) if assembly.closure(d)}
     batched = [d for i, d in enumerate(designs) if i not in blocked]
     found_all = iter(draft_batch.evaluate_many(batched, only=only) if batched else [])
     out = []

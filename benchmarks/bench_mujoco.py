@@ -5,11 +5,12 @@ the closed-loop overhead over raw ``mj_step`` at the same substeps ≤ 1.5×. Bo
 extra_info (``real_time_factor``, ``loop_overhead``, wall and process-CPU figures, the load
 average — the machine is shared, so CPU time is the closer estimate of an idle machine); no
 timed asserts. Draft (0.25 ms Euler) and standard (0.1 ms Euler) fidelity, FREE and
-TRANSLATIONAL platform; the master-wall scene on the MuJoCo master.
+TRANSLATIONAL platform; the master-wall and master-protocol-x (dynamics compensation) scenes on the MuJoCo master.
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import statistics
 import time
@@ -86,38 +87,130 @@ def test_master_wall(benchmark):
     benchmark.extra_info.update(real_time_factor=scene.duration / wall, wall_s=wall, load_average=os.getloadavg()[0])
 
 
-def _master_loop_and_raw(fidelity: Fidelity, rounds: int = 5) -> tuple[list[float], list[float]]:
-    """The master-wall closed loop (``MasterPlant.run``) and raw ``mj_step`` of the same model for the same
-    ticks and substeps, interleaved: (loop walls, raw walls) [s]."""
+def _raw(m, d, ticks: int, nstep: int) -> float:
+    """Raw ``mj_step`` from Python, once per tick with ``nstep`` substeps (the loops' physics alone) [s]."""
+    t0 = time.perf_counter()
+    for _ in range(ticks):
+        mujoco.mj_step(m, d, nstep=nstep)
+    return time.perf_counter() - t0
+
+
+def _master_loop_and_raw(fidelity: Fidelity, rounds: int = 5, scene_name: str = "master-wall",
+                         python_ticks: int | None = None) -> dict[str, list[float]]:
+    """A master scene's closed loop (``MasterPlant.run``) compiled and in Python, and raw ``mj_step`` of the same
+    model for the same ticks and substeps, interleaved: {"compiled", "python", "raw", "raw_python"} walls [s].
+
+    ``python_ticks``: the Python loop runs only that many ticks (the compensation scenes' Python loop costs ≈ 1 ms a
+    tick), against raw mj_step over the same ticks ("raw_python"); None: the scene's ticks."""
     from hapticopt.analysis.master import mujoco_plant as mm
     from hapticopt.analysis.loop.scene import Effect, resolve
 
     master = io.load_preset("master-paper")
-    scene = load_scene("master-wall")
+    scene = load_scene(scene_name)
     res = resolve(scene)
     T = scene.controller.period
     plant = mm.MasterPlant(master, scene, res, period=T, fidelity=fidelity)
-    ctl = mm.controller_for(master, scene, res, plant.x0, plant.q0, T)
     N = int(round(scene.duration / T))
-    loop, raw = [], []
+    Np = N if python_ticks is None else min(N, python_ticks)
+    out: dict[str, list[float]] = {"compiled": [], "python": [], "raw": [], "raw_python": []}
+    kw = dict(frequency=scene.motion.frequency, quantize=Effect.QUANTIZATION in res.effects)
+    plant.run(mm.controller_for(master, scene, res, plant.x0, plant.q0, T), ticks=10, frequency=1.0,
+              quantize=True)  # load the compiled kernel outside the timing
     for _ in range(rounds):
-        t0 = time.perf_counter()
-        plant.run(ctl, ticks=N, frequency=scene.motion.frequency, quantize=Effect.QUANTIZATION in res.effects)
-        loop.append(time.perf_counter() - t0)
+        for engine, n in (("compiled", N), ("python", Np)):
+            ctl = mm.controller_for(master, scene, res, plant.x0, plant.q0, T)
+            t0 = time.perf_counter()
+            plant.run(ctl, ticks=n, compiled=engine == "compiled", **kw)
+            out[engine].append(time.perf_counter() - t0)
+            assert plant.loop_engine == engine, plant.loop_reason
         plant.reset()
-        m, d = plant.model, plant.data
-        t0 = time.perf_counter()
-        for _ in range(N):
-            mujoco.mj_step(m, d, nstep=plant.substeps)
-        raw.append(time.perf_counter() - t0)
-    return loop, raw
+        out["raw"].append(_raw(plant.model, plant.data, N, plant.substeps))
+        plant.reset()
+        out["raw_python"].append(out["raw"][-1] if Np == N else _raw(plant.model, plant.data, Np, plant.substeps))
+    return out
+
+
+def _prrr_loop_and_raw(fidelity: Fidelity, rounds: int = 5) -> dict[str, list[float]]:
+    """The stiffness-25 closed loop (``MujocoPlant.run``, FREE platform) compiled and in Python, and raw
+    ``mj_step`` of the same model (energy on) for the same ticks and substeps, interleaved [s]."""
+    import dataclasses
+
+    from hapticopt.analysis.prrr import closed_loop
+    from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+    from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant
+    from hapticopt.analysis.loop.scene import Effect
+
+    scene = load_scene("stiffness-25")
+    ch = choose_backend(scene, force=Backend.MULTIBODY)
+    st = closed_loop.setup(DESIGN, dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS}),
+                           fidelity=fidelity)
+    plant = MujocoPlant(DESIGN, scene, model_options(scene, ch.resolution, fidelity=fidelity, platform=Platform.FREE),
+                        period=st.period, interpolation=st.cfg.interpolation)
+    plant.enable_energy()
+    st = dataclasses.replace(st, resolution=ch.resolution, substeps=plant.substeps)
+    out: dict[str, list[float]] = {"compiled": [], "python": [], "raw": []}
+    plant.run(NumpyController(st.cfg, st.gains), dataclasses.replace(st, ticks=10))  # load the kernel
+    for _ in range(rounds):
+        for engine in ("compiled", "python"):
+            ctl = NumpyController(st.cfg, st.gains)
+            t0 = time.perf_counter()
+            plant.run(ctl, st, compiled=engine == "compiled")
+            out[engine].append(time.perf_counter() - t0)
+            assert plant.loop_engine == engine, plant.loop_reason
+        plant.reset()
+        out["raw"].append(_raw(plant.model, plant.data, st.ticks, plant.substeps))
+    return out
+
+
+def _ratios(out: dict[str, list[float]]) -> dict[str, float]:
+    """Medians of the per-round ratios (each round's loops and raw run back to back: a load change between rounds
+    cancels) and of the walls."""
+    med = {k: statistics.median(v) for k, v in out.items()}
+    rounds = {e: [a / r for a, r in zip(out[e], out["raw_python" if e == "python" and "raw_python" in out else "raw"])]
+              for e in ("compiled", "python")}
+    per = {e: statistics.median(v) for e, v in rounds.items()}
+    q = statistics.quantiles(rounds["compiled"], n=4) if len(rounds["compiled"]) > 1 else [per["compiled"]] * 3
+    return {"compiled_over_raw": per["compiled"], "python_over_raw": per["python"],
+            "compiled_over_raw_quartiles": (q[0], q[2]),
+            "compiled_s": med["compiled"], "python_s": med["python"], "raw_mj_step_s": med["raw"],
+            "load_average": os.getloadavg()[0]}
 
 
 @pytest.mark.parametrize("fidelity", [Fidelity.DRAFT, Fidelity.STANDARD], ids=lambda f: f.value)
 def test_master_loop_overhead(benchmark, fidelity):
-    """The master's closed loop over raw mj_step on the same model (issue 22 target ≤ 1.10×, not met: the
-    Python controller, docs/performance.md), side by side."""
+    """The master's closed loop over raw mj_step on the same model (target ≤ 1.10×), compiled and Python, side by
+    side (docs/performance.md)."""
     out = benchmark.pedantic(lambda: _master_loop_and_raw(fidelity), rounds=1, iterations=1)
-    loop, raw = (statistics.median(x) for x in out)
-    benchmark.extra_info.update(loop_s=loop, raw_mj_step_s=raw, loop_overhead=loop / raw,
-                                load_average=os.getloadavg()[0])
+    benchmark.extra_info.update(_ratios(out))
+
+
+@pytest.mark.parametrize("fidelity", [Fidelity.DRAFT, Fidelity.STANDARD], ids=lambda f: f.value)
+def test_master_protocol_loop_overhead(benchmark, fidelity):
+    """master-protocol-x (dynamics compensation, 4 kHz, one plant step a tick) over raw mj_step (target ≤ 1.10×),
+    compiled over the scene's 12000 ticks, Python over 1000 (against raw mj_step over the same 1000)."""
+    out = benchmark.pedantic(lambda: _master_loop_and_raw(fidelity, scene_name="master-protocol-x", python_ticks=1000),
+                             rounds=1, iterations=1)
+    benchmark.extra_info.update(_ratios(out))
+
+
+@pytest.mark.parametrize("fidelity", [Fidelity.DRAFT, Fidelity.STANDARD], ids=lambda f: f.value)
+def test_prrr_loop_overhead(benchmark, fidelity):
+    """The 3-PRRR's closed loop (stiffness-25, FREE) over raw mj_step on the same model (target ≤ 1.10×), compiled
+    and Python, side by side (docs/performance.md)."""
+    out = benchmark.pedantic(lambda: _prrr_loop_and_raw(fidelity), rounds=1, iterations=1)
+    benchmark.extra_info.update(_ratios(out))
+
+
+if __name__ == "__main__":  # python benchmarks/bench_mujoco.py [rounds]: the ratio table of docs/performance.md
+    import sys
+
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 7
+    protocol = functools.partial(_master_loop_and_raw, scene_name="master-protocol-x", python_ticks=1000)
+    for name, fn in (("3-PRRR stiffness-25 FREE", _prrr_loop_and_raw), ("master-wall", _master_loop_and_raw),
+                     ("master-protocol-x", protocol)):
+        for fid in (Fidelity.DRAFT, Fidelity.STANDARD):
+            r = _ratios(fn(fid, rounds=n))
+            q1, q3 = r["compiled_over_raw_quartiles"]
+            print(f"{name:26s} {fid.value:8s} compiled/raw {r['compiled_over_raw']:.3f} (quartiles {q1:.3f}-{q3:.3f})"
+                  f"  python/raw {r['python_over_raw']:.3f}  (median of {n} per-round ratios, load "
+                  f"{r['load_average']:.2f})", flush=True)

@@ -6,8 +6,8 @@ A part is a rigid solid described in its own frame (SI, metres) as a set of prim
 * ``SOLID`` primitives are united (box, cylinder, sphere),
 * ``HOLE`` primitives are subtracted from that union (pin bores, rail slots),
 * ``OVERLAP`` primitives exist only for the analytic mass model: they are the regions counted
-  twice by the solids (a boss disc overlapping the end of its link bar: a "cap segment") and
-  are subtracted once. The CAD ignores them.
+  twice by the solids (a boss disc overlapping the end of its link bar: a "cap segment"; a
+  plate let into a block face at a slant: a "wedge") and are subtracted once. The CAD ignores them.
 
 The CAD (:mod:`hapticopt.design.prrr.cad`, :mod:`hapticopt.design.master.cad`) turns SOLID/HOLE into OpenCASCADE
 solids, :func:`manifold_of` into manifold3d meshes, and :func:`volume_properties` sums closed
@@ -36,6 +36,7 @@ class Kind(IntEnum):
     CYLINDER = 1  # dims (radius, height, 0), axis = local z, centred
     SPHERE = 2  # dims (radius, 0, 0)
     CAPSEG = 3  # dims (R, h, thickness): {x ≥ 0, |y| ≤ h, x² + y² ≤ R²} × |z| ≤ thickness/2
+    WEDGE = 4  # dims (a, b, thickness): right triangle {x ≥ 0, y ≥ 0, x/a + y/b ≤ 1} × |z| ≤ thickness/2 (OVERLAP only)
 
 
 class Role(StrEnum):
@@ -115,6 +116,13 @@ def capseg(origin, R, radius: float, half_strip: float, thickness: float) -> Pri
     return _prim(Kind.CAPSEG, Role.OVERLAP, origin, R, (radius, min(half_strip, radius), thickness))
 
 
+def wedge(origin, R, leg_x: float, leg_y: float, thickness: float) -> Primitive:
+    """Overlap of two solids that is a right triangular prism: right angle on local z through
+    ``origin``, legs along local +x and +y, ``thickness`` along z (centred). Mass bookkeeping only
+    (OVERLAP): the CAD, the meshes and the MJCF see the solids it is the overlap of."""
+    return _prim(Kind.WEDGE, Role.OVERLAP, origin, R, (leg_x, leg_y, thickness))
+
+
 def bar_with_bosses(R: np.ndarray, o, x0: float, x1: float, *, width: float, thickness: float, z: float,
                     bosses: tuple[float, ...], boss_radius: float, bore_radius: float) -> list[Primitive]:
     """A flat bar along local x from ``x0`` to ``x1`` (frame ``R``, origin ``o``), in the layer centred
@@ -153,13 +161,14 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(24)
 
 
 def _local_props(kind: np.ndarray, dims: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per primitive (n,): volume, local centroid (n, 3), diagonal second moments about the local
-    origin in inertia-tensor form (n, 3). Every local tensor here is diagonal."""
+    """Per primitive (n,): volume, local centroid (n, 3), second moments about the local origin in
+    inertia-tensor form (n, 3, 3) (diagonal except the wedge's xy product)."""
     a, b, c = dims[:, 0], dims[:, 1], dims[:, 2]
     n = len(kind)
     v = np.zeros(n)
     cen = np.zeros((n, 3))
     I = np.zeros((n, 3))
+    Ixy = np.zeros(n)
     m = kind == Kind.BOX
     if m.any():
         vb = a[m] * b[m] * c[m]
@@ -194,7 +203,19 @@ def _local_props(kind: np.ndarray, dims: np.ndarray) -> tuple[np.ndarray, np.nda
         v[m] = A * t
         cen[m, 0] = Sx / A
         I[m] = np.stack([yy + zz, xx + zz, xx + yy], axis=1)
-    return v, cen, I
+    m = kind == Kind.WEDGE
+    if m.any():
+        # right triangle with legs p (x), q (y): ∫x² dA = p³q/12, ∫y² dA = pq³/12, ∫xy dA = p²q²/24
+        p, q, t = a[m], b[m], c[m]
+        A = p * q / 2.0
+        xx, yy, zz = p**3 * q / 12.0 * t, p * q**3 / 12.0 * t, A * t**3 / 12.0
+        v[m] = A * t
+        cen[m, 0], cen[m, 1] = p / 3.0, q / 3.0
+        I[m] = np.stack([yy + zz, xx + zz, xx + yy], axis=1)
+        Ixy[m] = -(p * q) ** 2 / 24.0 * t
+    out = I[:, :, None] * np.eye(3)[None]
+    out[:, 0, 1] = out[:, 1, 0] = Ixy
+    return v, cen, out
 
 
 def volume_properties(prims) -> VolumeProps:
@@ -216,8 +237,7 @@ def volume_properties_many(groups) -> list[VolumeProps]:
     co = np.einsum("nij,nj->ni", R, c_loc)  # centroid offset from the primitive origin
     c = o + co
     # ∫(|r|²I − r rᵀ) about the part origin, r = o + s: I_o + v(|o|² + 2 o·co) I − v(o oᵀ + o coᵀ + co oᵀ)
-    RI = R * I_loc[:, None, :]
-    J = np.einsum("nij,nkj->nik", RI, R)
+    J = R @ I_loc @ R.transpose(0, 2, 1)
     scal = v * (np.einsum("ni,ni->n", o, o) + 2.0 * np.einsum("ni,ni->n", o, co))
     J[:, 0, 0] += scal
     J[:, 1, 1] += scal

@@ -13,10 +13,11 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import json
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,7 @@ from hapticopt.optim.problem import Problem, check_metrics
 from hapticopt.analysis.registry import EVALUATORS, describe_failure, jsonable, run_plotter
 from hapticopt.design.paths import inside
 from hapticopt.optim.driver import SMOOTH_SURROGATES
+from hapticopt.analysis.loop import mujoco_compiled
 from hapticopt.analysis.loop.scene import load_scene
 from hapticopt.optim.reaper import children_die_with_this_process
 from hapticopt.optim.recorder import Recorder, check_run_dir, run_lock
@@ -134,16 +136,23 @@ def _scene_task(design: Any, scene: str, fidelity: Fidelity, verifier: Any
     return jsonable(result.metrics()), str(getattr(result, "message", "")), history
 
 
-def warm_verification() -> None:
-    """In the verification worker, once at its start: the imports (this module's) and jax's runtime."""
+def warm_verification(compiled_loops: bool = False) -> None:
+    """In the verification worker, once at its start: the imports (this module's) and jax's runtime; with
+    ``compiled_loops`` also the compiled MuJoCo loops (numba import and cache load ≈ 1 s, a first compile ≈ 9 s:
+    docs/performance.md)."""
     from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
     import jax.numpy as jnp
 
     jnp.zeros(1).block_until_ready()
+    if compiled_loops:
+        mujoco_compiled.warm_up()  # unavailable: the plants run their Python loops and say why
 
 
-def verification_worker() -> SupervisedWorker:
-    """The one process the verify stage runs its scenes in (:mod:`hapticopt.optim.worker`)."""
+def verification_worker(scenes: Sequence[str] = ()) -> SupervisedWorker:
+    """The one process the verify stage runs its scenes in (:mod:`hapticopt.optim.worker`); it warms the compiled
+    MuJoCo loops at start when one of ``scenes`` runs on a MuJoCo plant."""
+    if mujoco_compiled.needed_by(scenes):
+        return SupervisedWorker(warm=functools.partial(warm_verification, True))
     return SupervisedWorker(warm=warm_verification)
 
 
@@ -218,8 +227,8 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     check_scheduler(scheduler)
     out = writable_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with run_lock(out), children_die_with_this_process(), verification_worker() as verify_worker, \
-            side_executor(scheduler) as side:
+    with run_lock(out), children_die_with_this_process(), \
+            verification_worker(problem.scenes if verify else ()) as verify_worker, side_executor(scheduler) as side:
         remove_stale_temp_files(out)
         if verify and problem.scenes:
             verify_worker.start()  # now: its imports overlap with the optimisation, not the verify stage

@@ -2,8 +2,8 @@
 
 Snapshot: tests/snapshots/layout_metrics.json, made by ``benchmarks/snapshot_layout.py`` on the
 code before the modules moved (both presets at draft and standard fidelity, and the scenes
-stiffness-25 and master-transparency). Wall times and the free-text reasons (which name module
-paths) are not compared. A later change that moves a metric on purpose regenerates the snapshot
+stiffness-25 and master-transparency). Wall times, the free-text reasons (which name module
+paths) and which closed-loop engine ran are not compared. A later change that moves a metric on purpose regenerates the snapshot
 with that script and says why in its commit.
 """
 
@@ -18,7 +18,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAPSHOT = ROOT / "tests" / "snapshots" / "layout_metrics.json"
-IGNORED_KEYS = {"timings_s", "wall_time_s", "backend_reason", "resolution_reason"}
+# closed_loop_engine: which loop ran (compiled or Python) — they are bit-identical (tests/analysis/loop/test_mujoco_compiled.py)
+IGNORED_KEYS = {"timings_s", "wall_time_s", "backend_reason", "resolution_reason", "closed_loop_engine"}
 #: a float equal to this relative tolerance is the same number (BLAS kernels differ at ~1e-12)
 REL_TOL = 1e-9
 

@@ -152,7 +152,9 @@ class MasterController:
             F = np.where(depth > 0.0, -cfg.wall_stiffness * np.sign(delta) * depth - cfg.wall_damping * v, 0.0)
         else:
             F = np.zeros(3)
-        tau = F @ J  # Jᵀ F
+        # Jᵀ F summed in a fixed order (a BLAS product's order / FMA is the library's; the compiled loop of
+        # hapticopt.analysis.loop.mujoco_compiled reproduces this bit for bit)
+        tau = np.array([F[0] * J[0, j] + F[1] * J[1, j] + F[2] * J[2, j] for j in range(3)])
         if cfg.compensation_model is not None:
             tau = tau + self._compensation(q)
         if cfg.gravity_compensation:

@@ -39,6 +39,7 @@ import numpy as np
 from hapticopt.analysis.loop.traces import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.master.firmware import MasterController, MasterFirmwareConfig
+from hapticopt.analysis.loop import mujoco_compiled as mc
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
 from hapticopt.analysis.loop.scene import (
     DynamicsCompensation,
@@ -99,6 +100,12 @@ def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
     return idx
 
 
+def _one_hot(sel: Any) -> bool:
+    """Whether every row of a body-to-frame selection is one-hot (each body on exactly one link frame)."""
+    sel = np.asarray(sel)
+    return sel.ndim == 2 and bool(np.all((sel == 0.0) | (sel == 1.0)) and np.all(sel.sum(axis=1) == 1.0))
+
+
 def start_pose(design: MasterDesign) -> np.ndarray:
     """Calibration / start pose of the master scenes: the middle of the θ3 and φ ranges (issue 5)."""
 
@@ -149,6 +156,7 @@ class MasterPlant:
         self.site = m.site("handle").id
         self.n_closure = 3  # the parallelogram connect's rows come first
         self._full_q0 = full_qpos(self.q0)
+        self.loop_engine, self.loop_reason = "python", "run() not called yet"
 
     def reset(self) -> None:
         mj, d = self._mujoco, self.data
@@ -160,9 +168,81 @@ class MasterPlant:
         return tuple(f"{self._mujoco.mjtWarning(i).name} x{w.number}" for i, w in enumerate(self.data.warning)
                      if w.number > 0)
 
+    def _kernels(self, controller: MasterController, compiled: bool) -> Any:
+        """The compiled kernels when they can run ``controller`` (else None); records the engine and why."""
+        cfg = controller.cfg
+        why = None
+        if not compiled:
+            why = "compiled=False (the Python reference loop)"
+        elif type(controller) is not MasterController:
+            why = f"controller {type(controller).__name__} has no compiled law (MasterController has)"
+        elif cfg.compensation_model is not None and not _one_hot(cfg.compensation_model.frame):
+            why = "the compensation model's bodies are not each on one link frame (the compiled law selects one)"
+        elif cfg.env not in (EnvKind.FREE, EnvKind.SPRING, EnvKind.BOX):
+            why = f"environment {cfg.env.value} has no compiled law"
+        elif not np.array_equal(np.asarray(cfg.q0, dtype=float), self.q0):
+            why = "the controller was homed at another pose than the plant's start"
+        else:
+            why = mc.availability()
+        self.loop_engine = "python" if why else "compiled"
+        self.loop_reason = why or "compiled loop (numba): firmware law and mj_step in one native loop"
+        return None if why else mc.kernels()
+
+    def _native_args(self, controller, quantize, delay_ticks, REF, DREF, P, TAU, FREF, EFR, has_ef, clock,
+                     HQ, HV, HA, EQF):
+        """Arguments of :func:`master_chunk`: (before start/end/nstep, after)."""
+        m, d, cfg = self.model, self.data, controller.cfg
+        lay, kc = mc.layout(), mc.kernels()
+        off = np.array([lay.time, lay.nefc, lay.efc_pos, lay.efc_force, lay.efc_type, lay.efc_id], dtype=np.int64)
+        ip = lambda x: np.ascontiguousarray(x, dtype=np.intp)  # noqa: E731
+        f3 = lambda x: np.array(np.broadcast_to(np.asarray(x, dtype=np.float64), (3,)))  # noqa: E731  (a writable copy: one kernel type)
+        if self.hand:
+            hq, hd = ip(self.hand_qpos), ip(self.hand_dof)
+            eq_hand, eq_type = m.equality("hand").id, int(self._mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+        else:
+            hq = hd = np.zeros(3, dtype=np.intp)
+            REF = DREF = np.zeros((1, 3))
+            eq_hand, eq_type = -1, -1
+        env = {EnvKind.FREE: kc.ENV_FREE, EnvKind.SPRING: kc.ENV_SPRING, EnvKind.BOX: kc.ENV_BOX}[cfg.env]
+        par = np.array([cfg.counts_per_rev / (2.0 * math.pi), controller._scale, cfg.period, cfg.velocity_alpha,
+                        cfg.upper_arm, cfg.forearm, cfg.shoulder_height, cfg.wall_stiffness, cfg.wall_damping,
+                        cfg.torque_limit, cfg.gravity_g1, cfg.gravity_g2])
+        comp = cfg.compensation_model is not None
+        flg = np.array([quantize, env, cfg.gravity_compensation, cfg.saturation, self.hand, self.n_closure,
+                        eq_hand, eq_type, delay_ticks, comp], dtype=np.int64)
+        st = np.zeros(18)
+        st[0:3] = controller._p_prev
+        st[3:6] = controller._v
+        st[9:12], st[12:15], st[15:18] = controller._q_prev, controller._qd, controller._qdd
+        ist = np.array([0, controller._samples], dtype=np.int64)
+        cm = cfg.compensation_model
+        if comp:  # the compensation model's bodies (hapticopt.analysis.master.dynamics.MassModel) as plain arrays
+            kin = np.array([float(cm.kin.upper_arm), float(cm.kin.forearm), float(cm.kin.driver_link),
+                            float(cm.kin.shoulder_height)])
+            body = (ip(np.argmax(np.asarray(cm.frame), axis=1)), np.array(controller._weights, dtype=np.float64),
+                    np.array(cm.mass, dtype=np.float64), np.array(cm.com, dtype=np.float64).reshape(-1, 3),
+                    np.array(cm.inertia, dtype=np.float64).reshape(-1, 3, 3), f3(cm.rotor_inertia))
+        else:
+            kin = np.zeros(4)
+            body = (np.zeros(1, dtype=np.intp), np.zeros(1), np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3, 3)),
+                    np.zeros(3))
+        dbuf = np.zeros((max(1, delay_ticks), 3))
+        pre = (m._address, d._address, off)
+        post = (d.qpos, d.qvel, d.qacc, d.ctrl, m.qpos_spring, d.qfrc_applied, d.site_xpos, int(self.site),
+                ip(self.act_qpos), hq, hd, REF, DREF, par, flg, f3(cfg.q0), f3(controller._K), f3(controller._B),
+                f3(controller._anchor), f3(controller._half), st, ist, dbuf,
+                P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF, f3(self.x0), np.array([RUNAWAY, self.period]), 100,
+                kin, *body, kc.comp_scratch())
+        return pre, post
+
     def run(self, controller: MasterController, *, ticks: int, frequency: float, quantize: bool,
-            delay_ticks: int = 0) -> dict[str, np.ndarray]:
-        """Closed loop for ``ticks`` periods with the hand reference at ``frequency`` [Hz]; raw records."""
+            delay_ticks: int = 0, compiled: bool = True) -> dict[str, np.ndarray]:
+        """Closed loop for ``ticks`` periods with the hand reference at ``frequency`` [Hz]; raw records.
+
+        ``compiled`` (default): the ticks run in the compiled loop of :mod:`hapticopt.analysis.loop.mujoco_compiled`
+        when it can run this controller — bit-identical records without dynamics compensation; with it (Ĉ q̂̇ in
+        closed form there, by central differences of M̂ here) within the reference's own rounding envelope
+        (docs/performance.md §2); else, or with ``compiled=False``, in Python. :attr:`loop_engine` / :attr:`loop_reason` say which ran and why."""
         mj, m, d = self._mujoco, self.model, self.data
         self.reset()
         scale = controller.cfg.counts_per_rev / (2.0 * math.pi)
@@ -209,7 +289,30 @@ class MasterPlant:
         hand_ne = -1  # d.ne they were found at
         step = mj.mj_step
         substeps = self.substeps
-        for k in range(N):
+        kern = self._kernels(controller, compiled)
+        if kern is not None:
+            nat = self._native_args(controller, quantize, delay_ticks, REF if self.hand else None,
+                                    DREF if self.hand else None, P, TAU, FREF, EFR, has_ef, clock,
+                                    *((HQ, HV, HA, EQF) if self.hand else (np.zeros((1, 3)),) * 4))
+            lo = 0
+            while lo < N:  # windows on until one holds a possibly bad tick (checked exactly here) or N
+                hi = kern.master_chunk(*nat[0], lo, N, substeps, *nat[1])
+                if hi < 0:  # no tick was possibly bad: none is (the prefilter is conservative)
+                    break
+                lo = ((hi - 1) // 100) * 100  # the Python loop's check window [lo, lo + 100) holding it
+                bad = (~np.all(np.isfinite(P[lo:hi]), axis=-1)
+                       | np.any(np.abs(P[lo:hi] - self.x0) > RUNAWAY, axis=-1)
+                       | (clock[lo:hi] < (np.arange(lo, hi) + 0.5) * T))
+                if bad.any():
+                    stop = lo + int(np.argmax(bad))
+                    break
+                lo = hi
+            st, ist = nat[1][20], nat[1][21]
+            controller._p_prev, controller._v, controller.last_force = st[0:3].copy(), st[3:6].copy(), st[6:9].copy()
+            if controller.cfg.compensation_model is not None:
+                controller._q_prev, controller._qd, controller._qdd = st[9:12].copy(), st[12:15].copy(), st[15:18].copy()
+                controller._samples = int(ist[1])
+        for k in range(N) if kern is None else ():
             cmd = controller.step(counts())
             if delay:
                 delay.append(cmd)
@@ -327,6 +430,8 @@ class MasterResult:
     status: Status
     message: str
     traces: Traces | None = field(default=None, repr=False, compare=False)
+    loop_engine: str = "python"  # "compiled" (numba) or "python"
+    loop_reason: str = ""  # why that engine ran
 
     @property
     def health(self) -> Health:
@@ -345,6 +450,7 @@ class MasterResult:
             "mujoco_warnings": list(self.warnings), "controller_period_ms": self.period * 1e3,
             "plant_substeps": self.substeps, "mujoco_timestep_ms": self.timestep * 1e3,
             "mujoco_integrator": self.integrator, "wall_time_s": self.wall_time,
+            "closed_loop_engine": self.loop_engine if self.loop_engine == "compiled" else f"python: {self.loop_reason}",
         })
         return out
 
@@ -368,8 +474,9 @@ def _fit(A: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD, reason: str | None = None,
-             solver: SolverSettings | None = None) -> MasterResult:
-    """Run a master scene with the master firmware in the loop on the MuJoCo plant."""
+             solver: SolverSettings | None = None, compiled: bool = True) -> MasterResult:
+    """Run a master scene with the master firmware in the loop on the MuJoCo plant (``compiled``: the compiled loop
+    where it can run the controller, see :meth:`MasterPlant.run`)."""
 
     if getattr(design, "device", None) != "master":
         raise InvalidInput(f"scene {scene.name} is a master scene; design {getattr(design, 'name', '?')!r} is a "
@@ -404,7 +511,7 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
         gains = []
         for f in freqs:
             n = int(round(scene.sweep_periods / f / T))
-            r = plant.run(ctl, ticks=n, frequency=float(f), quantize=Effect.QUANTIZATION in fx, delay_ticks=delay)
+            r = plant.run(ctl, ticks=n, frequency=float(f), quantize=Effect.QUANTIZATION in fx, delay_ticks=delay, compiled=compiled)
             runs.append(r)
             if r["stop"][0] >= 0:
                 gains.append(math.nan)
@@ -426,7 +533,7 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
         })
     else:
         r = plant.run(ctl, ticks=max(1, int(round(scene.duration / T))), frequency=scene.motion.frequency,
-                      quantize=Effect.QUANTIZATION in fx, delay_ticks=delay)
+                      quantize=Effect.QUANTIZATION in fx, delay_ticks=delay, compiled=compiled)
         runs.append(r)
         n = r["position"].shape[0]
         stop = int(r["stop"][0])
@@ -507,4 +614,5 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
         scene=scene.name, stable=stable, unstable_at=unstable_at, measures=measures, violation=violation,
         warnings=warns, effects=tuple(res.effect_names()), notes=res.notes, reason=reason or res.reason,
         substeps=plant.substeps, timestep=float(plant.model.opt.timestep), integrator=plant.solver.integrator.value,
-        period=T, wall_time=wall, status=status, message="; ".join(problems), traces=traces)
+        period=T, wall_time=wall, status=status, message="; ".join(problems), traces=traces,
+        loop_engine=plant.loop_engine, loop_reason=plant.loop_reason)

@@ -29,7 +29,9 @@ from hapticopt.design.errors import HapticoptError
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.prrr.params import PrrrDesign
 
-@functools.lru_cache(maxsize=256)
+#: cached for a whole chunk of the batched draft evaluator (1024 designs, each asked ~6 times:
+#: registry, statics, stability, structure and the part evaluators); 256 thrashed at batch 1024
+@functools.lru_cache(maxsize=4096)
 def parts(design: PrrrDesign) -> str:
     """'' when the CAD lays the design's parts out, else why not (its one-line reason)."""
     try:

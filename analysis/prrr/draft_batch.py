@@ -1,35 +1,43 @@
 """Batched draft evaluation of the 3-PRRR's registry evaluators (issue 22, item 3).
 
 Many designs at draft fidelity in one pass, with the same results and statuses as the
-evaluators one by one (tested to 1e-9 relative, ``tests/analysis/prrr/test_draft_batch.py``).
+evaluators one by one (tested to 1e-9 relative, ``tests/analysis/prrr/test_draft_batch.py``, on
+hand-picked hard cases and on a seeded sample within the bundled problem's bounds).
 The verdicts are the evaluators' own functions (``statics.from_arrays``,
 ``structure.from_arrays``, ``workspace._result``, ``free_workspace.finish``,
-``joint_limits.from_angles``, ``device_size.from_specs``): this module only computes the
-arrays they read, for a whole batch at a time.
+``joint_limits.from_angles``, ``device_size.from_specs``, ``stability.evaluate``): this module
+only computes the arrays they read, for a whole batch at a time.
 
-* **jax, one jitted vmap** (:func:`core_fn`): statics (``statics_arrays``), the reach-and-stroke
-  workspace (``workspace_core`` at the draft sampling; its reach radius, emptiness and footprint
-  also bound the collision-free cylinder: they do not depend on the radial sampling), the frame
-  model (``frame_arrays``, default options, home pose) and the joint angles over the required
-  cylinder (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy; the batch is
-  padded to the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a
-  new batch size within a bucket costs no trace or compile (:data:`TRACES` counts traces);
-  compiled code persists on disk (``hapticopt.design.jax_config``).
+* **jax, one jitted vmap** (:func:`core_fn`) of the groups the wanted evaluators read
+  (:func:`groups_for`): statics (``statics_arrays``), the reach-and-stroke workspace
+  (``workspace_core`` at the draft sampling; its reach radius, emptiness and footprint also bound
+  the collision-free cylinder: they do not depend on the radial sampling), the frame model
+  (``frame_arrays``, default options, home pose) and the joint angles over the required cylinder
+  (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy; the batch is padded to
+  the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a new batch
+  size within a bucket costs no trace or compile (:data:`TRACES` counts traces); compiled code
+  persists on disk (``hapticopt.design.jax_config``). The stability evaluator takes its stiffness
+  limits from the statics row (where that row's verdict is ok).
 * **numpy over all designs at once**: the interference poses (``workspace_sample_weights`` per
   design, then one separating-axis pass, ``interference_fast.check_posed``, over every pose of
   every design) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
   column grid of every design in one pass, then each bisection in one pass). The column structure
   (moving parts translate together in z, fixed parts are prisms) is what makes one pose per
-  column enough there. Pose IK is a jitted vmap over poses (padded to powers of two). The
-  broad phase prunes primitive pairs per pose, which a fixed-shape jax program cannot do; on a
-  CPU the pruned numpy pass is the faster of the two.
+  column enough there. Pose IK is a jitted vmap over poses in padded calls of :data:`MIN_POSES`
+  or :data:`POSE_CHUNK` poses (two shapes for every batch size). ``check_posed`` prunes primitive
+  pairs per pose (part boxes, primitive boxes, seven separating axes), which a fixed-shape jax
+  program cannot do; on a CPU the pruned numpy pass is the faster of the two (measured:
+  docs/workspace_interference.md).
 * **per design (Python)**: the CAD part tables (``cad.part_specs``: the layout's buildability
-  rules raise per design), the envelope, the analytic mass model and height
-  (``device_size.from_specs``), the interference sample weights, and the ``stability``
-  evaluator (not part of this batch: closed forms and a discrete loop analysis per design).
+  rules raise per design), the envelope (``workspace_params``), the analytic mass model and height
+  (``device_size.from_specs``), the interference sample weights, the force-loop bandwidth of
+  ``stability`` and the verdicts.
 
-A step that raises for one design is returned as that exception (the registry turns it into
-``failed`` with its one failure policy); the other designs and steps still run.
+A design whose chain does not close takes the single path (``registry.evaluate_batch``); one whose
+parts the CAD cannot lay out is batched for the kinematic evaluators, and the part evaluators
+give their own early ``not-assemblable``. A step that raises for one design is returned as that
+exception (the registry turns it into ``failed`` with its one failure policy); the other designs
+and steps still run.
 """
 
 from __future__ import annotations
@@ -45,6 +53,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
+from hapticopt.analysis.prrr import assembly
 from hapticopt.analysis.prrr import device_size as DS
 from hapticopt.analysis.prrr import frame_model as fm
 from hapticopt.analysis.prrr import free_workspace as FW
@@ -63,8 +73,10 @@ BATCHED = ("statics", "structural_stiffness", "workspace", "interference", "free
            "joint_limits")
 #: largest padded batch of one jitted call (larger batches run in chunks of this size)
 MAX_CHUNK = 1024
-#: smallest padded pose batch of the pose IK
+#: the two padded pose batches of the pose IK: up to MIN_POSES poses in one call of that size, more
+#: in calls of POSE_CHUNK (the last one padded), so no batch size ever compiles a third shape
 MIN_POSES = 256
+POSE_CHUNK = 4096
 #: traces of the jitted functions by name (a trace precedes every compile; tests count them)
 TRACES: collections.Counter = collections.Counter()
 
@@ -89,22 +101,38 @@ class CoreInputs(NamedTuple):
     fp: fm.FrameParams
 
 
-def _core(inp: CoreInputs) -> dict:
+#: the core's groups of arrays and the evaluators that read them (the core computes only the groups
+#: the batch's evaluators need: a sweep ``--only free_workspace`` does not pay for the frame model)
+CORE_GROUPS = {"statics": ("statics", "stability"), "workspace": ("workspace", "free_workspace"),
+               "frame": ("structural_stiffness",), "joint": ("joint_limits",)}
+
+
+def groups_for(want: list[str] | tuple[str, ...]) -> tuple[str, ...]:
+    """The core groups the evaluators ``want`` read (in :data:`CORE_GROUPS` order)."""
+    return tuple(g for g, names in CORE_GROUPS.items() if any(name in want for name in names))
+
+
+def _core(inp: CoreInputs, groups: tuple[str, ...]) -> dict:
     TRACES["core"] += 1  # runs once per trace, not per call
-    st = statics.statics_arrays(inp.kin, inp.spring, inp.force_limit, inp.mass, xp=jnp)
-    ws = WS.workspace_core(inp.wp, n_phi=_SMP.n_phi, n_r=_SMP.n_r, xp=jnp)
-    fr = fm.frame_arrays(inp.fp, jnp.zeros(3), jnp.asarray(fm.LOAD_HEIGHT), fm.FrameOptions())
-    fr = {k: v for k, v in fr.items() if k not in fm._PLOT_ONLY}
-    pts = JL.cylinder_grid_of(inp.kin.stroke, inp.kin.beta, _REQUIRED_RADIUS, xp=jnp)
-    ik = inverse_kinematics(inp.kin, pts)
-    return {"statics": st, "workspace": ws, "frame": fr,
-            "joint_theta": ik.theta[:, WS.ELBOW_BRANCH], "joint_ok": ik.reachable}
+    out = {}
+    if "statics" in groups:
+        out["statics"] = statics.statics_arrays(inp.kin, inp.spring, inp.force_limit, inp.mass, xp=jnp)
+    if "workspace" in groups:
+        out["workspace"] = WS.workspace_core(inp.wp, n_phi=_SMP.n_phi, n_r=_SMP.n_r, xp=jnp)
+    if "frame" in groups:
+        fr = fm.frame_arrays(inp.fp, jnp.zeros(3), jnp.asarray(fm.LOAD_HEIGHT), fm.FrameOptions())
+        out["frame"] = {k: v for k, v in fr.items() if k not in fm._PLOT_ONLY}
+    if "joint" in groups:
+        pts = JL.cylinder_grid_of(inp.kin.stroke, inp.kin.beta, _REQUIRED_RADIUS, xp=jnp)
+        ik = inverse_kinematics(inp.kin, pts)
+        out["joint_theta"], out["joint_ok"] = ik.theta[:, WS.ELBOW_BRANCH], ik.reachable
+    return out
 
 
 @functools.cache
-def core_fn():
-    """The jitted, vmapped draft core (one compile per padded batch size)."""
-    return jax.jit(jax.vmap(_core))
+def core_fn(groups: tuple[str, ...] = tuple(CORE_GROUPS)):
+    """The jitted, vmapped draft core of ``groups`` (one compile per padded batch size and groups)."""
+    return jax.jit(jax.vmap(functools.partial(_core, groups=groups)))
 
 
 def _pose_ik(kin: PrrrParams, p: jax.Array):
@@ -122,24 +150,32 @@ def pose_ik_fn():
 _KIN_FIELDS = ("beta", "d1", "d2", "d3", "d4", "r4", "b5", "stroke")
 
 
-def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams]) -> CoreInputs:
-    """Numpy stacking of the core's inputs (no jax operation per design)."""
+def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams] | None,
+                 groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> CoreInputs:
+    """Numpy stacking of the core's inputs (no jax operation per design); the workspace and frame
+    inputs only where ``groups`` read them (None otherwise: an empty pytree node)."""
     geo = [d.geometry for d in designs]
     kin = PrrrParams(*(np.array([float(getattr(g, f)) for g in geo]) for f in _KIN_FIELDS))
-    fps = [fm.frame_params_of(d, xp=np) for d in designs]
-    fp = jax.tree.map(lambda *xs: np.stack([np.asarray(x, dtype=float) for x in xs]), *fps)
+    fp = None
+    if "frame" in groups:
+        fps = [fm.frame_params_of(d, xp=np) for d in designs]
+        fp = jax.tree.map(lambda *xs: np.stack([np.asarray(x, dtype=float) for x in xs]), *fps)
+    wp = None
+    if "workspace" in groups:
+        wp = WS.WorkspaceParams(*(np.array([float(w[k]) for w in wps]) for k in range(len(wps[0]))))
     return CoreInputs(kin=kin, spring=np.array([d.actuator.spring for d in designs]),
                       force_limit=np.array([d.actuator.force_limit for d in designs]),
-                      mass=np.array([d.end_effector.mass for d in designs]),
-                      wp=WS.WorkspaceParams(*(np.array([float(w[k]) for w in wps]) for k in range(len(wps[0])))),
-                      fp=fp)
+                      mass=np.array([d.end_effector.mass for d in designs]), wp=wp, fp=fp)
 
 
-def run_core(inp: CoreInputs, n: int) -> dict:
-    """The core on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK); numpy rows [:n]."""
+def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> dict:
+    """The core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK);
+    numpy rows [:n]."""
+    if not groups:
+        return {}
     size = bucket(n)
     pad = jax.tree.map(lambda x: np.concatenate([x, np.repeat(x[-1:], size - n, axis=0)]) if size > n else x, inp)
-    out = core_fn()(pad)
+    out = core_fn(groups)(pad)
     return jax.tree.map(lambda x: np.asarray(x)[:n], out)
 
 
@@ -159,17 +195,27 @@ class _Checker:
             local[members] = np.arange(len(members))
             self.groups.append((local, FAST.stack_models([models[i] for i in members])))
 
+    def pose_ik(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sliders (n, 3), elbow-branch joint angles (n, 3, 3) and reachability (n,) of poses ``pts``
+        of designs ``owner``: padded calls of MIN_POSES or POSE_CHUNK poses."""
+        n = len(pts)
+        size = MIN_POSES if n <= MIN_POSES else POSE_CHUNK
+        parts = []
+        for s in range(0, n, size):
+            m = min(size, n - s)
+            own = np.concatenate([owner[s:s + m], np.full(size - m, owner[s])])
+            p = np.concatenate([pts[s:s + m], np.zeros((size - m, 3))])
+            kin = PrrrParams(*(self.geo[f][own] for f in _KIN_FIELDS))
+            parts.append([np.asarray(x)[:m] for x in pose_ik_fn()(kin, p)])
+        return tuple(np.concatenate(col) for col in zip(*parts))
+
     def __call__(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``."""
         n = len(pts)
         collides, reachable, depth = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)
         if n == 0:
             return collides, reachable, depth
-        size = bucket(n, least=MIN_POSES)
-        own = np.concatenate([owner, np.full(size - n, owner[0])])
-        p = np.concatenate([pts, np.zeros((size - n, 3))])
-        kin = PrrrParams(*(self.geo[f][own] for f in _KIN_FIELDS))
-        sliders, theta, ok = (np.asarray(x)[:n] for x in pose_ik_fn()(kin, p))
+        sliders, theta, ok = self.pose_ik(owner, pts)
         g = self.geo
         frames = cad.part_frames_arrays(g["beta"][owner], g["d1"][owner], g["d2"][owner], g["d3"][owner],
                                         g["theta_1p"][owner], sliders, theta, pts)
@@ -183,6 +229,53 @@ class _Checker:
             reachable[sel] = res.reachable
             depth[sel] = res.depth.max(axis=1) if res.depth.shape[1] else 0.0
         return collides, reachable, depth
+
+
+_CORNERS = np.array([[i, j, k] for i in (-1.0, 1.0) for j in (-1.0, 1.0) for k in (-1.0, 1.0)])
+
+
+def envelopes(designs: list[PrrrDesign], models: dict[int, FAST.FastModel], specs: list[Any]) -> dict[int, float]:
+    """:func:`hapticopt.design.prrr.cad.envelope_radius` [m] of the designs with primitive tables
+    (index → radius), from those tables for every design of one part layout at once: the SOLID
+    primitives of the base's and the carriages' parts at the home pose (``cad.part_frames_arrays``),
+    box corners, cylinder end centres + radius, sphere centre + radius, largest distance from z
+    (tested equal to the per-design function)."""
+    out: dict[int, float] = {}
+    layouts: dict[tuple, list[int]] = {}
+    for i, m in models.items():
+        layouts.setdefault(FAST.layout_key(m), []).append(i)
+    for members in layouts.values():
+        m0 = models[members[0]]
+        body = [specs[members[0]][name].body for name in m0.part_names]
+        fixed_part = np.array([b == "base" or b.startswith("carriage_") for b in body])
+        sel = np.flatnonzero(fixed_part[m0.prim_part])
+        if len(sel) == 0:
+            out.update({i: 0.0 for i in members})
+            continue
+        k = len(members)
+        g = {f: np.array([float(getattr(designs[i].geometry, f)) for i in members])
+             for f in ("beta", "d1", "d2", "d3", "theta_1p")}
+        frames = cad.part_frames_arrays(g["beta"], g["d1"], g["d2"], g["d3"], g["theta_1p"], np.zeros((k, 3)),
+                                        np.zeros((k, 3, 2)), np.zeros((k, 3)))
+        part = m0.prim_part[sel]
+        Rf = np.stack([np.asarray(frames[m0.part_names[j]][0], dtype=float) for j in part], axis=1)  # (k, S, 3, 3)
+        of = np.stack([np.asarray(frames[m0.part_names[j]][1], dtype=float) for j in part], axis=1)  # (k, S, 3)
+        R = Rf @ np.stack([models[i].R[sel] for i in members])
+        o = (Rf @ np.stack([models[i].o[sel] for i in members])[..., None])[..., 0] + of
+        half = np.stack([models[i].half[sel] for i in members])  # box: a/2, b/2, c/2; cylinder: a, a, b/2
+        kind = m0.kind[sel]
+        corners = o[:, :, None] + (_CORNERS[None, None] * half[:, :, None]) @ np.swapaxes(R, -1, -2)
+        box = np.max(np.hypot(corners[..., 0], corners[..., 1]), axis=-1)
+        ends = o[:, :, None] + np.array([-1.0, 1.0])[None, None, :, None] * half[:, :, None, 2:] * R[:, :, None, :, 2]
+        cyl = np.max(np.hypot(ends[..., 0], ends[..., 1]), axis=-1) + half[..., 0]
+        sph = np.hypot(o[..., 0], o[..., 1]) + half[..., 0]
+        r = np.where(kind == FAST._BOX, box, np.where(kind == FAST._CYL, cyl, sph))
+        out.update({i: max(0.0, float(x)) for i, x in zip(members, r.max(axis=1))})
+    return out
+
+
+class _Blocked(Exception):
+    """Stands for the part tables of a design whose parts cannot be laid out (``assembly.parts``)."""
 
 
 def _guard(fn, *args, **kw) -> Any:
@@ -211,11 +304,31 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
     draft = Fidelity.DRAFT
 
     t0 = time.perf_counter()
+    # a design whose parts cannot be laid out (its chain closes: the registry sends the others to the
+    # single path) is batched for the kinematic evaluators; the evaluators of its parts return their
+    # own early ``not-assemblable`` (their single path, no part tables built)
+    groups = groups_for(want)
+    with_parts = any(name in want for name in ("workspace", "free_workspace", "interference", "device_size"))
+    no_parts = {i for i, d in enumerate(designs) if assembly.parts(d)} if with_parts else set()
     specs: list[Any] = []
-    for d in designs:
-        specs.append(_guard(cad.part_specs, d))
-    wps = [WS.workspace_params(d, specs=None if isinstance(s, Exception) else s) for d, s in zip(designs, specs)]
-    arrays = run_core(stack_inputs(designs, wps), n)
+    for i, d in enumerate(designs):
+        specs.append(_Blocked() if i in no_parts else _guard(cad.part_specs, d) if with_parts else None)
+    # primitive tables (interference, free workspace) and the envelope of every design at once from them
+    models: dict[int, FAST.FastModel] = {}
+    model_errors: dict[int, Exception] = {}
+    wps = None
+    if "workspace" in groups or "interference" in want:
+        for i, d in enumerate(designs):
+            if specs[i] is not None and not isinstance(specs[i], Exception):
+                m = _guard(FAST.prepare, d, specs=specs[i])
+                if isinstance(m, Exception):
+                    model_errors[i] = m
+                else:
+                    models[i] = m
+        env = envelopes(designs, models, specs)
+        wps = [WS.workspace_params(d, specs=None if isinstance(s, Exception) else s, envelope=env.get(i))
+               for i, (d, s) in enumerate(zip(designs, specs))]
+    arrays = run_core(stack_inputs(designs, wps, groups), n, groups)
     t_core = time.perf_counter() - t0
 
     def row(group: str, i: int) -> dict:
@@ -233,25 +346,26 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
             res[i]["joint_limits"] = _guard(JL.from_angles, d, arrays["joint_theta"][i], arrays["joint_ok"][i],
                                             fidelity=draft, t0=t1)
         if "device_size" in want:
-            res[i]["device_size"] = (DS.failed(specs[i], t1) if isinstance(specs[i], HapticoptError)
+            res[i]["device_size"] = (_guard(DS.evaluate, d, fidelity=draft) if i in no_parts
+                                     else DS.failed(specs[i], t1) if isinstance(specs[i], HapticoptError)
                                      else _guard(DS.from_specs, d, specs[i], t1))
     t_rows = time.perf_counter() - t1
     for name in ("statics", "structural_stiffness", "workspace", "joint_limits", "device_size"):
         tim[name] = (t_core + t_rows) / (5 * n)
 
-    models: dict[int, FAST.FastModel] = {}
     if "interference" in want or "free_workspace" in want:
-        for i, d in enumerate(designs):
-            if not isinstance(specs[i], Exception):
-                m = _guard(FAST.prepare, d, specs=specs[i])
-                if isinstance(m, Exception):
-                    specs[i] = m
-                else:
-                    models[i] = m
+        for i, err in model_errors.items():
+            specs[i] = err
         check = _Checker(designs, models)
+    for i in no_parts:
+        if "interference" in want:
+            res[i]["interference"] = _guard(IF.evaluate, designs[i], fidelity=draft)
+        if "free_workspace" in want:  # its verdict reads the batch's core: not-assemblable before the check
+            res[i]["free_workspace"] = _guard(FW.finish, designs[i], {k: v[i] for k, v in arrays["workspace"].items()},
+                                              None, fidelity=draft, t0=t1)
     if "interference" in want:
         t2 = time.perf_counter()
-        _interference(designs, specs, models, check, res, t2)
+        _interference(designs, specs, wps, check, res, t2)
         tim["interference"] = (time.perf_counter() - t2) / n
     if "free_workspace" in want:
         t3 = time.perf_counter()
@@ -263,9 +377,23 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
     if "stability" in want:
         t4 = time.perf_counter()
         for i, d in enumerate(designs):
-            res[i]["stability"] = _guard(stability.evaluate, d, fidelity=draft)
+            res[i]["stability"] = _guard(stability.evaluate, d, fidelity=draft, limits=_limits(d, arrays, i, res[i]))
         tim["stability"] = (time.perf_counter() - t4) / n
     return [(r, {k: tim[k] for k in r}) for r in res]
+
+
+def _limits(design: PrrrDesign, arrays: dict, i: int, found: dict) -> np.ndarray | None:
+    """The stiffness limits of the batch's statics row for ``stability``, where the statics verdict
+    on that row is ok; None (the single path's numpy statics) otherwise: near a singular J the
+    numbers are rounding garbage that differs between numpy and XLA."""
+    if "statics" not in arrays:
+        return None
+    st = found.get("statics")
+    if st is None:
+        st = _guard(statics.from_arrays, design, {k: v[i] for k, v in arrays["statics"].items()})
+    if isinstance(st, Exception) or st.status is not Status.OK:
+        return None
+    return arrays["statics"]["stiffness_limit"][i]
 
 
 def _structure(design: PrrrDesign, out: dict) -> Any:
@@ -283,13 +411,14 @@ def _structure(design: PrrrDesign, out: dict) -> Any:
         return structure.failed(str(exc))
 
 
-def _interference(designs, specs, models, check, res, t0) -> None:
+def _interference(designs, specs, wps, check, res, t0) -> None:
     owners, pts_all, weights = [], [], {}
     for i, d in enumerate(designs):
+        if isinstance(specs[i], _Blocked):
+            continue
         # the order of interference_fast.interference_fractions: an empty sample is (0, 0) before
         # the part tables are needed
-        sample = _guard(WS.workspace_sample_weights, d, **WS.INTERFERENCE_SAMPLING,
-                        specs=None if isinstance(specs[i], Exception) else specs[i])
+        sample = _guard(WS.workspace_sample_weights, d, **WS.INTERFERENCE_SAMPLING, wp=wps[i])
         if isinstance(sample, Exception):
             res[i]["interference"] = sample
             continue
@@ -304,14 +433,18 @@ def _interference(designs, specs, models, check, res, t0) -> None:
             owners.append(np.full(len(pts), i))
             pts_all.append(pts)
         weights[i] = w
+    span: dict[int, slice] = {}  # each checked design's poses: one contiguous run, in design order
     if owners:
         owner = np.concatenate(owners)
         collides, _, depth = check(owner, np.concatenate(pts_all))
         share = np.clip(depth / FAST.OVERLAP_SCALE, 0.0, 1.0)
+        start = 0
+        for o in owners:
+            span[int(o[0])] = slice(start, start + len(o))
+            start += len(o)
     for i, w in weights.items():
-        if owners and w.sum() > 0 and np.any(owner == i):
-            sel = owner == i
-            removed, overlap = FAST.fractions_of(w, collides[sel], share[sel])
+        if i in span:
+            removed, overlap = FAST.fractions_of(w, collides[span[i]], share[span[i]])
         else:
             removed, overlap = 0.0, 0.0
         res[i]["interference"] = IF.from_fractions(removed, overlap, t0)
@@ -320,6 +453,8 @@ def _interference(designs, specs, models, check, res, t0) -> None:
 def _free_workspace(designs, specs, arrays, check, res, t0) -> None:
     todo, r_max = [], []
     for i, d in enumerate(designs):
+        if isinstance(specs[i], _Blocked):
+            continue
         core = {k: v[i] for k, v in arrays["workspace"].items()}
         rm = FW.reach_limit(d, core)
         if bool(core["empty"]) or rm <= 0.0:

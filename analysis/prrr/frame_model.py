@@ -16,7 +16,7 @@ Structure of one leg i (points in the seed-digest leg construction; S is the rai
     S = D_i e_z + r_p (cos θ_1p u_i + sin θ_1p t_i)  (slider carriage on the rail; clamped, or sliding in z on the SEA spring)
     S → A      carriage arm (d1/d2 offset)              beam, or rigid (``Offsets.RIGID``); with pins (default)
                the carriage as the CAD builds it (``design.prrr.cad.carriage_bracket``): block rigid
-               on its rail slot, the bracket's root bonded on a block face (C), root beam C → J,
+               on its rail slot, the bracket's root plate let into a block face (C), root beam C → J,
                the clevis arm bonded on the root's end face (E) and running E → Ac in the clevis
                layer; both bonds two half-spaces (:func:`bond_stiffness`), see :func:`bracket_frame`
     A   R1     hinge about w_i
@@ -148,8 +148,8 @@ class FrameParams(NamedTuple):
     lug_offset: jax.Array  # platform lug layer above the kinematic R3 point along w, s_lug − r4 [m]
     stem_radius: jax.Array  # platform stem radius; the platform arms are stem_diameter wide [m]
     bracket_points: jax.Array  # (3, 3) C, J, E of the R1 bracket, carriage frame (x = u', y = t', z) [m] (bracket_frame)
-    root_zref: jax.Array  # (3,) thickness direction n_p of the bracket's root beam, carriage frame
-    root_section: jax.Array  # (2,) root beam width (along the arm e_l) and thickness (along n_p) [m]
+    root_zref: jax.Array  # (3,) thickness direction (±w) of the bracket's root beam, carriage frame
+    root_section: jax.Array  # (2,) root beam width (along the arm e_l) and thickness (along w) [m]
     bracket_bonds: jax.Array  # (2, 6, 6) root-on-block and arm-on-root bond stiffness, carriage frame, [u; θ] [SI]
 
 
@@ -175,33 +175,36 @@ def bracket_frame(design) -> dict[str, np.ndarray]:
 
     From :func:`hapticopt.design.prrr.cad.carriage_bracket` (the CAD's one formula; unchecked, so a
     design whose bracket the CAD refuses still gets a frame, as its links do): the block is
-    rigid (clamped on its rail slot); the root box stands on a block face, its whole end face
-    bonded there (centre C, a rectangle root_size[0] × root_size[2]); the root is a beam of its
-    own rectangular section from C along the face normal N to J, the point of its axis level with
-    the clevis arm (J → E rigid inside the root); the clevis arm (link section) is bonded over its
-    whole W × T end section at E on the root's end face and runs E → Ac in the clevis layer. Each
-    bond is :func:`bond_stiffness` of its patch (two half-spaces, as the pin necks).
+    rigid (clamped on its rail slot); the root plate (clevis layer) is let into a block face and
+    bonded over its section in the face plane (centre C, a rectangle contact_size[0] along e_l ×
+    contact_size[1] along n_p); the root is a beam of its own section (width along e_l, thickness
+    T along w) from C along the plate (−e_f) to J, the point of that line level with the clevis arm
+    (J → E rigid inside the root); the clevis arm (link section) is bonded over its whole W × T end
+    section at E on the root's end face and runs E → Ac in the clevis layer. Each bond is
+    :func:`bond_stiffness` of its patch (two half-spaces, as the pin necks).
 
-    Returns ``bracket_points`` (3, 3) = C, J, E; ``root_zref`` (3,) = n_p; ``root_section`` (2,)
-    = (width along e_l, thickness along n_p); ``bracket_bonds`` (2, 6, 6) = root on block, arm on root.
+    Returns ``bracket_points`` (3, 3) = C, J, E; ``root_zref`` (3,) = the root's thickness direction
+    (±w); ``root_section`` (2,) = (width along e_l, thickness T); ``bracket_bonds`` (2, 6, 6) = root
+    on block, arm on root.
     """
     s_ = design.structure
     try:
         b = carriage_bracket(design)
     except InvalidDesign:
         b = carriage_bracket(design, checked=False)
-    e_l, N, n_p = b.root_axes.T
-    lr, hr, tr = b.root_size
-    J = b.contact_centre + (N @ b.clevis - N @ b.contact_centre) * N  # root axis, level with the arm
+    e_l, _, e_n = b.root_axes.T
+    lr, _, tr = b.root_size
+    N, n_p = b.normal, b.contact_axes[:, 1]
+    lc, wc_ = b.contact_size
     E_, nu = float(s_.youngs_modulus), float(s_.poisson_ratio)
-    k_root = bond_stiffness(lr * tr, (lr * tr**3 / 12.0, tr * lr**3 / 12.0), lr * tr * (lr**2 + tr**2) / 12.0,
+    k_root = bond_stiffness(lc * wc_, (lc * wc_**3 / 12.0, wc_ * lc**3 / 12.0), lc * wc_ * (lc**2 + wc_**2) / 12.0,
                             (N, e_l, n_p), E_, nu)  # I about e_l: distances along n_p
     W, T = float(s_.link_width), float(s_.link_thickness)
     w = b.axis
     e_m = np.cross(w, e_l)
     k_arm = bond_stiffness(W * T, (W * T**3 / 12.0, T * W**3 / 12.0), W * T * (W**2 + T**2) / 12.0,
                            (e_l, e_m, w), E_, nu)  # I about e_m: distances along w
-    return {"bracket_points": np.stack([b.contact_centre, J, b.arm_end]), "root_zref": n_p,
+    return {"bracket_points": np.stack([b.contact_centre, b.root_joint, b.arm_end]), "root_zref": e_n,
             "root_section": np.array([lr, tr]), "bracket_bonds": np.stack([k_root, k_arm])}
 
 

@@ -23,9 +23,13 @@ the same part tables (:func:`hapticopt.design.prrr.cad.part_specs`), without mes
   :data:`analysis.interference.NOISE_MM3` (1 mm³); here a pair collides when that depth
   exceeds :data:`DEPTH_TOL` (0.1 mm). Shallow corner contacts (depth 0.1–0.8 mm, < 1 mm³) are
   therefore collisions here and noise there: the fast model is the stricter of the two.
-* **Speed.** World-axis-aligned bounds of every primitive (exact support extents) over all
-  (pose, primitive pair) first; the 16 cheap axes on the survivors, the 40 sampled axes only
-  on curved pairs still overlapping, each one numpy pass. Poses come from the numpy
+* **Speed.** World-axis-aligned boxes of every part over every tested part pair first; the
+  world-axis-aligned bounds of the primitives (exact support extents, computed once per pose and
+  primitive) on the primitive pairs of the surviving part pairs; then the seven cheapest of the
+  candidate axes (both frames, centre to centre), which separate ~99 % of what is left and change
+  no result (a separated pair's depth is negative, the depth table's floor is 0); the 16 cheap
+  axes on the rest, the 40 sampled axes only on curved pairs still overlapping; each stage one
+  numpy pass over a chunk of poses. Poses come from the numpy
   inverse kinematics (:func:`hapticopt.design.prrr.kinematics.inverse_kinematics`, ``xp=numpy``), in the
   CAD's elbow branch.
 
@@ -226,6 +230,17 @@ def _support(kind, R, half, n):
     return np.where(k == _BOX, box, np.where(k == _CYL, cyl, half[:, 0, None]))
 
 
+def _world_extent(kind, R, half):
+    """Half extents (m, 3) of primitives along the world axes: :func:`_support` on the unit axes,
+    whose projections ``n @ R`` are the rows of ``R`` themselves (no product formed)."""
+    loc = np.abs(R)
+    box = loc[..., 0] * half[:, 0, None] + loc[..., 1] * half[:, 1, None] + loc[..., 2] * half[:, 2, None]
+    az = loc[..., 2]
+    cyl = half[:, 2, None] * az + half[:, 0, None] * np.sqrt(np.clip(1.0 - az * az, 0.0, None))
+    k = kind[:, None]
+    return np.where(k == _BOX, box, np.where(k == _CYL, cyl, half[:, 0, None]))
+
+
 def _unit(x):
     nrm = np.sqrt(np.sum(x * x, axis=-1, keepdims=True))
     return np.where(nrm > 1e-12, x / np.where(nrm > 1e-12, nrm, 1.0), 0.0)
@@ -275,6 +290,21 @@ def _closest(kind, R, half, c, x):
     return c[:, None] + near @ np.swapaxes(R, 1, 2)
 
 
+#: a pair counts as separated by :func:`_separated` when an axis shows a gap wider than this [m]
+#: (far above the rounding of the projections, ~1e-17 m, so _depth's own evaluation of that axis,
+#: in another array layout, is negative too)
+SEPARATION_MARGIN = 1e-12
+
+
+def _separated(kind_a, Ra, ha, ca, kind_b, Rb, hb, cb):
+    """Pairs (m,) that one of :func:`_depth`'s candidate axes separates by more than
+    :data:`SEPARATION_MARGIN`: both frames' axes and the centre-to-centre direction (7 of its 16
+    cheap axes). Their depth is then negative: a pre-filter that changes no clipped depth."""
+    d = cb - ca
+    axes = np.concatenate([np.swapaxes(Ra, 1, 2), np.swapaxes(Rb, 1, 2), _unit(d)[:, None]], axis=1)
+    return _overlap(kind_a, Ra, ha, kind_b, Rb, hb, d, axes) < -SEPARATION_MARGIN
+
+
 def _depth(kind_a, Ra, ha, ca, kind_b, Rb, hb, cb):
     """Smallest overlap [m] of the projections over the candidate axes (≤ 0: separated).
 
@@ -305,28 +335,49 @@ def check_points(model: FastModel, points, *, branch: int = cad_prrr.DEFAULT_BRA
     return check_posed(stack_models([model]), np.zeros(len(pts), dtype=int), pts, frames, reachable)
 
 
+#: poses per pass of :func:`check_posed` (bounds the per-(pose, primitive) world tables: ~4 MB
+#: of rotations per 1,000 poses of a 51-primitive layout)
+CHUNK_POSES = 4096
+
+
+@functools.lru_cache(maxsize=32)
+def _part_pair_csr(part_names: tuple[str, ...], part_pairs: tuple[tuple[str, str], ...], pair_part: bytes
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per part pair: its two part indices, the first primitive pair and the number of primitive
+    pairs (``pair_part`` is sorted: :func:`_pair_tables` appends each part pair's block in order)."""
+    pp = np.frombuffer(pair_part, dtype=np.int64)
+    count = np.bincount(pp, minlength=len(part_pairs))
+    start = np.cumsum(count) - count
+    pp_a = np.array([part_names.index(a) for a, _ in part_pairs], dtype=int)
+    pp_b = np.array([part_names.index(b) for _, b in part_pairs], dtype=int)
+    return pp_a, pp_b, start, count
+
+
 def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
                 frames: dict[str, tuple[np.ndarray, np.ndarray]], reachable: np.ndarray) -> FastResult:
     """Interference at n posed configurations of the designs of ``batch``: pose k belongs to design
     ``owner[k]``, its parts at ``frames`` (name → world rotation (n, 3, 3), origin (n, 3) [m], as
     :func:`hapticopt.design.prrr.cad.part_frames_arrays`), ``reachable`` (n,) bool. One numpy pass
-    over every pose of every design (the batched draft evaluator's path; :func:`check_points` is
-    the one-design case)."""
+    over every pose of every design, in chunks of :data:`CHUNK_POSES` poses (the batched draft
+    evaluator's path; :func:`check_points` is the one-design case).
+
+    Per chunk: world-axis-aligned boxes of every part (from its primitives' boxes in the part frame)
+    over every tested part pair; the world rotation, centre and exact world extents of every
+    primitive at every pose, computed once; the primitive pairs of the part pairs that survive,
+    tested on those extents (a part box contains its primitives' boxes, so this sees the same
+    candidates as testing every primitive pair); the separating axes (:func:`_depth`) on the rest."""
     pts = np.atleast_2d(np.asarray(points, dtype=float))
     n = len(pts)
     owner = np.asarray(owner, dtype=int)
-    Rp = np.stack([frames[name][0] for name in batch.part_names], axis=1)  # (n, parts, 3, 3)
-    tp = np.stack([frames[name][1] for name in batch.part_names], axis=1)  # (n, parts, 3)
-    ia, ib = batch.pair_a, batch.pair_b
+    reachable = np.asarray(reachable)
     depth = np.zeros((n, len(batch.part_pairs)))
-    # broad phase 1: world-axis-aligned boxes of every part (from its primitives' boxes in the part
-    # frame); a part box contains its primitives' boxes, so phase 2 sees the same candidates
     P = len(batch.kind)
-    loc_ext = _support(np.tile(batch.kind, len(batch.R)), batch.R.reshape(-1, 3, 3), batch.half.reshape(-1, 3),
-                       np.broadcast_to(np.eye(3), (len(batch.R) * P, 3, 3))).reshape(len(batch.R), P, 3)
+    m = len(batch.R)
+    loc_ext = _support(np.tile(batch.kind, m), batch.R.reshape(-1, 3, 3), batch.half.reshape(-1, 3),
+                       np.broadcast_to(np.eye(3), (m * P, 3, 3))).reshape(m, P, 3)
     n_parts = len(batch.part_names)
-    plo = np.full((len(batch.R), n_parts, 3), np.inf)
-    phi = np.full((len(batch.R), n_parts, 3), -np.inf)
+    plo = np.full((m, n_parts, 3), np.inf)
+    phi = np.full((m, n_parts, 3), -np.inf)
     for j in range(n_parts):
         sel = batch.prim_part == j
         if sel.any():
@@ -334,39 +385,95 @@ def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
             phi[:, j] = np.max(batch.o[:, sel] + loc_ext[:, sel], axis=1)
     empty = ~np.isfinite(plo)  # a part without SOLID primitives is in no tested pair (_pair_tables)
     plo[empty], phi[empty] = 0.0, 0.0
-    pc, ph = 0.5 * (plo + phi)[owner], 0.5 * (phi - plo)[owner]  # (n, parts, 3)
-    wc = (Rp @ pc[..., None])[..., 0] + tp
-    wh = (np.abs(Rp) @ ph[..., None])[..., 0]
-    pp_a = np.array([batch.part_names.index(a) for a, _ in batch.part_pairs], dtype=int)
-    pp_b = np.array([batch.part_names.index(b) for _, b in batch.part_pairs], dtype=int)
-    part_near = np.all(np.abs(wc[:, pp_a] - wc[:, pp_b]) <= wh[:, pp_a] + wh[:, pp_b], axis=-1)
-    part_near &= np.asarray(reachable)[:, None]
-    pose, k = np.nonzero(part_near[:, batch.pair_part])
-    if len(pose) == 0:
-        return FastResult(points=pts, reachable=np.asarray(reachable), collides=np.zeros(n, dtype=bool),
-                          depth=depth, part_pairs=batch.part_pairs)
-    # broad phase 2 on the survivors: world-axis-aligned boxes of the primitives (exact extents)
-    a, b = ia[k], ib[k]
-    own = owner[pose]
-
-    def posed(prim):
-        Rpp = Rp[pose, batch.prim_part[prim]]
-        Rw = Rpp @ batch.R[own, prim]
-        cw = (Rpp @ batch.o[own, prim][:, :, None])[..., 0] + tp[pose, batch.prim_part[prim]]
-        return Rw, cw, batch.half[own, prim]
-
-    Ra, ca, ha = posed(a)
-    Rb, cb, hb = posed(b)
-    eye = np.broadcast_to(np.eye(3), (len(a), 3, 3))
-    ea, eb = _support(batch.kind[a], Ra, ha, eye), _support(batch.kind[b], Rb, hb, eye)
-    near = np.all((ca - ea <= cb + eb) & (cb - eb <= ca + ea), axis=-1)
-    if near.any():
-        s = np.flatnonzero(near)
-        a, b, pose, k = a[s], b[s], pose[s], k[s]
-        dep = _depth(batch.kind[a], Ra[s], ha[s], ca[s], batch.kind[b], Rb[s], hb[s], cb[s])
-        np.maximum.at(depth, (pose, batch.pair_part[k]), np.maximum(dep, 0.0))
-    return FastResult(points=pts, reachable=np.asarray(reachable), collides=np.any(depth > DEPTH_TOL, axis=1),
+    pc_all, ph_all = 0.5 * (plo + phi), 0.5 * (phi - plo)  # (m, parts, 3)
+    pp_a, pp_b, start, count = _part_pair_csr(batch.part_names, batch.part_pairs,
+                                              np.asarray(batch.pair_part, dtype=np.int64).tobytes())
+    kind_all = np.tile(batch.kind, CHUNK_POSES)
+    for s in range(0, n, CHUNK_POSES):
+        e = min(n, s + CHUNK_POSES)
+        _check_chunk(batch, owner[s:e], frames, s, e, reachable[s:e], depth[s:e], pc_all, ph_all,
+                     pp_a, pp_b, start, count, kind_all[: (e - s) * P])
+    return FastResult(points=pts, reachable=reachable, collides=np.any(depth > DEPTH_TOL, axis=1),
                       depth=depth, part_pairs=batch.part_pairs)
+
+
+def _posed_primitives(batch, owner, Rp, hw, kind_flat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World rotations (c·P, 3, 3), world extents (c·P, 3) and rotated centres (c, P, 3) (the part
+    rotation times the primitive's centre in the part frame; add the part origin for the world
+    centre) of every primitive at every pose of the chunk.
+
+    A part whose rotation is the same at every pose of a design in the chunk (the base's parts, the
+    carriages and housings, which only slide, and the platform, which only translates) has these
+    computed at one pose per design and copied: the same products of the same numbers, so the same
+    values as computing them at every pose."""
+    c = len(owner)
+    P = len(batch.kind)
+    _, first, inv = np.unique(owner, return_index=True, return_inverse=True)
+    rep = first[inv]  # each pose's design's first pose in the chunk
+    fixed = np.all(Rp == Rp[rep], axis=(0, 2, 3))[batch.prim_part]  # (P,) rotation constant per design
+    Rw = np.empty((c, P, 3, 3))
+    ext = np.empty((c, P, 3))
+    ro = np.empty((c, P, 3))
+    hw3 = hw.reshape(c, P, 3)
+    kind3 = kind_flat.reshape(c, P)
+    for sel, rows in ((np.flatnonzero(~fixed), slice(None)), (np.flatnonzero(fixed), first)):
+        if len(sel) == 0:
+            continue
+        r = np.arange(c)[rows][:, None]
+        s = sel[None, :]
+        Rf = Rp[r, batch.prim_part[s]]  # (poses or designs, |sel|, 3, 3), each operand gathered in one step
+        R = Rf @ batch.R[owner[r], s]
+        o = (Rf @ batch.o[owner[r], s][..., None])[..., 0]
+        x = _world_extent(kind3[r, s].ravel(), R.reshape(-1, 3, 3), hw3[r, s].reshape(-1, 3)).reshape(len(R), len(sel), 3)
+        if isinstance(rows, slice):
+            Rw[:, sel], ext[:, sel], ro[:, sel] = R, x, o
+        else:
+            Rw[:, sel], ext[:, sel], ro[:, sel] = R[inv], x[inv], o[inv]
+    return Rw.reshape(c * P, 3, 3), ext.reshape(c * P, 3), ro
+
+
+def _check_chunk(batch, owner, frames, s, e, reachable, depth, pc_all, ph_all, pp_a, pp_b, start, count,
+                 kind_flat) -> None:
+    """:func:`check_posed` on poses s:e (``depth`` is that chunk's view, updated in place)."""
+    c = e - s
+    P = len(batch.kind)
+    Rp = np.stack([frames[name][0][s:e] for name in batch.part_names], axis=1)  # (c, parts, 3, 3)
+    tp = np.stack([frames[name][1][s:e] for name in batch.part_names], axis=1)  # (c, parts, 3)
+    pc, ph = pc_all[owner], ph_all[owner]
+    # (parts, 3, poses) layout: the part-pair gathers below copy whole rows
+    wc = np.ascontiguousarray(((Rp @ pc[..., None])[..., 0] + tp).transpose(1, 2, 0))
+    wh = np.ascontiguousarray(((np.abs(Rp) @ ph[..., None])[..., 0]).transpose(1, 2, 0))
+    part_near = np.all(np.abs(wc[pp_a] - wc[pp_b]) <= wh[pp_a] + wh[pp_b], axis=1)  # (part pairs, poses)
+    part_near &= reachable[None, :]
+    j, pose = np.nonzero(part_near)
+    cnt = count[j]
+    total = int(cnt.sum())
+    if total == 0:
+        return
+    # every primitive pair of the surviving part pairs, in (pose, primitive pair) order
+    pose = np.repeat(pose, cnt)
+    k = np.repeat(start[j] - (np.cumsum(cnt) - cnt), cnt) + np.arange(total)
+    # world rotation, centre and exact world extents of every primitive at every pose of the chunk
+    hw = batch.half[owner].reshape(c * P, 3)
+    Rw, ext, ro = _posed_primitives(batch, owner, Rp, hw, kind_flat)
+    cw = (ro + tp[:, batch.prim_part]).reshape(c * P, 3)
+    box = np.concatenate([cw - ext, cw + ext], axis=1)  # (c·P, 6): world box low corner, high corner
+    ia = pose * P + batch.pair_a[k]
+    ib = pose * P + batch.pair_b[k]
+    ba, bb = box[ia], box[ib]
+    near = np.all((ba[:, :3] <= bb[:, 3:]) & (bb[:, :3] <= ba[:, 3:]), axis=-1)
+    if not near.any():
+        return
+    t = np.flatnonzero(near)
+    ia, ib = ia[t], ib[t]
+    # a pair separated on one of _depth's own axes has a depth ≤ 0 there, which adds nothing to
+    # ``depth`` (its floor is 0): the seven cheapest axes first (~99 % of the pairs), _depth on the rest
+    keep = ~_separated(kind_flat[ia], Rw[ia], hw[ia], cw[ia], kind_flat[ib], Rw[ib], hw[ib], cw[ib])
+    if not keep.any():
+        return
+    t, ia, ib = t[keep], ia[keep], ib[keep]
+    dep = _depth(kind_flat[ia], Rw[ia], hw[ia], cw[ia], kind_flat[ib], Rw[ib], hw[ib], cw[ib])
+    np.maximum.at(depth, (pose[t], batch.pair_part[k[t]]), np.maximum(dep, 0.0))
 
 
 def overlap_share(res: FastResult, *, scale: float = OVERLAP_SCALE) -> np.ndarray:

@@ -31,11 +31,13 @@ import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+from hapticopt.analysis.loop import mujoco_compiled as mc
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
 from hapticopt.analysis.loop.operator import Operator
 from hapticopt.analysis.prrr.mujoco_model import LinkMasses, ModelOptions, Platform, PrrrMj, build, set_pose
 from hapticopt.analysis.loop.plant import Observation, Sensors
-from hapticopt.analysis.loop.scene import Backend, Effect, FrictionLocation, Resolution, Scene, resolve
+from hapticopt.analysis.loop.scene import Backend, Effect, EnvKind, FrictionLocation, Resolution, Scene, resolve
+from hapticopt.analysis.prrr.firmware import ForceLoop
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
@@ -137,6 +139,8 @@ class MujocoPlant:
         self._hand = options.hand
         if self._hand is not None:
             self._hand_spring_adr = np.asarray(self.mj.hand_qpos)  # qpos_spring shares qpos layout
+        self.loop_engine, self.loop_reason = "python", "run() not called yet"
+        self._pose0: np.ndarray | None = None  # qpos set_pose gives at the scene's start (cached by reset)
         self.reset()
 
     # ----------------------------------------------------------------------------- interface
@@ -144,7 +148,13 @@ class MujocoPlant:
         mj, d = self._mujoco, self.data
         mj.mj_resetData(self.model, d)
         p0 = np.asarray(self.scene.initial_offset, dtype=float)
-        set_pose(self.mj, d, p0)
+        if self._pose0 is None:  # the IK (jax) once per plant; later resets restore what set_pose wrote
+            set_pose(self.mj, d, p0)
+            self._pose0 = d.qpos.copy()
+        else:
+            d.qpos[:] = self._pose0
+            d.qvel[:] = 0.0
+            mj.mj_forward(self.model, d)
         self.t = 0.0
         self.u = np.zeros(3)
         self._worst = [0.0, 0.0, 0.0]  # violation [m], rotation [rad], closure [m]
@@ -240,7 +250,7 @@ class MujocoPlant:
             w[2] = closure
 
     # ----------------------------------------------------------------------------- fast loop
-    def run(self, controller: Any, st: Any, *, check_every: int = CHECK_EVERY) -> Any:
+    def run(self, controller: Any, st: Any, *, check_every: int = CHECK_EVERY, compiled: bool = True) -> Any:
         """The closed loop of :func:`hapticopt.analysis.prrr.closed_loop.run_with_plant`, fused around ``mj_step``.
 
         Same sensors, quantisation, controller calls, delay line, hand reference and stop rule;
@@ -251,6 +261,11 @@ class MujocoPlant:
         skipped: the first bad tick in the window is found and the traces stop there exactly as in
         the reference loop; the plant may have run up to ``check_every − 1`` ticks beyond, which
         nothing reads). Tested equal to the reference loop (``tests/analysis/prrr/test_mujoco_plant.py``).
+
+        ``compiled`` (default): the ticks run in the compiled loop of
+        :mod:`hapticopt.analysis.loop.mujoco_compiled` when it can run this controller (the scalar
+        :class:`NumpyController`: interpolation 1, no outside-box walls) — bit-identical records; else,
+        or with ``compiled=False``, in Python. :attr:`loop_engine` / :attr:`loop_reason` say which ran and why.
         """
 
         mj, m, d = self._mujoco, self.model, self.data
@@ -268,35 +283,29 @@ class MujocoPlant:
         sl0 = int(sl_idx[0]) if np.all(np.diff(sl_idx) == 1) else None
         mo0 = int(mo_idx[0]) if mo_idx is not None and np.all(np.diff(mo_idx) == 1) else None
 
-        # one product reads both encoders: [slider; motor − slider] / resolution
-        S = np.zeros((6, m.nq))
-        S[np.arange(3), sl_idx] = inv_res
-        if mo_idx is not None:
-            S[np.arange(3, 6), mo_idx] = inv_res
-            S[np.arange(3, 6), sl_idx] = -inv_res
+        # both encoders elementwise (no BLAS product: its summation order / FMA is the library's, and the
+        # compiled loop must reproduce the counts bit for bit): slider/res, (motor − slider)/res
+        sl_sel = slice(sl0, sl0 + 3) if sl0 is not None else sl_idx
+        mo_sel = (slice(mo0, mo0 + 3) if mo0 is not None else mo_idx) if mo_idx is not None else None
         rnd = np.rint  # what np.round does at 0 decimals, without its wrapper
 
         def counts() -> tuple[np.ndarray, np.ndarray]:
-            if not self.ideal:
-                y = S @ qpos
-                if quantize:
-                    y = rnd(y)
-                return y[:3], y[3:]
-            sl = qpos[sl0:sl0 + 3] if sl0 is not None else qpos[sl_idx]
-            if self.ideal:
-                de = self.u / self.spring
-            elif mo_idx is None:
-                de = np.zeros(3)
+            sl = qpos[sl_sel]
+            a = sl * inv_res
+            if self.ideal:  # the spring carries exactly the commanded force (no force loop reads it)
+                b = (self.u / self.spring) * inv_res
+            elif mo_sel is None:
+                b = np.zeros(3)
             else:
-                de = (qpos[mo0:mo0 + 3] if mo0 is not None else qpos[mo_idx]) - sl
-            a, b = sl * inv_res, de * inv_res
+                b = (qpos[mo_sel] - sl) * inv_res
             if quantize:
-                a, b = np.round(a), np.round(b)
+                a, b = rnd(a), rnd(b)
             return a, b
 
         sc, _ = counts()
         controller.reset(sc)
         direct = not self.ideal and getattr(controller, "scalar", False)
+        kern = self._kernels(controller, compiled)
         L = st.cfg.interpolation
         delay: list[np.ndarray] = [np.zeros((L, 3))] * st.delay_ticks
         nq, nv = m.nq, m.nv
@@ -331,15 +340,22 @@ class MujocoPlant:
         k = 0
         mul = np.multiply
         energy_buf = d.energy  # a view on MjData's buffer, updated in place by mj_step
+        if kern is not None:
+            nat = self._native_args(controller, st, N, REF if hand is not None else None,
+                                    DREF if hand is not None else None, Qp, Qv, Qa, KE, clock, CMD, Fref, EF,
+                                    K, explode, check_every)
         while k < N:
             end = min(N, start + check_every)
-            for k in range(start, end):
-                if direct:  # both encoders by one product; the scalar controller takes Python lists
-                    y = S @ qpos
-                    if quantize:
-                        y = rnd(y)
-                    yl = y.tolist()
-                    cmd = controller.step(yl[:3], yl[3:])
+            if kern is not None:  # runs windows on until one holds a possibly bad tick (exact check below) or N
+                end = kern.prrr_chunk(*nat[0], start, N, per, *nat[1])
+                if end < 0:  # no tick was possibly bad: none is (the prefilter is conservative)
+                    end = N
+                    break
+                start = ((end - 1) // check_every) * check_every  # that window
+            for k in range(start, end) if kern is None else ():
+                if direct:  # the scalar controller takes Python lists
+                    sc, dc = counts()
+                    cmd = controller.step(sc.tolist(), dc.tolist())
                 else:
                     sc, dc = counts()
                     cmd = controller.step(sc, dc)
@@ -371,6 +387,8 @@ class MujocoPlant:
                 break
             start = end
             k = end
+        if kern is not None:
+            self._native_done(controller, nat, CMD, end)
         self.t = (N if stop < 0 else stop + 1) * L * h
         last = N if stop < 0 else stop + 1  # health over every tick run up to and including the stop
         self._health_from(EF[:last], Qp[:last])
@@ -386,6 +404,74 @@ class MujocoPlant:
             for arr in (*rec.values(), energy, sat):
                 arr[stop:] = arr[stop - 1] if stop > 0 else 0
         return Traces(period=st.period, energy=energy, saturated=sat, stop_tick=np.array([stop]), **rec)
+
+    def _kernels(self, controller: Any, compiled: bool) -> Any:
+        """The compiled kernels when they can run ``controller`` (else None); records the engine and why."""
+        why = None
+        if not compiled:
+            why = "compiled=False (the Python reference loop)"
+        elif type(controller) is not NumpyController:
+            why = f"controller {type(controller).__name__} has no compiled law (NumpyController has)"
+        elif not controller.scalar:
+            why = ("interpolation > 1 or outside-box walls: the generic numpy controller path "
+                   "(the compiled law is the scalar path's)")
+        else:
+            why = mc.availability()
+        self.loop_engine = "python" if why else "compiled"
+        self.loop_reason = why or "compiled loop (numba): firmware law and mj_step in one native loop"
+        return None if why else mc.kernels()
+
+    def _native_args(self, controller, st, N, REF, DREF, Qp, Qv, Qa, KE, clock, CMD, Fref, EF, K, explode, check_every):
+        """Arguments of :func:`prrr_chunk`: (before start/end/nstep, after)."""
+        m, d, c = self.model, self.data, controller
+        cfg = c.cfg
+        lay, kc = mc.layout(), mc.kernels()
+        off = np.array([lay.time, lay.nefc, lay.efc_pos], dtype=np.int64)
+        ip = lambda x: np.ascontiguousarray(x, dtype=np.intp)  # noqa: E731
+        sl_idx = ip(self.mj.slider_qpos)
+        has_motor = self.mj.motor_qpos is not None and not self.ideal
+        mo_idx = ip(self.mj.motor_qpos) if has_motor else sl_idx
+        if self._hand is not None:
+            spr, hd = ip(self._hand_spring_adr), ip(self.mj.hand_dof)
+            REF, DREF = np.ascontiguousarray(REF[:, 0, :]), np.ascontiguousarray(DREF[:, 0, :])
+        else:
+            spr = hd = np.zeros(3, dtype=np.intp)
+            REF = DREF = np.zeros((1, 3))
+        env = {EnvKind.FREE: kc.ENV_FREE, EnvKind.SPRING: kc.ENV_SPRING, EnvKind.BOX: kc.ENV_BOX,
+               EnvKind.FORCE: kc.ENV_FORCE}[cfg.env]
+        loop = {ForceLoop.SEA: kc.LOOP_SEA, ForceLoop.RIGID: kc.LOOP_RIGID, ForceLoop.IDEAL: kc.LOOP_IDEAL}[cfg.force_loop]
+        par = np.array([1.0 / float(st.gains.resolution), c._res, cfg.period, cfg.velocity_alpha, c._Kb, c._Bb,
+                        c._fomega, c._fc, c._fcv, c._weight, c._spring, c._kp, c._ki * cfg.period, c._limit, c._eta,
+                        self.gain])
+        flg = np.array([st.quantize, has_motor, env, cfg.friction_compensation, cfg.gravity_compensation, loop,
+                        cfg.integral, cfg.saturation, self._hand is not None, self._eq_rows, st.delay_ticks],
+                       dtype=np.int64)
+        f3 = lambda x: np.array(np.broadcast_to(np.asarray(x, dtype=np.float64), (3,)))  # noqa: E731  (a writable copy: one kernel type)
+        state = np.zeros(12)
+        state[0:3] = c._sp
+        ist = np.zeros(2, dtype=np.int64)
+        dbuf = np.zeros((max(1, st.delay_ticks), 3))
+        # the window check's prefilter (_window_bad's quantities): end-effector, spring deflection, its stiffness
+        ee = ip(self._ee_pos)
+        mo_chk = self.mj.motor_qpos is not None
+        chk_f = np.array([explode, self.spring, self.period])
+        chk_i = np.array([check_every, mo_chk], dtype=np.int64)
+        mo_e = ip(self.mj.motor_qpos) if mo_chk else sl_idx
+        pre = (m._address, d._address, off)
+        post = (d.qpos, d.qvel, d.qacc, d.ctrl, d.energy, m.qpos_spring, d.qfrc_applied, sl_idx, mo_idx, spr, hd,
+                REF, DREF, par, flg, np.ascontiguousarray(c._J, dtype=np.float64), f3(c._K), f3(c._B), f3(c._anchor),
+                f3(c._half), f3(c._famp), f3(c._fphase), state, ist, dbuf, Qp, Qv, Qa, KE, clock, CMD, Fref, EF,
+                ee, mo_e, f3(K), chk_f, chk_i)
+        return pre, post
+
+    def _native_done(self, controller, nat, CMD, end) -> None:
+        """After a compiled run: the plant's held command and the controller's state as the Python loop leaves them."""
+        state, ist = nat[1][22], nat[1][23]
+        self.u = CMD[end - 1, 0].copy()
+        c = controller
+        c._sp, c._sv, c._si = state[0:3].tolist(), state[3:6].tolist(), state[6:9].tolist()
+        c._tick = int(ist[0])
+        c.last_force = state[9:12].copy()
 
     def _observables(self, Qp, Qv, Qa, KE, U, K) -> dict[str, np.ndarray]:
         """Vectorised :meth:`observe` over recorded ticks (time of tick k's end: (k + 1)·T)."""
@@ -473,6 +559,8 @@ class MultibodyResult:
     wall_time: float  # [s]
     status: Status
     message: str
+    loop_engine: str = "python"  # "compiled" (numba) or "python"
+    loop_reason: str = ""  # why that engine ran
 
     @property
     def health_ok(self) -> bool:
@@ -494,14 +582,16 @@ class MultibodyResult:
             "mujoco_warnings": list(self.warnings), "plant_substeps": self.substeps,
             "mujoco_timestep_ms": self.timestep * 1e3, "mujoco_integrator": self.integrator,
             "platform_model": self.platform, "link_masses": self.link_masses, "wall_time_s": self.wall_time,
+            "closed_loop_engine": self.loop_engine if self.loop_engine == "compiled" else f"python: {self.loop_reason}",
         })
         return out
 
 
 def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
              platform: Platform = Platform.FREE, link_masses: LinkMasses | None = None,
-             solver: SolverSettings | None = None, reason: str | None = None) -> MultibodyResult:
-    """Run ``scene`` on ``design`` with the firmware controller in the loop on the MuJoCo plant."""
+             solver: SolverSettings | None = None, reason: str | None = None, compiled: bool = True) -> MultibodyResult:
+    """Run ``scene`` on ``design`` with the firmware controller in the loop on the MuJoCo plant (``compiled``: the
+    compiled loop where it can run the controller, see :meth:`MujocoPlant.run`)."""
 
     choice = choose_backend(scene, force=Backend.MULTIBODY)
     res = choice.resolution
@@ -517,7 +607,7 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
     st = dataclasses.replace(st, resolution=res, substeps=plant.substeps)
     controller = NumpyController(st.cfg, st.gains)
     t0 = time.perf_counter()
-    traces = plant.run(controller, st)
+    traces = plant.run(controller, st, compiled=compiled)
     wall = time.perf_counter() - t0
     loop = closed_loop.metrics_from_traces(traces, st, 0, backend="multibody", wall_time=wall)
     warns = plant.warnings()
@@ -538,7 +628,7 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
         loop=loop, health=health, warnings=warns, substeps=plant.substeps, timestep=float(plant.model.opt.timestep),
         integrator=options.solver.integrator.value, platform=options.platform.value,
         link_masses=options.link_masses.value, reason=reason or choice.reason, wall_time=wall,
-        status=status, message=message,
+        status=status, message=message, loop_engine=plant.loop_engine, loop_reason=plant.loop_reason,
     )
 
 

@@ -63,9 +63,11 @@ def stiffness_limits(design: PrrrDesign) -> np.ndarray:
     return prrr_statics.evaluate(design).stiffness_limit.copy()
 
 
-def stiffness_limit_closed_form(design: PrrrDesign, kp: float, axis: int) -> float:
-    """Continuous-time K limit with zero virtual damping: k_a (1 + 1/(η K_p)) [N/m] (Routh–Hurwitz)."""
-    return float(stiffness_limits(design)[axis] * (1.0 + 1.0 / (design.actuator.efficiency * kp)))
+def stiffness_limit_closed_form(design: PrrrDesign, kp: float, axis: int, *, limits: np.ndarray | None = None) -> float:
+    """Continuous-time K limit with zero virtual damping: k_a (1 + 1/(η K_p)) [N/m] (Routh–Hurwitz);
+    ``limits``: :func:`stiffness_limits` of ``design`` when the caller has them."""
+    limits = stiffness_limits(design) if limits is None else limits
+    return float(limits[axis] * (1.0 + 1.0 / (design.actuator.efficiency * kp)))
 
 
 def continuous_closed_loop(design: PrrrDesign, *, stiffness: np.ndarray, damping: np.ndarray, kp: float,
@@ -238,18 +240,22 @@ class StabilityResult:
         }
 
 
-def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, kp: float = 45.0) -> StabilityResult:
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, kp: float = 45.0,
+             limits: np.ndarray | None = None) -> StabilityResult:
     """Force-loop bandwidth and closed-loop stiffness limits of ``design`` at K_p (seed 002's 45).
 
     Status ``not-assemblable`` (metrics NaN) when the chain does not close
     (:func:`hapticopt.analysis.prrr.assembly.closure`): the decoupled per-axis loop assumes it.
+    ``limits``: :func:`stiffness_limits` of ``design`` when the caller has them (the batched draft
+    evaluator passes its statics row's); computed once here otherwise.
     """
     del fidelity  # closed forms
     blocked = assembly.closure(design)
+    limits = stiffness_limits(design) if limits is None else np.array(limits, dtype=float)
     return StabilityResult(
         force_gain=kp, force_loop_bandwidth=force_loop_bandwidth(design, kp),
-        stiffness_limits=stiffness_limits(design),
-        continuous_limits=np.array([stiffness_limit_closed_form(design, kp, a) for a in range(3)]),
+        stiffness_limits=limits.copy(),
+        continuous_limits=np.array([stiffness_limit_closed_form(design, kp, a, limits=limits) for a in range(3)]),
         status=Status.NOT_ASSEMBLABLE if blocked else Status.OK, message=blocked,
     )
 

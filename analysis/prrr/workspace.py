@@ -142,15 +142,17 @@ class WorkspaceParams(NamedTuple):
 
 def workspace_params(design: PrrrDesign, *, required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
                      rho_min: float | None = None, rho_max: float | None = None,
-                     specs: dict | None = None) -> WorkspaceParams:
+                     specs: dict | None = None, envelope: float | None = None) -> WorkspaceParams:
     """Workspace parameters of one design; ``rho_min``/``rho_max`` override the reach annulus
     (e.g. from elbow limits: |ρ|² = d3² + d4² + 2 d3 d4 cos θ2); ``specs``: the design's part
-    tables when the caller has them (:func:`base_envelope`)."""
+    tables when the caller has them (:func:`base_envelope`); ``envelope``: its :func:`base_envelope`
+    when the caller has it [m] (the batched draft evaluator computes every design's at once)."""
     g, s = design.geometry, design.structure
     lo = max(abs(g.d3 - g.d4), fold_margin(design)) if rho_min is None else rho_min
     hi = g.d3 + g.d4 if rho_max is None else rho_max
     vals = (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke, lo, hi,
-            base_envelope(design, specs=specs), s.boss_diameter / 2.0, required_diameter / 2.0)
+            base_envelope(design, specs=specs) if envelope is None else envelope, s.boss_diameter / 2.0,
+            required_diameter / 2.0)
     return WorkspaceParams(*(np.float64(v) for v in vals))
 
 
@@ -374,7 +376,9 @@ def _closure_params(design: PrrrDesign) -> WorkspaceParams:
     return WorkspaceParams(*(np.float64(v) for v in vals))
 
 
-@functools.lru_cache(maxsize=256)
+#: cached for a whole chunk of the batched draft evaluator (1024 designs, each asked ~6 times:
+#: registry, statics, stability, structure and the part evaluators); 256 thrashed at batch 1024
+@functools.lru_cache(maxsize=4096)
 def closure(design: PrrrDesign) -> str:
     """'' when some pose closes every leg within its reach and slider stroke, else why not."""
     if not bool(workspace_core(_closure_params(design), n_phi=CLOSURE_RAYS, n_r=2)["empty"]):
@@ -554,11 +558,12 @@ INTERFERENCE_SAMPLING = dict(n_phi=6, n_r=4, n_z=3)
 
 
 def workspace_sample_weights(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int,
-                             specs: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+                             specs: dict | None = None, wp: WorkspaceParams | None = None
+                             ) -> tuple[np.ndarray, np.ndarray]:
     """Workspace sample points (m, 3) [m] (:func:`sample_points`) and their volume weights (m,)
     [m³] (polar cells: r·Δr·Δφ·Δz); ``specs``: the design's part tables when the caller has them
-    (:func:`workspace_params`)."""
-    wp = workspace_params(design, specs=specs)
+    (:func:`workspace_params`); ``wp``: its default :func:`workspace_params` when the caller has them."""
+    wp = workspace_params(design, specs=specs) if wp is None else wp
     pts = sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)
     if len(pts) == 0:
         return pts, np.zeros(0)

@@ -146,15 +146,21 @@ def carried_theta_1p(design: PrrrDesign, *, side: float = 1.0) -> float:
 @dataclass(frozen=True, kw_only=True)
 class Bracket:
     """The carriage's R1 bracket, carriage frame (x = u', y = t', z = e_z, origin on the z axis at
-    the slider height D) [m]: an L of two boxes that meet the block and each other face to face.
+    the slider height D) [m]: an L of two plates, both in the clevis layer (link thickness T along the
+    R1 axis w about Ac), so no part of it enters link1's layer.
 
-    * **root**: a box standing on one face of the carriage block (outward normal ``normal``), its
-      whole end face bonded to that face (``contact_area``); axes (e_l, N, n_p) =
-      ``root_axes`` columns, sizes ``root_size`` along them.
-    * **arm**: the clevis plate, link section W × T in the clevis layer, along e_l (the clevis
-      plane ∩ the face plane) from the clevis centre Ac to the root's near end face at
-      ``arm_length``, where its whole W × T end section is bonded to the root (the root's
-      section contains it).
+    * **arm**: the clevis plate, link section W × T, along e_l (the clevis plane ∩ the face plane)
+      from the clevis centre Ac to the root's near end face at ``arm_length``, where its whole
+      W × T end section is bonded to the root (the root's end face contains it).
+    * **root**: a box of thickness T in the clevis layer (axes ``root_axes`` = e_l, e_f, e_l × e_f
+      = ±w; sizes ``root_size`` along them) beside the arm's end: along e_l from ``arm_length`` on,
+      along e_f (the clevis plane's direction normal to e_l, towards the block face ``normal`` N)
+      from the arm's far edge (−W/2) across the block face: the clevis plane meets the face at a
+      slant, so the plate is let into the face. Its section in the face plane is the bonded patch
+      (``contact_centre``, axes ``contact_axes`` = e_l, n_p, sizes ``contact_size``); the part
+      inside the block is ``wedge`` (a right triangular prism, mass bookkeeping). It is let in at
+      most ``carriage_wall`` deep (the block's material beside the rail slot); a plate that would
+      need more stops there, bonded over the part of its section that crosses the face.
     """
 
     clevis: np.ndarray  # Ac (3,)
@@ -163,20 +169,30 @@ class Bracket:
     e_l: np.ndarray  # (3,) arm axis, from Ac towards the root
     arm_length: float  # l_0: Ac to the root's near end face along e_l
     root_centre: np.ndarray  # (3,)
-    root_axes: np.ndarray  # (3, 3) columns e_l, N, n_p = e_l × N
-    root_size: tuple[float, float, float]  # along e_l, N, n_p
-    contact_centre: np.ndarray  # (3,) centre of the root's face bonded on the block face
+    root_axes: np.ndarray  # (3, 3) columns e_l, e_f, e_l × e_f (= ±w)
+    root_size: tuple[float, float, float]  # along e_l, e_f, w
+    contact_centre: np.ndarray  # (3,) centre of the bonded patch (the root's section in the face plane)
+    contact_axes: np.ndarray  # (3, 2) columns e_l, n_p (the face plane's direction normal to e_l)
+    contact_size: tuple[float, float]  # along e_l, n_p
+    wedge: _parts.Primitive  # the root's part inside the block (OVERLAP, carriage frame)
     face: str  # "side" (the y face beside the rail, preferred) or "front"/"back" (the x faces)
 
     @property
     def contact_area(self) -> float:
         """Bonded area of the root on the block face [m²]."""
-        return self.root_size[0] * self.root_size[2]
+        return self.contact_size[0] * self.contact_size[1]
 
     @property
     def arm_end(self) -> np.ndarray:
         """Centre of the arm's end section, on the root's near end face [m]."""
         return self.clevis + self.arm_length * self.e_l
+
+    @property
+    def root_joint(self) -> np.ndarray:
+        """J: the point of the root's axis through the patch centre (along e_f) level with the
+        arm's axis (the plane through Ac normal to e_f) [m]."""
+        e_f = self.root_axes[:, 1]
+        return self.contact_centre - ((self.contact_centre - self.clevis) @ e_f) * e_f
 
 
 def carriage_bracket(design: PrrrDesign, *, checked: bool = True) -> Bracket:
@@ -188,15 +204,14 @@ def carriage_bracket(design: PrrrDesign, *, checked: bool = True) -> Bracket:
 
     The clevis is an arm of the link section in the clevis layer; it runs along e_l, the line
     where the clevis plane crosses a block face's plane, so it stays at a constant distance from
-    that face, and it ends on a root box that stands on the face and reaches out to it (the root's
-    cross-section is the bounding box of the arm's). Faces are tried in order: the side face on
-    the clevis's side (y = ±h_y, beside the rail, where seed 002's device carries R1 and where
-    :func:`carried_theta_1p` puts the clevis), then the x face on the clevis's side. A face can
-    carry the bracket when the arm clears the block (its section lies outside the face plane) and
-    the face leaves a root at least W/2 long along e_l beyond the clevis boss (plus the
-    clearance) and puts the root's bonded end face within 2·carriage_height of the slider height.
-    The root's bonded end face lies inside the block face's horizontal extent; the block grows in
-    z to cover it (:func:`layout`).
+    that face, and it ends on a root plate of the same layer that reaches the face. Faces are
+    tried in order: the side face on the clevis's side (y = ±h_y, beside the rail, where seed 002's
+    device carries R1 and where :func:`carried_theta_1p` puts the clevis), then the x face on the
+    clevis's side. A face can carry the bracket when the arm clears the block (its section lies
+    outside the face plane) and the face leaves a root at least W/2 long along e_l beyond the
+    clevis boss (plus the clearance) and puts the bonded patch within 2·carriage_height of the
+    slider height. The bonded patch and the let-in part lie inside the block face's horizontal
+    extent; the block grows in z to cover them (:func:`layout`).
     """
     g_, s_ = design.geometry, design.structure
     T, W, g = s_.link_thickness, s_.link_width, s_.clearance
@@ -217,18 +232,35 @@ def carriage_bracket(design: PrrrDesign, *, checked: bool = True) -> Bracket:
     for k, (name, N, f, h, (h_lo, h_hi)) in enumerate(faces):
         unchecked = not checked and k == 0
         e_l = np.cross(N, wc)
+        if np.linalg.norm(e_l) < 1e-9:
+            tried.append(f"{name} face: the clevis plane is parallel to it")
+            continue
         e_l /= np.linalg.norm(e_l)
         if (0.5 * (h_lo + h_hi) - h @ Ac) * (e_l @ h) < 0.0:
             e_l = -e_l  # towards the face
-        e_m = np.cross(wc, e_l)
-        n_p = np.cross(e_l, N)
-        half_N = W / 2 * abs(e_m @ N) + T / 2 * abs(wc @ N)
-        half_n = W / 2 * abs(e_m @ n_p) + T / 2 * abs(wc @ n_p)
-        depth = N @ Ac - half_N - f  # the arm's clearance from the face plane
+        # the clevis plane's section normal to e_l: e_f towards the face, e_c the side of the layer
+        # that meets the face first; N = −ν e_f − μ e_c (ν² + μ² = 1, ν > 0, μ ≥ 0)
+        e_f = np.cross(wc, e_l)
+        e_f = -e_f if e_f @ N > 0.0 else e_f
+        e_c = wc if wc @ N <= 0.0 else -wc
+        nu, mu = float(-(e_f @ N)), float(-(e_c @ N))
+        n0 = float(N @ Ac - f)  # the clevis centre's height above the face plane
+        depth = n0 - nu * W / 2 - mu * T / 2  # the arm's clearance from the face plane
+        # section coordinates (a along e_f, c along e_c) about Ac: the layer's +T/2 side meets the
+        # face at a1, the plate is let in d_in deep (≤ the wall beside the rail slot) and ends at
+        # a_end; the bonded patch runs from (a1, T/2) along (μ, −ν) over width L_b
+        a1 = (n0 - mu * T / 2) / nu
+        d_in = min(mu * T, s_.carriage_wall)
+        a_end = a1 + d_in / nu
+        L_b = T / nu if mu * T <= s_.carriage_wall else d_in / (mu * nu)
+        sec = np.array([[a1, T / 2], [a1 + mu * L_b, T / 2 - nu * L_b], [a_end, T / 2]])  # patch ends, deep corner
+        q = sec[:, 0] * (e_f @ h) + sec[:, 1] * (e_c @ h)  # their offsets along h
         a = e_l @ h
-        slack = half_n * abs(n_p @ h)
-        ends = sorted(((h_lo + slack - h @ Ac) / a, (h_hi - slack - h @ Ac) / a))
-        l0, l1 = max(ends[0], R + g), ends[1]
+        if a > 0.0:
+            lo_e, hi_e = (h_lo - h @ Ac - q.min()) / a, (h_hi - h @ Ac - q.max()) / a
+        else:
+            lo_e, hi_e = (h_hi - h @ Ac - q.max()) / a, (h_lo - h @ Ac - q.min()) / a
+        l0, l1 = max(lo_e, R + g), hi_e
         forced = unchecked  # the side face, whatever the rules say
         if forced and (depth < 0.0 or l1 - l0 < W / 2):  # an idealised root: the face's length beyond the boss
             l0, l1 = R + g, R + g + max(l1 - l0, h_hi - h_lo)
@@ -238,17 +270,24 @@ def carriage_bracket(design: PrrrDesign, *, checked: bool = True) -> Bracket:
         elif l1 - l0 < W / 2:
             tried.append(f"{name} face: a root {_mm(max(l1 - l0, 0.0))} mm long (allowed ≥ link_width/2 = {_mm(W / 2)} mm)")
             continue
-        reach = max(N @ Ac + half_N - f, 2 * half_N)  # root thickness along N (≥ the arm's: depth ≥ 0)
         lm = 0.5 * (l0 + l1)
-        contact = Ac + lm * e_l + (f - N @ Ac) * N
-        zc = _box_z_extent(contact, np.stack([e_l, n_p], axis=1), (l1 - l0, 2 * half_n))
+        n_p = mu * e_f - nu * e_c  # the face plane's direction normal to e_l (along the patch)
+        a_c, c_c = a1 + mu * L_b / 2, T / 2 - nu * L_b / 2
+        contact = Ac + lm * e_l + a_c * e_f + c_c * e_c
+        zc = _box_z_extent(contact, np.stack([e_l, n_p], axis=1), (l1 - l0, L_b))
         if max(-zc[0], zc[1]) > 2 * s_.carriage_height + 1e-12 and not forced:
             tried.append(f"{name} face: the root would meet the carriage up to {_mm(max(-zc[0], zc[1]))} mm off its "
                          f"centre (allowed ≤ 2·structure.carriage_height_mm = {_mm(2 * s_.carriage_height)} mm)")
             continue
-        return Bracket(clevis=Ac, axis=wc, normal=N, e_l=e_l, arm_length=float(l0), root_centre=contact + reach / 2 * N,
-                       root_axes=np.stack([e_l, N, n_p], axis=1), root_size=(float(l1 - l0), float(reach), 2 * half_n),
-                       contact_centre=contact, face=name)
+        plate = max(a_end + W / 2, MIN_FEATURE)  # (only an idealised root can have the face inside the arm)
+        wedge = _parts.wedge(Ac + lm * e_l + a_end * e_f + T / 2 * e_c, _parts.frame(-e_f, np.cross(e_f, e_c)),
+                             a_end - a1, d_in / mu if mu * T > 1e-12 else T, l1 - l0)
+        return Bracket(clevis=Ac, axis=wc, normal=N, e_l=e_l, arm_length=float(l0),
+                       root_centre=Ac + lm * e_l + (a_end - W / 2) / 2 * e_f,
+                       root_axes=np.stack([e_l, e_f, np.cross(e_l, e_f)], axis=1),
+                       root_size=(float(l1 - l0), float(plate), float(T)),
+                       contact_centre=contact, contact_axes=np.stack([e_l, n_p], axis=1),
+                       contact_size=(float(l1 - l0), float(L_b)), wedge=wedge, face=name)
     raise InvalidDesign(f"geometry.r_p_mm = {_mm(g_.r_p)}, geometry.theta_1p_deg = {math.degrees(g_.theta_1p):.4g}, "
                         f"geometry.beta_deg = {math.degrees(g_.beta):g}: no face of the carriage block can carry the R1 "
                         f"clevis ({'; '.join(tried)}): move the rail or change beta")
@@ -303,11 +342,11 @@ def layout(design: PrrrDesign) -> PrrrLayout:
           f"{'inside' if gap == 0 else f'{_mm(gap)} mm from'} the carriage block around the rail "
           f"(allowed ≥ boss radius + clearance = {_mm(R + g)} mm): move the rail (r_p, θ_1p)")
     side = -1.0 if Ac[1] > 0 else 1.0  # SEA housing on the side away from the clevis
-    # R1 bracket: clevis arm + root bonded flat on a block face (carriage_bracket); the block grows
-    # in z to carry the root's whole end face
+    # R1 bracket: clevis arm + root plate let into a block face, both in the clevis layer
+    # (carriage_bracket); the block grows in z to carry the whole bonded patch
     bracket = carriage_bracket(design)
     hz = s_.carriage_height / 2
-    zc = _box_z_extent(bracket.contact_centre, bracket.root_axes[:, [0, 2]], (bracket.root_size[0], bracket.root_size[2]))
+    zc = _box_z_extent(bracket.contact_centre, bracket.contact_axes, bracket.contact_size)
     # the block also spans the clevis plane's height at its nearest point to the clevis ± (W/2 + T), the
     # extent issue 15 released with: a block only as tall as the root lifts the base plate, rails and
     # motors 17 mm for prrr-paper, and the motors then meet link2 of the next leg at the bottom of the
@@ -402,11 +441,12 @@ def _carriage(design: PrrrDesign, L: PrrrLayout) -> list:
     b = L.bracket
     wc = _rot_z(-g_.theta_1p) @ leg_vectors(g_.beta, 0.0)[3]
     # clevis arm (link section, clevis layer) from the clevis centre to the root's near end face, and
-    # the root on the block face: the three meet face to face, so no volume is counted twice
+    # the root plate let into the block face: arm and root meet face to face; the root's part inside
+    # the block (a wedge) is counted once (OVERLAP)
     arm = bar_with_bosses(frame(b.e_l, wc), b.clevis, 0.0, b.arm_length, width=L.W, thickness=L.T, z=0.0,
                           bosses=(0.0,), boss_radius=L.R_boss, bore_radius=L.r_bore)
     root = box(b.root_centre, b.root_axes, *b.root_size)
-    return prims + arm + [root]
+    return prims + arm + [root, b.wedge]
 
 
 def _housing(design: PrrrDesign, L: PrrrLayout) -> list:

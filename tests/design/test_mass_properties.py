@@ -56,6 +56,23 @@ def test_primitive_closed_forms():
     assert cyl.centroid == pytest.approx([0.1, 0, 0])
 
 
+def test_wedge_closed_form_two_wedges_make_a_box():
+    # a wedge (right triangular prism, OVERLAP) and its half-turned twin fill the a × b × t box:
+    # their sum is minus the box (volume abt, centroid at the box centre, box inertia), in any frame
+    a, b, t = 0.007, 0.004, 0.02
+    R0 = parts.frame((1.0, 2.0, 0.5), (0.3, -0.4, 1.0))
+    o = np.array([0.05, -0.02, 0.1])
+    flip = R0 @ np.diag([-1.0, -1.0, 1.0])
+    pair = parts.volume_properties([parts.wedge(o, R0, a, b, t), parts.wedge(o + R0 @ (a, b, 0.0), flip, a, b, t)])
+    box = parts.volume_properties([parts.box(o + R0 @ (a / 2, b / 2, 0.0), R0, a, b, t)])
+    assert pair.volume == pytest.approx(-box.volume, rel=1e-12)
+    np.testing.assert_allclose(pair.centroid, box.centroid, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(pair.inertia, -box.inertia, rtol=0, atol=1e-12 * np.abs(box.inertia).max())
+    one = parts.volume_properties([parts.wedge(o, R0, a, b, t)])
+    assert one.volume == pytest.approx(-a * b * t / 2, rel=1e-12)
+    np.testing.assert_allclose(one.centroid, o + R0 @ (a / 3, b / 3, 0.0), atol=1e-15)  # triangle centroid
+
+
 def test_total_mass_is_the_order_of_the_paper_device():
     # seed 002 Table 1: 4.4 kg, the SEA modules (motor, belt, screw, spring housing) included;
     # issue 15 acceptance: within ± 15 %

@@ -307,3 +307,15 @@ def test_the_base_design_is_evaluated_once_across_runs(tmp_path):
     assert note(other).count("from the evaluation cache") == 2
     fresh = run_pipeline(problem, out_dir=out, force=True, cache=None, **kw)
     assert note(fresh) == "draft fidelity computed; standard fidelity computed"
+
+
+def test_verification_worker_warms_the_compiled_mujoco_loops_only_when_a_scene_needs_them():
+    """A verify scene on a MuJoCo plant (any master scene, a 3-PRRR scene with link dynamics): the worker loads the
+    compiled loops at start (numba import + cache load, docs/performance.md); lumped scenes: it does not."""
+    from hapticopt.optim.pipeline import verification_worker, warm_verification
+
+    lumped = verification_worker(["free-space", "stiffness-25", "virtual-box"])
+    assert lumped._warm is warm_verification
+    for scenes in (["master-wall"], ["stiffness-25", "stiffness-25-links"]):
+        warm = verification_worker(scenes)._warm
+        assert warm.func is warm_verification and warm.args == (True,)

@@ -11,15 +11,19 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.prrr import draft_batch
+from hapticopt.analysis.prrr import assembly, draft_batch, interference_fast, statics
 from hapticopt.analysis.registry import evaluate_all, evaluate_batch
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.prrr import cad
+from hapticopt.design.prrr.kinematics import inverse_kinematics
 
 BASE = io.load_preset("prrr-paper")
 REL = 1e-9
@@ -41,6 +45,32 @@ def _sample() -> list:
         kw = dict(beta=g.beta * rng.uniform(0.8, 1.2), r_p=g.r_p * rng.uniform(0.85, 1.3),
                   d3=g.d3 * rng.uniform(0.8, 1.3), d4=g.d4 * rng.uniform(0.8, 1.3),
                   stroke=g.stroke * rng.uniform(0.7, 1.3), theta_1p=g.theta_1p + rng.uniform(-0.3, 0.3))
+        try:
+            out.append(_geometry(BASE, **kw))
+        except InvalidDesign:
+            continue
+    return out
+
+
+#: the bounds of the bundled problem the sweeps and the optimiser draw from (read from its file, so a
+#: change there moves this sample with it)
+PROBLEM = Path(__file__).resolve().parents[3] / "optim" / "problems" / "prrr-workspace.toml"
+
+
+def _problem_sample(n: int, seed: int) -> list:
+    """``n`` designs drawn uniformly within the bounds of :data:`PROBLEM` (seeded; designs the
+    parameter rules refuse are redrawn): colliding, not-assemblable and empty ones among them."""
+    rng = np.random.default_rng(seed)
+    variables = tomllib.loads(PROBLEM.read_text())["variables"]
+    out = []
+    while len(out) < n:
+        kw = {}
+        for v in variables:
+            section, name = v["key"].split(".")
+            assert section == "geometry", v
+            x = rng.uniform(v["lower"], v["upper"])
+            field, unit = name.rsplit("_", 1)
+            kw[field] = {"mm": x / 1000.0, "deg": math.radians(x)}[unit]
         try:
             out.append(_geometry(BASE, **kw))
         except InvalidDesign:
@@ -75,6 +105,51 @@ def test_batch_equals_single_path(both):
         assert not bad, (d.geometry, {k: (ms[k], mb[k]) for k in bad})
 
 
+def _assert_equal(designs, single, batched) -> None:
+    for d, s, b in zip(designs, single, batched, strict=True):
+        assert b.statuses == s.statuses, d.geometry
+        assert b.messages == s.messages, d.geometry
+        ms, mb = s.metrics(), b.metrics()
+        assert list(mb) == list(ms)
+        bad = [k for k in ms if not _close(mb[k], ms[k])]
+        assert not bad, (d.geometry, {k: (ms[k], mb[k]) for k in bad})
+
+
+def test_batch_equals_single_path_within_the_problem_bounds():
+    """40 seeded designs within the bounds of the bundled workspace problem (and one whose chain
+    does not close): equal statuses,
+    messages and metrics, and the sample holds colliding designs, not-met cylinders, designs whose
+    parts cannot be laid out (batched: the kinematic evaluators run) and chains that do not close
+    (single path)."""
+    # + prrr-paper with d2 = 300 mm: |ρ| ≥ 300 mm > d3 + d4 = 171 mm, the chain does not close
+    designs = _problem_sample(40, seed=2203) + [_geometry(BASE, d2=0.300)]
+    single = [evaluate_all(d, fidelity=Fidelity.DRAFT) for d in designs]
+    _assert_equal(designs, single, evaluate_batch(designs, fidelity=Fidelity.DRAFT))
+    seen = {(name, str(st)) for ev in single for name, st in ev.statuses.items()}
+    for case in [("interference", "collides"), ("interference", "ok"), ("free_workspace", "not-met"),
+                 ("device_size", "not-assemblable"), ("device_size", "ok")]:
+        assert case in seen, case
+    parts_only = [ev for ev in single if str(ev.statuses["device_size"]) == "not-assemblable"
+                  and str(ev.statuses["statics"]) != "not-assemblable"]
+    assert parts_only, "no design whose parts alone block it"
+    assert ("statics", "not-assemblable") in seen
+
+
+def test_envelopes_equal_the_cad_envelope():
+    """The batch's envelopes (every design of a layout at once, from the primitive tables) equal
+    ``cad.envelope_radius`` design by design to 1e-12 relative (24 designs within the problem bounds
+    whose parts are laid out, and prrr-paper)."""
+    designs = [d for d in _problem_sample(120, seed=11) + [BASE] if not assembly.parts(d)][-24:]
+    assert len(designs) == 24
+    specs = [cad.part_specs(d) for d in designs]
+    models = {i: interference_fast.prepare(d, specs=s) for i, (d, s) in enumerate(zip(designs, specs))}
+    env = draft_batch.envelopes(designs, models, specs)
+    assert sorted(env) == list(range(len(designs)))
+    for i, d in enumerate(designs):
+        ref = cad.envelope_radius(d, specs=specs[i])
+        assert abs(env[i] - ref) <= 1e-12 * ref, (d.geometry, env[i], ref)
+
+
 def test_sample_covers_the_hard_cases(both):
     """The sample is not all-ok: singular/ill-conditioned statics, collision-free workspaces that miss
     the required cylinder (not-met) and designs that cannot be assembled (the parts cannot be laid
@@ -88,13 +163,49 @@ def test_sample_covers_the_hard_cases(both):
     assert any(ev.results["free_workspace"].colliding > 0 for ev in single if "free_workspace" in ev.results)
 
 
-def test_only_restricts_the_batch():
-    designs = _sample()[:3]
-    only = ("statics", "free_workspace")
-    for s, b in zip([evaluate_all(d, fidelity=Fidelity.DRAFT, only=only) for d in designs],
-                    evaluate_batch(designs, fidelity=Fidelity.DRAFT, only=only)):
-        assert list(b.statuses) == list(s.statuses) == list(only)
-        assert all(_close(b.metrics()[k], v) for k, v in s.metrics().items())
+@pytest.mark.parametrize("only", [("statics", "free_workspace"), ("free_workspace",), ("interference",),
+                                  ("stability",), ("joint_limits", "device_size"), ("structural_stiffness",)])
+def test_only_restricts_the_batch(only):
+    """``only`` evaluates those evaluators alone (the core computes only the groups they read:
+    ``draft_batch.groups_for``), with the single path's statuses, messages and metrics; the sample
+    holds a design whose parts cannot be laid out and the β = 1e-12 rad singular one."""
+    designs = _sample()[:3] + _problem_sample(3, seed=2203)
+    assert draft_batch.groups_for(("free_workspace",)) == ("workspace",)
+    assert draft_batch.groups_for(("stability", "joint_limits")) == ("statics", "joint")
+    _assert_equal(designs, [evaluate_all(d, fidelity=Fidelity.DRAFT, only=only) for d in designs],
+                  evaluate_batch(designs, fidelity=Fidelity.DRAFT, only=only))
+    for b in evaluate_batch(designs[:1], fidelity=Fidelity.DRAFT, only=only):
+        assert set(b.statuses) == set(only)
+
+
+def test_pose_ik_has_two_shapes_for_every_batch_size():
+    """The pose IK runs in padded calls of MIN_POSES or POSE_CHUNK poses only: once both are traced,
+    batches of 3, 7 and 11 designs (other pose counts in every pass) do not trace it again (the
+    core traces once per power-of-two bucket of designs: the test below), and the chunked IK
+    equals the numpy IK row by row."""
+    designs = _problem_sample(11, seed=7)
+    draft_batch.evaluate_many(designs[:1])  # every pass ≤ MIN_POSES poses
+    draft_batch.evaluate_many(designs[:11])  # > MIN_POSES poses in the interference pass
+    before = draft_batch.TRACES["pose_ik"]
+    assert before >= 1
+    for k in (3, 7, 11):
+        draft_batch.evaluate_many(designs[:k])
+    assert draft_batch.TRACES["pose_ik"] == before
+    check = draft_batch._Checker(designs, {})
+    rng = np.random.default_rng(3)
+    n = draft_batch.POSE_CHUNK + 5  # two chunks, the second padded
+    owner = rng.integers(0, len(designs), n)
+    pts = rng.uniform(-0.05, 0.05, (n, 3))
+    sliders, theta, ok = check.pose_ik(owner, pts)
+    picked = np.concatenate([rng.choice(draft_batch.POSE_CHUNK, 8, replace=False),
+                             np.arange(draft_batch.POSE_CHUNK, n)])  # both chunks
+    assert ok[picked].any()
+    for i in picked:
+        ik = inverse_kinematics(statics.params_np(designs[owner[i]]), pts[i:i + 1], xp=np)
+        assert np.array_equal(np.asarray(ik.reachable)[0], ok[i])
+        if ok[i]:
+            assert np.allclose(np.asarray(ik.sliders)[0], sliders[i], rtol=REL, atol=1e-15)
+            assert np.allclose(np.asarray(ik.theta)[0, 1], theta[i], rtol=REL, atol=1e-12)
 
 
 def test_new_batch_size_in_a_bucket_does_not_retrace():

@@ -64,11 +64,12 @@ LEGACY_CARRIAGE = ["geometry.theta_1p_deg=0", "geometry.r_p_mm=100", "structure.
 
 
 def test_frame_matches_cad_fea_within_15_percent_for_the_issue_15_carriage():
-    # prrr-paper's issue-15 carriage with the R1 bracket bonded face to face (docs/cad.md "R1 bracket"),
-    # the frame carrying R1 on it (frame_model.bracket_frame). Measured (docs/structure.md "R1 bracket"):
-    # CAD FEA levels 0–3: 565.1, 556.4, 538.6, 535.0 N/mm in x (level 2 → 3: −0.7 %); level 2 here:
-    # 538.6, 539.0, 780.1 N/mm, frame 599.1, 599.1, 831.2 N/mm: +11.2 %, +11.2 %, +6.5 % (+12.0, +11.9,
-    # +6.9 % at level 3). Before the bracket fix: +35/+36/+45 % at level 0, the CAD's corner bond.
+    # prrr-paper's issue-15 carriage with the R1 bracket in the clevis layer, its root plate let into the
+    # block face (docs/cad.md "R1 bracket"), the frame carrying R1 on it (frame_model.bracket_frame).
+    # Measured (docs/structure.md "R1 bracket"): CAD FEA levels 0–4: 540.1, 530.7, 513.7, 509.6, 510.0 N/mm
+    # in x (level 3 → 4: +0.1 %); level 2 here: 513.7, 514.5, 736.5 N/mm, frame 566.9, 566.9, 776.0 N/mm:
+    # +10.4 %, +10.2 %, +5.4 % (+11.2, +11.2, +6.4 % at level 4). The bounding-box root before: +12.2,
+    # +12.0, +7.7 % at level 4; the corner-bonded bar before that: +35/+36/+45 % at level 0.
     from hapticopt.analysis.prrr import frame_model as fm
     from hapticopt.analysis.prrr.structure import structural_stiffness
     from hapticopt.design.prrr.cad import DEFAULT_BRANCH

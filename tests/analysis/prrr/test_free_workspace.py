@@ -105,6 +105,21 @@ def test_joint_limits_from_the_hardware(paper):
     assert J.evaluate(fat, fidelity="draft").status == Status.NOT_MET
 
 
+def test_r1_bracket_does_not_stop_r1_inside_the_cylinder(paper):
+    # the R1 bracket stays in the clevis layer (docs/cad.md "R1 bracket"): link1 turns past it. Fine
+    # fidelity adds the parts' stops (interference.joint_limits, manifold3d, 2° steps, leg 1). The
+    # φ140 mm cylinder needs R1 over −92.2…+37.2° (the evaluator's own IK grid); R1's stop, now from the
+    # carriage block, is +66.3° (measured; the bounding-box root stopped it at +14.3°: not-met by 22.9°),
+    # so we ask for 20° of margin on both sides
+    from hapticopt.analysis.prrr import joint_limits as J
+
+    r = J.evaluate(paper, fidelity="fine")
+    assert r.status == Status.OK, r.message
+    (used_lo, used_hi), (stop_lo, stop_hi) = r.used["r1"], r.stops["r1"]
+    assert stop_hi - used_hi >= math.radians(20.0) and used_lo - stop_lo >= math.radians(20.0)
+    assert r.margin > 0.0
+
+
 def test_paper_is_the_size_seed_002_built(paper):
     # seed 002 Table 1: φ260 × 231 mm, 4.4 kg; issue 15 acceptance: footprint ≤ 270 mm,
     # height ≤ 240 mm, mass within ± 15 %, split stated

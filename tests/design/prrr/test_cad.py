@@ -1,5 +1,6 @@
 """3-PRRR CAD: closed-form volumes, CAD joint axes = kinematic axes, hard cases."""
 
+import itertools
 import math
 
 import numpy as np
@@ -115,28 +116,59 @@ def test_hard_cases_give_a_clear_invalid_design(paper, override, match):
     assert "\n" not in str(err.value)
 
 
-def test_r1_bracket_is_bonded_face_to_face(paper, solids):
-    # issue-15 follow-up: the R1 bracket's root stands on a face of the carriage block (its whole end
-    # face bonded there) and the clevis arm's whole W × T end section is bonded on the root's end face
-    # (before: the bar ended on a block corner edge, bonded over 9.9 mm²; docs/cad.md "R1 bracket")
-    lay = cad_prrr.layout(paper)
+@pytest.mark.parametrize("override", [None, "geometry.beta_deg=40"])
+def test_r1_bracket_stays_in_the_clevis_layer_and_is_let_into_the_block(paper, solids, override):
+    # issue-15 follow-up: the R1 bracket is an L of two plates in the clevis layer (thickness T along
+    # w about Ac), so nothing of it enters link1's layer [T/2 + g, 3T/2 + g] (the bounding-box root
+    # before spanned −13.6…+14.4 mm and stopped R1 at +14.3°); the root plate is let into the block's
+    # side face at the clevis plane's slant, bonded over its section in the face plane, and the clevis
+    # arm's whole W × T end section is bonded on the root's end face (docs/cad.md "R1 bracket").
+    # β = 40°: the plate would need more than the 5 mm wall beside the rail slot; it stops there.
+    design = paper if override is None else io.apply_overrides(paper, [override])
+    lay = cad_prrr.layout(design)
     b = lay.bracket
-    s = paper.structure
+    s = design.structure
     W, T, R, r = s.link_width, s.link_thickness, s.boss_diameter / 2, s.bore_diameter / 2
     (x0, x1), hy, (z0, z1) = lay.block_x, lay.block_y, lay.block_z
     assert b.face == "side" and b.normal[1] == -lay.side  # beside the rail, opposite the SEA housing
-    e_l, N, n_p = b.root_axes.T
-    # the root's bonded face lies on the block face y = −h_y and inside its extent
-    corners = [b.contact_centre + i * b.root_size[0] / 2 * e_l + j * b.root_size[2] / 2 * n_p
-               for i in (-1, 1) for j in (-1, 1)]
-    for c in corners:
+    w, N = b.axis, b.normal
+    e_l = b.root_axes[:, 0]
+    e_m = np.cross(w, e_l)
+
+    def corners(centre, axes, size):
+        return [centre + axes @ (np.array(k) * np.asarray(size) / 2)
+                for k in itertools.product(*[(-1, 1)] * len(size))]
+
+    root = corners(b.root_centre, b.root_axes, b.root_size)
+    arm = corners(b.clevis + b.arm_length / 2 * e_l, np.stack([e_l, e_m, w], axis=1), (b.arm_length, W, T))
+    for c in root + arm:  # the clevis layer, nothing beyond: link1 starts T/2 + g above Ac
+        assert abs((c - b.clevis) @ w) <= T / 2 + 1e-12
+    # the bonded patch lies on the block face y = −h_y, inside its extent, and on the root plate
+    patch = corners(b.contact_centre, b.contact_axes, b.contact_size)
+    for c in patch:
         assert c @ N == pytest.approx(hy, abs=1e-12)
         assert x0 - 1e-12 <= c[0] <= x1 + 1e-12 and z0 - 1e-12 <= c[2] <= z1 + 1e-12
-    assert b.contact_area >= 2 * W * T  # 405 mm² for prrr-paper
-    # the arm's end section (W × T about E, axes w × e_l and w) lies in the root's end face and inside it
-    w = b.axis
-    e_m = np.cross(w, e_l)
-    lo = b.root_centre - np.array(b.root_size) / 2 @ b.root_axes.T
+        local = (c - b.root_centre) @ b.root_axes
+        assert np.all(np.abs(local) <= np.array(b.root_size) / 2 + 1e-12)
+    # its width across the plate: the layer's section in the face plane, T/ν, ν = √(1 − (w·N)²) and
+    # w·N = cos β sin θ_1p for leg 1's side face (w = (−cos β, 0, sin β) turned by −θ_1p), or the part
+    # of it let in at most carriage_wall deep (depth along N = width · μν, μ = |w·N|)
+    g_ = design.geometry
+    mu = math.cos(g_.beta) * abs(math.sin(g_.theta_1p))
+    nu = math.sqrt(1.0 - mu * mu)
+    width = T / nu if mu * T <= s.carriage_wall else s.carriage_wall / (mu * nu)
+    assert b.contact_size[1] == pytest.approx(width, rel=1e-12)
+    assert (mu * T > s.carriage_wall) == (override is not None)
+    assert b.contact_area >= W * T  # no smaller than the arm section it carries (256 mm² for prrr-paper)
+    # the let-in part (wedge) is block material: inside the block, outside the rail slot
+    wp = b.wedge
+    tri = [np.zeros(3), np.array([wp.dims[0], 0, 0]), np.array([0, wp.dims[1], 0])]
+    for v in tri:
+        for zz in (-wp.dims[2] / 2, wp.dims[2] / 2):
+            q = wp.o + wp.R @ (v + np.array([0, 0, zz]))
+            assert x0 - 1e-12 <= q[0] <= x1 + 1e-12 and z0 - 1e-12 <= q[2] <= z1 + 1e-12
+            assert lay.slot - 1e-12 <= abs(q[1]) <= hy + 1e-12
+    # the arm's end section (W × T about E, axes e_m and w) lies in the root's end face and inside it
     for i in (-1, 1):
         for j in (-1, 1):
             q = b.arm_end + i * W / 2 * e_m + j * T / 2 * w - b.root_centre
@@ -144,12 +176,14 @@ def test_r1_bracket_is_bonded_face_to_face(paper, solids):
             assert local[0] == pytest.approx(-b.root_size[0] / 2, abs=1e-12)
             assert np.all(np.abs(local[1:]) <= np.array(b.root_size[1:]) / 2 + 1e-12)
     assert b.arm_length >= R + s.clearance  # the clevis boss clears the root
-    # no volume is shared: the OpenCASCADE solid's volume is the plain sum of its pieces (closed form):
-    # block − rail slot + root + arm bar + boss disc − its cap inside the bar − bore
+    # volume bookkeeping: the OpenCASCADE solid's volume is the closed-form sum of its pieces:
+    # block − rail slot + root plate − its wedge inside the block (½ · legs · length) + arm bar + boss
+    # disc − its cap inside the bar − bore
+    solid = solids["carriage_1"] if override is None else cad_prrr.build_solid(cad_prrr.part_specs(design)["carriage_1"])
     block = (x1 - x0) * 2 * hy * (z1 - z0) - (2 * lay.slot) ** 2 * (z1 - z0)
-    root = float(np.prod(b.root_size))
-    arm = (b.arm_length * W + math.pi * R * R - _cap_area(R, W / 2) - math.pi * r * r) * T
-    assert solids["carriage_1"].volume * 1e-9 == pytest.approx(block + root + arm, rel=1e-6)
+    plate = float(np.prod(b.root_size)) - 0.5 * float(np.prod(wp.dims))
+    arm_v = (b.arm_length * W + math.pi * R * R - _cap_area(R, W / 2) - math.pi * r * r) * T
+    assert solid.volume * 1e-9 == pytest.approx(block + plate + arm_v, rel=1e-6)
 
 
 def test_bracket_face_falls_back_and_refuses_with_one_line(paper):

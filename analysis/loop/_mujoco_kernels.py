@@ -1,0 +1,567 @@
+"""numba kernels of :mod:`hapticopt.analysis.loop.mujoco_compiled` (imported only through it, after
+``libmujoco`` is loaded for the linker). Each kernel runs ticks [start, end) of one plant's loop and
+mirrors the Python loop and controller it replaces operation by operation (same order, no fused
+multiply-add: numba does not contract without ``fastmath``), so the records are bit-identical — except the
+master's dynamics compensation (:func:`_compensation`: the same torque in closed form where the reference takes
+central differences; the records agree within the reference's own rounding envelope)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
+
+#: environment kinds of the compiled 3-PRRR / master firmwares
+ENV_FREE, ENV_SPRING, ENV_BOX, ENV_FORCE = 0, 1, 2, 3
+#: force loops of the compiled 3-PRRR firmware (hapticopt.analysis.prrr.firmware.ForceLoop)
+LOOP_SEA, LOOP_RIGID, LOOP_IDEAL = 0, 1, 2
+
+# void mj_step(const mjModel* m, mjData* d): pointers passed as integers (same registers on x86-64 / arm64)
+_mj_step = types.ExternalFunction("mj_step", types.void(types.intp, types.intp))
+
+
+@intrinsic
+def _f64(typingctx, addr, i):
+    """double at byte address ``addr``, element ``i``."""
+    sig = types.float64(types.intp, types.intp)
+
+    def codegen(context, builder, signature, args):
+        p = builder.inttoptr(args[0], ir.DoubleType().as_pointer())
+        return builder.load(builder.gep(p, [args[1]]))
+
+    return sig, codegen
+
+
+@intrinsic
+def _i32(typingctx, addr, i):
+    """int at byte address ``addr``, element ``i`` (as intp)."""
+    sig = types.intp(types.intp, types.intp)
+
+    def codegen(context, builder, signature, args):
+        p = builder.inttoptr(args[0], ir.IntType(32).as_pointer())
+        return builder.sext(builder.load(builder.gep(p, [args[1]])), ir.IntType(64))
+
+    return sig, codegen
+
+
+@intrinsic
+def _ptr(typingctx, addr):
+    """pointer stored at byte address ``addr`` (as intp)."""
+    sig = types.intp(types.intp)
+
+    def codegen(context, builder, signature, args):
+        p = builder.inttoptr(args[0], ir.IntType(64).as_pointer())
+        return builder.load(p)
+
+    return sig, codegen
+
+
+@njit(cache=True, inline="always")
+def _clip(x, lim):
+    """``min(max(x, -lim), lim)`` as Python evaluates it (NaN stays NaN, as np.clip)."""
+    lo = -lim
+    y = lo if lo > x else x
+    return lim if lim < y else y
+
+
+# --------------------------------------------------------------------------------------- 3-PRRR
+@njit(cache=True)
+def prrr_chunk(m_addr, d_addr, off, start, end, nstep,
+               qpos, qvel, qacc, ctrl, energy, qs, qfa,
+               sl_idx, mo_idx, spr_idx, hd_idx, REF, DREF,
+               par, flg, J, K, B, anchor, half, famp, fphase,
+               st, ist, dbuf,
+               Qp, Qv, Qa, KE, clock, CMD, Fref, EF,
+               ee_idx, mo_e, Kst, chk_f, chk_i):
+    """Ticks from ``start`` (a window boundary) of ``MujocoPlant.run`` with ``NumpyController._step_scalar``
+    (interpolation 1), window by window (``check_every`` ticks), until the end of the first window that holds a
+    possibly bad tick (returned: the plant checks that window exactly) or ``end`` (returns −1: no tick was).
+
+    "Possibly bad" is the plant's ``_window_bad`` rule with margins (MuJoCo's clock reset, a non-finite or
+    |p| ≥ 1 m end-effector, the energy over ``explode`` less a margin of 1e-9 of its terms' sum), so a window it
+    passes is clean however numpy rounds and sums the same quantities; chk_f: explode, spring, T; chk_i:
+    check_every, whether the spring deflection (mo_e − slider) counts.
+
+    par: inv_res, res, T, alpha, Kb, Bb, fomega, fc, fcv, weight, spring, kp, kiT, lim, eta, gain;
+    flg: quantize, has_motor, env, friction, gravity, loop, integral, saturation, has_hand, n_eq, delay;
+    st: p_prev(3), v(3), integral(3), F(3); ist: tick, delay position; dbuf: (delay, 3) commands.
+    off: mjData offsets (time, nefc, efc_pos)."""
+    inv_res, r, T, a = par[0], par[1], par[2], par[3]
+    Kb, Bb, fomega, fc, fcv, weight = par[4], par[5], par[6], par[7], par[8], par[9]
+    ks, kp, kiT, lim, eta, gain = par[10], par[11], par[12], par[13], par[14], par[15]
+    quantize, has_motor, env, friction, gravity = flg[0], flg[1], flg[2], flg[3], flg[4]
+    loop, integral, saturation, has_hand, n_eq, D = flg[5], flg[6], flg[7], flg[8], flg[9], flg[10]
+    off_time, off_nefc, off_efc_pos = off[0], off[1], off[2]
+    sc = np.empty(3)
+    dc = np.empty(3)
+    p = np.empty(3)
+    v = np.empty(3)
+    F = np.empty(3)
+    fr = np.empty(3)
+    out = np.empty(3)
+    cmd = np.empty(3)
+    explode, spring_e, Tp = chk_f[0], chk_f[1], chk_f[2]
+    every, mo_chk = chk_i[0], chk_i[1]
+    suspect = False
+    for k in range(start, end):
+        # encoders: slider counts and spring deflection counts (motor − slider), rounded when quantised
+        for i in range(3):
+            s = qpos[sl_idx[i]]
+            y = s * inv_res
+            dd = (qpos[mo_idx[i]] - s) * inv_res if has_motor else 0.0
+            if quantize:
+                y = np.rint(y)
+                dd = np.rint(dd)
+            sc[i] = y * r
+            dc[i] = dd
+        for i in range(3):  # (counts · res) @ Jᵀ
+            p[i] = sc[0] * J[i, 0] + sc[1] * J[i, 1] + sc[2] * J[i, 2]
+        for i in range(3):
+            if a > 0.0:
+                v[i] = a * st[3 + i] + (1.0 - a) * ((p[i] - st[i]) / T)
+            else:
+                v[i] = (p[i] - st[i]) / T
+        if env == ENV_FREE:
+            F[0] = 0.0
+            F[1] = 0.0
+            F[2] = 0.0
+        elif env == ENV_SPRING:
+            for i in range(3):
+                F[i] = -K[i] * (p[i] - anchor[i]) - B[i] * v[i]
+        elif env == ENV_BOX:  # inside
+            for i in range(3):
+                F[i] = 0.0
+                dl = p[i] - anchor[i]
+                depth = abs(dl) - half[i]
+                if depth > 0.0:
+                    sgn = 1.0 if dl > 0.0 else (-1.0 if dl < 0.0 else 0.0)
+                    F[i] = -Kb * sgn * depth - Bb * v[i]
+        else:  # ENV_FORCE
+            ph = fomega * (ist[0] * T)
+            for i in range(3):
+                F[i] = famp[i] * math.sin(ph + fphase[i])
+        if friction:
+            F[0] = F[0] + fc * math.tanh(v[0] / fcv)
+            F[1] = F[1] + fc * math.tanh(v[1] / fcv)
+            F[2] = F[2] + 0.0
+        if gravity:
+            F[2] = F[2] + weight
+        for j in range(3):  # F @ J
+            fr[j] = F[0] * J[0, j] + F[1] * J[1, j] + F[2] * J[2, j]
+        for j in range(3):
+            if loop == LOOP_SEA:
+                err = fr[j] - ks * (dc[j] * r)
+                o = kp * err
+                if integral:
+                    ig = st[6 + j] + kiT * err
+                    if saturation:
+                        ig = _clip(ig, lim)
+                    o = o + ig
+                    st[6 + j] = ig
+            elif loop == LOOP_RIGID:
+                o = fr[j] / eta
+            else:
+                o = fr[j]
+            if saturation:
+                o = _clip(o, lim)
+            out[j] = o
+        ist[0] += 1
+        for i in range(3):
+            st[i] = p[i]
+            st[3 + i] = v[i]
+            st[9 + i] = F[i]
+        # delay line (FIFO of D commands, zeros at start)
+        if D > 0:
+            pos = ist[1]
+            for j in range(3):
+                cmd[j] = dbuf[pos, j]
+                dbuf[pos, j] = out[j]
+            ist[1] = (pos + 1) % D
+        else:
+            for j in range(3):
+                cmd[j] = out[j]
+        for j in range(3):
+            ctrl[j] = cmd[j] * gain
+        if has_hand:
+            for j in range(3):
+                qs[spr_idx[j]] = REF[k, j]
+                qfa[hd_idx[j]] = DREF[k, j]
+        for _ in range(nstep):
+            _mj_step(m_addr, d_addr)
+        Qp[k, :] = qpos
+        Qv[k, :] = qvel
+        Qa[k, :] = qacc
+        KE[k] = energy[1]
+        clock[k] = _f64(d_addr + off_time, 0)
+        for j in range(3):
+            CMD[k, 0, j] = cmd[j]
+            Fref[k, j] = F[j]
+        if n_eq > 0 and _i32(d_addr + off_nefc, 0) >= n_eq:
+            efc = _ptr(d_addr + off_efc_pos)
+            for j in range(n_eq):
+                EF[k, j] = _f64(efc, j)
+        # prefilter of the window check (conservative: see the docstring)
+        e = KE[k]
+        scale = abs(e)
+        for i in range(3):
+            x = qpos[ee_idx[i]]
+            if not (abs(x) < 1.0 - 1e-12):  # also NaN
+                suspect = True
+            t = 0.5 * (Kst[i] * (x * x))
+            e += t
+            scale += abs(t)
+            if mo_chk:
+                dfl = qpos[mo_e[i]] - qpos[sl_idx[i]]
+                t = 0.5 * spring_e * (dfl * dfl)
+                e += t
+                scale += abs(t)
+        if not (e < explode - 1e-9 * scale) or clock[k] < (k + 0.5) * Tp * (1.0 + 1e-9):
+            suspect = True
+        if suspect and ((k + 1) % every == 0 or k + 1 == end):
+            return k + 1
+    return -1
+
+
+# --------------------------------------------------------------------------------------- master
+@njit(cache=True)
+def _frames(c1, s1, c2, s2, c3, s3, L5, L4, dl, hs, O, dO, R, dR):
+    """The six link frames of ``dynamics_numpy.frames`` from the joint angles' cosines and sines, and their exact
+    derivatives ∂/∂q_k (what the reference's complex step gives, to rounding): O (6, 3), dO (6, 3, k), R (6, 3, 3),
+    dR (6, 3, 3, k). Entries that are structurally zero (turret origin, ∂/∂θ2 of f, …) are not written: the caller
+    zeroes the arrays once (:func:`comp_scratch`)."""
+    # e_rho = (c1, s1, 0), axis a = (s1, −c1, 0), u = c2 e_rho + s2 e_z, f = s3 e_rho − c3 e_z
+    u0, u1, u2 = c2 * c1, c2 * s1, s2
+    f0, f1, f2 = s3 * c1, s3 * s1, -c3
+    O[1, 2] = hs
+    O[2, 2] = hs
+    O[3, 0], O[3, 1], O[3, 2] = -dl * f0, -dl * f1, hs - dl * f2
+    O[4, 0], O[4, 1], O[4, 2] = L5 * u0, L5 * u1, hs + L5 * u2
+    O[5, 0], O[5, 1], O[5, 2] = L5 * u0 + L4 * f0, L5 * u1 + L4 * f1, hs + L5 * u2 + L4 * f2
+    # ∂u/∂q_k, ∂f/∂q_k (k = θ1, θ2, θ3)
+    du = ((-c2 * s1, c2 * c1, 0.0), (-s2 * c1, -s2 * s1, c2), (0.0, 0.0, 0.0))
+    df = ((-s3 * s1, s3 * c1, 0.0), (0.0, 0.0, 0.0), (c3 * c1, c3 * s1, s3))
+    for k in range(3):
+        for i in range(3):
+            dO[3, i, k] = -dl * df[k][i]
+            dO[4, i, k] = L5 * du[k][i]
+            dO[5, i, k] = L5 * du[k][i] + L4 * df[k][i]
+    # turret: columns e_rho, −a, e_z
+    R[0, 0, 0], R[0, 1, 0] = c1, s1
+    R[0, 0, 1], R[0, 1, 1] = -s1, c1
+    R[0, 2, 2] = 1.0
+    dR[0, 0, 0, 0], dR[0, 1, 0, 0] = -s1, c1
+    dR[0, 0, 1, 0], dR[0, 1, 1, 0] = -c1, -s1
+    # rot(x): columns x, a, x × a = (x2 c1, x2 s1, −x0 c1 − x1 s1); frames 1..5 take x = u, −f, u, f, f
+    for fr in range(1, 6):
+        sg = -1.0 if fr == 2 else 1.0
+        if fr == 1 or fr == 3:
+            x0, x1, x2 = u0, u1, u2
+        else:
+            x0, x1, x2 = sg * f0, sg * f1, sg * f2
+        R[fr, 0, 0], R[fr, 1, 0], R[fr, 2, 0] = x0, x1, x2
+        R[fr, 0, 1], R[fr, 1, 1] = s1, -c1
+        R[fr, 0, 2], R[fr, 1, 2], R[fr, 2, 2] = x2 * c1, x2 * s1, -x0 * c1 - x1 * s1
+        for k in range(3):
+            if fr == 1 or fr == 3:
+                d0, d1, d2 = du[k][0], du[k][1], du[k][2]
+            else:
+                d0, d1, d2 = sg * df[k][0], sg * df[k][1], sg * df[k][2]
+            dc1, ds1 = (-s1, c1) if k == 0 else (0.0, 0.0)
+            dR[fr, 0, 0, k], dR[fr, 1, 0, k], dR[fr, 2, 0, k] = d0, d1, d2
+            dR[fr, 0, 1, k], dR[fr, 1, 1, k] = ds1, -dc1
+            dR[fr, 0, 2, k] = d2 * c1 + x2 * dc1
+            dR[fr, 1, 2, k] = d2 * s1 + x2 * ds1
+            dR[fr, 2, 2, k] = -(d0 * c1 + x0 * dc1) - (d1 * s1 + x1 * ds1)
+
+
+@njit(cache=True, inline="always")
+def _jm(a, b):
+    """Product of two second-order jets (value, D, D²) along one direction: (ab, Da b + a Db, D²a b + 2 Da Db + a D²b)."""
+    return (a[0] * b[0], a[1] * b[0] + a[0] * b[1], a[2] * b[0] + 2.0 * a[1] * b[1] + a[0] * b[2])
+
+
+@njit(cache=True)
+def _frames_dd(c1, s1, c2, s2, c3, s3, v, L5, L4, dl, O2, R2):
+    """Second derivatives along q̂̇ = v, D²(·) = Σ_jk ∂²(·)/∂q_j∂q_k v_j v_k, of the frames of :func:`_frames`:
+    O2 (6, 3), R2 (6, 3, 3) (structural zeros not written, as there)."""
+    C1 = (c1, -s1 * v[0], -c1 * (v[0] * v[0]))
+    S1 = (s1, c1 * v[0], -s1 * (v[0] * v[0]))
+    C2 = (c2, -s2 * v[1], -c2 * (v[1] * v[1]))
+    S2 = (s2, c2 * v[1], -s2 * (v[1] * v[1]))
+    C3 = (c3, -s3 * v[2], -c3 * (v[2] * v[2]))
+    S3 = (s3, c3 * v[2], -s3 * (v[2] * v[2]))
+    u0, u1, u2 = _jm(C2, C1), _jm(C2, S1), S2
+    f0, f1, f2 = _jm(S3, C1), _jm(S3, S1), (-C3[0], -C3[1], -C3[2])
+    O2[3, 0], O2[3, 1], O2[3, 2] = -dl * f0[2], -dl * f1[2], -dl * f2[2]
+    O2[4, 0], O2[4, 1], O2[4, 2] = L5 * u0[2], L5 * u1[2], L5 * u2[2]
+    O2[5, 0], O2[5, 1], O2[5, 2] = L5 * u0[2] + L4 * f0[2], L5 * u1[2] + L4 * f1[2], L5 * u2[2] + L4 * f2[2]
+    R2[0, 0, 0], R2[0, 1, 0] = C1[2], S1[2]
+    R2[0, 0, 1], R2[0, 1, 1] = -S1[2], C1[2]
+    for fr in range(1, 6):
+        if fr == 1 or fr == 3:
+            x0, x1, x2 = u0, u1, u2
+        elif fr == 2:
+            x0, x1, x2 = (-f0[0], -f0[1], -f0[2]), (-f1[0], -f1[1], -f1[2]), (-f2[0], -f2[1], -f2[2])
+        else:
+            x0, x1, x2 = f0, f1, f2
+        R2[fr, 0, 0], R2[fr, 1, 0], R2[fr, 2, 0] = x0[2], x1[2], x2[2]
+        R2[fr, 0, 1], R2[fr, 1, 1] = S1[2], -C1[2]
+        R2[fr, 0, 2], R2[fr, 1, 2] = _jm(x2, C1)[2], _jm(x2, S1)[2]
+        R2[fr, 2, 2] = -_jm(x0, C1)[2] - _jm(x1, S1)[2]
+
+
+def comp_scratch():
+    """Scratch arrays of :func:`_compensation`, zeroed (allocated once per run, not per tick): O, ∂O, R, ∂R, D²O,
+    D²R, J_v, J_ω."""
+    return (np.zeros((6, 3)), np.zeros((6, 3, 3)), np.zeros((6, 3, 3)), np.zeros((6, 3, 3, 3)),
+            np.zeros((6, 3)), np.zeros((6, 3, 3)), np.zeros((3, 3)), np.zeros((3, 3)))
+
+
+@njit(cache=True)
+def _compensation(c1, s1, c2, s2, c3, s3, qd, qdd, kin, bfr, bw, bm, bcom, bI, rotor, sc, out):
+    """M̂(q) q̂̈ + Ĉ(q, q̂̇) q̂̇ into out (3,): the torque of ``firmware.compensation_torque`` in closed form, from the
+    cosines and sines of q (the kinematics' own: no further trig call).
+
+    The reference sums M̂ = Σ_b w_b (m J_vᵀJ_v + J_ωᵀ R I Rᵀ J_ω) + diag(rotor) (``dynamics_numpy.body_mass_matrices``)
+    and takes Ĉ q̂̇ = Ṁ q̂̇ − ½ ∂(q̂̇ᵀ M̂ q̂̇)/∂q by central differences of M̂ (h = 1e-6 rad, 7 mass matrices). The same
+    torque, as Lagrange's equations give it body by body (Newton–Euler projected on the joints):
+    Σ_b w_b (J_vᵀ m (J_v q̂̈ + a_b) + J_ωᵀ (I (J_ω q̂̈ + α_b) + ω_b × I ω_b)) + rotor q̂̈, in body axes (J_ω = vee(Rᵀ ∂R/∂q),
+    ω_b = J_ω q̂̇), with the velocity-product accelerations a_b = D²c_b and α_b = vee of the skew part of Rᵀ D²R (D²
+    along q̂̇: :func:`_frames_dd`). The frames' derivatives are exact (the reference's complex step gives them to
+    rounding); the difference to the reference is its central difference's truncation O(h²) and rounding (ε|M̂|/h):
+    both below the reference's own sensitivity to its rounding (measured, docs/performance.md §2)."""
+    O, dO, R, dR, O2, R2, Jv, Jw = sc
+    _frames(c1, s1, c2, s2, c3, s3, kin[0], kin[1], kin[2], kin[3], O, dO, R, dR)
+    _frames_dd(c1, s1, c2, s2, c3, s3, qd, kin[0], kin[1], kin[2], O2, R2)
+    t0 = t1 = t2 = 0.0
+    for b in range(bfr.shape[0]):
+        w = bw[b]
+        if w == 0.0:
+            continue
+        f = bfr[b]
+        cx, cy, cz = bcom[b, 0], bcom[b, 1], bcom[b, 2]
+        for k in range(3):
+            for i in range(3):  # J_v = ∂(o + R com)/∂q
+                Jv[i, k] = dO[f, i, k] + (dR[f, i, 0, k] * cx + dR[f, i, 1, k] * cy + dR[f, i, 2, k] * cz)
+            # body-axes angular velocity per unit q̇_k: vee(Rᵀ ∂R/∂q_k)
+            Jw[0, k] = R[f, 0, 2] * dR[f, 0, 1, k] + R[f, 1, 2] * dR[f, 1, 1, k] + R[f, 2, 2] * dR[f, 2, 1, k]
+            Jw[1, k] = R[f, 0, 0] * dR[f, 0, 2, k] + R[f, 1, 0] * dR[f, 1, 2, k] + R[f, 2, 0] * dR[f, 2, 2, k]
+            Jw[2, k] = R[f, 0, 1] * dR[f, 0, 0, k] + R[f, 1, 1] * dR[f, 1, 0, k] + R[f, 2, 1] * dR[f, 2, 0, k]
+        I = bI[b]
+        wm = w * bm[b]
+        # CoM acceleration Jv q̂̈ + a, a = D²O + D²R com (the velocity-product part)
+        a0 = (Jv[0, 0] * qdd[0] + Jv[0, 1] * qdd[1] + Jv[0, 2] * qdd[2]) + (
+            O2[f, 0] + (R2[f, 0, 0] * cx + R2[f, 0, 1] * cy + R2[f, 0, 2] * cz))
+        a1 = (Jv[1, 0] * qdd[0] + Jv[1, 1] * qdd[1] + Jv[1, 2] * qdd[2]) + (
+            O2[f, 1] + (R2[f, 1, 0] * cx + R2[f, 1, 1] * cy + R2[f, 1, 2] * cz))
+        a2 = (Jv[2, 0] * qdd[0] + Jv[2, 1] * qdd[1] + Jv[2, 2] * qdd[2]) + (
+            O2[f, 2] + (R2[f, 2, 0] * cx + R2[f, 2, 1] * cy + R2[f, 2, 2] * cz))
+        # body-axes ω = J_ω q̂̇ and angular acceleration J_ω q̂̈ + α, α = vee(skew(Rᵀ D²R))
+        w0 = Jw[0, 0] * qd[0] + Jw[0, 1] * qd[1] + Jw[0, 2] * qd[2]
+        w1 = Jw[1, 0] * qd[0] + Jw[1, 1] * qd[1] + Jw[1, 2] * qd[2]
+        w2 = Jw[2, 0] * qd[0] + Jw[2, 1] * qd[1] + Jw[2, 2] * qd[2]
+        x21 = R[f, 0, 2] * R2[f, 0, 1] + R[f, 1, 2] * R2[f, 1, 1] + R[f, 2, 2] * R2[f, 2, 1]
+        x12 = R[f, 0, 1] * R2[f, 0, 2] + R[f, 1, 1] * R2[f, 1, 2] + R[f, 2, 1] * R2[f, 2, 2]
+        x02 = R[f, 0, 0] * R2[f, 0, 2] + R[f, 1, 0] * R2[f, 1, 2] + R[f, 2, 0] * R2[f, 2, 2]
+        x20 = R[f, 0, 2] * R2[f, 0, 0] + R[f, 1, 2] * R2[f, 1, 0] + R[f, 2, 2] * R2[f, 2, 0]
+        x10 = R[f, 0, 1] * R2[f, 0, 0] + R[f, 1, 1] * R2[f, 1, 0] + R[f, 2, 1] * R2[f, 2, 0]
+        x01 = R[f, 0, 0] * R2[f, 0, 1] + R[f, 1, 0] * R2[f, 1, 1] + R[f, 2, 0] * R2[f, 2, 1]
+        al0 = (Jw[0, 0] * qdd[0] + Jw[0, 1] * qdd[1] + Jw[0, 2] * qdd[2]) + 0.5 * (x21 - x12)
+        al1 = (Jw[1, 0] * qdd[0] + Jw[1, 1] * qdd[1] + Jw[1, 2] * qdd[2]) + 0.5 * (x02 - x20)
+        al2 = (Jw[2, 0] * qdd[0] + Jw[2, 1] * qdd[1] + Jw[2, 2] * qdd[2]) + 0.5 * (x10 - x01)
+        Iw0 = I[0, 0] * w0 + I[0, 1] * w1 + I[0, 2] * w2
+        Iw1 = I[1, 0] * w0 + I[1, 1] * w1 + I[1, 2] * w2
+        Iw2 = I[2, 0] * w0 + I[2, 1] * w1 + I[2, 2] * w2
+        h0 = I[0, 0] * al0 + I[0, 1] * al1 + I[0, 2] * al2 + (w1 * Iw2 - w2 * Iw1)
+        h1 = I[1, 0] * al0 + I[1, 1] * al1 + I[1, 2] * al2 + (w2 * Iw0 - w0 * Iw2)
+        h2 = I[2, 0] * al0 + I[2, 1] * al1 + I[2, 2] * al2 + (w0 * Iw1 - w1 * Iw0)
+        # the body's wrench projected on the joints: J_vᵀ m acc + J_ωᵀ (I α + ω × I ω)
+        t0 += wm * (Jv[0, 0] * a0 + Jv[1, 0] * a1 + Jv[2, 0] * a2) + w * (Jw[0, 0] * h0 + Jw[1, 0] * h1 + Jw[2, 0] * h2)
+        t1 += wm * (Jv[0, 1] * a0 + Jv[1, 1] * a1 + Jv[2, 1] * a2) + w * (Jw[0, 1] * h0 + Jw[1, 1] * h1 + Jw[2, 1] * h2)
+        t2 += wm * (Jv[0, 2] * a0 + Jv[1, 2] * a1 + Jv[2, 2] * a2) + w * (Jw[0, 2] * h0 + Jw[1, 2] * h1 + Jw[2, 2] * h2)
+    out[0] = t0 + rotor[0] * qdd[0]
+    out[1] = t1 + rotor[1] * qdd[1]
+    out[2] = t2 + rotor[2] * qdd[2]
+
+
+@njit(cache=True)
+def compensation(q, qd, qdd, kin, bfr, bw, bm, bcom, bI, rotor):
+    """:func:`_compensation` with its own scratch (for tests: one call)."""
+    sc = (np.zeros((6, 3)), np.zeros((6, 3, 3)), np.zeros((6, 3, 3)), np.zeros((6, 3, 3, 3)),
+          np.zeros((6, 3)), np.zeros((6, 3, 3)), np.zeros((3, 3)), np.zeros((3, 3)))
+    out = np.empty(3)
+    _compensation(math.cos(q[0]), math.sin(q[0]), math.cos(q[1]), math.sin(q[1]), math.cos(q[2]), math.sin(q[2]),
+                  qd, qdd, kin, bfr, bw, bm, bcom, bI, rotor, sc, out)
+    return out
+
+
+@njit(cache=True)
+def master_chunk(m_addr, d_addr, off, start, end, nstep,
+                 qpos, qvel, qacc, ctrl, qs, qfa, site_xpos, site,
+                 qa, hq, hd, REF, DREF, par, flg, q0, K, B, anchor, half,
+                 st, ist, dbuf,
+                 P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF, x0, chk_f, every,
+                 kin, bfr, bw, bm, bcom, bI, rotor, sc):
+    """Ticks from ``start`` (a window boundary) of ``MasterPlant.run`` with ``MasterController.step`` (with or without
+    dynamics compensation), window by window (``every`` ticks), until the end of the first window holding a possibly bad
+    tick (returned: the plant checks that window exactly) or ``end`` (returns −1: no tick was). "Possibly bad":
+    the plant's rule with margins (non-finite handle, further than RUNAWAY·(1 − 1e-12) from x0, MuJoCo's clock
+    reset); chk_f: RUNAWAY, T.
+
+    par: count scale (counts per rad), angle scale (rad per count), T, alpha, L5, L4, h, Kb, Bb, lim, g1, g2;
+    flg: quantize, env, gravity compensation, saturation, has_hand, n_closure, eq_hand, eq_type, delay, compensation;
+    st: p_prev(3), v(3), F(3), q_prev(3), q̂̇(3), q̂̈(3); ist: delay position, compensation samples seen;
+    kin … rotor: the compensation model (L5, L4, d, h; per body frame, weight, mass, CoM, inertia; rotor inertia),
+    sc: its scratch (:func:`comp_scratch`); off: mjData offsets (time, nefc, efc_pos, efc_force,
+    efc_type, efc_id)."""
+    cscale, ascale, T, a = par[0], par[1], par[2], par[3]
+    L5, L4, hgt, Kb, Bb, lim, g1, g2 = par[4], par[5], par[6], par[7], par[8], par[9], par[10], par[11]
+    quantize, env, gcomp, saturation, has_hand = flg[0], flg[1], flg[2], flg[3], flg[4]
+    n, eq_hand, eq_type, D, comp = flg[5], flg[6], flg[7], flg[8], flg[9]
+    off_time, off_nefc, off_pos, off_force, off_type, off_id = off[0], off[1], off[2], off[3], off[4], off[5]
+    q = np.empty(3)
+    p = np.empty(3)
+    v = np.empty(3)
+    F = np.empty(3)
+    Jm = np.empty((3, 3))
+    tau = np.empty(3)
+    cmd = np.empty(3)
+    rows = np.empty(3, dtype=np.intp)
+    qdn = np.empty(3)
+    qddn = np.empty(3)
+    ctau = np.empty(3)
+    runaway, Tp = chk_f[0], chk_f[1]
+    suspect = False
+    for k in range(start, end):
+        for i in range(3):  # encoder counts → joint angles (controller.joint_angles)
+            c = (qpos[qa[i]] - q0[i]) * cscale
+            if quantize:
+                c = np.rint(c)
+            q[i] = q0[i] + c * ascale
+        t1, t2, t3 = q[0], q[1], q[2]
+        c1, s1, c2, s2, c3, s3 = math.cos(t1), math.sin(t1), math.cos(t2), math.sin(t2), math.cos(t3), math.sin(t3)
+        rho = L5 * c2 + L4 * s3
+        p[0] = rho * c1
+        p[1] = rho * s1
+        p[2] = hgt + L5 * s2 - L4 * c3
+        Jm[0, 0], Jm[0, 1], Jm[0, 2] = -rho * s1, -L5 * s2 * c1, L4 * c3 * c1
+        Jm[1, 0], Jm[1, 1], Jm[1, 2] = rho * c1, -L5 * s2 * s1, L4 * c3 * s1
+        Jm[2, 0], Jm[2, 1], Jm[2, 2] = 0.0, L5 * c2, L4 * s3
+        for i in range(3):
+            diff = (p[i] - st[i]) / T
+            v[i] = a * st[3 + i] + (1.0 - a) * diff if a > 0.0 else diff
+            delta = p[i] - anchor[i]
+            if env == ENV_SPRING:
+                F[i] = -K[i] * delta - B[i] * v[i]
+            elif env == ENV_BOX:
+                depth = abs(delta) - half[i]
+                sgn = np.sign(delta)
+                F[i] = -Kb * sgn * depth - Bb * v[i] if depth > 0.0 else 0.0
+            else:
+                F[i] = 0.0
+        for j in range(3):  # Jᵀ F
+            tau[j] = F[0] * Jm[0, j] + F[1] * Jm[1, j] + F[2] * Jm[2, j]
+        if comp:  # MasterController._compensation: cascaded filtered differences, M̂ q̂̈ + Ĉ q̂̇ from the third sample
+            ns = ist[1]
+            ist[1] = ns + 1
+            if ns == 0:
+                for i in range(3):
+                    st[9 + i] = q[i]
+                    tau[i] = tau[i] + 0.0  # the reference adds zeros (−0.0 → 0.0)
+            else:
+                for i in range(3):
+                    diff = (q[i] - st[9 + i]) / T
+                    qdn[i] = diff if ns == 1 else a * st[12 + i] + (1.0 - a) * diff
+                if ns >= 2:
+                    for i in range(3):
+                        d2 = (qdn[i] - st[12 + i]) / T
+                        qddn[i] = d2 if ns == 2 else a * st[15 + i] + (1.0 - a) * d2
+                        st[15 + i] = qddn[i]
+                for i in range(3):
+                    st[9 + i] = q[i]
+                    st[12 + i] = qdn[i]
+                if ns >= 2:
+                    _compensation(c1, s1, c2, s2, c3, s3, qdn, qddn, kin, bfr, bw, bm, bcom, bI, rotor, sc, ctau)
+                else:
+                    ctau[:] = 0.0
+                for j in range(3):
+                    tau[j] = tau[j] + ctau[j]
+        if gcomp:
+            tau[0] = tau[0] + 0.0
+            tau[1] = tau[1] + g1 * math.cos(q[1])
+            tau[2] = tau[2] + g2 * math.sin(q[2])
+        if saturation:
+            for j in range(3):
+                tau[j] = _clip(tau[j], lim)
+        for i in range(3):
+            st[i] = p[i]
+            st[3 + i] = v[i]
+            st[6 + i] = F[i]
+        if D > 0:
+            pos = ist[0]
+            for j in range(3):
+                cmd[j] = dbuf[pos, j]
+                dbuf[pos, j] = tau[j]
+            ist[0] = (pos + 1) % D
+        else:
+            for j in range(3):
+                cmd[j] = tau[j]
+        for j in range(3):
+            ctrl[j] = cmd[j]
+        if has_hand:
+            for j in range(3):
+                qs[hq[j]] = REF[k, j]
+                qfa[hd[j]] = DREF[k, j]
+        for _ in range(nstep):
+            _mj_step(m_addr, d_addr)
+        for j in range(3):
+            P[k, j] = site_xpos[site, j]
+            TAU[k, j] = cmd[j]
+            FREF[k, j] = F[j]
+        nefc = _i32(d_addr + off_nefc, 0)
+        if nefc >= n:
+            ep = _ptr(d_addr + off_pos)
+            for j in range(n):
+                EFR[k, j] = _f64(ep, j)
+            has_ef[k] = True
+        clock[k] = _f64(d_addr + off_time, 0)
+        if has_hand:
+            for j in range(3):
+                HQ[k, j] = qpos[hq[j]]
+                HV[k, j] = qvel[hd[j]]
+                HA[k, j] = qacc[hd[j]]
+            # the hand connect's efc rows (equality rows lead efc, in equality order): its force on the hand
+            et, ei = _ptr(d_addr + off_type), _ptr(d_addr + off_id)
+            nr = 0
+            for r_ in range(nefc):
+                if _i32(et, r_) == eq_type and _i32(ei, r_) == eq_hand:
+                    if nr < 3:
+                        rows[nr] = r_
+                    nr += 1
+            if nr == 3:
+                ef = _ptr(d_addr + off_force)
+                for j in range(3):
+                    EQF[k, j] = -_f64(ef, rows[j])
+        for j in range(3):  # prefilter of the window check (conservative: see the docstring)
+            if not (abs(P[k, j] - x0[j]) <= runaway * (1.0 - 1e-12)):  # also NaN / inf
+                suspect = True
+        if clock[k] < (k + 0.5) * Tp * (1.0 + 1e-9):
+            suspect = True
+        if suspect and ((k + 1) % every == 0 or k + 1 == end):
+            return k + 1
+    return -1
+
+
+def warm() -> None:
+    """Load (or compile) both kernels: zero ticks on dummy arrays (no MuJoCo call is made)."""
+    f, i = np.zeros(16), np.zeros(16, dtype=np.int64)
+    x = np.zeros(3, dtype=np.int64)
+    a2, a3 = np.zeros((1, 3)), np.zeros((1, 1, 3))
+    prrr_chunk(0, 0, x, 0, 0, 1, f, f, f, f, f, f, f, x, x, x, x, a2, a2, f, i, np.zeros((3, 3)), f, f, f, f, f, f,
+               f, i, a2, a2, a2, a2, f, f, a3, a2, a2, x, x, f, f, i)
+    master_chunk(0, 0, i, 0, 0, 1, f, f, f, f, f, f, a2, 0, x, x, x, a2, a2, f, i, f, f, f, f, f,
+                 f, i, a2, a2, a2, a2, a2, np.zeros(1, dtype=np.bool_), f, a2, a2, a2, a2, f, f, 1,
+                 f, x, f, f, np.zeros((1, 3)), np.zeros((1, 3, 3)), f, comp_scratch())
