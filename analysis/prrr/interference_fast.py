@@ -29,7 +29,9 @@ the same part tables (:func:`hapticopt.design.prrr.cad.part_specs`), without mes
   candidate axes (both frames, centre to centre), which separate ~99 % of what is left and change
   no result (a separated pair's depth is negative, the depth table's floor is 0); the 16 cheap
   axes on the rest, the 40 sampled axes only on curved pairs still overlapping; each stage one
-  numpy pass over a chunk of poses. Poses come from the numpy
+  numpy pass over a chunk of poses. By default these stages run as one numba loop over poses and
+  pairs (:mod:`._interference_kernels`, bitwise-equal depths; the numpy path is the reference and
+  the fallback where :func:`availability` says why the kernel cannot run). Poses come from the numpy
   inverse kinematics (:func:`hapticopt.design.prrr.kinematics.inverse_kinematics`, ``xp=numpy``), in the
   CAD's elbow branch.
 
