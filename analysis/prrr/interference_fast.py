@@ -29,7 +29,9 @@ the same part tables (:func:`hapticopt.design.prrr.cad.part_specs`), without mes
   candidate axes (both frames, centre to centre), which separate ~99 % of what is left and change
   no result (a separated pair's depth is negative, the depth table's floor is 0); the 16 cheap
   axes on the rest, the 40 sampled axes only on curved pairs still overlapping; each stage one
-  numpy pass over a chunk of poses. Poses come from the numpy
+  numpy pass over a chunk of poses. By default these stages run as one numba loop over poses and
+  pairs (:mod:`._interference_kernels`, bitwise-equal depths; the numpy path is the reference and
+  the fallback where :func:`availability` says why the kernel cannot run). Poses come from the numpy
   inverse kinematics (:func:`hapticopt.design.prrr.kinematics.inverse_kinematics`, ``xp=numpy``), in the
   CAD's elbow branch.
 
@@ -220,10 +222,28 @@ def part_frames_batch(design: PrrrDesign, points, *, branch: int = cad_prrr.DEFA
     return cad_prrr.part_frames_batch(design, np.asarray(ik.sliders), theta, p), np.asarray(ik.reachable)
 
 
+def _mm(a, b):
+    """``a @ b`` for stacks of (.., I, 3) and (.., 3, K), summed in a fixed order, (a₀b₀ + a₁b₁) + a₂b₂,
+    with no fused multiply-add: numpy's matmul goes to BLAS, whose kernels fuse and reorder, so its
+    last bit depends on the BLAS build (and would differ from :mod:`._interference_kernels`'s)."""
+    return (a[..., :, 0, None] * b[..., None, 0, :] + a[..., :, 1, None] * b[..., None, 1, :]
+            + a[..., :, 2, None] * b[..., None, 2, :])
+
+
+def _mv(R, v):
+    """``R @ v`` for stacks of (.., 3, 3) and (.., 3), in :func:`_mm`'s order."""
+    return R[..., 0] * v[..., 0, None] + R[..., 1] * v[..., 1, None] + R[..., 2] * v[..., 2, None]
+
+
+def _dot(a, b):
+    """Σ a_k b_k over the last axis (3), in :func:`_mm`'s order."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
 def _support(kind, R, half, n):
     """Projection half-width of primitives on unit axes: R (m, 3, 3), half (m, 3), n (m, A, 3)."""
-    loc = np.abs(n @ R)  # |components of n along the primitive axes|
-    box = (loc @ half[:, :, None])[..., 0]
+    loc = np.abs(_mm(n, R))  # |components of n along the primitive axes|
+    box = loc[..., 0] * half[:, 0, None] + loc[..., 1] * half[:, 1, None] + loc[..., 2] * half[:, 2, None]
     az = loc[..., 2]
     cyl = half[:, 2, None] * az + half[:, 0, None] * np.sqrt(np.clip(1.0 - az * az, 0.0, None))
     k = kind[:, None]
@@ -242,15 +262,15 @@ def _world_extent(kind, R, half):
 
 
 def _unit(x):
-    nrm = np.sqrt(np.sum(x * x, axis=-1, keepdims=True))
+    nrm = np.sqrt(_dot(x, x))[..., None]
     return np.where(nrm > 1e-12, x / np.where(nrm > 1e-12, nrm, 1.0), 0.0)
 
 
 def _overlap(kind_a, Ra, ha, kind_b, Rb, hb, d, axes):
     """Smallest overlap [m] of the two projections over ``axes`` (m, A, 3) (zero axes ignored);
     ``d`` (m, 3) is the centre-to-centre vector."""
-    valid = np.sum(axes * axes, axis=-1) > 0.25
-    gap = np.abs((axes @ d[:, :, None])[..., 0])
+    valid = _dot(axes, axes) > 0.25
+    gap = np.abs(_dot(axes, d[:, None]))
     overlap = _support(kind_a, Ra, ha, axes) + _support(kind_b, Rb, hb, axes) - gap
     return np.min(np.where(valid, overlap, np.inf), axis=1)
 
@@ -260,34 +280,44 @@ def _overlap(kind_a, Ra, ha, kind_b, Rb, hb, d, axes):
 _RIM_SAMPLES = 12
 
 
-def _surface_samples(kind, R, half, c):
-    """Points (m, S, 3) on the surface of each primitive where curved contacts happen: box
-    corners and edge midpoints (20), cylinder rim points (2·_RIM_SAMPLES, padded by repetition),
-    sphere centre (repeated)."""
+@functools.cache
+def _sample_tables() -> tuple[np.ndarray, np.ndarray]:
+    """Unit-box sample points (S, 3): 8 corners + 12 edge midpoints (S = 20); unit-cylinder rim
+    points (S, 3): both end circles at _RIM_SAMPLES angles, cut (or padded by repetition) to S."""
     sgn = np.array([[i, j, k] for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
                     if (i != 0) + (j != 0) + (k != 0) >= 2], dtype=float)  # 8 corners + 12 edge midpoints
-    box = c[:, None] + (sgn[None] * half[:, None]) @ np.swapaxes(R, 1, 2)
     ang = 2.0 * np.pi * np.arange(_RIM_SAMPLES) / _RIM_SAMPLES
     ring = np.stack([np.cos(ang), np.sin(ang)], axis=1)  # (Q, 2)
     loc = np.concatenate([np.concatenate([ring, np.full((_RIM_SAMPLES, 1), z)], axis=1) for z in (-1.0, 1.0)])
     loc = np.concatenate([loc, loc[: len(sgn) - len(loc)]]) if len(loc) < len(sgn) else loc[: len(sgn)]
-    cyl = c[:, None] + (loc[None] * half[:, None]) @ np.swapaxes(R, 1, 2)
+    for x in (sgn, loc):
+        x.flags.writeable = False
+    return sgn, np.ascontiguousarray(loc)
+
+
+def _surface_samples(kind, R, half, c):
+    """Points (m, S, 3) on the surface of each primitive where curved contacts happen: box
+    corners and edge midpoints (20), cylinder rim points (2·_RIM_SAMPLES, padded by repetition),
+    sphere centre (repeated)."""
+    sgn, loc = _sample_tables()
+    box = c[:, None] + _mm(sgn[None] * half[:, None], np.swapaxes(R, 1, 2))
+    cyl = c[:, None] + _mm(loc[None] * half[:, None], np.swapaxes(R, 1, 2))
     k = kind[:, None, None]
     return np.where(k == _BOX, box, np.where(k == _CYL, cyl, c[:, None]))
 
 
 def _closest(kind, R, half, c, x):
     """Closest point (m, S, 3) of each primitive to points ``x`` (m, S, 3) (x itself if inside)."""
-    loc = (x - c[:, None]) @ R  # local coordinates
+    loc = _mm(x - c[:, None], R)  # local coordinates
     box = np.clip(loc, -half[:, None], half[:, None])
-    rad = np.linalg.norm(loc[..., :2], axis=-1, keepdims=True)
+    rad = np.sqrt(loc[..., 0] * loc[..., 0] + loc[..., 1] * loc[..., 1])[..., None]
     scale = np.minimum(1.0, half[:, None, :1] / np.where(rad > 0, rad, 1.0))
     cyl = np.concatenate([loc[..., :2] * scale, np.clip(loc[..., 2:], -half[:, None, 2:], half[:, None, 2:])], axis=-1)
-    dist = np.linalg.norm(loc, axis=-1, keepdims=True)
+    dist = np.sqrt(_dot(loc, loc))[..., None]
     sph = loc * np.minimum(1.0, half[:, None, :1] / np.where(dist > 0, dist, 1.0))
     k = kind[:, None, None]
     near = np.where(k == _BOX, box, np.where(k == _CYL, cyl, sph))
-    return c[:, None] + near @ np.swapaxes(R, 1, 2)
+    return c[:, None] + _mm(near, np.swapaxes(R, 1, 2))
 
 
 #: a pair counts as separated by :func:`_separated` when an axis shows a gap wider than this [m]
@@ -353,8 +383,24 @@ def _part_pair_csr(part_names: tuple[str, ...], part_pairs: tuple[tuple[str, str
     return pp_a, pp_b, start, count
 
 
+@functools.cache
+def availability() -> str | None:
+    """None when the compiled kernel of :func:`check_posed` can run here, else why not (one line); the
+    numpy reference runs then."""
+    try:
+        import numba  # noqa: F401
+    except ImportError as e:  # pragma: no cover - numba is a dependency
+        return f"numba not importable ({e})"
+    try:  # numba raises at decoration when no cache folder is writable (NUMBA_CACHE_DIR, __pycache__, ~/.cache)
+        from hapticopt.analysis.prrr import _interference_kernels  # noqa: F401
+    except (OSError, RuntimeError) as e:
+        return f"the compiled interference kernel's module did not load: {e}"
+    return None
+
+
 def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
-                frames: dict[str, tuple[np.ndarray, np.ndarray]], reachable: np.ndarray) -> FastResult:
+                frames: dict[str, tuple[np.ndarray, np.ndarray]], reachable: np.ndarray, *,
+                compiled: bool | None = None) -> FastResult:
     """Interference at n posed configurations of the designs of ``batch``: pose k belongs to design
     ``owner[k]``, its parts at ``frames`` (name → world rotation (n, 3, 3), origin (n, 3) [m], as
     :func:`hapticopt.design.prrr.cad.part_frames_arrays`), ``reachable`` (n,) bool. One numpy pass
@@ -365,7 +411,16 @@ def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
     over every tested part pair; the world rotation, centre and exact world extents of every
     primitive at every pose, computed once; the primitive pairs of the part pairs that survive,
     tested on those extents (a part box contains its primitives' boxes, so this sees the same
-    candidates as testing every primitive pair); the separating axes (:func:`_depth`) on the rest."""
+    candidates as testing every primitive pair); the separating axes (:func:`_depth`) on the rest.
+
+    ``compiled``: None (default) runs the numba kernel (:mod:`._interference_kernels`: the same
+    stages per pose and pair, bitwise-equal depths) where :func:`availability` allows, else this
+    numpy reference; True requires the kernel (RuntimeError with the reason); False runs numpy."""
+    if compiled is None or compiled:
+        reason = availability()
+        if reason is not None and compiled:
+            raise RuntimeError(reason)
+        compiled = reason is None
     pts = np.atleast_2d(np.asarray(points, dtype=float))
     n = len(pts)
     owner = np.asarray(owner, dtype=int)
@@ -388,6 +443,10 @@ def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
     pc_all, ph_all = 0.5 * (plo + phi), 0.5 * (phi - plo)  # (m, parts, 3)
     pp_a, pp_b, start, count = _part_pair_csr(batch.part_names, batch.part_pairs,
                                               np.asarray(batch.pair_part, dtype=np.int64).tobytes())
+    if compiled:
+        _check_compiled(batch, owner, frames, reachable, depth, pc_all, ph_all, pp_a, pp_b, start, count)
+        return FastResult(points=pts, reachable=reachable, collides=np.any(depth > DEPTH_TOL, axis=1),
+                          depth=depth, part_pairs=batch.part_pairs)
     kind_all = np.tile(batch.kind, CHUNK_POSES)
     for s in range(0, n, CHUNK_POSES):
         e = min(n, s + CHUNK_POSES)
@@ -395,6 +454,25 @@ def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
                      pp_a, pp_b, start, count, kind_all[: (e - s) * P])
     return FastResult(points=pts, reachable=reachable, collides=np.any(depth > DEPTH_TOL, axis=1),
                       depth=depth, part_pairs=batch.part_pairs)
+
+
+def _check_compiled(batch, owner, frames, reachable, depth, pc_all, ph_all, pp_a, pp_b, start, count) -> None:
+    """:func:`check_posed`'s chunks through the numba kernel (``depth`` updated in place)."""
+    from hapticopt.analysis.prrr import _interference_kernels as K  # loaded by availability()
+
+    i64 = functools.partial(np.ascontiguousarray, dtype=np.int64)
+    f64 = functools.partial(np.ascontiguousarray, dtype=np.float64)
+    sgn, rim = _sample_tables()
+    tables = (f64(pc_all), f64(ph_all), i64(pp_a), i64(pp_b), i64(start), i64(count), i64(batch.pair_a),
+              i64(batch.pair_b), i64(batch.prim_part), i64(batch.kind), f64(batch.R), f64(batch.o), f64(batch.half),
+              sgn, rim)
+    owner = i64(owner)
+    reachable = np.ascontiguousarray(reachable, dtype=np.bool_)
+    for s in range(0, len(owner), CHUNK_POSES):
+        e = min(len(owner), s + CHUNK_POSES)
+        Rp = np.stack([frames[name][0][s:e] for name in batch.part_names], axis=1)  # (c, parts, 3, 3)
+        tp = np.stack([frames[name][1][s:e] for name in batch.part_names], axis=1)  # (c, parts, 3)
+        K.check_poses(f64(Rp), f64(tp), owner[s:e], reachable[s:e], *tables, depth[s:e])
 
 
 def _posed_primitives(batch, owner, Rp, hw, kind_flat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -422,8 +500,8 @@ def _posed_primitives(batch, owner, Rp, hw, kind_flat) -> tuple[np.ndarray, np.n
         r = np.arange(c)[rows][:, None]
         s = sel[None, :]
         Rf = Rp[r, batch.prim_part[s]]  # (poses or designs, |sel|, 3, 3), each operand gathered in one step
-        R = Rf @ batch.R[owner[r], s]
-        o = (Rf @ batch.o[owner[r], s][..., None])[..., 0]
+        R = _mm(Rf, batch.R[owner[r], s])
+        o = _mv(Rf, batch.o[owner[r], s])
         x = _world_extent(kind3[r, s].ravel(), R.reshape(-1, 3, 3), hw3[r, s].reshape(-1, 3)).reshape(len(R), len(sel), 3)
         if isinstance(rows, slice):
             Rw[:, sel], ext[:, sel], ro[:, sel] = R, x, o
@@ -441,8 +519,8 @@ def _check_chunk(batch, owner, frames, s, e, reachable, depth, pc_all, ph_all, p
     tp = np.stack([frames[name][1][s:e] for name in batch.part_names], axis=1)  # (c, parts, 3)
     pc, ph = pc_all[owner], ph_all[owner]
     # (parts, 3, poses) layout: the part-pair gathers below copy whole rows
-    wc = np.ascontiguousarray(((Rp @ pc[..., None])[..., 0] + tp).transpose(1, 2, 0))
-    wh = np.ascontiguousarray(((np.abs(Rp) @ ph[..., None])[..., 0]).transpose(1, 2, 0))
+    wc = np.ascontiguousarray((_mv(Rp, pc) + tp).transpose(1, 2, 0))
+    wh = np.ascontiguousarray(_mv(np.abs(Rp), ph).transpose(1, 2, 0))
     part_near = np.all(np.abs(wc[pp_a] - wc[pp_b]) <= wh[pp_a] + wh[pp_b], axis=1)  # (part pairs, poses)
     part_near &= reachable[None, :]
     j, pose = np.nonzero(part_near)

@@ -2,6 +2,8 @@
 
 import dataclasses
 import math
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -216,3 +218,96 @@ def test_overlap_fraction_is_continuous_across_a_jump_of_the_removed_fraction(pa
     # continuous: it moves by about its slope × Δβ (measured 2.0e-9 over Δβ < 1e-7° on the legacy layout
     # with the issue-15 SEA parts; 4e-16 before them), against the step's ≥ 0.01
     assert abs(fb[1] - fa[1]) < 1e-7
+
+
+# --- the numba kernel of check_posed against its numpy reference -------------------------------
+
+#: the bounds the optimiser draws from (read from the problem file, so a change there moves this sample)
+PROBLEM = Path(__file__).resolve().parents[3] / "optim" / "problems" / "prrr-workspace.toml"
+
+
+def _problem_designs(n: int, seed: int) -> list:
+    """``n`` designs within the bounds of :data:`PROBLEM` that the CAD lays out (seeded)."""
+    base = io.load_preset("prrr-paper")
+    variables = tomllib.loads(PROBLEM.read_text())["variables"]
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < n:
+        kw = {}
+        for v in variables:
+            section, name = v["key"].split(".")
+            assert section == "geometry", v
+            field, unit = name.rsplit("_", 1)
+            x = rng.uniform(v["lower"], v["upper"])
+            kw[field] = {"mm": x / 1000.0, "deg": math.radians(x)}[unit]
+        try:
+            d = dataclasses.replace(base, geometry=dataclasses.replace(base.geometry, **kw))
+            F.prepare(d)
+        except InvalidDesign:
+            continue
+        out.append(d)
+    return out
+
+
+def _bits(x: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=np.float64).view(np.int64)
+
+
+def test_compiled_kernel_equals_the_numpy_reference_bitwise():
+    """Depths of the numba kernel and of the numpy reference, bit for bit (signed zeros included), on
+    the workspace samples of 16 seeded designs within the problem bounds, one design at a time and all
+    designs of one layout stacked in one call (as the batched draft evaluator does); the sample holds
+    colliding poses, shallow (0 < depth ≤ DEPTH_TOL) overlaps and box–cylinder pairs' sampled axes."""
+    assert F.availability() is None  # numba is a dependency: the kernel is the default here
+    designs = _problem_designs(16, seed=4242)
+    models = [F.prepare(d) for d in designs]
+    posed = []
+    n_colliding = n_shallow = n_free = 0
+    for d, m in zip(designs, models):
+        pts, _ = W.workspace_sample_weights(d, **W.INTERFERENCE_SAMPLING)
+        pts = np.concatenate([pts, [[0.5, 0.0, 0.0]]])  # and one unreachable point
+        frames, ok = F.part_frames_batch(d, pts, branch=W.ELBOW_BRANCH)
+        batch = F.stack_models([m])
+        owner = np.zeros(len(pts), dtype=int)
+        ref = F.check_posed(batch, owner, pts, frames, ok, compiled=False)
+        fast = F.check_posed(batch, owner, pts, frames, ok, compiled=True)
+        assert np.array_equal(_bits(fast.depth), _bits(ref.depth)), d.geometry
+        assert np.array_equal(fast.collides, ref.collides)
+        assert np.array_equal(_bits(F.check_posed(batch, owner, pts, frames, ok).depth), _bits(ref.depth))
+        n_colliding += int(ref.collides.sum())
+        n_shallow += int(np.count_nonzero((ref.depth > 0) & (ref.depth <= F.DEPTH_TOL)))
+        posed.append((m, pts, frames, ok))
+        n_free += int(not ref.collides.any())
+    assert n_colliding > 100 and n_shallow > 0 and n_free > 0  # depths of all kinds, not only zeros
+    # every design of the largest layout group in one call: owner indexes the stacked primitive tables
+    groups: dict = {}
+    for i, m in enumerate(models):
+        groups.setdefault(F.layout_key(m), []).append(i)
+    members = max(groups.values(), key=len)
+    assert len(members) >= 2
+    batch = F.stack_models([models[i] for i in members])
+    owner = np.concatenate([np.full(len(posed[i][1]), k) for k, i in enumerate(members)])
+    pts = np.concatenate([posed[i][1] for i in members])
+    ok = np.concatenate([posed[i][3] for i in members])
+    frames = {name: tuple(np.concatenate([posed[i][2][name][t] for i in members]) for t in (0, 1))
+              for name in batch.part_names}
+    ref = F.check_posed(batch, owner, pts, frames, ok, compiled=False)
+    fast = F.check_posed(batch, owner, pts, frames, ok, compiled=True)
+    assert np.array_equal(_bits(fast.depth), _bits(ref.depth)) and ref.collides.any()
+
+
+def test_numpy_reference_runs_when_the_kernel_cannot(monkeypatch):
+    """Without the kernel (numba missing, no writable cache folder) check_posed says why when the kernel
+    is required and otherwise runs the numpy reference."""
+    paper = io.load_preset("prrr-paper")
+    d = io.apply_overrides(paper, LEGACY)
+    pts = _points(d, n_phi=2, n_r=2, n_z=2)
+    frames, ok = F.part_frames_batch(d, pts, branch=W.ELBOW_BRANCH)
+    batch, owner = F.stack_models([F.prepare(d)]), np.zeros(len(pts), dtype=int)
+    want = F.check_posed(batch, owner, pts, frames, ok, compiled=False)
+    assert want.collides.any()
+    monkeypatch.setattr(F, "availability", lambda: "numba not importable (test)")
+    with pytest.raises(RuntimeError, match="numba not importable"):
+        F.check_posed(batch, owner, pts, frames, ok, compiled=True)
+    got = F.check_posed(batch, owner, pts, frames, ok)
+    assert np.array_equal(_bits(got.depth), _bits(want.depth))
