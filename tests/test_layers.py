@@ -7,7 +7,7 @@ Layers, lowest first (a module imports only modules of its own layer or below):
 3. ``design/io``, ``design/export`` (they dispatch over devices)
 4. shared ``analysis/`` (fidelity, status, interference, control, ``fem/``, ``loop/``)
 5. ``analysis/<device>/`` — evaluators, firmware, plants, plots of one device
-6. ``analysis/registry``, ``analysis/verify`` (they dispatch over devices)
+6. ``analysis/registry``, ``analysis/verify``, ``analysis/warmup`` (they dispatch over devices)
 7. ``optim/``
 8. ``optim/cli/``
 
@@ -82,7 +82,7 @@ def layer(module: str) -> tuple[int, str]:
     if top == "analysis":
         if rest and rest[0] in DEVICES:
             return 5, rest[0]
-        if rest and rest[0] in ("registry", "verify"):
+        if rest and rest[0] in ("registry", "verify", "warmup"):
             return 6, ""
         return 4, ""
     if rest and rest[0] == "cli":

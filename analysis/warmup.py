@@ -1,0 +1,44 @@
+"""Compile the numba kernels into numba's on-disk cache once, at setup (``make setup``; the Makefile's
+install step runs ``python -m hapticopt.analysis.warmup``).
+
+A kernel's first call in a fresh install compiles it (the collision check ≈ 7 s, the two MuJoCo loops
+≈ 8 s on the project's 2-core machine; docs/performance.md); every later process loads the compiled
+code from the cache (≈ 0.6 s with numba's import). Done here, a user's first ``make run`` and the
+first test run do not pay the compile. Running it again only loads the cache. A kernel that cannot
+run here (numba missing, no writable cache folder) is reported with its reason; the numpy / Python
+reference paths then run, so this never fails the install.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from hapticopt.analysis.loop import mujoco_compiled
+from hapticopt.analysis.prrr import interference_fast
+from hapticopt.design import io
+
+
+def warm() -> list[tuple[str, str | None, float]]:
+    """(kernel, None or why it is unavailable, seconds) for the collision check and the MuJoCo loops."""
+    out = []
+    t0 = time.perf_counter()
+    reason = interference_fast.availability()
+    if reason is None:
+        model = interference_fast.prepare(io.load_preset("prrr-paper"))
+        interference_fast.check_points(model, np.array([[0.0, 0.0, 0.0]]))
+    out.append(("collision check", reason, time.perf_counter() - t0))
+    t0 = time.perf_counter()
+    out.append(("MuJoCo closed loops", mujoco_compiled.warm_up(), time.perf_counter() - t0))
+    return out
+
+
+def main() -> None:
+    for name, reason, seconds in warm():
+        state = "ready" if reason is None else f"not compiled: {reason} (the reference path runs)"
+        print(f"warm-up: {name} {state} ({seconds:.1f} s)")
+
+
+if __name__ == "__main__":
+    main()
