@@ -67,6 +67,23 @@ def _clip(x, lim):
     return lim if lim < y else y
 
 
+@njit(cache=True, inline="always")
+def _delayed(new, dbuf, ist, slot, D, cmd):
+    """The firmware's delay line: ``cmd`` ← the command issued D ticks ago (zeros at start), ``new``
+    pushed in its place (a FIFO of D commands; D = 0 passes ``new`` through). ``ist[slot]`` is the
+    line's position."""
+    if D > 0:
+        pos = ist[slot]
+        for j in range(3):
+            cmd[j] = dbuf[pos, j]
+            dbuf[pos, j] = new[j]
+        ist[slot] = (pos + 1) % D
+    else:
+        for j in range(3):
+            cmd[j] = new[j]
+
+
+
 # --------------------------------------------------------------------------------------- 3-PRRR
 @njit(cache=True)
 def prrr_chunk(m_addr, d_addr, off, start, end, nstep,
@@ -173,16 +190,7 @@ def prrr_chunk(m_addr, d_addr, off, start, end, nstep,
             st[i] = p[i]
             st[3 + i] = v[i]
             st[9 + i] = F[i]
-        # delay line (FIFO of D commands, zeros at start)
-        if D > 0:
-            pos = ist[1]
-            for j in range(3):
-                cmd[j] = dbuf[pos, j]
-                dbuf[pos, j] = out[j]
-            ist[1] = (pos + 1) % D
-        else:
-            for j in range(3):
-                cmd[j] = out[j]
+        _delayed(out, dbuf, ist, 1, D, cmd)
         for j in range(3):
             ctrl[j] = cmd[j] * gain
         if has_hand:
@@ -500,15 +508,7 @@ def master_chunk(m_addr, d_addr, off, start, end, nstep,
             st[i] = p[i]
             st[3 + i] = v[i]
             st[6 + i] = F[i]
-        if D > 0:
-            pos = ist[0]
-            for j in range(3):
-                cmd[j] = dbuf[pos, j]
-                dbuf[pos, j] = tau[j]
-            ist[0] = (pos + 1) % D
-        else:
-            for j in range(3):
-                cmd[j] = tau[j]
+        _delayed(tau, dbuf, ist, 0, D, cmd)
         for j in range(3):
             ctrl[j] = cmd[j]
         if has_hand:

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -54,30 +52,6 @@ def _sample() -> list:
 
 #: the bounds of the bundled problem the sweeps and the optimiser draw from (read from its file, so a
 #: change there moves this sample with it)
-PROBLEM = Path(__file__).resolve().parents[3] / "optim" / "problems" / "prrr-workspace.toml"
-
-
-def _problem_sample(n: int, seed: int) -> list:
-    """``n`` designs drawn uniformly within the bounds of :data:`PROBLEM` (seeded; designs the
-    parameter rules refuse are redrawn): colliding, not-assemblable and empty ones among them."""
-    rng = np.random.default_rng(seed)
-    variables = tomllib.loads(PROBLEM.read_text())["variables"]
-    out = []
-    while len(out) < n:
-        kw = {}
-        for v in variables:
-            section, name = v["key"].split(".")
-            assert section == "geometry", v
-            x = rng.uniform(v["lower"], v["upper"])
-            field, unit = name.rsplit("_", 1)
-            kw[field] = {"mm": x / 1000.0, "deg": math.radians(x)}[unit]
-        try:
-            out.append(_geometry(BASE, **kw))
-        except InvalidDesign:
-            continue
-    return out
-
-
 def _close(a, b) -> bool:
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     if a.shape != b.shape:
@@ -96,13 +70,7 @@ def both():
 
 def test_batch_equals_single_path(both):
     designs, single, batched = both
-    for d, s, b in zip(designs, single, batched):
-        assert b.statuses == s.statuses, d.geometry
-        assert b.messages == s.messages, d.geometry
-        ms, mb = s.metrics(), b.metrics()
-        assert list(mb) == list(ms)
-        bad = [k for k in ms if not _close(mb[k], ms[k])]
-        assert not bad, (d.geometry, {k: (ms[k], mb[k]) for k in bad})
+    _assert_equal(designs, single, batched)
 
 
 def _assert_equal(designs, single, batched) -> None:
@@ -115,14 +83,14 @@ def _assert_equal(designs, single, batched) -> None:
         assert not bad, (d.geometry, {k: (ms[k], mb[k]) for k in bad})
 
 
-def test_batch_equals_single_path_within_the_problem_bounds():
+def test_batch_equals_single_path_within_the_problem_bounds(problem_sample):
     """40 seeded designs within the bounds of the bundled workspace problem (and one whose chain
     does not close): equal statuses,
     messages and metrics, and the sample holds colliding designs, not-met cylinders, designs whose
     parts cannot be laid out (batched: the kinematic evaluators run) and chains that do not close
     (single path)."""
     # + prrr-paper with d2 = 300 mm: |ρ| ≥ 300 mm > d3 + d4 = 171 mm, the chain does not close
-    designs = _problem_sample(40, seed=2203) + [_geometry(BASE, d2=0.300)]
+    designs = problem_sample(40, seed=2203) + [_geometry(BASE, d2=0.300)]
     single = [evaluate_all(d, fidelity=Fidelity.DRAFT) for d in designs]
     _assert_equal(designs, single, evaluate_batch(designs, fidelity=Fidelity.DRAFT))
     seen = {(name, str(st)) for ev in single for name, st in ev.statuses.items()}
@@ -135,11 +103,11 @@ def test_batch_equals_single_path_within_the_problem_bounds():
     assert ("statics", "not-assemblable") in seen
 
 
-def test_envelopes_equal_the_cad_envelope():
+def test_envelopes_equal_the_cad_envelope(problem_sample):
     """The batch's envelopes (every design of a layout at once, from the primitive tables) equal
     ``cad.envelope_radius`` design by design to 1e-12 relative (24 designs within the problem bounds
     whose parts are laid out, and prrr-paper)."""
-    designs = [d for d in _problem_sample(120, seed=11) + [BASE] if not assembly.parts(d)][-24:]
+    designs = [d for d in problem_sample(120, seed=11) + [BASE] if not assembly.parts(d)][-24:]
     assert len(designs) == 24
     specs = [cad.part_specs(d) for d in designs]
     models = {i: interference_fast.prepare(d, specs=s) for i, (d, s) in enumerate(zip(designs, specs))}
@@ -165,11 +133,11 @@ def test_sample_covers_the_hard_cases(both):
 
 @pytest.mark.parametrize("only", [("statics", "free_workspace"), ("free_workspace",), ("interference",),
                                   ("stability",), ("joint_limits", "device_size"), ("structural_stiffness",)])
-def test_only_restricts_the_batch(only):
+def test_only_restricts_the_batch(only, problem_sample):
     """``only`` evaluates those evaluators alone (the core computes only the groups they read:
     ``draft_batch.groups_for``), with the single path's statuses, messages and metrics; the sample
     holds a design whose parts cannot be laid out and the β = 1e-12 rad singular one."""
-    designs = _sample()[:3] + _problem_sample(3, seed=2203)
+    designs = _sample()[:3] + problem_sample(3, seed=2203)
     assert draft_batch.groups_for(("free_workspace",)) == ("workspace",)
     assert draft_batch.groups_for(("stability", "joint_limits")) == ("statics", "joint")
     _assert_equal(designs, [evaluate_all(d, fidelity=Fidelity.DRAFT, only=only) for d in designs],
@@ -178,12 +146,12 @@ def test_only_restricts_the_batch(only):
         assert set(b.statuses) == set(only)
 
 
-def test_pose_ik_has_two_shapes_for_every_batch_size():
+def test_pose_ik_has_two_shapes_for_every_batch_size(problem_sample):
     """The pose IK runs in padded calls of MIN_POSES or POSE_CHUNK poses only: once both are traced,
     batches of 3, 7 and 11 designs (other pose counts in every pass) do not trace it again (the
     core traces once per power-of-two bucket of designs: the test below), and the chunked IK
     equals the numpy IK row by row."""
-    designs = _problem_sample(11, seed=7)
+    designs = problem_sample(11, seed=7)
     draft_batch.evaluate_many(designs[:1])  # every pass ≤ MIN_POSES poses
     draft_batch.evaluate_many(designs[:11])  # > MIN_POSES poses in the interference pass
     before = draft_batch.TRACES["pose_ik"]

@@ -2,8 +2,6 @@
 
 import dataclasses
 import math
-import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -223,43 +221,17 @@ def test_overlap_fraction_is_continuous_across_a_jump_of_the_removed_fraction(pa
 # --- the numba kernel of check_posed against its numpy reference -------------------------------
 
 #: the bounds the optimiser draws from (read from the problem file, so a change there moves this sample)
-PROBLEM = Path(__file__).resolve().parents[3] / "optim" / "problems" / "prrr-workspace.toml"
-
-
-def _problem_designs(n: int, seed: int) -> list:
-    """``n`` designs within the bounds of :data:`PROBLEM` that the CAD lays out (seeded)."""
-    base = io.load_preset("prrr-paper")
-    variables = tomllib.loads(PROBLEM.read_text())["variables"]
-    rng = np.random.default_rng(seed)
-    out = []
-    while len(out) < n:
-        kw = {}
-        for v in variables:
-            section, name = v["key"].split(".")
-            assert section == "geometry", v
-            field, unit = name.rsplit("_", 1)
-            x = rng.uniform(v["lower"], v["upper"])
-            kw[field] = {"mm": x / 1000.0, "deg": math.radians(x)}[unit]
-        try:
-            d = dataclasses.replace(base, geometry=dataclasses.replace(base.geometry, **kw))
-            F.prepare(d)
-        except InvalidDesign:
-            continue
-        out.append(d)
-    return out
-
-
 def _bits(x: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(x, dtype=np.float64).view(np.int64)
 
 
-def test_compiled_kernel_equals_the_numpy_reference_bitwise():
+def test_compiled_kernel_equals_the_numpy_reference_bitwise(problem_sample):
     """Depths of the numba kernel and of the numpy reference, bit for bit (signed zeros included), on
     the workspace samples of 16 seeded designs within the problem bounds, one design at a time and all
     designs of one layout stacked in one call (as the batched draft evaluator does); the sample holds
     colliding poses, shallow (0 < depth ≤ DEPTH_TOL) overlaps and box–cylinder pairs' sampled axes."""
     assert F.availability() is None  # numba is a dependency: the kernel is the default here
-    designs = _problem_designs(16, seed=4242)
+    designs = problem_sample(16, seed=4242, accept=F.prepare)  # the CAD lays them out
     models = [F.prepare(d) for d in designs]
     posed = []
     n_colliding = n_shallow = n_free = 0

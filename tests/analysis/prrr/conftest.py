@@ -1,0 +1,50 @@
+"""Fixtures shared by the 3-PRRR tests."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hapticopt.design import io
+from hapticopt.design.errors import InvalidDesign
+
+PROBLEM = Path(__file__).resolve().parents[3] / "optim" / "problems" / "prrr-workspace.toml"
+
+
+def _problem_sample(n: int, seed: int, accept: Callable | None = None) -> list:
+    """``n`` prrr-paper variants drawn uniformly within the variable bounds of :data:`PROBLEM`
+    (seeded). A draw the parameter rules refuse (``InvalidDesign``) — or that ``accept(design)``
+    refuses by raising it — is skipped and the next one drawn."""
+    base = io.load_preset("prrr-paper")
+    variables = tomllib.loads(PROBLEM.read_text())["variables"]
+    rng = np.random.default_rng(seed)
+    out: list = []
+    while len(out) < n:
+        kw = {}
+        for v in variables:
+            section, name = v["key"].split(".")
+            assert section == "geometry", v
+            x = rng.uniform(v["lower"], v["upper"])
+            field, unit = name.rsplit("_", 1)
+            kw[field] = {"mm": x / 1000.0, "deg": math.radians(x)}[unit]
+        try:
+            d = dataclasses.replace(base, geometry=dataclasses.replace(base.geometry, **kw))
+            if accept is not None:
+                accept(d)
+        except InvalidDesign:
+            continue
+        out.append(d)
+    return out
+
+
+@pytest.fixture
+def problem_sample() -> Callable:
+    """``problem_sample(n, seed, accept=None)``: designs within the bundled prrr-workspace problem's
+    bounds (colliding, not-assemblable and empty ones among them unless ``accept`` filters)."""
+    return _problem_sample
