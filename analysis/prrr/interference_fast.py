@@ -358,11 +358,14 @@ def _depth(kind_a, Ra, ha, ca, kind_b, Rb, hb, cb):
     return out
 
 
-def check_points(model: FastModel, points, *, branch: int = cad_prrr.DEFAULT_BRANCH) -> FastResult:
-    """Interference of the tested part pairs at end-effector points (n, 3) [m]."""
+def check_points(model: FastModel, points, *, branch: int = cad_prrr.DEFAULT_BRANCH,
+                 compiled: bool | None = None) -> FastResult:
+    """Interference of the tested part pairs at end-effector points (n, 3) [m] (``compiled``: as
+    :func:`check_posed`)."""
     pts = np.atleast_2d(np.asarray(points, dtype=float))
     frames, reachable = part_frames_batch(model.design, pts, branch=branch)
-    return check_posed(stack_models([model]), np.zeros(len(pts), dtype=int), pts, frames, reachable)
+    return check_posed(stack_models([model]), np.zeros(len(pts), dtype=int), pts, frames, reachable,
+                       compiled=compiled)
 
 
 #: poses per pass of :func:`check_posed` (bounds the per-(pose, primitive) world tables: ~4 MB
@@ -381,6 +384,14 @@ def _part_pair_csr(part_names: tuple[str, ...], part_pairs: tuple[tuple[str, str
     pp_a = np.array([part_names.index(a) for a, _ in part_pairs], dtype=int)
     pp_b = np.array([part_names.index(b) for _, b in part_pairs], dtype=int)
     return pp_a, pp_b, start, count
+
+
+#: poses a process checks with the numpy reference before the default switches to the compiled kernel:
+#: loading it (numba's import and the cached kernel) costs ≈ 0.6 s, and it saves ≈ 32 µs of the numpy
+#: check's ≈ 40 µs per pose, so it pays from ≈ 18,000 poses (a batched draft evaluation of 1024 designs
+#: checks ≈ 190,000; one `evaluate` at standard ≈ 220, where loading it made the command 1.37× slower)
+KERNEL_AFTER_POSES = 20_000
+_POSES_CHECKED = [0]
 
 
 @functools.cache
@@ -414,15 +425,19 @@ def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
     candidates as testing every primitive pair); the separating axes (:func:`_depth`) on the rest.
 
     ``compiled``: None (default) runs the numba kernel (:mod:`._interference_kernels`: the same
-    stages per pose and pair, bitwise-equal depths) where :func:`availability` allows, else this
-    numpy reference; True requires the kernel (RuntimeError with the reason); False runs numpy."""
-    if compiled is None or compiled:
-        reason = availability()
-        if reason is not None and compiled:
-            raise RuntimeError(reason)
-        compiled = reason is None
+    stages per pose and pair, bitwise-equal depths) once it pays — from the call that takes this
+    process's checked poses to :data:`KERNEL_AFTER_POSES` on, where :func:`availability` allows —
+    and this numpy reference before (the depths are bit for bit the same either way); True requires
+    the kernel (RuntimeError with the reason); False runs numpy."""
     pts = np.atleast_2d(np.asarray(points, dtype=float))
     n = len(pts)
+    _POSES_CHECKED[0] += n
+    if compiled is None:
+        compiled = _POSES_CHECKED[0] >= KERNEL_AFTER_POSES and availability() is None
+    elif compiled:
+        reason = availability()
+        if reason is not None:
+            raise RuntimeError(reason)
     owner = np.asarray(owner, dtype=int)
     reachable = np.asarray(reachable)
     depth = np.zeros((n, len(batch.part_pairs)))

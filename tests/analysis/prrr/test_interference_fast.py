@@ -283,3 +283,22 @@ def test_numpy_reference_runs_when_the_kernel_cannot(monkeypatch):
         F.check_posed(batch, owner, pts, frames, ok, compiled=True)
     got = F.check_posed(batch, owner, pts, frames, ok)
     assert np.array_equal(_bits(got.depth), _bits(want.depth))
+
+
+def test_default_loads_the_kernel_only_once_it_pays(monkeypatch):
+    """The default runs the numpy reference until the process has checked KERNEL_AFTER_POSES poses
+    (loading the kernel costs more than a few hundred poses of numpy), then the kernel — same depths."""
+    d = io.apply_overrides(io.load_preset("prrr-paper"), LEGACY)
+    pts = _points(d, n_phi=2, n_r=2, n_z=2)
+    frames, ok = F.part_frames_batch(d, pts, branch=W.ELBOW_BRANCH)
+    batch, owner = F.stack_models([F.prepare(d)]), np.zeros(len(pts), dtype=int)
+    want = F.check_posed(batch, owner, pts, frames, ok, compiled=False)
+    calls = []
+    real = F._check_compiled
+    monkeypatch.setattr(F, "_check_compiled", lambda *a: (calls.append(1), real(*a)))
+    monkeypatch.setattr(F, "_POSES_CHECKED", [0])
+    got = F.check_posed(batch, owner, pts, frames, ok)  # a few poses in a fresh process: numpy
+    assert calls == [] and np.array_equal(_bits(got.depth), _bits(want.depth))
+    F._POSES_CHECKED[0] = F.KERNEL_AFTER_POSES - len(pts)  # this call reaches the threshold
+    got = F.check_posed(batch, owner, pts, frames, ok)
+    assert calls == [1] and np.array_equal(_bits(got.depth), _bits(want.depth))
