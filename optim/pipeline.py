@@ -44,7 +44,6 @@ from hapticopt.optim.side import side_executor
 from hapticopt.optim.worker import SupervisedWorker
 from hapticopt.optim import driver, pareto, pareto_report, report
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, TimeHistory, Verdict
-from hapticopt.design import export as design_export
 from hapticopt.analysis import verify as closed_loop_verify
 from hapticopt.optim import cache as evaluation_cache
 from hapticopt.optim.cache import CachedEvaluation, EvaluationCache
@@ -98,16 +97,6 @@ def evaluators_for(problem: Problem, evaluation: DesignEvaluation) -> tuple[str,
 
 
 # ------------------------------------------------------------------------------ stages
-def _export(design: Any, out_dir: Path, on_step: StepFn | None = None) -> StageOutcome:
-    """STEP, STLs, MJCF, mass properties and the render of ``design`` into ``out_dir``."""
-
-    t0 = time.perf_counter()
-    hook = {} if on_step is None else {"on_step": on_step}
-    result = design_export.export(design, out_dir, render=True, **hook)
-    files = sorted(str(Path(p).resolve().relative_to(out_dir.resolve())) for p in result.files)
-    return StageOutcome(name="export", status="ok", wall_s=time.perf_counter() - t0, files=tuple(files))
-
-
 #: verdict rule where a scene renders a spring: rendered-stiffness error bound (issue 6's acceptance, 10 %)
 STIFFNESS_ERROR_LIMIT_PCT = 10.0
 
@@ -449,19 +438,14 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
 
     if export:
         t = stage("export")
-        if beside:  # its own time there, and what this process waited for it
-            status, message, exported, wall_s = side_process.collect(
-                pending_export, lambda: side_process.export(optimum_design, out))
+        # beside: its own time there, and what this process waited for it; else (or its process died) here
+        status, message, exported, wall_s = side_process.collect(
+            pending_export, lambda: side_process.export(optimum_design, out, on_step))
+        if beside:
             waited = time.perf_counter() - t
             where = f"in a second process beside the final evaluation and the plots ({waited:.3f} s waited here)"
             message = "; ".join(m for m in (message, where) if m)
-            stages.append(StageOutcome(name="export", status=status, message=message, wall_s=wall_s, files=exported))
-        else:
-            try:
-                ex = _export(optimum_design, out, on_step)
-            except Exception as exc:  # noqa: BLE001 - a failed export is reported in the report
-                ex = StageOutcome(name="export", status="failed", message=describe_failure(exc))
-            stages.append(dataclasses.replace(ex, wall_s=time.perf_counter() - t))
+        stages.append(StageOutcome(name="export", status=status, message=message, wall_s=wall_s, files=exported))
     verdicts: tuple[Verdict, ...] = ()
     if verify:
         t = stage("verify")

@@ -81,15 +81,16 @@ def evaluate(design: Any, fidelity: Fidelity, only: tuple[str, ...],
     return dataclasses.replace(ev, results={}), drawn
 
 
-def export(design: Any, out_dir: Path) -> tuple[str, str, tuple[str, ...], float]:
+def export(design: Any, out_dir: Path, on_step: Callable[[str, int, int], None] | None = None
+           ) -> tuple[str, str, tuple[str, ...], float]:
     """STEP, STLs, MJCF, mass properties and the render of ``design`` into ``out_dir``
-    (:func:`hapticopt.design.export.export`): (status, message, files relative to ``out_dir``, wall
-    time [s]); a failure is the status ``failed`` with its message."""
+    (:func:`hapticopt.design.export.export`, ``on_step`` its progress hook): (status, message, files
+    relative to ``out_dir``, wall time [s]); a failure is the status ``failed`` with its message."""
     from hapticopt.design import export as design_export
 
     t0 = time.perf_counter()
     try:
-        result = design_export.export(design, out_dir, render=True)
+        result = design_export.export(design, out_dir, render=True, **({} if on_step is None else {"on_step": on_step}))
     except Exception as exc:  # noqa: BLE001 - a failed export is reported in the report
         return "failed", describe_failure(exc), (), time.perf_counter() - t0
     files = tuple(sorted(str(Path(p).resolve().relative_to(Path(out_dir).resolve())) for p in result.files))
