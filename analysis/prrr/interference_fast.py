@@ -240,25 +240,25 @@ def _dot(a, b):
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
-def _support(kind, R, half, n):
-    """Projection half-width of primitives on unit axes: R (m, 3, 3), half (m, 3), n (m, A, 3)."""
-    loc = np.abs(_mm(n, R))  # |components of n along the primitive axes|
+def _half_width(kind, loc, half):
+    """Projection half-width of primitives from ``loc`` (m, A, 3), the |components| of unit axes along
+    the primitive axes; half (m, 3)."""
     box = loc[..., 0] * half[:, 0, None] + loc[..., 1] * half[:, 1, None] + loc[..., 2] * half[:, 2, None]
     az = loc[..., 2]
     cyl = half[:, 2, None] * az + half[:, 0, None] * np.sqrt(np.clip(1.0 - az * az, 0.0, None))
     k = kind[:, None]
     return np.where(k == _BOX, box, np.where(k == _CYL, cyl, half[:, 0, None]))
+
+
+def _support(kind, R, half, n):
+    """Projection half-width of primitives on unit axes: R (m, 3, 3), half (m, 3), n (m, A, 3)."""
+    return _half_width(kind, np.abs(_mm(n, R)), half)
 
 
 def _world_extent(kind, R, half):
     """Half extents (m, 3) of primitives along the world axes: :func:`_support` on the unit axes,
     whose projections ``n @ R`` are the rows of ``R`` themselves (no product formed)."""
-    loc = np.abs(R)
-    box = loc[..., 0] * half[:, 0, None] + loc[..., 1] * half[:, 1, None] + loc[..., 2] * half[:, 2, None]
-    az = loc[..., 2]
-    cyl = half[:, 2, None] * az + half[:, 0, None] * np.sqrt(np.clip(1.0 - az * az, 0.0, None))
-    k = kind[:, None]
-    return np.where(k == _BOX, box, np.where(k == _CYL, cyl, half[:, 0, None]))
+    return _half_width(kind, np.abs(R), half)
 
 
 def _unit(x):
