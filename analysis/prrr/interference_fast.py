@@ -443,8 +443,7 @@ def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
     depth = np.zeros((n, len(batch.part_pairs)))
     P = len(batch.kind)
     m = len(batch.R)
-    loc_ext = _support(np.tile(batch.kind, m), batch.R.reshape(-1, 3, 3), batch.half.reshape(-1, 3),
-                       np.broadcast_to(np.eye(3), (m * P, 3, 3))).reshape(m, P, 3)
+    loc_ext = _world_extent(np.tile(batch.kind, m), batch.R.reshape(-1, 3, 3), batch.half.reshape(-1, 3)).reshape(m, P, 3)
     n_parts = len(batch.part_names)
     plo = np.full((m, n_parts, 3), np.inf)
     phi = np.full((m, n_parts, 3), -np.inf)
