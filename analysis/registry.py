@@ -389,7 +389,8 @@ def run_plotter(entry: EvaluatorEntry, design: Any, result: Any, out_dir: Path) 
 
     Plotters name their files ``<design name>_<what>.png`` in ``out_dir``: the name is checked
     (:func:`design.paths.check_name`) before, and every returned path is checked to lie inside
-    ``out_dir``.
+    ``out_dir``. A plotter returns its paths as written (``out_dir / name``: relative to the working
+    folder when ``out_dir`` is), so they are checked as absolute paths and returned as written.
     """
     check_name(design.name, "design name", error=InvalidDesign)
     out_dir = Path(out_dir)
@@ -397,7 +398,10 @@ def run_plotter(entry: EvaluatorEntry, design: Any, result: Any, out_dir: Path) 
     if plotter is None:
         return []
     offscreen.configure()  # the plotters draw with pyvista: no X probe, no VTK warning
-    return [inside(out_dir, p) for p in plotter(design, result, out_dir)]
+    written = [Path(p) for p in plotter(design, result, out_dir)]
+    for p in written:
+        inside(out_dir, p.absolute())  # not inside(out_dir, p): that reads a relative p as relative to out_dir
+    return written
 
 
 def write_plots(design: Any, evaluation: Evaluation, out_dir: Path) -> list[Path]:

@@ -57,3 +57,29 @@ def test_glossary_rows_and_bad_device():
     assert len(registry.glossary()) == sum(len(registry.glossary(d)) for d in registry.EVALUATORS)
     with pytest.raises(InvalidInput, match=r"--device = 'robot' is not a device: allowed prrr, master, handle"):
         registry.glossary("robot")
+
+
+def test_run_plotter_returns_the_files_it_wrote_for_a_relative_folder(monkeypatch, tmp_path):
+    """A plotter returns ``out_dir / name`` as it wrote it; with a relative ``out_dir`` that path is
+    relative to the working folder, and run_plotter must return it as such (it once read it as
+    relative to ``out_dir``: the report's pictures then pointed at plots/<out_dir>/plots/…)."""
+    from pathlib import Path
+
+    def plotter(design, result, out_dir):
+        target = Path(out_dir) / f"{design.name}_x.png"
+        target.write_bytes(b"png")
+        return [target]
+
+    def outside(design, result, out_dir):
+        return [Path(out_dir) / ".." / "escaped.png"]
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "run" / "plots").mkdir(parents=True)
+    design = io.load_preset("prrr-paper")
+    entry = registry.EVALUATORS["prrr"][0]
+    monkeypatch.setattr(registry.EvaluatorEntry, "plotter", lambda self: plotter)
+    files = registry.run_plotter(entry, design, None, Path("run/plots"))
+    assert files == [Path("run/plots/prrr-paper_x.png")] and all(f.is_file() for f in files)
+    monkeypatch.setattr(registry.EvaluatorEntry, "plotter", lambda self: outside)
+    with pytest.raises(InvalidInput, match="outside the output folder"):
+        registry.run_plotter(entry, design, None, Path("run/plots"))
