@@ -321,9 +321,9 @@ def _frames_dd(c1, s1, c2, s2, c3, s3, v, L5, L4, dl, O2, R2):
         R2[fr, 2, 2] = -_jm(x0, C1)[2] - _jm(x1, S1)[2]
 
 
+@njit(cache=True)
 def comp_scratch():
-    """Scratch arrays of :func:`_compensation`, zeroed (allocated once per run, not per tick): O, ∂O, R, ∂R, D²O,
-    D²R, J_v, J_ω."""
+    """Scratch arrays of :func:`_compensation`, zeroed: O, ∂O, R, ∂R, D²O, D²R, J_v, J_ω."""
     return (np.zeros((6, 3)), np.zeros((6, 3, 3)), np.zeros((6, 3, 3)), np.zeros((6, 3, 3, 3)),
             np.zeros((6, 3)), np.zeros((6, 3, 3)), np.zeros((3, 3)), np.zeros((3, 3)))
 
@@ -396,13 +396,166 @@ def _compensation(c1, s1, c2, s2, c3, s3, qd, qdd, kin, bfr, bw, bm, bcom, bI, r
 
 
 @njit(cache=True)
-def compensation(q, qd, qdd, kin, bfr, bw, bm, bcom, bI, rotor):
-    """:func:`_compensation` with its own scratch (for tests: one call)."""
-    sc = (np.zeros((6, 3)), np.zeros((6, 3, 3)), np.zeros((6, 3, 3)), np.zeros((6, 3, 3, 3)),
-          np.zeros((6, 3)), np.zeros((6, 3, 3)), np.zeros((3, 3)), np.zeros((3, 3)))
+def compensation_bodies(q, qd, qdd, kin, bfr, bw, bm, bcom, bI, rotor):
+    """:func:`_compensation` (body by body) with its own scratch (for tests: one call)."""
+    sc = comp_scratch()
     out = np.empty(3)
     _compensation(math.cos(q[0]), math.sin(q[0]), math.cos(q[1]), math.sin(q[1]), math.cos(q[2]), math.sin(q[2]),
                   qd, qdd, kin, bfr, bw, bm, bcom, bI, rotor, sc, out)
+    return out
+
+
+# M̂ in a trig basis: the loop's per-tick compensation. The arm turns rigidly about the vertical axis (M̂ does not depend
+# on θ1), and every entry of M̂ is a polynomial of degree ≤ 2 in (cos θ2, sin θ2, cos θ3, sin θ3): a body on a link frame
+# has its CoM and its body-axes angular velocity per unit q̇ linear in them (in turret axes; the frames turn by θ2 or θ3
+# about the horizontal axis, their origins move along u(θ2), f(θ3)), and the kinetic energy is quadratic in those. So
+# M̂(θ2, θ3) = Σ_k ψ_k(θ2, θ3) C_k exactly, over the 13 functions
+#     ψ = (1, cos θ2, sin θ2, cos 2θ2, sin 2θ2, cos θ3, sin θ3, cos 2θ3, sin 2θ3,
+#          cos θ2 cos θ3, cos θ2 sin θ3, sin θ2 cos θ3, sin θ2 sin θ3),
+# with C_k symmetric 3×3 matrices fixed by the bodies (and the rotor inertia in C_0). Ĉ q̂̇ = Ṁ q̂̇ − ½ ∂(q̂̇ᵀ M̂ q̂̇)/∂q
+# then needs only ∂ψ/∂θ2, ∂ψ/∂θ3 (closed form): about 250 multiply-adds a tick instead of the frames and their second
+# derivatives body by body (:func:`_compensation`, which identifies the C_k once per run: :func:`mass_basis`).
+N_BASIS = 13
+#: M̂'s six entries, the coefficient columns: (row, column) of M11, M12, M13, M22, M23, M33
+_ENTRY_I = (0, 0, 0, 1, 1, 2)
+_ENTRY_J = (0, 1, 2, 1, 2, 2)
+#: identification grid points per angle: ψ's products hold harmonics ≤ 4 in each angle, so 8 points resolve them
+_GRID = 8
+
+
+@njit(cache=True, inline="always")
+def _basis(c2, s2, c3, s3, bs):
+    """ψ and its partial derivatives ∂ψ/∂θ2, ∂ψ/∂θ3 at (θ2, θ3) from their cosines and sines into bs (3, 13)."""
+    C2, S2 = c2 * c2 - s2 * s2, 2.0 * (c2 * s2)
+    C3, S3 = c3 * c3 - s3 * s3, 2.0 * (c3 * s3)
+    cc, cs, sc_, ss = c2 * c3, c2 * s3, s2 * c3, s2 * s3
+    bs[0, 0], bs[0, 1], bs[0, 2], bs[0, 3], bs[0, 4] = 1.0, c2, s2, C2, S2
+    bs[0, 5], bs[0, 6], bs[0, 7], bs[0, 8] = c3, s3, C3, S3
+    bs[0, 9], bs[0, 10], bs[0, 11], bs[0, 12] = cc, cs, sc_, ss
+    bs[1, 0], bs[1, 1], bs[1, 2], bs[1, 3], bs[1, 4] = 0.0, -s2, c2, -2.0 * S2, 2.0 * C2
+    bs[1, 5], bs[1, 6], bs[1, 7], bs[1, 8] = 0.0, 0.0, 0.0, 0.0
+    bs[1, 9], bs[1, 10], bs[1, 11], bs[1, 12] = -sc_, -ss, cc, cs
+    bs[2, 0], bs[2, 1], bs[2, 2], bs[2, 3], bs[2, 4] = 0.0, 0.0, 0.0, 0.0, 0.0
+    bs[2, 5], bs[2, 6], bs[2, 7], bs[2, 8] = -s3, c3, -2.0 * S3, 2.0 * C3
+    bs[2, 9], bs[2, 10], bs[2, 11], bs[2, 12] = -cs, cc, -ss, sc_
+
+
+@njit(cache=True)
+def _compensation_basis(c2, s2, c3, s3, qd, qdd, coef, bs, md, out):
+    """M̂ q̂̈ + Ĉ q̂̇ into out (3,) from M̂'s basis coefficients coef (13, 6) (:func:`mass_basis`) at θ2, θ3 given by
+    their cosines and sines (the kinematics' own). bs (3, 13), md (3, 6): scratch (allocated once per chunk).
+
+    md rows: M̂, ∂M̂/∂θ2, ∂M̂/∂θ3 (six entries each); Ṁ = q̂̇2 ∂M̂/∂θ2 + q̂̇3 ∂M̂/∂θ3 (∂M̂/∂θ1 = 0) and
+    ½ ∂(q̂̇ᵀ M̂ q̂̇)/∂q = ½ (0, q̂̇ᵀ ∂M̂/∂θ2 q̂̇, q̂̇ᵀ ∂M̂/∂θ3 q̂̇)."""
+    _basis(c2, s2, c3, s3, bs)
+    for r in range(3):
+        for e in range(6):
+            acc = 0.0
+            for k in range(N_BASIS):
+                acc += bs[r, k] * coef[k, e]
+            md[r, e] = acc
+    t0 = t1 = t2 = 0.0
+    g2 = g3 = 0.0
+    v1, v2 = qd[1], qd[2]
+    for e in range(6):
+        i, j = _ENTRY_I[e], _ENTRY_J[e]
+        m, d2, d3 = md[0, e], md[1, e], md[2, e]
+        dm = v1 * d2 + v2 * d3  # Ṁ_ij
+        a = m * qdd[j] + dm * qd[j]  # row i, column j of M̂ q̂̈ + Ṁ q̂̇
+        w = qd[i] * qd[j]
+        if i != j:
+            b = m * qdd[i] + dm * qd[i]  # the symmetric entry (row j, column i)
+            w = 2.0 * w
+        else:
+            b = 0.0
+        g2 += d2 * w
+        g3 += d3 * w
+        if i == 0:
+            t0 += a
+        elif i == 1:
+            t1 += a
+        else:
+            t2 += a
+        if i != j:
+            if j == 1:
+                t1 += b
+            else:
+                t2 += b
+    out[0] = t0
+    out[1] = t1 - 0.5 * g2
+    out[2] = t2 - 0.5 * g3
+
+
+@njit(cache=True)
+def _mass_matrix_bodies(q1, q2, q3, kin, bfr, bw, bm, bcom, bI, rotor, sc, M):
+    """M̂(q) (3, 3) by :func:`_compensation` (q̂̇ = 0, q̂̈ the unit vectors: its columns) into M."""
+    z = np.zeros(3)
+    e = np.zeros(3)
+    col = np.empty(3)
+    c1, s1, c2, s2, c3, s3 = math.cos(q1), math.sin(q1), math.cos(q2), math.sin(q2), math.cos(q3), math.sin(q3)
+    for j in range(3):
+        e[:] = 0.0
+        e[j] = 1.0
+        _compensation(c1, s1, c2, s2, c3, s3, z, e, kin, bfr, bw, bm, bcom, bI, rotor, sc, col)
+        for i in range(3):
+            M[i, j] = col[i]
+
+
+@njit(cache=True)
+def mass_basis(kin, bfr, bw, bm, bcom, bI, rotor):
+    """M̂'s coefficients (13, 6) in the basis ψ (see above), identified from the body-by-body M̂ (:func:`_compensation`)
+    on a uniform _GRID × _GRID grid of (θ2, θ3) (θ1 = 0) by the discrete Fourier sums (exact for ψ's harmonics on
+    this grid; fixed summation order, no BLAS: the same coefficients on every machine)."""
+    sc = comp_scratch()
+    coef = np.zeros((N_BASIS, 6))
+    bs = np.empty((3, N_BASIS))
+    M = np.empty((3, 3))
+    n = _GRID
+    for a in range(n):
+        t2 = 2.0 * math.pi * a / n
+        for b in range(n):
+            t3 = 2.0 * math.pi * b / n
+            _mass_matrix_bodies(0.0, t2, t3, kin, bfr, bw, bm, bcom, bI, rotor, sc, M)
+            _basis(math.cos(t2), math.sin(t2), math.cos(t3), math.sin(t3), bs)
+            for k in range(N_BASIS):
+                for e in range(6):
+                    coef[k, e] += bs[0, k] * M[_ENTRY_I[e], _ENTRY_J[e]]
+    for k in range(N_BASIS):  # ⟨ψ_k, ψ_k⟩ on the grid: n² (constant), n²/2 (one harmonic), n²/4 (products)
+        norm = 1.0 if k == 0 else (2.0 if k < 9 else 4.0)
+        for e in range(6):
+            coef[k, e] *= norm / (n * n)
+    return coef
+
+
+@njit(cache=True)
+def mass_basis_residual(coef, kin, bfr, bw, bm, bcom, bI, rotor):
+    """max |Σ ψ_k C_k − M̂| / max |M̂| over 16 poses off the identification grid (θ1 ≠ 0 included), M̂ body by body:
+    rounding (≈ 1e-16) when M̂ is in the basis, O(1) when not."""
+    sc = comp_scratch()
+    bs = np.empty((3, N_BASIS))
+    M = np.empty((3, 3))
+    err = 0.0
+    big = 0.0
+    for p in range(16):
+        t1, t2, t3 = 0.7 * p, 0.3 + 1.3 * p, -0.2 + 0.9 * p
+        _mass_matrix_bodies(t1, t2, t3, kin, bfr, bw, bm, bcom, bI, rotor, sc, M)
+        _basis(math.cos(t2), math.sin(t2), math.cos(t3), math.sin(t3), bs)
+        for e in range(6):
+            acc = 0.0
+            for k in range(N_BASIS):
+                acc += bs[0, k] * coef[k, e]
+            ref = M[_ENTRY_I[e], _ENTRY_J[e]]
+            err = max(err, abs(acc - ref), abs(M[_ENTRY_J[e], _ENTRY_I[e]] - ref))
+            big = max(big, abs(ref))
+    return err / big if big > 0.0 else (0.0 if err == 0.0 else np.inf)
+
+
+@njit(cache=True)
+def compensation(q, qd, qdd, coef):
+    """:func:`_compensation_basis` (the loop's per-tick torque) with its own scratch (for tests: one call)."""
+    out = np.empty(3)
+    _compensation_basis(math.cos(q[1]), math.sin(q[1]), math.cos(q[2]), math.sin(q[2]), qd, qdd, coef,
+                        np.empty((3, N_BASIS)), np.empty((3, 6)), out)
     return out
 
 
@@ -411,8 +564,7 @@ def master_chunk(m_addr, d_addr, off, start, end, nstep,
                  qpos, qvel, qacc, ctrl, qs, qfa, site_xpos, site,
                  qa, hq, hd, REF, DREF, par, flg, q0, K, B, anchor, half,
                  st, ist, dbuf,
-                 P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF, x0, chk_f, every,
-                 kin, bfr, bw, bm, bcom, bI, rotor, sc):
+                 P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF, x0, chk_f, every, coef):
     """Ticks from ``start`` (a window boundary) of ``MasterPlant.run`` with ``MasterController.step`` (with or without
     dynamics compensation), window by window (``every`` ticks), until the end of the first window holding a possibly bad
     tick (returned: the plant checks that window exactly) or ``end`` (returns −1: no tick was). "Possibly bad":
@@ -422,9 +574,8 @@ def master_chunk(m_addr, d_addr, off, start, end, nstep,
     par: count scale (counts per rad), angle scale (rad per count), T, alpha, L5, L4, h, Kb, Bb, lim, g1, g2;
     flg: quantize, env, gravity compensation, saturation, has_hand, n_closure, eq_hand, eq_type, delay, compensation;
     st: p_prev(3), v(3), F(3), q_prev(3), q̂̇(3), q̂̈(3); ist: delay position, compensation samples seen;
-    kin … rotor: the compensation model (L5, L4, d, h; per body frame, weight, mass, CoM, inertia; rotor inertia),
-    sc: its scratch (:func:`comp_scratch`); off: mjData offsets (time, nefc, efc_pos, efc_force,
-    efc_type, efc_id)."""
+    coef: the compensation model's M̂ in the trig basis (:func:`mass_basis`; (13, 6)); off: mjData offsets (time, nefc,
+    efc_pos, efc_force, efc_type, efc_id)."""
     cscale, ascale, T, a = par[0], par[1], par[2], par[3]
     L5, L4, hgt, Kb, Bb, lim, g1, g2 = par[4], par[5], par[6], par[7], par[8], par[9], par[10], par[11]
     quantize, env, gcomp, saturation, has_hand = flg[0], flg[1], flg[2], flg[3], flg[4]
@@ -441,6 +592,8 @@ def master_chunk(m_addr, d_addr, off, start, end, nstep,
     qdn = np.empty(3)
     qddn = np.empty(3)
     ctau = np.empty(3)
+    bs = np.empty((3, N_BASIS))  # compensation scratch (once per chunk, not per tick)
+    md = np.empty((3, 6))
     runaway, Tp = chk_f[0], chk_f[1]
     suspect = False
     for k in range(start, end):
@@ -492,15 +645,15 @@ def master_chunk(m_addr, d_addr, off, start, end, nstep,
                     st[9 + i] = q[i]
                     st[12 + i] = qdn[i]
                 if ns >= 2:
-                    _compensation(c1, s1, c2, s2, c3, s3, qdn, qddn, kin, bfr, bw, bm, bcom, bI, rotor, sc, ctau)
+                    _compensation_basis(c2, s2, c3, s3, qdn, qddn, coef, bs, md, ctau)
                 else:
                     ctau[:] = 0.0
                 for j in range(3):
                     tau[j] = tau[j] + ctau[j]
         if gcomp:
             tau[0] = tau[0] + 0.0
-            tau[1] = tau[1] + g1 * math.cos(q[1])
-            tau[2] = tau[2] + g2 * math.sin(q[2])
+            tau[1] = tau[1] + g1 * c2  # math.cos(q[1]), math.sin(q[2]): the kinematics' own values
+            tau[2] = tau[2] + g2 * s3
         if saturation:
             for j in range(3):
                 tau[j] = _clip(tau[j], lim)
@@ -564,4 +717,6 @@ def warm() -> None:
                f, i, a2, a2, a2, a2, f, f, a3, a2, a2, x, x, f, f, i)
     master_chunk(0, 0, i, 0, 0, 1, f, f, f, f, f, f, a2, 0, x, x, x, a2, a2, f, i, f, f, f, f, f,
                  f, i, a2, a2, a2, a2, a2, np.zeros(1, dtype=np.bool_), f, a2, a2, a2, a2, f, f, 1,
-                 f, x, f, f, np.zeros((1, 3)), np.zeros((1, 3, 3)), f, comp_scratch())
+                 np.zeros((N_BASIS, 6)))
+    body = (f, x, f, f, np.zeros((1, 3)), np.zeros((1, 3, 3)), f)
+    mass_basis_residual(mass_basis(*body), *body)

@@ -106,6 +106,24 @@ def _one_hot(sel: Any) -> bool:
     return sel.ndim == 2 and bool(np.all((sel == 0.0) | (sel == 1.0)) and np.all(sel.sum(axis=1) == 1.0))
 
 
+#: largest relative residual of the compensation model's M̂ in the compiled law's trig basis
+#: (``_mujoco_kernels.mass_basis_residual``): M̂ is in the basis for every one-hot model (measured ≈ 1e-16 on master-paper,
+#: 2e-16 on random CoMs and full inertia tensors); a model outside it misses by O(1)
+MASS_BASIS_RESIDUAL = 1e-12
+
+
+def _compensation_bodies(controller: MasterController) -> tuple[np.ndarray, ...]:
+    """The compensation model's bodies (:class:`hapticopt.analysis.master.dynamics.MassModel`) as the kernels' plain
+    arrays: (L5, L4, d, h), frame per body, weight, mass, CoM (b, 3), inertia (b, 3, 3), rotor inertia (3,)."""
+    cm = controller.cfg.compensation_model
+    kin = np.array([float(cm.kin.upper_arm), float(cm.kin.forearm), float(cm.kin.driver_link),
+                    float(cm.kin.shoulder_height)])
+    return (kin, np.ascontiguousarray(np.argmax(np.asarray(cm.frame), axis=1), dtype=np.intp),
+            np.array(controller._weights, dtype=np.float64), np.array(cm.mass, dtype=np.float64),
+            np.array(cm.com, dtype=np.float64).reshape(-1, 3), np.array(cm.inertia, dtype=np.float64).reshape(-1, 3, 3),
+            np.array(np.broadcast_to(np.asarray(cm.rotor_inertia, dtype=np.float64), (3,))))
+
+
 def start_pose(design: MasterDesign) -> np.ndarray:
     """Calibration / start pose of the master scenes: the middle of the θ3 and φ ranges (issue 5)."""
 
@@ -184,6 +202,17 @@ class MasterPlant:
             why = "the controller was homed at another pose than the plant's start"
         else:
             why = mc.availability()
+        self._comp_coef = np.zeros((13, 6))
+        if why is None and cfg.compensation_model is not None:
+            kc = mc.kernels()
+            body = _compensation_bodies(controller)
+            coef = kc.mass_basis(*body)
+            resid = kc.mass_basis_residual(coef, *body)
+            if not resid <= MASS_BASIS_RESIDUAL:  # also NaN
+                why = (f"the compensation model's mass matrix is not in the compiled law's trig basis (relative "
+                       f"residual {resid:.3g} > {MASS_BASIS_RESIDUAL:g})")
+            else:
+                self._comp_coef = coef
         self.loop_engine = "python" if why else "compiled"
         self.loop_reason = why or "compiled loop (numba): firmware law and mj_step in one native loop"
         return None if why else mc.kernels()
@@ -215,24 +244,13 @@ class MasterPlant:
         st[3:6] = controller._v
         st[9:12], st[12:15], st[15:18] = controller._q_prev, controller._qd, controller._qdd
         ist = np.array([0, controller._samples], dtype=np.int64)
-        cm = cfg.compensation_model
-        if comp:  # the compensation model's bodies (hapticopt.analysis.master.dynamics.MassModel) as plain arrays
-            kin = np.array([float(cm.kin.upper_arm), float(cm.kin.forearm), float(cm.kin.driver_link),
-                            float(cm.kin.shoulder_height)])
-            body = (ip(np.argmax(np.asarray(cm.frame), axis=1)), np.array(controller._weights, dtype=np.float64),
-                    np.array(cm.mass, dtype=np.float64), np.array(cm.com, dtype=np.float64).reshape(-1, 3),
-                    np.array(cm.inertia, dtype=np.float64).reshape(-1, 3, 3), f3(cm.rotor_inertia))
-        else:
-            kin = np.zeros(4)
-            body = (np.zeros(1, dtype=np.intp), np.zeros(1), np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3, 3)),
-                    np.zeros(3))
         dbuf = np.zeros((max(1, delay_ticks), 3))
         pre = (m._address, d._address, off)
         post = (d.qpos, d.qvel, d.qacc, d.ctrl, m.qpos_spring, d.qfrc_applied, d.site_xpos, int(self.site),
                 ip(self.act_qpos), hq, hd, REF, DREF, par, flg, f3(cfg.q0), f3(controller._K), f3(controller._B),
                 f3(controller._anchor), f3(controller._half), st, ist, dbuf,
                 P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF, f3(self.x0), np.array([RUNAWAY, self.period]), 100,
-                kin, *body, kc.comp_scratch())
+                self._comp_coef)
         return pre, post
 
     def run(self, controller: MasterController, *, ticks: int, frequency: float, quantize: bool,
