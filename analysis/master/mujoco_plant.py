@@ -125,7 +125,7 @@ def _compensation_bodies(controller: MasterController) -> tuple[np.ndarray, ...]
 
 
 def start_pose(design: MasterDesign) -> np.ndarray:
-    """Calibration / start pose of the master scenes: the middle of the θ3 and φ ranges (issue 5)."""
+    """Calibration / start pose of the master scenes: the middle of the θ3 and φ ranges."""
 
     return default_pose(design)
 
