@@ -115,19 +115,33 @@ def _master_loop_and_raw(fidelity: Fidelity, rounds: int = 5, scene_name: str = 
     Np = N if python_ticks is None else min(N, python_ticks)
     out: dict[str, list[float]] = {"compiled": [], "python": [], "raw": [], "raw_python": []}
     kw = dict(frequency=scene.motion.frequency, quantize=Effect.QUANTIZATION in res.effects)
+    spring = plant.model.qpos_spring.copy()  # the loops write the hand reference there; raw starts from the model's
     plant.run(mm.controller_for(master, scene, res, plant.x0, plant.q0, T), ticks=10, frequency=1.0,
               quantize=True)  # load the compiled kernel outside the timing
-    for _ in range(rounds):
-        for engine, n in (("compiled", N), ("python", Np)):
-            ctl = mm.controller_for(master, scene, res, plant.x0, plant.q0, T)
-            t0 = time.perf_counter()
-            plant.run(ctl, ticks=n, compiled=engine == "compiled", **kw)
-            out[engine].append(time.perf_counter() - t0)
-            assert plant.loop_engine == engine, plant.loop_reason
+
+    def loop(engine: str, n: int) -> None:
+        ctl = mm.controller_for(master, scene, res, plant.x0, plant.q0, T)
+        t0 = time.perf_counter()
+        plant.run(ctl, ticks=n, compiled=engine == "compiled", **kw)
+        out[engine].append(time.perf_counter() - t0)
+        assert plant.loop_engine == engine, plant.loop_reason
+
+    def raw(n: int) -> float:
+        plant.model.qpos_spring[:] = spring
         plant.reset()
-        out["raw"].append(_raw(plant.model, plant.data, N, plant.substeps))
-        plant.reset()
-        out["raw_python"].append(out["raw"][-1] if Np == N else _raw(plant.model, plant.data, Np, plant.substeps))
+        return _raw(plant.model, plant.data, n, plant.substeps)
+
+    for r in range(rounds):
+        # the compiled loop and its raw baseline back to back, their order alternating by round (an order effect
+        # cancels in the median); the Python loop and its own raw baseline after them
+        if r % 2:
+            out["raw"].append(raw(N))
+            loop("compiled", N)
+        else:
+            loop("compiled", N)
+            out["raw"].append(raw(N))
+        loop("python", Np)
+        out["raw_python"].append(out["raw"][-1] if Np == N else raw(Np))
     return out
 
 
@@ -192,17 +206,22 @@ def _master_protocol_split(fidelity: Fidelity, rounds: int = 5,
 
     run_replay()  # compile the replay outside the timing
     out: dict[str, list[float]] = {"compiled": [], "no_compensation": [], "replay": [], "raw": []}
-    for _ in range(rounds):
-        for name, comp in (("compiled", True), ("no_compensation", False)):
-            ctl = controller(comp)
-            t0 = time.perf_counter()
-            plant.run(ctl, ticks=N, **kw)
-            out[name].append(time.perf_counter() - t0)
-            assert plant.loop_engine == "compiled", plant.loop_reason
-        out["replay"].append(run_replay())
+    def loop(name: str) -> None:
+        ctl = controller(name == "compiled")
+        t0 = time.perf_counter()
+        plant.run(ctl, ticks=N, **kw)
+        out[name].append(time.perf_counter() - t0)
+        assert plant.loop_engine == "compiled", plant.loop_reason
+
+    def raw() -> None:
         m.qpos_spring[:] = spring
         plant.reset()
         out["raw"].append(_raw(m, d, N, plant.substeps))
+
+    steps = (lambda: loop("compiled"), lambda: loop("no_compensation"), lambda: out["replay"].append(run_replay()), raw)
+    for r in range(rounds):
+        for fn in steps if r % 2 == 0 else steps[::-1]:  # the order reversed every other round
+            fn()
     return out
 
 

@@ -2,8 +2,9 @@
 ``libmujoco`` is loaded for the linker). Each kernel runs ticks [start, end) of one plant's loop and
 mirrors the Python loop and controller it replaces operation by operation (same order, no fused
 multiply-add: numba does not contract without ``fastmath``), so the records are bit-identical — except the
-master's dynamics compensation (:func:`_compensation`: the same torque in closed form where the reference takes
-central differences; the records agree within the reference's own rounding envelope)."""
+master's dynamics compensation (:func:`_compensation_basis`: the same torque in closed form, from M̂ in a trig basis
+identified once per run from the body-by-body form :func:`_compensation`, where the reference takes central
+differences; the records agree within the reference's own rounding envelope)."""
 
 from __future__ import annotations
 
@@ -340,7 +341,10 @@ def _compensation(c1, s1, c2, s2, c3, s3, qd, qdd, kin, bfr, bw, bm, bcom, bI, r
     ω_b = J_ω q̂̇), with the velocity-product accelerations a_b = D²c_b and α_b = vee of the skew part of Rᵀ D²R (D²
     along q̂̇: :func:`_frames_dd`). The frames' derivatives are exact (the reference's complex step gives them to
     rounding); the difference to the reference is its central difference's truncation O(h²) and rounding (ε|M̂|/h):
-    both below the reference's own sensitivity to its rounding (measured, docs/performance.md §2)."""
+    both below the reference's own sensitivity to its rounding (measured, docs/performance.md §2).
+
+    The loop does not call this per tick: it identifies M̂'s basis coefficients from it once per run
+    (:func:`mass_basis`) and evaluates :func:`_compensation_basis` (≈ 1/6 of the work)."""
     O, dO, R, dR, O2, R2, Jv, Jw = sc
     _frames(c1, s1, c2, s2, c3, s3, kin[0], kin[1], kin[2], kin[3], O, dO, R, dR)
     _frames_dd(c1, s1, c2, s2, c3, s3, qd, kin[0], kin[1], kin[2], O2, R2)
@@ -564,12 +568,13 @@ def master_chunk(m_addr, d_addr, off, start, end, nstep,
                  qpos, qvel, qacc, ctrl, qs, qfa, site_xpos, site,
                  qa, hq, hd, REF, DREF, par, flg, q0, K, B, anchor, half,
                  st, ist, dbuf,
-                 P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF, x0, chk_f, every, coef):
+                 P, TAU, FREF, EF, has_ef, clock, HQ, HV, HA, EQF, x0, chk_f, every, coef):
     """Ticks from ``start`` (a window boundary) of ``MasterPlant.run`` with ``MasterController.step`` (with or without
     dynamics compensation), window by window (``every`` ticks), until the end of the first window holding a possibly bad
     tick (returned: the plant checks that window exactly) or ``end`` (returns −1: no tick was). "Possibly bad":
     the plant's rule with margins (non-finite handle, further than RUNAWAY·(1 − 1e-12) from x0, MuJoCo's clock
-    reset); chk_f: RUNAWAY, T.
+    reset); chk_f: RUNAWAY, T. EF: the closure residual max_j |efc_pos[j]| over the n_closure rows (as numpy's
+    ``np.abs(rows).max()``: exact, NaN when one is), where a tick has them (has_ef).
 
     par: count scale (counts per rad), angle scale (rad per count), T, alpha, L5, L4, h, Kb, Bb, lim, g1, g2;
     flg: quantize, env, gravity compensation, saturation, has_hand, n_closure, eq_hand, eq_type, delay, compensation;
@@ -675,10 +680,14 @@ def master_chunk(m_addr, d_addr, off, start, end, nstep,
             TAU[k, j] = cmd[j]
             FREF[k, j] = F[j]
         nefc = _i32(d_addr + off_nefc, 0)
-        if nefc >= n:
+        if n > 0 and nefc >= n:
             ep = _ptr(d_addr + off_pos)
-            for j in range(n):
-                EFR[k, j] = _f64(ep, j)
+            mx = abs(_f64(ep, 0))
+            for j in range(1, n):
+                x = abs(_f64(ep, j))
+                if x > mx or x != x:  # NaN wins (and stays: no comparison with it holds)
+                    mx = x
+            EF[k] = mx
             has_ef[k] = True
         clock[k] = _f64(d_addr + off_time, 0)
         if has_hand:
@@ -716,7 +725,7 @@ def warm() -> None:
     prrr_chunk(0, 0, x, 0, 0, 1, f, f, f, f, f, f, f, x, x, x, x, a2, a2, f, i, np.zeros((3, 3)), f, f, f, f, f, f,
                f, i, a2, a2, a2, a2, f, f, a3, a2, a2, x, x, f, f, i)
     master_chunk(0, 0, i, 0, 0, 1, f, f, f, f, f, f, a2, 0, x, x, x, a2, a2, f, i, f, f, f, f, f,
-                 f, i, a2, a2, a2, a2, a2, np.zeros(1, dtype=np.bool_), f, a2, a2, a2, a2, f, f, 1,
+                 f, i, a2, a2, a2, a2, f, np.zeros(1, dtype=np.bool_), f, a2, a2, a2, a2, f, f, 1,
                  np.zeros((N_BASIS, 6)))
     body = (f, x, f, f, np.zeros((1, 3)), np.zeros((1, 3, 3)), f)
     mass_basis_residual(mass_basis(*body), *body)

@@ -175,6 +175,8 @@ class MasterPlant:
         self.n_closure = 3  # the parallelogram connect's rows come first
         self._full_q0 = full_qpos(self.q0)
         self.loop_engine, self.loop_reason = "python", "run() not called yet"
+        self._basis_key: tuple | None = None  # the compensation model whose M̂ basis coefficients are in _basis
+        self._basis: tuple[np.ndarray, float] = (np.zeros((13, 6)), 0.0)
 
     def reset(self) -> None:
         mj, d = self._mujoco, self.data
@@ -206,8 +208,11 @@ class MasterPlant:
         if why is None and cfg.compensation_model is not None:
             kc = mc.kernels()
             body = _compensation_bodies(controller)
-            coef = kc.mass_basis(*body)
-            resid = kc.mass_basis_residual(coef, *body)
+            key = tuple((a.shape, a.dtype.str, a.tobytes()) for a in body)
+            if key != self._basis_key:  # identified once per compensation model (≈ 0.3 ms), not per run
+                coef = kc.mass_basis(*body)
+                self._basis_key, self._basis = key, (coef, kc.mass_basis_residual(coef, *body))
+            coef, resid = self._basis
             if not resid <= MASS_BASIS_RESIDUAL:  # also NaN
                 why = (f"the compensation model's mass matrix is not in the compiled law's trig basis (relative "
                        f"residual {resid:.3g} > {MASS_BASIS_RESIDUAL:g})")
@@ -217,7 +222,7 @@ class MasterPlant:
         self.loop_reason = why or "compiled loop (numba): firmware law and mj_step in one native loop"
         return None if why else mc.kernels()
 
-    def _native_args(self, controller, quantize, delay_ticks, REF, DREF, P, TAU, FREF, EFR, has_ef, clock,
+    def _native_args(self, controller, quantize, delay_ticks, REF, DREF, P, TAU, FREF, EF, has_ef, clock,
                      HQ, HV, HA, EQF):
         """Arguments of :func:`master_chunk`: (before start/end/nstep, after)."""
         m, d, cfg = self.model, self.data, controller.cfg
@@ -249,7 +254,7 @@ class MasterPlant:
         post = (d.qpos, d.qvel, d.qacc, d.ctrl, m.qpos_spring, d.qfrc_applied, d.site_xpos, int(self.site),
                 ip(self.act_qpos), hq, hd, REF, DREF, par, flg, f3(cfg.q0), f3(controller._K), f3(controller._B),
                 f3(controller._anchor), f3(controller._half), st, ist, dbuf,
-                P, TAU, FREF, EFR, has_ef, clock, HQ, HV, HA, EQF, f3(self.x0), np.array([RUNAWAY, self.period]), 100,
+                P, TAU, FREF, EF, has_ef, clock, HQ, HV, HA, EQF, f3(self.x0), np.array([RUNAWAY, self.period]), 100,
                 self._comp_coef)
         return pre, post
 
@@ -298,7 +303,6 @@ class MasterPlant:
         # per tick only raw values are copied into preallocated rows; views and slices are made once
         qpos, qvel, qacc, ctrl = d.qpos, d.qvel, d.qacc, d.ctrl
         xsite = d.site_xpos[self.site]  # a view: MuJoCo updates it in place
-        EFR = np.zeros((N, n))  # closure residual rows (|·|.max per tick after the loop)
         has_ef = np.zeros(N, dtype=bool)
         if self.hand:
             hq, hd = _as_slice(hq), _as_slice(hd)
@@ -308,9 +312,11 @@ class MasterPlant:
         step = mj.mj_step
         substeps = self.substeps
         kern = self._kernels(controller, compiled)
+        # the Python loop's closure residual rows (|·|.max per tick after the loop; the compiled loop writes the max)
+        EFR = np.zeros((N, n)) if kern is None else None
         if kern is not None:
             nat = self._native_args(controller, quantize, delay_ticks, REF if self.hand else None,
-                                    DREF if self.hand else None, P, TAU, FREF, EFR, has_ef, clock,
+                                    DREF if self.hand else None, P, TAU, FREF, EF, has_ef, clock,
                                     *((HQ, HV, HA, EQF) if self.hand else (np.zeros((1, 3)),) * 4))
             lo = 0
             while lo < N:  # windows on until one holds a possibly bad tick (checked exactly here) or N
@@ -365,7 +371,7 @@ class MasterPlant:
                 if bad.any():
                     stop = lo + int(np.argmax(bad))
                     break
-        if n:
+        if n and kern is None:  # (the compiled loop writes EF per tick, the same max)
             EF[has_ef] = np.abs(EFR[has_ef]).max(axis=-1)
         if self.hand:
             # the hand's force on the handle: the hand connect's constraint force, at the same instant as

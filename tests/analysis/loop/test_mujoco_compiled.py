@@ -322,7 +322,8 @@ def test_compiled_compensation_basis_equals_the_body_by_body_form():
 
 def test_master_compensation_outside_the_basis_falls_back_with_the_reason(monkeypatch):
     """When M̂'s identified coefficients do not reproduce M̂ (residual over MASS_BASIS_RESIDUAL: here the identification
-    made to return zeros), the compensation has no compiled law: the Python loop runs and says why."""
+    made to return zeros), the compensation has no compiled law: the Python loop runs and says why. A plant identifies
+    a compensation model's coefficients once (later runs with the same model reuse them)."""
     scene = dataclasses.replace(load_scene("master-protocol-x"), duration=0.01)
     from hapticopt.analysis.loop.scene import resolve
 
@@ -336,7 +337,11 @@ def test_master_compensation_outside_the_basis_falls_back_with_the_reason(monkey
     monkeypatch.setattr(k, "mass_basis", lambda *a: np.zeros((k.N_BASIS, 6)))
     plant.run(master_mj.controller_for(MASTER, scene, res, plant.x0, plant.q0, T), ticks=5, frequency=1.0,
               quantize=False)
-    assert plant.loop_engine == "python" and "trig basis" in plant.loop_reason
+    assert plant.loop_engine == "compiled"  # the same model: its coefficients were identified once, on the first run
+    fresh = master_mj.MasterPlant(MASTER, scene, res, period=T, fidelity=Fidelity.DRAFT)
+    fresh.run(master_mj.controller_for(MASTER, scene, res, fresh.x0, fresh.q0, T), ticks=5, frequency=1.0,
+              quantize=False)
+    assert fresh.loop_engine == "python" and "trig basis" in fresh.loop_reason
 
 
 @pytest.mark.parametrize("name,duration", [("master-protocol-x", 0.15), ("master-protocol-z", 0.15),
