@@ -3,7 +3,7 @@
 mirrors the Python loop and controller it replaces operation by operation (same order, no fused
 multiply-add: numba does not contract without ``fastmath``), so the records are bit-identical — except the
 master's dynamics compensation (:func:`_compensation_basis`: the same torque in closed form, from M̂ in a trig basis
-identified once per run from the body-by-body form :func:`_compensation`, where the reference takes central
+identified once per plant and model from the body-by-body form :func:`_compensation`, where the reference takes central
 differences; the records agree within the reference's own rounding envelope)."""
 
 from __future__ import annotations
@@ -343,7 +343,7 @@ def _compensation(c1, s1, c2, s2, c3, s3, qd, qdd, kin, bfr, bw, bm, bcom, bI, r
     rounding); the difference to the reference is its central difference's truncation O(h²) and rounding (ε|M̂|/h):
     both below the reference's own sensitivity to its rounding (measured, docs/performance.md §2).
 
-    The loop does not call this per tick: it identifies M̂'s basis coefficients from it once per run
+    The loop does not call this per tick: it identifies M̂'s basis coefficients from it once per plant and model
     (:func:`mass_basis`) and evaluates :func:`_compensation_basis` (measured ≈ 150 ns a call against ≈ 820 ns here,
     the trig calls excluded)."""
     O, dO, R, dR, O2, R2, Jv, Jw = sc
@@ -419,7 +419,7 @@ def compensation_bodies(q, qd, qdd, kin, bfr, bw, bm, bcom, bI, rotor):
 #          cos θ2 cos θ3, cos θ2 sin θ3, sin θ2 cos θ3, sin θ2 sin θ3),
 # with C_k symmetric 3×3 matrices fixed by the bodies (and the rotor inertia in C_0). Ĉ q̂̇ = Ṁ q̂̇ − ½ ∂(q̂̇ᵀ M̂ q̂̇)/∂q
 # then needs only ∂ψ/∂θ2, ∂ψ/∂θ3 (closed form): about 250 multiply-adds a tick instead of the frames and their second
-# derivatives body by body (:func:`_compensation`, which identifies the C_k once per run: :func:`mass_basis`).
+# derivatives body by body (:func:`_compensation`, from which :func:`mass_basis` identifies the C_k once per plant and model).
 N_BASIS = 13
 #: M̂'s six entries, the coefficient columns: (row, column) of M11, M12, M13, M22, M23, M33
 _ENTRY_I = (0, 0, 0, 1, 1, 2)
@@ -687,7 +687,7 @@ def master_chunk(m_addr, d_addr, off, start, end, nstep,
             mx = abs(_f64(ep, 0))
             for j in range(1, n):
                 x = abs(_f64(ep, j))
-                if x > mx or x != x:  # NaN wins (and stays: no comparison with it holds)
+                if x > mx or math.isnan(x):  # NaN wins (and stays: no comparison with it holds)
                     mx = x
             EF[k] = mx
             has_ef[k] = True

@@ -6,7 +6,7 @@ once per firmware tick with the command held; the Python firmware and the per-ti
 between the calls cost 1.2–2.5× raw ``mj_step``. Here the same tick loop runs in numba
 (``@njit(cache=True)``): the encoder read, the firmware law (term by term and in the order of the
 Python controllers, so the traces are bit-identical; the master's dynamics compensation, whose reference
-differences M̂ numerically, in closed form — M̂ in a 13-function trig basis of (θ2, θ3) identified once per run —
+differences M̂ numerically, in closed form — M̂ in a 13-function trig basis of (θ2, θ3) identified once per plant and model —
 within the reference's rounding envelope), the delay line, the hand reference, the
 ``mj_step`` calls and the per-tick records into preallocated arrays. Python runs once per chunk
 of ticks (the plants' instability checks stay vectorised numpy between chunks).
