@@ -107,8 +107,8 @@ def _one_hot(sel: Any) -> bool:
 
 
 #: largest relative residual of the compensation model's M̂ in the compiled law's trig basis
-#: (``_mujoco_kernels.mass_basis_residual``): M̂ is in the basis for every one-hot model (measured ≈ 1e-16 on master-paper,
-#: 2e-16 on random CoMs and full inertia tensors); a model outside it misses by O(1)
+#: (``_mujoco_kernels.mass_basis_residual``): M̂ is in the basis for every one-hot model (measured 6e-16 on master-paper,
+#: 5e-16 with random CoMs and full inertia tensors); a model outside it misses by O(1)
 MASS_BASIS_RESIDUAL = 1e-12
 
 
@@ -176,7 +176,8 @@ class MasterPlant:
         self._full_q0 = full_qpos(self.q0)
         self.loop_engine, self.loop_reason = "python", "run() not called yet"
         self._basis_key: tuple | None = None  # the compensation model whose M̂ basis coefficients are in _basis
-        self._basis: tuple[np.ndarray, float] = (np.zeros((13, 6)), 0.0)
+        self._basis: tuple[np.ndarray, float] = (np.zeros((13, 6)), 0.0)  # (13 basis functions, 6 entries), residual
+        self._comp_coef = np.zeros((13, 6))  # what the kernel gets (zeros without compensation)
 
     def reset(self) -> None:
         mj, d = self._mujoco, self.data
