@@ -511,7 +511,7 @@ def _mass_matrix_bodies(q1, q2, q3, kin, bfr, bw, bm, bcom, bI, rotor, sc, M):
 def mass_basis(kin, bfr, bw, bm, bcom, bI, rotor):
     """M̂'s coefficients (13, 6) in the basis ψ (see above), identified from the body-by-body M̂ (:func:`_compensation`)
     on a uniform _GRID × _GRID grid of (θ2, θ3) (θ1 = 0) by the discrete Fourier sums (exact for ψ's harmonics on
-    this grid; fixed summation order, no BLAS: the same coefficients on every machine)."""
+    this grid; fixed summation order, no BLAS: the coefficients do not depend on the BLAS kernel)."""
     sc = comp_scratch()
     coef = np.zeros((N_BASIS, 6))
     bs = np.empty((3, N_BASIS))
