@@ -156,6 +156,22 @@ def workspace_params(design: PrrrDesign, *, required_diameter: float = DEFAULT_R
     return WorkspaceParams(*(np.float64(v) for v in vals))
 
 
+def workspace_params_many(designs: list[PrrrDesign], envelope: np.ndarray, *,
+                          required_diameter: float = DEFAULT_REQUIRED_DIAMETER) -> list[WorkspaceParams]:
+    """:func:`workspace_params` (default reach annulus) of many designs whose :func:`base_envelope`
+    the caller has (``envelope`` (n,) [m]), from one (n, 13) table: the same operations per value,
+    so each row equals the per-design result bit for bit (tested)."""
+    g = [d.geometry for d in designs]
+    d3 = np.array([x.d3 for x in g])
+    d4 = np.array([x.d4 for x in g])
+    boss = np.array([d.structure.boss_diameter for d in designs]) / 2.0
+    cols = [np.array([getattr(x, f) for x in g], dtype=np.float64) for f in ("beta", "d1", "d2")]
+    cols += [d3, d4] + [np.array([getattr(x, f) for x in g], dtype=np.float64) for f in ("r4", "b5", "stroke")]
+    cols += [np.maximum(np.abs(d3 - d4), boss), d3 + d4, np.asarray(envelope, dtype=np.float64), boss,
+             np.full(len(g), required_diameter / 2.0)]
+    return [WorkspaceParams(*row) for row in np.stack(cols, axis=1)]
+
+
 def stack(params: list[WorkspaceParams]) -> WorkspaceParams:
     """Stack many parameter sets along a leading batch axis (jax arrays, for ``jax.vmap``)."""
     return WorkspaceParams(*(jnp.asarray(np.array(col, dtype=np.float64)) for col in zip(*params)))

@@ -252,3 +252,16 @@ def test_required_cylinder_that_does_not_fit_is_not_met(paper: PrrrDesign) -> No
     assert ok.height_at_required == pytest.approx(0.170 - 0.140 / math.tan(math.radians(60)), rel=1e-12)
     assert ok.status == Status.OK
     assert W.evaluate(paper, required_height=0.090).status == Status.NOT_MET
+
+
+def test_workspace_params_many_equal_workspace_params_bitwise(problem_sample):
+    """One table for many designs (the batched draft evaluator's) gives each design's
+    :func:`workspace_params` bit for bit (same operations per value; the envelope given)."""
+    designs = problem_sample(12, seed=33)
+    env = np.linspace(0.12, 0.2, len(designs))
+    rows = W.workspace_params_many(designs, env)
+    for d, e, row in zip(designs, env, rows, strict=True):
+        want = W.workspace_params(d, envelope=float(e))
+        assert type(row) is W.WorkspaceParams
+        for a, b in zip(row, want, strict=True):
+            assert np.float64(a).tobytes() == np.float64(b).tobytes()
