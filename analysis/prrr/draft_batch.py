@@ -465,14 +465,28 @@ def _structure(design: PrrrDesign, out: dict) -> Any:
         return structure.failed(str(exc))
 
 
+def _samples(designs, specs, wps) -> dict[int, Any]:
+    """The interference sample (points, weights) of every design with part tables or an exception for
+    them (not :class:`_Blocked`): ``WS.workspace_sample_weights_many`` in one pass (equal to the
+    per-design function bit for bit), or, should that raise, the per-design function with its own
+    exception per design."""
+    idx = [i for i in range(len(designs)) if not isinstance(specs[i], _Blocked)]
+    many = _guard(WS.workspace_sample_weights_many, [designs[i] for i in idx], [wps[i] for i in idx],
+                  **WS.INTERFERENCE_SAMPLING)
+    if not isinstance(many, Exception):
+        return dict(zip(idx, many))
+    return {i: _guard(WS.workspace_sample_weights, designs[i], **WS.INTERFERENCE_SAMPLING, wp=wps[i]) for i in idx}
+
+
 def _interference(designs, specs, wps, check, res, t0) -> None:
     owners, pts_all, weights = [], [], {}
+    samples = _samples(designs, specs, wps)
     for i, d in enumerate(designs):
         if isinstance(specs[i], _Blocked):
             continue
         # the order of interference_fast.interference_fractions: an empty sample is (0, 0) before
         # the part tables are needed
-        sample = _guard(WS.workspace_sample_weights, d, **WS.INTERFERENCE_SAMPLING, wp=wps[i])
+        sample = samples[i]
         if isinstance(sample, Exception):
             res[i]["interference"] = sample
             continue
