@@ -92,11 +92,11 @@ def from_tables(tables, t0: float) -> list[DeviceSize]:
     """:func:`from_specs` of every design of one part layout at once, from the stacked part tables
     ``tables`` (:class:`hapticopt.design.prrr.cad_arrays.PartTables`, which carry the device height):
     each part's mass is its density times its signed volume (SOLID − OVERLAP − HOLE, the closed forms
-    of :func:`hapticopt.design.parts.volume_properties`), summed in part order as :func:`from_specs`
+    of :func:`hapticopt.design.parts.volume_properties`: :func:`hapticopt.design.parts.volumes`), summed in part order as :func:`from_specs`
     sums them (tested equal to it)."""
     m, P = tables.dims.shape[:2]
     kind = np.broadcast_to(np.asarray(tables.kind), (m, P)).reshape(-1)
-    v = _parts._local_props(kind, tables.dims.reshape(-1, 3))[0].reshape(m, P)
+    v = _parts.volumes(kind, tables.dims.reshape(-1, 3)).reshape(m, P)
     sign = np.array([1.0 if role == _parts.Role.SOLID else -1.0 for role in tables.role])
     prim_part = np.asarray(tables.prim_part)
     starts = np.flatnonzero(np.r_[True, prim_part[1:] != prim_part[:-1]])

@@ -140,22 +140,30 @@ class _Prims:
             self.cylinder(part, c, R, bore_radius, thickness, role=Role.HOLE)
 
 
+#: the design values the part tables read: column name → (section, field)
+_FIELDS = dict(
+    beta=("geometry", "beta"), r_p=("geometry", "r_p"), d1=("geometry", "d1"), d2=("geometry", "d2"),
+    d3=("geometry", "d3"), d4=("geometry", "d4"), r4=("geometry", "r4"), b5=("geometry", "b5"),
+    stroke=("geometry", "stroke"), theta_1p=("geometry", "theta_1p"), c_e=("geometry", "c_e"),
+    T=("structure", "link_thickness"), W=("structure", "link_width"), g=("structure", "clearance"),
+    boss=("structure", "boss_diameter"), bore=("structure", "bore_diameter"), wall=("structure", "carriage_wall"),
+    tb=("structure", "base_thickness"), rw=("structure", "rail_width"), ch=("structure", "carriage_height"),
+    stem=("structure", "stem_diameter"), rho=("structure", "density"), base_clearance=("structure", "base_clearance"),
+    base_radius=("structure", "base_radius"), sea_envelope=("structure", "sea_envelope"),
+    handle=("end_effector", "handle_diameter"), screw_d=("sea_module", "screw_diameter"),
+    motor_d=("sea_module", "motor_diameter"), motor_length=("sea_module", "motor_length"),
+    motor_offset=("sea_module", "motor_radial_offset"), housing_mass=("sea_module", "housing_mass"),
+    screw_mass=("sea_module", "screw_mass"), motor_mass=("sea_module", "motor_mass"))
+_SECTIONS = ("geometry", "structure", "end_effector", "sea_module")
+
+
 def _columns(designs: list[PrrrDesign]) -> dict[str, np.ndarray]:
-    out: dict[str, list[float]] = {}
-    for d in designs:
-        g_, s_, e_, m_ = d.geometry, d.structure, d.end_effector, d.sea_module
-        vals = dict(beta=g_.beta, r_p=g_.r_p, d1=g_.d1, d2=g_.d2, d3=g_.d3, d4=g_.d4, r4=g_.r4, b5=g_.b5,
-                    stroke=g_.stroke, theta_1p=g_.theta_1p, c_e=g_.c_e,
-                    T=s_.link_thickness, W=s_.link_width, g=s_.clearance, boss=s_.boss_diameter,
-                    bore=s_.bore_diameter, wall=s_.carriage_wall, tb=s_.base_thickness, rw=s_.rail_width,
-                    ch=s_.carriage_height, stem=s_.stem_diameter, rho=s_.density, base_clearance=s_.base_clearance,
-                    base_radius=s_.base_radius, sea_envelope=s_.sea_envelope, handle=e_.handle_diameter,
-                    screw_d=m_.screw_diameter, motor_d=m_.motor_diameter, motor_length=m_.motor_length,
-                    motor_offset=m_.motor_radial_offset, housing_mass=m_.housing_mass, screw_mass=m_.screw_mass,
-                    motor_mass=m_.motor_mass)
-        for k, v in vals.items():
-            out.setdefault(k, []).append(float(v))
-    return {k: np.array(v) for k, v in out.items()}
+    """One float column (m,) per :data:`_FIELDS` entry (``c_e``: the geometry's own property)."""
+    fields = {sec: [f for s, f in _FIELDS.values() if s == sec] for sec in _SECTIONS}
+    table = np.array([[float(getattr(part, f)) for sec in _SECTIONS for part in (getattr(d, sec),)
+                       for f in fields[sec]] for d in designs], dtype=float).reshape(len(designs), -1)
+    names = [k for sec in _SECTIONS for k, (s, _) in _FIELDS.items() if s == sec]
+    return {k: np.ascontiguousarray(table[:, j]) for j, k in enumerate(names)}
 
 
 def _leg_vectors(beta, gamma: float):
