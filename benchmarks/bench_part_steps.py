@@ -40,27 +40,36 @@ from hapticopt.design.prrr import cad  # noqa: E402
 ROUNDS = 7
 
 
-def per_design(ds: list) -> tuple[dict, dict]:
-    no_parts = {i for i, d in enumerate(ds) if assembly.parts(d)}
-    specs = [DB._Blocked() if i in no_parts else DB._guard(cad.part_specs, d) for i, d in enumerate(ds)]
-    models = {i: FAST.prepare(d, specs=specs[i]) for i, d in enumerate(ds) if isinstance(specs[i], dict)}
-    env = DB.envelopes(ds, models, specs)
-    wps = [WS.workspace_params(d, specs=s if isinstance(s, dict) else None, envelope=env.get(i))
-           for i, (d, s) in enumerate(zip(ds, specs))]
+def _step(split: dict | None, name: str, f, *a):
     t = time.perf_counter()
-    sizes = {i: DS.from_specs(d, specs[i], t) for i, d in enumerate(ds) if isinstance(specs[i], dict)}
-    samples = {i: WS.workspace_sample_weights(d, **WS.INTERFERENCE_SAMPLING, wp=wps[i])
-               for i, d in enumerate(ds) if i not in no_parts}
+    out = f(*a)
+    if split is not None:
+        split.setdefault(name, []).append(time.perf_counter() - t)
+    return out
+
+
+def per_design(ds: list, split: dict | None = None) -> tuple[dict, dict]:
+    no_parts = _step(split, "assembly.parts", lambda: {i for i, d in enumerate(ds) if assembly.parts(d)})
+    specs = _step(split, "cad.part_specs", lambda: [DB._Blocked() if i in no_parts else DB._guard(cad.part_specs, d)
+                                                    for i, d in enumerate(ds)])
+    models = _step(split, "prepare", lambda: {i: FAST.prepare(d, specs=specs[i]) for i, d in enumerate(ds)
+                                              if isinstance(specs[i], dict)})
+    env = _step(split, "envelopes", DB.envelopes, ds, models, specs)
+    wps = _step(split, "workspace_params", lambda: [
+        WS.workspace_params(d, specs=s if isinstance(s, dict) else None, envelope=env.get(i))
+        for i, (d, s) in enumerate(zip(ds, specs))])
+    t = time.perf_counter()
+    sizes = _step(split, "from_specs", lambda: {i: DS.from_specs(d, specs[i], t) for i, d in enumerate(ds)
+                                                if isinstance(specs[i], dict)})
+    samples = _step(split, "workspace_sample_weights", lambda: {
+        i: WS.workspace_sample_weights(d, **WS.INTERFERENCE_SAMPLING, wp=wps[i]) for i, d in enumerate(ds)
+        if i not in no_parts})
     return sizes, samples
 
 
 def arrays(ds: list, split: dict | None = None) -> tuple[dict, dict]:
     def step(name, f, *a):
-        t = time.perf_counter()
-        out = f(*a)
-        if split is not None:
-            split.setdefault(name, []).append(time.perf_counter() - t)
-        return out
+        return _step(split, name, f, *a)
 
     specs, tables, _ = step("part tables (+ per-design rest)", DB._part_tables, ds)
 
@@ -95,10 +104,10 @@ def main(n: int) -> None:
         assert np.allclose(a, b, rtol=1e-12, atol=0), i
     for i, (p, w) in ref[1].items():
         assert p.tobytes() == got[1][i][0].tobytes() and w.tobytes() == got[1][i][1].tobytes(), i
-    t_ref, t_new, split = [], [], {}
+    t_ref, t_new, split, split_ref = [], [], {}, {}
     for _ in range(ROUNDS):
         t = time.perf_counter()
-        per_design(ds)
+        per_design(ds, split_ref)
         t_ref.append(time.perf_counter() - t)
         t = time.perf_counter()
         arrays(ds, split)
@@ -107,8 +116,10 @@ def main(n: int) -> None:
     print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}; {n} designs, {ROUNDS} interleaved rounds "
           f"(medians)")
     print(f"per design {1e3 * a / n:.3f} ms/design; arrays {1e3 * b / n:.4f} ms/design; ratio {a / b:.1f}x")
-    for k, v in split.items():
-        print(f"  {1e3 * statistics.median(v) / n:.4f} ms/design  {k}")
+    for title, parts in (("per design", split_ref), ("arrays", split)):
+        print(title)
+        for k, v in parts.items():
+            print(f"  {1e3 * statistics.median(v) / n:.4f} ms/design  {k}")
 
 
 if __name__ == "__main__":

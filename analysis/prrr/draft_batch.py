@@ -18,9 +18,9 @@ only computes the arrays they read, for a whole batch at a time.
   size within a bucket costs no trace or compile (:data:`TRACES` counts traces); compiled code
   persists on disk (``hapticopt.design.jax_config``). The stability evaluator takes its stiffness
   limits from the statics row (where that row's verdict is ok).
-* **numpy over all designs at once**: the interference poses (``workspace_sample_weights`` per
-  design, then one separating-axis pass, ``interference_fast.check_posed``, over every pose of
-  every design) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
+* **numpy over all designs at once**: the interference poses (``workspace_sample_weights_many``:
+  every design's sample points and weights in one pass, bit for bit the per-design function's; then
+  one separating-axis pass, ``interference_fast.check_posed``, over every pose of every design) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
   column grid of every design in one pass, then each bisection in one pass). The column structure
   (moving parts translate together in z, fixed parts are prisms) is what makes one pose per
   column enough there. Pose IK is a jitted vmap over poses in padded calls of :data:`MIN_POSES`
@@ -28,10 +28,15 @@ only computes the arrays they read, for a whole batch at a time.
   pairs per pose (part boxes, primitive boxes, seven separating axes), which a fixed-shape jax
   program cannot do; on a CPU the pruned numpy pass is the faster of the two (measured:
   docs/workspace_interference.md).
-* **per design (Python)**: the CAD part tables (``cad.part_specs``: the layout's buildability
-  rules raise per design), the envelope (``workspace_params``), the analytic mass model and height
-  (``device_size.from_specs``), the interference sample weights, the force-loop bandwidth of
-  ``stability`` and the verdicts.
+* **numpy, one table per part layout**: the CAD part tables (``cad_arrays.part_tables_many``: the
+  layout and its buildability rules on (n,) columns, tested equal to ``cad.part_specs``), the
+  interference model's primitive tables from them (``interference_fast.models_from_tables``), the
+  envelope (:func:`envelopes`) and workspace parameters (``workspace.workspace_params_many``), the
+  analytic mass model and height (``device_size.from_tables``). A design that fails a layout rule, or
+  lies within ``cad_arrays.NEAR`` of a rule's threshold or branch point, takes the per-design
+  functions (``assembly.parts``, ``cad.part_specs``, ``device_size.from_specs``): same exception,
+  same message.
+* **per design (Python)**: the force-loop bandwidth of ``stability`` and the verdicts.
 
 A design whose chain does not close takes the single path (``registry.evaluate_batch``); one whose
 parts the CAD cannot lay out is batched for the kinematic evaluators, and the part evaluators
