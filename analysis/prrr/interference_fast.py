@@ -191,6 +191,8 @@ def models_from_tables(designs: list[PrrrDesign], tables: Any) -> list[FastModel
     half = np.stack([np.where(kb, a / 2, a), np.where(kb, b / 2, a),
                      np.where(kb, c / 2, np.where(kc, b / 2, a))], axis=-1)
     R, o = tables.R[:, solid], tables.o[:, solid]
+    for x in (R, o, half, prim_part, kind):
+        x.flags.writeable = False  # every model's rows are views of these (shared, as the pair tables)
     part_pairs, pa, pb, pp = _pair_tables(tables.part_names, tables.bodies, tuple(prim_part.tolist()))
     return [FastModel(design=d, part_names=tables.part_names, part_pairs=part_pairs, prim_part=prim_part,
                       kind=kind, R=R[k], o=o[k], half=half[k], pair_a=pa, pair_b=pb, pair_part=pp)
