@@ -42,7 +42,9 @@ def main(n: int, only: tuple[str, ...] | None = None) -> None:
     for mod, name in ((DB.cad, "part_specs"), (DB.cad, "part_frames_arrays"), (DB.WS, "workspace_params"),
                       (DB.WS, "workspace_sample_weights"), (DB.FAST, "prepare"), (DB.FAST, "check_posed"),
                       (DB.DS, "from_specs"), (DB.stability, "evaluate"), (DB.statics, "from_arrays"),
-                      (DB.JL, "from_angles"), (DB.FW, "finish"), (registry, "_collect")):
+                      (DB.JL, "from_angles"), (DB.FW, "finish"), (registry, "_collect"),
+                      (DB.cad_arrays, "part_tables_many"), (DB.FAST, "models_from_tables"), (DB.DS, "from_tables"),
+                      (DB.WS, "workspace_params_many"), (DB.WS, "workspace_sample_weights_many")):
         wrap(mod, name)
     ds = designs(n)
     registry.evaluate_batch(ds, fidelity=Fidelity.DRAFT, only=only)

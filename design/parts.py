@@ -218,6 +218,30 @@ def _local_props(kind: np.ndarray, dims: np.ndarray) -> tuple[np.ndarray, np.nda
     return v, cen, out
 
 
+def volumes(kind: np.ndarray, dims: np.ndarray) -> np.ndarray:
+    """Volume [m³] of each primitive (n,): the volume column of :func:`_local_props` alone (the same
+    expressions, so the same bits; tested), for the batched mass model, which needs no moments."""
+    a, b, c = dims[:, 0], dims[:, 1], dims[:, 2]
+    v = np.zeros(len(kind))
+    m = kind == Kind.BOX
+    v[m] = a[m] * b[m] * c[m]
+    m = kind == Kind.CYLINDER
+    v[m] = np.pi * a[m] * a[m] * b[m]
+    m = kind == Kind.SPHERE
+    v[m] = 4.0 / 3.0 * np.pi * a[m] ** 3
+    m = kind == Kind.CAPSEG
+    if m.any():
+        R_, h, t = a[m], b[m], c[m]
+        phi0 = np.arcsin(np.clip(h / R_, 0.0, 1.0))
+        X = R_[:, None] * np.cos(_GL_X[None, :] * phi0[:, None])
+        w = _GL_W[None, :] * phi0[:, None] * X
+        v[m] = np.sum(w * X, axis=1) * t
+    m = kind == Kind.WEDGE
+    p, q, t = a[m], b[m], c[m]
+    v[m] = p * q / 2.0 * t
+    return v
+
+
 def volume_properties(prims) -> VolumeProps:
     """Closed-form volume properties of a part (SOLID − OVERLAP − HOLE)."""
     return volume_properties_many([prims])[0]

@@ -18,9 +18,9 @@ only computes the arrays they read, for a whole batch at a time.
   size within a bucket costs no trace or compile (:data:`TRACES` counts traces); compiled code
   persists on disk (``hapticopt.design.jax_config``). The stability evaluator takes its stiffness
   limits from the statics row (where that row's verdict is ok).
-* **numpy over all designs at once**: the interference poses (``workspace_sample_weights`` per
-  design, then one separating-axis pass, ``interference_fast.check_posed``, over every pose of
-  every design) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
+* **numpy over all designs at once**: the interference poses (``workspace_sample_weights_many``:
+  every design's sample points and weights in one pass, bit for bit the per-design function's; then
+  one separating-axis pass, ``interference_fast.check_posed``, over every pose of every design) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
   column grid of every design in one pass, then each bisection in one pass). The column structure
   (moving parts translate together in z, fixed parts are prisms) is what makes one pose per
   column enough there. Pose IK is a jitted vmap over poses in padded calls of :data:`MIN_POSES`
@@ -28,10 +28,15 @@ only computes the arrays they read, for a whole batch at a time.
   pairs per pose (part boxes, primitive boxes, seven separating axes), which a fixed-shape jax
   program cannot do; on a CPU the pruned numpy pass is the faster of the two (measured:
   docs/workspace_interference.md).
-* **per design (Python)**: the CAD part tables (``cad.part_specs``: the layout's buildability
-  rules raise per design), the envelope (``workspace_params``), the analytic mass model and height
-  (``device_size.from_specs``), the interference sample weights, the force-loop bandwidth of
-  ``stability`` and the verdicts.
+* **numpy, one table per part layout**: the CAD part tables (``cad_arrays.part_tables_many``: the
+  layout and its buildability rules on (n,) columns, tested equal to ``cad.part_specs``), the
+  interference model's primitive tables from them (``interference_fast.models_from_tables``), the
+  envelope (:func:`envelopes`) and workspace parameters (``workspace.workspace_params_many``), the
+  analytic mass model and height (``device_size.from_tables``). A design that fails a layout rule, or
+  lies within ``cad_arrays.NEAR`` of a rule's threshold or branch point, takes the per-design
+  functions (``assembly.parts``, ``cad.part_specs``, ``device_size.from_specs``): same exception,
+  same message.
+* **per design (Python)**: the force-loop bandwidth of ``stability`` and the verdicts.
 
 A design whose chain does not close takes the single path (``registry.evaluate_batch``); one whose
 parts the CAD cannot lay out is batched for the kinematic evaluators, and the part evaluators
@@ -64,7 +69,7 @@ from hapticopt.analysis.prrr import joint_limits as JL
 from hapticopt.analysis.prrr import stability, statics, structure
 from hapticopt.analysis.prrr import workspace as WS
 from hapticopt.design.errors import HapticoptError, InvalidInput
-from hapticopt.design.prrr import cad
+from hapticopt.design.prrr import cad, cad_arrays
 from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
 from hapticopt.design.prrr.params import PrrrDesign
 
@@ -246,7 +251,7 @@ def envelopes(designs: list[PrrrDesign], models: dict[int, FAST.FastModel], spec
         layouts.setdefault(FAST.layout_key(m), []).append(i)
     for members in layouts.values():
         m0 = models[members[0]]
-        body = [specs[members[0]][name].body for name in m0.part_names]
+        body = _bodies(specs[members[0]], m0.part_names)
         fixed_part = np.array([b == "base" or b.startswith("carriage_") for b in body])
         sel = np.flatnonzero(fixed_part[m0.prim_part])
         if len(sel) == 0:
@@ -276,6 +281,58 @@ def envelopes(designs: list[PrrrDesign], models: dict[int, FAST.FastModel], spec
 
 class _Blocked(Exception):
     """Stands for the part tables of a design whose parts cannot be laid out (``assembly.parts``)."""
+
+
+class _Rows(NamedTuple):
+    """Stands for the part tables of a design tabled by ``cad_arrays.part_tables_many``: row ``row``
+    of ``tables``."""
+
+    tables: Any
+    row: int
+
+
+def _part_tables(designs: list[PrrrDesign]) -> tuple[list[Any], list[Any], set[int]]:
+    """(per design: its part tables — :class:`_Rows` of the array tables, or the per-design
+    ``cad.part_specs`` dict, or the exception it raised, or :class:`_Blocked` —, the array tables by
+    part layout with rows re-indexed to ``designs``, the designs whose parts cannot be laid out).
+
+    ``cad_arrays.part_tables_many`` tables every design that passes the layout's rules clearly; the
+    others (a rule fails, or a threshold within ``cad_arrays.NEAR``) take the per-design functions:
+    ``assembly.parts`` (not-assemblable, with its message) and ``cad.part_specs``."""
+    groups, rest = cad_arrays.part_tables_many(designs)
+    specs: list[Any] = [None] * len(designs)
+    for t in groups:
+        for k, i in enumerate(t.index.tolist()):
+            specs[i] = _Rows(t, k)
+    no_parts = set()
+    for i in rest.tolist():
+        if assembly.parts(designs[i]):
+            no_parts.add(i)
+            specs[i] = _Blocked()
+        else:
+            specs[i] = _guard(cad.part_specs, designs[i])
+    return specs, groups, no_parts
+
+
+def _bodies(spec: Any, names: tuple[str, ...]) -> tuple[str, ...]:
+    """The rigid body of each part ``names`` of a design's part tables (:func:`_part_tables`)."""
+    if isinstance(spec, _Rows):
+        return spec.tables.bodies
+    return tuple(spec[name].body for name in names)
+
+
+def _workspace_params(designs: list[PrrrDesign], specs: list[Any], env: dict[int, float]) -> list[WS.WorkspaceParams]:
+    """``WS.workspace_params`` of every design: one table for those whose envelope is known (from their
+    primitive tables, or the rail-circle bound of ``WS.base_envelope`` where the CAD raised), the
+    per-design function for the rest."""
+    known = dict(env)
+    for i, (d, s) in enumerate(zip(designs, specs)):
+        if i not in known and isinstance(s, (HapticoptError, _Blocked)):  # WS.base_envelope's bound where the CAD raises
+            known[i] = max(d.structure.base_radius, d.geometry.r_p + d.structure.rail_width / 2.0)
+    idx = sorted(known)
+    rows = dict(zip(idx, WS.workspace_params_many([designs[i] for i in idx], np.array([known[i] for i in idx]))))
+    return [rows[i] if i in rows else WS.workspace_params(d, specs=s if isinstance(s, dict) else None)
+            for i, (d, s) in enumerate(zip(designs, specs))]
 
 
 def _guard(fn, *args, **kw) -> Any:
@@ -309,25 +366,22 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
     # own early ``not-assemblable`` (their single path, no part tables built)
     groups = groups_for(want)
     with_parts = any(name in want for name in ("workspace", "free_workspace", "interference", "device_size"))
-    no_parts = {i for i, d in enumerate(designs) if assembly.parts(d)} if with_parts else set()
-    specs: list[Any] = []
-    for i, d in enumerate(designs):
-        specs.append(_Blocked() if i in no_parts else _guard(cad.part_specs, d) if with_parts else None)
+    specs, tables, no_parts = _part_tables(designs) if with_parts else ([None] * n, [], set())
     # primitive tables (interference, free workspace) and the envelope of every design at once from them
     models: dict[int, FAST.FastModel] = {}
     model_errors: dict[int, Exception] = {}
     wps = None
     if "workspace" in groups or "interference" in want:
+        for t in tables:
+            models.update(zip(t.index.tolist(), FAST.models_from_tables([designs[i] for i in t.index], t)))
         for i, d in enumerate(designs):
-            if specs[i] is not None and not isinstance(specs[i], Exception):
+            if isinstance(specs[i], dict):
                 m = _guard(FAST.prepare, d, specs=specs[i])
                 if isinstance(m, Exception):
                     model_errors[i] = m
                 else:
                     models[i] = m
-        env = envelopes(designs, models, specs)
-        wps = [WS.workspace_params(d, specs=None if isinstance(s, Exception) else s, envelope=env.get(i))
-               for i, (d, s) in enumerate(zip(designs, specs))]
+        wps = _workspace_params(designs, specs, envelopes(designs, models, specs))
     arrays = run_core(stack_inputs(designs, wps, groups), n, groups)
     t_core = time.perf_counter() - t0
 
@@ -345,10 +399,15 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
         if "joint_limits" in want:
             res[i]["joint_limits"] = _guard(JL.from_angles, d, arrays["joint_theta"][i], arrays["joint_ok"][i],
                                             fidelity=draft, t0=t1)
-        if "device_size" in want:
+        if "device_size" in want and not isinstance(specs[i], _Rows):
             res[i]["device_size"] = (_guard(DS.evaluate, d, fidelity=draft) if i in no_parts
                                      else DS.failed(specs[i], t1) if isinstance(specs[i], HapticoptError)
                                      else _guard(DS.from_specs, d, specs[i], t1))
+    if "device_size" in want:
+        for t in tables:
+            sizes = _guard(DS.from_tables, t, t1)
+            for k, i in enumerate(t.index.tolist()):
+                res[i]["device_size"] = sizes if isinstance(sizes, Exception) else sizes[k]
     t_rows = time.perf_counter() - t1
     for name in ("statics", "structural_stiffness", "workspace", "joint_limits", "device_size"):
         tim[name] = (t_core + t_rows) / (5 * n)
@@ -411,14 +470,28 @@ def _structure(design: PrrrDesign, out: dict) -> Any:
         return structure.failed(str(exc))
 
 
+def _samples(designs, specs, wps) -> dict[int, Any]:
+    """The interference sample (points, weights) of every design with part tables or an exception for
+    them (not :class:`_Blocked`): ``WS.workspace_sample_weights_many`` in one pass (equal to the
+    per-design function bit for bit), or, should that raise, the per-design function with its own
+    exception per design."""
+    idx = [i for i in range(len(designs)) if not isinstance(specs[i], _Blocked)]
+    many = _guard(WS.workspace_sample_weights_many, [designs[i] for i in idx], [wps[i] for i in idx],
+                  **WS.INTERFERENCE_SAMPLING)
+    if not isinstance(many, Exception):
+        return dict(zip(idx, many))
+    return {i: _guard(WS.workspace_sample_weights, designs[i], **WS.INTERFERENCE_SAMPLING, wp=wps[i]) for i in idx}
+
+
 def _interference(designs, specs, wps, check, res, t0) -> None:
     owners, pts_all, weights = [], [], {}
+    samples = _samples(designs, specs, wps)
     for i, d in enumerate(designs):
         if isinstance(specs[i], _Blocked):
             continue
         # the order of interference_fast.interference_fractions: an empty sample is (0, 0) before
         # the part tables are needed
-        sample = _guard(WS.workspace_sample_weights, d, **WS.INTERFERENCE_SAMPLING, wp=wps[i])
+        sample = samples[i]
         if isinstance(sample, Exception):
             res[i]["interference"] = sample
             continue

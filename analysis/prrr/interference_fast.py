@@ -176,6 +176,29 @@ def prepare(design: PrrrDesign, *, specs: dict[str, Any] | None = None) -> FastM
                      pair_a=pa, pair_b=pb, pair_part=pp)
 
 
+def models_from_tables(designs: list[PrrrDesign], tables: Any) -> list[FastModel]:
+    """:func:`prepare` of every design of one part layout at once, from the stacked part tables
+    ``tables`` (:class:`hapticopt.design.prrr.cad_arrays.PartTables`; ``designs``: its rows' designs,
+    in order): the SOLID primitives' axes, centres and half sizes as array slices of one stacked
+    table (tested equal to :func:`prepare` of :func:`hapticopt.design.prrr.cad.part_specs`)."""
+    solid = np.array([role == Role.SOLID for role in tables.role], dtype=bool)
+    prim_part = np.asarray(tables.prim_part)[solid]
+    kind = np.array([_KIND[Kind(k)] for k in np.asarray(tables.kind)[solid]], dtype=int)
+    dims = tables.dims[:, solid]
+    a, b, c = dims[..., 0], dims[..., 1], dims[..., 2]
+    kb, kc = (kind == _BOX)[None], (kind == _CYL)[None]
+    # box: a/2, b/2, c/2; cylinder: a, a, b/2; sphere: a, a, a (as prepare)
+    half = np.stack([np.where(kb, a / 2, a), np.where(kb, b / 2, a),
+                     np.where(kb, c / 2, np.where(kc, b / 2, a))], axis=-1)
+    R, o = tables.R[:, solid], tables.o[:, solid]
+    for x in (R, o, half, prim_part, kind):
+        x.flags.writeable = False  # every model's rows are views of these (shared, as the pair tables)
+    part_pairs, pa, pb, pp = _pair_tables(tables.part_names, tables.bodies, tuple(prim_part.tolist()))
+    return [FastModel(design=d, part_names=tables.part_names, part_pairs=part_pairs, prim_part=prim_part,
+                      kind=kind, R=R[k], o=o[k], half=half[k], pair_a=pa, pair_b=pb, pair_part=pp)
+            for k, d in enumerate(designs)]
+
+
 class PrimitiveBatch(NamedTuple):
     """The primitive tables of many designs of one layout (same parts, same primitive kinds), stacked:
     ``R`` (m, P, 3, 3), ``o`` (m, P, 3), ``half`` (m, P, 3); the rest shared (see :class:`FastModel`)."""

@@ -58,6 +58,7 @@ from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax a
 import jax
 import jax.numpy as jnp
 import numpy as np
+from threadpoolctl import ThreadpoolController
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.prrr.kinematics import PrrrParams, condition_2norm, inverse_kinematics, jacobian
@@ -156,6 +157,22 @@ def workspace_params(design: PrrrDesign, *, required_diameter: float = DEFAULT_R
     return WorkspaceParams(*(np.float64(v) for v in vals))
 
 
+def workspace_params_many(designs: list[PrrrDesign], envelope: np.ndarray, *,
+                          required_diameter: float = DEFAULT_REQUIRED_DIAMETER) -> list[WorkspaceParams]:
+    """:func:`workspace_params` (default reach annulus) of many designs whose :func:`base_envelope`
+    the caller has (``envelope`` (n,) [m]), from one (n, 13) table: the same operations per value,
+    so each row equals the per-design result bit for bit (tested)."""
+    g = [d.geometry for d in designs]
+    d3 = np.array([x.d3 for x in g])
+    d4 = np.array([x.d4 for x in g])
+    boss = np.array([d.structure.boss_diameter for d in designs]) / 2.0
+    cols = [np.array([getattr(x, f) for x in g], dtype=np.float64) for f in ("beta", "d1", "d2")]
+    cols += [d3, d4] + [np.array([getattr(x, f) for x in g], dtype=np.float64) for f in ("r4", "b5", "stroke")]
+    cols += [np.maximum(np.abs(d3 - d4), boss), d3 + d4, np.asarray(envelope, dtype=np.float64), boss,
+             np.full(len(g), required_diameter / 2.0)]
+    return [WorkspaceParams(*row) for row in np.stack(cols, axis=1)]
+
+
 def stack(params: list[WorkspaceParams]) -> WorkspaceParams:
     """Stack many parameter sets along a leading batch axis (jax arrays, for ``jax.vmap``)."""
     return WorkspaceParams(*(jnp.asarray(np.array(col, dtype=np.float64)) for col in zip(*params)))
@@ -224,7 +241,9 @@ def _ray_intervals(wp: WorkspaceParams, phi, xp):
     olo, ohi, ook = roots(wp.rho_max)
     ilo, ihi, iok = roots(wp.rho_min)
     g = xp.max(c, axis=1) - xp.min(c, axis=1)  # spread of u_i·(cos φ, sin φ), in [1.5, √3]
-    r_stroke = wp.stroke * xp.tan(wp.beta) / g
+    # (the stroke's ray length per ray; g[..., None] and [..., 0] keep it one value per ray when the
+    # parameters are given per ray as (n, 1) columns: workspace_sample_weights_many)
+    r_stroke = (wp.stroke * xp.tan(wp.beta) / g[..., None])[..., 0]
     lo = xp.maximum(0.0, xp.max(olo, axis=1))
     hi = xp.minimum(r_stroke, xp.min(ohi, axis=1))
     hi = xp.where(xp.all(ook, axis=1), xp.maximum(hi, lo), lo)
@@ -578,6 +597,60 @@ def workspace_sample_weights(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: i
     dz = np.maximum(design.geometry.stroke - cot * (a.max(axis=1) - a.min(axis=1)), 0.0) / n_z
     weights = r * (hi - lo)[k] / n_r * (_THIRD / n_phi) * dz
     return pts, weights
+
+
+@functools.cache
+def _blas() -> ThreadpoolController:
+    return ThreadpoolController()  # once: it enumerates the loaded BLAS libraries
+
+
+def workspace_sample_weights_many(designs: list[PrrrDesign], wps: list[WorkspaceParams], *, n_phi: int, n_r: int,
+                                  n_z: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`workspace_sample_weights` of many designs (their default :func:`workspace_params`
+    ``wps``) in one numpy pass over the rays of every design: the same elementwise operations on
+    longer arrays (``_ray_intervals`` on per-ray columns), so each design's points and weights equal
+    the per-design function's (tested bit for bit on the points and the weights)."""
+    n = len(designs)
+    if n == 0:
+        return []
+    cols = [np.array([float(w[k]) for w in wps]) for k in range(len(WorkspaceParams._fields))]
+    wpn = WorkspaceParams(*(np.repeat(col, n_phi)[:, None] for col in cols))  # one row per ray
+    phi1 = (np.arange(n_phi) + 0.5) * (_THIRD / n_phi)
+    _, _, _, lo, hi, holes = _ray_intervals(wpn, np.tile(phi1, n), np)
+    # sample_points, with a leading design axis
+    frac = (np.arange(n_r) + 0.5) / n_r
+    r = lo[:, None] + frac[None, :] * (hi - lo)[:, None]
+    mask = ((hi > lo)[:, None] & ~_in_hole(r, holes, np)).reshape(n, n_phi, n_r)
+    r = r.reshape(n, n_phi, n_r)
+    phis = np.concatenate([phi1, phi1 + _THIRD, phi1 - _THIRD])
+    r3 = np.concatenate([r, r, r], axis=1)
+    m3 = np.concatenate([mask, mask, mask], axis=1)
+    x, y = r3 * np.cos(phis)[None, :, None], r3 * np.sin(phis)[None, :, None]
+    a = x[..., None] * np.cos(_GAMMA) + y[..., None] * np.sin(_GAMMA)
+    beta, stroke = cols[0], cols[7]
+    cot = np.array([1.0 / np.tan(b) for b in beta])[:, None, None]  # sample_points: np.tan of the float
+    z0 = -stroke[:, None, None] / 2.0 + cot * a.max(axis=-1)
+    z1 = stroke[:, None, None] / 2.0 + cot * a.min(axis=-1)
+    ok = m3 & (z1 > z0)
+    tz = 0.01 + 0.98 * (np.arange(n_z) + 0.5) / n_z
+    z = z0[ok][:, None] + tz[None, :] * (z1 - z0)[ok][:, None]
+    xy = np.stack([x[ok], y[ok]], axis=-1)
+    pts = np.concatenate([np.repeat(xy, n_z, axis=0), z.reshape(-1, 1)], axis=1)
+    counts = ok.reshape(n, -1).sum(axis=1) * n_z
+    owner = np.repeat(np.arange(n), counts)
+    # workspace_sample_weights' polar-cell weights
+    rr = np.hypot(pts[:, 0], pts[:, 1])
+    # each point's ray within the third (the per-design function bins its angle: every point lies at its
+    # ray's mid-bin angle, r > 0, so the bin is the ray's index)
+    k = np.repeat(np.broadcast_to((np.arange(3 * n_phi) % n_phi)[None, :, None], ok.shape)[ok], n_z)
+    cot_w = np.array([1.0 / math.tan(d.geometry.beta) for d in designs])  # the per-design math.tan
+    stroke_w = np.array([d.geometry.stroke for d in designs])
+    with _blas().limit(limits=1, user_api="blas"):  # one thread: OpenBLAS's threads spin on 2 cores
+        a = pts[:, :2] @ np.stack([np.cos(_GAMMA), np.sin(_GAMMA)])  # the per-design product, bit for bit
+    dz = np.maximum(stroke_w[owner] - cot_w[owner] * (a.max(axis=1) - a.min(axis=1)), 0.0) / n_z
+    w = rr * (hi - lo)[owner * n_phi + k] / n_r * (_THIRD / n_phi) * dz
+    ends = np.cumsum(counts)
+    return [(pts[e - c:e], w[e - c:e]) for e, c in zip(ends.tolist(), counts.tolist())]
 
 
 def interference_samples(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -88,3 +88,19 @@ def test_json_has_parts_and_bodies():
     assert set(data["parts"]) == set(cad_prrr.part_specs(d))
     assert data["bodies"]["base"]["mass_kg"] == pytest.approx(
         sum(p["mass_kg"] for p in data["parts"].values() if p["body"] == "base"))
+
+
+def test_volumes_equal_the_local_properties_bitwise():
+    """parts.volumes (the batched mass model's volume column) is parts._local_props's volume, bit for
+    bit, for every primitive kind of the prrr-paper part tables and random sizes of each kind."""
+    specs = cad_prrr.part_specs(io.load_preset("prrr-paper"))
+    prims = [p for s in specs.values() for p in s.primitives]
+    kind = np.array([p.kind for p in prims])
+    dims = np.array([p.dims for p in prims], dtype=float)
+    rng = np.random.default_rng(3)
+    k2 = np.repeat(np.array([int(k) for k in parts.Kind]), 20)
+    d2 = rng.uniform(1e-3, 0.1, size=(len(k2), 3))
+    d2[k2 == parts.Kind.CAPSEG, 1] = d2[k2 == parts.Kind.CAPSEG, 0] * rng.uniform(0.1, 1.2, 20)  # h ≤ R and h > R
+    for k, d in ((kind, dims), (k2, d2)):
+        assert parts.volumes(k, d).tobytes() == parts._local_props(k, d)[0].tobytes()
+    assert set(kind.tolist()) == {int(k) for k in parts.Kind}  # every kind occurs in the part tables

@@ -302,3 +302,28 @@ def test_default_loads_the_kernel_only_once_it_pays(monkeypatch):
     F._POSES_CHECKED[0] = F.KERNEL_AFTER_POSES - len(pts)  # this call reaches the threshold
     got = F.check_posed(batch, owner, pts, frames, ok)
     assert calls == [1] and np.array_equal(_bits(got.depth), _bits(want.depth))
+
+
+def test_models_from_tables_equal_prepare(problem_sample):
+    """The primitive tables of a part layout's designs built at once (``models_from_tables`` on
+    ``cad_arrays.part_tables_many``) equal :func:`prepare` design by design: part names, pairs and
+    primitive kinds exactly, axes, centres and half sizes to 1e-12 relative (the array part tables'
+    agreement with ``cad.part_specs``, tests/design/prrr/test_cad_arrays.py)."""
+    from hapticopt.design.prrr import cad_arrays
+
+    designs = problem_sample(40, seed=31) + [io.load_preset("prrr-paper")]
+    designs.append(dataclasses.replace(designs[-1], geometry=dataclasses.replace(designs[-1].geometry, r4=0.030)))
+    groups, _ = cad_arrays.part_tables_many(designs)
+    assert len(groups) == 2 and sum(len(t.index) for t in groups) >= 10  # both layouts (r4 = 30 mm: the riser)
+    for t in groups:
+        for i, fast in zip(t.index, F.models_from_tables([designs[i] for i in t.index], t)):
+            ref = F.prepare(designs[i])
+            assert fast.design is designs[i]
+            assert F.layout_key(fast) == F.layout_key(ref)
+            assert fast.part_pairs == ref.part_pairs
+            for name in ("pair_a", "pair_b", "pair_part"):
+                np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name))
+            for name in ("R", "o", "half"):
+                got, want = getattr(fast, name), getattr(ref, name)
+                assert got.shape == want.shape
+                assert np.all(np.abs(got - want) <= 1e-12 * np.maximum(np.abs(want), 0.1)), name

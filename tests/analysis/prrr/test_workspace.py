@@ -252,3 +252,40 @@ def test_required_cylinder_that_does_not_fit_is_not_met(paper: PrrrDesign) -> No
     assert ok.height_at_required == pytest.approx(0.170 - 0.140 / math.tan(math.radians(60)), rel=1e-12)
     assert ok.status == Status.OK
     assert W.evaluate(paper, required_height=0.090).status == Status.NOT_MET
+
+
+def test_workspace_params_many_equal_workspace_params_bitwise(problem_sample):
+    """One table for many designs (the batched draft evaluator's) gives each design's
+    :func:`workspace_params` bit for bit (same operations per value; the envelope given)."""
+    designs = problem_sample(12, seed=33)
+    env = np.linspace(0.12, 0.2, len(designs))
+    rows = W.workspace_params_many(designs, env)
+    for d, e, row in zip(designs, env, rows, strict=True):
+        want = W.workspace_params(d, envelope=float(e))
+        assert type(row) is W.WorkspaceParams
+        for a, b in zip(row, want, strict=True):
+            assert np.float64(a).tobytes() == np.float64(b).tobytes()
+
+
+def test_workspace_sample_weights_many_equal_the_per_design_function_bitwise(problem_sample):
+    """The interference samples of many designs in one pass (the batched draft evaluator's) equal
+    :func:`workspace_sample_weights` design by design bit for bit, points and weights, on a seeded
+    sample within the bundled problem's bounds and hard cases (no workspace; β near 0 and 90 deg;
+    a short stroke that leaves few columns)."""
+    base = io.load_preset("prrr-paper")
+
+    def geo(**kw):
+        return dataclasses.replace(base, geometry=dataclasses.replace(base.geometry, **kw))
+
+    designs = problem_sample(40, seed=34) + [base, geo(stroke=1e-4), geo(beta=math.radians(89.999999)),
+                                             geo(beta=math.radians(1e-6)), geo(stroke=0.02)]
+    wps = [W.workspace_params(d) for d in designs]
+    many = W.workspace_sample_weights_many(designs, wps, **W.INTERFERENCE_SAMPLING)
+    sizes = []
+    for d, wp, (pts, w) in zip(designs, wps, many, strict=True):
+        p0, w0 = W.workspace_sample_weights(d, **W.INTERFERENCE_SAMPLING, wp=wp)
+        assert pts.shape == p0.shape and pts.tobytes() == p0.tobytes()
+        assert w.shape == w0.shape and w.tobytes() == w0.tobytes()
+        sizes.append(len(pts))
+    assert 0 in sizes and max(sizes) == 3 * 6 * 4 * 3  # an empty sample and a full one are covered
+    assert W.workspace_sample_weights_many([], [], **W.INTERFERENCE_SAMPLING) == []
