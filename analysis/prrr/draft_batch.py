@@ -376,10 +376,27 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
             r.pop("workspace", None)
     if "stability" in want:
         t4 = time.perf_counter()
-        for i, d in enumerate(designs):
-            res[i]["stability"] = _guard(stability.evaluate, d, fidelity=draft, limits=_limits(d, arrays, i, res[i]))
+        _stability(designs, arrays, res)
         tim["stability"] = (time.perf_counter() - t4) / n
     return [(r, {k: tim[k] for k in r}) for r in res]
+
+
+def _stability(designs: list[PrrrDesign], arrays: dict, res: list[dict]) -> None:
+    """``stability`` of every design: the designs whose statics row gives their stiffness limits
+    (:func:`_limits`) in one :func:`stability.evaluate_many`, the others one by one."""
+    rows, limits = [], []
+    for i, d in enumerate(designs):
+        lim = _limits(d, arrays, i, res[i])
+        if lim is None:
+            res[i]["stability"] = _guard(stability.evaluate, d, fidelity=Fidelity.DRAFT)
+        else:
+            rows.append(i)
+            limits.append(lim)
+    if rows:
+        found = _guard(stability.evaluate_many, [designs[i] for i in rows], limits=np.array(limits))
+        for k, i in enumerate(rows):  # where the pass raised, each design's own result or exception
+            res[i]["stability"] = (_guard(stability.evaluate, designs[i], fidelity=Fidelity.DRAFT, limits=limits[k])
+                                   if isinstance(found, Exception) else found[k])
 
 
 def _limits(design: PrrrDesign, arrays: dict, i: int, found: dict) -> np.ndarray | None:
