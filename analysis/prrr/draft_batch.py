@@ -335,16 +335,19 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
         return {k: v[i] for k, v in arrays[group].items()}
 
     t1 = time.perf_counter()
+    if "statics" in want:
+        _many(res, "statics", designs, statics.from_arrays_many, arrays["statics"],
+              one=lambda i: _guard(statics.from_arrays, designs[i], row("statics", i)))
+    if "joint_limits" in want:
+        _many(res, "joint_limits", designs,
+              functools.partial(JL.from_angles_many, fidelity=draft, t0=t1), arrays["joint_theta"], arrays["joint_ok"],
+              one=lambda i: _guard(JL.from_angles, designs[i], arrays["joint_theta"][i], arrays["joint_ok"][i],
+                               fidelity=draft, t0=t1))
     for i, d in enumerate(designs):
-        if "statics" in want:
-            res[i]["statics"] = _guard(statics.from_arrays, d, row("statics", i))
         if "structural_stiffness" in want:
             res[i]["structural_stiffness"] = _guard(_structure, d, row("frame", i))
         if "workspace" in want or "free_workspace" in want:
             res[i]["workspace"] = _guard(WS._result, row("workspace", i), _REQUIRED_RADIUS, draft)
-        if "joint_limits" in want:
-            res[i]["joint_limits"] = _guard(JL.from_angles, d, arrays["joint_theta"][i], arrays["joint_ok"][i],
-                                            fidelity=draft, t0=t1)
         if "device_size" in want:
             res[i]["device_size"] = (_guard(DS.evaluate, d, fidelity=draft) if i in no_parts
                                      else DS.failed(specs[i], t1) if isinstance(specs[i], HapticoptError)
@@ -379,6 +382,14 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
         _stability(designs, arrays, res)
         tim["stability"] = (time.perf_counter() - t4) / n
     return [(r, {k: tim[k] for k in r}) for r in res]
+
+
+def _many(res: list[dict], name: str, designs: list[PrrrDesign], fn, *arrays, one) -> None:
+    """``res[i][name]`` of every design from ``fn(designs, *arrays)`` (a ``*_many`` result step over the
+    whole chunk); where that pass raises, ``one(i)`` gives each design's own result or exception."""
+    found = _guard(fn, designs, *arrays)
+    for i in range(len(designs)):
+        res[i][name] = one(i) if isinstance(found, Exception) else found[i]
 
 
 def _stability(designs: list[PrrrDesign], arrays: dict, res: list[dict]) -> None:

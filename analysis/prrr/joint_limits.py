@@ -107,15 +107,42 @@ def from_angles(design: PrrrDesign, th: np.ndarray, ok: np.ndarray, *, fidelity:
     """The result from the joint angles ``th`` (m, 3 legs, 3) [rad] of the CAD's elbow branch at the
     :func:`cylinder_grid` points and whether each is reachable (numpy, or a row of the batched
     draft evaluator): the one place of the verdict."""
+    if not ok.any():
+        return _verdict(design, ok, None, math.nan, fidelity=fidelity, t0=t0, required_diameter=required_diameter)
+    th = th[ok]
+    lo, hi = th.min(axis=(0, 1)), th.max(axis=(0, 1))
+    return _verdict(design, ok, (lo, hi), float(np.abs(th[..., 1]).max()), fidelity=fidelity, t0=t0,
+                    required_diameter=required_diameter)
+
+
+def from_angles_many(designs: list[PrrrDesign], th: np.ndarray, ok: np.ndarray, *, fidelity: Fidelity, t0: float,
+                     required_diameter: float = FW.DEFAULT_REQUIRED_DIAMETER) -> list[PrrrJointLimits]:
+    """:func:`from_angles` of every design from the stacked angles ``th`` (n, m, 3 legs, 3) [rad] and
+    reachability ``ok`` (n, m) (the batched draft evaluator's): the ranges and the largest |θ2| over
+    the reachable points of every design in one masked numpy pass (a minimum or maximum picks one of
+    the same numbers, so the same values), the verdict of each design by the same rule."""
+    th, ok = np.asarray(th), np.asarray(ok, dtype=bool)
+    mask = ok[:, :, None, None]
+    lo = np.where(mask, th, np.inf).min(axis=(1, 2))  # (n, 3 joints)
+    hi = np.where(mask, th, -np.inf).max(axis=(1, 2))
+    top = np.where(ok[:, :, None], np.abs(th[..., 1]), -np.inf).max(axis=(1, 2))
+    return [_verdict(d, ok[i], (lo[i], hi[i]) if ok[i].any() else None, float(top[i]), fidelity=fidelity, t0=t0,
+                     required_diameter=required_diameter) for i, d in enumerate(designs)]
+
+
+def _verdict(design: PrrrDesign, ok: np.ndarray, ranges: tuple[np.ndarray, np.ndarray] | None, top: float, *,
+             fidelity: Fidelity, t0: float, required_diameter: float) -> PrrrJointLimits:
+    """The result from the reachability of the grid points, the per-joint (min, max) of the reachable
+    points' angles (None: none is reachable) and their largest |θ2| [rad]."""
     fidelity = Fidelity(fidelity)
     elbow = elbow_limit(design)
     nan = float("nan")
-    if not ok.any():
+    if ranges is None:
         return PrrrJointLimits(elbow_limit=elbow, used={}, stops=None, margin=nan, wall_s=time.perf_counter() - t0,
                                status=Status.EMPTY, message="the required cylinder is not reachable")
-    th = th[ok]
-    used = {f"r{j + 1}": (float(th[..., j].min()), float(th[..., j].max())) for j in range(3)}
-    margin = elbow - float(np.abs(th[..., 1]).max())
+    lo, hi = ranges
+    used = {f"r{j + 1}": (float(lo[j]), float(hi[j])) for j in range(3)}
+    margin = elbow - top
     stops = None
     if fidelity is Fidelity.FINE:
         try:

@@ -104,10 +104,28 @@ def from_arrays(design: PrrrDesign, out: dict) -> PrrrStatics:
     """The result of ``design`` from its :func:`statics_arrays` (numpy or a row of a jax batch):
     the one place the statics verdict is made."""
     out = {k: np.asarray(v) for k, v in out.items()}
+    finite = all(np.all(np.isfinite(v)) for v in out.values())
+    return _result(design, out, conditioning.rcond(out["jacobian"]), finite)
+
+
+def from_arrays_many(designs: list[PrrrDesign], out: dict) -> list[PrrrStatics]:
+    """:func:`from_arrays` of every design from the stacked :func:`statics_arrays` ``out`` (leading
+    axis: the designs, the batched draft evaluator's): the reciprocal condition numbers in one
+    batched SVD and the finiteness in one pass, the verdict of each design by the same rule."""
+    out = {k: np.asarray(v) for k, v in out.items()}
+    r = conditioning.rcond_many(out["jacobian"])
+    finite = np.ones(len(designs), dtype=bool)
+    for v in out.values():
+        finite &= np.all(np.isfinite(v.reshape(len(designs), -1)), axis=1)
+    return [_result(d, {k: v[i] for k, v in out.items()}, float(r[i]), bool(finite[i]))
+            for i, d in enumerate(designs)]
+
+
+def _result(design: PrrrDesign, out: dict, rcond: float, finite: bool) -> PrrrStatics:
+    """The verdict and the result from the arrays, rcond(J) and whether every array is finite."""
     # the verdict: the reciprocal condition number of J, banded (analysis.conditioning), never
     # whether the numbers happened to come out finite
-    verdict = conditioning.classify(out["jacobian"], what=f"the Jacobian at β = {np.degrees(design.geometry.beta):.12g}°")
-    finite = all(np.all(np.isfinite(v)) for v in out.values())
+    verdict = conditioning.classify_rcond(rcond, what=f"the Jacobian at β = {np.degrees(design.geometry.beta):.12g}°")
     if verdict.ok and not finite:
         verdict = conditioning.Conditioning(status=Status.SINGULAR, rcond=verdict.rcond,
                                             message="the statics are not finite at this design")
