@@ -60,6 +60,7 @@ class EvaluatorEntry:
     fidelity: str = ""  # what the fidelity levels change (the glossary's "fidelity" column)
     slow_at: tuple[str, ...] = ()  # fidelities at which it takes seconds (the pipeline runs it in a second process)
     metrics: tuple[MetricDoc, ...] = ()  # every metric it can report (tests/analysis/test_registry.py checks)
+    shared: bool = False  # its evaluate() takes ``shared=``, the call's SHARED_STEPS of the design
 
     def load(self) -> Any:
         return importlib.import_module(self.module)
@@ -108,6 +109,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("structural_fea_max_von_mises_at_mm", "where that stress occurs (x, y, z)", *_FINE),
         )),
         EvaluatorEntry(name="workspace", module=_A + "prrr.workspace", plot=_A + "prrr.plots:workspace_plots",
+                       shared=True,
                        fidelity="angular quadrature and radial sampling grow with the level; fine adds the Jacobian "
                                 "constancy check and the manifold3d interference reference",
                        metrics=(
@@ -123,13 +125,13 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("workspace_interference_removed_fraction", "share of the sampled workspace volume lost to part collisions (manifold3d meshes)", *_FINE),
             _m("workspace_free_volume_mm3", "workspace volume after removing the colliding share", *_FINE),
         )),
-        EvaluatorEntry(name="interference", module=_A + "prrr.interference",
+        EvaluatorEntry(name="interference", module=_A + "prrr.interference", shared=True,
                        fidelity="the same convex-primitive model at every level (conservative against manifold3d)",
                        metrics=(
             _m("interference_removed_fraction", "share of the sampled workspace volume whose poses make two parts collide (0 … 1)"),
             _m("interference_overlap_fraction", "continuous companion: poses weighted by their deepest overlap up to 1 mm (0 … 1)"),
         )),
-        EvaluatorEntry(name="free_workspace", module=_A + "prrr.free_workspace",
+        EvaluatorEntry(name="free_workspace", module=_A + "prrr.free_workspace", shared=True,
                        fidelity="draft/standard: sampling with the fast separating-axis checker; fine: manifold3d meshes (the reference)",
                        metrics=(
             _m("workspace_free_radius_mm", "radius about z within which every column is reached and collision-free"),
@@ -138,7 +140,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("workspace_free_height_at_diameter_mm", "height of the collision-free cylinder of the required diameter (0: not free)"),
             _m("workspace_free_footprint_ratio", "collision-free cylinder diameter over footprint diameter (seed 002's design goal)"),
         )),
-        EvaluatorEntry(name="device_size", module=_A + "prrr.device_size",
+        EvaluatorEntry(name="device_size", module=_A + "prrr.device_size", shared=True,
                        fidelity="analytic mass model of the part tables: the same at every level",
                        metrics=(
             _m("device_mass_kg", "mass of every part (seed 002 Table 1: 4.4 kg)"),
@@ -242,6 +244,12 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
         )),
     ),
 }
+
+
+#: device -> "module:class" of the steps several of its evaluators take for one design: one object per
+#: :func:`evaluate_all` call, made for that call's design and passed as ``shared=`` to the entries with
+#: ``shared=True``, so that each step runs once per call (none for a device not named here)
+SHARED_STEPS: dict[str, str] = {"prrr": _A + "prrr.shared:DesignSteps"}
 
 
 #: unit tokens a metric name may end with (``_N``, ``_N_per_mm``, ``_MPa_per_N`` …) -> printed symbol
@@ -378,10 +386,20 @@ def _entries(device: str, only: tuple[str, ...] | None) -> list[EvaluatorEntry]:
 
 def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
                  only: tuple[str, ...] | None = None, progress: StepFn | None = None) -> Evaluation:
-    """Run every evaluator registered for the design's device (or those named in ``only``)."""
-    return _collect(fidelity, _entries(design.device, only),
-                    lambda entry: entry.load().evaluate(design, fidelity=fidelity),
-                    lambda entry, measured: measured, progress)
+    """Run every evaluator registered for the design's device (or those named in ``only``); the steps
+    several of them take for the design (:data:`SHARED_STEPS`) run once for the call."""
+    entries = _entries(design.device, only)
+    shared = None
+    if design.device in SHARED_STEPS and any(e.shared for e in entries):
+        module, _, cls = SHARED_STEPS[design.device].partition(":")
+        shared = getattr(importlib.import_module(module), cls)(design)
+
+    def produce(entry: EvaluatorEntry) -> Any:
+        if entry.shared and shared is not None:
+            return entry.load().evaluate(design, fidelity=fidelity, shared=shared)
+        return entry.load().evaluate(design, fidelity=fidelity)
+
+    return _collect(fidelity, entries, produce, lambda entry, measured: measured, progress)
 
 
 def run_plotter(entry: EvaluatorEntry, design: Any, result: Any, out_dir: Path) -> list[Path]:

@@ -30,10 +30,11 @@ import numpy as np
 from hapticopt.analysis import interference
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr import assembly, free_workspace as FW
+from hapticopt.analysis.prrr.statics import params_np
 from hapticopt.analysis.prrr.workspace import ELBOW_BRANCH, fold_margin
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import HapticoptError
-from hapticopt.design.prrr.kinematics import inverse_kinematics, params_of
+from hapticopt.design.prrr.kinematics import inverse_kinematics
 from hapticopt.design.prrr.params import PrrrDesign
 
 
@@ -96,7 +97,8 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
         return PrrrJointLimits(elbow_limit=nan, used={}, stops=None, margin=nan, wall_s=time.perf_counter() - t0,
                                status=Status.NOT_ASSEMBLABLE, message=blocked)
     pts = cylinder_grid(design, required_diameter / 2.0)
-    ik = inverse_kinematics(params_of(design), pts, xp=np)
+    # plain floats: numpy throughout (jax scalars would send every operation to XLA one by one)
+    ik = inverse_kinematics(params_np(design), pts, xp=np)
     th = np.asarray(ik.theta)[:, ELBOW_BRANCH]  # (m, 3 legs, 3)
     return from_angles(design, th, np.asarray(ik.reachable), fidelity=fidelity, t0=t0,
                        required_diameter=required_diameter)

@@ -52,7 +52,7 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import jax
@@ -489,7 +489,7 @@ def _result(arrays: dict, required_radius: float, fidelity: Fidelity,
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
              required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
              required_height: float = DEFAULT_REQUIRED_HEIGHT,
-             interference: bool | None = None) -> PrrrWorkspace:
+             interference: bool | None = None, shared: Any = None) -> PrrrWorkspace:
     """Workspace of ``design``: reach and stroke at every level; at fine fidelity also the
     numerical check of the constant Jacobian and link interference.
 
@@ -503,11 +503,13 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     ``workspace_free_volume_mm3`` (``workspace_volume_mm3`` is reach-and-stroke at every level).
     The inscribed-cylinder metrics are always reach-and-stroke; the collision-free cylinder is
     :mod:`hapticopt.analysis.prrr.free_workspace`. The fast model for the
-    optimiser is a separate evaluator, :mod:`hapticopt.analysis.prrr.interference`.
+    optimiser is a separate evaluator, :mod:`hapticopt.analysis.prrr.interference`. ``shared``: the
+    registry call's :class:`hapticopt.analysis.prrr.shared.DesignSteps` of ``design`` (the envelope).
     """
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
-    wp = workspace_params(design, required_diameter=required_diameter)
+    wp = workspace_params(design, required_diameter=required_diameter,
+                          envelope=None if shared is None else shared.envelope(design))
     result = _assembled(design, _result(workspace_core(wp, n_phi=smp.n_phi, n_r=smp.n_r, xp=np),
                                         required_diameter / 2.0, fidelity, required_height))
     if fidelity is Fidelity.FINE:
