@@ -343,9 +343,14 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
               functools.partial(JL.from_angles_many, fidelity=draft, t0=t1), arrays["joint_theta"], arrays["joint_ok"],
               one=lambda i: _guard(JL.from_angles, designs[i], arrays["joint_theta"][i], arrays["joint_ok"][i],
                                fidelity=draft, t0=t1))
+    if "structural_stiffness" in want:
+        ok = _guard(structure.ok_many, arrays["frame"])
+        options = fm.FrameOptions()
+        for i, d in enumerate(designs):  # a row not ok (or a failed pass): the per-design step
+            res[i]["structural_stiffness"] = (
+                structure.from_ok_arrays(row("frame", i), p=np.zeros(3), load_height=fm.LOAD_HEIGHT, options=options)
+                if not isinstance(ok, Exception) and ok[i] else _guard(_structure, d, row("frame", i)))
     for i, d in enumerate(designs):
-        if "structural_stiffness" in want:
-            res[i]["structural_stiffness"] = _guard(_structure, d, row("frame", i))
         if "workspace" in want or "free_workspace" in want:
             res[i]["workspace"] = _guard(WS._result, row("workspace", i), _REQUIRED_RADIUS, draft)
         if "device_size" in want:
