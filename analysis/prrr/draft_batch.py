@@ -350,9 +350,11 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
             res[i]["structural_stiffness"] = (
                 structure.from_ok_arrays(row("frame", i), p=np.zeros(3), load_height=fm.LOAD_HEIGHT, options=options)
                 if not isinstance(ok, Exception) and ok[i] else _guard(_structure, d, row("frame", i)))
+    if "workspace" in want or "free_workspace" in want:
+        ws_rows = WS.result_rows(arrays["workspace"])
+        for i, vals in enumerate(ws_rows):
+            res[i]["workspace"] = _guard(WS._result_of, vals, _REQUIRED_RADIUS, draft)
     for i, d in enumerate(designs):
-        if "workspace" in want or "free_workspace" in want:
-            res[i]["workspace"] = _guard(WS._result, row("workspace", i), _REQUIRED_RADIUS, draft)
         if "device_size" in want:
             res[i]["device_size"] = (_guard(DS.evaluate, d, fidelity=draft) if i in no_parts
                                      else DS.failed(specs[i], t1) if isinstance(specs[i], HapticoptError)
@@ -369,8 +371,7 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
         if "interference" in want:
             res[i]["interference"] = _guard(IF.evaluate, designs[i], fidelity=draft)
         if "free_workspace" in want:  # its verdict reads the batch's core: not-assemblable before the check
-            res[i]["free_workspace"] = _guard(FW.finish, designs[i], {k: v[i] for k, v in arrays["workspace"].items()},
-                                              None, fidelity=draft, t0=t1)
+            res[i]["free_workspace"] = _guard(FW.finish, designs[i], ws_rows[i], None, fidelity=draft, t0=t1)
     if "interference" in want:
         t2 = time.perf_counter()
         _interference(designs, specs, wps, check, res, t2)

@@ -452,7 +452,21 @@ class PrrrWorkspace:
 
 def _result(arrays: dict, required_radius: float, fidelity: Fidelity,
             required_height: float = DEFAULT_REQUIRED_HEIGHT) -> PrrrWorkspace:
-    vals = {k: float(np.asarray(v)) for k, v in arrays.items()}
+    return _result_of({k: float(np.asarray(v)) for k, v in arrays.items()}, required_radius, fidelity,
+                      required_height)
+
+
+def result_rows(arrays: dict) -> list[dict[str, float]]:
+    """Per-design rows of Python floats of stacked :func:`workspace_core` arrays (leading axis: the
+    batched draft evaluator's designs), converted in one pass per array: the values ``_result``
+    converts one by one (``empty`` as 0.0 or 1.0)."""
+    cols = {k: np.asarray(v, dtype=float).tolist() for k, v in arrays.items()}
+    return [dict(zip(cols, vals)) for vals in zip(*cols.values())]
+
+
+def _result_of(vals: dict[str, float], required_radius: float, fidelity: Fidelity,
+               required_height: float = DEFAULT_REQUIRED_HEIGHT) -> PrrrWorkspace:
+    """The result from one design's :func:`workspace_core` values as Python floats (:func:`result_rows`)."""
     if not all(math.isfinite(v) for v in vals.values()):  # never report NaN: zero and say so
         return PrrrWorkspace(volume=0.0, reach_radius=0.0, cylinder_diameter=0.0, cylinder_height=0.0,
                              required_diameter=2.0 * required_radius, height_at_required=0.0,
