@@ -13,6 +13,8 @@ exception's type, message and location (file:line); the other evaluators still r
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import importlib
 import time
 import traceback
@@ -453,15 +455,33 @@ def evaluate_batch(designs: list[Any], *, fidelity: Fidelity = Fidelity.STANDARD
     if len(designs) > draft_batch.MAX_CHUNK:  # chunk by chunk: each chunk's closures stay cached
         return [ev for c in range(0, len(designs), draft_batch.MAX_CHUNK)
                 for ev in evaluate_batch(designs[c:c + draft_batch.MAX_CHUNK], fidelity=fidelity, only=only)]
-    blocked = {i for i, d in enumerate(designs) if assembly.closure(d)}
-    batched = [d for i, d in enumerate(designs) if i not in blocked]
-    found_all = iter(draft_batch.evaluate_many(batched, only=only) if batched else [])
-    out = []
-    for i, design in enumerate(designs):
-        if i in blocked:
-            out.append(evaluate_all(design, fidelity=Fidelity.DRAFT, only=only))
-            continue
-        found, times = next(found_all)
-        out.append(_collect(Fidelity.DRAFT, _entries("prrr", only), lambda entry: found[entry.name],
-                            lambda entry, _: times.get(entry.name, 0.0)))
+    with _collector_paused():
+        blocked = {i for i, d in enumerate(designs) if assembly.closure(d)}
+        batched = [d for i, d in enumerate(designs) if i not in blocked]
+        found_all = iter(draft_batch.evaluate_many(batched, only=only) if batched else [])
+        out = []
+        entries = _entries("prrr", only)
+        for i, design in enumerate(designs):
+            if i in blocked:
+                out.append(evaluate_all(design, fidelity=Fidelity.DRAFT, only=only))
+                continue
+            found, times = next(found_all)
+            out.append(_collect(Fidelity.DRAFT, entries, lambda entry: found[entry.name],
+                                lambda entry, _: times.get(entry.name, 0.0)))
     return out
+
+
+@contextlib.contextmanager
+def _collector_paused():
+    """Python's cyclic garbage collector off for a batch (restored after, as it was): a chunk of 1024
+    designs allocates ~10⁶ short-lived containers, freed by reference counting, whose allocation
+    counts set off full collections of every object the process holds (jax's and numpy's included):
+    2 full collections took 0.71 s of a 12.8 s batch of 1024 designs (load 5.4). Cyclic garbage of
+    the batch (few: the tracebacks of exceptions kept as values) waits for the next collection."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
