@@ -372,9 +372,10 @@ def _collect(fidelity: Fidelity, entries: list[EvaluatorEntry], produce: Callabl
             messages[entry.name] = describe_failure(exc)
         else:
             results[entry.name] = result
-            statuses[entry.name] = Status(result.status)
+            status = result.status
+            statuses[entry.name] = status if type(status) is Status else Status(status)
             messages[entry.name] = result.message
-            sources.update({name: entry.module for name in names})
+            sources.update(dict.fromkeys(names, entry.module))
         timings[entry.name] = timing(entry, time.perf_counter() - t0)
     if progress is not None:
         progress("", len(entries), len(entries))

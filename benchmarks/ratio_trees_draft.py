@@ -13,7 +13,9 @@ a temporary folder and imported as a second ``hapticopt`` package; the two packa
   (a timer costs ≈ 1 µs a call, counted in both trees: the older one makes more calls);
 * ``single``: ``registry.evaluate_all`` of the first :data:`N_SINGLE` designs one by one, after the
   batches (so the collision check's compiled kernel is in use in both trees:
-  ``interference_fast.KERNEL_AFTER_POSES``).
+  ``interference_fast.KERNEL_AFTER_POSES``);
+* ``batch of 1``: ``registry.evaluate_batch`` of each of those designs alone (``bench_batched_draft``'s
+  batch 1).
 
 Prints ms per design of each, the ratios old / new, and the load average before and after.
 """
@@ -135,7 +137,8 @@ def main(rev: str, n: int, rounds: int) -> None:
             reg.evaluate_batch(ds, fidelity=draft)  # compile or load, and pass KERNEL_AFTER_POSES
             for d in few:
                 reg.evaluate_all(d, fidelity=draft)
-        t = {(tree.label, k): [] for tree in trees for k in ("batch", "results", "single")}
+                reg.evaluate_batch([d], fidelity=draft)
+        t = {(tree.label, k): [] for tree in trees for k in ("batch", "results", "single", "batch of 1")}
         for _ in range(rounds):
             for tree in trees:
                 reg = tree.mod("analysis.registry")
@@ -150,11 +153,17 @@ def main(rev: str, n: int, rounds: int) -> None:
                 for d in few:
                     reg.evaluate_all(d, fidelity=draft)
                 t[tree.label, "single"].append((time.perf_counter() - t0) / len(few))
+            for tree in trees:
+                reg = tree.mod("analysis.registry")
+                t0 = time.perf_counter()
+                for d in few:
+                    reg.evaluate_batch([d], fidelity=draft)
+                t[tree.label, "batch of 1"].append((time.perf_counter() - t0) / len(few))
         med = {k: statistics.median(v) for k, v in t.items()}
         print(f"{n} designs, {rounds} rounds, medians [ms/design]; single on the first {len(few)}")
         old, new = trees[0].label, trees[1].label
-        for k in ("batch", "results", "single"):
-            print(f"{k:8s} {old}: {1e3 * med[old, k]:8.3f}   {new}: {1e3 * med[new, k]:8.3f}   "
+        for k in ("batch", "results", "single", "batch of 1"):
+            print(f"{k:10s} {old}: {1e3 * med[old, k]:8.3f}   {new}: {1e3 * med[new, k]:8.3f}   "
                   f"old/new {med[old, k] / med[new, k]:5.2f}")
     print(f"load average after {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 

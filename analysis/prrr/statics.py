@@ -71,11 +71,16 @@ class PrrrStatics:
         return {
             "jacobian_condition": float(self.condition),
             "jacobian_condition_frobenius": float(self.condition_frobenius),
-            "max_force_N": [float(x) for x in self.max_force],
-            "max_pure_force_N": [float(x) for x in self.max_pure_force],
-            "stiffness_limit_N_per_mm": [float(x) * 1e-3 for x in self.stiffness_limit],
-            "effective_mass_kg": [[float(x) for x in row] for row in self.effective_mass],
+            "max_force_N": _floats(self.max_force),
+            "max_pure_force_N": _floats(self.max_pure_force),
+            "stiffness_limit_N_per_mm": [x * 1e-3 for x in _floats(self.stiffness_limit)],
+            "effective_mass_kg": _floats(self.effective_mass),
         }
+
+
+def _floats(a) -> list:
+    """``a`` as (nested) lists of Python floats, converted in one call (``float`` of each element)."""
+    return np.asarray(a, dtype=float).tolist()
 
 
 def params_np(design: PrrrDesign) -> PrrrParams:

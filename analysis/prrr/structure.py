@@ -54,9 +54,10 @@ class StructuralStiffness:
                     "structural_load_height_mm": float(self.load_height) * 1e3,
                     "structural_condition": float(self.condition)}
         out: dict[str, object] = {
-            "structural_stiffness_N_per_mm": [float(x) * 1e-3 for x in self.stiffness_load],
+            "structural_stiffness_N_per_mm": [x * 1e-3 for x in np.asarray(self.stiffness_load, dtype=float).tolist()],
             "elastic_centre_mm": float(self.elastic_centre) * 1e3,
-            "structural_stiffness_at_elastic_centre_N_per_mm": [float(x) * 1e-3 for x in self.stiffness_elastic_centre],
+            "structural_stiffness_at_elastic_centre_N_per_mm": [
+                x * 1e-3 for x in np.asarray(self.stiffness_elastic_centre, dtype=float).tolist()],
             "structural_load_height_mm": float(self.load_height) * 1e3,
             "structural_condition": float(self.condition),
         }
