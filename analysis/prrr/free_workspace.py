@@ -233,7 +233,8 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     t0 = time.perf_counter()
     wp = workspace_params(design, required_diameter=required_diameter,
                           envelope=None if shared is None else shared.envelope(design))
-    core = workspace_core(wp, n_phi=48, n_r=2)
+    # the reach radius, emptiness and footprint (all this reads of the core) do not depend on n_r
+    core = workspace_core(wp, n_phi=48, n_r=2) if shared is None else shared.reach_core(design, wp, n_phi=48, n_r=2)
     r_max = reach_limit(design, core)
     if bool(core["empty"]) or r_max <= 0.0:
         return finish(design, core, None, fidelity=fidelity, t0=t0, required_diameter=required_diameter,

@@ -4,7 +4,9 @@
 workspace and interference evaluators each need the CAD part tables (``cad.part_specs``) and the
 envelope of the fixed parts and carriages (``workspace.base_envelope``), the interference and free
 workspace evaluators the primitive tables of the collision check (``interference_fast.prepare``), and
-the device size evaluator the part tables again. :class:`DesignSteps` holds one design and takes each
+the device size evaluator the part tables again; the workspace and free workspace evaluators each
+compute the reach core (``workspace.workspace_core``), the latter reading only its entries that do
+not depend on the radial sampling. :class:`DesignSteps` holds one design and takes each
 of these steps the first time an evaluator asks for it, then hands the same value (or re-raises the
 same exception) to the next: the evaluators' results are those of taking each step themselves.
 
@@ -17,6 +19,8 @@ design raises.
 from __future__ import annotations
 
 from typing import Any
+
+import numpy as np
 
 from hapticopt.design.errors import HapticoptError, InvalidInput
 from hapticopt.design.prrr import cad as cad_prrr
@@ -69,3 +73,23 @@ class DesignSteps:
 
         return self._step(design, "fast_model",
                           lambda: interference_fast.prepare(design, specs=self.part_specs(design)))
+
+    def workspace_core(self, design: PrrrDesign, wp: Any, *, n_phi: int, n_r: int) -> dict:
+        """:func:`hapticopt.analysis.prrr.workspace.workspace_core` of ``wp`` (numpy) at ``n_phi``, ``n_r``."""
+        from hapticopt.analysis.prrr import workspace  # noqa: PLC0415
+
+        key = ("workspace_core", tuple(float(v) for v in wp), n_phi)
+        cores = self._step(design, key, dict)  # n_r -> core, for this wp and n_phi
+        if n_r not in cores:
+            cores[n_r] = workspace.workspace_core(wp, n_phi=n_phi, n_r=n_r, xp=np)
+        return cores[n_r]
+
+    def reach_core(self, design: PrrrDesign, wp: Any, *, n_phi: int, n_r: int) -> dict:
+        """A :meth:`workspace_core` of ``wp`` at ``n_phi`` for a caller that reads only the entries
+        that do not depend on the radial sampling ``n_r`` (``reach_radius``, ``empty``,
+        ``footprint_diameter``: from the rays and the closed forms, the same operations for every
+        ``n_r``, tested bitwise equal): the core already computed for another ``n_r`` if there is
+        one, else the one at ``n_r``."""
+        key = ("workspace_core", tuple(float(v) for v in wp), n_phi)
+        cores = self._step(design, key, dict)
+        return next(iter(cores.values())) if cores else self.workspace_core(design, wp, n_phi=n_phi, n_r=n_r)

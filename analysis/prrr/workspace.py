@@ -524,8 +524,9 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     smp = SAMPLING[fidelity]
     wp = workspace_params(design, required_diameter=required_diameter,
                           envelope=None if shared is None else shared.envelope(design))
-    result = _assembled(design, _result(workspace_core(wp, n_phi=smp.n_phi, n_r=smp.n_r, xp=np),
-                                        required_diameter / 2.0, fidelity, required_height))
+    core = (workspace_core(wp, n_phi=smp.n_phi, n_r=smp.n_r, xp=np) if shared is None
+            else shared.workspace_core(design, wp, n_phi=smp.n_phi, n_r=smp.n_r))
+    result = _assembled(design, _result(core, required_diameter / 2.0, fidelity, required_height))
     if fidelity is Fidelity.FINE:
         dev, n = jacobian_constancy(design)
         result = dataclasses.replace(result, condition_deviation=dev, condition_points=n)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from hapticopt.analysis import registry
@@ -85,3 +86,27 @@ def test_steps_of_another_design_raise():
     other = io.apply_overrides(BASE, ["geometry.r_p_mm=100"])
     with pytest.raises(InvalidInput, match="allowed only the design they were made for"):
         steps.envelope(other)
+
+
+def test_reach_entries_do_not_depend_on_the_radial_sampling():
+    # what DesignSteps.reach_core relies on: the free workspace evaluator's core (n_r = 2) and the
+    # draft workspace evaluator's (n_r = 8) agree bit for bit on the entries the former reads
+    from hapticopt.analysis.prrr import workspace as W
+
+    for d in _designs():
+        wp = W.workspace_params(d)
+        a, b = W.workspace_core(wp, n_phi=48, n_r=2), W.workspace_core(wp, n_phi=48, n_r=8)
+        for k in ("reach_radius", "empty", "footprint_diameter"):
+            assert np.array_equal(a[k], b[k]), k
+
+
+def test_reach_core_hands_out_the_core_computed_first():
+    from hapticopt.analysis.prrr import workspace as W
+
+    steps = shared_mod.DesignSteps(BASE)
+    wp = W.workspace_params(BASE)
+    first = steps.workspace_core(BASE, wp, n_phi=48, n_r=8)
+    assert steps.reach_core(BASE, wp, n_phi=48, n_r=2) is first
+    assert steps.workspace_core(BASE, wp, n_phi=48, n_r=2) is not first  # asked as such: its own sampling
+    fresh = shared_mod.DesignSteps(BASE)
+    assert fresh.reach_core(BASE, wp, n_phi=48, n_r=2)["volume"] == W.workspace_core(wp, n_phi=48, n_r=2)["volume"]
