@@ -6,6 +6,10 @@ frozen and has ``metrics() -> dict`` (engineering units, unit in the name), ``st
 ``plots`` module (``"module:function"``, called as ``fn(design, result, out_dir)``). Modules are
 imported lazily so that a CLI call pays only for what it runs.
 
+Steps several evaluators of one device take for a design (the 3-PRRR's part tables, envelope and
+reach core: :data:`SHARED_STEPS`) run once per :func:`evaluate_all` call, handed explicitly to the
+evaluators whose entry says ``shared=True``.
+
 One failure policy for every caller (``hapticopt evaluate``, the optimiser's design points and
 the pipeline): an evaluator that raises is reported as :attr:`Status.FAILED` with the
 exception's type, message and location (file:line); the other evaluators still run.

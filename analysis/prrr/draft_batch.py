@@ -3,10 +3,13 @@
 Many designs at draft fidelity in one pass, with the same results and statuses as the
 evaluators one by one (tested to 1e-9 relative, ``tests/analysis/prrr/test_draft_batch.py``, on
 hand-picked hard cases and on a seeded sample within the bundled problem's bounds).
-The verdicts are the evaluators' own functions (``statics.from_arrays``,
-``structure.from_arrays``, ``workspace._result``, ``free_workspace.finish``,
-``joint_limits.from_angles``, ``device_size.from_specs``, ``stability.evaluate``): this module
-only computes the arrays they read, for a whole batch at a time.
+The verdicts are the evaluators' own rules (``statics.from_arrays``, ``structure.from_arrays``,
+``workspace._result``, ``free_workspace.finish``, ``joint_limits.from_angles``,
+``device_size.from_specs``, ``stability.evaluate``), several in the array forms each evaluator
+provides for a whole chunk (``statics.from_arrays_many``, ``structure.ok_many``,
+``workspace.result_rows``, ``joint_limits.from_angles_many``, ``stability.evaluate_many``, each tested
+equal to its per-design function); this module only computes the arrays they read, for a whole batch
+at a time. A ``*_many`` pass that raises falls back to the per-design function for each design.
 
 * **jax, one jitted vmap** (:func:`core_fn`) of the groups the wanted evaluators read
   (:func:`groups_for`): statics (``statics_arrays``), the reach-and-stroke workspace
@@ -30,8 +33,9 @@ only computes the arrays they read, for a whole batch at a time.
   docs/workspace_interference.md).
 * **per design (Python)**: the CAD part tables (``cad.part_specs``: the layout's buildability
   rules raise per design), the envelope (``workspace_params``), the analytic mass model and height
-  (``device_size.from_specs``), the interference sample weights, the force-loop bandwidth of
-  ``stability`` and the verdicts.
+  (``device_size.from_specs``), the interference sample weights, and the result records of the
+  verdicts (the numbers they read come from the array passes above; the force-loop bandwidth of
+  ``stability`` is a closed form over every design at once).
 
 A design whose chain does not close takes the single path (``registry.evaluate_batch``); one whose
 parts the CAD cannot lay out is batched for the kinematic evaluators, and the part evaluators
@@ -68,7 +72,7 @@ from hapticopt.design.prrr import cad
 from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
 from hapticopt.design.prrr.params import PrrrDesign
 
-#: registry evaluators computed by the batch (``stability`` runs per design: see the docstring)
+#: registry evaluators computed by the batch (``stability`` from the statics rows: see the docstring)
 BATCHED = ("statics", "structural_stiffness", "workspace", "interference", "free_workspace", "device_size",
            "joint_limits")
 #: largest padded batch of one jitted call (larger batches run in chunks of this size)

@@ -126,7 +126,8 @@ def from_angles_many(designs: list[PrrrDesign], th: np.ndarray, ok: np.ndarray, 
     the reachable points of every design in one masked numpy pass (a minimum or maximum picks one of
     the same numbers, so the same values), the verdict of each design by the same rule. The angles are
     laid out joint-major first, (n, 3 joints, m, 3 legs), so that each reduction runs over contiguous
-    memory (over the middle axes of (n, m, 3, 3) numpy took ~8× longer)."""
+    memory (a masked minimum over the middle axes of (1024, 435, 3, 3) took 179 ms, joint-major 12.5 ms
+    plus an 8 ms copy, load ≈ 6)."""
     ok = np.asarray(ok, dtype=bool)
     by_joint = np.ascontiguousarray(np.moveaxis(np.asarray(th, dtype=float), 3, 1))  # (n, 3 joints, m, 3 legs)
     where = ok[:, None, :, None]

@@ -2,7 +2,9 @@
 
 * SEA force loop with the output locked, seed 002 eq (8):
   f/f_r = η k K_p / (M_m s² + ξ s + k(1 + ηK_p)); bandwidth = −3 dB below the DC gain
-  (38.5 Hz at K_p = 45 with Table 4).
+  (38.5 Hz at K_p = 45 with Table 4): the evaluator's closed form (the positive root of a quadratic
+  in ω², :func:`force_loop_bandwidth_closed_form`, arrays of designs at once) checked against a root
+  search (:func:`force_loop_bandwidth`).
 * End-effector stiffness limits, eq (14)–(15): diag(k_x, k_y, k_z) = J⁻ᵀ(kI)J⁻¹.
 * Eigenvalues of the linearised continuous closed loop (two-mass SEA plant of eq 6 + P(I) force
   loop + virtual spring/damper). Because the rows of J are orthogonal, J Jᵀ is diagonal and
