@@ -6,6 +6,7 @@ constant over the workspace, so these hold everywhere; fidelity does not change 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
@@ -130,7 +131,7 @@ def _result(design: PrrrDesign, out: dict, rcond: float, finite: bool) -> PrrrSt
     """The verdict and the result from the arrays, rcond(J) and whether every array is finite."""
     # the verdict: the reciprocal condition number of J, banded (analysis.conditioning), never
     # whether the numbers happened to come out finite
-    verdict = conditioning.classify_rcond(rcond, what=f"the Jacobian at β = {np.degrees(design.geometry.beta):.12g}°")
+    verdict = conditioning.classify_rcond(rcond, what=f"the Jacobian at β = {math.degrees(design.geometry.beta):.12g}°")
     if verdict.ok and not finite:
         verdict = conditioning.Conditioning(status=Status.SINGULAR, rcond=verdict.rcond,
                                             message="the statics are not finite at this design")
