@@ -6,6 +6,10 @@ frozen and has ``metrics() -> dict`` (engineering units, unit in the name), ``st
 ``plots`` module (``"module:function"``, called as ``fn(design, result, out_dir)``). Modules are
 imported lazily so that a CLI call pays only for what it runs.
 
+Steps several evaluators of one device take for a design (the 3-PRRR's part tables, envelope and
+reach core: :data:`SHARED_STEPS`) run once per :func:`evaluate_all` call, handed explicitly to the
+evaluators whose entry says ``shared=True``.
+
 One failure policy for every caller (``hapticopt evaluate``, the optimiser's design points and
 the pipeline): an evaluator that raises is reported as :attr:`Status.FAILED` with the
 exception's type, message and location (file:line); the other evaluators still run.
@@ -13,6 +17,8 @@ exception's type, message and location (file:line); the other evaluators still r
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import importlib
 import time
 import traceback
@@ -60,6 +66,7 @@ class EvaluatorEntry:
     fidelity: str = ""  # what the fidelity levels change (the glossary's "fidelity" column)
     slow_at: tuple[str, ...] = ()  # fidelities at which it takes seconds (the pipeline runs it in a second process)
     metrics: tuple[MetricDoc, ...] = ()  # every metric it can report (tests/analysis/test_registry.py checks)
+    shared: bool = False  # its evaluate() takes ``shared=``, the call's SHARED_STEPS of the design
 
     def load(self) -> Any:
         return importlib.import_module(self.module)
@@ -108,6 +115,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("structural_fea_max_von_mises_at_mm", "where that stress occurs (x, y, z)", *_FINE),
         )),
         EvaluatorEntry(name="workspace", module=_A + "prrr.workspace", plot=_A + "prrr.plots:workspace_plots",
+                       shared=True,
                        fidelity="angular quadrature and radial sampling grow with the level; fine adds the Jacobian "
                                 "constancy check and the manifold3d interference reference",
                        metrics=(
@@ -123,13 +131,13 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("workspace_interference_removed_fraction", "share of the sampled workspace volume lost to part collisions (manifold3d meshes)", *_FINE),
             _m("workspace_free_volume_mm3", "workspace volume after removing the colliding share", *_FINE),
         )),
-        EvaluatorEntry(name="interference", module=_A + "prrr.interference",
+        EvaluatorEntry(name="interference", module=_A + "prrr.interference", shared=True,
                        fidelity="the same convex-primitive model at every level (conservative against manifold3d)",
                        metrics=(
             _m("interference_removed_fraction", "share of the sampled workspace volume whose poses make two parts collide (0 … 1)"),
             _m("interference_overlap_fraction", "continuous companion: poses weighted by their deepest overlap up to 1 mm (0 … 1)"),
         )),
-        EvaluatorEntry(name="free_workspace", module=_A + "prrr.free_workspace",
+        EvaluatorEntry(name="free_workspace", module=_A + "prrr.free_workspace", shared=True,
                        fidelity="draft/standard: sampling with the fast separating-axis checker; fine: manifold3d meshes (the reference)",
                        metrics=(
             _m("workspace_free_radius_mm", "radius about z within which every column is reached and collision-free"),
@@ -138,7 +146,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("workspace_free_height_at_diameter_mm", "height of the collision-free cylinder of the required diameter (0: not free)"),
             _m("workspace_free_footprint_ratio", "collision-free cylinder diameter over footprint diameter (seed 002's design goal)"),
         )),
-        EvaluatorEntry(name="device_size", module=_A + "prrr.device_size",
+        EvaluatorEntry(name="device_size", module=_A + "prrr.device_size", shared=True,
                        fidelity="analytic mass model of the part tables: the same at every level",
                        metrics=(
             _m("device_mass_kg", "mass of every part (seed 002 Table 1: 4.4 kg)"),
@@ -242,6 +250,12 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
         )),
     ),
 }
+
+
+#: device -> "module:class" of the steps several of its evaluators take for one design: one object per
+#: :func:`evaluate_all` call, made for that call's design and passed as ``shared=`` to the entries with
+#: ``shared=True``, so that each step runs once per call (none for a device not named here)
+SHARED_STEPS: dict[str, str] = {"prrr": _A + "prrr.shared:DesignSteps"}
 
 
 #: unit tokens a metric name may end with (``_N``, ``_N_per_mm``, ``_MPa_per_N`` …) -> printed symbol
@@ -362,9 +376,10 @@ def _collect(fidelity: Fidelity, entries: list[EvaluatorEntry], produce: Callabl
             messages[entry.name] = describe_failure(exc)
         else:
             results[entry.name] = result
-            statuses[entry.name] = Status(result.status)
+            status = result.status
+            statuses[entry.name] = status if type(status) is Status else Status(status)
             messages[entry.name] = result.message
-            sources.update({name: entry.module for name in names})
+            sources.update(dict.fromkeys(names, entry.module))
         timings[entry.name] = timing(entry, time.perf_counter() - t0)
     if progress is not None:
         progress("", len(entries), len(entries))
@@ -378,10 +393,20 @@ def _entries(device: str, only: tuple[str, ...] | None) -> list[EvaluatorEntry]:
 
 def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
                  only: tuple[str, ...] | None = None, progress: StepFn | None = None) -> Evaluation:
-    """Run every evaluator registered for the design's device (or those named in ``only``)."""
-    return _collect(fidelity, _entries(design.device, only),
-                    lambda entry: entry.load().evaluate(design, fidelity=fidelity),
-                    lambda entry, measured: measured, progress)
+    """Run every evaluator registered for the design's device (or those named in ``only``); the steps
+    several of them take for the design (:data:`SHARED_STEPS`) run once for the call."""
+    entries = _entries(design.device, only)
+    shared = None
+    if design.device in SHARED_STEPS and any(e.shared for e in entries):
+        module, _, cls = SHARED_STEPS[design.device].partition(":")
+        shared = getattr(importlib.import_module(module), cls)(design)
+
+    def produce(entry: EvaluatorEntry) -> Any:
+        if entry.shared and shared is not None:
+            return entry.load().evaluate(design, fidelity=fidelity, shared=shared)
+        return entry.load().evaluate(design, fidelity=fidelity)
+
+    return _collect(fidelity, entries, produce, lambda entry, measured: measured, progress)
 
 
 def run_plotter(entry: EvaluatorEntry, design: Any, result: Any, out_dir: Path) -> list[Path]:
@@ -435,15 +460,33 @@ def evaluate_batch(designs: list[Any], *, fidelity: Fidelity = Fidelity.STANDARD
     if len(designs) > draft_batch.MAX_CHUNK:  # chunk by chunk: each chunk's closures stay cached
         return [ev for c in range(0, len(designs), draft_batch.MAX_CHUNK)
                 for ev in evaluate_batch(designs[c:c + draft_batch.MAX_CHUNK], fidelity=fidelity, only=only)]
-    blocked = {i for i, d in enumerate(designs) if assembly.closure(d)}
-    batched = [d for i, d in enumerate(designs) if i not in blocked]
-    found_all = iter(draft_batch.evaluate_many(batched, only=only) if batched else [])
-    out = []
-    for i, design in enumerate(designs):
-        if i in blocked:
-            out.append(evaluate_all(design, fidelity=Fidelity.DRAFT, only=only))
-            continue
-        found, times = next(found_all)
-        out.append(_collect(Fidelity.DRAFT, _entries("prrr", only), lambda entry: found[entry.name],
-                            lambda entry, _: times.get(entry.name, 0.0)))
+    with _collector_paused():
+        blocked = {i for i, d in enumerate(designs) if assembly.closure(d)}
+        batched = [d for i, d in enumerate(designs) if i not in blocked]
+        found_all = iter(draft_batch.evaluate_many(batched, only=only) if batched else [])
+        out = []
+        entries = _entries("prrr", only)
+        for i, design in enumerate(designs):
+            if i in blocked:
+                out.append(evaluate_all(design, fidelity=Fidelity.DRAFT, only=only))
+                continue
+            found, times = next(found_all)
+            out.append(_collect(Fidelity.DRAFT, entries, lambda entry: found[entry.name],
+                                lambda entry, _: times.get(entry.name, 0.0)))
     return out
+
+
+@contextlib.contextmanager
+def _collector_paused():
+    """Python's cyclic garbage collector off for a batch (restored after, as it was): a chunk of 1024
+    designs allocates ~10⁶ short-lived containers, freed by reference counting, whose allocation
+    counts set off full collections of every object the process holds (jax's and numpy's included):
+    2 full collections took 0.71 s of a 12.8 s batch of 1024 designs (load 5.4). Cyclic garbage of
+    the batch (few: the tracebacks of exceptions kept as values) waits for the next collection."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -45,12 +46,14 @@ class DeviceSize:
                 "device_height_mm": self.height * 1e3}
 
 
-def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> DeviceSize:
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, shared: Any = None) -> DeviceSize:
     """Mass split and height (closed forms, the same at every fidelity).
 
     Status ``ok`` when computed (the seed gives no limit to hold them to); ``not-assemblable``
     (NaN) when the chain does not close or the CAD cannot lay the parts out
     (:mod:`hapticopt.analysis.prrr.assembly`); ``failed`` when the mass model refuses the parts.
+    ``shared``: the registry call's :class:`hapticopt.analysis.prrr.shared.DesignSteps` of ``design``
+    (the part tables).
     """
     Fidelity(fidelity)
     t0 = time.perf_counter()
@@ -60,7 +63,7 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> D
         return DeviceSize(mass=nan, sea_mass=nan, link_mass=nan, frame_mass=nan, height=nan,
                           wall_s=time.perf_counter() - t0, status=Status.NOT_ASSEMBLABLE, message=blocked)
     try:
-        specs = cad_prrr.part_specs(design)
+        specs = cad_prrr.part_specs(design) if shared is None else shared.part_specs(design)
     except HapticoptError as exc:
         return failed(exc, t0)
     return from_specs(design, specs, t0)

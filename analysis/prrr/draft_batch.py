@@ -3,10 +3,13 @@
 Many designs at draft fidelity in one pass, with the same results and statuses as the
 evaluators one by one (tested to 1e-9 relative, ``tests/analysis/prrr/test_draft_batch.py``, on
 hand-picked hard cases and on a seeded sample within the bundled problem's bounds).
-The verdicts are the evaluators' own functions (``statics.from_arrays``,
-``structure.from_arrays``, ``workspace._result``, ``free_workspace.finish``,
-``joint_limits.from_angles``, ``device_size.from_specs``, ``stability.evaluate``): this module
-only computes the arrays they read, for a whole batch at a time.
+The verdicts are the evaluators' own rules (``statics.from_arrays``, ``structure.from_arrays``,
+``workspace._result``, ``free_workspace.finish``, ``joint_limits.from_angles``,
+``device_size.from_specs``, ``stability.evaluate``), several in the array forms each evaluator
+provides for a whole chunk (``statics.from_arrays_many``, ``structure.ok_many``,
+``workspace.result_rows``, ``joint_limits.from_angles_many``, ``stability.evaluate_many``, each tested
+equal to its per-design function); this module only computes the arrays they read, for a whole batch
+at a time. A ``*_many`` pass that raises falls back to the per-design function for each design.
 
 * **jax, one jitted vmap** (:func:`core_fn`) of the groups the wanted evaluators read
   (:func:`groups_for`): statics (``statics_arrays``), the reach-and-stroke workspace
@@ -36,7 +39,8 @@ only computes the arrays they read, for a whole batch at a time.
   lies within ``cad_arrays.NEAR`` of a rule's threshold or branch point, takes the per-design
   functions (``assembly.parts``, ``cad.part_specs``, ``device_size.from_specs``): same exception,
   same message.
-* **per design (Python)**: the force-loop bandwidth of ``stability`` and the verdicts.
+* **per design (Python)**: the result records of the verdicts (the numbers they read come from the
+  array passes above; the force-loop bandwidth of ``stability`` is a closed form over every design at once).
 
 A design whose chain does not close takes the single path (``registry.evaluate_batch``); one whose
 parts the CAD cannot lay out is batched for the kinematic evaluators, and the part evaluators
@@ -73,7 +77,7 @@ from hapticopt.design.prrr import cad, cad_arrays
 from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
 from hapticopt.design.prrr.params import PrrrDesign
 
-#: registry evaluators computed by the batch (``stability`` runs per design: see the docstring)
+#: registry evaluators computed by the batch (``stability`` from the statics rows: see the docstring)
 BATCHED = ("statics", "structural_stiffness", "workspace", "interference", "free_workspace", "device_size",
            "joint_limits")
 #: largest padded batch of one jitted call (larger batches run in chunks of this size)
@@ -389,16 +393,26 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
         return {k: v[i] for k, v in arrays[group].items()}
 
     t1 = time.perf_counter()
+    if "statics" in want:
+        _many(res, "statics", designs, statics.from_arrays_many, arrays["statics"],
+              one=lambda i: _guard(statics.from_arrays, designs[i], row("statics", i)))
+    if "joint_limits" in want:
+        _many(res, "joint_limits", designs,
+              functools.partial(JL.from_angles_many, fidelity=draft, t0=t1), arrays["joint_theta"], arrays["joint_ok"],
+              one=lambda i: _guard(JL.from_angles, designs[i], arrays["joint_theta"][i], arrays["joint_ok"][i],
+                               fidelity=draft, t0=t1))
+    if "structural_stiffness" in want:
+        ok = _guard(structure.ok_many, arrays["frame"])
+        options = fm.FrameOptions()
+        for i, d in enumerate(designs):  # a row not ok (or a failed pass): the per-design step
+            res[i]["structural_stiffness"] = (
+                structure.from_ok_arrays(row("frame", i), p=np.zeros(3), load_height=fm.LOAD_HEIGHT, options=options)
+                if not isinstance(ok, Exception) and ok[i] else _guard(_structure, d, row("frame", i)))
+    if "workspace" in want or "free_workspace" in want:
+        ws_rows = WS.result_rows(arrays["workspace"])
+        for i, vals in enumerate(ws_rows):
+            res[i]["workspace"] = _guard(WS._result_of, vals, _REQUIRED_RADIUS, draft)
     for i, d in enumerate(designs):
-        if "statics" in want:
-            res[i]["statics"] = _guard(statics.from_arrays, d, row("statics", i))
-        if "structural_stiffness" in want:
-            res[i]["structural_stiffness"] = _guard(_structure, d, row("frame", i))
-        if "workspace" in want or "free_workspace" in want:
-            res[i]["workspace"] = _guard(WS._result, row("workspace", i), _REQUIRED_RADIUS, draft)
-        if "joint_limits" in want:
-            res[i]["joint_limits"] = _guard(JL.from_angles, d, arrays["joint_theta"][i], arrays["joint_ok"][i],
-                                            fidelity=draft, t0=t1)
         if "device_size" in want and not isinstance(specs[i], _Rows):
             res[i]["device_size"] = (_guard(DS.evaluate, d, fidelity=draft) if i in no_parts
                                      else DS.failed(specs[i], t1) if isinstance(specs[i], HapticoptError)
@@ -420,8 +434,7 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
         if "interference" in want:
             res[i]["interference"] = _guard(IF.evaluate, designs[i], fidelity=draft)
         if "free_workspace" in want:  # its verdict reads the batch's core: not-assemblable before the check
-            res[i]["free_workspace"] = _guard(FW.finish, designs[i], {k: v[i] for k, v in arrays["workspace"].items()},
-                                              None, fidelity=draft, t0=t1)
+            res[i]["free_workspace"] = _guard(FW.finish, designs[i], ws_rows[i], None, fidelity=draft, t0=t1)
     if "interference" in want:
         t2 = time.perf_counter()
         _interference(designs, specs, wps, check, res, t2)
@@ -435,10 +448,35 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
             r.pop("workspace", None)
     if "stability" in want:
         t4 = time.perf_counter()
-        for i, d in enumerate(designs):
-            res[i]["stability"] = _guard(stability.evaluate, d, fidelity=draft, limits=_limits(d, arrays, i, res[i]))
+        _stability(designs, arrays, res)
         tim["stability"] = (time.perf_counter() - t4) / n
     return [(r, {k: tim[k] for k in r}) for r in res]
+
+
+def _many(res: list[dict], name: str, designs: list[PrrrDesign], fn, *arrays, one) -> None:
+    """``res[i][name]`` of every design from ``fn(designs, *arrays)`` (a ``*_many`` result step over the
+    whole chunk); where that pass raises, ``one(i)`` gives each design's own result or exception."""
+    found = _guard(fn, designs, *arrays)
+    for i in range(len(designs)):
+        res[i][name] = one(i) if isinstance(found, Exception) else found[i]
+
+
+def _stability(designs: list[PrrrDesign], arrays: dict, res: list[dict]) -> None:
+    """``stability`` of every design: the designs whose statics row gives their stiffness limits
+    (:func:`_limits`) in one :func:`stability.evaluate_many`, the others one by one."""
+    rows, limits = [], []
+    for i, d in enumerate(designs):
+        lim = _limits(d, arrays, i, res[i])
+        if lim is None:
+            res[i]["stability"] = _guard(stability.evaluate, d, fidelity=Fidelity.DRAFT)
+        else:
+            rows.append(i)
+            limits.append(lim)
+    if rows:
+        found = _guard(stability.evaluate_many, [designs[i] for i in rows], limits=np.array(limits))
+        for k, i in enumerate(rows):  # where the pass raised, each design's own result or exception
+            res[i]["stability"] = (_guard(stability.evaluate, designs[i], fidelity=Fidelity.DRAFT, limits=limits[k])
+                                   if isinstance(found, Exception) else found[k])
 
 
 def _limits(design: PrrrDesign, arrays: dict, i: int, found: dict) -> np.ndarray | None:

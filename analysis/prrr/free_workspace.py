@@ -53,6 +53,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -143,9 +144,9 @@ def column_poses_of(stroke, beta, phi, r) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
 
 
-def _collides_fn(design: PrrrDesign, checker: str):
+def _collides_fn(design: PrrrDesign, checker: str, model_of=None):
     if checker == Checker.FAST:
-        model = interference_fast.prepare(design)
+        model = (interference_fast.prepare if model_of is None else model_of)(design)
 
         def collides(pts: np.ndarray) -> np.ndarray:
             res = interference_fast.check_points(model, pts, branch=ELBOW_BRANCH)
@@ -159,10 +160,12 @@ def _collides_fn(design: PrrrDesign, checker: str):
 
 
 def free_radius(design: PrrrDesign, r_max: float, *, n_phi: int, n_r: int, n_bisect: int,
-                checker: str = Checker.FAST) -> tuple[float, int, int]:
+                checker: str = Checker.FAST, model_of=None) -> tuple[float, int, int]:
     """(R_free [m], poses checked, poses colliding): largest radius ≤ ``r_max`` whose columns are
-    collision-free on every ray (see the module docstring)."""
-    collides = _collides_fn(design, checker)
+    collision-free on every ray (see the module docstring); ``model_of(design)``: the fast checker's
+    primitive tables (default :func:`hapticopt.analysis.prrr.interference_fast.prepare`; the registry
+    call's shared ones)."""
+    collides = _collides_fn(design, checker, model_of)
     if r_max <= 0.0:
         return 0.0, 0, 0
     g = design.geometry
@@ -221,19 +224,24 @@ def reach_limit(design: PrrrDesign, core: dict) -> float:
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
              required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
-             required_height: float = DEFAULT_REQUIRED_HEIGHT) -> FreeWorkspace:
-    """Collision-free workspace metrics of ``design`` (see the module docstring)."""
+             required_height: float = DEFAULT_REQUIRED_HEIGHT, shared: Any = None) -> FreeWorkspace:
+    """Collision-free workspace metrics of ``design`` (see the module docstring); ``shared``: the
+    registry call's :class:`hapticopt.analysis.prrr.shared.DesignSteps` of ``design`` (the envelope
+    and the fast checker's primitive tables)."""
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
     t0 = time.perf_counter()
-    wp = workspace_params(design, required_diameter=required_diameter)
-    core = workspace_core(wp, n_phi=48, n_r=2)
+    wp = workspace_params(design, required_diameter=required_diameter,
+                          envelope=None if shared is None else shared.envelope(design))
+    # the reach radius, emptiness and footprint (all this reads of the core) do not depend on n_r
+    core = workspace_core(wp, n_phi=48, n_r=2) if shared is None else shared.reach_core(design, wp, n_phi=48, n_r=2)
     r_max = reach_limit(design, core)
     if bool(core["empty"]) or r_max <= 0.0:
         return finish(design, core, None, fidelity=fidelity, t0=t0, required_diameter=required_diameter,
                       required_height=required_height)
     try:
-        found = free_radius(design, r_max, n_phi=smp.n_phi, n_r=smp.n_r, n_bisect=smp.n_bisect, checker=smp.checker)
+        found = free_radius(design, r_max, n_phi=smp.n_phi, n_r=smp.n_r, n_bisect=smp.n_bisect, checker=smp.checker,
+                            model_of=None if shared is None else shared.fast_model)
     except HapticoptError as exc:  # the CAD cannot lay this design's parts out
         found = exc
     return finish(design, core, found, fidelity=fidelity, t0=t0, required_diameter=required_diameter,

@@ -23,13 +23,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Any
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import HapticoptError
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.analysis.prrr import assembly, interference_fast
-from hapticopt.analysis.prrr.workspace import INTERFERENCE_SAMPLING
+from hapticopt.analysis.prrr.workspace import INTERFERENCE_SAMPLING, workspace_params
 
 #: most poses of the check: 3 thirds · n_phi · n_r · n_z (fewer where the workspace is thinner)
 INTERFERENCE_POSES = 3 * INTERFERENCE_SAMPLING["n_phi"] * INTERFERENCE_SAMPLING["n_r"] * INTERFERENCE_SAMPLING["n_z"]
@@ -50,12 +51,14 @@ class PrrrInterference:
                 "interference_overlap_fraction": self.overlap_fraction}
 
 
-def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> PrrrInterference:
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, shared: Any = None) -> PrrrInterference:
     """Fast interference over the workspace samples (same model and samples at every fidelity).
 
     Status ``ok`` when no sampled pose makes two parts collide; ``collides`` (numbers kept: the
     optimiser constrains them) when some do; ``not-assemblable`` (NaN) when the chain does not
-    close or the CAD cannot lay the parts out (:mod:`hapticopt.analysis.prrr.assembly`).
+    close or the CAD cannot lay the parts out (:mod:`hapticopt.analysis.prrr.assembly`). ``shared``:
+    the registry call's :class:`hapticopt.analysis.prrr.shared.DesignSteps` of ``design`` (the
+    envelope and the primitive tables).
     """
 
     Fidelity(fidelity)
@@ -66,7 +69,12 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> P
         return PrrrInterference(removed_fraction=nan, overlap_fraction=nan, wall_s=time.perf_counter() - t0,
                                 status=Status.NOT_ASSEMBLABLE, message=blocked)
     try:
-        removed, overlap = interference_fast.interference_fractions(design, **INTERFERENCE_SAMPLING)
+        if shared is None:
+            removed, overlap = interference_fast.interference_fractions(design, **INTERFERENCE_SAMPLING)
+        else:
+            removed, overlap = interference_fast.interference_fractions(
+                design, **INTERFERENCE_SAMPLING, wp=workspace_params(design, envelope=shared.envelope(design)),
+                model_of=shared.fast_model)
     except HapticoptError as exc:  # the parts are laid out but a pose's parts cannot be placed
         return failed(exc, t0)
     return from_fractions(removed, overlap, t0)

@@ -599,7 +599,7 @@ def overlap_share(res: FastResult, *, scale: float = OVERLAP_SCALE) -> np.ndarra
 
 
 def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int,
-                           scale: float = OVERLAP_SCALE) -> tuple[float, float]:
+                           scale: float = OVERLAP_SCALE, wp: Any = None, model_of=None) -> tuple[float, float]:
     """(removed fraction, overlap fraction) of the sampled workspace volume, from one check of
     the poses (polar-cell weights w_i of :func:`hapticopt.analysis.prrr.workspace.workspace_sample_weights`):
 
@@ -608,12 +608,14 @@ def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int
       its continuous companion (equal to the removed fraction where every colliding pose is at
       least ``scale`` deep; docs/workspace_interference.md).
 
-    Both 0 for an empty sample."""
+    Both 0 for an empty sample (the primitive tables are not needed then). ``wp``: the design's
+    default workspace parameters, ``model_of(design)``: its primitive tables (default :func:`prepare`),
+    when the caller has them (the registry call's shared steps)."""
 
-    pts, w = workspace_sample_weights(design, n_phi=n_phi, n_r=n_r, n_z=n_z)
+    pts, w = workspace_sample_weights(design, n_phi=n_phi, n_r=n_r, n_z=n_z, wp=wp)
     if len(pts) == 0 or not w.sum() > 0:
         return 0.0, 0.0
-    res = check_points(prepare(design), pts, branch=ELBOW_BRANCH)
+    res = check_points((prepare if model_of is None else model_of)(design), pts, branch=ELBOW_BRANCH)
     return fractions_of(w, res.collides, overlap_share(res, scale=scale))
 
 

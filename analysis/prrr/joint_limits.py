@@ -30,10 +30,11 @@ import numpy as np
 from hapticopt.analysis import interference
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr import assembly, free_workspace as FW
+from hapticopt.analysis.prrr.statics import params_np
 from hapticopt.analysis.prrr.workspace import ELBOW_BRANCH, fold_margin
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import HapticoptError
-from hapticopt.design.prrr.kinematics import inverse_kinematics, params_of
+from hapticopt.design.prrr.kinematics import inverse_kinematics
 from hapticopt.design.prrr.params import PrrrDesign
 
 
@@ -96,7 +97,8 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
         return PrrrJointLimits(elbow_limit=nan, used={}, stops=None, margin=nan, wall_s=time.perf_counter() - t0,
                                status=Status.NOT_ASSEMBLABLE, message=blocked)
     pts = cylinder_grid(design, required_diameter / 2.0)
-    ik = inverse_kinematics(params_of(design), pts, xp=np)
+    # plain floats: numpy throughout (jax scalars would send every operation to XLA one by one)
+    ik = inverse_kinematics(params_np(design), pts, xp=np)
     th = np.asarray(ik.theta)[:, ELBOW_BRANCH]  # (m, 3 legs, 3)
     return from_angles(design, th, np.asarray(ik.reachable), fidelity=fidelity, t0=t0,
                        required_diameter=required_diameter)
@@ -107,15 +109,51 @@ def from_angles(design: PrrrDesign, th: np.ndarray, ok: np.ndarray, *, fidelity:
     """The result from the joint angles ``th`` (m, 3 legs, 3) [rad] of the CAD's elbow branch at the
     :func:`cylinder_grid` points and whether each is reachable (numpy, or a row of the batched
     draft evaluator): the one place of the verdict."""
+    n_out = int((~ok).sum())
+    if n_out == len(ok):
+        return _verdict(design, len(ok), n_out, None, math.nan, fidelity=fidelity, t0=t0,
+                        required_diameter=required_diameter)
+    th = th[ok]
+    lo, hi = th.min(axis=(0, 1)), th.max(axis=(0, 1))
+    return _verdict(design, len(ok), n_out, (lo, hi), float(np.abs(th[..., 1]).max()), fidelity=fidelity, t0=t0,
+                    required_diameter=required_diameter)
+
+
+def from_angles_many(designs: list[PrrrDesign], th: np.ndarray, ok: np.ndarray, *, fidelity: Fidelity, t0: float,
+                     required_diameter: float = FW.DEFAULT_REQUIRED_DIAMETER) -> list[PrrrJointLimits]:
+    """:func:`from_angles` of every design from the stacked angles ``th`` (n, m, 3 legs, 3) [rad] and
+    reachability ``ok`` (n, m) (the batched draft evaluator's): the ranges and the largest |θ2| over
+    the reachable points of every design in one masked numpy pass (a minimum or maximum picks one of
+    the same numbers, so the same values), the verdict of each design by the same rule. The angles are
+    laid out joint-major first, (n, 3 joints, m, 3 legs), so that each reduction runs over contiguous
+    memory (a masked minimum over the middle axes of (1024, 435, 3, 3) took 179 ms, joint-major 12.5 ms
+    plus an 8 ms copy, load ≈ 6)."""
+    ok = np.asarray(ok, dtype=bool)
+    by_joint = np.ascontiguousarray(np.moveaxis(np.asarray(th, dtype=float), 3, 1))  # (n, 3 joints, m, 3 legs)
+    where = ok[:, None, :, None]
+    lo = np.min(by_joint, axis=(2, 3), where=where, initial=np.inf)  # (n, 3 joints)
+    hi = np.max(by_joint, axis=(2, 3), where=where, initial=-np.inf)
+    top = np.max(np.abs(by_joint[:, 1]), axis=(1, 2), where=ok[:, :, None], initial=-np.inf).tolist()
+    n_out = (~ok).sum(axis=1).tolist()
+    m = ok.shape[1]
+    lo, hi = lo.tolist(), hi.tolist()
+    return [_verdict(d, m, n_out[i], (lo[i], hi[i]) if n_out[i] < m else None, top[i], fidelity=fidelity, t0=t0,
+                     required_diameter=required_diameter) for i, d in enumerate(designs)]
+
+
+def _verdict(design: PrrrDesign, n_points: int, n_out: int, ranges: tuple | None, top: float, *,
+             fidelity: Fidelity, t0: float, required_diameter: float) -> PrrrJointLimits:
+    """The result from the number of grid points and of those out of reach, the per-joint (min, max)
+    of the reachable points' angles (None: none is reachable) and their largest |θ2| [rad]."""
     fidelity = Fidelity(fidelity)
     elbow = elbow_limit(design)
     nan = float("nan")
-    if not ok.any():
+    if ranges is None:
         return PrrrJointLimits(elbow_limit=elbow, used={}, stops=None, margin=nan, wall_s=time.perf_counter() - t0,
                                status=Status.EMPTY, message="the required cylinder is not reachable")
-    th = th[ok]
-    used = {f"r{j + 1}": (float(th[..., j].min()), float(th[..., j].max())) for j in range(3)}
-    margin = elbow - float(np.abs(th[..., 1]).max())
+    lo, hi = ranges
+    used = {f"r{j + 1}": (float(lo[j]), float(hi[j])) for j in range(3)}
+    margin = elbow - top
     stops = None
     if fidelity is Fidelity.FINE:
         try:
@@ -133,8 +171,8 @@ def from_angles(design: PrrrDesign, th: np.ndarray, ok: np.ndarray, *, fidelity:
                 margin = min(margin, lo - lim.lo, lim.hi - hi)
     status, message = Status.OK, ""
     problems = []
-    if not ok.all():  # the ranges below hold for the reachable part only
-        problems.append(f"{int((~ok).sum())} of {len(ok)} grid points of the φ{required_diameter * 1e3:g} mm "
+    if n_out:  # the ranges below hold for the reachable part only
+        problems.append(f"{n_out} of {n_points} grid points of the φ{required_diameter * 1e3:g} mm "
                         f"cylinder are out of reach or stroke")
     if margin < 0.0:
         problems.append(f"a joint limit cuts the φ{required_diameter * 1e3:g} mm cylinder by "

@@ -2,7 +2,9 @@
 
 * SEA force loop with the output locked, seed 002 eq (8):
   f/f_r = η k K_p / (M_m s² + ξ s + k(1 + ηK_p)); bandwidth = −3 dB below the DC gain
-  (38.5 Hz at K_p = 45 with Table 4).
+  (38.5 Hz at K_p = 45 with Table 4): the evaluator's closed form (the positive root of a quadratic
+  in ω², :func:`force_loop_bandwidth_closed_form`, arrays of designs at once) checked against a root
+  search (:func:`force_loop_bandwidth`).
 * End-effector stiffness limits, eq (14)–(15): diag(k_x, k_y, k_z) = J⁻ᵀ(kI)J⁻¹.
 * Eigenvalues of the linearised continuous closed loop (two-mass SEA plant of eq 6 + P(I) force
   loop + virtual spring/damper). Because the rows of J are orthogonal, J Jᵀ is diagonal and
@@ -55,6 +57,21 @@ def force_loop_bandwidth(design: PrrrDesign, kp: float) -> float:
     while mag(hi) > target:
         hi *= 2.0
     return brentq(lambda w: mag(w) - target, 0.0, hi, xtol=1e-12) / (2.0 * math.pi)
+
+
+def force_loop_bandwidth_closed_form(efficiency, spring, motor_mass, viscous, kp: float):
+    """−3 dB bandwidth of eq (8) relative to its DC gain [Hz], in closed form: with
+    c = k(1 + ηK_p), |H(jω)|² = |H(0)|²/2 is (c − M_m ω²)² + ξ²ω² = 2c², a quadratic in x = ω²,
+    M_m² x² + b x − c² = 0 with b = ξ² − 2cM_m, whose one positive root is taken in the form
+    without cancellation (−b + √(b² + 4M_m²c²))/(2M_m²) for b ≤ 0, 2c²/(b + √(…)) for b > 0.
+    Scalars or numpy arrays (broadcast: every design of a batch at once, element for element the
+    same operations, so the same bits as one design at a time). Agrees with the root search of
+    :func:`force_loop_bandwidth` (the reference) to rounding (tests/analysis/prrr/test_stability.py)."""
+    c = spring * (1.0 + efficiency * kp)
+    b = viscous * viscous - 2.0 * c * motor_mass
+    s = np.sqrt(b * b + 4.0 * (motor_mass * c) ** 2)
+    x = np.where(b <= 0.0, (s - b) / (2.0 * motor_mass * motor_mass), 2.0 * c * c / np.where(b > 0.0, b + s, 1.0))
+    return np.sqrt(x) / (2.0 * math.pi)
 
 
 # ------------------------------------------------------------------------------ stiffness limits
@@ -246,18 +263,33 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, kp: 
 
     Status ``not-assemblable`` (metrics NaN) when the chain does not close
     (:func:`hapticopt.analysis.prrr.assembly.closure`): the decoupled per-axis loop assumes it.
-    ``limits``: :func:`stiffness_limits` of ``design`` when the caller has them (the batched draft
-    evaluator passes its statics row's); computed once here otherwise.
+    ``limits``: :func:`stiffness_limits` of ``design`` when the caller has them; computed once here
+    otherwise. The bandwidth is :func:`force_loop_bandwidth_closed_form`.
     """
     del fidelity  # closed forms
-    blocked = assembly.closure(design)
     limits = stiffness_limits(design) if limits is None else np.array(limits, dtype=float)
-    return StabilityResult(
-        force_gain=kp, force_loop_bandwidth=force_loop_bandwidth(design, kp),
-        stiffness_limits=limits.copy(),
-        continuous_limits=np.array([stiffness_limit_closed_form(design, kp, a, limits=limits) for a in range(3)]),
-        status=Status.NOT_ASSEMBLABLE if blocked else Status.OK, message=blocked,
-    )
+    return evaluate_many([design], kp=kp, limits=limits[None])[0]
+
+
+def evaluate_many(designs: list[PrrrDesign], *, kp: float = 45.0, limits: np.ndarray) -> list[StabilityResult]:
+    """:func:`evaluate` of many designs with their :func:`stiffness_limits` as the rows of
+    ``limits`` (n, 3) [N/m] (the batched draft evaluator's statics rows): the bandwidths and the
+    closed-loop limits of every design in one numpy pass, the same operations element for element as
+    one design at a time (so the same bits; :func:`evaluate` is this with one design)."""
+    a = [d.actuator for d in designs]
+    eff = np.array([x.efficiency for x in a], dtype=float)
+    bw = force_loop_bandwidth_closed_form(eff, np.array([x.spring for x in a], dtype=float),
+                                          np.array([x.motor_mass for x in a], dtype=float),
+                                          np.array([x.viscous for x in a], dtype=float), kp)
+    limits = np.array(limits, dtype=float).reshape(len(designs), 3)
+    cont = limits * (1.0 + 1.0 / (eff * kp))[:, None]  # stiffness_limit_closed_form of each axis
+    out = []
+    for i, design in enumerate(designs):
+        blocked = assembly.closure(design)
+        out.append(StabilityResult(force_gain=kp, force_loop_bandwidth=float(bw[i]), stiffness_limits=limits[i],
+                                   continuous_limits=cont[i], status=Status.NOT_ASSEMBLABLE if blocked else Status.OK,
+                                   message=blocked))
+    return out
 
 
 # ------------------------------------------------------------- exact sampled (discrete) analysis

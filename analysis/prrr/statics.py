@@ -6,6 +6,7 @@ constant over the workspace, so these hold everywhere; fidelity does not change 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
@@ -71,11 +72,16 @@ class PrrrStatics:
         return {
             "jacobian_condition": float(self.condition),
             "jacobian_condition_frobenius": float(self.condition_frobenius),
-            "max_force_N": [float(x) for x in self.max_force],
-            "max_pure_force_N": [float(x) for x in self.max_pure_force],
-            "stiffness_limit_N_per_mm": [float(x) * 1e-3 for x in self.stiffness_limit],
-            "effective_mass_kg": [[float(x) for x in row] for row in self.effective_mass],
+            "max_force_N": _floats(self.max_force),
+            "max_pure_force_N": _floats(self.max_pure_force),
+            "stiffness_limit_N_per_mm": [x * 1e-3 for x in _floats(self.stiffness_limit)],
+            "effective_mass_kg": _floats(self.effective_mass),
         }
+
+
+def _floats(a) -> list:
+    """``a`` as (nested) lists of Python floats, converted in one call (``float`` of each element)."""
+    return np.asarray(a, dtype=float).tolist()
 
 
 def params_np(design: PrrrDesign) -> PrrrParams:
@@ -104,10 +110,28 @@ def from_arrays(design: PrrrDesign, out: dict) -> PrrrStatics:
     """The result of ``design`` from its :func:`statics_arrays` (numpy or a row of a jax batch):
     the one place the statics verdict is made."""
     out = {k: np.asarray(v) for k, v in out.items()}
+    finite = all(np.all(np.isfinite(v)) for v in out.values())
+    return _result(design, out, conditioning.rcond(out["jacobian"]), finite)
+
+
+def from_arrays_many(designs: list[PrrrDesign], out: dict) -> list[PrrrStatics]:
+    """:func:`from_arrays` of every design from the stacked :func:`statics_arrays` ``out`` (leading
+    axis: the designs, the batched draft evaluator's): the reciprocal condition numbers in one
+    batched SVD and the finiteness in one pass, the verdict of each design by the same rule."""
+    out = {k: np.asarray(v) for k, v in out.items()}
+    r = conditioning.rcond_many(out["jacobian"])
+    finite = np.ones(len(designs), dtype=bool)
+    for v in out.values():
+        finite &= np.all(np.isfinite(v.reshape(len(designs), -1)), axis=1)
+    return [_result(d, {k: v[i] for k, v in out.items()}, float(r[i]), bool(finite[i]))
+            for i, d in enumerate(designs)]
+
+
+def _result(design: PrrrDesign, out: dict, rcond: float, finite: bool) -> PrrrStatics:
+    """The verdict and the result from the arrays, rcond(J) and whether every array is finite."""
     # the verdict: the reciprocal condition number of J, banded (analysis.conditioning), never
     # whether the numbers happened to come out finite
-    verdict = conditioning.classify(out["jacobian"], what=f"the Jacobian at β = {np.degrees(design.geometry.beta):.12g}°")
-    finite = all(np.all(np.isfinite(v)) for v in out.values())
+    verdict = conditioning.classify_rcond(rcond, what=f"the Jacobian at β = {math.degrees(design.geometry.beta):.12g}°")
     if verdict.ok and not finite:
         verdict = conditioning.Conditioning(status=Status.SINGULAR, rcond=verdict.rcond,
                                             message="the statics are not finite at this design")

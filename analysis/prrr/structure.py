@@ -54,9 +54,10 @@ class StructuralStiffness:
                     "structural_load_height_mm": float(self.load_height) * 1e3,
                     "structural_condition": float(self.condition)}
         out: dict[str, object] = {
-            "structural_stiffness_N_per_mm": [float(x) * 1e-3 for x in self.stiffness_load],
+            "structural_stiffness_N_per_mm": [x * 1e-3 for x in np.asarray(self.stiffness_load, dtype=float).tolist()],
             "elastic_centre_mm": float(self.elastic_centre) * 1e3,
-            "structural_stiffness_at_elastic_centre_N_per_mm": [float(x) * 1e-3 for x in self.stiffness_elastic_centre],
+            "structural_stiffness_at_elastic_centre_N_per_mm": [
+                x * 1e-3 for x in np.asarray(self.stiffness_elastic_centre, dtype=float).tolist()],
             "structural_load_height_mm": float(self.load_height) * 1e3,
             "structural_condition": float(self.condition),
         }
@@ -99,7 +100,8 @@ def structural_stiffness(design: PrrrDesign, *, p=(0.0, 0.0, 0.0), load_height: 
     if not np.isfinite(load_height):
         raise InvalidInput(f"load_height = {load_height!r} m is not finite: allowed any finite height (m)")
     p = np.asarray(p, dtype=float)
-    out = fm.solve_frame(fm.frame_params_of(design), p=p, load_height=load_height, options=options)
+    # numpy parameters: solve_frame takes numpy arrays (jax scalars here cost an XLA transfer each, same values)
+    out = fm.solve_frame(fm.frame_params_of(design, xp=np), p=p, load_height=load_height, options=options)
     return from_arrays(design, out, p=p, load_height=load_height, options=options)
 
 
@@ -114,6 +116,33 @@ def from_arrays(design: PrrrDesign, out: dict, *, p, load_height: float, options
             f"pose p_mm = ({', '.join(f'{x * 1e3:g}' for x in p)}) is outside the reach or slider stroke of "
             f"design {design.name!r} (margin {float(out['reach_margin']) * 1e3:.3g} mm): allowed margin ≥ 0 mm")
     status, message = _status(out)
+    return _result(out, p, load_height, options, status, message)
+
+
+def ok_many(out: dict) -> np.ndarray:
+    """(n,) bool: the rows of stacked :func:`hapticopt.analysis.prrr.frame_model.frame_arrays` ``out``
+    (leading axis: the batched draft evaluator's designs) whose pose is reached and whose
+    :func:`from_arrays` verdict is ok, by :func:`_status`'s rule in one pass over every row: every
+    value finite, condition below both limits, a positive compliance diagonal."""
+    cond = np.asarray(out["condition"], dtype=float)
+    n = len(cond)
+    ok = np.asarray(out["reachable"], dtype=bool).reshape(n) & np.isfinite(cond)
+    for k in ("stiffness_load", "stiffness_elastic_centre", "elastic_centre", "compliance_ee"):
+        ok &= np.all(np.isfinite(np.reshape(out[k], (n, -1))), axis=1)
+    with np.errstate(invalid="ignore"):
+        ok &= (cond < fm.SINGULAR_COND) & (cond <= fm.COND_LIMIT)
+        ok &= np.all(np.diagonal(out["compliance_ee"], axis1=-2, axis2=-1) > 0.0, axis=1)
+    return ok
+
+
+def from_ok_arrays(out: dict, *, p, load_height: float, options: fm.FrameOptions) -> StructuralStiffness:
+    """The result of a row of ``out`` that :func:`ok_many` passed (status ok): :func:`from_arrays`
+    without the checks it has made."""
+    return _result(out, np.asarray(p, dtype=float), load_height, options, Status.OK, "")
+
+
+def _result(out: dict, p: np.ndarray, load_height: float, options: fm.FrameOptions, status: Status,
+            message: str) -> StructuralStiffness:
     return StructuralStiffness(
         pose=p, load_height=float(load_height), stiffness_load=out["stiffness_load"],
         elastic_centre=float(out["elastic_centre"]), stiffness_elastic_centre=out["stiffness_elastic_centre"],

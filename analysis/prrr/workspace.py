@@ -52,7 +52,7 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import jax
@@ -471,7 +471,21 @@ class PrrrWorkspace:
 
 def _result(arrays: dict, required_radius: float, fidelity: Fidelity,
             required_height: float = DEFAULT_REQUIRED_HEIGHT) -> PrrrWorkspace:
-    vals = {k: float(np.asarray(v)) for k, v in arrays.items()}
+    return _result_of({k: float(np.asarray(v)) for k, v in arrays.items()}, required_radius, fidelity,
+                      required_height)
+
+
+def result_rows(arrays: dict) -> list[dict[str, float]]:
+    """Per-design rows of Python floats of stacked :func:`workspace_core` arrays (leading axis: the
+    batched draft evaluator's designs), converted in one pass per array: the values ``_result``
+    converts one by one (``empty`` as 0.0 or 1.0)."""
+    cols = {k: np.asarray(v, dtype=float).tolist() for k, v in arrays.items()}
+    return [dict(zip(cols, vals)) for vals in zip(*cols.values())]
+
+
+def _result_of(vals: dict[str, float], required_radius: float, fidelity: Fidelity,
+               required_height: float = DEFAULT_REQUIRED_HEIGHT) -> PrrrWorkspace:
+    """The result from one design's :func:`workspace_core` values as Python floats (:func:`result_rows`)."""
     if not all(math.isfinite(v) for v in vals.values()):  # never report NaN: zero and say so
         return PrrrWorkspace(volume=0.0, reach_radius=0.0, cylinder_diameter=0.0, cylinder_height=0.0,
                              required_diameter=2.0 * required_radius, height_at_required=0.0,
@@ -508,7 +522,7 @@ def _result(arrays: dict, required_radius: float, fidelity: Fidelity,
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
              required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
              required_height: float = DEFAULT_REQUIRED_HEIGHT,
-             interference: bool | None = None) -> PrrrWorkspace:
+             interference: bool | None = None, shared: Any = None) -> PrrrWorkspace:
     """Workspace of ``design``: reach and stroke at every level; at fine fidelity also the
     numerical check of the constant Jacobian and link interference.
 
@@ -522,13 +536,16 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     ``workspace_free_volume_mm3`` (``workspace_volume_mm3`` is reach-and-stroke at every level).
     The inscribed-cylinder metrics are always reach-and-stroke; the collision-free cylinder is
     :mod:`hapticopt.analysis.prrr.free_workspace`. The fast model for the
-    optimiser is a separate evaluator, :mod:`hapticopt.analysis.prrr.interference`.
+    optimiser is a separate evaluator, :mod:`hapticopt.analysis.prrr.interference`. ``shared``: the
+    registry call's :class:`hapticopt.analysis.prrr.shared.DesignSteps` of ``design`` (the envelope).
     """
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
-    wp = workspace_params(design, required_diameter=required_diameter)
-    result = _assembled(design, _result(workspace_core(wp, n_phi=smp.n_phi, n_r=smp.n_r, xp=np),
-                                        required_diameter / 2.0, fidelity, required_height))
+    wp = workspace_params(design, required_diameter=required_diameter,
+                          envelope=None if shared is None else shared.envelope(design))
+    core = (workspace_core(wp, n_phi=smp.n_phi, n_r=smp.n_r, xp=np) if shared is None
+            else shared.workspace_core(design, wp, n_phi=smp.n_phi, n_r=smp.n_r))
+    result = _assembled(design, _result(core, required_diameter / 2.0, fidelity, required_height))
     if fidelity is Fidelity.FINE:
         dev, n = jacobian_constancy(design)
         result = dataclasses.replace(result, condition_deviation=dev, condition_points=n)

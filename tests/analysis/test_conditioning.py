@@ -52,3 +52,15 @@ def test_non_finite_is_singular():
     assert c.classify(np.array([[np.nan, 0.0], [0.0, 1.0]]), what="A").status is Status.SINGULAR
     assert c.classify_rcond(float("nan"), what="A").status is Status.SINGULAR
     assert c.classify_rcond(1e-9, what="A").status is Status.ILL_CONDITIONED
+
+
+def test_rcond_many_equals_rcond_bitwise():
+    # the batched form against one matrix at a time (the reference): seeded matrices across the
+    # bands, a zero matrix, a non-finite one and an exactly singular one
+    rng = np.random.default_rng(3)
+    mats = [rng.normal(size=(3, 3)) @ np.diag([1.0, 10.0 ** -rng.uniform(0, 14), 1.0]) for _ in range(60)]
+    mats += [np.zeros((3, 3)), np.full((3, 3), np.nan), np.diag([1.0, np.inf, 1.0]), np.diag([1.0, 0.0, 2.0])]
+    many = c.rcond_many(np.array(mats))
+    one = np.array([c.rcond(A) for A in mats])
+    assert np.array_equal(many, one)
+    assert {c.classify_rcond(r, what="A").status for r in one} >= {Status.OK, Status.ILL_CONDITIONED, Status.SINGULAR}

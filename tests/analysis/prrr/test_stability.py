@@ -163,3 +163,43 @@ def test_stability_verdict_sets_rigid_modes_aside_explicitly(prrr_paper, factor,
     re = sb.max_real_flexible_eigenvalue(A)
     assert (re < 0.0) == stable
     assert abs(re) > 1e-3 * np.max(np.abs(np.linalg.eigvals(A)))
+
+
+def _actuator_sample(prrr_paper, n: int = 200):
+    """Seeded actuators spanning decades around the preset (spring, motor mass, friction, η, K_p)."""
+    rng = np.random.default_rng(8)
+    a = prrr_paper.actuator
+    for _ in range(n):
+        yield dataclasses.replace(a, spring=a.spring * 10 ** rng.uniform(-2, 2),
+                                  motor_mass=a.motor_mass * 10 ** rng.uniform(-3, 2),
+                                  viscous=a.viscous * 10 ** rng.uniform(-3, 3),
+                                  efficiency=rng.uniform(0.05, 1.0)), 10 ** rng.uniform(-1, 4)
+
+
+def test_bandwidth_closed_form_equals_the_root_search(prrr_paper):
+    # reference: force_loop_bandwidth's brentq root of |H(jω)| = |H(0)|/√2, within its own tolerance
+    # on ω (xtol = 1e-12 rad/s, rtol = 4ε): both quadratic branches (b ≤ 0 and b > 0) occur in the sample
+    branches = set()
+    for a, kp in _actuator_sample(prrr_paper):
+        d = dataclasses.replace(prrr_paper, actuator=a)
+        w_ref = 2 * np.pi * sb.force_loop_bandwidth(d, kp)
+        w = 2 * np.pi * float(sb.force_loop_bandwidth_closed_form(a.efficiency, a.spring, a.motor_mass, a.viscous, kp))
+        assert abs(w - w_ref) <= 2e-12 + 1e-14 * w_ref
+        c = a.spring * (1 + a.efficiency * kp)
+        branches.add(a.viscous**2 - 2 * c * a.motor_mass > 0)
+    assert branches == {False, True}
+
+
+def test_evaluate_many_equals_evaluate_bitwise(prrr_paper):
+    # the batched draft evaluator's array form against one design at a time: the same bits
+    designs = [dataclasses.replace(prrr_paper, actuator=a) for a, _ in _actuator_sample(prrr_paper, 40)]
+    limits = np.array([sb.stiffness_limits(d) for d in designs])
+    many = sb.evaluate_many(designs, limits=limits)
+    for d, r in zip(designs, many):
+        one = sb.evaluate(d)
+        assert r.force_loop_bandwidth == one.force_loop_bandwidth
+        assert np.array_equal(r.continuous_limits, one.continuous_limits)
+        assert np.array_equal(r.stiffness_limits, one.stiffness_limits)
+        assert (r.status, r.message) == (one.status, one.message)
+        assert r.continuous_limits == pytest.approx(
+            [sb.stiffness_limit_closed_form(d, 45.0, ax) for ax in range(3)], rel=0, abs=0)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import jax
@@ -142,3 +143,27 @@ def test_statics_status_from_the_reciprocal_condition_number(beta_deg, status):
     m = r.metrics()
     assert all(math.isnan(v) for v in m["max_force_N"]) == (status != "ok")
     assert math.isnan(m["jacobian_condition"]) == (status != "ok")
+
+
+def test_from_arrays_many_equals_from_arrays():
+    # the batched draft evaluator's result step against the per-design one (the reference), on stacked
+    # numpy statics of designs across the verdicts: ok, ill-conditioned and singular J (β near 90° and 0°),
+    # and a chain that does not close (d2 = 300 mm: seed digest's example, not-assemblable)
+    base = io.load_preset("prrr-paper")
+    geo = lambda **kw: dataclasses.replace(base, geometry=dataclasses.replace(base.geometry, **kw))  # noqa: E731
+    designs = [base, geo(beta=math.radians(89.999999)), geo(beta=math.radians(1e-12)), geo(d2=0.300),
+               geo(beta=math.radians(50.0))]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        rows = [prrr_statics.statics_arrays(prrr_statics.params_np(d), d.actuator.spring, d.actuator.force_limit,
+                                       d.end_effector.mass, xp=np) for d in designs]
+    stacked = {k: np.stack([np.asarray(r[k]) for r in rows]) for k in rows[0]}
+    many = prrr_statics.from_arrays_many(designs, stacked)
+    statuses = set()
+    for d, r, got in zip(designs, rows, many):
+        ref = prrr_statics.from_arrays(d, r)
+        assert (got.status, got.message) == (ref.status, ref.message)
+        for f in ("jacobian", "condition", "condition_frobenius", "effective_mass", "stiffness_matrix",
+                  "stiffness_limit", "max_force", "max_pure_force"):
+            assert np.array_equal(getattr(got, f), getattr(ref, f), equal_nan=True), f
+        statuses.add(ref.status)
+    assert len(statuses) >= 3

@@ -197,3 +197,30 @@ def test_stretched_leg_gets_a_named_status_not_a_number(paper, stretch, status):
     r = ss.structural_stiffness(paper, p=(0.0, y_edge * (1 - stretch), 0.0))
     assert r.status == status
     assert math.isnan(r.metrics()["structural_stiffness_N_per_mm"][0]) == (status != Status.OK)
+
+
+def test_ok_many_is_the_verdict_of_from_arrays_row_by_row():
+    # reference: from_arrays on each row (ok, or a non-ok status, or InvalidInput for a pose out of
+    # reach); rows: the preset and seeded layouts (ok), β = 89.999999° (singular J: not ok), and the
+    # preset at a pose far outside its reach (not reachable)
+    base = io.load_preset("prrr-paper")
+    rng = np.random.default_rng(9)
+    g = base.geometry
+    cases = [(base, np.zeros(3)), (base, np.array([0.0, 0.0, 5.0])),
+             (dataclasses.replace(base, geometry=dataclasses.replace(g, beta=math.radians(89.999999))), np.zeros(3))]
+    cases += [(dataclasses.replace(base, geometry=dataclasses.replace(g, d3=g.d3 * rng.uniform(0.9, 1.1),
+                                                                    d4=g.d4 * rng.uniform(0.9, 1.1))), np.zeros(3))
+              for _ in range(4)]
+    rows, expected = [], []
+    for d, p in cases:
+        with np.errstate(all="ignore"):
+            out = fm.solve_frame(fm.frame_params_of(d), p=p, load_height=fm.LOAD_HEIGHT, options=fm.FrameOptions())
+        rows.append({k: np.asarray(v) for k, v in out.items()})
+        try:
+            expected.append(ss.from_arrays(d, out, p=p, load_height=fm.LOAD_HEIGHT,
+                                                  options=fm.FrameOptions()).status is Status.OK)
+        except InvalidInput:
+            expected.append(False)
+    stacked = {k: np.stack([r[k] for r in rows]) for k in rows[0]}
+    assert ss.ok_many(stacked).tolist() == expected
+    assert expected.count(False) == 2

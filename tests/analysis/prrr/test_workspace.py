@@ -289,3 +289,23 @@ def test_workspace_sample_weights_many_equal_the_per_design_function_bitwise(pro
         sizes.append(len(pts))
     assert 0 in sizes and max(sizes) == 3 * 6 * 4 * 3  # an empty sample and a full one are covered
     assert W.workspace_sample_weights_many([], [], **W.INTERFERENCE_SAMPLING) == []
+
+
+def test_result_rows_give_the_results_of_each_row():
+    # reference: _result on each design's own numpy workspace_core (the single path's conversion);
+    # rows: the preset (ok), a stroke too short (not-met), d2 = 300 mm (empty), seeded layouts
+    base = io.load_preset("prrr-paper")
+    g = base.geometry
+    rng = np.random.default_rng(4)
+    designs = [base, dataclasses.replace(base, geometry=dataclasses.replace(g, stroke=0.05)),
+               dataclasses.replace(base, geometry=dataclasses.replace(g, d2=0.300))]
+    designs += [dataclasses.replace(base, geometry=dataclasses.replace(g, d3=g.d3 * rng.uniform(0.8, 1.2)))
+                for _ in range(4)]
+    cores = [W.workspace_core(W.workspace_params(d), n_phi=48, n_r=8, xp=np) for d in designs]
+    stacked = {k: np.stack([np.asarray(c[k]) for c in cores]) for k in cores[0]}
+    statuses = set()
+    for core, vals in zip(cores, W.result_rows(stacked)):
+        ref = W._result(core, 0.07, Fidelity.DRAFT)
+        assert W._result_of(vals, 0.07, Fidelity.DRAFT) == ref
+        statuses.add(ref.status)
+    assert statuses == {Status.OK, Status.NOT_MET, Status.EMPTY}

@@ -1,0 +1,95 @@
+"""The steps several 3-PRRR evaluators take for one design, each taken once per registry call.
+
+``registry.evaluate_all`` runs one design's evaluators one after another; the workspace, free
+workspace and interference evaluators each need the CAD part tables (``cad.part_specs``) and the
+envelope of the fixed parts and carriages (``workspace.base_envelope``), the interference and free
+workspace evaluators the primitive tables of the collision check (``interference_fast.prepare``), and
+the device size evaluator the part tables again; the workspace and free workspace evaluators each
+compute the reach core (``workspace.workspace_core``), the latter reading only its entries that do
+not depend on the radial sampling. :class:`DesignSteps` holds one design and takes each
+of these steps the first time an evaluator asks for it, then hands the same value (or re-raises the
+same exception) to the next: the evaluators' results are those of taking each step themselves.
+
+It is made by the registry for one ``evaluate_all`` call and passed explicitly (``shared=``) to the
+evaluators whose registry entry says they take it; nothing outlives the call. Every step is a pure
+function of the frozen design, so the memo is keyed by the design itself: a step asked for another
+design raises.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from hapticopt.design.errors import HapticoptError, InvalidInput
+from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design.prrr.params import PrrrDesign
+
+
+class DesignSteps:
+    """The shared steps of one design (see the module docstring)."""
+
+    def __init__(self, design: PrrrDesign) -> None:
+        self.design = design
+        self._done: dict[str, Any] = {}
+
+    def _step(self, design: PrrrDesign, name: str, fn) -> Any:
+        if design is not self.design:
+            raise InvalidInput(f"shared steps of design {self.design.name!r} asked for design {design.name!r}: "
+                               "allowed only the design they were made for")
+        if name not in self._done:
+            try:
+                self._done[name] = (True, fn())
+            except HapticoptError as exc:  # a value of the step (the CAD refuses the design): kept
+                self._done[name] = (False, exc)
+        ok, value = self._done[name]
+        if not ok:
+            raise value
+        return value
+
+    def part_specs(self, design: PrrrDesign) -> dict:
+        """:func:`hapticopt.design.prrr.cad.part_specs` of ``design`` (raises as it does)."""
+        return self._step(design, "part_specs", lambda: cad_prrr.part_specs(design))
+
+    def envelope(self, design: PrrrDesign) -> float:
+        """:func:`hapticopt.analysis.prrr.workspace.base_envelope` of ``design`` [m], from the shared
+        part tables where the CAD lays the parts out."""
+        from hapticopt.analysis.prrr import workspace  # noqa: PLC0415  (workspace imports this module's users)
+
+        def envelope() -> float:
+            try:
+                specs = self.part_specs(design)
+            except HapticoptError:
+                specs = None  # base_envelope's own fallback (the part tables are tried again there)
+            return workspace.base_envelope(design, specs=specs)
+
+        return self._step(design, "envelope", envelope)
+
+    def fast_model(self, design: PrrrDesign) -> Any:
+        """:func:`hapticopt.analysis.prrr.interference_fast.prepare` of ``design`` from the shared
+        part tables (raises as it does)."""
+        from hapticopt.analysis.prrr import interference_fast  # noqa: PLC0415
+
+        return self._step(design, "fast_model",
+                          lambda: interference_fast.prepare(design, specs=self.part_specs(design)))
+
+    def workspace_core(self, design: PrrrDesign, wp: Any, *, n_phi: int, n_r: int) -> dict:
+        """:func:`hapticopt.analysis.prrr.workspace.workspace_core` of ``wp`` (numpy) at ``n_phi``, ``n_r``."""
+        from hapticopt.analysis.prrr import workspace  # noqa: PLC0415
+
+        key = ("workspace_core", tuple(float(v) for v in wp), n_phi)
+        cores = self._step(design, key, dict)  # n_r -> core, for this wp and n_phi
+        if n_r not in cores:
+            cores[n_r] = workspace.workspace_core(wp, n_phi=n_phi, n_r=n_r, xp=np)
+        return cores[n_r]
+
+    def reach_core(self, design: PrrrDesign, wp: Any, *, n_phi: int, n_r: int) -> dict:
+        """A :meth:`workspace_core` of ``wp`` at ``n_phi`` for a caller that reads only the entries
+        that do not depend on the radial sampling ``n_r`` (``reach_radius``, ``empty``,
+        ``footprint_diameter``: from the rays and the closed forms, the same operations for every
+        ``n_r``, tested bitwise equal): the core already computed for another ``n_r`` if there is
+        one, else the one at ``n_r``."""
+        key = ("workspace_core", tuple(float(v) for v in wp), n_phi)
+        cores = self._step(design, key, dict)
+        return next(iter(cores.values())) if cores else self.workspace_core(design, wp, n_phi=n_phi, n_r=n_r)

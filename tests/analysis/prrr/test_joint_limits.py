@@ -1,0 +1,47 @@
+"""hapticopt.analysis.prrr.joint_limits: the batched result step equals the per-design one."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr import joint_limits as JL
+from hapticopt.analysis.prrr.workspace import ELBOW_BRANCH
+from hapticopt.analysis.status import Status
+from hapticopt.design import io
+from hapticopt.design.prrr.kinematics import inverse_kinematics, params_of
+
+BASE = io.load_preset("prrr-paper")
+
+
+def _designs() -> list:
+    """The preset (ok), d2 = 300 mm (no grid point in reach: empty), and seeded layouts around the
+    preset (partly out of reach, or a limit cutting the cylinder: not-met)."""
+    rng = np.random.default_rng(15)
+    g = BASE.geometry
+    out = [BASE, dataclasses.replace(BASE, geometry=dataclasses.replace(g, d2=0.300))]
+    for _ in range(10):
+        out.append(dataclasses.replace(BASE, geometry=dataclasses.replace(
+            g, d3=g.d3 * rng.uniform(0.8, 1.2), d4=g.d4 * rng.uniform(0.8, 1.2), stroke=g.stroke * rng.uniform(0.6, 1.2))))
+    return out
+
+
+def test_from_angles_many_equals_from_angles():
+    designs = _designs()
+    th, ok = [], []
+    for d in designs:
+        ik = inverse_kinematics(params_of(d), JL.cylinder_grid(d, JL.FW.DEFAULT_REQUIRED_DIAMETER / 2.0))
+        th.append(np.asarray(ik.theta)[:, ELBOW_BRANCH])
+        ok.append(np.asarray(ik.reachable))
+    many = JL.from_angles_many(designs, np.stack(th), np.stack(ok), fidelity=Fidelity.DRAFT, t0=0.0)
+    statuses = set()
+    for d, t, o, got in zip(designs, th, ok, many):
+        ref = JL.from_angles(d, t, o, fidelity=Fidelity.DRAFT, t0=0.0)  # the reference: one design
+        assert (got.status, got.message) == (ref.status, ref.message)
+        assert got.used == ref.used and got.elbow_limit == ref.elbow_limit
+        assert got.margin == ref.margin or (math.isnan(got.margin) and math.isnan(ref.margin))
+        statuses.add(ref.status)
+    assert statuses == {Status.OK, Status.EMPTY, Status.NOT_MET}

@@ -1,0 +1,112 @@
+"""hapticopt.analysis.prrr.shared: one registry call takes each shared step once, and its results are
+those of every evaluator taking the steps itself."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hapticopt.analysis import registry
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr import shared as shared_mod
+from hapticopt.design import io
+from hapticopt.design.errors import HapticoptError, InvalidInput
+
+from .conftest import _problem_sample
+
+BASE = io.load_preset("prrr-paper")
+
+
+def _designs() -> list:
+    """The preset; d2 = 300 mm (the chain does not close); θ_1p = 70° (the parts cannot be laid out);
+    r_p = 100 mm (the φ140 collision-free cylinder is missed); seeded draws within the bundled
+    problem's bounds."""
+    edits = (["geometry.d2_mm=300"], ["geometry.theta_1p_deg=70"], ["geometry.r_p_mm=100"])
+    return [BASE] + [io.apply_overrides(BASE, e) for e in edits] + _problem_sample(8, seed=5)
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, float) and isinstance(b, float):
+        return a == b or (math.isnan(a) and math.isnan(b))
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return a == b
+
+
+@pytest.mark.parametrize("fidelity", [Fidelity.DRAFT, Fidelity.STANDARD])
+def test_evaluate_all_equals_each_evaluator_alone(fidelity):
+    # reference: every evaluator's evaluate(design) without the shared steps (each takes them itself)
+    statuses = set()
+    for d in _designs():
+        ev = registry.evaluate_all(d, fidelity=fidelity)
+        for entry in registry.EVALUATORS["prrr"]:
+            try:
+                ref = entry.load().evaluate(d, fidelity=fidelity)
+            except Exception as exc:  # noqa: BLE001 - the registry's failure policy
+                assert ev.messages[entry.name] == registry.describe_failure(exc)
+                continue
+            got = ev.results[entry.name]
+            assert (got.status, got.message) == (ref.status, ref.message), entry.name
+            m_ref, m_got = registry.jsonable(ref.metrics()), registry.jsonable(got.metrics())
+            assert m_ref.keys() == m_got.keys() and all(_same(m_got[k], m_ref[k]) for k in m_ref), entry.name
+            statuses.add((entry.name, ref.status.value))
+    # the sample reaches the shared steps' paths: parts laid out (checked, colliding or not) and refused
+    assert {("device_size", "ok"), ("device_size", "not-assemblable"), ("interference", "collides"),
+            ("interference", "ok"), ("free_workspace", "not-met"), ("free_workspace", "ok")} <= statuses
+
+
+def test_each_step_runs_once_per_call(monkeypatch):
+    calls = []
+    real = shared_mod.cad_prrr.part_specs
+    monkeypatch.setattr(shared_mod.cad_prrr, "part_specs", lambda d: calls.append(d) or real(d))
+    registry.evaluate_all(BASE, fidelity=Fidelity.DRAFT)
+    assert calls == [BASE]  # workspace, interference, free workspace and device size: one part table
+    calls.clear()
+    registry.evaluate_all(BASE, fidelity=Fidelity.DRAFT)
+    assert calls == [BASE]  # nothing outlives a call
+
+
+def test_a_refused_step_raises_the_same_error_each_time(monkeypatch):
+    steps = shared_mod.DesignSteps(BASE)
+    refused = HapticoptError("the CAD refuses this layout")
+    monkeypatch.setattr(shared_mod.cad_prrr, "part_specs", lambda d: (_ for _ in ()).throw(refused))
+    for _ in range(2):
+        with pytest.raises(HapticoptError) as caught:
+            steps.part_specs(BASE)
+        assert caught.value is refused
+    with pytest.raises(HapticoptError) as caught:
+        steps.fast_model(BASE)
+    assert caught.value is refused
+
+
+def test_steps_of_another_design_raise():
+    steps = shared_mod.DesignSteps(BASE)
+    other = io.apply_overrides(BASE, ["geometry.r_p_mm=100"])
+    with pytest.raises(InvalidInput, match="allowed only the design they were made for"):
+        steps.envelope(other)
+
+
+def test_reach_entries_do_not_depend_on_the_radial_sampling():
+    # what DesignSteps.reach_core relies on: the free workspace evaluator's core (n_r = 2) and the
+    # draft workspace evaluator's (n_r = 8) agree bit for bit on the entries the former reads
+    from hapticopt.analysis.prrr import workspace as W
+
+    for d in _designs():
+        wp = W.workspace_params(d)
+        a, b = W.workspace_core(wp, n_phi=48, n_r=2), W.workspace_core(wp, n_phi=48, n_r=8)
+        for k in ("reach_radius", "empty", "footprint_diameter"):
+            assert np.array_equal(a[k], b[k]), k
+
+
+def test_reach_core_hands_out_the_core_computed_first():
+    from hapticopt.analysis.prrr import workspace as W
+
+    steps = shared_mod.DesignSteps(BASE)
+    wp = W.workspace_params(BASE)
+    first = steps.workspace_core(BASE, wp, n_phi=48, n_r=8)
+    assert steps.reach_core(BASE, wp, n_phi=48, n_r=2) is first
+    assert steps.workspace_core(BASE, wp, n_phi=48, n_r=2) is not first  # asked as such: its own sampling
+    fresh = shared_mod.DesignSteps(BASE)
+    assert fresh.reach_core(BASE, wp, n_phi=48, n_r=2)["volume"] == W.workspace_core(wp, n_phi=48, n_r=2)["volume"]
