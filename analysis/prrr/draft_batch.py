@@ -156,10 +156,7 @@ def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams] | None
     inputs only where ``groups`` read them (None otherwise: an empty pytree node)."""
     geo = [d.geometry for d in designs]
     kin = PrrrParams(*(np.array([float(getattr(g, f)) for g in geo]) for f in _KIN_FIELDS))
-    fp = None
-    if "frame" in groups:
-        fps = [fm.frame_params_of(d, xp=np) for d in designs]
-        fp = jax.tree.map(lambda *xs: np.stack([np.asarray(x, dtype=float) for x in xs]), *fps)
+    fp = fm.frame_params_many(designs) if "frame" in groups else None
     wp = None
     if "workspace" in groups:
         wp = WS.WorkspaceParams(*(np.array([float(w[k]) for w in wps]) for k in range(len(wps[0]))))

@@ -310,3 +310,30 @@ def test_sparse_assembly_equals_the_dense_sum(options):
                                          fp=jax.tree.map(jnp.asarray, fp))[0])
     assert K_jax.shape == K_np.shape
     np.testing.assert_allclose(K_jax, K_np, rtol=0, atol=1e-13 * np.abs(K_np).max())
+
+
+def test_frame_params_many_equals_stacked_frame_params_of(paper):
+    # reference: frame_params_of per design (numpy), stacked. The batch covers the side face, the
+    # front-face fallback (θ_1p = 0 on a 60 mm rail) and a bracket no face can carry (β = 5°: the
+    # unchecked side face), as in tests/design/prrr/test_cad.py. Bitwise equal but for the bonds,
+    # where numpy's vectorised power differs from the scalar one in the last bit (measured ≤ 1e-19 of
+    # each bond matrix's largest entry on 512 designs)
+    import jax
+
+    from hapticopt.design.prrr import cad
+
+    wide = io.apply_overrides(paper, ["geometry.theta_1p_deg=0", "structure.rail_width_mm=60"])
+    refused = io.apply_overrides(paper, ["geometry.beta_deg=5"])
+    designs = [paper, wide, refused, io.apply_overrides(paper, ["geometry.d3_mm=90", "geometry.r_p_mm=110"])]
+    assert cad.carriage_bracket(wide).face == "front"
+    with pytest.raises(fm.InvalidDesign):
+        cad.carriage_bracket(refused)
+    many = fm.frame_params_many(designs)
+    each = jax.tree.map(lambda *xs: np.stack(xs), *[fm.frame_params_of(d, xp=np) for d in designs])
+    for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(many), jax.tree.leaves(each), strict=True):
+        assert a.shape == b.shape, jax.tree_util.keystr(path)
+        if jax.tree_util.keystr(path) == ".bracket_bonds":
+            scale = np.abs(b).max(axis=(-1, -2), keepdims=True)
+            assert np.all(np.abs(a - b) <= 1e-15 * scale)
+        else:
+            np.testing.assert_array_equal(a, b, err_msg=jax.tree_util.keystr(path))
