@@ -13,7 +13,8 @@ only computes the arrays they read, for a whole batch at a time.
   (``workspace_core`` at the draft sampling; its reach radius, emptiness and footprint also bound
   the collision-free cylinder: they do not depend on the radial sampling), the frame model
   (``frame_arrays``, default options, home pose) and the joint angles over the required cylinder
-  (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy; the batch is padded to
+  (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy (the frame's by
+  ``frame_model.frame_params_many``, arrays over the batch); the batch is padded to
   the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a new batch
   size within a bucket costs no trace or compile (:data:`TRACES` counts traces); compiled code
   persists on disk (``hapticopt.design.jax_config``). The stability evaluator takes its stiffness

@@ -3,6 +3,9 @@
 One core, :func:`frame_arrays`, written against an array module ``xp``: :func:`solve_frame` runs
 it with numpy for a single design (no compilation: the CLI path, ~4 ms), :func:`solve_frame_jax`
 and :func:`solve_frame_batch` with ``jax.numpy`` under jit/vmap (batches, gradients); tested equal.
+The jax path assembles each leg's stiffness on the columns where each element's map can be nonzero
+(:func:`_supports`, a static pattern of the topology), not on dense 12 × n maps; the batch's inputs
+come from :func:`frame_params_many` (arrays over the batch).
 
 Each link is a 12-DOF Timoshenko beam (axial, torsion, two bending planes with shear) of the
 rectangular cross-section in ``design.structure``; the three revolute joints of every leg
