@@ -312,9 +312,9 @@ def _bond_stiffness_many(area, moments, polar, axes, E, nu) -> np.ndarray:
 
 
 def stack_frame_params(designs) -> FrameParams:
-    """Parameters of many designs stacked along a leading batch axis."""
-    each = [frame_params_of(d) for d in designs]
-    return jax.tree.map(lambda *xs: jnp.stack(xs), *each)
+    """Parameters of many designs stacked along a leading batch axis (jax arrays of
+    :func:`frame_params_many`)."""
+    return jax.tree.map(jnp.asarray, frame_params_many(designs))
 
 
 # ----------------------------------------------------------------------------- beam element
