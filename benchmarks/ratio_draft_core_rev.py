@@ -3,11 +3,12 @@
 (interleaved rounds, medians): ``python benchmarks/ratio_draft_core_rev.py REV [n [rounds]]``
 (default 1024 designs of ``bench_batched_draft.designs``, 5 rounds).
 
-The older revision's ``analysis/prrr/draft_batch.py`` and ``analysis/prrr/frame_model.py`` are
-loaded from ``git show REV:…`` (the old draft_batch reads the old frame model); every other module
-is this tree's. The workspace inputs are this tree's ``workspace_params`` of each design (no part
+The older revision's ``analysis/prrr/draft_batch.py``, ``frame_model.py``, ``workspace.py`` and
+``design/prrr/cad.py`` are loaded from ``git show REV:…`` (the old draft_batch reads the old frame
+model and workspace core, the old frame model the old ``carriage_bracket``); every other module is
+this tree's. The workspace inputs are this tree's ``workspace_params`` of each design (no part
 tables: the core's cost does not depend on them). Prints ms per design per step for the frame
-group alone and for all four groups, the ratios old / new, the load average, and the largest relative
+group alone, the workspace group alone and all four groups, the ratios old / new, the load average, and the largest relative
 difference between the two cores' outputs.
 """
 
@@ -62,11 +63,13 @@ def _max_rel(a: dict, b: dict, prefix: str = "") -> tuple[float, str]:
 
 
 def main(rev: str, n: int, rounds: int) -> None:
-    old_fm = _module_from(rev, "analysis/prrr/frame_model.py", "old_frame_model")
-    old = _module_from(rev, "analysis/prrr/draft_batch.py", "old_draft_batch", fm=old_fm)
+    old_cad = _module_from(rev, "design/prrr/cad.py", "old_cad")
+    old_fm = _module_from(rev, "analysis/prrr/frame_model.py", "old_frame_model", carriage_bracket=old_cad.carriage_bracket)
+    old_ws = _module_from(rev, "analysis/prrr/workspace.py", "old_workspace")
+    old = _module_from(rev, "analysis/prrr/draft_batch.py", "old_draft_batch", fm=old_fm, WS=old_ws)
     ds = designs(n)
     wps = [WS.workspace_params(d) for d in ds]
-    sets = [("frame",), tuple(draft_batch.CORE_GROUPS)]  # the group this work changed, and all four
+    sets = [("frame",), ("workspace",), tuple(draft_batch.CORE_GROUPS)]  # the groups this work changed, all four
     mods = {"old": old, "new": draft_batch}
     for groups in sets:  # compile (or load from the disk cache) outside the timed rounds
         for m in mods.values():
