@@ -16,7 +16,8 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   (``workspace_core`` at the draft sampling; its reach radius, emptiness and footprint also bound
   the collision-free cylinder: they do not depend on the radial sampling), the frame model
   (``frame_arrays``, default options, home pose) and the joint angles over the required cylinder
-  (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy; the batch is padded to
+  (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy (the frame's by
+  ``frame_model.frame_params_many``, arrays over the batch); the batch is padded to
   the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a new batch
   size within a bucket costs no trace or compile (:data:`TRACES` counts traces); compiled code
   persists on disk (``hapticopt.design.jax_config``). The stability evaluator takes its stiffness
@@ -165,10 +166,7 @@ def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams] | None
     inputs only where ``groups`` read them (None otherwise: an empty pytree node)."""
     geo = [d.geometry for d in designs]
     kin = PrrrParams(*(np.array([float(getattr(g, f)) for g in geo]) for f in _KIN_FIELDS))
-    fp = None
-    if "frame" in groups:
-        fps = [fm.frame_params_of(d, xp=np) for d in designs]
-        fp = jax.tree.map(lambda *xs: np.stack([np.asarray(x, dtype=float) for x in xs]), *fps)
+    fp = fm.frame_params_many(designs) if "frame" in groups else None
     wp = None
     if "workspace" in groups:
         wp = WS.WorkspaceParams(*(np.array([float(w[k]) for w in wps]) for k in range(len(wps[0]))))

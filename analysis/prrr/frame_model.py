@@ -3,6 +3,9 @@
 One core, :func:`frame_arrays`, written against an array module ``xp``: :func:`solve_frame` runs
 it with numpy for a single design (no compilation: the CLI path, ~4 ms), :func:`solve_frame_jax`
 and :func:`solve_frame_batch` with ``jax.numpy`` under jit/vmap (batches, gradients); tested equal.
+The jax path assembles each leg's stiffness on the columns where each element's map can be nonzero
+(:func:`_supports`, a static pattern of the topology), not on dense 12 × n maps; the batch's inputs
+come from :func:`frame_params_many` (arrays over the batch).
 
 Each link is a 12-DOF Timoshenko beam (axial, torsion, two bending planes with shear) of the
 rectangular cross-section in ``design.structure``; the three revolute joints of every leg
@@ -231,10 +234,87 @@ def bond_stiffness(area: float, moments: tuple[float, float], polar: float, axes
     return 0.5 * np.block([[kt, np.zeros((3, 3))], [np.zeros((3, 3)), kr]])
 
 
+def frame_params_many(designs) -> FrameParams:
+    """:func:`frame_params_of` (``xp=np``) of many designs stacked along a leading batch axis (numpy):
+    the scalar fields and the bracket's bond stiffnesses as arrays over the batch, the carriage's
+    bracket (:func:`hapticopt.design.prrr.cad.carriage_bracket`, the CAD's one formula) per design.
+    Equal to stacking :func:`frame_params_of` (tested; elementwise the same operations)."""
+    g = [d.geometry for d in designs]
+    s = [d.structure for d in designs]
+
+    def col(objs, name):
+        return np.array([float(getattr(o, name)) for o in objs])
+
+    kin = PrrrParams(*(col(g, f) for f in ("beta", "d1", "d2", "d3", "d4", "r4", "b5", "stroke")))
+    sec = Section(*(col(s, f) for f in ("link_width", "link_thickness", "youngs_modulus", "poisson_ratio")))
+    layer = sec.thickness + col(s, "clearance")  # hapticopt.design.prrr.cad.layout: s_link2 = T + g
+    s_lug = np.maximum(kin.r4, 2.0 * layer)  # hapticopt.design.prrr.cad.layout: s_lug = max(r4, 2T + 2g)
+    br = _brackets_many(designs, sec)
+    return FrameParams(kin=kin, r_p=col(g, "r_p"), theta_1p=col(g, "theta_1p"), section=sec,
+                       spring=np.array([float(d.actuator.spring) for d in designs]),
+                       joint_zone=0.5 * col(s, "boss_diameter"), pin_diameter=col(s, "bore_diameter"), layer=layer,
+                       lug_offset=s_lug - kin.r4, stem_radius=0.5 * col(s, "stem_diameter"), **br)
+
+
+def _brackets_many(designs, sec: Section) -> dict[str, np.ndarray]:
+    """:func:`bracket_frame` of many designs (leading batch axis): the brackets per design, the
+    bonds' :func:`bond_stiffness` over the batch (:func:`_bond_stiffness_many`)."""
+    pts, zref, size, N, e_l, n_p, lc, wc, w = ([] for _ in range(9))
+    for design in designs:
+        try:
+            b = carriage_bracket(design)
+        except InvalidDesign:
+            b = carriage_bracket(design, checked=False)
+        pts.append(np.stack([b.contact_centre, b.root_joint, b.arm_end]))
+        zref.append(b.root_axes[:, 2])
+        size.append((b.root_size[0], b.root_size[2]))
+        N.append(b.normal)
+        e_l.append(b.root_axes[:, 0])
+        n_p.append(b.contact_axes[:, 1])
+        lc.append(b.contact_size[0])
+        wc.append(b.contact_size[1])
+        w.append(b.axis)
+    N, e_l, n_p, w = (np.asarray(x, dtype=float) for x in (N, e_l, n_p, w))
+    lc, wc = np.asarray(lc, dtype=float), np.asarray(wc, dtype=float)
+    E_, nu = sec.youngs_modulus, sec.poisson_ratio
+    k_root = _bond_stiffness_many(lc * wc, (lc * wc**3 / 12.0, wc * lc**3 / 12.0), lc * wc * (lc**2 + wc**2) / 12.0,
+                                  (N, e_l, n_p), E_, nu)
+    W, T = sec.width, sec.thickness
+    e_m = _cross(w, e_l, np)
+    k_arm = _bond_stiffness_many(W * T, (W * T**3 / 12.0, T * W**3 / 12.0), W * T * (W**2 + T**2) / 12.0,
+                                 (e_l, e_m, w), E_, nu)
+    return {"bracket_points": np.asarray(pts, dtype=float), "root_zref": np.asarray(zref, dtype=float),
+            "root_section": np.asarray(size, dtype=float), "bracket_bonds": np.stack([k_root, k_arm], axis=1)}
+
+
+def _bond_stiffness_many(area, moments, polar, axes, E, nu) -> np.ndarray:
+    """:func:`bond_stiffness` over a batch: every scalar (n,), every axis (n, 3); (n, 6, 6)."""
+    G = E / (2.0 * (1.0 + nu))
+    (i1, i2), j = moments, polar
+    a_t = np.sqrt(area / np.pi)
+    a1, a2 = (4.0 * i1 / np.pi) ** 0.25, (4.0 * i2 / np.pi) ** 0.25
+    a_j = (2.0 * j / np.pi) ** 0.25
+    k_r1, k_r2 = (4.0 * E * a**3 / (3.0 * (1.0 - nu**2)) for a in (a1, a2))
+    n, e1, e2 = axes
+
+    def outer(a, b):
+        return a[:, :, None] * b[:, None, :]
+
+    def c(x):
+        return x[:, None, None]
+
+    nn = outer(n, n)
+    kt = c(8.0 * G * a_t / (2.0 - nu)) * (np.eye(3) - nn) + c(2.0 * E * a_t / (1.0 - nu**2)) * nn
+    kr = c(k_r1) * outer(e1, e1) + c(k_r2) * outer(e2, e2) + c(16.0 * G * a_j**3 / 3.0) * nn
+    out = np.zeros((len(area), 6, 6))
+    out[:, :3, :3], out[:, 3:, 3:] = 0.5 * kt, 0.5 * kr
+    return out
+
+
 def stack_frame_params(designs) -> FrameParams:
-    """Parameters of many designs stacked along a leading batch axis."""
-    each = [frame_params_of(d) for d in designs]
-    return jax.tree.map(lambda *xs: jnp.stack(xs), *each)
+    """Parameters of many designs stacked along a leading batch axis (jax arrays of
+    :func:`frame_params_many`)."""
+    return jax.tree.map(jnp.asarray, frame_params_many(designs))
 
 
 # ----------------------------------------------------------------------------- beam element
@@ -491,8 +571,11 @@ def _map(fn, xp, *args):
 
 
 def _leg_stiffness(w, S, A, B, Q, bracket, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp=jnp,
-                   fp: FrameParams | None = None, zones_on=1.0):
+                   fp: FrameParams | None = None, zones_on=1.0, parts_only: bool = False):
     """Stiffness (n×n) of one leg on its DOFs [P | internal], and the node maps G (5, 6, n).
+
+    ``parts_only``: return the leg's (elements, springs) instead, as :func:`_assemble` takes them
+    (:func:`_supports` reads their maps' nonzero columns).
 
     ``bracket`` = (points (3, 3) C, J, E; root thickness direction (3,); bonds (2, 6, 6)), world
     axes: the carriage's R1 bracket (:func:`bracket_frame`), used with pins (the plane frame keeps
@@ -500,7 +583,7 @@ def _leg_stiffness(w, S, A, B, Q, bracket, p, r4, d4, section: Section, spring, 
     """
     if options.pins:
         return _leg_stiffness_pins(w, S, A, B, Q, bracket, p, r4, d4, section, spring, zone, options, xp, fp,
-                                   zones_on)
+                                   zones_on, parts_only)
     n, L = _leg_layout(options)
     beam_off = options.offsets == Offsets.BEAM
     Bp = Q - r4 * w
@@ -531,6 +614,8 @@ def _leg_stiffness(w, S, A, B, Q, bracket, p, r4, d4, section: Section, spring, 
         G_Bp = rigid_map(Bp - Q, xp) @ G_Ql  # B' rides rigidly on the link side of R3
     elems.append((G_Bl, G_Bp, B, Bp, w, a, 0.0 * a))  # link d4
     link = section_properties(section, xp)
+    if parts_only:
+        return [e + (link,) for e in elems], []
     K = _assemble(n, L, [e + (link,) for e in elems], section, spring, options, xp)
     G_nodes = xp.stack([G_S, G_Ac, G_Bc, G_Bp, G_Qp])
     return K, G_nodes, xp.stack([S, A, B, Bp, Q])
@@ -547,16 +632,30 @@ def _assemble(n, L, elems, section: Section, spring, options: FrameOptions, xp=j
     """K = Σ_e G_eᵀ K_e G_e (+ the SEA spring) of elements (G1, G2, x1, x2, zref, a1, a2, props).
 
     ``springs``: (D, K_s) pairs, D the 6×n relative motion across a joint spring of stiffness K_s.
+
+    The jax path multiplies only the columns where each map can be nonzero (:func:`_supports`, a
+    static pattern of the topology) and adds the small products into K block by block; the dense
+    products (12 × n maps, n = 63 per leg with pins) were most of the batched frame's time on a CPU,
+    and the nonzero terms and their order in each product are the same. The numpy path keeps the
+    dense form (one call per product: its cost is call overhead, not arithmetic).
     """
     Ge = xp.stack([xp.concatenate([e[0], e[1]], axis=0) for e in elems])  # (E, 12, n)
     X1, X2, Z, A1, A2 = (xp.stack([e[k] for e in elems]) for k in (2, 3, 4, 5, 6))
     PR = tuple(xp.stack([e[7][f] for e in elems]) for f in range(6))
     Ke = beam_global_stiffness(X1, X2, Z, section, A1, A2, xp, props=SectionProperties(*PR))  # (E, 12, 12)
-    K = xp.sum(xp.swapaxes(Ge, -1, -2) @ Ke @ Ge, axis=0)  # Σ_e G_eᵀ K_e G_e
-    if springs:
-        D = xp.stack([s[0] for s in springs])  # (S, 6, n)
-        Ks = xp.stack([s[1] for s in springs])
-        K = K + xp.sum(xp.swapaxes(D, -1, -2) @ Ks @ D, axis=0)
+    if xp is np:
+        K = xp.sum(xp.swapaxes(Ge, -1, -2) @ Ke @ Ge, axis=0)  # Σ_e G_eᵀ K_e G_e
+        if springs:
+            D = xp.stack([s[0] for s in springs])  # (S, 6, n)
+            Ks = xp.stack([s[1] for s in springs])
+            K = K + xp.sum(xp.swapaxes(D, -1, -2) @ Ks @ D, axis=0)
+    else:
+        sup_e, sup_s = _supports(options)
+        if len(sup_e) != len(elems) or len(sup_s) != len(springs):
+            raise AssertionError("frame topology differs from its support pattern")  # a programming error
+        terms = [(Ge[k], Ke[k], c) for k, c in enumerate(sup_e)]
+        terms += [(d, k_s, c) for (d, k_s), c in zip(springs, sup_s)]
+        K = _sparse_sum(n, terms, xp)
     if options.sea:
         sel = np.zeros((n, n))
         sel[L["sea"], L["sea"]] = 1.0
@@ -564,8 +663,78 @@ def _assemble(n, L, elems, section: Section, spring, options: FrameOptions, xp=j
     return 0.5 * (K + K.T)
 
 
+def _runs(cols: np.ndarray) -> list[tuple[int, int]]:
+    """Contiguous runs [start, stop) of the sorted column indices ``cols``."""
+    cuts = np.flatnonzero(np.diff(cols) != 1) + 1
+    return [(int(r[0]), int(r[-1]) + 1) for r in np.split(cols, cuts)]
+
+
+def _take_cols(G, runs, xp=jnp):
+    """The columns of ``G`` in ``runs`` (static slices: no gather)."""
+    parts = [G[:, a:b] for a, b in runs]
+    return parts[0] if len(parts) == 1 else xp.concatenate(parts, axis=1)
+
+
+def _sparse_sum(n: int, terms, xp=jnp):
+    """Σ Gᵀ K G (n × n) over ``terms`` (G (r × n), K (r × r), the columns where G can be nonzero):
+    each product on those columns, added into K over a static block grid (slices and one
+    concatenation; no scatter)."""
+    cuts = {0, n}
+    for _, _, cols in terms:
+        for a, b in _runs(cols):
+            cuts.update((a, b))
+    edges = sorted(cuts)
+    segs = list(zip(edges[:-1], edges[1:]))
+    blocks: dict[tuple[int, int], object] = {}
+    for G, K, cols in terms:
+        runs = _runs(cols)
+        g = _take_cols(G, runs, xp)
+        small = xp.swapaxes(g, -1, -2) @ K @ g  # (m, m) on ``cols``
+        # each run is a union of whole segments: local offset of every segment it covers
+        local, off = [], 0
+        for a, b in runs:
+            for i, (s0, s1) in enumerate(segs):
+                if a <= s0 and s1 <= b:
+                    local.append((i, off + s0 - a, s1 - s0))
+            off += b - a
+        for i, ri, ni in local:
+            for j, rj, nj in local:
+                piece = small[ri:ri + ni, rj:rj + nj]
+                blocks[i, j] = piece if (i, j) not in blocks else blocks[i, j] + piece
+    rows = []
+    for i, (a0, a1) in enumerate(segs):
+        row = [blocks[i, j] if (i, j) in blocks else xp.zeros((a1 - a0, b1 - b0)) for j, (b0, b1) in enumerate(segs)]
+        rows.append(xp.concatenate(row, axis=1))
+    return xp.concatenate(rows, axis=0)
+
+
+@functools.lru_cache(maxsize=None)
+def _supports(options: FrameOptions) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+    """Columns where each element's map [G1; G2] and each spring's map D can be nonzero, for the
+    topology of ``options``: the leg built by the numpy path from generic (seeded random) inputs,
+    twice; a structural zero is zero for any input, any other entry is nonzero for generic ones,
+    and a zero that a particular design makes is only multiplied, not dropped."""
+    rng = np.random.default_rng(0)
+    found = None
+    for _ in range(2):
+        r = lambda *shape: rng.uniform(0.5, 1.5, shape)  # noqa: E731
+        w = r(3)
+        w /= np.linalg.norm(w)
+        sec = Section(*r(4))
+        fp = FrameParams(kin=PrrrParams(*r(8)), r_p=r(), theta_1p=r(), section=sec, spring=r(), joint_zone=r(),
+                         pin_diameter=r(), layer=r(), lug_offset=r(), stem_radius=r(), bracket_points=r(3, 3),
+                         root_zref=r(3), root_section=r(2), bracket_bonds=r(2, 6, 6))
+        elems, springs = _leg_stiffness(w, r(3), r(3), r(3), r(3), (r(3, 3), r(3), r(2, 6, 6)), r(3), r(), r(), sec,
+                                        r(), r(), options, xp=np, fp=fp, zones_on=1.0, parts_only=True)
+        nz = [np.any(np.concatenate([e[0], e[1]], axis=0) != 0.0, axis=0) for e in elems]
+        nz += [np.any(s[0] != 0.0, axis=0) for s in springs]
+        found = nz if found is None else [a | b for a, b in zip(found, nz)]
+    cols = tuple(np.flatnonzero(m) for m in found)
+    return cols[:len(elems)], cols[len(elems):]
+
+
 def _leg_stiffness_pins(w, S, A, B, Q, bracket, p, r4, d4, section: Section, spring, zone, options: FrameOptions, xp,
-                        fp: FrameParams, zones_on):
+                        fp: FrameParams, zones_on, parts_only: bool = False):
     """One leg with the CAD's axial layering (``FrameOptions(pins=True)``, hapticopt.design.prrr.cad layers).
 
     Along w from the plane Π of A, B, B' (λ = link thickness + clearance): carriage clevis at −λ,
@@ -643,6 +812,8 @@ def _leg_stiffness_pins(w, S, A, B, Q, bracket, p, r4, d4, section: Section, spr
     G_Q2l = _hinge(G_Q2, L["phi3"], w, xp)
     G_Bp = rigid_map(Bp2 - Q2, xp) @ G_Q2l  # rigid riser
     elems.append((_hinge(G_B2, L["phi2"], w, xp), G_Bp, B2, Bp2, w, a, a, link))  # link d4 (R3 boss at Bp2)
+    if parts_only:
+        return elems, springs
     K = _assemble(n, L, elems, section, spring, options, xp, springs)
     G_nodes = xp.stack([G_S, G_Ac, G_Bc, G_Bp, G_Ql])
     return K, G_nodes, xp.stack([S, Ac, B, Bp2, Ql])
@@ -840,6 +1011,6 @@ __all__ = [
     "COND_LIMIT", "LOAD_HEIGHT", "FrameOptions", "FrameParams", "Joints", "Offsets", "Section",
     "beam_global_stiffness", "beam_local_stiffness", "cantilever_compliance", "circle_properties",
     "closed_form_tip_deflection", "bond_stiffness", "bracket_frame",
-    "dof_count", "frame_arrays", "frame_params_of", "section_properties", "solve_frame",
+    "dof_count", "frame_arrays", "frame_params_many", "frame_params_of", "section_properties", "solve_frame",
     "solve_frame_batch", "solve_frame_jax", "stack_frame_params",
 ]

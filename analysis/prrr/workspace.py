@@ -264,6 +264,14 @@ def _in_hole(r, holes, xp):
     return xp.any(iok[:, None, :] & (ilo[:, None, :] < r[..., None]) & (r[..., None] < ihi[:, None, :]), axis=-1)
 
 
+def _direction(x, y, xp):
+    """(cos, sin) of arctan2(y, x) without the arctangent: (x, y)/|(x, y)|, and (1, 0) at the origin."""
+    n = xp.sqrt(x**2 + y**2)
+    pos = n > 0.0
+    n = xp.where(pos, n, 1.0)
+    return xp.where(pos, x / n, 1.0), xp.where(pos, y / n, 0.0)
+
+
 def workspace_core(wp: WorkspaceParams, *, n_phi: int, n_r: int, xp=np) -> dict:
     """All workspace quantities of one design in SI.
 
@@ -299,13 +307,19 @@ def workspace_core(wp: WorkspaceParams, *, n_phi: int, n_r: int, xp=np) -> dict:
     ca, sa = xp.cos(phi[:, None, None] - gam), xp.sin(phi[:, None, None] - gam)  # (n_phi, 1, 3)
     rv = (r[..., None] * ca - cu) / s  # in-plane R1→R3 vector per leg, (n_phi, n_r, 3)
     rt = r[..., None] * sa - wp.d2
-    c2 = (rv**2 + rt**2 - wp.d3**2 - wp.d4**2) / (2.0 * wp.d3 * wp.d4)
-    th2 = (1.0 - 2.0 * ELBOW_BRANCH) * xp.arccos(xp.clip(c2, -1.0, 1.0))
-    th1 = xp.arctan2(rt, rv) - xp.arctan2(wp.d4 * xp.sin(th2), wp.d3 + wp.d4 * xp.cos(th2))
+    c2 = xp.clip((rv**2 + rt**2 - wp.d3**2 - wp.d4**2) / (2.0 * wp.d3 * wp.d4), -1.0, 1.0)  # cos θ2
+    s2 = (1.0 - 2.0 * ELBOW_BRANCH) * xp.sqrt(1.0 - c2**2)  # sin θ2 on the elbow branch
+    # θ1 = atan2(rt, rv) − atan2(d4 sin θ2, d3 + d4 cos θ2), taken through its cosine and sine (the
+    # angle-difference formulas; no inverse trigonometry: XLA's float64 arctan2/arccos were most of
+    # this group's batched cost); a zero vector has the angle 0, as arctan2(0, 0)
+    ca1, sa1 = _direction(rv, rt, xp)
+    cg, sg = _direction(wp.d3 + wp.d4 * c2, wp.d4 * s2, xp)
+    c1, s1 = ca1 * cg + sa1 * sg, sa1 * cg - ca1 * sg  # cos θ1, sin θ1
+    c12, s12 = c1 * c2 - s1 * s2, s1 * c2 + c1 * s2  # cos, sin of θ1 + θ2
     # xy of the R2 axis point B in leg coordinates (u, t): A + d3·(cos θ1 sin β, sin θ1)
-    bu, bt = wp.d1 + wp.d3 * xp.cos(th1) * s, wp.d2 + wp.d3 * xp.sin(th1)
-    qu = bu + wp.d4 * xp.cos(th1 + th2) * s - wp.r4 * xp.cos(wp.beta)
-    qt = bt + wp.d4 * xp.sin(th1 + th2)
+    bu, bt = wp.d1 + wp.d3 * c1 * s, wp.d2 + wp.d3 * s1
+    qu = bu + wp.d4 * c12 * s - wp.r4 * xp.cos(wp.beta)
+    qt = bt + wp.d4 * s12
     radius = xp.maximum(xp.sqrt(bu**2 + bt**2), xp.sqrt(qu**2 + qt**2))
     link_extent = xp.max(xp.where(mask[..., None], radius, 0.0))
     link_extent = xp.maximum(link_extent, xp.sqrt(wp.d1**2 + wp.d2**2)) + wp.boss_radius

@@ -283,3 +283,57 @@ def test_bracket_frame_is_the_cads_bracket(paper):
                         section=fp.section._replace(youngs_modulus=fp.section.youngs_modulus))
     k_stiff = fm.solve_frame(stiff, options=bonded)["stiffness_load"]
     assert np.all(k < k_stiff)
+
+
+@pytest.mark.parametrize("options", [fm.FrameOptions(), fm.FrameOptions(sea=True, joints=fm.Joints.BONDED),
+                                     fm.FrameOptions(pins=False), fm.FrameOptions(offsets=fm.Offsets.RIGID),
+                                     fm.FrameOptions(pin_model=fm.PinModel.BEAM)])
+def test_sparse_assembly_equals_the_dense_sum(options):
+    # reference: the numpy path's dense K = Σ G_eᵀ K_e G_e (+ springs) over every column of each map;
+    # the jax path multiplies only the columns of fm._supports. The inputs differ from those
+    # _supports drew its pattern from (seed 1 here, 0 there), so a column it missed would show as a
+    # missing term; the nonzero terms are the same, so the two agree to rounding.
+    import jax
+    import jax.numpy as jnp
+
+    rng = np.random.default_rng(1)
+    r = lambda *shape: rng.uniform(0.5, 1.5, shape)  # noqa: E731
+    w = r(3)
+    w = w / np.linalg.norm(w)
+    sec = fm.Section(*r(4))
+    fp = fm.FrameParams(kin=fm.PrrrParams(*r(8)), r_p=r(), theta_1p=r(), section=sec, spring=r(), joint_zone=r(),
+                        pin_diameter=r(), layer=r(), lug_offset=r(), stem_radius=r(), bracket_points=r(3, 3),
+                        root_zref=r(3), root_section=r(2), bracket_bonds=r(2, 6, 6))
+    args = (w, r(3), r(3), r(3), r(3), (r(3, 3), r(3), r(2, 6, 6)), r(3), r(), r(), sec, r(), r(), options)
+    K_np = fm._leg_stiffness(*args, xp=np, fp=fp)[0]
+    K_jax = np.asarray(fm._leg_stiffness(*jax.tree.map(jnp.asarray, args[:-1]), options, xp=jnp,
+                                         fp=jax.tree.map(jnp.asarray, fp))[0])
+    assert K_jax.shape == K_np.shape
+    np.testing.assert_allclose(K_jax, K_np, rtol=0, atol=1e-13 * np.abs(K_np).max())
+
+
+def test_frame_params_many_equals_stacked_frame_params_of(paper):
+    # reference: frame_params_of per design (numpy), stacked. The batch covers the side face, the
+    # front-face fallback (θ_1p = 0 on a 60 mm rail) and a bracket no face can carry (β = 5°: the
+    # unchecked side face), as in tests/design/prrr/test_cad.py. Bitwise equal but for the bonds,
+    # where numpy's vectorised power differs from the scalar one in the last bit (measured ≤ 1e-19 of
+    # each bond matrix's largest entry on 512 designs)
+    import jax
+
+    from hapticopt.design.prrr import cad
+
+    wide = io.apply_overrides(paper, ["geometry.theta_1p_deg=0", "structure.rail_width_mm=60"])
+    refused = io.apply_overrides(paper, ["geometry.beta_deg=5"])
+    designs = [paper, wide, refused, io.apply_overrides(paper, ["geometry.d3_mm=90", "geometry.r_p_mm=110"])]
+    assert cad.carriage_bracket(wide).face == "front"
+    with pytest.raises(fm.InvalidDesign):
+        cad.carriage_bracket(refused)
+    many = fm.frame_params_many(designs)
+    each = jax.tree.map(lambda *xs: np.stack(xs), *[fm.frame_params_of(d, xp=np) for d in designs])
+    for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(many), jax.tree.leaves(each), strict=True):
+        assert a.shape == b.shape, jax.tree_util.keystr(path)
+        if jax.tree_util.keystr(path) == ".bracket_bonds":
+            scale = np.abs(b).max(axis=(-1, -2), keepdims=True)
+            assert np.all(np.abs(a - b) <= 1e-15 * scale)
+        else:
+            np.testing.assert_array_equal(a, b, err_msg=jax.tree_util.keystr(path))
