@@ -219,3 +219,173 @@ def check_poses(Rp, tp, owner, reachable, pc_all, ph_all, pp_a, pp_b, start, cou
                              d, sgn, rim, sa, sb)
                 if dep > depth[q, jj]:
                     depth[q, jj] = dep
+
+
+# ---------------------------------------------------------------------------- poses from joint values
+#: how each part's frame follows from the joint values (interference_fast._frame_rules; the rules of
+#: hapticopt.design.prrr.cad.part_frames_arrays): fixed at the origin (base, rails, screws, motors),
+#: sliding along z with its leg's slider (carriage, housing), the leg's first or second link, platform
+_FIXED, _SLIDE, _LINK1, _LINK2, _PLATFORM = 0, 1, 2, 3, 4
+
+
+@njit(cache=True, inline="always")
+def _part_box(R, t, pc, ph, wc, wh, j):
+    """World box (centre wc[j], half widths wh[j]) of part j with rotation R and origin t; the
+    products of :func:`check_poses` in their order."""
+    for i in range(3):
+        wc[j, i] = (R[i, 0] * pc[j, 0] + R[i, 1] * pc[j, 1] + R[i, 2] * pc[j, 2]) + t[i]
+        wh[j, i] = abs(R[i, 0]) * ph[j, 0] + abs(R[i, 1]) * ph[j, 1] + abs(R[i, 2]) * ph[j, 2]
+
+
+@njit(cache=True, inline="always")
+def _extent(k, Rw, h, i):
+    """World half extent along axis i of a primitive of kind k (:func:`_pose_primitive`'s)."""
+    a0, a1, a2 = abs(Rw[i, 0]), abs(Rw[i, 1]), abs(Rw[i, 2])
+    if k == _BOX:
+        return a0 * h[0] + a1 * h[1] + a2 * h[2]
+    if k == _CYL:
+        s = 1.0 - a2 * a2
+        return h[2] * a2 + h[0] * math.sqrt(s if s > 0.0 else 0.0)
+    return h[0]
+
+
+@njit(cache=True, inline="always")
+def _rotate_primitive(p, Rf, Rl, ol, h, k, Rw, ro, ext):
+    """World rotation Rw[p], rotated centre ro[p] (add the part origin for the world centre) and world
+    half extents ext[p] of primitive p in a part of rotation Rf (:func:`_pose_primitive`'s products)."""
+    for i in range(3):
+        for kk in range(3):
+            Rw[p, i, kk] = Rf[i, 0] * Rl[0, kk] + Rf[i, 1] * Rl[1, kk] + Rf[i, 2] * Rl[2, kk]
+    for i in range(3):
+        ro[p, i] = Rf[i, 0] * ol[0] + Rf[i, 1] * ol[1] + Rf[i, 2] * ol[2]
+        ext[p, i] = _extent(k, Rw[p], h, i)
+
+
+@njit(cache=True)
+def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rslide, W, V, U, T, d1, d2, d3,
+                      pc_all, ph_all, pp_a, pp_b, start, count, pair_a, pair_b, prim_part, kind, Rprim_all,
+                      oprim_all, half_all, sgn, rim, depth):
+    """:func:`check_poses` with the part frames built here from the joint values (the products of
+    :func:`hapticopt.design.prrr.cad.part_frames_arrays`, term by term): ``depth`` (n, part pairs) as
+    :func:`check_poses` writes it from those frames, bit for bit.
+
+    rule, leg (parts,): each part's frame rule (_FIXED … _PLATFORM) and leg index; per pose: D (n, 3)
+    sliders [m], c1, s1, c12, s12 (n, 3) cos / sin of θ₁ and of θ₁ + θ₂ per leg, pts (n, 3) platform
+    origin [m]; per design: Rslide (m, 3 legs, 3, 3) carriage rotation, W, V (m, 3 legs, 3) the legs'
+    joint axis w and v, d1, d2, d3 (m,) [m]; U, T (3 legs, 3) the legs' u and t. The frames of the
+    fixed and sliding parts (rotation constant per design) and their primitives' rotations, rotated
+    centres and extents are computed once per run of poses of one design; per pose only the origin is
+    added, as in :func:`check_poses`."""
+    n, n_parts = D.shape[0], rule.shape[0]
+    P = kind.shape[0]
+    Rq = np.zeros((n_parts, 3, 3))  # part rotations of the pose (moving parts) or of the design (fixed)
+    tq = np.zeros((n_parts, 3))
+    wc = np.empty((n_parts, 3))
+    wh = np.empty((n_parts, 3))
+    Rpc = np.empty((n_parts, 3))  # fixed parts: rotated box centre (add the origin)
+    stamp = np.full(P, -1, dtype=np.int64)
+    Rw = np.empty((P, 3, 3))
+    ro = np.empty((P, 3))
+    ext = np.empty((P, 3))
+    cw = np.empty((P, 3))
+    lo = np.empty((P, 3))
+    hi = np.empty((P, 3))
+    fixed_prim = np.empty(P, dtype=np.bool_)
+    for p in range(P):
+        fixed_prim[p] = rule[prim_part[p]] <= _SLIDE
+    A = np.empty((3, 3))
+    e1 = np.empty((3, 3))
+    e12 = np.empty((3, 3))
+    d = np.empty(3)
+    sa = np.empty((sgn.shape[0], 3))
+    sb = np.empty((sgn.shape[0], 3))
+    last = -1
+    for q in range(n):
+        if not reachable[q]:
+            continue
+        m = owner[q]
+        pc, ph = pc_all[m], ph_all[m]
+        Rprim, oprim, half = Rprim_all[m], oprim_all[m], half_all[m]
+        if m != last:  # a new design: its fixed and sliding parts' rotations, boxes and primitives
+            last = m
+            for j in range(n_parts):
+                if rule[j] == _FIXED:
+                    for i in range(3):
+                        for kk in range(3):
+                            Rq[j, i, kk] = 1.0 if i == kk else 0.0
+                elif rule[j] == _SLIDE:
+                    Rq[j] = Rslide[m, leg[j]]
+                else:
+                    continue
+                for i in range(3):
+                    R = Rq[j]
+                    Rpc[j, i] = R[i, 0] * pc[j, 0] + R[i, 1] * pc[j, 1] + R[i, 2] * pc[j, 2]
+                    wh[j, i] = abs(R[i, 0]) * ph[j, 0] + abs(R[i, 1]) * ph[j, 1] + abs(R[i, 2]) * ph[j, 2]
+            for p in range(P):
+                if fixed_prim[p]:
+                    _rotate_primitive(p, Rq[prim_part[p]], Rprim[p], oprim[p], half[p], kind[p], Rw, ro, ext)
+        # the legs' link frames (cad.part_frames_arrays: e1, e12, A = D ez + d1 u + d2 t, B = A + d3 e1)
+        for k in range(3):
+            Dk = D[q, k]
+            for i in range(3):
+                v, t = V[m, k, i], T[k, i]
+                e1[k, i] = c1[q, k] * v + s1[q, k] * t
+                e12[k, i] = c12[q, k] * v + s12[q, k] * t
+                A[k, i] = (Dk * (1.0 if i == 2 else 0.0) + d1[m] * U[k, i]) + d2[m] * t
+        for j in range(n_parts):
+            r = rule[j]
+            if r == _FIXED:
+                continue
+            k = leg[j]
+            if r == _SLIDE:
+                Dk = D[q, k]
+                tq[j, 0], tq[j, 1], tq[j, 2] = Dk * 0.0, Dk * 0.0, Dk * 1.0
+            elif r == _PLATFORM:
+                for i in range(3):
+                    for kk in range(3):
+                        Rq[j, i, kk] = 1.0 if i == kk else 0.0
+                    tq[j, i] = pts[q, i]
+            else:
+                x = e1[k] if r == _LINK1 else e12[k]
+                w = W[m, k]
+                for i in range(3):
+                    Rq[j, i, 0] = x[i]
+                    Rq[j, i, 2] = w[i]
+                    tq[j, i] = A[k, i] if r == _LINK1 else A[k, i] + d3[m] * e1[k, i]
+                Rq[j, 0, 1] = w[1] * x[2] - w[2] * x[1]  # np.cross(w, x)'s terms
+                Rq[j, 1, 1] = w[2] * x[0] - w[0] * x[2]
+                Rq[j, 2, 1] = w[0] * x[1] - w[1] * x[0]
+        for j in range(n_parts):
+            if rule[j] <= _SLIDE:
+                for i in range(3):
+                    wc[j, i] = Rpc[j, i] + tq[j, i]
+            else:
+                _part_box(Rq[j], tq[j], pc, ph, wc, wh, j)
+        for jj in range(pp_a.shape[0]):
+            a, b = pp_a[jj], pp_b[jj]
+            near = True
+            for i in range(3):
+                if not abs(wc[a, i] - wc[b, i]) <= wh[a, i] + wh[b, i]:
+                    near = False
+                    break
+            if not near:
+                continue
+            for k in range(start[jj], start[jj] + count[jj]):
+                pa, pb = pair_a[k], pair_b[k]
+                for pp in (pa, pb):
+                    if stamp[pp] != q:
+                        stamp[pp] = q
+                        j = prim_part[pp]
+                        if not fixed_prim[pp]:
+                            _rotate_primitive(pp, Rq[j], Rprim[pp], oprim[pp], half[pp], kind[pp], Rw, ro, ext)
+                        for i in range(3):
+                            cw[pp, i] = ro[pp, i] + tq[j, i]
+                            lo[pp, i] = cw[pp, i] - ext[pp, i]
+                            hi[pp, i] = cw[pp, i] + ext[pp, i]
+                if not (lo[pa, 0] <= hi[pb, 0] and lo[pa, 1] <= hi[pb, 1] and lo[pa, 2] <= hi[pb, 2]
+                        and lo[pb, 0] <= hi[pa, 0] and lo[pb, 1] <= hi[pa, 1] and lo[pb, 2] <= hi[pa, 2]):
+                    continue
+                dep = _depth(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
+                             d, sgn, rim, sa, sb)
+                if dep > depth[q, jj]:
+                    depth[q, jj] = dep

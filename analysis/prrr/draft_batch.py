@@ -193,7 +193,8 @@ class _Checker:
         for members in groups.values():
             local = np.full(len(designs), -1)
             local[members] = np.arange(len(members))
-            self.groups.append((local, FAST.stack_models([models[i] for i in members])))
+            geometry = FAST.LegGeometry(*(self.geo[f][members] for f in FAST.LegGeometry._fields))
+            self.groups.append((local, FAST.stack_models([models[i] for i in members]), geometry))
 
     def pose_ik(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Sliders (n, 3), elbow-branch joint angles (n, 3, 3) and reachability (n,) of poses ``pts``
@@ -216,15 +217,11 @@ class _Checker:
         if n == 0:
             return collides, reachable, depth
         sliders, theta, ok = self.pose_ik(owner, pts)
-        g = self.geo
-        frames = cad.part_frames_arrays(g["beta"][owner], g["d1"][owner], g["d2"][owner], g["d3"][owner],
-                                        g["theta_1p"][owner], sliders, theta, pts)
-        for local, batch in self.groups:
+        for local, batch, geometry in self.groups:
             sel = np.flatnonzero(local[owner] >= 0)
             if len(sel) == 0:
                 continue
-            fr = {k: (R[sel], o[sel]) for k, (R, o) in frames.items()}
-            res = FAST.check_posed(batch, local[owner[sel]], pts[sel], fr, ok[sel])
+            res = FAST.check_joints(batch, local[owner[sel]], pts[sel], sliders[sel], theta[sel], ok[sel], geometry)
             collides[sel] = res.collides
             reachable[sel] = res.reachable
             depth[sel] = res.depth.max(axis=1) if res.depth.shape[1] else 0.0
