@@ -261,6 +261,36 @@ def _rotate_primitive(p, Rf, Rl, ol, h, k, Rw, ro, ext):
         ext[p, i] = _extent(k, Rw[p], h, i)
 
 
+@njit(cache=True, inline="always")
+def _fixed_part(rule, j):
+    """Whether part j's rotation is constant over the poses of a design (fixed or sliding along z)."""
+    return rule[j] <= _SLIDE
+
+
+@njit(cache=True)
+def _separated_across_z(ka, Ra, ha, kb, Rb, hb, d0, d1):
+    """Whether one of :func:`_depth`'s axes with no z component (a frame axis or a cross product of
+    frame axes whose z is exactly 0) has an overlap ≤ 0, for two primitives whose centres differ by
+    (d0, d1, ·). On such an axis the overlap is :func:`_overlap`'s bit for bit whatever the z offset of
+    the centres (its z term is ±0), so a pair of parts that only slide along z is then separated, depth
+    ≤ 0, at every pose of the design."""
+    d = np.array([d0, d1, 0.0])
+    for i in range(3):
+        if Ra[2, i] == 0.0 and _overlap(ka, Ra, ha, kb, Rb, hb, d, Ra[0, i], Ra[1, i], 0.0) <= 0.0:
+            return True
+        if Rb[2, i] == 0.0 and _overlap(ka, Ra, ha, kb, Rb, hb, d, Rb[0, i], Rb[1, i], 0.0) <= 0.0:
+            return True
+    for i in range(3):
+        a0, a1, a2 = Ra[0, i], Ra[1, i], Ra[2, i]
+        for j in range(3):
+            b0, b1, b2 = Rb[0, j], Rb[1, j], Rb[2, j]
+            x2 = a0 * b1 - a1 * b0
+            if x2 == 0.0 and _unit_overlap(ka, Ra, ha, kb, Rb, hb, d, a1 * b2 - a2 * b1, a2 * b0 - a0 * b2,
+                                           x2) <= 0.0:
+                return True
+    return False
+
+
 @njit(cache=True)
 def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rslide, W, V, U, T, d1, d2, d3,
                       pc_all, ph_all, pp_a, pp_b, start, count, pair_a, pair_b, prim_part, kind, Rprim_all,
@@ -292,7 +322,22 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
     hi = np.empty((P, 3))
     fixed_prim = np.empty(P, dtype=np.bool_)
     for p in range(P):
-        fixed_prim[p] = rule[prim_part[p]] <= _SLIDE
+        fixed_prim[p] = rule[prim_part[p]] != _LINK1 and rule[prim_part[p]] != _LINK2
+    n_fixed = 0
+    for jj in range(pp_a.shape[0]):
+        n_fixed += _fixed_part(rule, pp_a[jj]) and _fixed_part(rule, pp_b[jj])
+    fixed_pairs = np.empty(n_fixed, dtype=np.int64)
+    moving_pairs = np.empty(pp_a.shape[0] - n_fixed, dtype=np.int64)
+    nf = nm = 0
+    for jj in range(pp_a.shape[0]):
+        if _fixed_part(rule, pp_a[jj]) and _fixed_part(rule, pp_b[jj]):
+            fixed_pairs[nf] = jj
+            nf += 1
+        else:
+            moving_pairs[nm] = jj
+            nm += 1
+    live = np.zeros(pp_a.shape[0], dtype=np.bool_)  # per design: a fixed pair can meet at some z
+    pair_live = np.zeros(pair_a.shape[0], dtype=np.bool_)  # … and its primitive pair
     A = np.empty((3, 3))
     e1 = np.empty((3, 3))
     e12 = np.empty((3, 3))
@@ -309,7 +354,7 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
         if m != last:  # a new design: its fixed and sliding parts' rotations, boxes and primitives
             last = m
             for j in range(n_parts):
-                if rule[j] == _FIXED:
+                if rule[j] == _FIXED or rule[j] == _PLATFORM:
                     for i in range(3):
                         for kk in range(3):
                             Rq[j, i, kk] = 1.0 if i == kk else 0.0
@@ -324,6 +369,24 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
             for p in range(P):
                 if fixed_prim[p]:
                     _rotate_primitive(p, Rq[prim_part[p]], Rprim[p], oprim[p], half[p], kind[p], Rw, ro, ext)
+            # pairs of fixed and sliding parts: their x and y are the design's (the origins' x, y are ±0), so
+            # the x, y tests of their boxes and the axes with no z component are decided once per design
+            for jj in fixed_pairs:
+                a, b = pp_a[jj], pp_b[jj]
+                live[jj] = (abs(Rpc[a, 0] - Rpc[b, 0]) <= wh[a, 0] + wh[b, 0]
+                            and abs(Rpc[a, 1] - Rpc[b, 1]) <= wh[a, 1] + wh[b, 1])
+                if not live[jj]:
+                    continue
+                live[jj] = False
+                for k in range(start[jj], start[jj] + count[jj]):
+                    pa, pb = pair_a[k], pair_b[k]
+                    pair_live[k] = ((ro[pa, 0] - ext[pa, 0]) <= (ro[pb, 0] + ext[pb, 0])
+                                    and (ro[pa, 1] - ext[pa, 1]) <= (ro[pb, 1] + ext[pb, 1])
+                                    and (ro[pb, 0] - ext[pb, 0]) <= (ro[pa, 0] + ext[pa, 0])
+                                    and (ro[pb, 1] - ext[pb, 1]) <= (ro[pa, 1] + ext[pa, 1])
+                                    and not _separated_across_z(kind[pa], Rw[pa], half[pa], kind[pb], Rw[pb], half[pb],
+                                                                ro[pb, 0] - ro[pa, 0], ro[pb, 1] - ro[pa, 1]))
+                    live[jj] = live[jj] or pair_live[k]
         # the legs' link frames (cad.part_frames_arrays: e1, e12, A = D ez + d1 u + d2 t, B = A + d3 e1)
         for k in range(3):
             Dk = D[q, k]
@@ -342,8 +405,6 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                 tq[j, 0], tq[j, 1], tq[j, 2] = Dk * 0.0, Dk * 0.0, Dk * 1.0
             elif r == _PLATFORM:
                 for i in range(3):
-                    for kk in range(3):
-                        Rq[j, i, kk] = 1.0 if i == kk else 0.0
                     tq[j, i] = pts[q, i]
             else:
                 x = e1[k] if r == _LINK1 else e12[k]
@@ -356,12 +417,37 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                 Rq[j, 1, 1] = w[2] * x[0] - w[0] * x[2]
                 Rq[j, 2, 1] = w[0] * x[1] - w[1] * x[0]
         for j in range(n_parts):
-            if rule[j] <= _SLIDE:
+            if rule[j] != _LINK1 and rule[j] != _LINK2:
                 for i in range(3):
                     wc[j, i] = Rpc[j, i] + tq[j, i]
             else:
                 _part_box(Rq[j], tq[j], pc, ph, wc, wh, j)
-        for jj in range(pp_a.shape[0]):
+        for jj in fixed_pairs:  # x, y decided for the design above: z here
+            if not live[jj]:
+                continue
+            a, b = pp_a[jj], pp_b[jj]
+            if not abs(wc[a, 2] - wc[b, 2]) <= wh[a, 2] + wh[b, 2]:
+                continue
+            for k in range(start[jj], start[jj] + count[jj]):
+                if not pair_live[k]:
+                    continue
+                pa, pb = pair_a[k], pair_b[k]
+                ja, jb = prim_part[pa], prim_part[pb]
+                ca2, cb2 = ro[pa, 2] + tq[ja, 2], ro[pb, 2] + tq[jb, 2]
+                if not (ca2 - ext[pa, 2] <= cb2 + ext[pb, 2] and cb2 - ext[pb, 2] <= ca2 + ext[pa, 2]):
+                    continue
+                for pp in (pa, pb):
+                    if stamp[pp] != q:
+                        stamp[pp] = q
+                        for i in range(3):
+                            cw[pp, i] = ro[pp, i] + tq[prim_part[pp], i]
+                            lo[pp, i] = cw[pp, i] - ext[pp, i]
+                            hi[pp, i] = cw[pp, i] + ext[pp, i]
+                dep = _depth(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
+                             d, sgn, rim, sa, sb)
+                if dep > depth[q, jj]:
+                    depth[q, jj] = dep
+        for jj in moving_pairs:
             a, b = pp_a[jj], pp_b[jj]
             near = True
             for i in range(3):
