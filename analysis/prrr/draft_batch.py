@@ -194,7 +194,8 @@ class _Checker:
             local = np.full(len(designs), -1)
             local[members] = np.arange(len(members))
             geometry = FAST.LegGeometry(*(self.geo[f][members] for f in FAST.LegGeometry._fields))
-            self.groups.append((local, FAST.stack_models([models[i] for i in members]), geometry))
+            batch = FAST.stack_models([models[i] for i in members])
+            self.groups.append((local, batch, geometry, FAST.joint_tables(batch, geometry)))
 
     def pose_ik(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Sliders (n, 3), elbow-branch joint angles (n, 3, 3) and reachability (n,) of poses ``pts``
@@ -217,11 +218,12 @@ class _Checker:
         if n == 0:
             return collides, reachable, depth
         sliders, theta, ok = self.pose_ik(owner, pts)
-        for local, batch, geometry in self.groups:
+        for local, batch, geometry, tables in self.groups:
             sel = np.flatnonzero(local[owner] >= 0)
             if len(sel) == 0:
                 continue
-            res = FAST.check_joints(batch, local[owner[sel]], pts[sel], sliders[sel], theta[sel], ok[sel], geometry)
+            res = FAST.check_joints(batch, local[owner[sel]], pts[sel], sliders[sel], theta[sel], ok[sel], geometry,
+                                    tables=tables)
             collides[sel] = res.collides
             reachable[sel] = res.reachable
             depth[sel] = res.depth.max(axis=1) if res.depth.shape[1] else 0.0

@@ -542,33 +542,24 @@ def _frame_rules(part_names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray] |
     return np.asarray(rule, dtype=np.int64), np.asarray(leg, dtype=np.int64)
 
 
-def check_joints(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray, sliders: np.ndarray,
-                 theta: np.ndarray, reachable: np.ndarray, geometry: LegGeometry, *,
-                 compiled: bool | None = None) -> FastResult:
-    """:func:`check_posed` at poses given by their joint values: sliders (n, 3) [m], joint angles
-    theta (n, 3 legs, ≥ 2) [rad] of one IK branch, platform at ``points`` (n, 3) [m]; ``geometry``
-    per design of ``batch``. The part frames are :func:`hapticopt.design.prrr.cad.part_frames_arrays`'s:
-    the compiled kernel (:func:`._interference_kernels.check_joint_poses`) builds them per pose from
-    the same products in the same order (the depths are bit for bit those of :func:`check_posed` on
-    ``part_frames_arrays``' frames; tested), so no per-pose frame arrays are stacked; the numpy path
-    builds the frames and runs :func:`check_posed`'s. ``compiled`` as :func:`check_posed`."""
-    pts = np.atleast_2d(np.asarray(points, dtype=float))
-    n = len(pts)
-    use = _use_kernel(n, compiled)
-    owner = np.asarray(owner, dtype=int)
-    sliders, theta = np.asarray(sliders, dtype=float), np.asarray(theta, dtype=float)
-    rules = _frame_rules(batch.part_names)
-    if not use or rules is None:
-        g = geometry
-        frames = cad_prrr.part_frames_arrays(g.beta[owner], g.d1[owner], g.d2[owner], g.d3[owner],
-                                             g.theta_1p[owner], sliders, theta, pts)
-        return _check_frames(batch, owner, pts, frames, reachable, compiled=use)
-    from hapticopt.analysis.prrr import _interference_kernels as K  # loaded by availability()
+class JointTables(NamedTuple):
+    """The per-batch inputs of :func:`._interference_kernels.check_joint_poses` (:func:`joint_tables`):
+    ``head`` the frame rules, ``design`` the legs' per-design vectors and lengths, ``tail`` the part
+    boxes, pair tables, primitives and sample tables, each a tuple in the kernel's argument order."""
 
+    head: tuple
+    design: tuple
+    tail: tuple
+
+
+def joint_tables(batch: PrimitiveBatch, geometry: LegGeometry) -> JointTables | None:
+    """:func:`check_joints`' per-batch tables (compute once, pass to every call on the batch); None
+    where a part has no frame rule (:func:`_frame_rules`)."""
+    rules = _frame_rules(batch.part_names)
+    if rules is None:
+        return None
     i64 = functools.partial(np.ascontiguousarray, dtype=np.int64)
     f64 = functools.partial(np.ascontiguousarray, dtype=np.float64)
-    reachable = np.ascontiguousarray(reachable, dtype=np.bool_)
-    depth = np.zeros((n, len(batch.part_pairs)))
     pc_all, ph_all, pp_a, pp_b, start, count = _part_boxes(batch)
     # per design: the legs' vectors (cad.leg_vectors' products as part_frames_arrays forms them)
     beta = np.asarray(geometry.beta, dtype=float)
@@ -586,12 +577,46 @@ def check_joints(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray, s
     Rslide[..., 0, 0], Rslide[..., 1, 0] = ca, sa
     Rslide[..., 0, 1], Rslide[..., 1, 1] = -sa, ca
     Rslide[..., 2, 2] = 1.0
+    return JointTables(
+        head=rules,
+        design=(Rslide, f64(W), f64(V), f64(U), f64(T), f64(geometry.d1), f64(geometry.d2), f64(geometry.d3)),
+        tail=(f64(pc_all), f64(ph_all), i64(pp_a), i64(pp_b), i64(start), i64(count), i64(batch.pair_a),
+              i64(batch.pair_b), i64(batch.prim_part), i64(batch.kind), f64(batch.R), f64(batch.o), f64(batch.half),
+              *_sample_tables()))
+
+
+def check_joints(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray, sliders: np.ndarray,
+                 theta: np.ndarray, reachable: np.ndarray, geometry: LegGeometry, *,
+                 tables: JointTables | None = None, compiled: bool | None = None) -> FastResult:
+    """:func:`check_posed` at poses given by their joint values: sliders (n, 3) [m], joint angles
+    theta (n, 3 legs, ≥ 2) [rad] of one IK branch, platform at ``points`` (n, 3) [m]; ``geometry``
+    per design of ``batch``. The part frames are :func:`hapticopt.design.prrr.cad.part_frames_arrays`'s:
+    the compiled kernel (:func:`._interference_kernels.check_joint_poses`) builds them per pose from
+    the same products in the same order (the depths are bit for bit those of :func:`check_posed` on
+    ``part_frames_arrays``' frames; tested), so no per-pose frame arrays are stacked; the numpy path
+    builds the frames and runs :func:`check_posed`'s. ``tables``: :func:`joint_tables` of ``batch`` and
+    ``geometry`` (computed when omitted); ``compiled`` as :func:`check_posed`."""
+    pts = np.atleast_2d(np.asarray(points, dtype=float))
+    n = len(pts)
+    use = _use_kernel(n, compiled)
+    owner = np.asarray(owner, dtype=int)
+    sliders, theta = np.asarray(sliders, dtype=float), np.asarray(theta, dtype=float)
+    if use and tables is None:
+        tables = joint_tables(batch, geometry)
+    if not use or tables is None:
+        g = geometry
+        frames = cad_prrr.part_frames_arrays(g.beta[owner], g.d1[owner], g.d2[owner], g.d3[owner],
+                                             g.theta_1p[owner], sliders, theta, pts)
+        return _check_frames(batch, owner, pts, frames, reachable, compiled=use)
+    from hapticopt.analysis.prrr import _interference_kernels as K  # loaded by availability()
+
+    f64 = functools.partial(np.ascontiguousarray, dtype=np.float64)
+    reachable = np.ascontiguousarray(reachable, dtype=np.bool_)
+    depth = np.zeros((n, len(batch.part_pairs)))
     th1, th12 = theta[:, :, 0], theta[:, :, 0] + theta[:, :, 1]
-    K.check_joint_poses(*rules, f64(sliders), f64(np.cos(th1)), f64(np.sin(th1)), f64(np.cos(th12)),
-                        f64(np.sin(th12)), f64(pts), i64(owner), reachable, Rslide, f64(W), f64(V), f64(U), f64(T),
-                        f64(geometry.d1), f64(geometry.d2), f64(geometry.d3), f64(pc_all), f64(ph_all), i64(pp_a),
-                        i64(pp_b), i64(start), i64(count), i64(batch.pair_a), i64(batch.pair_b), i64(batch.prim_part),
-                        i64(batch.kind), f64(batch.R), f64(batch.o), f64(batch.half), *_sample_tables(), depth)
+    K.check_joint_poses(*tables.head, f64(sliders), f64(np.cos(th1)), f64(np.sin(th1)), f64(np.cos(th12)),
+                        f64(np.sin(th12)), f64(pts), np.ascontiguousarray(owner, dtype=np.int64), reachable,
+                        *tables.design, *tables.tail, depth)
     return FastResult(points=pts, reachable=reachable, collides=np.any(depth > DEPTH_TOL, axis=1),
                       depth=depth, part_pairs=batch.part_pairs)
 
