@@ -226,6 +226,10 @@ def check_poses(Rp, tp, owner, reachable, pc_all, ph_all, pp_a, pp_b, start, cou
 #: hapticopt.design.prrr.cad.part_frames_arrays): fixed at the origin (base, rails, screws, motors),
 #: sliding along z with its leg's slider (carriage, housing), the leg's first or second link, platform
 _FIXED, _SLIDE, _LINK1, _LINK2, _PLATFORM = 0, 1, 2, 3, 4
+#: margin [m] of the union of a part's boxes over a run of one design's poses: far above the rounding of
+#: the boxes' bounds (~1e-16 m at these sizes), so a pair whose boxes meet at a pose (the exact test)
+#: meets in the unions
+RUN_MARGIN = 1e-9
 
 
 @njit(cache=True, inline="always")
@@ -259,6 +263,50 @@ def _rotate_primitive(p, Rf, Rl, ol, h, k, Rw, ro, ext):
     for i in range(3):
         ro[p, i] = Rf[i, 0] * ol[0] + Rf[i, 1] * ol[1] + Rf[i, 2] * ol[2]
         ext[p, i] = _extent(k, Rw[p], h, i)
+
+
+@njit(cache=True, inline="always")
+def _pose_frames(q, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc, ph, Rpc, Rq, tq, wc, wh,
+                 A, e1, e12):
+    """Rotations Rq and origins tq of the moving parts at pose q of design m (the sliding parts' and the
+    platform's origins; the fixed rotations are the design's, set up before) and every part's world box
+    (wc, wh): :func:`hapticopt.design.prrr.cad.part_frames_arrays`' products, term by term."""
+    n_parts = rule.shape[0]
+    # the legs' link frames (cad.part_frames_arrays: e1, e12, A = D ez + d1 u + d2 t, B = A + d3 e1)
+    for k in range(3):
+        Dk = D[q, k]
+        for i in range(3):
+            v, t = V[m, k, i], T[k, i]
+            e1[k, i] = c1[q, k] * v + s1[q, k] * t
+            e12[k, i] = c12[q, k] * v + s12[q, k] * t
+            A[k, i] = (Dk * (1.0 if i == 2 else 0.0) + d1[m] * U[k, i]) + d2[m] * t
+    for j in range(n_parts):
+        r = rule[j]
+        if r == _FIXED:
+            continue
+        k = leg[j]
+        if r == _SLIDE:
+            Dk = D[q, k]
+            tq[j, 0], tq[j, 1], tq[j, 2] = Dk * 0.0, Dk * 0.0, Dk * 1.0
+        elif r == _PLATFORM:
+            for i in range(3):
+                tq[j, i] = pts[q, i]
+        else:
+            x = e1[k] if r == _LINK1 else e12[k]
+            w = W[m, k]
+            for i in range(3):
+                Rq[j, i, 0] = x[i]
+                Rq[j, i, 2] = w[i]
+                tq[j, i] = A[k, i] if r == _LINK1 else A[k, i] + d3[m] * e1[k, i]
+            Rq[j, 0, 1] = w[1] * x[2] - w[2] * x[1]  # np.cross(w, x)'s terms
+            Rq[j, 1, 1] = w[2] * x[0] - w[0] * x[2]
+            Rq[j, 2, 1] = w[0] * x[1] - w[1] * x[0]
+    for j in range(n_parts):
+        if rule[j] != _LINK1 and rule[j] != _LINK2:
+            for i in range(3):
+                wc[j, i] = Rpc[j, i] + tq[j, i]
+        else:
+            _part_box(Rq[j], tq[j], pc, ph, wc, wh, j)
 
 
 @njit(cache=True, inline="always")
@@ -336,6 +384,10 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
         else:
             moving_pairs[nm] = jj
             nm += 1
+    live_moving = np.empty(moving_pairs.shape[0], dtype=np.int64)  # per run: the moving pairs that can meet
+    n_live = 0
+    ulo = np.empty((n_parts, 3))
+    uhi = np.empty((n_parts, 3))
     live = np.zeros(pp_a.shape[0], dtype=np.bool_)  # per design: a fixed pair can meet at some z
     pair_live = np.zeros(pair_a.shape[0], dtype=np.bool_)  # … and its primitive pair
     A = np.empty((3, 3))
@@ -387,41 +439,33 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                                     and not _separated_across_z(kind[pa], Rw[pa], half[pa], kind[pb], Rw[pb], half[pb],
                                                                 ro[pb, 0] - ro[pa, 0], ro[pb, 1] - ro[pa, 1]))
                     live[jj] = live[jj] or pair_live[k]
-        # the legs' link frames (cad.part_frames_arrays: e1, e12, A = D ez + d1 u + d2 t, B = A + d3 e1)
-        for k in range(3):
-            Dk = D[q, k]
-            for i in range(3):
-                v, t = V[m, k, i], T[k, i]
-                e1[k, i] = c1[q, k] * v + s1[q, k] * t
-                e12[k, i] = c12[q, k] * v + s12[q, k] * t
-                A[k, i] = (Dk * (1.0 if i == 2 else 0.0) + d1[m] * U[k, i]) + d2[m] * t
-        for j in range(n_parts):
-            r = rule[j]
-            if r == _FIXED:
-                continue
-            k = leg[j]
-            if r == _SLIDE:
-                Dk = D[q, k]
-                tq[j, 0], tq[j, 1], tq[j, 2] = Dk * 0.0, Dk * 0.0, Dk * 1.0
-            elif r == _PLATFORM:
+            # the pairs with a moving part whose boxes can meet at some pose of this run of the design's poses:
+            # every part's box over the run (a pair that meets at a pose has its boxes inside these)
+            for j in range(n_parts):
                 for i in range(3):
-                    tq[j, i] = pts[q, i]
-            else:
-                x = e1[k] if r == _LINK1 else e12[k]
-                w = W[m, k]
-                for i in range(3):
-                    Rq[j, i, 0] = x[i]
-                    Rq[j, i, 2] = w[i]
-                    tq[j, i] = A[k, i] if r == _LINK1 else A[k, i] + d3[m] * e1[k, i]
-                Rq[j, 0, 1] = w[1] * x[2] - w[2] * x[1]  # np.cross(w, x)'s terms
-                Rq[j, 1, 1] = w[2] * x[0] - w[0] * x[2]
-                Rq[j, 2, 1] = w[0] * x[1] - w[1] * x[0]
-        for j in range(n_parts):
-            if rule[j] != _LINK1 and rule[j] != _LINK2:
-                for i in range(3):
-                    wc[j, i] = Rpc[j, i] + tq[j, i]
-            else:
-                _part_box(Rq[j], tq[j], pc, ph, wc, wh, j)
+                    ulo[j, i], uhi[j, i] = np.inf, -np.inf
+            r = q
+            while r < owner.shape[0] and owner[r] == m:
+                if reachable[r]:
+                    _pose_frames(r, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc, ph, Rpc, Rq,
+                                 tq, wc, wh, A, e1, e12)
+                    for j in range(n_parts):
+                        for i in range(3):
+                            ulo[j, i] = min(ulo[j, i], wc[j, i] - wh[j, i])
+                            uhi[j, i] = max(uhi[j, i], wc[j, i] + wh[j, i])
+                r += 1
+            n_live = 0
+            for jj in moving_pairs:
+                a, b = pp_a[jj], pp_b[jj]
+                if (ulo[a, 0] - RUN_MARGIN <= uhi[b, 0] + RUN_MARGIN and ulo[b, 0] - RUN_MARGIN <= uhi[a, 0] + RUN_MARGIN
+                        and ulo[a, 1] - RUN_MARGIN <= uhi[b, 1] + RUN_MARGIN
+                        and ulo[b, 1] - RUN_MARGIN <= uhi[a, 1] + RUN_MARGIN
+                        and ulo[a, 2] - RUN_MARGIN <= uhi[b, 2] + RUN_MARGIN
+                        and ulo[b, 2] - RUN_MARGIN <= uhi[a, 2] + RUN_MARGIN):
+                    live_moving[n_live] = jj
+                    n_live += 1
+        _pose_frames(q, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc, ph, Rpc, Rq, tq, wc, wh,
+                     A, e1, e12)
         for jj in fixed_pairs:  # x, y decided for the design above: z here
             if not live[jj]:
                 continue
@@ -447,7 +491,8 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                              d, sgn, rim, sa, sb)
                 if dep > depth[q, jj]:
                     depth[q, jj] = dep
-        for jj in moving_pairs:
+        for t in range(n_live):
+            jj = live_moving[t]
             a, b = pp_a[jj], pp_b[jj]
             near = True
             for i in range(3):
