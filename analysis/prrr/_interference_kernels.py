@@ -92,7 +92,7 @@ def _closest(kind, R, h, c, x0, x1, x2):
             c[2] + (n0 * R[2, 0] + n1 * R[2, 1] + n2 * R[2, 2]))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _depth(ka, Ra, ha, ca, kb, Rb, hb, cb, d, sgn, rim, sa, sb):
     """The reference's ``_depth`` of one primitive pair where it is > 0, else a value ≤ 0 (not
     necessarily the reference's: the axes stop at the first that separates)."""
