@@ -361,12 +361,16 @@ def _depth(kind_a, Ra, ha, ca, kind_b, Rb, hb, cb):
 
 def check_points(model: FastModel, points, *, branch: int = cad_prrr.DEFAULT_BRANCH,
                  compiled: bool | None = None) -> FastResult:
-    """Interference of the tested part pairs at end-effector points (n, 3) [m] (``compiled``: as
+    """Interference of the tested part pairs at end-effector points (n, 3) [m]: the numpy IK
+    (:func:`part_frames_batch`'s) in IK branch ``branch``, then :func:`check_joints` (``compiled``: as
     :func:`check_posed`)."""
     pts = np.atleast_2d(np.asarray(points, dtype=float))
-    frames, reachable = part_frames_batch(model.design, pts, branch=branch)
-    return check_posed(stack_models([model]), np.zeros(len(pts), dtype=int), pts, frames, reachable,
-                       compiled=compiled)
+    g = model.design.geometry
+    prm = PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
+    ik = inverse_kinematics(prm, pts, xp=np)
+    geometry = LegGeometry(*(np.array([float(getattr(g, f))]) for f in LegGeometry._fields))
+    return check_joints(stack_models([model]), np.zeros(len(pts), dtype=int), pts, np.asarray(ik.sliders),
+                        np.asarray(ik.theta)[:, branch], np.asarray(ik.reachable), geometry, compiled=compiled)
 
 
 #: poses per pass of :func:`check_posed` (bounds the per-(pose, primitive) world tables: ~4 MB
