@@ -1,14 +1,24 @@
-"""numba kernel of :func:`hapticopt.analysis.prrr.interference_fast.check_posed` (imported only through
+"""numba kernels of :func:`hapticopt.analysis.prrr.interference_fast.check_posed` and
+:func:`~hapticopt.analysis.prrr.interference_fast.check_joints` (imported only through
 :func:`hapticopt.analysis.prrr.interference_fast.availability`, so numba loads on first use).
 
-One loop over the poses of a chunk and, per pose, over the tested part pairs and their primitive
-pairs: the part boxes, the posed primitives (computed once per pose, only for primitives of part pairs
-whose boxes meet), the primitives' world boxes, and the separating axes of
-:func:`~hapticopt.analysis.prrr.interference_fast._depth`. Every quantity is the numpy reference's, term by
-term and in its order (the reference's 3-vector products are fixed-order sums, ``_mm``; numba does not
+:func:`check_poses` (part frames given): one loop over the poses of a chunk and, per pose, over the
+tested part pairs and their primitive pairs: the part boxes, the posed primitives (computed once per pose,
+only for primitives of part pairs whose boxes meet), the primitives' world boxes, and the separating axes
+of :func:`~hapticopt.analysis.prrr.interference_fast._depth`. Every quantity is the numpy reference's, term
+by term and in its order (the reference's 3-vector products are fixed-order sums, ``_mm``; numba does not
 contract to fused multiply-adds without ``fastmath``), so the depths are bitwise equal. The one
 difference in the work done: the reference computes every axis of a pair and clips the smallest overlap
 at 0; here a pair stops at the first axis whose overlap is ≤ 0 (its clipped depth is 0 either way).
+
+:func:`check_joint_poses` (the batched draft evaluator's and the single path's check): the same test,
+the part frames built in the kernel from the joint values (``cad.part_frames_arrays``' products), and
+work that does not change with the pose done once per run of a design's poses: the rotations, boxes and
+primitives of the parts whose rotation is the design's (base, rails, screws, motors, carriages, housings,
+platform); the x and y tests of pairs of parts that only slide along z, and their separating axes with no
+z component (decided for every pose at once); the boxes of every part over the run, so that only the
+pairs with a moving part whose run boxes meet are tested per pose. Depths bit for bit those of
+:func:`check_poses` on ``part_frames_arrays``' frames.
 """
 
 from __future__ import annotations
@@ -139,6 +149,12 @@ def _depth(ka, Ra, ha, ca, kb, Rb, hb, cb, d, sgn, rim, sa, sb):
 
 
 @njit(cache=True)
+def _depth_call(ka, Ra, ha, ca, kb, Rb, hb, cb, d, sgn, rim, sa, sb):
+    """:func:`_depth` as a call (where it runs rarely: one inlined copy, compiled once)."""
+    return _depth(ka, Ra, ha, ca, kb, Rb, hb, cb, d, sgn, rim, sa, sb)
+
+
+@njit(cache=True)
 def _pose_primitive(p, q, part, Rp, tp, Rprim, oprim, half, kind, Rw, cw, lo, hi):
     """World rotation, centre and world box of primitive p at pose q (the reference's
     ``_posed_primitives`` and world boxes)."""
@@ -215,8 +231,8 @@ def check_poses(Rp, tp, owner, reachable, pc_all, ph_all, pp_a, pp_b, start, cou
                 if not (lo[pa, 0] <= hi[pb, 0] and lo[pa, 1] <= hi[pb, 1] and lo[pa, 2] <= hi[pb, 2]
                         and lo[pb, 0] <= hi[pa, 0] and lo[pb, 1] <= hi[pa, 1] and lo[pb, 2] <= hi[pa, 2]):
                     continue
-                dep = _depth(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
-                             d, sgn, rim, sa, sb)
+                dep = _depth_call(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
+                                  d, sgn, rim, sa, sb)
                 if dep > depth[q, jj]:
                     depth[q, jj] = dep
 
@@ -487,8 +503,8 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                             cw[pp, i] = ro[pp, i] + tq[prim_part[pp], i]
                             lo[pp, i] = cw[pp, i] - ext[pp, i]
                             hi[pp, i] = cw[pp, i] + ext[pp, i]
-                dep = _depth(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
-                             d, sgn, rim, sa, sb)
+                dep = _depth_call(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
+                                  d, sgn, rim, sa, sb)
                 if dep > depth[q, jj]:
                     depth[q, jj] = dep
         for t in range(n_live):

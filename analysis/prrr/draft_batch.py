@@ -19,15 +19,15 @@ only computes the arrays they read, for a whole batch at a time.
   persists on disk (``hapticopt.design.jax_config``). The stability evaluator takes its stiffness
   limits from the statics row (where that row's verdict is ok).
 * **numpy over all designs at once**: the interference poses (``workspace_sample_weights`` per
-  design, then one separating-axis pass, ``interference_fast.check_posed``, over every pose of
-  every design) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
+  design, then one separating-axis pass, ``interference_fast.check_joints``, over every pose of
+  every design: its compiled kernel builds the part frames from the pose IK's joint values) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
   column grid of every design in one pass, then each bisection in one pass). The column structure
   (moving parts translate together in z, fixed parts are prisms) is what makes one pose per
   column enough there. Pose IK is a jitted vmap over poses in padded calls of :data:`MIN_POSES`
-  or :data:`POSE_CHUNK` poses (two shapes for every batch size). ``check_posed`` prunes primitive
-  pairs per pose (part boxes, primitive boxes, seven separating axes), which a fixed-shape jax
-  program cannot do; on a CPU the pruned numpy pass is the faster of the two (measured:
-  docs/workspace_interference.md).
+  or :data:`POSE_CHUNK` poses (two shapes for every batch size). The check prunes primitive
+  pairs per pose (part boxes, primitive boxes, separating axes one at a time), which a fixed-shape
+  jax program cannot do; on a CPU the pruned numpy pass was already the faster of the two, and its
+  compiled kernel is faster still (measured: docs/workspace_interference.md).
 * **per design (Python)**: the CAD part tables (``cad.part_specs``: the layout's buildability
   rules raise per design), the envelope (``workspace_params``), the analytic mass model and height
   (``device_size.from_specs``), the interference sample weights, the force-loop bandwidth of

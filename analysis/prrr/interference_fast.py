@@ -31,9 +31,11 @@ the same part tables (:func:`hapticopt.design.prrr.cad.part_specs`), without mes
   axes on the rest, the 40 sampled axes only on curved pairs still overlapping; each stage one
   numpy pass over a chunk of poses. By default these stages run as one numba loop over poses and
   pairs (:mod:`._interference_kernels`, bitwise-equal depths; the numpy path is the reference and
-  the fallback where :func:`availability` says why the kernel cannot run). Poses come from the numpy
-  inverse kinematics (:func:`hapticopt.design.prrr.kinematics.inverse_kinematics`, ``xp=numpy``), in the
-  CAD's elbow branch.
+  the fallback where :func:`availability` says why the kernel cannot run). :func:`check_joints` takes
+  the poses as joint values and its kernel builds the part frames itself (no per-pose frame arrays),
+  doing the work that does not change with the pose once per design (docs/workspace_interference.md).
+  Poses come from the numpy inverse kinematics (:func:`hapticopt.design.prrr.kinematics.inverse_kinematics`,
+  ``xp=numpy``; the batched draft evaluator's jitted copy), in the CAD's elbow branch.
 
 Usage::
 
