@@ -394,9 +394,10 @@ def _part_pair_csr(part_names: tuple[str, ...], part_pairs: tuple[tuple[str, str
 
 
 #: poses a process checks with the numpy reference before the default switches to the compiled kernel:
-#: loading it (numba's import and the cached kernel) costs ≈ 0.6 s, and it saves ≈ 32 µs of the numpy
-#: check's ≈ 40 µs per pose, so it pays from ≈ 18,000 poses (a batched draft evaluation of 1024 designs
-#: checks ≈ 190,000; one `evaluate` at standard ≈ 220, where loading it made the command 1.37× slower)
+#: loading it (numba's import and the cached kernel) costs ≈ 0.55 s, and the joint kernel saves ≈ 37 µs of
+#: the numpy check's ≈ 40 µs per pose (14.4×; the frame kernel saved ≈ 32 µs), so it pays from ≈ 15,000
+#: poses (a batched draft evaluation of 1024 designs checks ≈ 190,000; one `evaluate` at standard ≈ 220,
+#: where loading it made the command 1.37× slower; docs/workspace_interference.md)
 KERNEL_AFTER_POSES = 20_000
 _POSES_CHECKED = [0]
 
