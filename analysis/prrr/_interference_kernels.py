@@ -384,7 +384,7 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
     cw = np.empty((P, 3))
     lo = np.empty((P, 3))
     hi = np.empty((P, 3))
-    fixed_prim = np.empty(P, dtype=np.bool_)
+    fixed_prim = np.empty(P, dtype=np.bool_)  # primitive of a part whose rotation is the design's (not a link)
     for p in range(P):
         fixed_prim[p] = rule[prim_part[p]] != _LINK1 and rule[prim_part[p]] != _LINK2
     n_fixed = 0
