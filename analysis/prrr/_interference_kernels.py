@@ -1,14 +1,24 @@
-"""numba kernel of :func:`hapticopt.analysis.prrr.interference_fast.check_posed` (imported only through
+"""numba kernels of :func:`hapticopt.analysis.prrr.interference_fast.check_posed` and
+:func:`~hapticopt.analysis.prrr.interference_fast.check_joints` (imported only through
 :func:`hapticopt.analysis.prrr.interference_fast.availability`, so numba loads on first use).
 
-One loop over the poses of a chunk and, per pose, over the tested part pairs and their primitive
-pairs: the part boxes, the posed primitives (computed once per pose, only for primitives of part pairs
-whose boxes meet), the primitives' world boxes, and the separating axes of
-:func:`~hapticopt.analysis.prrr.interference_fast._depth`. Every quantity is the numpy reference's, term by
-term and in its order (the reference's 3-vector products are fixed-order sums, ``_mm``; numba does not
+:func:`check_poses` (part frames given): one loop over the poses of a chunk and, per pose, over the
+tested part pairs and their primitive pairs: the part boxes, the posed primitives (computed once per pose,
+only for primitives of part pairs whose boxes meet), the primitives' world boxes, and the separating axes
+of :func:`~hapticopt.analysis.prrr.interference_fast._depth`. Every quantity is the numpy reference's, term
+by term and in its order (the reference's 3-vector products are fixed-order sums, ``_mm``; numba does not
 contract to fused multiply-adds without ``fastmath``), so the depths are bitwise equal. The one
 difference in the work done: the reference computes every axis of a pair and clips the smallest overlap
 at 0; here a pair stops at the first axis whose overlap is ≤ 0 (its clipped depth is 0 either way).
+
+:func:`check_joint_poses` (the batched draft evaluator's and the single path's check): the same test,
+the part frames built in the kernel from the joint values (``cad.part_frames_arrays``' products), and
+work that does not change with the pose done once per run of a design's poses: the rotations, boxes and
+primitives of the parts whose rotation is the design's (base, rails, screws, motors, carriages, housings,
+platform); the x and y tests of pairs of parts that only slide along z, and their separating axes with no
+z component (decided for every pose at once); the boxes of every part over the run, so that only the
+pairs with a moving part whose run boxes meet are tested per pose. Depths bit for bit those of
+:func:`check_poses` on ``part_frames_arrays``' frames.
 """
 
 from __future__ import annotations
@@ -92,7 +102,7 @@ def _closest(kind, R, h, c, x0, x1, x2):
             c[2] + (n0 * R[2, 0] + n1 * R[2, 1] + n2 * R[2, 2]))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _depth(ka, Ra, ha, ca, kb, Rb, hb, cb, d, sgn, rim, sa, sb):
     """The reference's ``_depth`` of one primitive pair where it is > 0, else a value ≤ 0 (not
     necessarily the reference's: the axes stop at the first that separates)."""
@@ -136,6 +146,12 @@ def _depth(ka, Ra, ha, ca, kb, Rb, hb, cb, d, sgn, rim, sa, sb):
         if best <= 0.0:
             return best
     return best
+
+
+@njit(cache=True)
+def _depth_call(ka, Ra, ha, ca, kb, Rb, hb, cb, d, sgn, rim, sa, sb):
+    """:func:`_depth` as a call (where it runs rarely: one inlined copy, compiled once)."""
+    return _depth(ka, Ra, ha, ca, kb, Rb, hb, cb, d, sgn, rim, sa, sb)
 
 
 @njit(cache=True)
@@ -212,6 +228,307 @@ def check_poses(Rp, tp, owner, reachable, pc_all, ph_all, pp_a, pp_b, start, cou
                 if stamp[pb] != q:
                     _pose_primitive(pb, q, prim_part[pb], Rp, tp, Rprim, oprim, half, kind, Rw, cw, lo, hi)
                     stamp[pb] = q
+                if not (lo[pa, 0] <= hi[pb, 0] and lo[pa, 1] <= hi[pb, 1] and lo[pa, 2] <= hi[pb, 2]
+                        and lo[pb, 0] <= hi[pa, 0] and lo[pb, 1] <= hi[pa, 1] and lo[pb, 2] <= hi[pa, 2]):
+                    continue
+                dep = _depth_call(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
+                                  d, sgn, rim, sa, sb)
+                if dep > depth[q, jj]:
+                    depth[q, jj] = dep
+
+
+# ---------------------------------------------------------------------------- poses from joint values
+#: how each part's frame follows from the joint values (interference_fast._frame_rules; the rules of
+#: hapticopt.design.prrr.cad.part_frames_arrays): fixed at the origin (base, rails, screws, motors),
+#: sliding along z with its leg's slider (carriage, housing), the leg's first or second link, platform
+_FIXED, _SLIDE, _LINK1, _LINK2, _PLATFORM = 0, 1, 2, 3, 4
+#: margin [m] of the union of a part's boxes over a run of one design's poses: far above the rounding of
+#: the boxes' bounds (~1e-16 m at these sizes), so a pair whose boxes meet at a pose (the exact test)
+#: meets in the unions
+RUN_MARGIN = 1e-9
+
+
+@njit(cache=True, inline="always")
+def _part_box(R, t, pc, ph, wc, wh, j):
+    """World box (centre wc[j], half widths wh[j]) of part j with rotation R and origin t; the
+    products of :func:`check_poses` in their order."""
+    for i in range(3):
+        wc[j, i] = (R[i, 0] * pc[j, 0] + R[i, 1] * pc[j, 1] + R[i, 2] * pc[j, 2]) + t[i]
+        wh[j, i] = abs(R[i, 0]) * ph[j, 0] + abs(R[i, 1]) * ph[j, 1] + abs(R[i, 2]) * ph[j, 2]
+
+
+@njit(cache=True, inline="always")
+def _extent(k, Rw, h, i):
+    """World half extent along axis i of a primitive of kind k (:func:`_pose_primitive`'s)."""
+    a0, a1, a2 = abs(Rw[i, 0]), abs(Rw[i, 1]), abs(Rw[i, 2])
+    if k == _BOX:
+        return a0 * h[0] + a1 * h[1] + a2 * h[2]
+    if k == _CYL:
+        s = 1.0 - a2 * a2
+        return h[2] * a2 + h[0] * math.sqrt(s if s > 0.0 else 0.0)
+    return h[0]
+
+
+@njit(cache=True, inline="always")
+def _rotate_primitive(p, Rf, Rl, ol, h, k, Rw, ro, ext):
+    """World rotation Rw[p], rotated centre ro[p] (add the part origin for the world centre) and world
+    half extents ext[p] of primitive p in a part of rotation Rf (:func:`_pose_primitive`'s products)."""
+    for i in range(3):
+        for kk in range(3):
+            Rw[p, i, kk] = Rf[i, 0] * Rl[0, kk] + Rf[i, 1] * Rl[1, kk] + Rf[i, 2] * Rl[2, kk]
+    for i in range(3):
+        ro[p, i] = Rf[i, 0] * ol[0] + Rf[i, 1] * ol[1] + Rf[i, 2] * ol[2]
+        ext[p, i] = _extent(k, Rw[p], h, i)
+
+
+@njit(cache=True, inline="always")
+def _pose_frames(q, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc, ph, Rpc, Rq, tq, wc, wh,
+                 A, e1, e12):
+    """Rotations Rq and origins tq of the moving parts at pose q of design m (the sliding parts' and the
+    platform's origins; the fixed rotations are the design's, set up before) and every part's world box
+    (wc, wh): :func:`hapticopt.design.prrr.cad.part_frames_arrays`' products, term by term."""
+    n_parts = rule.shape[0]
+    # the legs' link frames (cad.part_frames_arrays: e1, e12, A = D ez + d1 u + d2 t, B = A + d3 e1)
+    for k in range(3):
+        Dk = D[q, k]
+        for i in range(3):
+            v, t = V[m, k, i], T[k, i]
+            e1[k, i] = c1[q, k] * v + s1[q, k] * t
+            e12[k, i] = c12[q, k] * v + s12[q, k] * t
+            A[k, i] = (Dk * (1.0 if i == 2 else 0.0) + d1[m] * U[k, i]) + d2[m] * t
+    for j in range(n_parts):
+        r = rule[j]
+        if r == _FIXED:
+            continue
+        k = leg[j]
+        if r == _SLIDE:
+            Dk = D[q, k]
+            tq[j, 0], tq[j, 1], tq[j, 2] = Dk * 0.0, Dk * 0.0, Dk * 1.0
+        elif r == _PLATFORM:
+            for i in range(3):
+                tq[j, i] = pts[q, i]
+        else:
+            x = e1[k] if r == _LINK1 else e12[k]
+            w = W[m, k]
+            for i in range(3):
+                Rq[j, i, 0] = x[i]
+                Rq[j, i, 2] = w[i]
+                tq[j, i] = A[k, i] if r == _LINK1 else A[k, i] + d3[m] * e1[k, i]
+            Rq[j, 0, 1] = w[1] * x[2] - w[2] * x[1]  # np.cross(w, x)'s terms
+            Rq[j, 1, 1] = w[2] * x[0] - w[0] * x[2]
+            Rq[j, 2, 1] = w[0] * x[1] - w[1] * x[0]
+    for j in range(n_parts):
+        if rule[j] != _LINK1 and rule[j] != _LINK2:
+            for i in range(3):
+                wc[j, i] = Rpc[j, i] + tq[j, i]
+        else:
+            _part_box(Rq[j], tq[j], pc, ph, wc, wh, j)
+
+
+@njit(cache=True, inline="always")
+def _fixed_part(rule, j):
+    """Whether part j's rotation is constant over the poses of a design (fixed or sliding along z)."""
+    return rule[j] <= _SLIDE
+
+
+@njit(cache=True)
+def _separated_across_z(ka, Ra, ha, kb, Rb, hb, d0, d1):
+    """Whether one of :func:`_depth`'s axes with no z component (a frame axis or a cross product of
+    frame axes whose z is exactly 0) has an overlap ≤ 0, for two primitives whose centres differ by
+    (d0, d1, ·). On such an axis the overlap is :func:`_overlap`'s bit for bit whatever the z offset of
+    the centres (its z term is ±0), so a pair of parts that only slide along z is then separated, depth
+    ≤ 0, at every pose of the design."""
+    d = np.array([d0, d1, 0.0])
+    for i in range(3):
+        if Ra[2, i] == 0.0 and _overlap(ka, Ra, ha, kb, Rb, hb, d, Ra[0, i], Ra[1, i], 0.0) <= 0.0:
+            return True
+        if Rb[2, i] == 0.0 and _overlap(ka, Ra, ha, kb, Rb, hb, d, Rb[0, i], Rb[1, i], 0.0) <= 0.0:
+            return True
+    for i in range(3):
+        a0, a1, a2 = Ra[0, i], Ra[1, i], Ra[2, i]
+        for j in range(3):
+            b0, b1, b2 = Rb[0, j], Rb[1, j], Rb[2, j]
+            x2 = a0 * b1 - a1 * b0
+            if x2 == 0.0 and _unit_overlap(ka, Ra, ha, kb, Rb, hb, d, a1 * b2 - a2 * b1, a2 * b0 - a0 * b2,
+                                           x2) <= 0.0:
+                return True
+    return False
+
+
+@njit(cache=True)
+def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rslide, W, V, U, T, d1, d2, d3,
+                      pc_all, ph_all, pp_a, pp_b, start, count, pair_a, pair_b, prim_part, kind, Rprim_all,
+                      oprim_all, half_all, sgn, rim, depth):
+    """:func:`check_poses` with the part frames built here from the joint values (the products of
+    :func:`hapticopt.design.prrr.cad.part_frames_arrays`, term by term): ``depth`` (n, part pairs) as
+    :func:`check_poses` writes it from those frames, bit for bit.
+
+    rule, leg (parts,): each part's frame rule (_FIXED … _PLATFORM) and leg index; per pose: D (n, 3)
+    sliders [m], c1, s1, c12, s12 (n, 3) cos / sin of θ₁ and of θ₁ + θ₂ per leg, pts (n, 3) platform
+    origin [m]; per design: Rslide (m, 3 legs, 3, 3) carriage rotation, W, V (m, 3 legs, 3) the legs'
+    joint axis w and v, d1, d2, d3 (m,) [m]; U, T (3 legs, 3) the legs' u and t. The frames of the
+    fixed and sliding parts (rotation constant per design) and their primitives' rotations, rotated
+    centres and extents are computed once per run of poses of one design; per pose only the origin is
+    added, as in :func:`check_poses`."""
+    n, n_parts = D.shape[0], rule.shape[0]
+    P = kind.shape[0]
+    Rq = np.zeros((n_parts, 3, 3))  # part rotations of the pose (moving parts) or of the design (fixed)
+    tq = np.zeros((n_parts, 3))
+    wc = np.empty((n_parts, 3))
+    wh = np.empty((n_parts, 3))
+    Rpc = np.empty((n_parts, 3))  # fixed parts: rotated box centre (add the origin)
+    stamp = np.full(P, -1, dtype=np.int64)
+    Rw = np.empty((P, 3, 3))
+    ro = np.empty((P, 3))
+    ext = np.empty((P, 3))
+    cw = np.empty((P, 3))
+    lo = np.empty((P, 3))
+    hi = np.empty((P, 3))
+    fixed_prim = np.empty(P, dtype=np.bool_)  # primitive of a part whose rotation is the design's (not a link)
+    for p in range(P):
+        fixed_prim[p] = rule[prim_part[p]] != _LINK1 and rule[prim_part[p]] != _LINK2
+    n_fixed = 0
+    for jj in range(pp_a.shape[0]):
+        n_fixed += _fixed_part(rule, pp_a[jj]) and _fixed_part(rule, pp_b[jj])
+    fixed_pairs = np.empty(n_fixed, dtype=np.int64)
+    moving_pairs = np.empty(pp_a.shape[0] - n_fixed, dtype=np.int64)
+    nf = nm = 0
+    for jj in range(pp_a.shape[0]):
+        if _fixed_part(rule, pp_a[jj]) and _fixed_part(rule, pp_b[jj]):
+            fixed_pairs[nf] = jj
+            nf += 1
+        else:
+            moving_pairs[nm] = jj
+            nm += 1
+    live_moving = np.empty(moving_pairs.shape[0], dtype=np.int64)  # per run: the moving pairs that can meet
+    n_live = 0
+    ulo = np.empty((n_parts, 3))
+    uhi = np.empty((n_parts, 3))
+    live = np.zeros(pp_a.shape[0], dtype=np.bool_)  # per design: a fixed pair can meet at some z
+    pair_live = np.zeros(pair_a.shape[0], dtype=np.bool_)  # … and its primitive pair
+    A = np.empty((3, 3))
+    e1 = np.empty((3, 3))
+    e12 = np.empty((3, 3))
+    d = np.empty(3)
+    sa = np.empty((sgn.shape[0], 3))
+    sb = np.empty((sgn.shape[0], 3))
+    last = -1
+    for q in range(n):
+        if not reachable[q]:
+            continue
+        m = owner[q]
+        pc, ph = pc_all[m], ph_all[m]
+        Rprim, oprim, half = Rprim_all[m], oprim_all[m], half_all[m]
+        if m != last:  # a new design: its fixed and sliding parts' rotations, boxes and primitives
+            last = m
+            for j in range(n_parts):
+                if rule[j] == _FIXED or rule[j] == _PLATFORM:
+                    for i in range(3):
+                        for kk in range(3):
+                            Rq[j, i, kk] = 1.0 if i == kk else 0.0
+                elif rule[j] == _SLIDE:
+                    Rq[j] = Rslide[m, leg[j]]
+                else:
+                    continue
+                for i in range(3):
+                    R = Rq[j]
+                    Rpc[j, i] = R[i, 0] * pc[j, 0] + R[i, 1] * pc[j, 1] + R[i, 2] * pc[j, 2]
+                    wh[j, i] = abs(R[i, 0]) * ph[j, 0] + abs(R[i, 1]) * ph[j, 1] + abs(R[i, 2]) * ph[j, 2]
+            for p in range(P):
+                if fixed_prim[p]:
+                    _rotate_primitive(p, Rq[prim_part[p]], Rprim[p], oprim[p], half[p], kind[p], Rw, ro, ext)
+            # pairs of fixed and sliding parts: their x and y are the design's (the origins' x, y are ±0), so
+            # the x, y tests of their boxes and the axes with no z component are decided once per design
+            for jj in fixed_pairs:
+                a, b = pp_a[jj], pp_b[jj]
+                live[jj] = (abs(Rpc[a, 0] - Rpc[b, 0]) <= wh[a, 0] + wh[b, 0]
+                            and abs(Rpc[a, 1] - Rpc[b, 1]) <= wh[a, 1] + wh[b, 1])
+                if not live[jj]:
+                    continue
+                live[jj] = False
+                for k in range(start[jj], start[jj] + count[jj]):
+                    pa, pb = pair_a[k], pair_b[k]
+                    pair_live[k] = ((ro[pa, 0] - ext[pa, 0]) <= (ro[pb, 0] + ext[pb, 0])
+                                    and (ro[pa, 1] - ext[pa, 1]) <= (ro[pb, 1] + ext[pb, 1])
+                                    and (ro[pb, 0] - ext[pb, 0]) <= (ro[pa, 0] + ext[pa, 0])
+                                    and (ro[pb, 1] - ext[pb, 1]) <= (ro[pa, 1] + ext[pa, 1])
+                                    and not _separated_across_z(kind[pa], Rw[pa], half[pa], kind[pb], Rw[pb], half[pb],
+                                                                ro[pb, 0] - ro[pa, 0], ro[pb, 1] - ro[pa, 1]))
+                    live[jj] = live[jj] or pair_live[k]
+            # the pairs with a moving part whose boxes can meet at some pose of this run of the design's poses:
+            # every part's box over the run (a pair that meets at a pose has its boxes inside these)
+            for j in range(n_parts):
+                for i in range(3):
+                    ulo[j, i], uhi[j, i] = np.inf, -np.inf
+            r = q
+            while r < owner.shape[0] and owner[r] == m:
+                if reachable[r]:
+                    _pose_frames(r, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc, ph, Rpc, Rq,
+                                 tq, wc, wh, A, e1, e12)
+                    for j in range(n_parts):
+                        for i in range(3):
+                            ulo[j, i] = min(ulo[j, i], wc[j, i] - wh[j, i])
+                            uhi[j, i] = max(uhi[j, i], wc[j, i] + wh[j, i])
+                r += 1
+            n_live = 0
+            for jj in moving_pairs:
+                a, b = pp_a[jj], pp_b[jj]
+                if (ulo[a, 0] - RUN_MARGIN <= uhi[b, 0] + RUN_MARGIN and ulo[b, 0] - RUN_MARGIN <= uhi[a, 0] + RUN_MARGIN
+                        and ulo[a, 1] - RUN_MARGIN <= uhi[b, 1] + RUN_MARGIN
+                        and ulo[b, 1] - RUN_MARGIN <= uhi[a, 1] + RUN_MARGIN
+                        and ulo[a, 2] - RUN_MARGIN <= uhi[b, 2] + RUN_MARGIN
+                        and ulo[b, 2] - RUN_MARGIN <= uhi[a, 2] + RUN_MARGIN):
+                    live_moving[n_live] = jj
+                    n_live += 1
+        _pose_frames(q, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc, ph, Rpc, Rq, tq, wc, wh,
+                     A, e1, e12)
+        for jj in fixed_pairs:  # x, y decided for the design above: z here
+            if not live[jj]:
+                continue
+            a, b = pp_a[jj], pp_b[jj]
+            if not abs(wc[a, 2] - wc[b, 2]) <= wh[a, 2] + wh[b, 2]:
+                continue
+            for k in range(start[jj], start[jj] + count[jj]):
+                if not pair_live[k]:
+                    continue
+                pa, pb = pair_a[k], pair_b[k]
+                ja, jb = prim_part[pa], prim_part[pb]
+                ca2, cb2 = ro[pa, 2] + tq[ja, 2], ro[pb, 2] + tq[jb, 2]
+                if not (ca2 - ext[pa, 2] <= cb2 + ext[pb, 2] and cb2 - ext[pb, 2] <= ca2 + ext[pa, 2]):
+                    continue
+                for pp in (pa, pb):
+                    if stamp[pp] != q:
+                        stamp[pp] = q
+                        for i in range(3):
+                            cw[pp, i] = ro[pp, i] + tq[prim_part[pp], i]
+                            lo[pp, i] = cw[pp, i] - ext[pp, i]
+                            hi[pp, i] = cw[pp, i] + ext[pp, i]
+                dep = _depth_call(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
+                                  d, sgn, rim, sa, sb)
+                if dep > depth[q, jj]:
+                    depth[q, jj] = dep
+        for t in range(n_live):
+            jj = live_moving[t]
+            a, b = pp_a[jj], pp_b[jj]
+            near = True
+            for i in range(3):
+                if not abs(wc[a, i] - wc[b, i]) <= wh[a, i] + wh[b, i]:
+                    near = False
+                    break
+            if not near:
+                continue
+            for k in range(start[jj], start[jj] + count[jj]):
+                pa, pb = pair_a[k], pair_b[k]
+                for pp in (pa, pb):
+                    if stamp[pp] != q:
+                        stamp[pp] = q
+                        j = prim_part[pp]
+                        if not fixed_prim[pp]:
+                            _rotate_primitive(pp, Rq[j], Rprim[pp], oprim[pp], half[pp], kind[pp], Rw, ro, ext)
+                        for i in range(3):
+                            cw[pp, i] = ro[pp, i] + tq[j, i]
+                            lo[pp, i] = cw[pp, i] - ext[pp, i]
+                            hi[pp, i] = cw[pp, i] + ext[pp, i]
                 if not (lo[pa, 0] <= hi[pb, 0] and lo[pa, 1] <= hi[pb, 1] and lo[pa, 2] <= hi[pb, 2]
                         and lo[pb, 0] <= hi[pa, 0] and lo[pb, 1] <= hi[pa, 1] and lo[pb, 2] <= hi[pa, 2]):
                     continue

@@ -1,4 +1,4 @@
-"""Batched draft evaluation of the 3-PRRR's registry evaluators (issue 22, item 3).
+"""Batched draft evaluation of the 3-PRRR's registry evaluators.
 
 Many designs at draft fidelity in one pass, with the same results and statuses as the
 evaluators one by one (tested to 1e-9 relative, ``tests/analysis/prrr/test_draft_batch.py``, on
@@ -24,14 +24,15 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   limits from the statics row (where that row's verdict is ok).
 * **numpy over all designs at once**: the interference poses (``workspace_sample_weights_many``:
   every design's sample points and weights in one pass, bit for bit the per-design function's; then
-  one separating-axis pass, ``interference_fast.check_posed``, over every pose of every design) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
+  one separating-axis pass, ``interference_fast.check_joints``, over every pose of every design: its
+  compiled kernel builds the part frames from the pose IK's joint values) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
   column grid of every design in one pass, then each bisection in one pass). The column structure
   (moving parts translate together in z, fixed parts are prisms) is what makes one pose per
   column enough there. Pose IK is a jitted vmap over poses in padded calls of :data:`MIN_POSES`
-  or :data:`POSE_CHUNK` poses (two shapes for every batch size). ``check_posed`` prunes primitive
-  pairs per pose (part boxes, primitive boxes, seven separating axes), which a fixed-shape jax
-  program cannot do; on a CPU the pruned numpy pass is the faster of the two (measured:
-  docs/workspace_interference.md).
+  or :data:`POSE_CHUNK` poses (two shapes for every batch size). The check prunes primitive
+  pairs per pose (part boxes, primitive boxes, separating axes one at a time), which a fixed-shape
+  jax program cannot do; on a CPU the pruned numpy pass was already the faster of the two, and its
+  compiled kernel is faster still (measured: docs/workspace_interference.md).
 * **numpy, one table per part layout**: the CAD part tables (``cad_arrays.part_tables_many``: the
   layout and its buildability rules on (n,) columns, tested equal to ``cad.part_specs``), the
   interference model's primitive tables from them (``interference_fast.models_from_tables``), the
@@ -200,7 +201,9 @@ class _Checker:
         for members in groups.values():
             local = np.full(len(designs), -1)
             local[members] = np.arange(len(members))
-            self.groups.append((local, FAST.stack_models([models[i] for i in members])))
+            geometry = FAST.LegGeometry(*(self.geo[f][members] for f in FAST.LegGeometry._fields))
+            batch = FAST.stack_models([models[i] for i in members])
+            self.groups.append((local, batch, geometry, FAST.joint_tables(batch, geometry)))
 
     def pose_ik(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Sliders (n, 3), elbow-branch joint angles (n, 3, 3) and reachability (n,) of poses ``pts``
@@ -223,15 +226,12 @@ class _Checker:
         if n == 0:
             return collides, reachable, depth
         sliders, theta, ok = self.pose_ik(owner, pts)
-        g = self.geo
-        frames = cad.part_frames_arrays(g["beta"][owner], g["d1"][owner], g["d2"][owner], g["d3"][owner],
-                                        g["theta_1p"][owner], sliders, theta, pts)
-        for local, batch in self.groups:
+        for local, batch, geometry, tables in self.groups:
             sel = np.flatnonzero(local[owner] >= 0)
             if len(sel) == 0:
                 continue
-            fr = {k: (R[sel], o[sel]) for k, (R, o) in frames.items()}
-            res = FAST.check_posed(batch, local[owner[sel]], pts[sel], fr, ok[sel])
+            res = FAST.check_joints(batch, local[owner[sel]], pts[sel], sliders[sel], theta[sel], ok[sel], geometry,
+                                    tables=tables)
             collides[sel] = res.collides
             reachable[sel] = res.reachable
             depth[sel] = res.depth.max(axis=1) if res.depth.shape[1] else 0.0

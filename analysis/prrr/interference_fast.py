@@ -31,9 +31,11 @@ the same part tables (:func:`hapticopt.design.prrr.cad.part_specs`), without mes
   axes on the rest, the 40 sampled axes only on curved pairs still overlapping; each stage one
   numpy pass over a chunk of poses. By default these stages run as one numba loop over poses and
   pairs (:mod:`._interference_kernels`, bitwise-equal depths; the numpy path is the reference and
-  the fallback where :func:`availability` says why the kernel cannot run). Poses come from the numpy
-  inverse kinematics (:func:`hapticopt.design.prrr.kinematics.inverse_kinematics`, ``xp=numpy``), in the
-  CAD's elbow branch.
+  the fallback where :func:`availability` says why the kernel cannot run). :func:`check_joints` takes
+  the poses as joint values and its kernel builds the part frames itself (no per-pose frame arrays),
+  doing the work that does not change with the pose once per design (docs/workspace_interference.md).
+  Poses come from the numpy inverse kinematics (:func:`hapticopt.design.prrr.kinematics.inverse_kinematics`,
+  ``xp=numpy``; the batched draft evaluator's jitted copy), in the CAD's elbow branch.
 
 Usage::
 
@@ -46,6 +48,7 @@ Usage::
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -53,7 +56,7 @@ import numpy as np
 
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.parts import Kind, Role
-from hapticopt.design.prrr.params import PrrrDesign
+from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
 from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
 from hapticopt.analysis.prrr.workspace import ELBOW_BRANCH, workspace_sample_weights
 
@@ -383,12 +386,16 @@ def _depth(kind_a, Ra, ha, ca, kind_b, Rb, hb, cb):
 
 def check_points(model: FastModel, points, *, branch: int = cad_prrr.DEFAULT_BRANCH,
                  compiled: bool | None = None) -> FastResult:
-    """Interference of the tested part pairs at end-effector points (n, 3) [m] (``compiled``: as
+    """Interference of the tested part pairs at end-effector points (n, 3) [m]: the numpy IK
+    (:func:`part_frames_batch`'s) in IK branch ``branch``, then :func:`check_joints` (``compiled``: as
     :func:`check_posed`)."""
     pts = np.atleast_2d(np.asarray(points, dtype=float))
-    frames, reachable = part_frames_batch(model.design, pts, branch=branch)
-    return check_posed(stack_models([model]), np.zeros(len(pts), dtype=int), pts, frames, reachable,
-                       compiled=compiled)
+    g = model.design.geometry
+    prm = PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
+    ik = inverse_kinematics(prm, pts, xp=np)
+    geometry = LegGeometry(*(np.array([float(getattr(g, f))]) for f in LegGeometry._fields))
+    return check_joints(stack_models([model]), np.zeros(len(pts), dtype=int), pts, np.asarray(ik.sliders),
+                        np.asarray(ik.theta)[:, branch], np.asarray(ik.reachable), geometry, compiled=compiled)
 
 
 #: poses per pass of :func:`check_posed` (bounds the per-(pose, primitive) world tables: ~4 MB
@@ -410,9 +417,10 @@ def _part_pair_csr(part_names: tuple[str, ...], part_pairs: tuple[tuple[str, str
 
 
 #: poses a process checks with the numpy reference before the default switches to the compiled kernel:
-#: loading it (numba's import and the cached kernel) costs ≈ 0.6 s, and it saves ≈ 32 µs of the numpy
-#: check's ≈ 40 µs per pose, so it pays from ≈ 18,000 poses (a batched draft evaluation of 1024 designs
-#: checks ≈ 190,000; one `evaluate` at standard ≈ 220, where loading it made the command 1.37× slower)
+#: loading it (numba's import and the cached kernel) costs ≈ 0.55 s, and the joint kernel saves ≈ 37 µs of
+#: the numpy check's ≈ 40 µs per pose (14.4×; the frame kernel saved ≈ 32 µs), so it pays from ≈ 15,000
+#: poses (a batched draft evaluation of 1024 designs checks ≈ 190,000; one `evaluate` at standard ≈ 220,
+#: where loading it made the command 1.37× slower; docs/workspace_interference.md)
 KERNEL_AFTER_POSES = 20_000
 _POSES_CHECKED = [0]
 
@@ -430,6 +438,40 @@ def availability() -> str | None:
     except (OSError, RuntimeError) as e:
         return f"the compiled interference kernel's module did not load: {e}"
     return None
+
+
+def _use_kernel(n: int, compiled: bool | None) -> bool:
+    """Whether a check of ``n`` more poses runs the compiled kernel (``compiled`` as :func:`check_posed`)."""
+    _POSES_CHECKED[0] += n
+    if compiled is None:
+        return _POSES_CHECKED[0] >= KERNEL_AFTER_POSES and availability() is None
+    if compiled:
+        reason = availability()
+        if reason is not None:
+            raise RuntimeError(reason)
+    return bool(compiled)
+
+
+def _part_boxes(batch: PrimitiveBatch) -> tuple[np.ndarray, ...]:
+    """Every part's box in its part frame (centre, half widths: (m, parts, 3) [m]) from its primitives'
+    exact extents, and the tested part pairs' parts and primitive-pair blocks (:func:`_part_pair_csr`)."""
+    P = len(batch.kind)
+    m = len(batch.R)
+    loc_ext = _world_extent(np.tile(batch.kind, m), batch.R.reshape(-1, 3, 3), batch.half.reshape(-1, 3)).reshape(m, P, 3)
+    n_parts = len(batch.part_names)
+    plo = np.full((m, n_parts, 3), np.inf)
+    phi = np.full((m, n_parts, 3), -np.inf)
+    for j in range(n_parts):
+        sel = batch.prim_part == j
+        if sel.any():
+            plo[:, j] = np.min(batch.o[:, sel] - loc_ext[:, sel], axis=1)
+            phi[:, j] = np.max(batch.o[:, sel] + loc_ext[:, sel], axis=1)
+    empty = ~np.isfinite(plo)  # a part without SOLID primitives is in no tested pair (_pair_tables)
+    plo[empty], phi[empty] = 0.0, 0.0
+    pc_all, ph_all = 0.5 * (plo + phi), 0.5 * (phi - plo)  # (m, parts, 3)
+    pp_a, pp_b, start, count = _part_pair_csr(batch.part_names, batch.part_pairs,
+                                              np.asarray(batch.pair_part, dtype=np.int64).tobytes())
+    return pc_all, ph_all, pp_a, pp_b, start, count
 
 
 def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
@@ -453,33 +495,19 @@ def check_posed(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray,
     and this numpy reference before (the depths are bit for bit the same either way); True requires
     the kernel (RuntimeError with the reason); False runs numpy."""
     pts = np.atleast_2d(np.asarray(points, dtype=float))
+    return _check_frames(batch, owner, pts, frames, reachable, compiled=_use_kernel(len(pts), compiled))
+
+
+def _check_frames(batch: PrimitiveBatch, owner: np.ndarray, pts: np.ndarray,
+                  frames: dict[str, tuple[np.ndarray, np.ndarray]], reachable: np.ndarray, *,
+                  compiled: bool) -> FastResult:
+    """:func:`check_posed` once the kernel is chosen (``compiled``)."""
     n = len(pts)
-    _POSES_CHECKED[0] += n
-    if compiled is None:
-        compiled = _POSES_CHECKED[0] >= KERNEL_AFTER_POSES and availability() is None
-    elif compiled:
-        reason = availability()
-        if reason is not None:
-            raise RuntimeError(reason)
     owner = np.asarray(owner, dtype=int)
     reachable = np.asarray(reachable)
     depth = np.zeros((n, len(batch.part_pairs)))
     P = len(batch.kind)
-    m = len(batch.R)
-    loc_ext = _world_extent(np.tile(batch.kind, m), batch.R.reshape(-1, 3, 3), batch.half.reshape(-1, 3)).reshape(m, P, 3)
-    n_parts = len(batch.part_names)
-    plo = np.full((m, n_parts, 3), np.inf)
-    phi = np.full((m, n_parts, 3), -np.inf)
-    for j in range(n_parts):
-        sel = batch.prim_part == j
-        if sel.any():
-            plo[:, j] = np.min(batch.o[:, sel] - loc_ext[:, sel], axis=1)
-            phi[:, j] = np.max(batch.o[:, sel] + loc_ext[:, sel], axis=1)
-    empty = ~np.isfinite(plo)  # a part without SOLID primitives is in no tested pair (_pair_tables)
-    plo[empty], phi[empty] = 0.0, 0.0
-    pc_all, ph_all = 0.5 * (plo + phi), 0.5 * (phi - plo)  # (m, parts, 3)
-    pp_a, pp_b, start, count = _part_pair_csr(batch.part_names, batch.part_pairs,
-                                              np.asarray(batch.pair_part, dtype=np.int64).tobytes())
+    pc_all, ph_all, pp_a, pp_b, start, count = _part_boxes(batch)
     if compiled:
         _check_compiled(batch, owner, frames, reachable, depth, pc_all, ph_all, pp_a, pp_b, start, count)
         return FastResult(points=pts, reachable=reachable, collides=np.any(depth > DEPTH_TOL, axis=1),
@@ -510,6 +538,117 @@ def _check_compiled(batch, owner, frames, reachable, depth, pc_all, ph_all, pp_a
         Rp = np.stack([frames[name][0][s:e] for name in batch.part_names], axis=1)  # (c, parts, 3, 3)
         tp = np.stack([frames[name][1][s:e] for name in batch.part_names], axis=1)  # (c, parts, 3)
         K.check_poses(f64(Rp), f64(tp), owner[s:e], reachable[s:e], *tables, depth[s:e])
+
+
+
+class LegGeometry(NamedTuple):
+    """The geometry the part frames read (:func:`hapticopt.design.prrr.cad.part_frames_arrays`), one entry
+    per design of a :class:`PrimitiveBatch`, (m,) each: β [rad], d1, d2, d3 [m], θ₁ₚ [rad]."""
+
+    beta: np.ndarray
+    d1: np.ndarray
+    d2: np.ndarray
+    d3: np.ndarray
+    theta_1p: np.ndarray
+
+
+#: frame rules of :mod:`._interference_kernels` by part name prefix (cad.part_frames_arrays' parts)
+_RULES = {"base": 0, "rail": 0, "screw": 0, "motor": 0, "carriage": 1, "housing": 1, "link1": 2, "link2": 3,
+          "platform": 4}
+
+
+@functools.lru_cache(maxsize=32)
+def _frame_rules(part_names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray] | None:
+    """Each part's frame rule and leg index (0, 1, 2 for legs 1, 2, 3) for
+    :func:`._interference_kernels.check_joint_poses`; None where a part is not one of
+    :func:`hapticopt.design.prrr.cad.part_frames_arrays`'s (its frames are then built in numpy)."""
+    rule, leg = [], []
+    for name in part_names:
+        kind, _, i = name.partition("_")
+        if kind not in _RULES or (i and not (i.isdigit() and int(i) in cad_prrr.LEGS)) or (not i) != (kind in ("base", "platform")):
+            return None
+        rule.append(_RULES[kind])
+        leg.append(cad_prrr.LEGS.index(int(i)) if i else 0)
+    return np.asarray(rule, dtype=np.int64), np.asarray(leg, dtype=np.int64)
+
+
+class JointTables(NamedTuple):
+    """The per-batch inputs of :func:`._interference_kernels.check_joint_poses` (:func:`joint_tables`):
+    ``head`` the frame rules, ``design`` the legs' per-design vectors and lengths, ``tail`` the part
+    boxes, pair tables, primitives and sample tables, each a tuple in the kernel's argument order."""
+
+    head: tuple
+    design: tuple
+    tail: tuple
+
+
+def joint_tables(batch: PrimitiveBatch, geometry: LegGeometry) -> JointTables | None:
+    """:func:`check_joints`' per-batch tables (compute once, pass to every call on the batch); None
+    where a part has no frame rule (:func:`_frame_rules`)."""
+    rules = _frame_rules(batch.part_names)
+    if rules is None:
+        return None
+    i64 = functools.partial(np.ascontiguousarray, dtype=np.int64)
+    f64 = functools.partial(np.ascontiguousarray, dtype=np.float64)
+    pc_all, ph_all, pp_a, pp_b, start, count = _part_boxes(batch)
+    # per design: the legs' vectors (cad.leg_vectors' products as part_frames_arrays forms them)
+    beta = np.asarray(geometry.beta, dtype=float)
+    sb, cb = np.sin(beta), np.cos(beta)
+    cs = np.array([(math.cos(gm), math.sin(gm)) for gm in GAMMAS])  # (3 legs, 2)
+    c, s = cs[None, :, 0], cs[None, :, 1]
+    zero = np.zeros((3,))
+    U = np.stack([cs[:, 0], cs[:, 1], zero], axis=1)
+    T = np.stack([-cs[:, 1], cs[:, 0], zero], axis=1)
+    W = np.stack([-cb[:, None] * c, -cb[:, None] * s, np.broadcast_to(sb[:, None], (len(beta), 3))], axis=2)
+    V = np.stack([sb[:, None] * c, sb[:, None] * s, np.broadcast_to(cb[:, None], (len(beta), 3))], axis=2)
+    a = np.asarray(GAMMAS)[None, :] + np.asarray(geometry.theta_1p, dtype=float)[:, None]  # (m, 3 legs)
+    ca, sa = np.cos(a), np.sin(a)
+    Rslide = np.zeros((len(beta), 3, 3, 3))
+    Rslide[..., 0, 0], Rslide[..., 1, 0] = ca, sa
+    Rslide[..., 0, 1], Rslide[..., 1, 1] = -sa, ca
+    Rslide[..., 2, 2] = 1.0
+    return JointTables(
+        head=rules,
+        design=(Rslide, f64(W), f64(V), f64(U), f64(T), f64(geometry.d1), f64(geometry.d2), f64(geometry.d3)),
+        tail=(f64(pc_all), f64(ph_all), i64(pp_a), i64(pp_b), i64(start), i64(count), i64(batch.pair_a),
+              i64(batch.pair_b), i64(batch.prim_part), i64(batch.kind), f64(batch.R), f64(batch.o), f64(batch.half),
+              *_sample_tables()))
+
+
+def check_joints(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray, sliders: np.ndarray,
+                 theta: np.ndarray, reachable: np.ndarray, geometry: LegGeometry, *,
+                 tables: JointTables | None = None, compiled: bool | None = None) -> FastResult:
+    """:func:`check_posed` at poses given by their joint values: sliders (n, 3) [m], joint angles
+    theta (n, 3 legs, ≥ 2) [rad] of one IK branch, platform at ``points`` (n, 3) [m]; ``geometry``
+    per design of ``batch``. The part frames are :func:`hapticopt.design.prrr.cad.part_frames_arrays`'s:
+    the compiled kernel (:func:`._interference_kernels.check_joint_poses`) builds them per pose from
+    the same products in the same order (the depths are bit for bit those of :func:`check_posed` on
+    ``part_frames_arrays``' frames; tested), so no per-pose frame arrays are stacked; the numpy path
+    builds the frames and runs :func:`check_posed`'s. ``tables``: :func:`joint_tables` of ``batch`` and
+    ``geometry`` (computed when omitted); ``compiled`` as :func:`check_posed`."""
+    pts = np.atleast_2d(np.asarray(points, dtype=float))
+    n = len(pts)
+    use = _use_kernel(n, compiled)
+    owner = np.asarray(owner, dtype=int)
+    sliders, theta = np.asarray(sliders, dtype=float), np.asarray(theta, dtype=float)
+    if use and tables is None:
+        tables = joint_tables(batch, geometry)
+    if not use or tables is None:
+        g = geometry
+        frames = cad_prrr.part_frames_arrays(g.beta[owner], g.d1[owner], g.d2[owner], g.d3[owner],
+                                             g.theta_1p[owner], sliders, theta, pts)
+        return _check_frames(batch, owner, pts, frames, reachable, compiled=use)
+    from hapticopt.analysis.prrr import _interference_kernels as K  # loaded by availability()
+
+    f64 = functools.partial(np.ascontiguousarray, dtype=np.float64)
+    reachable = np.ascontiguousarray(reachable, dtype=np.bool_)
+    depth = np.zeros((n, len(batch.part_pairs)))
+    th1, th12 = theta[:, :, 0], theta[:, :, 0] + theta[:, :, 1]
+    K.check_joint_poses(*tables.head, f64(sliders), f64(np.cos(th1)), f64(np.sin(th1)), f64(np.cos(th12)),
+                        f64(np.sin(th12)), f64(pts), np.ascontiguousarray(owner, dtype=np.int64), reachable,
+                        *tables.design, *tables.tail, depth)
+    return FastResult(points=pts, reachable=reachable, collides=np.any(depth > DEPTH_TOL, axis=1),
+                      depth=depth, part_pairs=batch.part_pairs)
 
 
 def _posed_primitives(batch, owner, Rp, hw, kind_flat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

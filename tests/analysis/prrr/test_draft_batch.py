@@ -209,3 +209,35 @@ def test_other_fidelities_fall_back_to_the_single_path():
     ev = evaluate_batch([BASE], fidelity=Fidelity.STANDARD, only=("statics",))[0]
     assert ev.fidelity is Fidelity.STANDARD
     assert _close(ev.metrics()["jacobian_condition"], evaluate_all(BASE, only=("statics",)).metrics()["jacobian_condition"])
+
+
+def test_checker_kernel_equals_its_numpy_path_bitwise(both, monkeypatch):
+    """The batch's collision checker (pose IK, then ``interference_fast.check_joints``, which builds the
+    part frames in the compiled kernel) gives bit for bit the depths, flags and reachability of its numpy
+    path (``cad.part_frames_arrays`` + the numpy ``check_posed``) on the interference poses of the
+    sample's designs with part tables, owners in design order and shuffled."""
+    from hapticopt.analysis.prrr import workspace as WS
+
+    designs, _, _ = both
+    models = {}
+    for i, d in enumerate(designs):
+        try:
+            models[i] = interference_fast.prepare(d)
+        except InvalidDesign:
+            continue
+    assert len(models) >= 4
+    check = draft_batch._Checker(designs, models)
+    owner, pts = [], []
+    for i in models:
+        p, _ = WS.workspace_sample_weights(designs[i], **WS.INTERFERENCE_SAMPLING)
+        owner.append(np.full(len(p), i)), pts.append(p)
+    owner, pts = np.concatenate(owner), np.concatenate(pts)
+    for order in (np.arange(len(owner)), np.random.default_rng(11).permutation(len(owner))):
+        monkeypatch.setattr(interference_fast, "_POSES_CHECKED", [interference_fast.KERNEL_AFTER_POSES])
+        fast = check(owner[order], pts[order])
+        monkeypatch.setattr(interference_fast, "availability", lambda: "switched off by the test")
+        slow = check(owner[order], pts[order])
+        monkeypatch.undo()
+        assert np.array_equal(fast[0], slow[0]) and np.array_equal(fast[1], slow[1])
+        assert np.array_equal(fast[2].view(np.int64), slow[2].view(np.int64))
+        assert fast[0].any() and not fast[0].all() and (fast[2] > 0).any()

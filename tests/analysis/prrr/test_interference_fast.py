@@ -327,3 +327,69 @@ def test_models_from_tables_equal_prepare(problem_sample):
                 got, want = getattr(fast, name), getattr(ref, name)
                 assert got.shape == want.shape
                 assert np.all(np.abs(got - want) <= 1e-12 * np.maximum(np.abs(want), 0.1)), name
+
+
+def _joint_poses(design, pts):
+    """Sliders, elbow-branch joint angles and reachability of ``pts`` by the numpy IK (the branch and
+    IK of :func:`F.part_frames_batch`)."""
+    from hapticopt.design.prrr.kinematics import inverse_kinematics
+
+    ik = inverse_kinematics(cad_prrr.params_of(design), pts, xp=np)
+    return np.asarray(ik.sliders), np.asarray(ik.theta)[:, W.ELBOW_BRANCH], np.asarray(ik.reachable)
+
+
+def _geometry(designs):
+    return F.LegGeometry(*(np.array([float(getattr(d.geometry, f)) for d in designs]) for f in F.LegGeometry._fields))
+
+
+def test_joint_kernel_equals_the_numpy_reference_on_the_cads_frames_bitwise(problem_sample):
+    """check_joints' kernel builds the part frames itself from the joint values: its depths equal, bit for
+    bit, the numpy reference's on cad.part_frames_arrays' frames of the same joint values, for every
+    design of the largest layout group of 16 seeded designs within the problem bounds in one call
+    (the last two designs' poses shuffled together, so a design's fixed parts are set up again and again), with colliding, shallow
+    and free poses and an unreachable point; its numpy path is that reference itself."""
+    designs = problem_sample(16, seed=4242, accept=F.prepare)
+    models = [F.prepare(d) for d in designs]
+    groups: dict = {}
+    for i, m in enumerate(models):
+        groups.setdefault(F.layout_key(m), []).append(i)
+    members = max(groups.values(), key=len)
+    assert len(members) >= 2
+    batch = F.stack_models([models[i] for i in members])
+    owner, pts, sliders, theta, ok = [], [], [], [], []
+    for k, i in enumerate(members):
+        p, _ = W.workspace_sample_weights(designs[i], **W.INTERFERENCE_SAMPLING)
+        p = np.concatenate([p, [[0.5, 0.0, 0.0]]])  # and one unreachable point
+        s, t, r = _joint_poses(designs[i], p)
+        owner.append(np.full(len(p), k))
+        pts.append(p), sliders.append(s), theta.append(t), ok.append(r)
+    owner, pts, sliders, theta, ok = (np.concatenate(x) for x in (owner, pts, sliders, theta, ok))
+    order = np.arange(len(owner))
+    order[-300:] = order[-300:][np.random.default_rng(7).permutation(300)]  # the last two designs' poses mixed
+    owner, pts, sliders, theta, ok = (x[order] for x in (owner, pts, sliders, theta, ok))
+    assert len(np.unique(owner[-300:])) >= 2 and np.count_nonzero(np.diff(owner[-300:])) > 50
+    geo = _geometry([designs[i] for i in members])
+    frames = cad_prrr.part_frames_arrays(geo.beta[owner], geo.d1[owner], geo.d2[owner], geo.d3[owner],
+                                         geo.theta_1p[owner], sliders, theta, pts)
+    ref = F.check_posed(batch, owner, pts, frames, ok, compiled=False)
+    fast = F.check_joints(batch, owner, pts, sliders, theta, ok, geo, compiled=True)
+    assert np.array_equal(_bits(fast.depth), _bits(ref.depth))
+    assert np.array_equal(fast.collides, ref.collides) and np.array_equal(fast.reachable, ok)
+    assert ref.collides.sum() > 100 and np.any((ref.depth > 0) & (ref.depth <= F.DEPTH_TOL))
+    assert not ref.collides.all() and not ok.all()
+    slow = F.check_joints(batch, owner, pts, sliders, theta, ok, geo, compiled=False)
+    assert np.array_equal(_bits(slow.depth), _bits(ref.depth))
+
+
+def test_frame_rules_cover_the_cads_parts_and_nothing_else(paper):
+    """Every part of cad.part_frames_arrays has a frame rule (its frame is built in the kernel); a part
+    it does not know has none, and check_joints then builds numpy frames."""
+    specs = cad_prrr.part_specs(paper)
+    rule, leg = F._frame_rules(tuple(specs))
+    frames = cad_prrr.part_frames_arrays(paper.geometry.beta, 0.0, 0.0, 0.0, 0.0, np.zeros((1, 3)),
+                                         np.zeros((1, 3, 3)), np.zeros((1, 3)))
+    assert set(frames) == set(specs)
+    assert [int(r) for r in rule[[list(specs).index(n) for n in ("base", "rail_2", "housing_3", "link1_1", "link2_2", "platform")]]] == [0, 0, 1, 2, 3, 4]
+    assert int(leg[list(specs).index("carriage_3")]) == 2
+    assert F._frame_rules(("base", "gizmo_1")) is None and F._frame_rules(("rail_4",)) is None
+    assert F._frame_rules(("rail",)) is None and F._frame_rules(("platform_1",)) is None

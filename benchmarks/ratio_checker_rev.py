@@ -1,0 +1,97 @@
+"""The batched draft evaluator with this tree's collision checker (``draft_batch._Checker``: pose IK,
+part frames, check) against an older revision's checker, side by side in one process (interleaved
+rounds, medians; the load average printed before and after): ``python benchmarks/ratio_checker_rev.py
+REV [n [rounds]]`` (default 1024 designs of ``bench_batched_draft.designs``, 3 rounds).
+
+The older revision's ``analysis/prrr/draft_batch.py`` is loaded from ``git show REV:…`` and only its
+``_Checker`` class is used (it calls this tree's ``interference_fast.check_posed``); every other step of
+the batch is this tree's, so the ratio is the checker's alone. Both batches' results are compared first
+(equal statuses and metrics, NaN where NaN). Prints designs/s, the checker's ms per design (its calls
+timed inside the batch) and the ratios old / new.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import statistics
+import subprocess
+import sys
+import time
+import types
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_batched_draft import designs  # noqa: E402
+
+from hapticopt.analysis.fidelity import Fidelity  # noqa: E402
+from hapticopt.analysis.prrr import draft_batch as DB  # noqa: E402
+from hapticopt.analysis.registry import evaluate_batch  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _module_from(rev: str, path: str, name: str) -> types.ModuleType:
+    src = subprocess.run(["git", "show", f"{rev}:{path}"], cwd=ROOT, check=True, capture_output=True, text=True).stdout
+    mod = types.ModuleType(name)
+    mod.__dict__["__name__"] = name
+    sys.modules[name] = mod
+    exec(compile(src, f"{rev}:{path}", "exec"), mod.__dict__)
+    return mod
+
+
+def _load() -> str:
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def _same(a: float, b: float) -> bool:
+    return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+
+
+def main(rev: str, n: int, rounds: int) -> None:
+    print(f"load average {_load()}")
+    old = _module_from(rev, "analysis/prrr/draft_batch.py", "old_draft_batch")
+    checkers = {"old": old._Checker, "new": DB._Checker}
+    spent = {"old": 0.0, "new": 0.0}
+
+    def timed(cls, key):
+        class Timed(cls):
+            def __call__(self, owner, pts):
+                t0 = time.perf_counter()
+                try:
+                    return super().__call__(owner, pts)
+                finally:
+                    spent[key] += time.perf_counter() - t0
+        return Timed
+
+    ds = designs(n)
+    results = {}
+    for key, cls in checkers.items():  # compile / load, and compare the results
+        DB._Checker = timed(cls, key)
+        results[key] = evaluate_batch(ds, fidelity=Fidelity.DRAFT)
+    for a, b in zip(results["old"], results["new"], strict=True):
+        assert a.statuses == b.statuses
+        ma, mb = a.metrics(), b.metrics()
+        assert list(ma) == list(mb) and all(_same(ma[k], mb[k]) for k in ma), (ma, mb)
+    t = {k: [] for k in checkers}
+    c = {k: [] for k in checkers}
+    for _ in range(rounds):
+        for key, cls in checkers.items():
+            DB._Checker = timed(cls, key)
+            spent[key] = 0.0
+            t0 = time.perf_counter()
+            evaluate_batch(ds, fidelity=Fidelity.DRAFT)
+            t[key].append((time.perf_counter() - t0) / n)
+            c[key].append(spent[key] / n)
+    DB._Checker = checkers["new"]
+    m = {k: statistics.median(v) for k, v in t.items()}
+    mc = {k: statistics.median(v) for k, v in c.items()}
+    print(f"{n} designs, rev {rev}, {rounds} rounds (medians); results equal (statuses, metrics)")
+    for key in checkers:
+        print(f"{key} checker: batch {1 / m[key]:.1f} designs/s, checker {1e3 * mc[key]:.3f} ms/design")
+    print(f"batch old/new time {m['old'] / m['new']:.2f}x; checker old/new {mc['old'] / mc['new']:.2f}x")
+    print(f"load average {_load()}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], int(sys.argv[2]) if len(sys.argv) > 2 else 1024, int(sys.argv[3]) if len(sys.argv) > 3 else 3)
