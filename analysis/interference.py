@@ -28,6 +28,7 @@ from hapticopt.design import parts
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.master import cad as cad_master
 from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
 
 #: overlaps below this volume are tessellation noise, not interference [mm³]
 NOISE_MM3 = 1.0
@@ -133,23 +134,25 @@ def _aabb(mesh: Any) -> tuple[np.ndarray, np.ndarray]:
 
 def check_frames(model: InterferenceModel, frames: dict[str, np.ndarray], *,
                  include_neighbours: bool = False) -> tuple[Collision, ...]:
-    """Colliding pairs for parts placed at ``frames`` (name -> 4×4 [m])."""
+    """Colliding pairs for parts placed at ``frames`` (name -> 4×4 [m]).
+
+    The bounding-box test of every pair is one array comparison; the pairs whose boxes meet get the
+    exact boolean, in the order of the part table (a, b with a before b), as a pair loop would."""
     names = [n for n in model.meshes if n in frames]
-    moved = {n: _moved(model.meshes[n], frames[n]) for n in names}
-    boxes = {n: _aabb(moved[n]) for n in names}
+    moved = [_moved(model.meshes[n], frames[n]) for n in names]
+    boxes = np.array([m.bounding_box() for m in moved], dtype=float).reshape(len(names), 6)
+    lo, hi = boxes[:, :3], boxes[:, 3:]
+    apart = np.any(lo[:, None, :] > hi[None, :, :], axis=2)
+    meet = np.triu(~(apart | apart.T), 1)
     out = []
-    for i, a in enumerate(names):
-        lo_a, hi_a = boxes[a]
-        for b in names[i + 1:]:
-            pair = frozenset((a, b))
-            if pair in model.skip and not (include_neighbours and model.bodies[a] != model.bodies[b]):
-                continue
-            lo_b, hi_b = boxes[b]
-            if np.any(lo_a > hi_b) or np.any(lo_b > hi_a):
-                continue
-            vol = (moved[a] ^ moved[b]).volume()
-            if vol > NOISE_MM3:
-                out.append(Collision(a=a, b=b, overlap_mm3=float(vol)))
+    for i, j in zip(*np.nonzero(meet)):  # row-major: the order of the pair loop
+        a, b = names[i], names[j]
+        pair = frozenset((a, b))
+        if pair in model.skip and not (include_neighbours and model.bodies[a] != model.bodies[b]):
+            continue
+        vol = (moved[i] ^ moved[j]).volume()
+        if vol > NOISE_MM3:
+            out.append(Collision(a=a, b=b, overlap_mm3=float(vol)))
     return tuple(out)
 
 
@@ -184,9 +187,38 @@ def check_pose(model_or_design: Any, p, *, branch: int | None = None) -> Interfe
 
 
 def check_poses(model_or_design: Any, points, *, branch: int | None = None) -> list[InterferenceResult]:
-    """:func:`check_pose` over points (n, 3) [m]."""
+    """:func:`check_pose` over points (n, 3) [m].
+
+    For the 3-PRRR the inverse kinematics and the part frames of all points are computed in one
+    vectorised numpy pass (:func:`_prrr_frames_many`) instead of one jax call per point: the same
+    formulas, so poses agree with :func:`check_pose`'s to rounding (the last bit of a sine), and the
+    verdicts with them (``tests/analysis/test_interference.py`` compares both paths)."""
     model = model_or_design if isinstance(model_or_design, InterferenceModel) else prepare(model_or_design)
-    return [check_pose(model, p, branch=branch) for p in np.atleast_2d(np.asarray(points, dtype=float))]
+    pts = np.atleast_2d(np.asarray(points, dtype=float))
+    if model.design.device != "prrr" or len(pts) == 0:
+        return [check_pose(model, p, branch=branch) for p in pts]
+    frames = _prrr_frames_many(model.design, pts, cad_prrr.DEFAULT_BRANCH if branch is None else branch)
+    return [check_pose(model, p, branch=branch) if f is None else _result(p, check_frames(model, f))
+            for p, f in zip(pts, frames)]
+
+
+#: a point whose numpy reach margin is within this of zero is decided by :func:`check_pose` (its
+#: reachability then is exactly the single-pose path's, which rounding could flip) [m]
+_REACH_EDGE = 1e-9
+
+
+def _prrr_frames_many(design: Any, pts: np.ndarray, branch: int) -> list[dict[str, np.ndarray] | None]:
+    """Part frames (name -> 4×4 [m]) of the 3-PRRR at each point (n, 3) [m] on elbow ``branch``, from
+    one numpy pass of :func:`hapticopt.design.prrr.kinematics.inverse_kinematics` and
+    :func:`hapticopt.design.prrr.cad.part_frames_batch`; None where the point is not clearly
+    reachable (out of reach, or within :data:`_REACH_EDGE` of its limit)."""
+    g = design.geometry
+    prm = PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
+    ik = inverse_kinematics(prm, pts, xp=np)
+    clear = np.asarray(ik.reachable) & (np.asarray(ik.reach_margin) > _REACH_EDGE)
+    posed = cad_prrr.part_frames_batch(design, np.asarray(ik.sliders), np.asarray(ik.theta)[:, branch], pts)
+    return [{name: parts.transform(R[k], o[k]) for name, (R, o) in posed.items()} if clear[k] else None
+            for k in range(len(pts))]
 
 
 def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:

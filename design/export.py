@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticopt.design import atomic, offscreen
+from hapticopt.design import atomic, cad_import, offscreen
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.paths import check_name, inside
 from hapticopt.design import mass_properties as mp
@@ -87,6 +87,7 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False,
             on_step(name, steps.index(name) if name else len(steps), len(steps))
 
     step("cad")  # importing build123d (OpenCASCADE) is part of it: seconds in a cold process
+    cad_import.build123d()  # imported without scikit-learn (0.55 s)
     from build123d import Compound, export_step, export_stl
 
     out_dir = Path(out_dir)

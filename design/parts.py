@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from hapticopt.design import cad_units
+from hapticopt.design import cad_import, cad_units
 from hapticopt.design.errors import InvalidDesign
 import copy
 
@@ -337,6 +337,7 @@ def manifold_of(spec: PartSpec, *, segments: int = 32):
 # ---------------------------------------------------------------------------- build123d solids
 def location(T_m: np.ndarray):
     """build123d ``Location`` of a 4×4 transform given in m."""
+    cad_import.build123d()  # imported without scikit-learn (0.55 s)
     from build123d import Location, Plane
 
     T = cad_units.transform_to_mm(T_m)
@@ -346,6 +347,7 @@ def location(T_m: np.ndarray):
 def build_solid(spec: PartSpec):
     """The OpenCASCADE solid of one part in its own frame (mm): SOLIDs fused, HOLEs cut.
     Raises :class:`InvalidDesign` if the result is not one valid solid."""
+    cad_import.build123d()  # imported without scikit-learn (0.55 s)
     from build123d import Box, Cylinder, Solid, Sphere
 
 

@@ -30,7 +30,7 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.registry import EVALUATORS, describe_failure, run_plotter
 from hapticopt.optim import cache as evaluation_cache
 from hapticopt.optim.cache import CachedEvaluation
-from hapticopt.optim.executor import InlineExecutor, watch_parent
+from hapticopt.optim.executor import InlineExecutor, start_child
 
 
 @contextlib.contextmanager
@@ -41,7 +41,7 @@ def side_executor(scheduler: str) -> Iterator[Executor]:
         yield InlineExecutor()
         return
     pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=watch_parent, initargs=(os.getpid(),))
+                               initializer=start_child, initargs=(os.getpid(),))
     try:
         yield pool
     except BaseException:

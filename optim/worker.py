@@ -20,7 +20,7 @@ from collections.abc import Callable
 from multiprocessing.connection import wait
 from typing import Any, NamedTuple
 
-from hapticopt.optim.executor import watch_parent
+from hapticopt.optim.executor import start_child
 
 
 class Outcome(NamedTuple):
@@ -34,7 +34,7 @@ class Outcome(NamedTuple):
 
 def _serve(conn: Any, parent_pid: int, warm: Callable[[], Any] | None) -> None:
     """Child process: run ``(fn, args)`` messages until ``None`` (or the parent is gone)."""
-    watch_parent(parent_pid)
+    start_child(parent_pid)
     if warm is not None:
         warm()
     conn.send(("ready", None, ""))

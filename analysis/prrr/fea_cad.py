@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from hapticopt.design import cad_import
 from hapticopt.analysis.fem import hinge as fea_cad_hinge
 from hapticopt.analysis.fem import solid as fea
 from hapticopt.analysis.status import Status
@@ -83,6 +84,7 @@ def cad_mesh(design, *, size: float, p=(0.0, 0.0, 0.0), branch: int | None = Non
     fills each joint's bosses and gaps solid (a "rigid joint zone" like the frame model's).
     """
 
+    cad_import.build123d()  # imported without scikit-learn (0.55 s)
     from build123d import export_brep
 
 

@@ -10,6 +10,7 @@ import typer
 from hapticopt.optim.cli import compare as cli_compare
 from hapticopt.optim.cli import common
 from hapticopt.design import offscreen
+from hapticopt.optim.executor import skip_teardown_at_exit
 from hapticopt.optim.cli import evaluate as cli_evaluate
 from hapticopt.optim.cli import export as cli_export
 from hapticopt.optim.cli import metrics as cli_metrics
@@ -54,8 +55,19 @@ for _name, _command in (("evaluate", cli_evaluate.evaluate), ("presets", cli_eva
 
 
 def main() -> None:
-    """Console-script entry point (the ``__main__`` guard that Dask's LocalCluster needs)."""
-    app()
+    """Console-script entry point (the ``__main__`` guard that Dask's LocalCluster needs). It owns the
+    process: once the command has ended (typer ends every command with ``SystemExit``), the process
+    ends with that status without the interpreter's module teardown (≈ 2 s after build123d was
+    imported: :func:`hapticopt.optim.executor.end_process`); a crash ends as usual. In-process
+    callers (tests) use ``app``."""
+    status: list[int] = []
+    skip_teardown_at_exit(lambda: status[0] if status else None)  # first: every other exit handler runs
+    try:
+        app()
+    except SystemExit as exc:
+        if exc.code is None or isinstance(exc.code, int):  # a message as the code: the interpreter prints it
+            status.append(exc.code or 0)
+        raise
 
 
 if __name__ == "__main__":

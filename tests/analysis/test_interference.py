@@ -70,3 +70,56 @@ def test_joint_limits_contain_the_home_angles(paper_model):
     # link1 and link2 sit in different layers: R2 turns freely; R1 meets the carriage
     assert limits["r2_1"].free
     assert not limits["r1_1"].free
+
+
+def _pair_loop(model, frames):
+    """The plain reference of :func:`itf.check_frames`: every pair in turn, box test, then the boolean."""
+    names = [n for n in model.meshes if n in frames]
+    moved = {n: itf._moved(model.meshes[n], frames[n]) for n in names}
+    out = []
+    for i, a in enumerate(names):
+        lo_a, hi_a = itf._aabb(moved[a])
+        for b in names[i + 1:]:
+            if frozenset((a, b)) in model.skip:
+                continue
+            lo_b, hi_b = itf._aabb(moved[b])
+            if np.any(lo_a > hi_b) or np.any(lo_b > hi_a):
+                continue
+            vol = (moved[a] ^ moved[b]).volume()
+            if vol > itf.NOISE_MM3:
+                out.append(itf.Collision(a=a, b=b, overlap_mm3=float(vol)))
+    return tuple(out)
+
+
+def test_check_frames_equals_the_pair_loop():
+    # colliding layout (rails on u_i, three times as wide) on both elbow branches: many pairs meet
+    d = io.apply_overrides(io.load_preset("prrr-paper"), ["geometry.theta_1p_deg=0", "structure.rail_width_mm=60"])
+    model = itf.prepare(d)
+    from hapticopt.design.prrr import cad as cad_prrr
+    n = 0
+    for branch in (0, 1):
+        for p in ([0.0, 0.0, 0.0], [0.02, -0.01, -0.03], [-0.03, 0.02, 0.02]):
+            frames = cad_prrr.part_frames(d, cad_prrr.solve_pose(d, p, branch=branch))
+            fast = itf.check_frames(model, frames)
+            assert fast == _pair_loop(model, frames)  # bit for bit: the same booleans in the same order
+            n += len(fast)
+    assert n > 6  # the comparison covered colliding pairs
+
+
+@pytest.mark.parametrize("overrides", [(), ("geometry.theta_1p_deg=0", "structure.rail_width_mm=60")])
+def test_check_poses_agrees_with_check_pose(overrides):
+    # the batched numpy IK against the one-point jax path: same statuses and pairs, overlaps to rounding
+    d = io.apply_overrides(io.load_preset("prrr-paper"), list(overrides))
+    model = itf.prepare(d)
+    rng = np.random.default_rng(7)
+    pts = np.concatenate([rng.uniform(-0.08, 0.08, (40, 3)), [[0.5, 0.0, 0.0], [0.0, 0.0, 0.0]]])
+    statuses = set()
+    for branch in (0, 1):
+        many = itf.check_poses(model, pts, branch=branch)
+        for p, got in zip(pts, many):
+            ref = itf.check_pose(model, p, branch=branch)
+            assert got.status == ref.status and got.pairs == ref.pairs and got.pose_mm == ref.pose_mm
+            for c, r in zip(got.collisions, ref.collisions):
+                assert c.overlap_mm3 == pytest.approx(r.overlap_mm3, rel=1e-9)
+            statuses.add(got.status)
+    assert {Status.OK, Status.COLLIDES, Status.EMPTY} <= statuses  # every kind of verdict was compared

@@ -60,3 +60,39 @@ def test_same_results_inline_process_pool_and_dask_loopback():
     assert _by_start(pooled) == _by_start(inline) == _by_start(dasked)
     assert pooled.best.x == inline.best.x == dasked.best.x
     assert pooled.n_evaluated == inline.n_evaluated == dasked.n_evaluated
+
+
+def _run_python(code: str) -> "subprocess.CompletedProcess[str]":
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+
+
+_ENDS = """
+import atexit, sys
+from hapticopt.optim.executor import skip_teardown_at_exit
+skip_teardown_at_exit(lambda: {status})
+atexit.register(lambda: print("later handler ran"))  # registered after: runs before the end
+print("unflushed", end="")
+sys.stdout.write("")
+{exit}
+"""
+
+
+@pytest.mark.parametrize(("status", "exit_", "code"), [("3", "", 3), ("0", "raise SystemExit(5)", 0),
+                                                       ("None", "raise SystemExit(5)", 5)])
+def test_skip_teardown_ends_with_the_status_after_the_other_handlers(status, exit_, code):
+    # the process ends with status() (None: as the interpreter would), output flushed, later handlers run
+    done = _run_python(_ENDS.format(status=status, exit=exit_))
+    assert done.returncode == code
+    assert done.stdout == "unflushedlater handler ran\n"
+
+
+def test_cli_main_ends_with_the_command_status():
+    # a bad preset is exit 2 (optim/cli/common.py EXIT_CODES_HELP); --help is 0
+    bad = _run_python("from hapticopt.optim.cli import main; import sys; "
+                      "sys.argv = ['hapticopt', 'evaluate', '--preset', 'no-such-preset']; main()")
+    assert bad.returncode == 2 and "no-such-preset" in bad.stderr
+    ok = _run_python("from hapticopt.optim.cli import main; import sys; sys.argv = ['hapticopt', '--help']; main()")
+    assert ok.returncode == 0 and "Usage" in ok.stdout
