@@ -861,6 +861,10 @@ def frame_arrays(fp: FrameParams, p: jax.Array, load_height: jax.Array, options:
     ``branch`` and ``zones_on`` (1.0/0.0) override ``options.branch``/``options.joint_zones`` as
     traced values, so they do not trigger a recompilation. ``xp`` is the array module: ``jax.numpy``
     (jit, vmap over designs, gradients) or ``numpy`` (one design, no compilation; same code).
+    Three steps, each usable alone: :func:`frame_legs` (the legs' stiffness), :func:`condense_legs`
+    (the solves), :func:`compliance_outputs` (everything read from the condensed stiffness); the
+    batched draft evaluator runs the first under jit and the other two outside XLA
+    (:func:`condense_many`).
 
     Returns a dict of arrays [SI]: ``compliance_ee`` (6×6 at P, [u; θ] per [F; M]),
     ``compliance_load`` (3×3 at P + Δz e_z), ``stiffness_load`` (3,), ``elastic_centre``
@@ -870,6 +874,21 @@ def frame_arrays(fp: FrameParams, p: jax.Array, load_height: jax.Array, options:
     Jacobi-scaled leg-internal (Hager's estimate) and condensed (exact) matrices), ``reachable``, ``reach_margin`` [m];
     and, for plots, ``nodes`` (3, 5, 3) [m] (S, A, B, B', Q per leg), ``node_maps`` (3, 5, 6, n)
     and ``recovery`` (3, n−6, 6): internal DOFs of leg i are −recovery[i] @ [u_P; θ_P].
+    """
+    K, G_nodes, nodes, ik = frame_legs(fp, p, options, branch=branch, zones_on=zones_on, xp=xp)
+    contrib, cond_legs, recovery = condense_legs(K, xp)
+    out = compliance_outputs(xp.sum(contrib, axis=0), xp.max(cond_legs), load_height, xp)
+    out.update(reachable=ik.reachable, reach_margin=ik.reach_margin, nodes=nodes, node_maps=G_nodes,
+               recovery=recovery)
+    return out
+
+
+def frame_legs(fp: FrameParams, p: jax.Array, options: FrameOptions, branch: jax.Array | int | None = None,
+               zones_on: jax.Array | float | None = None, xp=jnp):
+    """The three legs' stiffness of one design at ``p`` (3,) [m] (the first step of :func:`frame_arrays`).
+
+    Returns ``K`` (3, n, n) on each leg's DOFs [P (6) | internal] (symmetric), the node maps
+    (3, 5, 6, n), the nodes (3, 5, 3) [m] and the inverse kinematics of ``p``.
     """
     kin = fp.kin
     p = xp.asarray(p, dtype=float)
@@ -893,50 +912,63 @@ def frame_arrays(fp: FrameParams, p: jax.Array, load_height: jax.Array, options:
                             zone=fp.joint_zone * zones_on, options=options, xp=xp, fp=fp, zones_on=zones_on)
     K, G_nodes, nodes = _map(lambda w, s, a, b, q, pts_b, z_b, k_b: leg(w, s, a, b, q, (pts_b, z_b, k_b)), xp,
                              f.w, S, pts.a, pts.b, pts.q, bp, zr, Kb)
+    return K, G_nodes, nodes, ik
+
+
+def condense_legs(K: jax.Array, xp=jnp):
+    """Static condensation of legs onto the end-effector node (the second step of :func:`frame_arrays`).
+
+    ``K`` (L, n, n): L legs' stiffness on [P (6) | internal]; any number of legs (the batched
+    numpy path passes designs × 3). Returns each leg's K_PP − K_Pi K_ii⁻¹ K_iP (L, 6, 6), its
+    Jacobi-scaled internal matrix's 1-norm condition estimate (L,) and K_ii⁻¹ K_iP (L, n−6, 6).
+    """
     Kpp, Kpi, Kii = K[:, :6, :6], K[:, :6, 6:], K[:, 6:, 6:]
-    d = 1.0 / xp.sqrt(xp.abs(xp.diagonal(Kii, axis1=-2, axis2=-1)))  # (3, n_int)
+    d = 1.0 / xp.sqrt(xp.abs(xp.diagonal(Kii, axis1=-2, axis2=-1)))  # (L, n_int)
     Kii_s = d[:, :, None] * Kii * d[:, None, :]
     n_int = Kii.shape[-1]
     solve = _factorised(Kii_s, xp)
-    probe = xp.ones((3, n_int, 1)) / n_int
+    probe = xp.ones((K.shape[0], n_int, 1)) / n_int
     sol = solve(xp.concatenate([d[:, :, None] * xp.swapaxes(Kpi, -1, -2), probe], axis=-1))
     recovery = d[:, :, None] * sol[:, :, :6]  # K_ii⁻¹ K_iP
     cond_legs = xp.max(xp.sum(xp.abs(Kii_s), axis=-2), axis=-1) * _inverse_norm1(solve, sol[:, :, 6], xp)
-    KP = xp.sum(Kpp - Kpi @ recovery, axis=0)
-    KP = 0.5 * (KP + KP.T)
-    dP = 1.0 / xp.sqrt(xp.abs(xp.diagonal(KP)))
-    KP_s = dP[:, None] * KP * dP[None, :]
+    return Kpp - Kpi @ recovery, cond_legs, recovery
+
+
+def compliance_outputs(KP: jax.Array, cond_legs: jax.Array, load_height, xp=jnp) -> dict:
+    """Everything :func:`frame_arrays` reads from the condensed stiffness ``KP`` (..., 6, 6) at P (the
+    third step); ``cond_legs`` (...,) the legs' largest condition estimate. Leading batch axes
+    broadcast (the batched numpy path); the keys of :func:`frame_arrays` but the IK's and the plots'."""
+    KP = 0.5 * (KP + xp.swapaxes(KP, -1, -2))
+    dP = 1.0 / xp.sqrt(xp.abs(xp.diagonal(KP, axis1=-2, axis2=-1)))
+    KP_s = dP[..., :, None] * KP * dP[..., None, :]
     KP_s_inv = xp.linalg.inv(KP_s)
-    cond = xp.maximum(xp.max(cond_legs), _cond1(KP_s, KP_s_inv, xp))
-    C = dP[:, None] * KP_s_inv * dP[None, :]
-    C = 0.5 * (C + C.T)
+    cond = xp.maximum(cond_legs, _cond1(KP_s, KP_s_inv, xp))
+    C = dP[..., :, None] * KP_s_inv * dP[..., None, :]
+    C = 0.5 * (C + xp.swapaxes(C, -1, -2))
 
     def at_height(h):
-        H = xp.concatenate([xp.eye(3), -_skew(h * xp.asarray(_EZ), xp)], axis=1)  # u_L = u_P + θ × (h e_z)
-        return H @ C @ H.T
+        S = -_skew(xp.asarray(h)[..., None] * xp.asarray(_EZ), xp)  # u_L = u_P + θ × (h e_z)
+        H = xp.concatenate([xp.broadcast_to(xp.eye(3), S.shape), S], axis=-1)
+        return H @ C @ xp.swapaxes(H, -1, -2)
 
     # elastic centre: rotation per lateral force θ = (C_θu + h C_θθ [e_z]×) F, F ∈ span(e_x, e_y);
     # the h minimising ‖·‖_F (exact decoupling when it exists; also minimises the lateral compliance)
     E = _skew(xp.asarray(_EZ), xp)
-    M0 = C[3:, :3][:, :2]
-    M1 = (C[3:, 3:] @ E)[:, :2]
-    h_ec = -xp.sum(M0 * M1) / xp.sum(M1 * M1)
-    residual = xp.sqrt(xp.sum((M0 + h_ec * M1) ** 2) / (xp.sum(M0**2) + 1e-300))
+    M0 = C[..., 3:, :2]
+    M1 = (C[..., 3:, 3:] @ E)[..., :, :2]
+    h_ec = -xp.sum(M0 * M1, axis=(-2, -1)) / xp.sum(M1 * M1, axis=(-2, -1))
+    residual = xp.sqrt(xp.sum((M0 + h_ec[..., None, None] * M1) ** 2, axis=(-2, -1))
+                       / (xp.sum(M0**2, axis=(-2, -1)) + 1e-300))
     C_load = at_height(load_height)
     C_ec = at_height(h_ec)
     return {
         "compliance_ee": C,
         "compliance_load": C_load,
-        "stiffness_load": 1.0 / xp.diagonal(C_load),
+        "stiffness_load": 1.0 / xp.diagonal(C_load, axis1=-2, axis2=-1),
         "elastic_centre": h_ec,
-        "stiffness_elastic_centre": 1.0 / xp.diagonal(C_ec),
+        "stiffness_elastic_centre": 1.0 / xp.diagonal(C_ec, axis1=-2, axis2=-1),
         "coupling_residual": residual,
         "condition": cond,
-        "reachable": ik.reachable,
-        "reach_margin": ik.reach_margin,
-        "nodes": nodes,
-        "node_maps": G_nodes,
-        "recovery": recovery,
     }
 
 
