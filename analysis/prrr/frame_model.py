@@ -89,6 +89,11 @@ COND_LIMIT = 1e12
 #: At or above this condition number the matrix is numerically singular (1/eps ≈ 4.5e15 in float64;
 #: three decades above COND_LIMIT, so a rounding-level change of the estimate never flips the verdict).
 SINGULAR_COND = 1e15
+#: At or above this cancellation on the condensed stiffness's diagonal (Σ_legs |K_PP,aa| + |(K_Pi K_ii⁻¹ K_iP)_aa|
+#: over |K_P,aa|, largest over a) :func:`condense_many` returns NaN (digits left ≈ 16 − log10 of it).
+#: Measured (home pose, draft batch, 512 designs in the bundled problem's bounds and the batch test's
+#: sample): 10^4.2–10^5.5 for every design the single path solves; 10^16.7 at β = 89.999999° (singular).
+CANCELLATION_LIMIT = 1e8
 #: Default load height above the end-effector [m] (seed 002 Table 3: Δz = 58 mm).
 LOAD_HEIGHT = 0.058
 _EZ = np.array([0.0, 0.0, 1.0])
@@ -972,6 +977,57 @@ def compliance_outputs(KP: jax.Array, cond_legs: jax.Array, load_height, xp=jnp)
     }
 
 
+def kernel_availability() -> str | None:
+    """None when the compiled kernel of :func:`condense_many` can run here, else why not (one line); the
+    numpy path runs then."""
+    try:
+        import numba  # noqa: F401
+    except ImportError as e:  # pragma: no cover - numba is a dependency
+        return f"numba not importable ({e})"
+    try:  # numba raises at decoration when no cache folder is writable (NUMBA_CACHE_DIR, __pycache__, ~/.cache)
+        from hapticopt.analysis.prrr import _frame_kernels  # noqa: F401
+    except (OSError, RuntimeError) as e:
+        return f"the compiled frame kernel's module did not load: {e}"
+    return None
+
+
+def condense_many(K, load_height, *, compiled: bool | None = None) -> dict[str, np.ndarray]:
+    """:func:`condense_legs` and :func:`compliance_outputs` of many designs outside XLA (numpy arrays).
+
+    ``K`` (n, 3, N, N): each design's legs' stiffness (:func:`frame_legs`). ``compiled``: None (default)
+    runs the numba kernel (:mod:`._frame_kernels`: a Cholesky factorisation along each leg's chain of
+    DOFs, over its nonzero entries) where numba loads, else the numpy path (:func:`condense_legs` with
+    ``xp=numpy`` on the (3n, N, N) stack: LAPACK's LU per leg); True / False force one. Returns the keys
+    of :func:`compliance_outputs`, each with a leading axis n. NaN rows: a leg whose scaled internal
+    matrix is not positive definite (the kernel), and a design whose condensation K_P = Σ (K_PP −
+    K_Pi K_ii⁻¹ K_iP) cancels by :data:`CANCELLATION_LIMIT` or more on its diagonal (either path):
+    there its numbers, and a verdict read from them, are rounding that differs between eliminations;
+    the batched draft evaluator solves such a design again by the single path.
+    """
+    K = np.ascontiguousarray(K, dtype=float)
+    n, legs, N = K.shape[0], K.shape[1], K.shape[-1]
+    flat = K.reshape(n * legs, N, N)
+    if compiled is None:
+        compiled = kernel_availability() is None
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if compiled:
+            from hapticopt.analysis.prrr._frame_kernels import condense_legs_kernel
+            contrib, cond, gross = np.empty((n * legs, 6, 6)), np.empty(n * legs), np.empty((n * legs, 6))
+            condense_legs_kernel(flat, contrib, cond, np.empty((n * legs, N - 6, 6)), gross)
+        else:
+            contrib, cond, recovery = condense_legs(flat, np)
+            removed = np.einsum("lai,lia->la", flat[:, :6, 6:], recovery)  # diagonal of K_Pi K_ii⁻¹ K_iP
+            gross = np.abs(np.diagonal(flat[:, :6, :6], axis1=-2, axis2=-1)) + np.abs(removed)
+        KP = np.sum(contrib.reshape(n, legs, 6, 6), axis=1)
+        cancel = np.max(np.sum(gross.reshape(n, legs, 6), axis=1) / np.abs(np.diagonal(KP, axis1=-2, axis2=-1)),
+                        axis=1)
+        out = compliance_outputs(KP, np.max(cond.reshape(n, legs), axis=1), np.asarray(load_height, dtype=float), np)
+    bad = ~(cancel < CANCELLATION_LIMIT)  # NaN too
+    for v in out.values():
+        v[bad] = np.nan
+    return out
+
+
 _PLOT_ONLY = ("nodes", "node_maps", "recovery")
 
 
@@ -1040,9 +1096,10 @@ def closed_form_tip_deflection(load: float, length: float, E: float, inertia: fl
 
 
 __all__ = [
-    "COND_LIMIT", "LOAD_HEIGHT", "FrameOptions", "FrameParams", "Joints", "Offsets", "Section",
+    "CANCELLATION_LIMIT", "COND_LIMIT", "LOAD_HEIGHT", "FrameOptions", "FrameParams", "Joints", "Offsets", "Section",
     "beam_global_stiffness", "beam_local_stiffness", "cantilever_compliance", "circle_properties",
-    "closed_form_tip_deflection", "bond_stiffness", "bracket_frame",
+    "closed_form_tip_deflection", "bond_stiffness", "bracket_frame", "compliance_outputs", "condense_legs",
+    "condense_many", "frame_legs", "kernel_availability",
     "dof_count", "frame_arrays", "frame_params_many", "frame_params_of", "section_properties", "solve_frame",
     "solve_frame_batch", "solve_frame_jax", "stack_frame_params",
 ]
