@@ -43,92 +43,131 @@ def _solve_into(L, nz, cnt, x):
 
 
 @njit(cache=True)
+def _condense_leg(Kl, A, d, nz, cnt, sol, x, recovery, contrib, gross):
+    """One leg (``Kl`` (n, n)): writes ``recovery`` (n−6, 6), ``contrib`` (6, 6), ``gross`` (6,); returns
+    the condition estimate (NaN, and NaN outputs, where the scaled K_ii is not positive definite).
+    ``A``, ``d``, ``nz``, ``cnt``, ``sol``, ``x``: scratch of the internal size."""
+    n = Kl.shape[0]
+    m = n - 6
+    for i in range(m):
+        d[i] = 1.0 / math.sqrt(abs(Kl[6 + i, 6 + i]))
+    norm1 = 0.0  # ‖K_ii,s‖₁ (symmetric: the largest column sum)
+    for j in range(m):
+        col = 0.0
+        for i in range(m):
+            a = d[i] * Kl[6 + i, 6 + j] * d[j]
+            A[i, j] = a
+            col += abs(a)
+        norm1 = max(norm1, col)
+    # Cholesky on the lower triangle, right-looking, over each column's nonzero rows
+    for k in range(m):
+        akk = A[k, k]
+        if not akk > 0.0:
+            contrib[:, :] = np.nan
+            recovery[:, :] = np.nan
+            gross[:] = np.nan
+            return np.nan
+        lkk = math.sqrt(akk)
+        A[k, k] = lkk
+        c = 0
+        for i in range(k + 1, m):
+            if A[i, k] != 0.0:
+                A[i, k] /= lkk
+                nz[k, c] = i
+                c += 1
+        cnt[k] = c
+        for t in range(c):
+            i = nz[k, t]
+            lik = A[i, k]
+            for u in range(t + 1):  # nz[k] ascending: j ≤ i, the lower triangle
+                j = nz[k, u]
+                A[i, j] -= lik * A[j, k]
+    for r in range(7):  # right-hand sides: d K_iP, then the probe (1/m)·1
+        for i in range(m):
+            x[i] = d[i] * Kl[r, 6 + i] if r < 6 else 1.0 / m
+        _solve_into(A, nz, cnt, x)
+        for i in range(m):
+            sol[i, r] = x[i]
+    for i in range(m):
+        for r in range(6):
+            recovery[i, r] = d[i] * sol[i, r]
+    for a in range(6):
+        for b in range(6):
+            s = 0.0
+            for i in range(m):
+                s += Kl[a, 6 + i] * recovery[i, b]
+            contrib[a, b] = Kl[a, b] - s
+            if a == b:
+                gross[a] = abs(Kl[a, a]) + abs(s)
+    # Hager's estimate of ‖A⁻¹‖₁ (frame_model._inverse_norm1): y = A⁻¹ (1/m)·1, ξ = sign(y), z = A⁻¹ ξ,
+    # j = argmax |z|, y2 = A⁻¹ e_j; max(‖y‖₁, ‖y2‖₁)
+    s1 = 0.0
+    for i in range(m):
+        s1 += abs(sol[i, 6])
+        x[i] = 1.0 if sol[i, 6] >= 0.0 else -1.0
+    _solve_into(A, nz, cnt, x)
+    jmax, zmax = 0, -1.0
+    for i in range(m):
+        if abs(x[i]) > zmax:  # first of equal maxima, as argmax
+            jmax, zmax = i, abs(x[i])
+    for i in range(m):
+        x[i] = 0.0
+    x[jmax] = 1.0
+    _solve_into(A, nz, cnt, x)
+    s2 = 0.0
+    for i in range(m):
+        s2 += abs(x[i])
+    return norm1 * max(s1, s2)
+
+
+@njit(cache=True)
 def condense_legs_kernel(K, contrib, cond, recovery, gross):
     """``K`` (L, n, n) legs' stiffness on [P (6) | internal]; writes each leg's K_PP − K_Pi K_ii⁻¹ K_iP
     into ``contrib`` (L, 6, 6), its scaled internal matrix's condition estimate into ``cond`` (L,),
     K_ii⁻¹ K_iP into ``recovery`` (L, n−6, 6) and the magnitudes |K_PP,aa| + |(K_Pi K_ii⁻¹ K_iP)_aa| of
     the diagonal's two terms into ``gross`` (L, 6) (the size of the cancellation)."""
-    nl, n = K.shape[0], K.shape[1]
-    m = n - 6
-    A = np.empty((m, m))
-    d = np.empty(m)
-    nz = np.empty((m, m), dtype=np.int64)
-    cnt = np.empty(m, dtype=np.int64)
+    m = K.shape[1] - 6
+    A, d, x = np.empty((m, m)), np.empty(m), np.empty(m)
+    nz, cnt = np.empty((m, m), dtype=np.int64), np.empty(m, dtype=np.int64)
     sol = np.empty((m, 7))
-    x = np.empty(m)
-    for leg in range(nl):
-        Kl = K[leg]
-        for i in range(m):
-            d[i] = 1.0 / math.sqrt(abs(Kl[6 + i, 6 + i]))
-        norm1 = 0.0  # ‖K_ii,s‖₁ (symmetric: the largest column sum)
-        for j in range(m):
-            col = 0.0
-            for i in range(m):
-                a = d[i] * Kl[6 + i, 6 + j] * d[j]
-                A[i, j] = a
-                col += abs(a)
-            norm1 = max(norm1, col)
-        # Cholesky on the lower triangle, right-looking, over each column's nonzero rows
-        ok = True
-        for k in range(m):
-            akk = A[k, k]
-            if not akk > 0.0:
-                ok = False
-                break
-            lkk = math.sqrt(akk)
-            A[k, k] = lkk
-            c = 0
-            for i in range(k + 1, m):
-                if A[i, k] != 0.0:
-                    A[i, k] /= lkk
-                    nz[k, c] = i
-                    c += 1
-            cnt[k] = c
-            for t in range(c):
-                i = nz[k, t]
-                lik = A[i, k]
-                for u in range(t + 1):  # nz[k] ascending: j ≤ i, the lower triangle
-                    j = nz[k, u]
-                    A[i, j] -= lik * A[j, k]
-        if not ok:
-            contrib[leg] = np.nan
-            cond[leg] = np.nan
-            recovery[leg] = np.nan
-            gross[leg] = np.nan
-            continue
-        for r in range(7):  # right-hand sides: d K_iP, then the probe (1/m)·1
-            for i in range(m):
-                x[i] = d[i] * Kl[r, 6 + i] if r < 6 else 1.0 / m
-            _solve_into(A, nz, cnt, x)
-            for i in range(m):
-                sol[i, r] = x[i]
-        for i in range(m):
-            for r in range(6):
-                recovery[leg, i, r] = d[i] * sol[i, r]
-        for a in range(6):
-            for b in range(6):
-                s = 0.0
-                for i in range(m):
-                    s += Kl[a, 6 + i] * recovery[leg, i, b]
-                contrib[leg, a, b] = Kl[a, b] - s
-                if a == b:
-                    gross[leg, a] = abs(Kl[a, a]) + abs(s)
-        # Hager's estimate of ‖A⁻¹‖₁ (frame_model._inverse_norm1): y = A⁻¹ (1/m)·1, ξ = sign(y), z = A⁻¹ ξ,
-        # j = argmax |z|, y2 = A⁻¹ e_j; max(‖y‖₁, ‖y2‖₁)
-        s1 = 0.0
-        for i in range(m):
-            s1 += abs(sol[i, 6])
-            x[i] = 1.0 if sol[i, 6] >= 0.0 else -1.0
-        _solve_into(A, nz, cnt, x)
-        jmax, zmax = 0, -1.0
-        for i in range(m):
-            if abs(x[i]) > zmax:  # first of equal maxima, as argmax
-                jmax, zmax = i, abs(x[i])
-        for i in range(m):
-            x[i] = 0.0
-        x[jmax] = 1.0
-        _solve_into(A, nz, cnt, x)
-        s2 = 0.0
-        for i in range(m):
-            s2 += abs(x[i])
-        cond[leg] = norm1 * max(s1, s2)
+    for leg in range(K.shape[0]):
+        cond[leg] = _condense_leg(K[leg], A, d, nz, cnt, sol, x, recovery[leg], contrib[leg], gross[leg])
+
+
+@njit(cache=True)
+def assemble_condense_kernel(G, Kt, cols, n, contrib, cond, gross):
+    """Legs given as terms (``frame_model.frame_leg_terms``): ``G`` (L, T, 12, M), ``Kt`` (L, T, 12, 12),
+    ``cols`` (T, M) their leg DOFs; each leg's K = sym(Σ_t G_tᵀ K_t G_t) (n × n; the products over the
+    nonzero entries of G_t), then :func:`condense_legs_kernel`'s outputs but the recovery."""
+    m = n - 6
+    Kl, A, d, x = np.empty((n, n)), np.empty((m, m)), np.empty(m), np.empty(m)
+    nz, cnt = np.empty((m, m), dtype=np.int64), np.empty(m, dtype=np.int64)
+    sol, rec = np.empty((m, 7)), np.empty((m, 6))
+    T, M = cols.shape
+    KG = np.empty((12, M))
+    for leg in range(G.shape[0]):
+        Kl[:, :] = 0.0
+        for t in range(T):
+            g, k = G[leg, t], Kt[leg, t]
+            for a in range(12):  # KG = K_t G_t
+                for b in range(M):
+                    KG[a, b] = 0.0
+            for r in range(12):
+                for b in range(M):
+                    grb = g[r, b]
+                    if grb != 0.0:
+                        for a in range(12):
+                            KG[a, b] += k[a, r] * grb
+            for r in range(12):  # K[cols_a, cols_b] += Σ_r G[r, a] KG[r, b]
+                for a in range(M):
+                    gra = g[r, a]
+                    if gra != 0.0:
+                        ca = cols[t, a]
+                        for b in range(M):
+                            Kl[ca, cols[t, b]] += gra * KG[r, b]
+        for i in range(n):
+            for j in range(i):
+                s = 0.5 * (Kl[i, j] + Kl[j, i])
+                Kl[i, j] = s
+                Kl[j, i] = s
+        cond[leg] = _condense_leg(Kl, A, d, nz, cnt, sol, x, rec, contrib[leg], gross[leg])

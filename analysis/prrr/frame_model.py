@@ -644,10 +644,7 @@ def _assemble(n, L, elems, section: Section, spring, options: FrameOptions, xp=j
     and the nonzero terms and their order in each product are the same. The numpy path keeps the
     dense form (one call per product: its cost is call overhead, not arithmetic).
     """
-    Ge = xp.stack([xp.concatenate([e[0], e[1]], axis=0) for e in elems])  # (E, 12, n)
-    X1, X2, Z, A1, A2 = (xp.stack([e[k] for e in elems]) for k in (2, 3, 4, 5, 6))
-    PR = tuple(xp.stack([e[7][f] for e in elems]) for f in range(6))
-    Ke = beam_global_stiffness(X1, X2, Z, section, A1, A2, xp, props=SectionProperties(*PR))  # (E, 12, 12)
+    Ge, Ke = _element_maps(elems, section, xp)
     if xp is np:
         K = xp.sum(xp.swapaxes(Ge, -1, -2) @ Ke @ Ge, axis=0)  # Σ_e G_eᵀ K_e G_e
         if springs:
@@ -666,6 +663,56 @@ def _assemble(n, L, elems, section: Section, spring, options: FrameOptions, xp=j
         sel[L["sea"], L["sea"]] = 1.0
         K = K + spring * xp.asarray(sel)
     return 0.5 * (K + K.T)
+
+
+def _element_maps(elems, section: Section, xp=jnp):
+    """Stacked maps [G1; G2] (E, 12, n) and global stiffness (E, 12, 12) of elements (G1, G2, x1, x2,
+    zref, a1, a2, props)."""
+    Ge = xp.stack([xp.concatenate([e[0], e[1]], axis=0) for e in elems])  # (E, 12, n)
+    X1, X2, Z, A1, A2 = (xp.stack([e[k] for e in elems]) for k in (2, 3, 4, 5, 6))
+    PR = tuple(xp.stack([e[7][f] for e in elems]) for f in range(6))
+    Ke = beam_global_stiffness(X1, X2, Z, section, A1, A2, xp, props=SectionProperties(*PR))  # (E, 12, 12)
+    return Ge, Ke
+
+
+@functools.lru_cache(maxsize=None)
+def term_columns(options: FrameOptions) -> np.ndarray:
+    """(T, M) int: the leg DOFs of each stiffness term of :func:`frame_leg_terms` (elements, joint
+    springs, then the SEA spring with ``options.sea``), :func:`_supports` padded with each term's first
+    column (its map is zero there)."""
+    sup_e, sup_s = _supports(options)
+    cols = list(sup_e) + list(sup_s)
+    if options.sea:
+        cols.append(np.array([_leg_layout(options)[1]["sea"]]))
+    M = max(len(c) for c in cols)
+    return np.stack([np.concatenate([c, np.full(M - len(c), c[0])]) for c in cols])
+
+
+def _leg_terms(elems, springs, section: Section, spring, options: FrameOptions, xp=jnp):
+    """One leg's stiffness as terms (G (T, 12, M), K (T, 12, 12)): K_leg = sym(Σ_t Gᵀ_t K_t G_t) scattered
+    onto the columns :func:`term_columns` (springs' 6 rows and the SEA spring's 1 padded with zeros)."""
+    Ge, Ke = _element_maps(elems, section, xp)
+    cols = term_columns(options)
+    n = Ge.shape[-1]
+    maps = [Ge[k] for k in range(len(elems))] + [d for d, _ in springs]
+    stiff = [Ke[k] for k in range(len(elems))] + [k_s for _, k_s in springs]
+    if options.sea:
+        sel = np.zeros((1, n))
+        sel[0, _leg_layout(options)[1]["sea"]] = 1.0
+        maps.append(xp.asarray(sel))
+        stiff.append(xp.reshape(spring, (1, 1)))
+    G, K = [], []
+    for t, (g, k) in enumerate(zip(maps, stiff)):
+        c = cols[t]
+        m = len(np.unique(c))  # the padding repeats c[0]
+        runs = _runs(c[:m])
+        g = _take_cols(g, runs, xp)
+        r = g.shape[0]
+        g = xp.concatenate([g, xp.zeros((r, len(c) - m))], axis=1)
+        G.append(xp.concatenate([g, xp.zeros((12 - r, len(c)))], axis=0))
+        K.append(xp.concatenate([xp.concatenate([k, xp.zeros((r, 12 - r))], axis=1), xp.zeros((12 - r, 12))],
+                                axis=0))
+    return xp.stack(G), xp.stack(K)
 
 
 def _runs(cols: np.ndarray) -> list[tuple[int, int]]:
@@ -888,13 +935,8 @@ def frame_arrays(fp: FrameParams, p: jax.Array, load_height: jax.Array, options:
     return out
 
 
-def frame_legs(fp: FrameParams, p: jax.Array, options: FrameOptions, branch: jax.Array | int | None = None,
-               zones_on: jax.Array | float | None = None, xp=jnp):
-    """The three legs' stiffness of one design at ``p`` (3,) [m] (the first step of :func:`frame_arrays`).
-
-    Returns ``K`` (3, n, n) on each leg's DOFs [P (6) | internal] (symmetric), the node maps
-    (3, 5, 6, n), the nodes (3, 5, 3) [m] and the inverse kinematics of ``p``.
-    """
+def _leg_inputs(fp: FrameParams, p, options: FrameOptions, branch, zones_on, xp):
+    """The leg function and its per-leg arguments (leg axis first), and the IK of ``p``."""
     kin = fp.kin
     p = xp.asarray(p, dtype=float)
     ik = inverse_kinematics(kin, p, xp=xp)
@@ -915,9 +957,35 @@ def frame_legs(fp: FrameParams, p: jax.Array, options: FrameOptions, branch: jax
 
     leg = functools.partial(_leg_stiffness, p=p, r4=kin.r4, d4=kin.d4, section=fp.section, spring=fp.spring,
                             zone=fp.joint_zone * zones_on, options=options, xp=xp, fp=fp, zones_on=zones_on)
-    K, G_nodes, nodes = _map(lambda w, s, a, b, q, pts_b, z_b, k_b: leg(w, s, a, b, q, (pts_b, z_b, k_b)), xp,
-                             f.w, S, pts.a, pts.b, pts.q, bp, zr, Kb)
+    return leg, (f.w, S, pts.a, pts.b, pts.q, bp, zr, Kb), ik
+
+
+def frame_legs(fp: FrameParams, p: jax.Array, options: FrameOptions, branch: jax.Array | int | None = None,
+               zones_on: jax.Array | float | None = None, xp=jnp):
+    """The three legs' stiffness of one design at ``p`` (3,) [m] (the first step of :func:`frame_arrays`).
+
+    Returns ``K`` (3, n, n) on each leg's DOFs [P (6) | internal] (symmetric), the node maps
+    (3, 5, 6, n), the nodes (3, 5, 3) [m] and the inverse kinematics of ``p``.
+    """
+    leg, args, ik = _leg_inputs(fp, p, options, branch, zones_on, xp)
+    K, G_nodes, nodes = _map(lambda w, s, a, b, q, pts_b, z_b, k_b: leg(w, s, a, b, q, (pts_b, z_b, k_b)), xp, *args)
     return K, G_nodes, nodes, ik
+
+
+def frame_leg_terms(fp: FrameParams, p: jax.Array, options: FrameOptions, xp=jnp):
+    """:func:`frame_legs`' stiffness as its terms, unassembled (the batched draft evaluator's jitted step;
+    :func:`condense_many` assembles and solves them outside XLA): G (3, T, 12, M), K (3, T, 12, 12) per
+    leg, each leg's K = sym(Σ_t G_tᵀ K_t G_t) on the columns :func:`term_columns` ``(options)``; and the
+    inverse kinematics of ``p``. The same element stiffness and maps as :func:`frame_legs`; only the
+    products and their sum move out."""
+    leg, args, ik = _leg_inputs(fp, p, options, None, None, xp)
+
+    def one(w, s, a, b, q, pts_b, z_b, k_b):
+        elems, springs = leg(w, s, a, b, q, (pts_b, z_b, k_b), parts_only=True)
+        return _leg_terms(elems, springs, fp.section, fp.spring, options, xp)
+
+    G, K = _map(one, xp, *args)
+    return G, K, ik
 
 
 def condense_legs(K: jax.Array, xp=jnp):
@@ -991,6 +1059,19 @@ def kernel_availability() -> str | None:
     return None
 
 
+def assemble_terms(G, Kt, cols: np.ndarray, n: int) -> np.ndarray:
+    """Legs' stiffness (L, n, n) from their terms (:func:`frame_leg_terms`; ``G`` (L, T, 12, M), ``Kt``
+    (L, T, 12, 12), ``cols`` (T, M)) with numpy: sym(Σ_t G_tᵀ K_t G_t) scattered onto ``cols``."""
+    G, Kt = np.asarray(G, dtype=float), np.asarray(Kt, dtype=float)
+    K = np.zeros((G.shape[0], n, n))
+    for t, c in enumerate(cols):
+        m = len(np.unique(c))  # the padding repeats c[0] (its map columns are zero)
+        small = np.swapaxes(G[:, t, :, :m], -1, -2) @ Kt[:, t] @ G[:, t, :, :m]  # (L, m, m)
+        for a in range(m):
+            K[:, c[a], c[:m]] += small[:, a, :]
+    return 0.5 * (K + np.swapaxes(K, -1, -2))
+
+
 def condense_many(K, load_height, *, compiled: bool | None = None) -> dict[str, np.ndarray]:
     """:func:`condense_legs` and :func:`compliance_outputs` of many designs outside XLA (numpy arrays).
 
@@ -1018,10 +1099,40 @@ def condense_many(K, load_height, *, compiled: bool | None = None) -> dict[str, 
             contrib, cond, recovery = condense_legs(flat, np)
             removed = np.einsum("lai,lia->la", flat[:, :6, 6:], recovery)  # diagonal of K_Pi K_ii⁻¹ K_iP
             gross = np.abs(np.diagonal(flat[:, :6, :6], axis1=-2, axis2=-1)) + np.abs(removed)
-        KP = np.sum(contrib.reshape(n, legs, 6, 6), axis=1)
-        cancel = np.max(np.sum(gross.reshape(n, legs, 6), axis=1) / np.abs(np.diagonal(KP, axis1=-2, axis2=-1)),
-                        axis=1)
-        out = compliance_outputs(KP, np.max(cond.reshape(n, legs), axis=1), np.asarray(load_height, dtype=float), np)
+        return _outputs_many(contrib, cond, gross, n, legs, load_height)
+
+
+def condense_terms_many(G, Kt, options: FrameOptions, load_height, *,
+                        compiled: bool | None = None) -> dict[str, np.ndarray]:
+    """:func:`condense_many` of legs given as their terms (:func:`frame_leg_terms` of n designs: ``G``
+    (n, 3, T, 12, M), ``Kt`` (n, 3, T, 12, 12)): the numba kernel assembles each leg (the products
+    over the nonzero entries of the maps) and condenses it in one pass; the numpy path
+    (``compiled=False``, or numba unavailable) assembles with :func:`assemble_terms` and calls
+    :func:`condense_many`. Same outputs and NaN rules."""
+    cols = term_columns(options)
+    N = _leg_layout(options)[0]
+    if compiled is None:
+        compiled = kernel_availability() is None
+    G, Kt = np.asarray(G, dtype=float), np.asarray(Kt, dtype=float)
+    n, legs = G.shape[:2]
+    if not compiled:
+        K = assemble_terms(G.reshape((n * legs,) + G.shape[2:]), Kt.reshape((n * legs,) + Kt.shape[2:]), cols, N)
+        return condense_many(K.reshape(n, legs, N, N), load_height, compiled=False)
+    from hapticopt.analysis.prrr._frame_kernels import assemble_condense_kernel
+    contrib, cond, gross = np.empty((n * legs, 6, 6)), np.empty(n * legs), np.empty((n * legs, 6))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        assemble_condense_kernel(np.ascontiguousarray(G.reshape((n * legs,) + G.shape[2:])),
+                                 np.ascontiguousarray(Kt.reshape((n * legs,) + Kt.shape[2:])),
+                                 np.ascontiguousarray(cols, dtype=np.int64), N, contrib, cond, gross)
+        return _outputs_many(contrib, cond, gross, n, legs, load_height)
+
+
+def _outputs_many(contrib, cond, gross, n: int, legs: int, load_height) -> dict[str, np.ndarray]:
+    """:func:`compliance_outputs` of n designs from their legs' condensation (legs × n flattened), NaN
+    rows where the condensation cancels by :data:`CANCELLATION_LIMIT` or more."""
+    KP = np.sum(contrib.reshape(n, legs, 6, 6), axis=1)
+    cancel = np.max(np.sum(gross.reshape(n, legs, 6), axis=1) / np.abs(np.diagonal(KP, axis1=-2, axis2=-1)), axis=1)
+    out = compliance_outputs(KP, np.max(cond.reshape(n, legs), axis=1), np.asarray(load_height, dtype=float), np)
     bad = ~(cancel < CANCELLATION_LIMIT)  # NaN too
     for v in out.values():
         v[bad] = np.nan
@@ -1099,7 +1210,7 @@ __all__ = [
     "CANCELLATION_LIMIT", "COND_LIMIT", "LOAD_HEIGHT", "FrameOptions", "FrameParams", "Joints", "Offsets", "Section",
     "beam_global_stiffness", "beam_local_stiffness", "cantilever_compliance", "circle_properties",
     "closed_form_tip_deflection", "bond_stiffness", "bracket_frame", "compliance_outputs", "condense_legs",
-    "condense_many", "frame_legs", "kernel_availability",
+    "assemble_terms", "condense_many", "condense_terms_many", "frame_leg_terms", "frame_legs", "kernel_availability", "term_columns",
     "dof_count", "frame_arrays", "frame_params_many", "frame_params_of", "section_properties", "solve_frame",
     "solve_frame_batch", "solve_frame_jax", "stack_frame_params",
 ]
