@@ -28,12 +28,13 @@ def _solve_into(L, nz, cnt, x):
     """x ← (L Lᵀ)⁻¹ x in place: L lower-triangular (its nonzero rows below the diagonal of column k
     are nz[k, :cnt[k]])."""
     m = x.shape[0]
-    for k in range(m):  # forward: L y = x, column by column
-        xk = x[k] / L[k, k]
+    for k in range(m):  # forward: L y = x, column by column (a zero entry updates nothing: the
+        xk = x[k] / L[k, k]  # right-hand sides K_iP and e_j are zero on most of the chain)
         x[k] = xk
-        for t in range(cnt[k]):
-            i = nz[k, t]
-            x[i] -= L[i, k] * xk
+        if xk != 0.0:
+            for t in range(cnt[k]):
+                i = nz[k, t]
+                x[i] -= L[i, k] * xk
     for k in range(m - 1, -1, -1):  # backward: Lᵀ z = y
         s = x[k]
         for t in range(cnt[k]):
@@ -51,14 +52,25 @@ def _condense_leg(Kl, A, d, nz, cnt, sol, x, recovery, contrib, gross):
     m = n - 6
     for i in range(m):
         d[i] = 1.0 / math.sqrt(abs(Kl[6 + i, 6 + i]))
-    norm1 = 0.0  # ‖K_ii,s‖₁ (symmetric: the largest column sum)
+    # the scaled lower triangle (all the factorisation reads) and ‖K_ii,s‖₁: K is symmetric, so column
+    # j's sum is row j's; each off-diagonal entry counts in the sums of its row and of its column
     for j in range(m):
-        col = 0.0
-        for i in range(m):
-            a = d[i] * Kl[6 + i, 6 + j] * d[j]
-            A[i, j] = a
-            col += abs(a)
-        norm1 = max(norm1, col)
+        x[j] = 0.0
+    for i in range(m):
+        di = d[i]
+        for j in range(i + 1):
+            v = Kl[6 + i, 6 + j]
+            if v != 0.0:
+                a = di * v * d[j]
+                A[i, j] = a
+                x[i] += abs(a)
+                if j != i:
+                    x[j] += abs(a)
+            else:
+                A[i, j] = 0.0
+    norm1 = 0.0
+    for j in range(m):
+        norm1 = max(norm1, x[j])
     # Cholesky on the lower triangle, right-looking, over each column's nonzero rows
     for k in range(m):
         akk = A[k, k]
@@ -91,14 +103,17 @@ def _condense_leg(Kl, A, d, nz, cnt, sol, x, recovery, contrib, gross):
     for i in range(m):
         for r in range(6):
             recovery[i, r] = d[i] * sol[i, r]
-    for a in range(6):
+    for a in range(6):  # K_PP − K_Pi K_ii⁻¹ K_iP over the nonzeros of K_Pi (in the order of i)
         for b in range(6):
-            s = 0.0
-            for i in range(m):
-                s += Kl[a, 6 + i] * recovery[i, b]
-            contrib[a, b] = Kl[a, b] - s
-            if a == b:
-                gross[a] = abs(Kl[a, a]) + abs(s)
+            contrib[a, b] = 0.0
+        for i in range(m):
+            kai = Kl[a, 6 + i]
+            if kai != 0.0:
+                for b in range(6):
+                    contrib[a, b] += kai * recovery[i, b]
+        gross[a] = abs(Kl[a, a]) + abs(contrib[a, a])
+        for b in range(6):
+            contrib[a, b] = Kl[a, b] - contrib[a, b]
     # Hager's estimate of ‖A⁻¹‖₁ (frame_model._inverse_norm1): y = A⁻¹ (1/m)·1, ξ = sign(y), z = A⁻¹ ξ,
     # j = argmax |z|, y2 = A⁻¹ e_j; max(‖y‖₁, ‖y2‖₁)
     s1 = 0.0

@@ -383,3 +383,33 @@ def test_condense_many_defers_a_cancelled_condensation(paper, compiled):
     out = fm.condense_many(np.stack(rows), fm.LOAD_HEIGHT, compiled=compiled)
     assert all(np.all(np.isfinite(v[0])) for v in out.values())
     assert all(np.all(np.isnan(v[1])) for v in out.values())
+
+
+@pytest.mark.parametrize("options", [fm.FrameOptions(), fm.FrameOptions(sea=True),
+                                     fm.FrameOptions(pin_model=fm.PinModel.BEAM)])
+def test_leg_terms_assemble_to_frame_legs(paper, options):
+    # frame_leg_terms (the batch's jitted step) holds the same products as frame_legs' assembly
+    fp = fm.frame_params_of(paper, xp=np)
+    K = np.asarray(fm.frame_legs(fp, np.zeros(3), options, xp=np)[0])
+    G, Kt, _ = fm.frame_leg_terms(fp, np.zeros(3), options, xp=np)
+    A = fm.assemble_terms(G, Kt, fm.term_columns(options), K.shape[-1])
+    np.testing.assert_allclose(A, K, rtol=0, atol=1e-14 * np.abs(K).max())
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_condense_terms_many_equals_single_path(paper, compiled):
+    # reference: solve_frame of each design; the batch's route (jitted frame_leg_terms over designs,
+    # then assembly and condensation outside XLA)
+    import jax
+    import jax.numpy as jnp
+
+    designs = _variants(paper)
+    options = fm.FrameOptions()
+    G, Kt = jax.jit(jax.vmap(lambda f: fm.frame_leg_terms(f, jnp.zeros(3), options)[:2]))(
+        fm.stack_frame_params(designs))
+    out = fm.condense_terms_many(G, Kt, options, fm.LOAD_HEIGHT, compiled=compiled)
+    for i, d in enumerate(designs):
+        single = fm.solve_frame(fm.frame_params_of(d))
+        for key in out:
+            np.testing.assert_allclose(out[key][i], single[key], rtol=1e-9,
+                                       atol=1e-9 * np.abs(single[key]).max(), err_msg=key)
