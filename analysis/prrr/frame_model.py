@@ -5,7 +5,10 @@ it with numpy for a single design (no compilation: the CLI path, ~4 ms), :func:`
 and :func:`solve_frame_batch` with ``jax.numpy`` under jit/vmap (batches, gradients); tested equal.
 The jax path assembles each leg's stiffness on the columns where each element's map can be nonzero
 (:func:`_supports`, a static pattern of the topology), not on dense 12 × n maps; the batch's inputs
-come from :func:`frame_params_many` (arrays over the batch).
+come from :func:`frame_params_many` (arrays over the batch). The batched draft evaluator jits only the
+legs' unassembled terms (:func:`frame_leg_terms`) and assembles and condenses them in a numba kernel over
+designs (:func:`condense_terms_many`: Cholesky along each leg's chain of DOFs; equal to the single path
+to 1e-9, docs/runs.md "The frame group outside XLA").
 
 Each link is a 12-DOF Timoshenko beam (axial, torsion, two bending planes with shear) of the
 rectangular cross-section in ``design.structure``; the three revolute joints of every leg
@@ -675,7 +678,7 @@ def _element_maps(elems, section: Section, xp=jnp):
     return Ge, Ke
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def term_columns(options: FrameOptions) -> np.ndarray:
     """(T, M) int: the leg DOFs of each stiffness term of :func:`frame_leg_terms` (elements, joint
     springs, then the SEA spring with ``options.sea``), :func:`_supports` padded with each term's first

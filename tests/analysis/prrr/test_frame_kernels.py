@@ -11,7 +11,7 @@ import pytest
 from hapticopt.analysis.prrr import frame_model as fm
 
 pytest.importorskip("numba")
-from hapticopt.analysis.prrr._frame_kernels import condense_legs_kernel  # noqa: E402
+from hapticopt.analysis.prrr._frame_kernels import condense_legs_kernel
 
 
 def _chain_legs(rng, legs=4, n=63, half_band=9):
