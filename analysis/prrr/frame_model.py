@@ -1048,6 +1048,7 @@ def compliance_outputs(KP: jax.Array, cond_legs: jax.Array, load_height, xp=jnp)
     }
 
 
+@functools.cache
 def kernel_availability() -> str | None:
     """None when the compiled kernel of :func:`condense_many` can run here, else why not (one line); the
     numpy path runs then."""
@@ -1068,10 +1069,9 @@ def assemble_terms(G, Kt, cols: np.ndarray, n: int) -> np.ndarray:
     G, Kt = np.asarray(G, dtype=float), np.asarray(Kt, dtype=float)
     K = np.zeros((G.shape[0], n, n))
     for t, c in enumerate(cols):
-        m = len(np.unique(c))  # the padding repeats c[0] (its map columns are zero)
+        m = 1 + int(np.count_nonzero(c[1:] != c[0]))  # the padding repeats c[0] (its map columns are zero)
         small = np.swapaxes(G[:, t, :, :m], -1, -2) @ Kt[:, t] @ G[:, t, :, :m]  # (L, m, m)
-        for a in range(m):
-            K[:, c[a], c[:m]] += small[:, a, :]
+        K[:, c[:m, None], c[None, :m]] += small  # c[:m] distinct: no index repeats within a term
     return 0.5 * (K + np.swapaxes(K, -1, -2))
 
 
@@ -1105,19 +1105,30 @@ def condense_many(K, load_height, *, compiled: bool | None = None) -> dict[str, 
         return _outputs_many(contrib, cond, gross, n, legs, load_height)
 
 
+#: :func:`condense_terms_many` runs its numba kernel from the call that takes this process's designs to
+#: this many on. Measured (load 1.3): loading it (numba's import and the cached kernel) ≈ 0.34 s in a
+#: fresh process; it saves ≈ 0.30 ms per design (numpy path 0.37–0.38 ms, kernel 0.07 at 16–256 designs),
+#: so it pays from ≈ 1,100 designs (a batch of one pays the numpy path's 1.3 ms, not the load).
+KERNEL_AFTER_DESIGNS = 1_000
+_DESIGNS_CONDENSED = [0]
+
+
 def condense_terms_many(G, Kt, options: FrameOptions, load_height, *,
                         compiled: bool | None = None) -> dict[str, np.ndarray]:
     """:func:`condense_many` of legs given as their terms (:func:`frame_leg_terms` of n designs: ``G``
     (n, 3, T, 12, M), ``Kt`` (n, 3, T, 12, 12)): the numba kernel assembles each leg (the products
-    over the nonzero entries of the maps) and condenses it in one pass; the numpy path
-    (``compiled=False``, or numba unavailable) assembles with :func:`assemble_terms` and calls
-    :func:`condense_many`. Same outputs and NaN rules."""
+    over the nonzero entries of the maps) and condenses it in one pass; the numpy path assembles with
+    :func:`assemble_terms` and calls :func:`condense_many` (LAPACK's LU). Same outputs (both equal to the
+    single path to 1e-9) and NaN rules. ``compiled``: None (default) runs the kernel once it pays (from
+    the call that takes this process's designs to :data:`KERNEL_AFTER_DESIGNS` on, where
+    :func:`kernel_availability` allows) and numpy before; True / False force one."""
     cols = term_columns(options)
     N = _leg_layout(options)[0]
-    if compiled is None:
-        compiled = kernel_availability() is None
     G, Kt = np.asarray(G, dtype=float), np.asarray(Kt, dtype=float)
     n, legs = G.shape[:2]
+    _DESIGNS_CONDENSED[0] += n
+    if compiled is None:
+        compiled = _DESIGNS_CONDENSED[0] >= KERNEL_AFTER_DESIGNS and kernel_availability() is None
     if not compiled:
         K = assemble_terms(G.reshape((n * legs,) + G.shape[2:]), Kt.reshape((n * legs,) + Kt.shape[2:]), cols, N)
         return condense_many(K.reshape(n, legs, N, N), load_height, compiled=False)
@@ -1210,7 +1221,7 @@ def closed_form_tip_deflection(load: float, length: float, E: float, inertia: fl
 
 
 __all__ = [
-    "CANCELLATION_LIMIT", "COND_LIMIT", "LOAD_HEIGHT", "FrameOptions", "FrameParams", "Joints", "Offsets", "Section",
+    "CANCELLATION_LIMIT", "COND_LIMIT", "KERNEL_AFTER_DESIGNS", "LOAD_HEIGHT", "FrameOptions", "FrameParams", "Joints", "Offsets", "Section",
     "beam_global_stiffness", "beam_local_stiffness", "cantilever_compliance", "circle_properties",
     "closed_form_tip_deflection", "bond_stiffness", "bracket_frame", "compliance_outputs", "condense_legs",
     "assemble_terms", "condense_many", "condense_terms_many", "frame_leg_terms", "frame_legs", "kernel_availability", "term_columns",
