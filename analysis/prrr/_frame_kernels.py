@@ -48,6 +48,31 @@ def _solve_into(L, nz, cnt, x):
 
 
 @njit(cache=True)
+def _solve_many_into(L, nz, cnt, X):
+    """X ← (L Lᵀ)⁻¹ X in place for the columns of X (m, r): :func:`_solve_into` per column, the same
+    operations in the same order, with each index read once for all columns."""
+    m, r = X.shape
+    for k in range(m):
+        lkk = L[k, k]
+        for c in range(r):
+            X[k, c] = X[k, c] / lkk
+        for t in range(cnt[k]):
+            i = nz[k, t]
+            lik = L[i, k]
+            for c in range(r):
+                X[i, c] -= lik * X[k, c]
+    for k in range(m - 1, -1, -1):
+        for t in range(cnt[k]):
+            i = nz[k, t]
+            lik = L[i, k]
+            for c in range(r):
+                X[k, c] -= lik * X[i, c]
+        lkk = L[k, k]
+        for c in range(r):
+            X[k, c] = X[k, c] / lkk
+
+
+@njit(cache=True)
 def _condense_leg(Kl, A, d, nz, cnt, sol, x, recovery, contrib, gross):
     """One leg (``Kl`` (n, n)): writes ``recovery`` (n−6, 6), ``contrib`` (6, 6), ``gross`` (6,); returns
     the condition estimate (NaN, and NaN outputs, where the scaled K_ii is not positive definite).
@@ -98,12 +123,11 @@ def _condense_leg(Kl, A, d, nz, cnt, sol, x, recovery, contrib, gross):
             for u in range(t + 1):  # nz[k] ascending: j ≤ i, the lower triangle
                 j = nz[k, u]
                 A[i, j] -= lik * A[j, k]
-    for r in range(7):  # right-hand sides: d K_iP, then the probe (1/m)·1
-        for i in range(m):
-            x[i] = d[i] * Kl[r, 6 + i] if r < 6 else 1.0 / m
-        _solve_into(A, nz, cnt, x)
-        for i in range(m):
-            sol[i, r] = x[i]
+    for i in range(m):  # right-hand sides: d K_iP, then the probe (1/m)·1
+        for r in range(6):
+            sol[i, r] = d[i] * Kl[r, 6 + i]
+        sol[i, 6] = 1.0 / m
+    _solve_many_into(A, nz, cnt, sol)
     for i in range(m):
         for r in range(6):
             recovery[i, r] = d[i] * sol[i, r]
