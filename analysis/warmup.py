@@ -37,8 +37,8 @@ def warm() -> list[tuple[str, str | None, float]]:
     if reason is None:  # the batched draft evaluator's frame assembly and condensation (one design's legs)
         options = frame_model.FrameOptions()
         fp = frame_model.frame_params_of(io.load_preset("prrr-paper"), xp=np)
-        G, Kt, _ = frame_model.frame_leg_terms(fp, np.zeros(3), options, xp=np)
-        frame_model.condense_terms_many(G[None], Kt[None], options, frame_model.LOAD_HEIGHT, compiled=True)
+        G, Ks, P, _ = frame_model.frame_leg_terms(fp, np.zeros(3), options, xp=np)
+        frame_model.condense_terms_many(G[None], Ks[None], P[None], options, frame_model.LOAD_HEIGHT, compiled=True)
     out.append(("frame condensation", reason, time.perf_counter() - t0))
     return out
 

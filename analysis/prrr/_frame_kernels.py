@@ -1,7 +1,7 @@
 """numba kernels of :func:`hapticopt.analysis.prrr.frame_model.condense_legs` over many legs, from the
 legs' stiffness (:func:`condense_legs_kernel`) or from their unassembled terms
-(:func:`assemble_condense_kernel`: Σ Gᵀ K G over the maps' nonzero entries, then the same condensation;
-the batched draft evaluator's route). Imported only through
+(:func:`assemble_condense_kernel`: the elements' stiffness from their parameters, Σ Gᵀ K G over the
+maps' nonzero entries, then the same condensation; the batched draft evaluator's route). Imported only through
 :func:`hapticopt.analysis.prrr.frame_model.condense_many` / ``condense_terms_many``, so numba loads on
 first use.
 
@@ -178,20 +178,93 @@ def condense_legs_kernel(K, contrib, cond, recovery, gross):
 
 
 @njit(cache=True)
-def assemble_condense_kernel(G, Kt, cols, n, contrib, cond, gross):
-    """Legs given as terms (``frame_model.frame_leg_terms``): ``G`` (L, T, 12, M), ``Kt`` (L, T, 12, 12),
-    ``cols`` (T, M) their leg DOFs; each leg's K = sym(Σ_t G_tᵀ K_t G_t) (n × n; the products over the
+def _element_stiffness(p, patterns, k, T, kT, Ke):
+    """``Ke`` ← the 12 × 12 global stiffness of the element with parameters ``p`` (18,)
+    (``frame_model.element_stiffness``: ``beam_global_stiffness`` term by term): Tᵀ k T, the products over
+    the nonzeros of k (the Timoshenko patterns) and of T (blockdiag(R M1, R M2), M the end zones' rigid
+    maps). ``k``, ``T``, ``kT``: 12 × 12 scratch."""
+    d0, d1, d2 = p[3] - p[0], p[4] - p[1], p[5] - p[2]
+    length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    ex0, ex1, ex2 = d0 / length, d1 / length, d2 / length
+    zx = p[6] * ex0 + p[7] * ex1 + p[8] * ex2
+    z0, z1, z2 = p[6] - zx * ex0, p[7] - zx * ex1, p[8] - zx * ex2
+    zn = math.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
+    ez0, ez1, ez2 = z0 / zn, z1 / zn, z2 / zn
+    ey0, ey1, ey2 = ez1 * ex2 - ez2 * ex1, ez2 * ex0 - ez0 * ex2, ez0 * ex1 - ez1 * ex0  # ez × ex
+    a1 = min(p[9], 0.4 * length)
+    a2 = min(p[10], 0.4 * length)
+    L = length - a1 - a2
+    A, i_y, i_z, J, kap, G, E = p[11], p[12], p[13], p[14], p[15], p[16], p[17]
+    phi_y = 12.0 * E * i_z / (kap * G * A * L**2)
+    phi_z = 12.0 * E * i_y / (kap * G * A * L**2)
+    cy = E * i_z / ((1.0 + phi_y) * L**3)
+    cz = E * i_y / ((1.0 + phi_z) * L**3)
+    coef = (E * A / L, G * J / L, 12.0 * cy, 6.0 * L * cy, (4.0 + phi_y) * L**2 * cy, (2.0 - phi_y) * L**2 * cy,
+            12.0 * cz, 6.0 * L * cz, (4.0 + phi_z) * L**2 * cz, (2.0 - phi_z) * L**2 * cz)
+    for a in range(12):
+        for b in range(12):
+            v = 0.0
+            for c in range(10):
+                v += coef[c] * patterns[c, a, b]
+            k[a, b] = v
+    R = ((ex0, ex1, ex2), (ey0, ey1, ey2), (ez0, ez1, ez2))
+    for a in range(12):
+        for b in range(12):
+            T[a, b] = 0.0
+    for node in range(2):
+        r = a1 if node == 0 else -a2
+        r0, r1, r2 = r * ex0, r * ex1, r * ex2
+        # rigid_map(r): [[I, S], [0, I]] with S_ij = Σ_k ε_ijk r_k; R·rigid_map = [[R, R S], [0, R]]
+        S = ((0.0, r2, -r1), (-r2, 0.0, r0), (r1, -r0, 0.0))
+        o = 6 * node
+        for i in range(3):
+            for j in range(3):
+                T[o + i, o + j] = R[i][j]
+                T[o + 3 + i, o + 3 + j] = R[i][j]
+                T[o + i, o + 3 + j] = R[i][0] * S[0][j] + R[i][1] * S[1][j] + R[i][2] * S[2][j]
+    for a in range(12):  # kT = k T over the nonzeros of k
+        for b in range(12):
+            kT[a, b] = 0.0
+        for r in range(12):
+            kar = k[a, r]
+            if kar != 0.0:
+                for b in range(12):
+                    kT[a, b] += kar * T[r, b]
+    for a in range(12):  # Ke = Tᵀ (k T) over the nonzeros of T
+        for b in range(12):
+            Ke[a, b] = 0.0
+    for r in range(12):
+        for a in range(12):
+            tra = T[r, a]
+            if tra != 0.0:
+                for b in range(12):
+                    Ke[a, b] += tra * kT[r, b]
+
+
+@njit(cache=True)
+def assemble_condense_kernel(G, Ks, P, patterns, cols, n, contrib, cond, gross):
+    """Legs given as terms (``frame_model.frame_leg_terms``): maps ``G`` (L, T, 12, M) on ``cols`` (T, M),
+    springs' stiffness ``Ks`` (L, S, 12, 12), elements' parameters ``P`` (L, E, 18) (terms: the E
+    elements, then the S springs); ``patterns`` the (10, 12, 12) Timoshenko patterns
+    (``frame_model._PATTERNS``). Each leg's K = sym(Σ_t G_tᵀ K_t G_t) (n × n; the products over the
     nonzero entries of G_t), then :func:`condense_legs_kernel`'s outputs but the recovery."""
     m = n - 6
     Kl, A, d, x = np.empty((n, n)), np.empty((m, m)), np.empty(m), np.empty(m)
     nz, cnt = np.empty((m, m), dtype=np.int64), np.empty(m, dtype=np.int64)
     sol, rec = np.empty((m, 7)), np.empty((m, 6))
     T, M = cols.shape
+    E = P.shape[1]
     KG = np.empty((12, M))
+    k12, T12, kT, Ke = np.empty((12, 12)), np.empty((12, 12)), np.empty((12, 12)), np.empty((12, 12))
     for leg in range(G.shape[0]):
         Kl[:, :] = 0.0
         for t in range(T):
-            g, k = G[leg, t], Kt[leg, t]
+            g = G[leg, t]
+            if t < E:
+                _element_stiffness(P[leg, t], patterns, k12, T12, kT, Ke)
+                k = Ke
+            else:
+                k = Ks[leg, t - E]
             for a in range(12):  # KG = K_t G_t
                 for b in range(M):
                     KG[a, b] = 0.0

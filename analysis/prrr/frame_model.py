@@ -692,30 +692,42 @@ def term_columns(options: FrameOptions) -> np.ndarray:
 
 
 def _leg_terms(elems, springs, section: Section, spring, options: FrameOptions, xp=jnp):
-    """One leg's stiffness as terms (G (T, 12, M), K (T, 12, 12)): K_leg = sym(Σ_t Gᵀ_t K_t G_t) scattered
-    onto the columns :func:`term_columns` (springs' 6 rows and the SEA spring's 1 padded with zeros)."""
-    Ge, Ke = _element_maps(elems, section, xp)
+    """One leg's stiffness as terms: the maps G (T, 12, M) of every term on :func:`term_columns`, the
+    joint springs' (and the SEA spring's) stiffness K_s (S, 12, 12), padded with zeros, and the
+    elements' parameters (E, 18) (:func:`element_stiffness` turns them into their 12 × 12 blocks);
+    K_leg = sym(Σ_t G_tᵀ K_t G_t), elements first."""
     cols = term_columns(options)
-    n = Ge.shape[-1]
-    maps = [Ge[k] for k in range(len(elems))] + [d for d, _ in springs]
-    stiff = [Ke[k] for k in range(len(elems))] + [k_s for _, k_s in springs]
+    n = elems[0][0].shape[-1]
+    maps = [xp.concatenate([e[0], e[1]], axis=0) for e in elems] + [d for d, _ in springs]
+    stiff = [k_s for _, k_s in springs]
     if options.sea:
         sel = np.zeros((1, n))
         sel[0, _leg_layout(options)[1]["sea"]] = 1.0
         maps.append(xp.asarray(sel))
         stiff.append(xp.reshape(spring, (1, 1)))
-    G, K = [], []
-    for t, (g, k) in enumerate(zip(maps, stiff)):
+    G = []
+    for t, g in enumerate(maps):
         c = cols[t]
-        m = len(np.unique(c))  # the padding repeats c[0]
-        runs = _runs(c[:m])
-        g = _take_cols(g, runs, xp)
+        m = 1 + int(np.count_nonzero(c[1:] != c[0]))  # the padding repeats c[0]
+        g = _take_cols(g, _runs(c[:m]), xp)
         r = g.shape[0]
         g = xp.concatenate([g, xp.zeros((r, len(c) - m))], axis=1)
         G.append(xp.concatenate([g, xp.zeros((12 - r, len(c)))], axis=0))
-        K.append(xp.concatenate([xp.concatenate([k, xp.zeros((r, 12 - r))], axis=1), xp.zeros((12 - r, 12))],
-                                axis=0))
-    return xp.stack(G), xp.stack(K)
+    K = [xp.concatenate([xp.concatenate([k, xp.zeros((k.shape[0], 12 - k.shape[0]))], axis=1),
+                         xp.zeros((12 - k.shape[0], 12))], axis=0) for k in stiff]
+    E = section.youngs_modulus
+    P = xp.stack([xp.concatenate([e[2], e[3], e[4], xp.stack([xp.asarray(x, dtype=float) for x in (e[5], e[6]) + e[7]]),
+                                  xp.reshape(E, (1,))]) for e in elems])
+    return xp.stack(G), xp.stack(K), P
+
+
+def element_stiffness(P, xp=jnp):
+    """12 × 12 global stiffness of elements given by their parameters ``P`` (..., 18) = x1, x2, zref (3
+    each) [m], end zones a1, a2 [m], section (area, i_y, i_z, torsion, κ, G) and E [SI] (the rows of
+    :func:`frame_leg_terms`): :func:`beam_global_stiffness`."""
+    props = SectionProperties(*(P[..., 11 + f] for f in range(6)))
+    sec = Section(None, None, P[..., 17], None)
+    return beam_global_stiffness(P[..., 0:3], P[..., 3:6], P[..., 6:9], sec, P[..., 9], P[..., 10], xp, props=props)
 
 
 def _runs(cols: np.ndarray) -> list[tuple[int, int]]:
@@ -977,18 +989,19 @@ def frame_legs(fp: FrameParams, p: jax.Array, options: FrameOptions, branch: jax
 
 def frame_leg_terms(fp: FrameParams, p: jax.Array, options: FrameOptions, xp=jnp):
     """:func:`frame_legs`' stiffness as its terms, unassembled (the batched draft evaluator's jitted step;
-    :func:`condense_many` assembles and solves them outside XLA): G (3, T, 12, M), K (3, T, 12, 12) per
-    leg, each leg's K = sym(Σ_t G_tᵀ K_t G_t) on the columns :func:`term_columns` ``(options)``; and the
-    inverse kinematics of ``p``. The same element stiffness and maps as :func:`frame_legs`; only the
-    products and their sum move out."""
+    :func:`condense_terms_many` builds the elements, assembles and solves outside XLA): per leg the maps
+    G (3, T, 12, M) on the columns :func:`term_columns` ``(options)``, the springs' stiffness K_s
+    (3, S, 12, 12) and the elements' parameters (3, E, 18) (:func:`element_stiffness`), each leg's
+    K = sym(Σ_t G_tᵀ K_t G_t) with the elements' terms first; and the inverse kinematics of ``p``. The
+    same elements, springs and maps as :func:`frame_legs`."""
     leg, args, ik = _leg_inputs(fp, p, options, None, None, xp)
 
     def one(w, s, a, b, q, pts_b, z_b, k_b):
         elems, springs = leg(w, s, a, b, q, (pts_b, z_b, k_b), parts_only=True)
         return _leg_terms(elems, springs, fp.section, fp.spring, options, xp)
 
-    G, K = _map(one, xp, *args)
-    return G, K, ik
+    G, K, P = _map(one, xp, *args)
+    return G, K, P, ik
 
 
 def condense_legs(K: jax.Array, xp=jnp):
@@ -1113,31 +1126,33 @@ KERNEL_AFTER_DESIGNS = 1_000
 _DESIGNS_CONDENSED = [0]
 
 
-def condense_terms_many(G, Kt, options: FrameOptions, load_height, *,
+def condense_terms_many(G, Ks, P, options: FrameOptions, load_height, *,
                         compiled: bool | None = None) -> dict[str, np.ndarray]:
     """:func:`condense_many` of legs given as their terms (:func:`frame_leg_terms` of n designs: ``G``
-    (n, 3, T, 12, M), ``Kt`` (n, 3, T, 12, 12)): the numba kernel assembles each leg (the products
-    over the nonzero entries of the maps) and condenses it in one pass; the numpy path assembles with
-    :func:`assemble_terms` and calls :func:`condense_many` (LAPACK's LU). Same outputs (both equal to the
+    (n, 3, T, 12, M), ``Ks`` (n, 3, S, 12, 12), ``P`` (n, 3, E, 18)): the numba kernel builds each
+    element's stiffness (over the nonzeros of its local matrix and its transformation), assembles each
+    leg (the products over the nonzero entries of the maps) and condenses it in one pass; the numpy path
+    builds the elements with :func:`element_stiffness`, assembles with :func:`assemble_terms` and calls
+    :func:`condense_many` (LAPACK's LU). Same outputs (both equal to the
     single path to 1e-9) and NaN rules. ``compiled``: None (default) runs the kernel once it pays (from
     the call that takes this process's designs to :data:`KERNEL_AFTER_DESIGNS` on, where
     :func:`kernel_availability` allows) and numpy before; True / False force one."""
     cols = term_columns(options)
     N = _leg_layout(options)[0]
-    G, Kt = np.asarray(G, dtype=float), np.asarray(Kt, dtype=float)
+    G, Ks, P = (np.asarray(x, dtype=float) for x in (G, Ks, P))
     n, legs = G.shape[:2]
+    G, Ks, P = (np.ascontiguousarray(x.reshape((n * legs,) + x.shape[2:])) for x in (G, Ks, P))
     _DESIGNS_CONDENSED[0] += n
     if compiled is None:
         compiled = _DESIGNS_CONDENSED[0] >= KERNEL_AFTER_DESIGNS and kernel_availability() is None
     if not compiled:
-        K = assemble_terms(G.reshape((n * legs,) + G.shape[2:]), Kt.reshape((n * legs,) + Kt.shape[2:]), cols, N)
+        K = assemble_terms(G, np.concatenate([element_stiffness(P, np), Ks], axis=1), cols, N)
         return condense_many(K.reshape(n, legs, N, N), load_height, compiled=False)
     from hapticopt.analysis.prrr._frame_kernels import assemble_condense_kernel
     contrib, cond, gross = np.empty((n * legs, 6, 6)), np.empty(n * legs), np.empty((n * legs, 6))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        assemble_condense_kernel(np.ascontiguousarray(G.reshape((n * legs,) + G.shape[2:])),
-                                 np.ascontiguousarray(Kt.reshape((n * legs,) + Kt.shape[2:])),
-                                 np.ascontiguousarray(cols, dtype=np.int64), N, contrib, cond, gross)
+        assemble_condense_kernel(G, Ks, P, _PATTERNS, np.ascontiguousarray(cols, dtype=np.int64), N, contrib, cond,
+                                 gross)
         return _outputs_many(contrib, cond, gross, n, legs, load_height)
 
 
@@ -1225,6 +1240,6 @@ __all__ = [
     "beam_global_stiffness", "beam_local_stiffness", "cantilever_compliance", "circle_properties",
     "closed_form_tip_deflection", "bond_stiffness", "bracket_frame", "compliance_outputs", "condense_legs",
     "assemble_terms", "condense_many", "condense_terms_many", "frame_leg_terms", "frame_legs", "kernel_availability", "term_columns",
-    "dof_count", "frame_arrays", "frame_params_many", "frame_params_of", "section_properties", "solve_frame",
+    "dof_count", "element_stiffness", "frame_arrays", "frame_params_many", "frame_params_of", "section_properties", "solve_frame",
     "solve_frame_batch", "solve_frame_jax", "stack_frame_params",
 ]

@@ -56,21 +56,22 @@ def test_kernel_leg_not_positive_definite_is_nan():
 
 
 def test_assembling_kernel_equals_numpy_assembly():
-    # the paper's legs as terms: assemble_condense_kernel against assemble_terms + condense_legs_kernel
+    # the paper's legs as terms: assemble_condense_kernel (elements built in it) against element_stiffness +
+    # assemble_terms + condense_legs_kernel
     from hapticopt.analysis.prrr._frame_kernels import assemble_condense_kernel
     from hapticopt.design import io
 
     options = fm.FrameOptions()
-    G, Kt, _ = fm.frame_leg_terms(fm.frame_params_of(io.load_preset("prrr-paper"), xp=np), np.zeros(3), options,
-                                  xp=np)
-    G, Kt = np.ascontiguousarray(G), np.ascontiguousarray(Kt)
+    G, Ks, P, _ = fm.frame_leg_terms(fm.frame_params_of(io.load_preset("prrr-paper"), xp=np), np.zeros(3), options,
+                                     xp=np)
+    G, Ks, P = (np.ascontiguousarray(x) for x in (G, Ks, P))
     cols = fm.term_columns(options)
     n = fm._leg_layout(options)[0]
-    K = fm.assemble_terms(G, Kt, cols, n)
+    K = fm.assemble_terms(G, np.concatenate([fm.element_stiffness(P, np), Ks], axis=1), cols, n)
     ref = np.empty((3, 6, 6)), np.empty(3), np.empty((3, n - 6, 6)), np.empty((3, 6))
     condense_legs_kernel(K, *ref)
     out = np.empty((3, 6, 6)), np.empty(3), np.empty((3, 6))
-    assemble_condense_kernel(G, Kt, cols.astype(np.int64), n, *out)
+    assemble_condense_kernel(G, Ks, P, fm._PATTERNS, cols.astype(np.int64), n, *out)
     np.testing.assert_allclose(out[0], ref[0], rtol=1e-12, atol=1e-12 * np.abs(ref[0]).max())
     np.testing.assert_allclose(out[1], ref[1], rtol=1e-10)
     np.testing.assert_allclose(out[2], ref[3], rtol=1e-12)

@@ -391,8 +391,9 @@ def test_leg_terms_assemble_to_frame_legs(paper, options):
     # frame_leg_terms (the batch's jitted step) holds the same products as frame_legs' assembly
     fp = fm.frame_params_of(paper, xp=np)
     K = np.asarray(fm.frame_legs(fp, np.zeros(3), options, xp=np)[0])
-    G, Kt, _ = fm.frame_leg_terms(fp, np.zeros(3), options, xp=np)
-    A = fm.assemble_terms(G, Kt, fm.term_columns(options), K.shape[-1])
+    G, Ks, P, _ = fm.frame_leg_terms(fp, np.zeros(3), options, xp=np)
+    A = fm.assemble_terms(G, np.concatenate([fm.element_stiffness(P, np), Ks], axis=1), fm.term_columns(options),
+                          K.shape[-1])
     np.testing.assert_allclose(A, K, rtol=0, atol=1e-14 * np.abs(K).max())
 
 
@@ -405,9 +406,9 @@ def test_condense_terms_many_equals_single_path(paper, compiled):
 
     designs = _variants(paper)
     options = fm.FrameOptions()
-    G, Kt = jax.jit(jax.vmap(lambda f: fm.frame_leg_terms(f, jnp.zeros(3), options)[:2]))(
+    G, Ks, P = jax.jit(jax.vmap(lambda f: fm.frame_leg_terms(f, jnp.zeros(3), options)[:3]))(
         fm.stack_frame_params(designs))
-    out = fm.condense_terms_many(G, Kt, options, fm.LOAD_HEIGHT, compiled=compiled)
+    out = fm.condense_terms_many(G, Ks, P, options, fm.LOAD_HEIGHT, compiled=compiled)
     for i, d in enumerate(designs):
         single = fm.solve_frame(fm.frame_params_of(d))
         for key in out:
