@@ -1119,9 +1119,9 @@ def condense_many(K, load_height, *, compiled: bool | None = None) -> dict[str, 
 
 
 #: :func:`condense_terms_many` runs its numba kernel from the call that takes this process's designs to
-#: this many on. Measured (load 1.3): loading it (numba's import and the cached kernel) ≈ 0.34 s in a
-#: fresh process; it saves ≈ 0.30 ms per design (numpy path 0.37–0.38 ms, kernel 0.07 at 16–256 designs),
-#: so it pays from ≈ 1,100 designs (a batch of one pays the numpy path's 1.3 ms, not the load).
+#: this many on. Measured: loading it (numba's import and the cached kernel) ≈ 0.34 s in a fresh process
+#: (load 1.3); it saves ≈ 0.37 ms per design (numpy path 0.44 ms, kernel 0.07 at 256 designs, load 2.6), so
+#: it pays from ≈ 900 designs (a batch of one pays the numpy path's 0.86 ms, not the load).
 KERNEL_AFTER_DESIGNS = 1_000
 _DESIGNS_CONDENSED = [0]
 
