@@ -17,12 +17,13 @@ import time
 import numpy as np
 
 from hapticopt.analysis.loop import mujoco_compiled
-from hapticopt.analysis.prrr import interference_fast
+from hapticopt.analysis.prrr import frame_model, interference_fast
 from hapticopt.design import io
 
 
 def warm() -> list[tuple[str, str | None, float]]:
-    """(kernel, None or why it is unavailable, seconds) for the collision check and the MuJoCo loops."""
+    """(kernel, None or why it is unavailable, seconds) for the collision check, the MuJoCo loops and the
+    batched frame condensation."""
     out = []
     t0 = time.perf_counter()
     reason = interference_fast.availability()
@@ -32,6 +33,14 @@ def warm() -> list[tuple[str, str | None, float]]:
     out.append(("collision check", reason, time.perf_counter() - t0))
     t0 = time.perf_counter()
     out.append(("MuJoCo closed loops", mujoco_compiled.warm_up(), time.perf_counter() - t0))
+    t0 = time.perf_counter()
+    reason = frame_model.kernel_availability()
+    if reason is None:  # the batched draft evaluator's frame assembly and condensation (one design's legs)
+        options = frame_model.FrameOptions()
+        fp = frame_model.frame_params_of(io.load_preset("prrr-paper"), xp=np)
+        G, Ks, P, _ = frame_model.frame_leg_terms(fp, np.zeros(3), options, xp=np)
+        frame_model.condense_terms_many(G[None], Ks[None], P[None], options, frame_model.LOAD_HEIGHT, compiled=True)
+    out.append(("frame condensation", reason, time.perf_counter() - t0))
     return out
 
 

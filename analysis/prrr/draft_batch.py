@@ -14,8 +14,10 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
 * **jax, one jitted vmap** (:func:`core_fn`) of the groups the wanted evaluators read
   (:func:`groups_for`): statics (``statics_arrays``), the reach-and-stroke workspace
   (``workspace_core`` at the draft sampling; its reach radius, emptiness and footprint also bound
-  the collision-free cylinder: they do not depend on the radial sampling), the frame model
-  (``frame_arrays``, default options, home pose) and the joint angles over the required cylinder
+  the collision-free cylinder: they do not depend on the radial sampling), the frame model's legs'
+  stiffness terms (``frame_leg_terms``, default options, home pose: element parameters, springs and
+  maps; the elements' stiffness, the assembly and the solves follow the jitted call in a numba kernel over designs,
+  ``frame_model.condense_terms_many``) and the joint angles over the required cylinder
   (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy (the frame's by
   ``frame_model.frame_params_many``, arrays over the batch); the batch is padded to
   the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a new batch
@@ -131,8 +133,8 @@ def _core(inp: CoreInputs, groups: tuple[str, ...]) -> dict:
     if "workspace" in groups:
         out["workspace"] = WS.workspace_core(inp.wp, n_phi=_SMP.n_phi, n_r=_SMP.n_r, xp=jnp)
     if "frame" in groups:
-        fr = fm.frame_arrays(inp.fp, jnp.zeros(3), jnp.asarray(fm.LOAD_HEIGHT), fm.FrameOptions())
-        out["frame"] = {k: v for k, v in fr.items() if k not in fm._PLOT_ONLY}
+        G, Ks, P, ik = fm.frame_leg_terms(inp.fp, jnp.zeros(3), fm.FrameOptions())  # assembled, solved in run_core
+        out["frame"] = {"G": G, "Ks": Ks, "P": P, "reachable": ik.reachable, "reach_margin": ik.reach_margin}
     if "joint" in groups:
         pts = JL.cylinder_grid_of(inp.kin.stroke, inp.kin.beta, _REQUIRED_RADIUS, xp=jnp)
         ik = inverse_kinematics(inp.kin, pts)
@@ -183,8 +185,12 @@ def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUP
         return {}
     size = bucket(n)
     pad = jax.tree.map(lambda x: np.concatenate([x, np.repeat(x[-1:], size - n, axis=0)]) if size > n else x, inp)
-    out = core_fn(groups)(pad)
-    return jax.tree.map(lambda x: np.asarray(x)[:n], out)
+    out = jax.tree.map(lambda x: np.asarray(x)[:n], core_fn(groups)(pad))
+    if "frame" in out:  # the legs' assembly and solves outside XLA (numba kernel over designs)
+        fr = out["frame"]
+        terms = fr.pop("G"), fr.pop("Ks"), fr.pop("P")
+        out["frame"] = {**fm.condense_terms_many(*terms, fm.FrameOptions(), fm.LOAD_HEIGHT), **fr}
+    return out
 
 
 class _Checker:

@@ -337,3 +337,80 @@ def test_frame_params_many_equals_stacked_frame_params_of(paper):
             assert np.all(np.abs(a - b) <= 1e-15 * scale)
         else:
             np.testing.assert_array_equal(a, b, err_msg=jax.tree_util.keystr(path))
+
+
+def _variants(paper, k=5, seed=3):
+    rng = np.random.default_rng(seed)
+    g = paper.geometry
+    out = [paper]
+    while len(out) < k:
+        geo = dataclasses.replace(g, beta=g.beta * rng.uniform(0.8, 1.2), d3=g.d3 * rng.uniform(0.8, 1.3),
+                                  d4=g.d4 * rng.uniform(0.8, 1.3), theta_1p=g.theta_1p + rng.uniform(-0.3, 0.3))
+        out.append(dataclasses.replace(paper, geometry=geo))
+    return out
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_condense_many_equals_single_path(paper, compiled):
+    # reference: solve_frame (numpy single path) of each design; condense_many on the same legs'
+    # stiffness (frame_legs, numpy) differs only in the elimination (kernel: Cholesky along the chain)
+    designs = _variants(paper)
+    K = np.stack([np.asarray(fm.frame_legs(fm.frame_params_of(d, xp=np), np.zeros(3), fm.FrameOptions(), xp=np)[0])
+                  for d in designs])
+    out = fm.condense_many(K, fm.LOAD_HEIGHT, compiled=compiled)
+    for i, d in enumerate(designs):
+        single = fm.solve_frame(fm.frame_params_of(d))
+        for key in out:
+            np.testing.assert_allclose(out[key][i], single[key], rtol=1e-9,
+                                       atol=1e-9 * np.abs(single[key]).max(), err_msg=key)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_condense_many_defers_a_cancelled_condensation(paper, compiled):
+    # the paper's legs with K_PP replaced by K_Pi K_ii⁻¹ K_iP + δ I: K_P = 3δ I exactly, so the
+    # diagonal's cancellation is ≈ |K_Pi K_ii⁻¹ K_iP|_aa / 3δ, chosen four decades below and above
+    # CANCELLATION_LIMIT: finite rows below it, NaN rows above (the batch then asks the single path)
+    fp = fm.frame_params_of(paper, xp=np)
+    K = np.asarray(fm.frame_legs(fp, np.zeros(3), fm.FrameOptions(), xp=np)[0])
+    _, _, rec = fm.condense_legs(K, np)
+    removed = K[:, :6, 6:] @ rec
+    scale = np.max(np.abs(np.diagonal(removed, axis1=1, axis2=2)))
+    rows = []
+    for ratio in (fm.CANCELLATION_LIMIT * 1e-4, fm.CANCELLATION_LIMIT * 1e4):
+        Kc = K.copy()
+        Kc[:, :6, :6] = 0.5 * (removed + np.swapaxes(removed, 1, 2)) + scale / ratio * np.eye(6)
+        rows.append(Kc)
+    out = fm.condense_many(np.stack(rows), fm.LOAD_HEIGHT, compiled=compiled)
+    assert all(np.all(np.isfinite(v[0])) for v in out.values())
+    assert all(np.all(np.isnan(v[1])) for v in out.values())
+
+
+@pytest.mark.parametrize("options", [fm.FrameOptions(), fm.FrameOptions(sea=True),
+                                     fm.FrameOptions(pin_model=fm.PinModel.BEAM)])
+def test_leg_terms_assemble_to_frame_legs(paper, options):
+    # frame_leg_terms (the batch's jitted step) holds the same products as frame_legs' assembly
+    fp = fm.frame_params_of(paper, xp=np)
+    K = np.asarray(fm.frame_legs(fp, np.zeros(3), options, xp=np)[0])
+    G, Ks, P, _ = fm.frame_leg_terms(fp, np.zeros(3), options, xp=np)
+    A = fm.assemble_terms(G, np.concatenate([fm.element_stiffness(P, np), Ks], axis=1), fm.term_columns(options),
+                          K.shape[-1])
+    np.testing.assert_allclose(A, K, rtol=0, atol=1e-14 * np.abs(K).max())
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_condense_terms_many_equals_single_path(paper, compiled):
+    # reference: solve_frame of each design; the batch's route (jitted frame_leg_terms over designs,
+    # then assembly and condensation outside XLA)
+    import jax
+    import jax.numpy as jnp
+
+    designs = _variants(paper)
+    options = fm.FrameOptions()
+    G, Ks, P = jax.jit(jax.vmap(lambda f: fm.frame_leg_terms(f, jnp.zeros(3), options)[:3]))(
+        fm.stack_frame_params(designs))
+    out = fm.condense_terms_many(G, Ks, P, options, fm.LOAD_HEIGHT, compiled=compiled)
+    for i, d in enumerate(designs):
+        single = fm.solve_frame(fm.frame_params_of(d))
+        for key in out:
+            np.testing.assert_allclose(out[key][i], single[key], rtol=1e-9,
+                                       atol=1e-9 * np.abs(single[key]).max(), err_msg=key)
