@@ -218,7 +218,7 @@ class _Checker:
         where numba cannot load."""
         n = len(pts)
         kernels = "hapticopt.analysis.prrr._interference_kernels"
-        if FAST.availability() is not None or (n < FAST.KERNEL_AFTER_POSES and kernels not in sys.modules):
+        if (n < FAST.KERNEL_AFTER_POSES and kernels not in sys.modules) or FAST.availability() is not None:
             return self.pose_ik_numpy(owner, pts)
         from hapticopt.analysis.prrr import _interference_kernels as K  # loaded by availability()
 

@@ -206,6 +206,20 @@ def test_pose_ik_is_the_numpy_ik_bitwise(problem_sample):
                 assert np.array_equal(np.asarray(a).view(np.uint8), b[sel].view(np.uint8))
 
 
+def test_batch_of_one_does_not_load_the_kernels():
+    """A batch of one design (≈ 220 interference poses, below ``KERNEL_AFTER_POSES``) takes the numpy
+    pose IK and the numpy check: numba and the kernels' module stay unloaded (loading them costs
+    ≈ 0.55 s, docs/workspace_interference.md). A fresh interpreter, the same import path."""
+    import subprocess
+
+    code = ("import sys; from hapticopt.analysis.fidelity import Fidelity; "
+            "from hapticopt.analysis.registry import evaluate_batch; from hapticopt.design import io; "
+            "evaluate_batch([io.load_preset('prrr-paper')], fidelity=Fidelity.DRAFT); "
+            "print('hapticopt.analysis.prrr._interference_kernels' in sys.modules, 'numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
+    assert out.stdout.split() == ["False", "False"]
+
+
 def test_new_batch_size_in_a_bucket_does_not_retrace():
     """Batch sizes 5, 6 and 8 share the padded size 8: one trace of the core at most (none when
     an earlier test already traced it), then none for the others."""
