@@ -536,3 +536,54 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                              d, sgn, rim, sa, sb)
                 if dep > depth[q, jj]:
                     depth[q, jj] = dep
+
+
+# ---------------------------------------------------------------------------- pose inverse kinematics
+@njit(cache=True)
+def pose_ik_planar(owner, pts, cb, sb, tb, d1, d2, d3, d4, r4, b5, stroke, U, T, sliders, rho_v, rho_t, c2, y, x,
+                   reachable):
+    """The arithmetic part of :func:`hapticopt.design.prrr.kinematics.inverse_kinematics` (its numpy
+    form, term by term and in its order: the same products and sums, so bit for bit) at poses ``pts``
+    (n, 3) [m] of designs ``owner`` (n,); the transcendentals of the angles stay numpy's (the caller's).
+
+    Per design (m,): cos β, sin β, tan β (numpy's), d1 … b5, stroke [m]; U, T (3 legs, 3): the legs' u and
+    t (``leg_frames``'). Written per pose and leg (n, 3): slider positions [m], the in-plane R1→R3 vector
+    (rho_v, rho_t) [m], the elbow cosine c2 clipped to [−1, 1], and ψ's arctan2 arguments y = d4·sin,
+    x = d3 + d4·c2 [m]; per pose: reachable (every leg reaches, every slider in its stroke)."""
+    w = np.empty((3, 3))
+    v = np.empty((3, 3))
+    a0 = np.empty((3, 3))
+    last = -1
+    r5 = c_e = half = 0.0
+    for q in range(pts.shape[0]):
+        m = owner[q]
+        if m != last:  # leg_frames, r5_of, slider_offset of design m
+            last = m
+            for k in range(3):
+                for i in range(3):
+                    ez = 1.0 if i == 2 else 0.0
+                    w[k, i] = -cb[m] * U[k, i] + sb[m] * ez
+                    v[k, i] = sb[m] * U[k, i] + cb[m] * ez
+                    a0[k, i] = d1[m] * U[k, i] + d2[m] * T[k, i]
+            r5 = b5[m] * sb[m]
+            c_e = (-(b5[m] + r4[m]) / sb[m] + r5) + d1[m] / tb[m]
+            half = stroke[m] / 2.0
+        dd3, dd4 = d3[m], d4[m]
+        ok = True
+        for k in range(3):
+            rel0 = ((pts[q, 0] - b5[m] * w[k, 0]) + r5 * 0.0) - a0[k, 0]
+            rel1 = ((pts[q, 1] - b5[m] * w[k, 1]) + r5 * 0.0) - a0[k, 1]
+            rel2 = ((pts[q, 2] - b5[m] * w[k, 2]) + r5 * 1.0) - a0[k, 2]
+            s = ((rel0 * w[k, 0] + rel1 * w[k, 1]) + rel2 * w[k, 2] - r4[m]) / sb[m]
+            rel0 = rel0 - s * 0.0
+            rel1 = rel1 - s * 0.0
+            rel2 = rel2 - s * 1.0
+            rv = (rel0 * v[k, 0] + rel1 * v[k, 1]) + rel2 * v[k, 2]
+            rt = (rel0 * T[k, 0] + rel1 * T[k, 1]) + rel2 * T[k, 2]
+            c = ((rv * rv + rt * rt - dd3 * dd3) - dd4 * dd4) / ((2.0 * dd3) * dd4)
+            ok = ok and abs(c) <= 1.0 + 1e-12 and abs(s - c_e) <= half * (1.0 + 1e-12)
+            c = min(max(c, -1.0), 1.0)
+            sliders[q, k], rho_v[q, k], rho_t[q, k], c2[q, k] = s, rv, rt, c
+            y[q, k] = dd4 * math.sqrt(1.0 - c * c)
+            x[q, k] = dd3 + dd4 * c
+        reachable[q] = ok

@@ -30,8 +30,9 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   compiled kernel builds the part frames from the pose IK's joint values) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
   column grid of every design in one pass, then each bisection in one pass). The column structure
   (moving parts translate together in z, fixed parts are prisms) is what makes one pose per
-  column enough there. Pose IK is a jitted vmap over poses in padded calls of :data:`MIN_POSES`
-  or :data:`POSE_CHUNK` poses (two shapes for every batch size). The check prunes primitive
+  column enough there. Pose IK is the numpy IK's (the single path's) values bit for bit: a numba kernel
+  over poses for the arithmetic (``_interference_kernels.pose_ik_planar``) and numpy's arccos /
+  arctan2, or numpy over every pose at once for small batches or without numba. The check prunes primitive
   pairs per pose (part boxes, primitive boxes, separating axes one at a time), which a fixed-shape
   jax program cannot do; on a CPU the pruned numpy pass was already the faster of the two, and its
   compiled kernel is faster still (measured: docs/workspace_interference.md).
@@ -57,6 +58,7 @@ from __future__ import annotations
 
 import collections
 import functools
+import sys
 import time
 from typing import Any, NamedTuple
 
@@ -78,7 +80,7 @@ from hapticopt.analysis.prrr import stability, statics, structure
 from hapticopt.analysis.prrr import workspace as WS
 from hapticopt.design.errors import HapticoptError, InvalidInput
 from hapticopt.design.prrr import cad, cad_arrays
-from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
+from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_frames
 from hapticopt.design.prrr.params import PrrrDesign
 
 #: registry evaluators computed by the batch (``stability`` from the statics rows: see the docstring)
@@ -86,10 +88,6 @@ BATCHED = ("statics", "structural_stiffness", "workspace", "interference", "free
            "joint_limits")
 #: largest padded batch of one jitted call (larger batches run in chunks of this size)
 MAX_CHUNK = 1024
-#: the two padded pose batches of the pose IK: up to MIN_POSES poses in one call of that size, more
-#: in calls of POSE_CHUNK (the last one padded), so no batch size ever compiles a third shape
-MIN_POSES = 256
-POSE_CHUNK = 4096
 #: traces of the jitted functions by name (a trace precedes every compile; tests count them)
 TRACES: collections.Counter = collections.Counter()
 
@@ -148,19 +146,10 @@ def core_fn(groups: tuple[str, ...] = tuple(CORE_GROUPS)):
     return jax.jit(jax.vmap(functools.partial(_core, groups=groups)))
 
 
-def _pose_ik(kin: PrrrParams, p: jax.Array):
-    TRACES["pose_ik"] += 1
-    ik = inverse_kinematics(kin, p)
-    return ik.sliders, ik.theta[WS.ELBOW_BRANCH], ik.reachable
-
-
-@functools.cache
-def pose_ik_fn():
-    """IK of one pose per row, each with its own design's parameters (jitted vmap)."""
-    return jax.jit(jax.vmap(_pose_ik))
-
-
 _KIN_FIELDS = ("beta", "d1", "d2", "d3", "d4", "r4", "b5", "stroke")
+#: the legs' u and t (3 legs, 3) of the numpy IK (``leg_frames``; they do not depend on β)
+_LEGS = leg_frames(0.0, xp=np)
+_EZ = np.array([0.0, 0.0, 1.0])
 
 
 def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams] | None,
@@ -193,6 +182,14 @@ def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUP
     return out
 
 
+def _elbow_branch(elbow: np.ndarray, phi: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """Joint angles (n, 3 legs, 3) [rad] of the elbow branch ``WS.ELBOW_BRANCH`` from the elbow angle and
+    the in-plane angles φ, ψ (n, 3) (``kinematics.inverse_kinematics``' ``branch``)."""
+    th1, th2 = (phi - psi, elbow) if WS.ELBOW_BRANCH == 0 else (phi + psi, -elbow)
+    th1 = np.mod(th1 + np.pi, 2.0 * np.pi) - np.pi  # wrap to [−π, π)
+    return np.stack([th1, th2, -(th1 + th2)], axis=-1)
+
+
 class _Checker:
     """Collision checks of poses of many designs (owner index per pose), grouped by part layout."""
 
@@ -212,18 +209,55 @@ class _Checker:
             self.groups.append((local, batch, geometry, FAST.joint_tables(batch, geometry)))
 
     def pose_ik(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Sliders (n, 3), elbow-branch joint angles (n, 3, 3) and reachability (n,) of poses ``pts``
-        of designs ``owner``: padded calls of MIN_POSES or POSE_CHUNK poses."""
+        """Sliders (n, 3) [m], elbow-branch joint angles (n, 3, 3) [rad] and reachability (n,) of poses
+        ``pts`` (n, 3) [m] of designs ``owner``: the numpy IK's values bit for bit
+        (``kinematics.inverse_kinematics``, the single path's), from the numba kernel
+        ``_interference_kernels.pose_ik_planar`` (the arithmetic) and numpy's arccos / arctan2 on its
+        outputs, or from :meth:`pose_ik_numpy` where the kernel is not loaded and the poses are fewer
+        than ``interference_fast.KERNEL_AFTER_POSES`` (a small batch does not load numba for this) or
+        where numba cannot load."""
         n = len(pts)
-        size = MIN_POSES if n <= MIN_POSES else POSE_CHUNK
-        parts = []
-        for s in range(0, n, size):
-            m = min(size, n - s)
-            own = np.concatenate([owner[s:s + m], np.full(size - m, owner[s])])
-            p = np.concatenate([pts[s:s + m], np.zeros((size - m, 3))])
-            kin = PrrrParams(*(self.geo[f][own] for f in _KIN_FIELDS))
-            parts.append([np.asarray(x)[:m] for x in pose_ik_fn()(kin, p)])
-        return tuple(np.concatenate(col) for col in zip(*parts))
+        kernels = "hapticopt.analysis.prrr._interference_kernels"
+        if (n < FAST.KERNEL_AFTER_POSES and kernels not in sys.modules) or FAST.availability() is not None:
+            return self.pose_ik_numpy(owner, pts)
+        from hapticopt.analysis.prrr import _interference_kernels as K  # loaded by availability()
+
+        g = self.geo
+        beta = g["beta"]
+        sliders, rho_v, rho_t, c2, y, x = (np.empty((n, 3)) for _ in range(6))
+        ok = np.empty(n, dtype=np.bool_)
+        K.pose_ik_planar(np.ascontiguousarray(owner, dtype=np.int64), np.ascontiguousarray(pts, dtype=np.float64),
+                         np.cos(beta), np.sin(beta), np.tan(beta), *(g[f] for f in _KIN_FIELDS[1:]), _LEGS.u,
+                         _LEGS.t, sliders, rho_v, rho_t, c2, y, x, ok)
+        return sliders, _elbow_branch(np.arccos(c2), np.arctan2(rho_t, rho_v), np.arctan2(y, x)), ok
+
+    def pose_ik_numpy(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`pose_ik` in numpy over every pose at once: ``inverse_kinematics``' operations
+        element by element, each design's parameters gathered per pose (bit for bit the same values)."""
+        g, o = self.geo, np.asarray(owner, dtype=int)
+        beta = g["beta"]
+        cb, sb = np.cos(beta), np.sin(beta)
+        u, t = _LEGS.u, _LEGS.t
+        d1, d2, d3, d4, r4, b5 = (g[f] for f in ("d1", "d2", "d3", "d4", "r4", "b5"))
+        w = (-cb[:, None, None] * u + sb[:, None, None] * _EZ)[o]  # leg_frames' w, v per pose (n, 3, 3)
+        v = (sb[:, None, None] * u + cb[:, None, None] * _EZ)[o]
+        a0 = (d1[:, None, None] * u + d2[:, None, None] * t)[o]
+        r5 = b5 * sb
+        c_e = -(b5 + r4) / sb + r5 + d1 / np.tan(beta)
+        half = g["stroke"] / 2.0
+        rel = np.asarray(pts, dtype=float)[:, None, :] - b5[o, None, None] * w + r5[o, None, None] * _EZ - a0
+        sliders = (np.sum(rel * w, axis=-1) - r4[o, None]) / sb[o, None]
+        rel = rel - sliders[..., None] * _EZ
+        rho_v = np.sum(rel * v, axis=-1)
+        rho_t = np.sum(rel * t, axis=-1)
+        D3, D4 = d3[o, None], d4[o, None]
+        c2 = (rho_v**2 + rho_t**2 - D3**2 - D4**2) / (2.0 * D3 * D4)
+        reach_ok = np.abs(c2) <= 1.0 + 1e-12
+        c2 = np.clip(c2, -1.0, 1.0)
+        psi = np.arctan2(D4 * np.sqrt(1.0 - c2**2), D3 + D4 * c2)
+        stroke_ok = np.abs(sliders - c_e[o, None]) <= half[o, None] * (1.0 + 1e-12)
+        return (sliders, _elbow_branch(np.arccos(c2), np.arctan2(rho_t, rho_v), psi),
+                np.all(reach_ok & stroke_ok, axis=-1))
 
     def __call__(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``."""

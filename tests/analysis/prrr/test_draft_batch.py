@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -179,34 +180,44 @@ def test_only_restricts_the_batch(only, problem_sample):
         assert set(b.statuses) == set(only)
 
 
-def test_pose_ik_has_two_shapes_for_every_batch_size(problem_sample):
-    """The pose IK runs in padded calls of MIN_POSES or POSE_CHUNK poses only: once both are traced,
-    batches of 3, 7 and 11 designs (other pose counts in every pass) do not trace it again (the
-    core traces once per power-of-two bucket of designs: the test below), and the chunked IK
-    equals the numpy IK row by row."""
+def test_pose_ik_is_the_numpy_ik_bitwise(problem_sample):
+    """The checker's pose IK, both routes (the numba kernel ``_interference_kernels.pose_ik_planar`` with
+    numpy's arccos / arctan2, and numpy over every pose), against the numpy IK of each design
+    (``kinematics.inverse_kinematics``, xp=np, the single path's) on 7,000 seeded poses of 11 designs,
+    owners in runs and interleaved: sliders, joint angles and reachability bit for bit."""
+    assert interference_fast.availability() is None
     designs = problem_sample(11, seed=7)
-    draft_batch.evaluate_many(designs[:1])  # every pass ≤ MIN_POSES poses
-    draft_batch.evaluate_many(designs[:11])  # > MIN_POSES poses in the interference pass
-    before = draft_batch.TRACES["pose_ik"]
-    assert before >= 1
-    for k in (3, 7, 11):
-        draft_batch.evaluate_many(designs[:k])
-    assert draft_batch.TRACES["pose_ik"] == before
     check = draft_batch._Checker(designs, {})
-    rng = np.random.default_rng(3)
-    n = draft_batch.POSE_CHUNK + 5  # two chunks, the second padded
-    owner = rng.integers(0, len(designs), n)
-    pts = rng.uniform(-0.05, 0.05, (n, 3))
-    sliders, theta, ok = check.pose_ik(owner, pts)
-    picked = np.concatenate([rng.choice(draft_batch.POSE_CHUNK, 8, replace=False),
-                             np.arange(draft_batch.POSE_CHUNK, n)])  # both chunks
-    assert ok[picked].any()
-    for i in picked:
-        ik = inverse_kinematics(statics.params_np(designs[owner[i]]), pts[i:i + 1], xp=np)
-        assert np.array_equal(np.asarray(ik.reachable)[0], ok[i])
-        if ok[i]:
-            assert np.allclose(np.asarray(ik.sliders)[0], sliders[i], rtol=REL, atol=1e-15)
-            assert np.allclose(np.asarray(ik.theta)[0, 1], theta[i], rtol=REL, atol=1e-12)
+    rng = np.random.default_rng(5)
+    n = 7000
+    owner = np.concatenate([np.sort(rng.integers(0, len(designs), n // 2)), rng.integers(0, len(designs), n // 2)])
+    pts = rng.uniform(-0.06, 0.06, (n, 3))
+    many = check.pose_ik_numpy(owner, pts)
+    assert interference_fast.KERNEL_AFTER_POSES <= 3 * n
+    kernel = check.pose_ik(np.tile(owner, 3), np.tile(pts, (3, 1)))  # enough poses for the kernel
+    assert "hapticopt.analysis.prrr._interference_kernels" in sys.modules
+    assert 0.2 < many[2].mean() < 1.0  # both verdicts occur
+    for m in range(len(designs)):
+        sel = owner == m
+        ik = inverse_kinematics(statics.params_np(designs[m]), pts[sel], xp=np)
+        ref = (ik.sliders, ik.theta[:, draft_batch.WS.ELBOW_BRANCH], ik.reachable)
+        for got in many, [x[:n] for x in kernel], [x[2 * n:] for x in kernel]:
+            for a, b in zip(ref, got, strict=True):
+                assert np.array_equal(np.asarray(a).view(np.uint8), b[sel].view(np.uint8))
+
+
+def test_batch_of_one_does_not_load_the_kernels():
+    """A batch of one design (≈ 220 interference poses, below ``KERNEL_AFTER_POSES``) takes the numpy
+    pose IK and the numpy check: numba and the kernels' module stay unloaded (loading them costs
+    ≈ 0.55 s, docs/workspace_interference.md). A fresh interpreter, the same import path."""
+    import subprocess
+
+    code = ("import sys; from hapticopt.analysis.fidelity import Fidelity; "
+            "from hapticopt.analysis.registry import evaluate_batch; from hapticopt.design import io; "
+            "evaluate_batch([io.load_preset('prrr-paper')], fidelity=Fidelity.DRAFT); "
+            "print('hapticopt.analysis.prrr._interference_kernels' in sys.modules, 'numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
+    assert out.stdout.split() == ["False", "False"]
 
 
 def test_new_batch_size_in_a_bucket_does_not_retrace():
