@@ -87,7 +87,7 @@ _STD_FINE = ("standard", "fine")
 #: (``hapticopt metrics`` and docs/metrics.md are generated from them).
 EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
     "prrr": (
-        EvaluatorEntry(name="statics", module=_A + "prrr.statics",
+        EvaluatorEntry(name="statics", module=_A + "prrr.statics", shared=True,
                        fidelity="closed forms (constant Jacobian): the same at every level",
                        metrics=(
             _m("jacobian_condition", "2-norm condition number of the constant Jacobian J (1 = isotropic; seed 002 eq 2)"),
@@ -164,7 +164,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("joint_range_r2_deg", "range [min, max] joint R2 (elbow) sweeps over the collision-free cylinder"),
             _m("joint_range_r3_deg", "range [min, max] joint R3 sweeps over the collision-free cylinder"),
         )),
-        EvaluatorEntry(name="stability", module=_A + "prrr.stability",
+        EvaluatorEntry(name="stability", module=_A + "prrr.stability", shared=True,
                        fidelity="closed forms: the same at every level",
                        metrics=(
             _m("force_loop_bandwidth_Hz", "−3 dB bandwidth of the SEA force loop with the output locked (seed 002 eq 8; 38.5 Hz at K_p = 45)"),

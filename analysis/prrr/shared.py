@@ -4,7 +4,7 @@
 workspace and interference evaluators each need the CAD part tables (``cad.part_specs``) and the
 envelope of the fixed parts and carriages (``workspace.base_envelope``), the interference and free
 workspace evaluators the primitive tables of the collision check (``interference_fast.prepare``), and
-the device size evaluator the part tables again; the free workspace's passes and the interference
+the device size evaluator the part tables again; the statics and stability evaluators the statics; the free workspace's passes and the interference
 samples are checked by one point checker (``interference_fast.point_checker``: the design's stacked
 tables and joint tables once); the workspace and free workspace evaluators each
 compute the reach core (``workspace.workspace_core``), the latter reading only its entries that do
@@ -49,6 +49,13 @@ class DesignSteps:
         if not ok:
             raise value
         return value
+
+    def statics(self, design: PrrrDesign) -> Any:
+        """:func:`hapticopt.analysis.prrr.statics.evaluate` of ``design`` (closed forms, the same at every
+        fidelity): the statics evaluator's result and the stability evaluator's stiffness limits."""
+        from hapticopt.analysis.prrr import statics  # noqa: PLC0415
+
+        return self._step(design, "statics", lambda: statics.evaluate(design))
 
     def part_specs(self, design: PrrrDesign) -> dict:
         """:func:`hapticopt.design.prrr.cad.part_specs` of ``design`` (raises as it does)."""

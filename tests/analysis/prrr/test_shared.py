@@ -136,3 +136,19 @@ def test_point_checker_equals_check_points_bitwise_and_makes_the_joint_tables_on
             assert np.array_equal(got.collides, ref.collides) and np.array_equal(got.reachable, ref.reachable)
         assert len(made) == (0 if compiled is False else 1)
         monkeypatch.setattr(F, "joint_tables", real)
+
+
+def test_statics_runs_once_per_call_for_statics_and_stability(monkeypatch):
+    # reference: the statics evaluator and stability.stiffness_limits each evaluate the statics alone
+    from hapticopt.analysis.prrr import stability, statics  # noqa: PLC0415
+
+    calls = []
+    real = statics.statics_arrays
+    monkeypatch.setattr(statics, "statics_arrays", lambda *a, **k: calls.append(1) or real(*a, **k))
+    ev = registry.evaluate_all(BASE, fidelity=Fidelity.DRAFT, only=("statics", "stability"))
+    assert len(calls) == 1
+    calls.clear()
+    alone = stability.evaluate(BASE)
+    assert len(calls) == 1 and statics.evaluate(BASE).metrics() == ev.results["statics"].metrics()
+    assert np.array_equal(ev.results["stability"].stiffness_limits, alone.stiffness_limits)
+    assert ev.results["stability"].metrics() == alone.metrics()
