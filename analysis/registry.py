@@ -394,10 +394,13 @@ def _entries(device: str, only: tuple[str, ...] | None) -> list[EvaluatorEntry]:
 def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
                  only: tuple[str, ...] | None = None, progress: StepFn | None = None) -> Evaluation:
     """Run every evaluator registered for the design's device (or those named in ``only``); the steps
-    several of them take for the design (:data:`SHARED_STEPS`) run once for the call. Python's cyclic
-    garbage collector is paused for the call (:func:`_collector_paused`): with a batch's objects alive
-    in the process, its collections took ≈ 5 % of a 3-PRRR draft call (32 designs after a batch of 64,
-    interleaved rounds, load 2.5)."""
+    several of them take for the design (:data:`SHARED_STEPS`) run once for the call. At draft fidelity
+    Python's cyclic garbage collector is paused for the call (:func:`_collector_paused`): with a batch's
+    objects alive in the process, its collections took ≈ 5 % of a 3-PRRR draft call (32 designs after a
+    batch of 64, interleaved rounds, load 2.5); the longer levels (meshes, solid FEA) keep it running,
+    so that their cyclic garbage does not pile up over a call of seconds to minutes."""
+    if fidelity not in (Fidelity.DRAFT, Fidelity.DRAFT.value):  # a level the evaluators refuse is theirs to report
+        return _evaluate_all(design, fidelity=fidelity, only=only, progress=progress)
     with _collector_paused():
         return _evaluate_all(design, fidelity=fidelity, only=only, progress=progress)
 

@@ -85,9 +85,12 @@ def test_run_plotter_returns_the_files_it_wrote_for_a_relative_folder(monkeypatc
         registry.run_plotter(entry, design, None, Path("run/plots"))
 
 
-@pytest.mark.parametrize("enabled", [True, False])
-def test_evaluate_all_pauses_the_cyclic_collector_and_restores_it(monkeypatch, enabled: bool):
-    """The evaluators run with the collector off; after the call it is as it was before."""
+@pytest.mark.parametrize(("enabled", "level", "inside"), [(True, Fidelity.DRAFT, False), (False, Fidelity.DRAFT, False),
+                                                          (True, Fidelity.STANDARD, True)])
+def test_evaluate_all_pauses_the_cyclic_collector_at_draft_and_restores_it(monkeypatch, enabled: bool,
+                                                                           level: Fidelity, inside: bool):
+    """At draft the evaluators run with the collector off, at the longer levels as it was; after the
+    call it is as it was before."""
     import gc  # noqa: PLC0415
 
     seen = []
@@ -97,9 +100,9 @@ def test_evaluate_all_pauses_the_cyclic_collector_and_restores_it(monkeypatch, e
     was = gc.isenabled()
     try:
         gc.enable() if enabled else gc.disable()
-        ev = registry.evaluate_all(io.load_preset("prrr-paper"), fidelity=Fidelity.DRAFT, only=("statics",))
+        ev = registry.evaluate_all(io.load_preset("prrr-paper"), fidelity=level, only=("statics",))
         assert gc.isenabled() is enabled
     finally:
         gc.enable() if was else gc.disable()
-    assert seen == [False]
+    assert seen == [inside]
     assert ev.statuses["statics"] == "failed"  # the probe's error is a status, as before
