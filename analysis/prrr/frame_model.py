@@ -553,10 +553,16 @@ def dof_count(options: FrameOptions = FrameOptions()) -> int:
 
 
 def _free(n: int, i: int, xp=jnp) -> jax.Array:
-    """Selector (6 × n) of the six DOFs starting at ``i`` (a constant)."""
+    """Selector (6 × n) of the six DOFs starting at ``i`` (a constant, made once per (n, i): read-only)."""
+    return xp.asarray(_selector(n, i))
+
+
+@functools.cache
+def _selector(n: int, i: int) -> np.ndarray:
     out = np.zeros((6, n))
     out[:, i:i + 6] = np.eye(6)
-    return xp.asarray(out)
+    out.setflags(write=False)
+    return out
 
 
 def _hinge(G: jax.Array, i: int, w: jax.Array, xp=jnp) -> jax.Array:

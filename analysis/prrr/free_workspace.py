@@ -144,12 +144,16 @@ def column_poses_of(stroke, beta, phi, r) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
 
 
-def _collides_fn(design: PrrrDesign, checker: str, model_of=None):
+def _collides_fn(design: PrrrDesign, checker: str, model_of=None, checker_of=None):
     if checker == Checker.FAST:
-        model = (interference_fast.prepare if model_of is None else model_of)(design)
+        if checker_of is not None:
+            check = checker_of(design)
+        else:
+            check = interference_fast.point_checker((interference_fast.prepare if model_of is None else model_of)(design),
+                                                    branch=ELBOW_BRANCH)
 
         def collides(pts: np.ndarray) -> np.ndarray:
-            res = interference_fast.check_points(model, pts, branch=ELBOW_BRANCH)
+            res = check(pts)
             return res.collides | ~res.reachable
     else:
         model = interference.prepare(design)
@@ -160,12 +164,14 @@ def _collides_fn(design: PrrrDesign, checker: str, model_of=None):
 
 
 def free_radius(design: PrrrDesign, r_max: float, *, n_phi: int, n_r: int, n_bisect: int,
-                checker: str = Checker.FAST, model_of=None) -> tuple[float, int, int]:
+                checker: str = Checker.FAST, model_of=None, checker_of=None) -> tuple[float, int, int]:
     """(R_free [m], poses checked, poses colliding): largest radius ≤ ``r_max`` whose columns are
     collision-free on every ray (see the module docstring); ``model_of(design)``: the fast checker's
     primitive tables (default :func:`hapticopt.analysis.prrr.interference_fast.prepare`; the registry
-    call's shared ones)."""
-    collides = _collides_fn(design, checker, model_of)
+    call's shared ones); ``checker_of(design)``: its fast
+    :func:`~hapticopt.analysis.prrr.interference_fast.point_checker` in the elbow branch (the shared one,
+    used before ``model_of``). The fast checker's per-design steps are taken once for every pass."""
+    collides = _collides_fn(design, checker, model_of, checker_of)
     if r_max <= 0.0:
         return 0.0, 0, 0
     g = design.geometry
@@ -241,7 +247,8 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
                       required_height=required_height)
     try:
         found = free_radius(design, r_max, n_phi=smp.n_phi, n_r=smp.n_r, n_bisect=smp.n_bisect, checker=smp.checker,
-                            model_of=None if shared is None else shared.fast_model)
+                            model_of=None if shared is None else shared.fast_model,
+                            checker_of=None if shared is None else shared.point_checker)
     except HapticoptError as exc:  # the CAD cannot lay this design's parts out
         found = exc
     return finish(design, core, found, fidelity=fidelity, t0=t0, required_diameter=required_diameter,

@@ -389,13 +389,31 @@ def check_points(model: FastModel, points, *, branch: int = cad_prrr.DEFAULT_BRA
     """Interference of the tested part pairs at end-effector points (n, 3) [m]: the numpy IK
     (:func:`part_frames_batch`'s) in IK branch ``branch``, then :func:`check_joints` (``compiled``: as
     :func:`check_posed`)."""
-    pts = np.atleast_2d(np.asarray(points, dtype=float))
+    return point_checker(model, branch=branch, compiled=compiled)(points)
+
+
+def point_checker(model: FastModel, *, branch: int = cad_prrr.DEFAULT_BRANCH, compiled: bool | None = None):
+    """:func:`check_points` of ``model`` as a function of the points, for a caller that checks one design's
+    points in several calls (the free workspace's bisection passes, then the interference samples): the
+    steps that depend on the design only (its one-design :func:`stack_models`, the IK parameters, the leg
+    geometry, and :func:`joint_tables` from the first call that runs the compiled kernel on) are taken once
+    instead of at every call (the same values: each result is the one :func:`check_points` gives)."""
     g = model.design.geometry
     prm = PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
-    ik = inverse_kinematics(prm, pts, xp=np)
     geometry = LegGeometry(*(np.array([float(getattr(g, f))]) for f in LegGeometry._fields))
-    return check_joints(stack_models([model]), np.zeros(len(pts), dtype=int), pts, np.asarray(ik.sliders),
-                        np.asarray(ik.theta)[:, branch], np.asarray(ik.reachable), geometry, compiled=compiled)
+    batch = stack_models([model])
+    tables: list = []  # joint_tables(batch, geometry) once a call may run the kernel (check_joints' rule)
+
+    def check(points) -> FastResult:
+        pts = np.atleast_2d(np.asarray(points, dtype=float))
+        ik = inverse_kinematics(prm, pts, xp=np)
+        if not tables and (compiled or (compiled is None and _POSES_CHECKED[0] + len(pts) >= KERNEL_AFTER_POSES)):
+            tables.append(joint_tables(batch, geometry))
+        return check_joints(batch, np.zeros(len(pts), dtype=int), pts, np.asarray(ik.sliders),
+                            np.asarray(ik.theta)[:, branch], np.asarray(ik.reachable), geometry,
+                            tables=tables[0] if tables else None, compiled=compiled)
+
+    return check
 
 
 #: poses per pass of :func:`check_posed` (bounds the per-(pose, primitive) world tables: ~4 MB
@@ -738,7 +756,8 @@ def overlap_share(res: FastResult, *, scale: float = OVERLAP_SCALE) -> np.ndarra
 
 
 def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int,
-                           scale: float = OVERLAP_SCALE, wp: Any = None, model_of=None) -> tuple[float, float]:
+                           scale: float = OVERLAP_SCALE, wp: Any = None, model_of=None, checker_of=None
+                           ) -> tuple[float, float]:
     """(removed fraction, overlap fraction) of the sampled workspace volume, from one check of
     the poses (polar-cell weights w_i of :func:`hapticopt.analysis.prrr.workspace.workspace_sample_weights`):
 
@@ -749,12 +768,16 @@ def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int
 
     Both 0 for an empty sample (the primitive tables are not needed then). ``wp``: the design's
     default workspace parameters, ``model_of(design)``: its primitive tables (default :func:`prepare`),
+    ``checker_of(design)``: its :func:`point_checker` in :data:`ELBOW_BRANCH` (used before ``model_of``),
     when the caller has them (the registry call's shared steps)."""
 
     pts, w = workspace_sample_weights(design, n_phi=n_phi, n_r=n_r, n_z=n_z, wp=wp)
     if len(pts) == 0 or not w.sum() > 0:
         return 0.0, 0.0
-    res = check_points((prepare if model_of is None else model_of)(design), pts, branch=ELBOW_BRANCH)
+    if checker_of is not None:
+        res = checker_of(design)(pts)
+    else:
+        res = check_points((prepare if model_of is None else model_of)(design), pts, branch=ELBOW_BRANCH)
     return fractions_of(w, res.collides, overlap_share(res, scale=scale))
 
 

@@ -4,7 +4,9 @@
 workspace and interference evaluators each need the CAD part tables (``cad.part_specs``) and the
 envelope of the fixed parts and carriages (``workspace.base_envelope``), the interference and free
 workspace evaluators the primitive tables of the collision check (``interference_fast.prepare``), and
-the device size evaluator the part tables again; the workspace and free workspace evaluators each
+the device size evaluator the part tables again; the statics and stability evaluators the statics; the free workspace's passes and the interference
+samples are checked by one point checker (``interference_fast.point_checker``: the design's stacked
+tables and joint tables once); the workspace and free workspace evaluators each
 compute the reach core (``workspace.workspace_core``), the latter reading only its entries that do
 not depend on the radial sampling. :class:`DesignSteps` holds one design and takes each
 of these steps the first time an evaluator asks for it, then hands the same value (or re-raises the
@@ -48,6 +50,13 @@ class DesignSteps:
             raise value
         return value
 
+    def statics(self, design: PrrrDesign) -> Any:
+        """:func:`hapticopt.analysis.prrr.statics.evaluate` of ``design`` (closed forms, the same at every
+        fidelity): the statics evaluator's result and the stability evaluator's stiffness limits."""
+        from hapticopt.analysis.prrr import statics  # noqa: PLC0415
+
+        return self._step(design, "statics", lambda: statics.evaluate(design))
+
     def part_specs(self, design: PrrrDesign) -> dict:
         """:func:`hapticopt.design.prrr.cad.part_specs` of ``design`` (raises as it does)."""
         return self._step(design, "part_specs", lambda: cad_prrr.part_specs(design))
@@ -73,6 +82,15 @@ class DesignSteps:
 
         return self._step(design, "fast_model",
                           lambda: interference_fast.prepare(design, specs=self.part_specs(design)))
+
+    def point_checker(self, design: PrrrDesign) -> Any:
+        """:func:`hapticopt.analysis.prrr.interference_fast.point_checker` of the shared primitive tables
+        in the elbow branch (``workspace.ELBOW_BRANCH``, the branch the free workspace and interference
+        evaluators check; raises as :meth:`fast_model` does): their per-design steps once for the call."""
+        from hapticopt.analysis.prrr import interference_fast  # noqa: PLC0415
+
+        return self._step(design, "point_checker", lambda: interference_fast.point_checker(
+            self.fast_model(design), branch=interference_fast.ELBOW_BRANCH))
 
     def workspace_core(self, design: PrrrDesign, wp: Any, *, n_phi: int, n_r: int) -> dict:
         """:func:`hapticopt.analysis.prrr.workspace.workspace_core` of ``wp`` (numpy) at ``n_phi``, ``n_r``."""

@@ -26,6 +26,7 @@ from collections.abc import Callable
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.linalg
@@ -258,15 +259,19 @@ class StabilityResult:
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, kp: float = 45.0,
-             limits: np.ndarray | None = None) -> StabilityResult:
+             limits: np.ndarray | None = None, shared: Any = None) -> StabilityResult:
     """Force-loop bandwidth and closed-loop stiffness limits of ``design`` at K_p (seed 002's 45).
 
     Status ``not-assemblable`` (metrics NaN) when the chain does not close
     (:func:`hapticopt.analysis.prrr.assembly.closure`): the decoupled per-axis loop assumes it.
     ``limits``: :func:`stiffness_limits` of ``design`` when the caller has them; computed once here
-    otherwise. The bandwidth is :func:`force_loop_bandwidth_closed_form`.
+    otherwise (from the registry call's shared statics where ``shared``, its
+    :class:`hapticopt.analysis.prrr.shared.DesignSteps`, is given). The bandwidth is
+    :func:`force_loop_bandwidth_closed_form`.
     """
     del fidelity  # closed forms
+    if limits is None and shared is not None:
+        limits = shared.statics(design).stiffness_limit.copy()  # stiffness_limits' value
     limits = stiffness_limits(design) if limits is None else np.array(limits, dtype=float)
     return evaluate_many([design], kp=kp, limits=limits[None])[0]
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import jax
@@ -90,14 +91,18 @@ def params_np(design: PrrrDesign) -> PrrrParams:
     return PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
 
 
-def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> PrrrStatics:
-    """Statics of ``design``. Exact closed forms: every fidelity gives the same result.
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, shared: Any = None) -> PrrrStatics:
+    """Statics of ``design``. Exact closed forms: every fidelity gives the same result. ``shared``: the
+    registry call's :class:`hapticopt.analysis.prrr.shared.DesignSteps` of ``design`` (its statics,
+    computed once for this evaluator and the stability evaluator's stiffness limits).
 
     Status ``not-assemblable`` (metrics NaN, the arrays kept for callers that need the closed
     forms) when J is well conditioned but the chain does not close
     (:func:`hapticopt.analysis.prrr.assembly.closure`); otherwise the conditioning verdict of J.
     """
     del fidelity  # closed form
+    if shared is not None:
+        return shared.statics(design)
     a = design.actuator
     # numpy path: a single design needs no jit compile (the CLI's start-up budget); the jax
     # path (same function, xp=jnp) serves batches and gradients and is tested equal.

@@ -396,6 +396,11 @@ def layout(design: PrrrDesign) -> PrrrLayout:
                       stem_bottom=stem_bottom, ball_z=ball_z, z_base_top=z_base_top, z_rail_top=z_rail_top)
 
 
+#: the eight corners of a unit box about its centre (±½ each axis)
+_HALF_CORNERS = np.array([[i, j, k] for i in (-.5, .5) for j in (-.5, .5) for k in (-.5, .5)])
+_HALF_CORNERS.setflags(write=False)
+
+
 def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = None) -> float:
     """Radius [m] of the fixed parts and the carriages (with their housings) about the z axis,
     from the part tables (``specs``: :func:`part_specs` of ``design``, computed when omitted): the
@@ -414,7 +419,7 @@ def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = N
             R, o = Rf @ p.R, Rf @ p.o + of
             a, b, c = p.dims
             if p.kind == Kind.BOX:
-                corners = np.array([[i, j, k] for i in (-.5, .5) for j in (-.5, .5) for k in (-.5, .5)]) * (a, b, c)
+                corners = _HALF_CORNERS * (a, b, c)
                 pts = o + corners @ R.T
                 out = max(out, float(np.max(np.hypot(pts[:, 0], pts[:, 1]))))
             elif p.kind == Kind.CYLINDER:
