@@ -83,6 +83,7 @@ import jax.scipy.linalg
 import numpy as np
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis import compiled
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.prrr.cad import carriage_bracket
 from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames
@@ -1071,15 +1072,11 @@ def compliance_outputs(KP: jax.Array, cond_legs: jax.Array, load_height, xp=jnp)
 def kernel_availability() -> str | None:
     """None when the compiled kernel of :func:`condense_many` can run here, else why not (one line); the
     numpy path runs then."""
-    try:
-        import numba  # noqa: F401
-    except ImportError as e:  # pragma: no cover - numba is a dependency
-        return f"numba not importable ({e})"
-    try:  # numba raises at decoration when no cache folder is writable (NUMBA_CACHE_DIR, __pycache__, ~/.cache)
-        from hapticopt.analysis.prrr import _frame_kernels  # noqa: F401
-    except (OSError, RuntimeError) as e:
-        return f"the compiled frame kernel's module did not load: {e}"
-    return None
+    return compiled.unavailable(_load_kernels, "the compiled frame kernel's module")
+
+
+def _load_kernels() -> None:
+    from hapticopt.analysis.prrr import _frame_kernels  # noqa: F401
 
 
 def assemble_terms(G, Kt, cols: np.ndarray, n: int) -> np.ndarray:

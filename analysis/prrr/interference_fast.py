@@ -54,6 +54,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from hapticopt.analysis import compiled
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.parts import Kind, Role
 from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
@@ -447,15 +448,11 @@ _POSES_CHECKED = [0]
 def availability() -> str | None:
     """None when the compiled kernel of :func:`check_posed` can run here, else why not (one line); the
     numpy reference runs then."""
-    try:
-        import numba  # noqa: F401
-    except ImportError as e:  # pragma: no cover - numba is a dependency
-        return f"numba not importable ({e})"
-    try:  # numba raises at decoration when no cache folder is writable (NUMBA_CACHE_DIR, __pycache__, ~/.cache)
-        from hapticopt.analysis.prrr import _interference_kernels  # noqa: F401
-    except (OSError, RuntimeError) as e:
-        return f"the compiled interference kernel's module did not load: {e}"
-    return None
+    return compiled.unavailable(_load_kernels, "the compiled interference kernel's module")
+
+
+def _load_kernels() -> None:
+    from hapticopt.analysis.prrr import _interference_kernels  # noqa: F401
 
 
 def _use_kernel(n: int, compiled: bool | None) -> bool:
