@@ -13,35 +13,24 @@ from __future__ import annotations
 
 import os
 import statistics
-import subprocess
 import sys
 import time
-import types
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from revisions import module_from  # noqa: E402
 from bench_batched_draft import N_SINGLE, designs  # noqa: E402
 
 from hapticopt.analysis import registry  # noqa: E402
 from hapticopt.analysis.fidelity import Fidelity  # noqa: E402
-from hapticopt.analysis.prrr import assembly, draft_batch  # noqa: E402
+from hapticopt.analysis.prrr import assembly  # noqa: E402
 from hapticopt.analysis.prrr import interference_fast as F  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _module_from(rev: str, path: str, name: str) -> types.ModuleType:
-    src = subprocess.run(["git", "show", f"{rev}:{path}"], cwd=ROOT, check=True, capture_output=True, text=True).stdout
-    mod = types.ModuleType(name)
-    mod.__dict__["__name__"] = name
-    sys.modules[name] = mod
-    exec(compile(src, f"{rev}:{path}", "exec"), mod.__dict__)
-    return mod
 
 
 def main(rev: str, n: int, rounds: int = 3) -> None:
-    old_fast = _module_from(rev, "analysis/prrr/interference_fast.py", "old_interference_fast")
-    old_batch = _module_from(rev, "analysis/prrr/draft_batch.py", "old_draft_batch")
+    old_fast = module_from(rev, "analysis/prrr/interference_fast.py", "old_interference_fast")
+    old_batch = module_from(rev, "analysis/prrr/draft_batch.py", "old_draft_batch")
     old_batch.FAST = F  # the old batch calls F.check_posed, switched below
     new_check = F.check_posed
     ds = designs(n)

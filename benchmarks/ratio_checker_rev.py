@@ -14,31 +14,20 @@ from __future__ import annotations
 
 import os
 import statistics
-import subprocess
 import sys
 import time
-import types
 
 import numpy as np
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from revisions import module_from  # noqa: E402
 from bench_batched_draft import designs  # noqa: E402
 
 from hapticopt.analysis.fidelity import Fidelity  # noqa: E402
 from hapticopt.analysis.prrr import draft_batch as DB  # noqa: E402
 from hapticopt.analysis.registry import evaluate_batch  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _module_from(rev: str, path: str, name: str) -> types.ModuleType:
-    src = subprocess.run(["git", "show", f"{rev}:{path}"], cwd=ROOT, check=True, capture_output=True, text=True).stdout
-    mod = types.ModuleType(name)
-    mod.__dict__["__name__"] = name
-    sys.modules[name] = mod
-    exec(compile(src, f"{rev}:{path}", "exec"), mod.__dict__)
-    return mod
 
 
 def _load() -> str:
@@ -47,7 +36,7 @@ def _load() -> str:
 
 def main(rev: str, n: int, rounds: int) -> None:
     print(f"load average {_load()}")
-    old = _module_from(rev, "analysis/prrr/draft_batch.py", "old_draft_batch")
+    old = module_from(rev, "analysis/prrr/draft_batch.py", "old_draft_batch")
     checkers = {"old": old._Checker, "new": DB._Checker}
     spent = {"old": 0.0, "new": 0.0}
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import os
 import statistics
-import subprocess
 import sys
 import time
 import types
@@ -23,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from revisions import module_from  # noqa: E402
 from bench_batched_draft import designs  # noqa: E402
 
 import hapticopt.analysis.prrr as prrr_pkg  # noqa: E402
@@ -30,18 +30,11 @@ from hapticopt.analysis import registry  # noqa: E402
 from hapticopt.analysis.fidelity import Fidelity  # noqa: E402
 from hapticopt.analysis.prrr import draft_batch  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 NAME = "hapticopt.analysis.prrr.draft_batch"
 
 
 def _module_from(rev: str) -> types.ModuleType:
-    src = subprocess.run(["git", "show", f"{rev}:analysis/prrr/draft_batch.py"], cwd=ROOT, check=True,
-                         capture_output=True, text=True).stdout
-    mod = types.ModuleType("old_draft_batch")
-    mod.__dict__["__name__"] = "old_draft_batch"
-    sys.modules["old_draft_batch"] = mod
-    exec(compile(src, f"{rev}:analysis/prrr/draft_batch.py", "exec"), mod.__dict__)
-    return mod
+    return module_from(rev, "analysis/prrr/draft_batch.py", "old_draft_batch")
 
 
 def _use(mod: types.ModuleType) -> None:

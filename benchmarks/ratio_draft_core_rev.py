@@ -16,13 +16,12 @@ from __future__ import annotations
 
 import os
 import statistics
-import subprocess
 import sys
 import time
-import types
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from revisions import module_from  # noqa: E402
 from bench_batched_draft import designs  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -30,17 +29,6 @@ import numpy as np  # noqa: E402
 from hapticopt.analysis.prrr import draft_batch  # noqa: E402
 from hapticopt.analysis.prrr import workspace as WS  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _module_from(rev: str, path: str, name: str, **inject) -> types.ModuleType:
-    src = subprocess.run(["git", "show", f"{rev}:{path}"], cwd=ROOT, check=True, capture_output=True, text=True).stdout
-    mod = types.ModuleType(name)
-    mod.__dict__["__name__"] = name
-    sys.modules[name] = mod
-    exec(compile(src, f"{rev}:{path}", "exec"), mod.__dict__)
-    mod.__dict__.update(inject)
-    return mod
 
 
 def _max_rel(a: dict, b: dict, prefix: str = "") -> tuple[float, str]:
@@ -63,10 +51,10 @@ def _max_rel(a: dict, b: dict, prefix: str = "") -> tuple[float, str]:
 
 
 def main(rev: str, n: int, rounds: int) -> None:
-    old_cad = _module_from(rev, "design/prrr/cad.py", "old_cad")
-    old_fm = _module_from(rev, "analysis/prrr/frame_model.py", "old_frame_model", carriage_bracket=old_cad.carriage_bracket)
-    old_ws = _module_from(rev, "analysis/prrr/workspace.py", "old_workspace")
-    old = _module_from(rev, "analysis/prrr/draft_batch.py", "old_draft_batch", fm=old_fm, WS=old_ws)
+    old_cad = module_from(rev, "design/prrr/cad.py", "old_cad")
+    old_fm = module_from(rev, "analysis/prrr/frame_model.py", "old_frame_model", carriage_bracket=old_cad.carriage_bracket)
+    old_ws = module_from(rev, "analysis/prrr/workspace.py", "old_workspace")
+    old = module_from(rev, "analysis/prrr/draft_batch.py", "old_draft_batch", fm=old_fm, WS=old_ws)
     ds = designs(n)
     wps = [WS.workspace_params(d) for d in ds]
     sets = [("frame",), ("workspace",), tuple(draft_batch.CORE_GROUPS)]  # the groups this work changed, all four
