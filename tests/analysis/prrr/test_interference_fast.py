@@ -225,6 +225,16 @@ def _bits(x: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(x, dtype=np.float64).view(np.int64)
 
 
+def _largest_layout_group(models) -> list[int]:
+    """Indices of the models of the most common part layout (at least two: one call stacks them)."""
+    groups: dict = {}
+    for i, m in enumerate(models):
+        groups.setdefault(F.layout_key(m), []).append(i)
+    members = max(groups.values(), key=len)
+    assert len(members) >= 2
+    return members
+
+
 def test_compiled_kernel_equals_the_numpy_reference_bitwise(problem_sample):
     """Depths of the numba kernel and of the numpy reference, bit for bit (signed zeros included), on
     the workspace samples of 16 seeded designs within the problem bounds, one design at a time and all
@@ -252,11 +262,7 @@ def test_compiled_kernel_equals_the_numpy_reference_bitwise(problem_sample):
         n_free += int(not ref.collides.any())
     assert n_colliding > 100 and n_shallow > 0 and n_free > 0  # depths of all kinds, not only zeros
     # every design of the largest layout group in one call: owner indexes the stacked primitive tables
-    groups: dict = {}
-    for i, m in enumerate(models):
-        groups.setdefault(F.layout_key(m), []).append(i)
-    members = max(groups.values(), key=len)
-    assert len(members) >= 2
+    members = _largest_layout_group(models)
     batch = F.stack_models([models[i] for i in members])
     owner = np.concatenate([np.full(len(posed[i][1]), k) for k, i in enumerate(members)])
     pts = np.concatenate([posed[i][1] for i in members])
@@ -350,11 +356,7 @@ def test_joint_kernel_equals_the_numpy_reference_on_the_cads_frames_bitwise(prob
     and free poses and an unreachable point; its numpy path is that reference itself."""
     designs = problem_sample(16, seed=4242, accept=F.prepare)
     models = [F.prepare(d) for d in designs]
-    groups: dict = {}
-    for i, m in enumerate(models):
-        groups.setdefault(F.layout_key(m), []).append(i)
-    members = max(groups.values(), key=len)
-    assert len(members) >= 2
+    members = _largest_layout_group(models)
     batch = F.stack_models([models[i] for i in members])
     owner, pts, sliders, theta, ok = [], [], [], [], []
     for k, i in enumerate(members):
