@@ -220,7 +220,6 @@ def test_overlap_fraction_is_continuous_across_a_jump_of_the_removed_fraction(pa
 
 # --- the numba kernel of check_posed against its numpy reference -------------------------------
 
-#: the bounds the optimiser draws from (read from the problem file, so a change there moves this sample)
 def _bits(x: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(x, dtype=np.float64).view(np.int64)
 
