@@ -28,7 +28,7 @@ from hapticopt.design import parts
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.master import cad as cad_master
 from hapticopt.design.prrr import cad as cad_prrr
-from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
+from hapticopt.design.prrr.kinematics import inverse_kinematics, params_np
 
 #: overlaps below this volume are tessellation noise, not interference [mm³]
 NOISE_MM3 = 1.0
@@ -212,9 +212,7 @@ def _prrr_frames_many(design: Any, pts: np.ndarray, branch: int) -> list[dict[st
     one numpy pass of :func:`hapticopt.design.prrr.kinematics.inverse_kinematics` and
     :func:`hapticopt.design.prrr.cad.part_frames_batch`; None where the point is not clearly
     reachable (out of reach, or within :data:`_REACH_EDGE` of its limit)."""
-    g = design.geometry
-    prm = PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
-    ik = inverse_kinematics(prm, pts, xp=np)
+    ik = inverse_kinematics(params_np(design), pts, xp=np)
     clear = np.asarray(ik.reachable) & (np.asarray(ik.reach_margin) > _REACH_EDGE)
     posed = cad_prrr.part_frames_batch(design, np.asarray(ik.sliders), np.asarray(ik.theta)[:, branch], pts)
     return [{name: parts.transform(R[k], o[k]) for name, (R, o) in posed.items()} if clear[k] else None

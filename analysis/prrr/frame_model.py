@@ -86,7 +86,7 @@ from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax a
 from hapticopt.analysis import compiled
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.prrr.cad import carriage_bracket
-from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames
+from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames, params_np
 
 #: Above this 1-norm condition number (Jacobi-scaled K) a result is reported as ill-conditioned.
 COND_LIMIT = 1e12
@@ -169,7 +169,7 @@ def frame_params_of(design, xp=jnp) -> FrameParams:
     """Frame-model parameters of one :class:`hapticopt.design.prrr.params.PrrrDesign` (``xp=np``: numpy arrays)."""
     s = design.structure
     g = design.geometry
-    kin = PrrrParams(*(xp.asarray(float(x)) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
+    kin = PrrrParams(*(xp.asarray(x) for x in params_np(design)))
     sec = Section(*(xp.asarray(float(x)) for x in (s.link_width, s.link_thickness, s.youngs_modulus, s.poisson_ratio)))
     layer = float(s.link_thickness) + float(s.clearance)  # hapticopt.design.prrr.cad.layout: s_link2 = T + g
     s_lug = max(float(g.r4), 2.0 * layer)  # hapticopt.design.prrr.cad.layout: s_lug = max(r4, 2T + 2g)

@@ -58,7 +58,7 @@ from hapticopt.analysis import compiled
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.parts import Kind, Role
 from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
-from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
+from hapticopt.design.prrr.kinematics import inverse_kinematics, params_np
 from hapticopt.analysis.prrr.workspace import ELBOW_BRANCH, workspace_sample_weights
 
 #: a primitive pair collides when its smallest overlap over the candidate axes exceeds this [m]:
@@ -241,10 +241,8 @@ def part_frames_batch(design: PrrrDesign, points, *, branch: int = cad_prrr.DEFA
     """World rotation (n, 3, 3) and origin (n, 3) [m] of every part at ``points`` (n, 3) [m]
     (:func:`hapticopt.design.prrr.cad.part_frames_batch` after the numpy IK), and whether each point is reachable."""
 
-    g = design.geometry
     p = np.atleast_2d(np.asarray(points, dtype=float))
-    prm = PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
-    ik = inverse_kinematics(prm, p, xp=np)
+    ik = inverse_kinematics(params_np(design), p, xp=np)
     theta = np.asarray(ik.theta)[:, branch]  # (n, 3 legs, 3)
     return cad_prrr.part_frames_batch(design, np.asarray(ik.sliders), theta, p), np.asarray(ik.reachable)
 
@@ -400,7 +398,7 @@ def point_checker(model: FastModel, *, branch: int = cad_prrr.DEFAULT_BRANCH, co
     geometry, and :func:`joint_tables` from the first call that runs the compiled kernel on) are taken once
     instead of at every call (the same values: each result is the one :func:`check_points` gives)."""
     g = model.design.geometry
-    prm = PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
+    prm = params_np(model.design)
     geometry = LegGeometry(*(np.array([float(getattr(g, f))]) for f in LegGeometry._fields))
     batch = stack_models([model])
     tables: list = []  # joint_tables(batch, geometry) once a call may run the kernel (check_joints' rule)

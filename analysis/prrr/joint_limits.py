@@ -30,7 +30,7 @@ import numpy as np
 from hapticopt.analysis import interference
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr import assembly, free_workspace as FW
-from hapticopt.analysis.prrr.statics import params_np
+from hapticopt.design.prrr.kinematics import params_np
 from hapticopt.analysis.prrr.workspace import ELBOW_BRANCH, fold_margin
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import HapticoptError

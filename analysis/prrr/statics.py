@@ -19,7 +19,7 @@ from hapticopt.analysis import conditioning
 from hapticopt.analysis.prrr import assembly
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.prrr.kinematics import (  # noqa: F401  (condition_* re-exported)
-    PrrrParams, condition_2norm, condition_frobenius, jacobian, jacobian_inverse)
+    PrrrParams, condition_2norm, condition_frobenius, jacobian, jacobian_inverse, params_np)
 from hapticopt.analysis.status import Status
 from hapticopt.design.prrr.params import PrrrDesign
 
@@ -83,12 +83,6 @@ class PrrrStatics:
 def _floats(a) -> list:
     """``a`` as (nested) lists of Python floats, converted in one call (``float`` of each element)."""
     return np.asarray(a, dtype=float).tolist()
-
-
-def params_np(design: PrrrDesign) -> PrrrParams:
-    """Kinematic parameters as plain floats (for the numpy path)."""
-    g = design.geometry
-    return PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, shared: Any = None) -> PrrrStatics:

@@ -39,9 +39,14 @@ class PrrrParams(NamedTuple):
 
 
 def params_of(design: PrrrDesign) -> PrrrParams:
-    """Kinematic parameters of one design."""
+    """Kinematic parameters of one design (jax scalars of :func:`params_np`)."""
+    return PrrrParams(*(jnp.asarray(x) for x in params_np(design)))
+
+
+def params_np(design: PrrrDesign) -> PrrrParams:
+    """Kinematic parameters of one design as plain floats (for the numpy paths)."""
     g = design.geometry
-    return PrrrParams(*(jnp.asarray(float(x)) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
+    return PrrrParams(*(float(x) for x in (g.beta, g.d1, g.d2, g.d3, g.d4, g.r4, g.b5, g.stroke)))
 
 
 def stack_params(designs: list[PrrrDesign]) -> PrrrParams:
