@@ -24,3 +24,29 @@ def unavailable(load: Callable[[], object], what: str) -> str | None:
     except (OSError, RuntimeError) as e:
         return f"{what} did not load: {e}"
     return None
+
+
+# ---------------------------------------------------------------------------- kernel threads
+_threads: int | None = None
+
+
+def threads() -> int:
+    """How many threads a batch's compiled kernels may run on at once (kernels that release the GIL, each
+    thread on its own share of the designs): :func:`set_threads`' value, else the CPUs this process may run
+    on (``os.sched_getaffinity``). A pool worker of a run is set to 1 (its siblings use the other CPUs)."""
+    import os
+
+    if _threads is not None:
+        return _threads
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - platforms without affinity
+        return max(1, os.cpu_count() or 1)
+
+
+def set_threads(n: int | None) -> None:
+    """Set :func:`threads` to ``n`` (≥ 1), or back to the CPU count with None."""
+    global _threads
+    if n is not None and (not isinstance(n, int) or n < 1):
+        raise ValueError(f"threads = {n!r} is not allowed: an integer ≥ 1")
+    _threads = n

@@ -37,7 +37,7 @@ def wrap(mod, name: str, label: str | None = None) -> None:
 
 
 def main(n: int, only: tuple[str, ...] | None = None) -> None:
-    for name in ("run_core", "stack_inputs", "_interference", "_free_workspace", "_structure", "envelopes"):
+    for name in ("start_core", "finish_core", "stack_inputs", "_interference", "_free_workspace", "_structure", "envelopes"):
         wrap(DB, name)
     for mod, name in ((DB.cad, "part_specs"), (DB.cad, "part_frames_arrays"), (DB.WS, "workspace_params"),
                       (DB.WS, "workspace_sample_weights"), (DB.FAST, "prepare"), (DB.FAST, "check_posed"),

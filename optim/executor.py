@@ -24,6 +24,7 @@ from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from typing import Any
 
 from hapticopt.design.errors import InvalidInput, short
+from hapticopt.analysis import compiled
 
 
 class InlineExecutor(Executor):
@@ -90,9 +91,11 @@ def start_child(parent_pid: int) -> None:
     """First call in every child process of a run (pool workers, the side process, the verification
     worker): :func:`watch_parent`, and an end without the module teardown (:func:`skip_teardown_at_exit`,
     status 0: a child reaches its exit handlers only when its loop has returned — the stdlib pool's
-    worker loop and :func:`hapticopt.optim.worker._serve` — since a crash by a signal runs none)."""
+    worker loop and :func:`hapticopt.optim.worker._serve` — since a crash by a signal runs none), and one
+    thread for the batch kernels (:func:`hapticopt.analysis.compiled.set_threads`)."""
     watch_parent(parent_pid)
     skip_teardown_at_exit(lambda: 0)
+    compiled.set_threads(1)  # the pool's workers share the CPUs: one kernel thread each
 
 
 def default_workers() -> int:

@@ -67,6 +67,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from hapticopt.analysis import compiled
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.analysis.prrr import assembly
@@ -167,19 +168,40 @@ def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams] | None
                       mass=np.array([d.end_effector.mass for d in designs]), wp=wp, fp=fp)
 
 
-def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> dict:
-    """The core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK);
-    numpy rows [:n]."""
+class PendingCore(NamedTuple):
+    """A dispatched core call (:func:`start_core`): jax runs it asynchronously on its own threads while
+    the caller does other work; :func:`finish_core` waits for it."""
+
+    out: dict  # jax arrays (padded batch)
+    n: int
+
+
+def start_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> PendingCore:
+    """Dispatch the core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK),
+    without waiting for it (jax's asynchronous dispatch: the compiled program runs on XLA's threads, which
+    do not hold the GIL, so the numba collision kernels run meanwhile)."""
     if not groups:
-        return {}
+        return PendingCore({}, n)
     size = bucket(n)
     pad = jax.tree.map(lambda x: np.concatenate([x, np.repeat(x[-1:], size - n, axis=0)]) if size > n else x, inp)
-    out = jax.tree.map(lambda x: np.asarray(x)[:n], core_fn(groups)(pad))
+    return PendingCore(core_fn(groups)(pad), n)
+
+
+def finish_core(pending: PendingCore) -> dict:
+    """The numpy rows [:n] of a dispatched core (waits for it), the frame group assembled and solved."""
+    n = pending.n
+    out = jax.tree.map(lambda x: np.asarray(x)[:n], pending.out)
     if "frame" in out:  # the legs' assembly and solves outside XLA (numba kernel over designs)
         fr = out["frame"]
         terms = fr.pop("G"), fr.pop("Ks"), fr.pop("P")
         out["frame"] = {**fm.condense_terms_many(*terms, fm.FrameOptions(), fm.LOAD_HEIGHT), **fr}
     return out
+
+
+def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> dict:
+    """The core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK);
+    numpy rows [:n] (:func:`start_core` then :func:`finish_core`)."""
+    return finish_core(start_core(inp, n, groups))
 
 
 def _elbow_branch(elbow: np.ndarray, phi: np.ndarray, psi: np.ndarray) -> np.ndarray:
@@ -266,16 +288,68 @@ class _Checker:
         if n == 0:
             return collides, reachable, depth
         sliders, theta, ok = self.pose_ik(owner, pts)
+        jobs = []
         for local, batch, geometry, tables in self.groups:
             sel = np.flatnonzero(local[owner] >= 0)
-            if len(sel) == 0:
-                continue
-            res = FAST.check_joints(batch, local[owner[sel]], pts[sel], sliders[sel], theta[sel], ok[sel], geometry,
-                                    tables=tables)
-            collides[sel] = res.collides
-            reachable[sel] = res.reachable
-            depth[sel] = res.depth.max(axis=1) if res.depth.shape[1] else 0.0
+            jobs += [(part, local, batch, geometry, tables) for part in _shares(sel, owner, _kernel_threads(n))]
+
+        def run(job) -> None:
+            part, local, batch, geometry, tables = job
+            res = FAST.check_joints(batch, local[owner[part]], pts[part], sliders[part], theta[part], ok[part],
+                                    geometry, tables=tables)
+            collides[part] = res.collides
+            reachable[part] = res.reachable
+            depth[part] = res.depth.max(axis=1) if res.depth.shape[1] else 0.0
+
+        _run_threaded(run, jobs)
         return collides, reachable, depth
+
+
+#: fewest poses per thread of a check (below, one thread: the hand-off costs more than it saves)
+POSES_PER_THREAD = 2048
+
+
+def _kernel_threads(n: int) -> int:
+    """Threads for a check of ``n`` poses: ``compiled.threads()``, fewer for a small check, one where the
+    collision kernel does not run (numpy path)."""
+    if n < 2 * POSES_PER_THREAD or compiled.threads() == 1 or FAST.availability() is not None:
+        return 1
+    return max(1, min(compiled.threads(), n // POSES_PER_THREAD))
+
+
+def _shares(sel: np.ndarray, owner: np.ndarray, k: int) -> list[np.ndarray]:
+    """``sel`` (pose indices) in ``k`` contiguous shares of about equal size, each cut where the owner
+    changes (a design's run of poses stays in one share: the kernel sets up each design once per run)."""
+    if len(sel) == 0:
+        return []
+    cuts = [0]
+    for j in range(1, k):
+        c = max(cuts[-1], j * len(sel) // k)
+        while 0 < c < len(sel) and owner[sel[c]] == owner[sel[c - 1]]:
+            c += 1
+        cuts.append(c)
+    cuts.append(len(sel))
+    return [sel[a:b] for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
+
+
+_POOL: list = []
+
+
+def _run_threaded(fn, jobs: list) -> None:
+    """``fn(job)`` for every job: on the calling thread and the pool's threads at once where there are
+    several jobs (the collision kernel releases the GIL), the first error raised again here."""
+    if len(jobs) <= 1:
+        for job in jobs:
+            fn(job)
+        return
+    if not _POOL:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL.append(ThreadPoolExecutor(max_workers=max(1, compiled.threads() - 1), thread_name_prefix="hapticopt-kernel"))
+    futures = [_POOL[0].submit(fn, job) for job in jobs[1:]]
+    fn(jobs[0])
+    for f in futures:
+        f.result()
 
 
 _CORNERS = np.array([[i, j, k] for i in (-1.0, 1.0) for j in (-1.0, 1.0) for k in (-1.0, 1.0)])
@@ -424,8 +498,25 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
                 else:
                     models[i] = m
         wps = _workspace_params(designs, specs, envelopes(designs, models, specs))
-    arrays = run_core(stack_inputs(designs, wps, groups), n, groups)
+    pending = start_core(stack_inputs(designs, wps, groups), n, groups)
     t_core = time.perf_counter() - t0
+
+    # while XLA computes the core on its own threads: the collision check of the interference poses
+    # (it reads the part tables and workspace parameters, not the core)
+    check_specs = list(specs)  # a design whose primitive tables failed: that exception for the checks
+    for i, err in model_errors.items():
+        check_specs[i] = err
+    if "interference" in want or "free_workspace" in want:
+        check = _Checker(designs, models)
+    if "interference" in want:
+        for i in no_parts:
+            res[i]["interference"] = _guard(IF.evaluate, designs[i], fidelity=draft)
+        t2 = time.perf_counter()
+        _interference(designs, check_specs, wps, check, res, t2)
+        tim["interference"] = (time.perf_counter() - t2) / n
+    t_wait = time.perf_counter()
+    arrays = finish_core(pending)
+    t_core += time.perf_counter() - t_wait
 
     def row(group: str, i: int) -> dict:
         return {k: v[i] for k, v in arrays[group].items()}
@@ -464,22 +555,12 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
     for name in ("statics", "structural_stiffness", "workspace", "joint_limits", "device_size"):
         tim[name] = (t_core + t_rows) / (5 * n)
 
-    if "interference" in want or "free_workspace" in want:
-        for i, err in model_errors.items():
-            specs[i] = err
-        check = _Checker(designs, models)
     for i in no_parts:
-        if "interference" in want:
-            res[i]["interference"] = _guard(IF.evaluate, designs[i], fidelity=draft)
         if "free_workspace" in want:  # its verdict reads the batch's core: not-assemblable before the check
             res[i]["free_workspace"] = _guard(FW.finish, designs[i], ws_rows[i], None, fidelity=draft, t0=t1)
-    if "interference" in want:
-        t2 = time.perf_counter()
-        _interference(designs, specs, wps, check, res, t2)
-        tim["interference"] = (time.perf_counter() - t2) / n
     if "free_workspace" in want:
         t3 = time.perf_counter()
-        _free_workspace(designs, specs, arrays, check, res, t3)
+        _free_workspace(designs, check_specs, arrays, check, res, t3)
         tim["free_workspace"] = (time.perf_counter() - t3) / n
     if "workspace" not in want:
         for r in res:

@@ -96,3 +96,15 @@ def test_cli_main_ends_with_the_command_status():
     assert bad.returncode == 2 and "no-such-preset" in bad.stderr
     ok = _run_python("from hapticopt.optim.cli import main; import sys; sys.argv = ['hapticopt', '--help']; main()")
     assert ok.returncode == 0 and "Usage" in ok.stdout
+
+
+def _kernel_threads_here() -> int:
+    from hapticopt.analysis import compiled
+
+    return compiled.threads()
+
+
+def test_a_pool_worker_runs_the_batch_kernels_on_one_thread():
+    """The local pool's workers share the CPUs: each is set to one kernel thread (``start_child``)."""
+    with make_executor("local", workers=1) as pool:
+        assert pool.submit(_kernel_threads_here).result(timeout=120) == 1

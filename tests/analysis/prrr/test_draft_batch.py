@@ -268,3 +268,63 @@ def test_checker_kernel_equals_its_numpy_path_bitwise(both, monkeypatch):
         assert np.array_equal(fast[0], slow[0]) and np.array_equal(fast[1], slow[1])
         assert np.array_equal(fast[2].view(np.int64), slow[2].view(np.int64))
         assert fast[0].any() and not fast[0].all() and (fast[2] > 0).any()
+
+
+def test_checker_on_two_threads_equals_one_thread_bitwise(both, monkeypatch):
+    """The checker's kernel on two threads (each a share of the designs, ``draft_batch._shares``) gives
+    bit for bit what one thread gives, owners in design order and shuffled (a shuffled share cuts
+    designs' runs of poses: the kernel sets each run up again)."""
+    from hapticopt.analysis import compiled
+    from hapticopt.analysis.prrr import workspace as WS
+
+    designs, _, _ = both
+    models = {i: interference_fast.prepare(d) for i, d in enumerate(designs) if not assembly.parts(d)}
+    check = draft_batch._Checker(designs, models)
+    owner, pts = [], []
+    for i in models:
+        p, _ = WS.workspace_sample_weights(designs[i], **WS.INTERFERENCE_SAMPLING)
+        owner.append(np.full(len(p), i)), pts.append(p)
+    owner, pts = np.concatenate(owner), np.concatenate(pts)
+    monkeypatch.setattr(draft_batch, "POSES_PER_THREAD", 64)
+    for order in (np.arange(len(owner)), np.random.default_rng(5).permutation(len(owner))):
+        got = {}
+        for k in (1, 2):
+            monkeypatch.setattr(compiled, "_threads", k)
+            assert draft_batch._kernel_threads(len(owner)) == k
+            got[k] = check(owner[order], pts[order])
+        for a, b in zip(got[1], got[2], strict=True):
+            assert np.array_equal(np.asarray(a).view(np.uint8), np.asarray(b).view(np.uint8))
+        assert got[2][0].any() and not got[2][0].all()
+
+
+def test_shares_cut_where_the_owner_changes():
+    owner = np.array([0, 0, 0, 1, 1, 2, 2, 2, 2, 3])
+    sel = np.arange(len(owner))
+    parts = draft_batch._shares(sel, owner, 2)
+    assert np.array_equal(np.concatenate(parts), sel)
+    assert [p[0] for p in parts] == [0, 5]  # index 5 is the first owner change at or after the middle
+    one = draft_batch._shares(sel, np.zeros(10, int), 3)  # one design: one share
+    assert len(one) == 1 and np.array_equal(one[0], sel)
+    assert draft_batch._shares(sel[:0], owner, 2) == []
+    assert len(draft_batch._shares(sel, np.arange(10), 4)) == 4
+
+
+def test_dispatched_core_equals_the_core():
+    """``finish_core`` of a dispatched core (``start_core``: jax's asynchronous dispatch, the caller works
+    meanwhile) gives what ``run_core`` gives."""
+    designs = _sample()[:4]
+    specs, tables, _ = draft_batch._part_tables(designs)
+    models = {}
+    for t in tables:
+        models.update(zip(t.index.tolist(), interference_fast.models_from_tables([designs[i] for i in t.index], t)))
+    wps = draft_batch._workspace_params(designs, specs, draft_batch.envelopes(designs, models, specs))
+    inp = draft_batch.stack_inputs(designs, wps)
+    pending = draft_batch.start_core(inp, len(designs))
+    got, ref = draft_batch.finish_core(pending), draft_batch.run_core(inp, len(designs))
+    assert set(got) == set(ref)
+    for g in got:
+        if isinstance(got[g], dict):
+            for k in got[g]:
+                assert np.array_equal(np.asarray(got[g][k]), np.asarray(ref[g][k]), equal_nan=True), (g, k)
+        else:
+            assert np.array_equal(got[g], ref[g], equal_nan=True), g
