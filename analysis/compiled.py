@@ -8,6 +8,7 @@ module, and run their numpy path where the answer is a reason rather than None (
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 
 
@@ -34,8 +35,6 @@ def threads() -> int:
     """How many threads a batch's compiled kernels may run on at once (kernels that release the GIL, each
     thread on its own share of the designs): :func:`set_threads`' value, else the CPUs this process may run
     on (``os.sched_getaffinity``). A pool worker of a run is set to 1 (its siblings use the other CPUs)."""
-    import os
-
     if _threads is not None:
         return _threads
     try:

@@ -60,6 +60,7 @@ import collections
 import functools
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any, NamedTuple
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
@@ -343,8 +344,6 @@ def _run_threaded(fn, jobs: list) -> None:
             fn(job)
         return
     if not _POOL:
-        from concurrent.futures import ThreadPoolExecutor
-
         _POOL.append(ThreadPoolExecutor(max_workers=max(1, compiled.threads() - 1), thread_name_prefix="hapticopt-kernel"))
     futures = [_POOL[0].submit(fn, job) for job in jobs[1:]]
     fn(jobs[0])
