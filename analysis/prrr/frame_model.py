@@ -85,6 +85,7 @@ import numpy as np
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis import compiled
 from hapticopt.design.errors import InvalidDesign
+from hapticopt.design.prrr import cad_arrays
 from hapticopt.design.prrr.cad import carriage_bracket
 from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames, params_np
 
@@ -266,25 +267,27 @@ def frame_params_many(designs) -> FrameParams:
 
 
 def _brackets_many(designs, sec: Section) -> dict[str, np.ndarray]:
-    """:func:`bracket_frame` of many designs (leading batch axis): the brackets per design, the
-    bonds' :func:`bond_stiffness` over the batch (:func:`_bond_stiffness_many`)."""
-    pts, zref, size, N, e_l, n_p, lc, wc, w = ([] for _ in range(9))
-    for design in designs:
+    """:func:`bracket_frame` of many designs (leading batch axis): the brackets over the batch
+    (:func:`hapticopt.design.prrr.cad_arrays.brackets_many`, the array form of
+    :func:`hapticopt.design.prrr.cad.carriage_bracket`; its ``rest``, the designs no face carries or near
+    a rule's threshold or branch point, by the per-design function as :func:`bracket_frame`), the bonds'
+    :func:`bond_stiffness` over the batch (:func:`_bond_stiffness_many`)."""
+    b, rest = cad_arrays.brackets_many(designs)
+    for i in rest:
         try:
-            b = carriage_bracket(design)
+            one = carriage_bracket(designs[i])
         except InvalidDesign:
-            b = carriage_bracket(design, checked=False)
-        pts.append(np.stack([b.contact_centre, b.root_joint, b.arm_end]))
-        zref.append(b.root_axes[:, 2])
-        size.append((b.root_size[0], b.root_size[2]))
-        N.append(b.normal)
-        e_l.append(b.root_axes[:, 0])
-        n_p.append(b.contact_axes[:, 1])
-        lc.append(b.contact_size[0])
-        wc.append(b.contact_size[1])
-        w.append(b.axis)
-    N, e_l, n_p, w = (np.asarray(x, dtype=float) for x in (N, e_l, n_p, w))
-    lc, wc = np.asarray(lc, dtype=float), np.asarray(wc, dtype=float)
+            one = carriage_bracket(designs[i], checked=False)
+        for k, v in _bracket_fields(one).items():
+            b[k][i] = v
+    Ac, e_l, e_f, arm_length = b["clevis"], b["root_axes"][:, :, 0], b["root_axes"][:, :, 1], b["arm_length"]
+    contact = b["contact"]
+    # cad.Bracket.root_joint and .arm_end over the batch
+    root_joint = contact - np.sum((contact - Ac) * e_f, axis=-1)[:, None] * e_f
+    pts = np.stack([contact, root_joint, Ac + arm_length[:, None] * e_l], axis=1)
+    zref, size = b["root_axes"][:, :, 2], b["root_size"][:, [0, 2]]
+    N, n_p, w = b["normal"], b["n_p"], b["axis"]
+    lc, wc = b["contact_size"][:, 0], b["contact_size"][:, 1]
     E_, nu = sec.youngs_modulus, sec.poisson_ratio
     k_root = _bond_stiffness_many(lc * wc, (lc * wc**3 / 12.0, wc * lc**3 / 12.0), lc * wc * (lc**2 + wc**2) / 12.0,
                                   (N, e_l, n_p), E_, nu)
@@ -292,8 +295,15 @@ def _brackets_many(designs, sec: Section) -> dict[str, np.ndarray]:
     e_m = _cross(w, e_l, np)
     k_arm = _bond_stiffness_many(W * T, (W * T**3 / 12.0, T * W**3 / 12.0), W * T * (W**2 + T**2) / 12.0,
                                  (e_l, e_m, w), E_, nu)
-    return {"bracket_points": np.asarray(pts, dtype=float), "root_zref": np.asarray(zref, dtype=float),
-            "root_section": np.asarray(size, dtype=float), "bracket_bonds": np.stack([k_root, k_arm], axis=1)}
+    return {"bracket_points": pts, "root_zref": np.ascontiguousarray(zref), "root_section": np.ascontiguousarray(size),
+            "bracket_bonds": np.stack([k_root, k_arm], axis=1)}
+
+
+def _bracket_fields(b) -> dict:
+    """The fields of :func:`hapticopt.design.prrr.cad_arrays.brackets_many` of one :class:`cad.Bracket`."""
+    return dict(clevis=b.clevis, axis=b.axis, normal=b.normal, e_l=b.e_l, arm_length=b.arm_length,
+                root_axes=b.root_axes, root_size=b.root_size, contact=b.contact_centre, n_p=b.contact_axes[:, 1],
+                contact_size=b.contact_size)
 
 
 def _bond_stiffness_many(area, moments, polar, axes, E, nu) -> np.ndarray:
