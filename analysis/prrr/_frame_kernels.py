@@ -178,11 +178,35 @@ def condense_legs_kernel(K, contrib, cond, recovery, gross):
 
 
 @njit(cache=True)
-def _element_stiffness(p, patterns, k, T, kT, Ke):
+def _nonzeros(patterns):
+    """The nonzero entries of the (10, 12, 12) Timoshenko patterns (``frame_model._PATTERNS``), row by row:
+    ``idx`` (nk, 3) = (a, b, pattern c), ``val`` (nk,) (each (a, b) in one pattern: the patterns are
+    disjoint)."""
+    nk = 0
+    for a in range(12):
+        for b in range(12):
+            for c in range(10):
+                if patterns[c, a, b] != 0.0:
+                    nk += 1
+    idx, val = np.empty((nk, 3), dtype=np.int64), np.empty(nk)
+    t = 0
+    for a in range(12):
+        for b in range(12):
+            for c in range(10):
+                if patterns[c, a, b] != 0.0:
+                    idx[t, 0], idx[t, 1], idx[t, 2] = a, b, c
+                    val[t] = patterns[c, a, b]
+                    t += 1
+    return idx, val
+
+
+@njit(cache=True)
+def _element_stiffness(p, kidx, kval, coef, T, kT, Ke):
     """``Ke`` ← the 12 × 12 global stiffness of the element with parameters ``p`` (18,)
-    (``frame_model.element_stiffness``: ``beam_global_stiffness`` term by term): Tᵀ k T, the products over
-    the nonzeros of k (the Timoshenko patterns) and of T (blockdiag(R M1, R M2), M the end zones' rigid
-    maps). ``k``, ``T``, ``kT``: 12 × 12 scratch."""
+    (``frame_model.element_stiffness``: ``beam_global_stiffness`` term by term): Tᵀ k T, k placed from the
+    patterns' nonzeros (``kidx``, ``kval``: :func:`_nonzeros`), the products over the nonzeros of k and
+    over the blocks of T = blockdiag(R M1, R M2) (M the end zones' rigid maps: [[R, R S], [0, R]] per node).
+    ``coef`` (10,): scratch (the patterns' coefficients); ``T``, ``kT``: 12 × 12 scratch."""
     d0, d1, d2 = p[3] - p[0], p[4] - p[1], p[5] - p[2]
     length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     ex0, ex1, ex2 = d0 / length, d1 / length, d2 / length
@@ -199,18 +223,10 @@ def _element_stiffness(p, patterns, k, T, kT, Ke):
     phi_z = 12.0 * E * i_y / (kap * G * A * L**2)
     cy = E * i_z / ((1.0 + phi_y) * L**3)
     cz = E * i_y / ((1.0 + phi_z) * L**3)
-    coef = (E * A / L, G * J / L, 12.0 * cy, 6.0 * L * cy, (4.0 + phi_y) * L**2 * cy, (2.0 - phi_y) * L**2 * cy,
-            12.0 * cz, 6.0 * L * cz, (4.0 + phi_z) * L**2 * cz, (2.0 - phi_z) * L**2 * cz)
-    for a in range(12):
-        for b in range(12):
-            v = 0.0
-            for c in range(10):
-                v += coef[c] * patterns[c, a, b]
-            k[a, b] = v
+    coef[0], coef[1], coef[2], coef[3] = E * A / L, G * J / L, 12.0 * cy, 6.0 * L * cy
+    coef[4], coef[5] = (4.0 + phi_y) * L**2 * cy, (2.0 - phi_y) * L**2 * cy
+    coef[6], coef[7], coef[8], coef[9] = 12.0 * cz, 6.0 * L * cz, (4.0 + phi_z) * L**2 * cz, (2.0 - phi_z) * L**2 * cz
     R = ((ex0, ex1, ex2), (ey0, ey1, ey2), (ez0, ez1, ez2))
-    for a in range(12):
-        for b in range(12):
-            T[a, b] = 0.0
     for node in range(2):
         r = a1 if node == 0 else -a2
         r0, r1, r2 = r * ex0, r * ex1, r * ex2
@@ -222,23 +238,183 @@ def _element_stiffness(p, patterns, k, T, kT, Ke):
                 T[o + i, o + j] = R[i][j]
                 T[o + 3 + i, o + 3 + j] = R[i][j]
                 T[o + i, o + 3 + j] = R[i][0] * S[0][j] + R[i][1] * S[1][j] + R[i][2] * S[2][j]
-    for a in range(12):  # kT = k T over the nonzeros of k
+                T[o + 3 + i, o + j] = 0.0
+    for a in range(12):  # kT = k T over the nonzeros of k (row by row, in the order of the columns r)
         for b in range(12):
             kT[a, b] = 0.0
-        for r in range(12):
-            kar = k[a, r]
-            if kar != 0.0:
-                for b in range(12):
-                    kT[a, b] += kar * T[r, b]
-    for a in range(12):  # Ke = Tᵀ (k T) over the nonzeros of T
+    for t in range(kidx.shape[0]):
+        a, r = kidx[t, 0], kidx[t, 1]
+        kar = coef[kidx[t, 2]] * kval[t]
+        o = 6 if r >= 6 else 0  # T's row r is nonzero on its node's block only
+        for b in range(o, o + 6):
+            kT[a, b] += kar * T[r, b]
+    for a in range(12):  # Ke = Tᵀ (k T) over T's blocks (row r: columns of its node, from 3 on for rotations)
         for b in range(12):
             Ke[a, b] = 0.0
     for r in range(12):
-        for a in range(12):
+        o = 6 if r >= 6 else 0
+        for a in range(o + (3 if r - o >= 3 else 0), o + 6):
             tra = T[r, a]
-            if tra != 0.0:
-                for b in range(12):
-                    Ke[a, b] += tra * kT[r, b]
+            for b in range(12):
+                Ke[a, b] += tra * kT[r, b]
+
+
+@njit(cache=True)
+def _structure(cols, n):
+    """A leg's symbolic structure from its terms' columns ``cols`` (T, M) (K is nonzero only on the
+    pairs of one term's columns): the rows below the diagonal of each column of the internal block's
+    Cholesky factor, fill included (``ptr`` (m+1,), ``rows``: column k's rows ``rows[ptr[k]:ptr[k+1]]``,
+    ascending), the columns left of the diagonal of each row of that block's lower triangle (``rptr``,
+    ``rcols``, ascending), and ``first``, the first internal DOF coupled to P (K_iP's rows above it are
+    zero). Internal indices (0 … m−1 for the leg's DOFs 6 … n−1)."""
+    m = n - 6
+    pat = np.zeros((n, n), dtype=np.bool_)
+    for t in range(cols.shape[0]):
+        for a in range(cols.shape[1]):
+            for b in range(cols.shape[1]):
+                pat[cols[t, a], cols[t, b]] = True
+    for k in range(m):  # symbolic elimination: column k's rows couple to each other
+        for i in range(k + 1, m):
+            if pat[6 + i, 6 + k]:
+                for j in range(k + 1, i + 1):
+                    if pat[6 + j, 6 + k]:
+                        pat[6 + i, 6 + j] = True
+                        pat[6 + j, 6 + i] = True
+    ptr, rptr = np.zeros(m + 1, dtype=np.int64), np.zeros(m + 1, dtype=np.int64)
+    for k in range(m):
+        c, rc = 0, 0
+        for i in range(k + 1, m):
+            if pat[6 + i, 6 + k]:
+                c += 1
+        for j in range(k):
+            if pat[6 + k, 6 + j]:
+                rc += 1
+        ptr[k + 1], rptr[k + 1] = ptr[k] + c, rptr[k] + rc
+    rows, rcols = np.empty(ptr[m], dtype=np.int64), np.empty(rptr[m], dtype=np.int64)
+    for k in range(m):
+        c, rc = ptr[k], rptr[k]
+        for i in range(k + 1, m):
+            if pat[6 + i, 6 + k]:
+                rows[c] = i
+                c += 1
+        for j in range(k):
+            if pat[6 + k, 6 + j]:
+                rcols[rc] = j
+                rc += 1
+    first = m
+    for i in range(m - 1, -1, -1):
+        for a in range(6):
+            if pat[a, 6 + i]:
+                first = i
+    return ptr, rows, rptr, rcols, first
+
+
+@njit(cache=True)
+def _solve_sym(L, ptr, rows, x):
+    """x ← (L Lᵀ)⁻¹ x in place over the symbolic structure (:func:`_solve_into`'s operations, in its order)."""
+    m = x.shape[0]
+    for k in range(m):
+        xk = x[k] / L[k, k]
+        x[k] = xk
+        if xk != 0.0:
+            for t in range(ptr[k], ptr[k + 1]):
+                i = rows[t]
+                x[i] -= L[i, k] * xk
+    for k in range(m - 1, -1, -1):
+        s = x[k]
+        for t in range(ptr[k], ptr[k + 1]):
+            i = rows[t]
+            s -= L[i, k] * x[i]
+        x[k] = s / L[k, k]
+
+
+@njit(cache=True)
+def _condense_leg_sym(Kl, A, d, ptr, rows, rptr, rcols, first, Y, x, contrib, gross):
+    """:func:`_condense_leg` of a leg ``Kl`` (n, n) assembled on the pattern of :func:`_structure` (its
+    entries off that pattern are zero; the lower and upper triangles not yet symmetrised: each entry read
+    is ½(K_ij + K_ji)), without the recovery: the scaled lower triangle and ‖K_ii,s‖₁ row by row and the
+    Cholesky factorisation over the structure (the same operations, in the same order, as
+    :func:`_condense_leg`), then K_PP − Yᵀ Y with Y = L⁻¹ d K_iP (a forward solve from row ``first``: the
+    rows above are zero; no backward solve), the probe's and Hager's solves as :func:`_condense_leg`.
+    ``Y`` (m, 6), ``x`` (m,): scratch. Returns the condition estimate (NaN, and NaN outputs, where the
+    scaled K_ii is not positive definite)."""
+    n = Kl.shape[0]
+    m = n - 6
+    for i in range(m):
+        d[i] = 1.0 / math.sqrt(abs(Kl[6 + i, 6 + i]))
+        x[i] = 0.0
+    for i in range(m):  # the scaled lower triangle and the column sums of |K_ii,s| (K symmetric)
+        di = d[i]
+        for t in range(rptr[i], rptr[i + 1]):
+            j = rcols[t]
+            a = di * (0.5 * (Kl[6 + i, 6 + j] + Kl[6 + j, 6 + i])) * d[j]
+            A[i, j] = a
+            x[i] += abs(a)
+            x[j] += abs(a)
+        a = di * Kl[6 + i, 6 + i] * di
+        A[i, i] = a
+        x[i] += abs(a)
+    norm1 = 0.0
+    for j in range(m):
+        norm1 = max(norm1, x[j])
+    for k in range(m):  # Cholesky on the lower triangle, right-looking, over the structure
+        akk = A[k, k]
+        if not akk > 0.0:
+            contrib[:, :] = np.nan
+            gross[:] = np.nan
+            return np.nan
+        lkk = math.sqrt(akk)
+        A[k, k] = lkk
+        p0, p1 = ptr[k], ptr[k + 1]
+        for t in range(p0, p1):
+            A[rows[t], k] /= lkk
+        for t in range(p0, p1):
+            i = rows[t]
+            lik = A[i, k]
+            for u in range(p0, t + 1):
+                j = rows[u]
+                A[i, j] -= lik * A[j, k]
+    for i in range(first, m):  # Y = L⁻¹ d K_iP: forward substitution from the first nonzero row
+        for r in range(6):
+            Y[i, r] = d[i] * (0.5 * (Kl[r, 6 + i] + Kl[6 + i, r]))
+    for k in range(first, m):
+        lkk = A[k, k]
+        for c in range(6):
+            Y[k, c] = Y[k, c] / lkk
+        for t in range(ptr[k], ptr[k + 1]):
+            i = rows[t]
+            lik = A[i, k]
+            for c in range(6):
+                Y[i, c] -= lik * Y[k, c]
+    for a in range(6):  # K_PP − Yᵀ Y (= K_Pi K_ii⁻¹ K_iP); gross: |K_PP,aa| + (Yᵀ Y)_aa
+        for b in range(6):
+            s = 0.0
+            for i in range(first, m):
+                s += Y[i, a] * Y[i, b]
+            if b == a:
+                gross[a] = abs(Kl[a, a]) + s
+            contrib[a, b] = (Kl[a, a] if b == a else 0.5 * (Kl[a, b] + Kl[b, a])) - s
+    # the probe y = K_ii,s⁻¹ (1/m)·1 and Hager's estimate of ‖K_ii,s⁻¹‖₁ (as _condense_leg)
+    for i in range(m):
+        x[i] = 1.0 / m
+    _solve_sym(A, ptr, rows, x)
+    s1 = 0.0
+    for i in range(m):
+        s1 += abs(x[i])
+        x[i] = 1.0 if x[i] >= 0.0 else -1.0
+    _solve_sym(A, ptr, rows, x)
+    jmax, zmax = 0, -1.0
+    for i in range(m):
+        if abs(x[i]) > zmax:  # first of equal maxima, as argmax
+            jmax, zmax = i, abs(x[i])
+    for i in range(m):
+        x[i] = 0.0
+    x[jmax] = 1.0
+    _solve_sym(A, ptr, rows, x)
+    s2 = 0.0
+    for i in range(m):
+        s2 += abs(x[i])
+    return norm1 * max(s1, s2)
 
 
 @njit(cache=True)
@@ -247,21 +423,23 @@ def assemble_condense_kernel(G, Ks, P, patterns, cols, n, contrib, cond, gross):
     springs' stiffness ``Ks`` (L, S, 12, 12), elements' parameters ``P`` (L, E, 18) (terms: the E
     elements, then the S springs); ``patterns`` the (10, 12, 12) Timoshenko patterns
     (``frame_model._PATTERNS``). Each leg's K = sym(Σ_t G_tᵀ K_t G_t) (n × n; the products over the
-    nonzero entries of G_t), then :func:`condense_legs_kernel`'s outputs but the recovery."""
+    nonzero entries of G_t), then :func:`condense_legs_kernel`'s outputs but the recovery, over the
+    structure that ``cols`` gives (:func:`_structure`, once per call: :func:`_condense_leg_sym`)."""
     m = n - 6
+    ptr, rows, rptr, rcols, first = _structure(cols, n)
+    kidx, kval = _nonzeros(patterns)
     Kl, A, d, x = np.empty((n, n)), np.empty((m, m)), np.empty(m), np.empty(m)
-    nz, cnt = np.empty((m, m), dtype=np.int64), np.empty(m, dtype=np.int64)
-    sol, rec = np.empty((m, 7)), np.empty((m, 6))
+    Y = np.empty((m, 6))
     T, M = cols.shape
     E = P.shape[1]
     KG = np.empty((12, M))
-    k12, T12, kT, Ke = np.empty((12, 12)), np.empty((12, 12)), np.empty((12, 12)), np.empty((12, 12))
+    coef, T12, kT, Ke = np.empty(10), np.empty((12, 12)), np.empty((12, 12)), np.empty((12, 12))
     for leg in range(G.shape[0]):
         Kl[:, :] = 0.0
         for t in range(T):
             g = G[leg, t]
             if t < E:
-                _element_stiffness(P[leg, t], patterns, k12, T12, kT, Ke)
+                _element_stiffness(P[leg, t], kidx, kval, coef, T12, kT, Ke)
                 k = Ke
             else:
                 k = Ks[leg, t - E]
@@ -281,9 +459,4 @@ def assemble_condense_kernel(G, Ks, P, patterns, cols, n, contrib, cond, gross):
                         ca = cols[t, a]
                         for b in range(M):
                             Kl[ca, cols[t, b]] += gra * KG[r, b]
-        for i in range(n):
-            for j in range(i):
-                s = 0.5 * (Kl[i, j] + Kl[j, i])
-                Kl[i, j] = s
-                Kl[j, i] = s
-        cond[leg] = _condense_leg(Kl, A, d, nz, cnt, sol, x, rec, contrib[leg], gross[leg])
+        cond[leg] = _condense_leg_sym(Kl, A, d, ptr, rows, rptr, rcols, first, Y, x, contrib[leg], gross[leg])
