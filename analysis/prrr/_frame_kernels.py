@@ -261,92 +261,79 @@ def _element_stiffness(p, kidx, kval, coef, T, kT, Ke):
 
 @njit(cache=True)
 def _structure(cols, n):
-    """A leg's symbolic structure from its terms' columns ``cols`` (T, M) (K is nonzero only on the
-    pairs of one term's columns): the rows below the diagonal of each column of the internal block's
-    Cholesky factor, fill included (``ptr`` (m+1,), ``rows``: column k's rows ``rows[ptr[k]:ptr[k+1]]``,
-    ascending), the columns left of the diagonal of each row of that block's lower triangle (``rptr``,
-    ``rcols``, ascending), and ``first``, the first internal DOF coupled to P (K_iP's rows above it are
-    zero). Internal indices (0 … m−1 for the leg's DOFs 6 … n−1)."""
+    """A leg's envelope from its terms' columns ``cols`` (T, M) (K is nonzero only on the pairs of one
+    term's columns), internal indices (0 … m−1 for the leg's DOFs 6 … n−1): ``fcol`` (m,), the first
+    column of each row of the internal block's lower triangle; ``last`` (m,), the last row i > k with
+    fcol[i] ≤ k of each column k (k itself if none); ``first``, the first internal DOF coupled to P (the
+    rows of K_iP above it are zero). A Cholesky factor has its nonzeros inside the rows' envelope (no
+    fill outside it), and column k's below the diagonal within rows k+1 … last[k]: a chain of 6-DOF
+    nodes and hinge angles, whose envelope is its pattern (a leg's terms couple consecutive nodes)."""
     m = n - 6
     pat = np.zeros((n, n), dtype=np.bool_)
     for t in range(cols.shape[0]):
         for a in range(cols.shape[1]):
             for b in range(cols.shape[1]):
                 pat[cols[t, a], cols[t, b]] = True
-    for k in range(m):  # symbolic elimination: column k's rows couple to each other
-        for i in range(k + 1, m):
-            if pat[6 + i, 6 + k]:
-                for j in range(k + 1, i + 1):
-                    if pat[6 + j, 6 + k]:
-                        pat[6 + i, 6 + j] = True
-                        pat[6 + j, 6 + i] = True
-    ptr, rptr = np.zeros(m + 1, dtype=np.int64), np.zeros(m + 1, dtype=np.int64)
+    fcol, last = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
+    for i in range(m):
+        fcol[i] = i
+        for j in range(i - 1, -1, -1):
+            if pat[6 + i, 6 + j]:
+                fcol[i] = j
     for k in range(m):
-        c, rc = 0, 0
+        last[k] = k
         for i in range(k + 1, m):
-            if pat[6 + i, 6 + k]:
-                c += 1
-        for j in range(k):
-            if pat[6 + k, 6 + j]:
-                rc += 1
-        ptr[k + 1], rptr[k + 1] = ptr[k] + c, rptr[k] + rc
-    rows, rcols = np.empty(ptr[m], dtype=np.int64), np.empty(rptr[m], dtype=np.int64)
-    for k in range(m):
-        c, rc = ptr[k], rptr[k]
-        for i in range(k + 1, m):
-            if pat[6 + i, 6 + k]:
-                rows[c] = i
-                c += 1
-        for j in range(k):
-            if pat[6 + k, 6 + j]:
-                rcols[rc] = j
-                rc += 1
+            if fcol[i] <= k:
+                last[k] = i
     first = m
     for i in range(m - 1, -1, -1):
         for a in range(6):
             if pat[a, 6 + i]:
                 first = i
-    return ptr, rows, rptr, rcols, first
+    return fcol, last, first
 
 
 @njit(cache=True)
-def _solve_sym(L, ptr, rows, x):
-    """x ← (L Lᵀ)⁻¹ x in place over the symbolic structure (:func:`_solve_into`'s operations, in its order)."""
+def _solve_env(L, Lt, inv, fcol, last, x):
+    """x ← (L Lᵀ)⁻¹ x in place over the envelope (L in the lower triangle of ``L``, its columns as the rows
+    of ``Lt``, ``inv`` the reciprocals of its diagonal): the forward substitution by columns, the backward
+    one by the rows of L (the columns of Lᵀ), each step a scaling and a contiguous update (no serial sum:
+    each unknown waits for one multiplication, not for a chain of them)."""
     m = x.shape[0]
     for k in range(m):
-        xk = x[k] / L[k, k]
+        xk = x[k] * inv[k]
         x[k] = xk
         if xk != 0.0:
-            for t in range(ptr[k], ptr[k + 1]):
-                i = rows[t]
-                x[i] -= L[i, k] * xk
+            for i in range(k + 1, last[k] + 1):
+                x[i] -= Lt[k, i] * xk
     for k in range(m - 1, -1, -1):
-        s = x[k]
-        for t in range(ptr[k], ptr[k + 1]):
-            i = rows[t]
-            s -= L[i, k] * x[i]
-        x[k] = s / L[k, k]
+        xk = x[k] * inv[k]
+        x[k] = xk
+        for j in range(fcol[k], k):
+            x[j] -= L[k, j] * xk
 
 
 @njit(cache=True)
-def _condense_leg_sym(Kl, A, d, ptr, rows, rptr, rcols, first, Y, x, contrib, gross):
-    """:func:`_condense_leg` of a leg ``Kl`` (n, n) assembled on the pattern of :func:`_structure` (its
-    entries off that pattern are zero; the lower and upper triangles not yet symmetrised: each entry read
-    is ½(K_ij + K_ji)), without the recovery: the scaled lower triangle and ‖K_ii,s‖₁ row by row and the
-    Cholesky factorisation over the structure (the same operations, in the same order, as
-    :func:`_condense_leg`), then K_PP − Yᵀ Y with Y = L⁻¹ d K_iP (a forward solve from row ``first``: the
-    rows above are zero; no backward solve), the probe's and Hager's solves as :func:`_condense_leg`.
-    ``Y`` (m, 6), ``x`` (m,): scratch. Returns the condition estimate (NaN, and NaN outputs, where the
-    scaled K_ii is not positive definite)."""
+def _condense_leg_env(Kl, A, Lt, d, inv, fcol, last, first, Y, x, contrib, gross):
+    """:func:`_condense_leg` of a leg ``Kl`` (n, n) assembled on the envelope of :func:`_structure` (its
+    entries off that envelope are zero; the lower and upper triangles not yet symmetrised: each entry
+    read is ½(K_ij + K_ji)), without the recovery: the scaled lower triangle and ‖K_ii,s‖₁ row by row and
+    the right-looking Cholesky factorisation (each entry's updates in the order of :func:`_condense_leg`;
+    those it skips are products with zeros), over the envelope's contiguous rows and columns; then
+    K_PP − Yᵀ Y with Y = L⁻¹ d K_iP (a forward solve from row ``first``: the rows above are zero; no
+    backward solve), and the probe's and Hager's solves as :func:`_condense_leg` (:func:`_solve_env`).
+    ``A``, ``Lt`` (m, m), ``d``, ``inv``, ``x`` (m,), ``Y`` (m, 6): scratch. Returns the condition
+    estimate (NaN, and NaN outputs, where the scaled K_ii is not positive definite)."""
     n = Kl.shape[0]
     m = n - 6
     for i in range(m):
         d[i] = 1.0 / math.sqrt(abs(Kl[6 + i, 6 + i]))
         x[i] = 0.0
+        for j in range(i + 1, last[i] + 1):  # the column's range below the envelope's rows (zeros there)
+            A[j, i] = 0.0
     for i in range(m):  # the scaled lower triangle and the column sums of |K_ii,s| (K symmetric)
         di = d[i]
-        for t in range(rptr[i], rptr[i + 1]):
-            j = rcols[t]
+        for j in range(fcol[i], i):
             a = di * (0.5 * (Kl[6 + i, 6 + j] + Kl[6 + j, 6 + i])) * d[j]
             A[i, j] = a
             x[i] += abs(a)
@@ -357,7 +344,7 @@ def _condense_leg_sym(Kl, A, d, ptr, rows, rptr, rcols, first, Y, x, contrib, gr
     norm1 = 0.0
     for j in range(m):
         norm1 = max(norm1, x[j])
-    for k in range(m):  # Cholesky on the lower triangle, right-looking, over the structure
+    for k in range(m):  # Cholesky on the lower triangle, right-looking; column k also kept as Lt's row k
         akk = A[k, k]
         if not akk > 0.0:
             contrib[:, :] = np.nan
@@ -365,25 +352,26 @@ def _condense_leg_sym(Kl, A, d, ptr, rows, rptr, rcols, first, Y, x, contrib, gr
             return np.nan
         lkk = math.sqrt(akk)
         A[k, k] = lkk
-        p0, p1 = ptr[k], ptr[k + 1]
-        for t in range(p0, p1):
-            A[rows[t], k] /= lkk
-        for t in range(p0, p1):
-            i = rows[t]
-            lik = A[i, k]
-            for u in range(p0, t + 1):
-                j = rows[u]
-                A[i, j] -= lik * A[j, k]
+        inv[k] = 1.0 / lkk
+        e = last[k] + 1
+        for i in range(k + 1, e):
+            v = A[i, k] / lkk
+            A[i, k] = v
+            Lt[k, i] = v
+        for i in range(k + 1, e):
+            lik = Lt[k, i]
+            if lik != 0.0:
+                for j in range(k + 1, i + 1):
+                    A[i, j] -= lik * Lt[k, j]
     for i in range(first, m):  # Y = L⁻¹ d K_iP: forward substitution from the first nonzero row
         for r in range(6):
             Y[i, r] = d[i] * (0.5 * (Kl[r, 6 + i] + Kl[6 + i, r]))
     for k in range(first, m):
-        lkk = A[k, k]
+        ik = inv[k]
         for c in range(6):
-            Y[k, c] = Y[k, c] / lkk
-        for t in range(ptr[k], ptr[k + 1]):
-            i = rows[t]
-            lik = A[i, k]
+            Y[k, c] = Y[k, c] * ik
+        for i in range(k + 1, last[k] + 1):
+            lik = Lt[k, i]
             for c in range(6):
                 Y[i, c] -= lik * Y[k, c]
     for a in range(6):  # K_PP − Yᵀ Y (= K_Pi K_ii⁻¹ K_iP); gross: |K_PP,aa| + (Yᵀ Y)_aa
@@ -397,12 +385,12 @@ def _condense_leg_sym(Kl, A, d, ptr, rows, rptr, rcols, first, Y, x, contrib, gr
     # the probe y = K_ii,s⁻¹ (1/m)·1 and Hager's estimate of ‖K_ii,s⁻¹‖₁ (as _condense_leg)
     for i in range(m):
         x[i] = 1.0 / m
-    _solve_sym(A, ptr, rows, x)
+    _solve_env(A, Lt, inv, fcol, last, x)
     s1 = 0.0
     for i in range(m):
         s1 += abs(x[i])
         x[i] = 1.0 if x[i] >= 0.0 else -1.0
-    _solve_sym(A, ptr, rows, x)
+    _solve_env(A, Lt, inv, fcol, last, x)
     jmax, zmax = 0, -1.0
     for i in range(m):
         if abs(x[i]) > zmax:  # first of equal maxima, as argmax
@@ -410,7 +398,7 @@ def _condense_leg_sym(Kl, A, d, ptr, rows, rptr, rcols, first, Y, x, contrib, gr
     for i in range(m):
         x[i] = 0.0
     x[jmax] = 1.0
-    _solve_sym(A, ptr, rows, x)
+    _solve_env(A, Lt, inv, fcol, last, x)
     s2 = 0.0
     for i in range(m):
         s2 += abs(x[i])
@@ -424,15 +412,22 @@ def assemble_condense_kernel(G, Ks, P, patterns, cols, n, contrib, cond, gross):
     elements, then the S springs); ``patterns`` the (10, 12, 12) Timoshenko patterns
     (``frame_model._PATTERNS``). Each leg's K = sym(Σ_t G_tᵀ K_t G_t) (n × n; the products over the
     nonzero entries of G_t), then :func:`condense_legs_kernel`'s outputs but the recovery, over the
-    structure that ``cols`` gives (:func:`_structure`, once per call: :func:`_condense_leg_sym`)."""
+    envelope that ``cols`` gives (:func:`_structure`, once per call: :func:`_condense_leg_env`)."""
     m = n - 6
-    ptr, rows, rptr, rcols, first = _structure(cols, n)
+    fcol, last, first = _structure(cols, n)
     kidx, kval = _nonzeros(patterns)
-    Kl, A, d, x = np.empty((n, n)), np.empty((m, m)), np.empty(m), np.empty(m)
+    Kl, A, Lt, d, inv, x = np.empty((n, n)), np.empty((m, m)), np.empty((m, m)), np.empty(m), np.empty(m), np.empty(m)
     Y = np.empty((m, 6))
     T, M = cols.shape
     E = P.shape[1]
     KG = np.empty((12, M))
+    gr, gb, gv = np.empty(12 * M, dtype=np.int64), np.empty(12 * M, dtype=np.int64), np.empty(12 * M)
+    width = np.empty(T, dtype=np.int64)  # each term's distinct columns (the padding repeats the first)
+    for t in range(T):
+        width[t] = 1
+        for b in range(1, M):
+            if cols[t, b] != cols[t, 0]:
+                width[t] += 1
     coef, T12, kT, Ke = np.empty(10), np.empty((12, 12)), np.empty((12, 12)), np.empty((12, 12))
     for leg in range(G.shape[0]):
         Kl[:, :] = 0.0
@@ -443,20 +438,23 @@ def assemble_condense_kernel(G, Ks, P, patterns, cols, n, contrib, cond, gross):
                 k = Ke
             else:
                 k = Ks[leg, t - E]
-            for a in range(12):  # KG = K_t G_t
-                for b in range(M):
-                    KG[a, b] = 0.0
+            mt = width[t]
+            c = 0  # the nonzeros of G_t, row by row (its columns past mt are the padding: zero)
             for r in range(12):
-                for b in range(M):
+                for b in range(mt):
                     grb = g[r, b]
                     if grb != 0.0:
-                        for a in range(12):
-                            KG[a, b] += k[a, r] * grb
-            for r in range(12):  # K[cols_a, cols_b] += Σ_r G[r, a] KG[r, b]
-                for a in range(M):
-                    gra = g[r, a]
-                    if gra != 0.0:
-                        ca = cols[t, a]
-                        for b in range(M):
-                            Kl[ca, cols[t, b]] += gra * KG[r, b]
-        cond[leg] = _condense_leg_sym(Kl, A, d, ptr, rows, rptr, rcols, first, Y, x, contrib[leg], gross[leg])
+                        gr[c], gb[c], gv[c] = r, b, grb
+                        c += 1
+            for a in range(12):  # KG = K_t G_t
+                for b in range(mt):
+                    KG[a, b] = 0.0
+            for q in range(c):
+                r, b, grb = gr[q], gb[q], gv[q]
+                for a in range(12):
+                    KG[a, b] += k[a, r] * grb
+            for q in range(c):  # K[cols_a, cols_b] += Σ_r G[r, a] KG[r, b]
+                r, ca, gra = gr[q], cols[t, gb[q]], gv[q]
+                for b in range(mt):
+                    Kl[ca, cols[t, b]] += gra * KG[r, b]
+        cond[leg] = _condense_leg_env(Kl, A, Lt, d, inv, fcol, last, first, Y, x, contrib[leg], gross[leg])
