@@ -374,14 +374,21 @@ def _condense_leg_env(Kl, A, Lt, d, inv, fcol, last, first, Y, x, contrib, gross
             lik = Lt[k, i]
             for c in range(6):
                 Y[i, c] -= lik * Y[k, c]
-    for a in range(6):  # K_PP − Yᵀ Y (= K_Pi K_ii⁻¹ K_iP); gross: |K_PP,aa| + (Yᵀ Y)_aa
-        for b in range(6):
-            s = 0.0
-            for i in range(first, m):
-                s += Y[i, a] * Y[i, b]
-            if b == a:
-                gross[a] = abs(Kl[a, a]) + s
-            contrib[a, b] = (Kl[a, a] if b == a else 0.5 * (Kl[a, b] + Kl[b, a])) - s
+    for a in range(6):  # Yᵀ Y (= K_Pi K_ii⁻¹ K_iP), symmetric: its lower triangle, each sum in the order of i
+        for b in range(a + 1):
+            contrib[a, b] = 0.0
+    for i in range(first, m):
+        for a in range(6):
+            ya = Y[i, a]
+            for b in range(a + 1):
+                contrib[a, b] += ya * Y[i, b]
+    for a in range(6):  # K_PP − Yᵀ Y; gross: |K_PP,aa| + (Yᵀ Y)_aa
+        gross[a] = abs(Kl[a, a]) + contrib[a, a]
+        contrib[a, a] = Kl[a, a] - contrib[a, a]
+        for b in range(a):
+            v = 0.5 * (Kl[a, b] + Kl[b, a]) - contrib[a, b]
+            contrib[a, b] = v
+            contrib[b, a] = v
     # the probe y = K_ii,s⁻¹ (1/m)·1 and Hager's estimate of ‖K_ii,s⁻¹‖₁ (as _condense_leg)
     for i in range(m):
         x[i] = 1.0 / m
