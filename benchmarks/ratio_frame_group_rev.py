@@ -12,7 +12,7 @@ the ratios old / new and the load average before and after."""
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import os
 import statistics
 import subprocess
@@ -53,13 +53,14 @@ def _kernels_from(rev: str):
     """The older revision's numba kernels, from a file (numba caches compiled kernels beside a file)."""
     src = subprocess.run(["git", "show", f"{rev}:analysis/prrr/_frame_kernels.py"], cwd=ROOT, check=True,
                          capture_output=True, text=True).stdout
-    path = Path(tempfile.gettempdir()) / f"hapticopt_frame_kernels_{rev}.py"
+    folder = Path(tempfile.gettempdir()) / "hapticopt_old_kernels"
+    folder.mkdir(exist_ok=True)
+    name = f"frame_kernels_{rev}"
+    path = folder / f"{name}.py"
     if not path.exists() or path.read_text() != src:
         path.write_text(src)
-    spec = importlib.util.spec_from_file_location(f"old_frame_kernels_{rev}", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    sys.path.insert(0, str(folder))  # an importable module: numba's cache reloads it by name
+    return importlib.import_module(name)
 
 
 def main(rev: str, n: int, rounds: int) -> None:

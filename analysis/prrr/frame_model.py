@@ -246,9 +246,10 @@ def bond_stiffness(area: float, moments: tuple[float, float], polar: float, axes
 
 def frame_params_many(designs) -> FrameParams:
     """:func:`frame_params_of` (``xp=np``) of many designs stacked along a leading batch axis (numpy):
-    the scalar fields and the bracket's bond stiffnesses as arrays over the batch, the carriage's
-    bracket (:func:`hapticopt.design.prrr.cad.carriage_bracket`, the CAD's one formula) per design.
-    Equal to stacking :func:`frame_params_of` (tested; elementwise the same operations)."""
+    the scalar fields, the carriage's brackets (:func:`_brackets_many`: the array form of
+    :func:`hapticopt.design.prrr.cad.carriage_bracket`, per design only where that form leaves a design
+    out) and their bond stiffnesses as arrays over the batch. Equal to stacking :func:`frame_params_of`
+    (tested: the scalar fields bitwise, the bracket's fields to 1e-12 of their largest entry)."""
     g = [d.geometry for d in designs]
     s = [d.structure for d in designs]
 

@@ -15,6 +15,10 @@ design) are evaluated as boolean columns. A design that fails one, or that lies 
 signs that orient its axes, the riser) is not tabled here: it is returned in ``rest`` for the
 per-design functions, which give the same exception (same message) or the same tables there, so the
 verdicts never depend on rounding differences between the scalar and the array formulas.
+
+:func:`brackets_many` is the R1 bracket alone (:func:`cad.carriage_bracket`, checked: the same face
+formulas as the part tables, :func:`_bracket`), for the frame model's batched parameters; its ``rest``
+are the designs no face carries or near a face rule's threshold or branch point.
 """
 
 from __future__ import annotations
