@@ -325,7 +325,11 @@ def test_frame_params_many_equals_stacked_frame_params_of(paper):
 
     wide = io.apply_overrides(paper, ["geometry.theta_1p_deg=0", "structure.rail_width_mm=60"])
     refused = io.apply_overrides(paper, ["geometry.beta_deg=5"])
-    designs = [paper, wide, refused, io.apply_overrides(paper, ["geometry.d3_mm=90", "geometry.r_p_mm=110"])]
+    # and the hard designs of tests/analysis/prrr/test_draft_batch.py: β near 90° and near 0, a stroke
+    # of 0.1 mm, r_p = 100 mm
+    hard = [io.apply_overrides(paper, [o]) for o in ("geometry.beta_deg=89.999999", "geometry.beta_deg=1e-12",
+                                                     "geometry.stroke_mm=0.1", "geometry.r_p_mm=100")]
+    designs = [paper, wide, refused, io.apply_overrides(paper, ["geometry.d3_mm=90", "geometry.r_p_mm=110"]), *hard]
     assert cad.carriage_bracket(wide).face == "front"
     with pytest.raises(fm.InvalidDesign):
         cad.carriage_bracket(refused)
