@@ -333,16 +333,18 @@ def test_frame_params_many_equals_stacked_frame_params_of(paper):
     assert cad.carriage_bracket(wide).face == "front"
     with pytest.raises(fm.InvalidDesign):
         cad.carriage_bracket(refused)
-    many = fm.frame_params_many(designs)
-    each = jax.tree.map(lambda *xs: np.stack(xs), *[fm.frame_params_of(d, xp=np) for d in designs])
-    for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(many), jax.tree.leaves(each), strict=True):
-        assert a.shape == b.shape, jax.tree_util.keystr(path)
-        if jax.tree_util.keystr(path) in (".bracket_points", ".root_zref", ".root_section", ".bracket_bonds"):
-            axes = tuple(range(1, b.ndim))
-            scale = np.abs(b).max(axis=axes, keepdims=True)
-            assert np.all(np.abs(a - b) <= 1e-12 * scale), jax.tree_util.keystr(path)
-        else:
-            np.testing.assert_array_equal(a, b, err_msg=jax.tree_util.keystr(path))
+    assert len(designs) >= fm.BRACKET_ARRAYS_FROM > 3  # the brackets' array form here, per design for 3
+    for batch in (designs, designs[:3]):
+        many = fm.frame_params_many(batch)
+        each = jax.tree.map(lambda *xs: np.stack(xs), *[fm.frame_params_of(d, xp=np) for d in batch])
+        for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(many), jax.tree.leaves(each), strict=True):
+            assert a.shape == b.shape, jax.tree_util.keystr(path)
+            if jax.tree_util.keystr(path) in (".bracket_points", ".root_zref", ".root_section", ".bracket_bonds"):
+                axes = tuple(range(1, b.ndim))
+                scale = np.abs(b).max(axis=axes, keepdims=True)
+                assert np.all(np.abs(a - b) <= 1e-12 * scale), jax.tree_util.keystr(path)
+            else:
+                np.testing.assert_array_equal(a, b, err_msg=jax.tree_util.keystr(path))
 
 
 def _variants(paper, k=5, seed=3):
