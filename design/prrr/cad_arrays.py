@@ -15,6 +15,10 @@ design) are evaluated as boolean columns. A design that fails one, or that lies 
 signs that orient its axes, the riser) is not tabled here: it is returned in ``rest`` for the
 per-design functions, which give the same exception (same message) or the same tables there, so the
 verdicts never depend on rounding differences between the scalar and the array formulas.
+
+:func:`brackets_many` is the R1 bracket alone (:func:`cad.carriage_bracket`, checked: the same face
+formulas as the part tables, :func:`_bracket`), for the frame model's batched parameters; its ``rest``
+are the designs no face carries or near a face rule's threshold or branch point.
 """
 
 from __future__ import annotations
@@ -157,12 +161,14 @@ _FIELDS = dict(
 _SECTIONS = ("geometry", "structure", "end_effector", "sea_module")
 
 
-def _columns(designs: list[PrrrDesign]) -> dict[str, np.ndarray]:
-    """One float column (m,) per :data:`_FIELDS` entry (``c_e``: the geometry's own property)."""
-    fields = {sec: [f for s, f in _FIELDS.values() if s == sec] for sec in _SECTIONS}
+def _columns(designs: list[PrrrDesign], only: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
+    """One float column (m,) per :data:`_FIELDS` entry (``c_e``: the geometry's own property); ``only``:
+    those entries alone."""
+    keep = _FIELDS if only is None else {k: _FIELDS[k] for k in only}
+    fields = {sec: [f for s, f in keep.values() if s == sec] for sec in _SECTIONS}
     table = np.array([[float(getattr(part, f)) for sec in _SECTIONS for part in (getattr(d, sec),)
                        for f in fields[sec]] for d in designs], dtype=float).reshape(len(designs), -1)
-    names = [k for sec in _SECTIONS for k, (s, _) in _FIELDS.items() if s == sec]
+    names = [k for sec in _SECTIONS for k, (s, _) in keep.items() if s == sec]
     return {k: np.ascontiguousarray(table[:, j]) for j, k in enumerate(names)}
 
 
@@ -220,7 +226,7 @@ def _face(rules: _Rules, N, f, h, h_lo, h_hi, Ac, wc, T, W, R, g, wall, ch) -> d
     plate = np.maximum(a_end + W / 2, MIN_FEATURE)
     rules.branch(mu * T - 1e-12)
     return dict(
-        clevis=Ac, e_l=e_l, arm_length=l0, root_centre=Ac + lm[:, None] * e_l + ((a_end - W / 2) / 2)[:, None] * e_f,
+        clevis=Ac, e_l=e_l, arm_length=l0, normal=np.broadcast_to(N, Ac.shape), contact=contact, n_p=n_p, patch=L_b, root_centre=Ac + lm[:, None] * e_l + ((a_end - W / 2) / 2)[:, None] * e_f,
         root_axes=np.stack([e_l, e_f, _cross(e_l, e_f)], axis=-1), root_size=(l1 - l0, plate, T), zc=zc,
         wedge_o=Ac + lm[:, None] * e_l + a_end[:, None] * e_f + (T / 2)[:, None] * e_c,
         wedge_R=_frame(-e_f, _cross(e_f, e_c)), wedge_dims=(a_end - a1, np.where(mu * T > 1e-12, d_in / mu, T), l1 - l0))
@@ -252,6 +258,68 @@ def part_tables_many(designs: list[PrrrDesign]) -> tuple[list[PartTables], np.nd
         return _tables(c, m)
 
 
+def _clevis(c: dict[str, np.ndarray]):
+    """The carriage block's half width h_y and x faces x_in, x_out, the R1 axis w and the clevis centre
+    Ac (m, 3) in the carriage frame, per row (:func:`cad.carriage_bracket`'s first lines)."""
+    T, g = c["T"], c["g"]
+    hy = (c["rw"] / 2 + g) + c["wall"]
+    x_in, x_out = c["r_p"] - hy, c["r_p"] + hy
+    _, _, _, w = _leg_vectors(c["beta"], 0.0)
+    ca, sa = np.cos(-c["theta_1p"]), np.sin(-c["theta_1p"])
+
+    def rot(x):  # cad._rot_z(−θ_1p) @ x
+        return _vec(ca * x[:, 0] + -sa * x[:, 1] + 0.0 * x[:, 2], sa * x[:, 0] + ca * x[:, 1] + 0.0 * x[:, 2],
+                    0.0 * x[:, 0] + 0.0 * x[:, 1] + 1.0 * x[:, 2])
+
+    A = rot(_vec(c["d1"], c["d2"], np.zeros_like(T)))
+    wc = rot(w)
+    return hy, x_in, x_out, wc, A + (-(T + g))[:, None] * wc
+
+
+def _bracket(rules: _Rules, c: dict[str, np.ndarray], hy, x_in, x_out, wc, Ac) -> dict:
+    """:func:`cad.carriage_bracket` (checked) per row: the side face, else the x face (:func:`_face`'s
+    fields of the face used); ``rules`` gets its rules (``ok``: a face carries it) and branch points."""
+    m = len(hy)
+    T, W, g, R = c["T"], c["W"], c["g"], c["boss"] / 2
+    rules.branch(Ac[:, 1])
+    sy = np.where(Ac[:, 1] > 0, 1.0, -1.0)
+    rules.branch(Ac[:, 0] - c["r_p"])
+    sx = np.where(Ac[:, 0] >= c["r_p"], 1.0, -1.0)
+    ex, ey = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    zero = np.zeros(m)
+    args = (Ac, wc, T, W, R, g, c["wall"], c["ch"])
+    r_side, r_x = _Rules(m), _Rules(m)
+    f_side = _face(r_side, _vec(zero, sy, zero), hy, ex, x_in, x_out, *args)
+    f_x = _face(r_x, _vec(sx, zero, zero), np.where(sx > 0, x_out, -x_in), ey, -hy, hy, *args)
+    rules.ok &= r_side.ok | r_x.ok
+    rules.near |= r_side.near | (~r_side.ok & r_x.near)
+    return _pick(r_side.ok, f_side, f_x)
+
+
+#: the design values :func:`brackets_many` reads
+_BRACKET_FIELDS = ("beta", "r_p", "d1", "d2", "theta_1p", "T", "W", "g", "boss", "wall", "rw", "ch")
+
+
+def brackets_many(designs: list[PrrrDesign]) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """:func:`cad.carriage_bracket` (checked) of many designs, carriage frame [m], one row per design:
+    ``clevis`` Ac, ``axis`` w, ``normal`` N, ``e_l``, ``arm_length``, ``root_axes`` (m, 3, 3),
+    ``root_size`` (3 columns along e_l, e_f, w), ``contact`` (the patch centre), ``n_p`` and
+    ``contact_size`` (2 columns along e_l, n_p) as the :class:`cad.Bracket` fields. Also the indices ``rest`` of the
+    designs no face carries, or that lie within :data:`NEAR` of a face rule's threshold or of a branch
+    point: their rows are not the bracket; :func:`cad.carriage_bracket` of those gives it (or its
+    exception)."""
+    m = len(designs)
+    c = _columns(designs, _BRACKET_FIELDS)
+    rules = _Rules(m)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        hy, x_in, x_out, wc, Ac = _clevis(c)
+        b = _bracket(rules, c, hy, x_in, x_out, wc, Ac)
+    out = dict(clevis=Ac, axis=wc, normal=b["normal"], e_l=b["e_l"], arm_length=b["arm_length"],
+               root_axes=b["root_axes"], root_size=np.stack(b["root_size"], axis=-1), contact=b["contact"],
+               n_p=b["n_p"], contact_size=np.stack([b["root_size"][0], b["patch"]], axis=-1))
+    return out, np.flatnonzero(~(rules.ok & ~rules.near))
+
+
 def _tables(c: dict[str, np.ndarray], m: int) -> tuple[list[PartTables], np.ndarray]:
     rules = _Rules(m)
     beta, T, W, g = c["beta"], c["T"], c["W"], c["g"]
@@ -267,39 +335,15 @@ def _tables(c: dict[str, np.ndarray], m: int) -> tuple[list[PartTables], np.ndar
     s_link2 = T + g
     s_lug = np.maximum(c["r4"], 2 * T + 2 * g)
     half_slot = c["rw"] / 2 + g
-    hy = half_slot + c["wall"]
-    x_in, x_out = c["r_p"] - hy, c["r_p"] + hy
+    hy, x_in, x_out, wc, Ac = _clevis(c)
     rules.need(x_in, strict=True, exact=True)
-    _, _, _, w = _leg_vectors(beta, 0.0)
-    ca, sa = np.cos(-c["theta_1p"]), np.sin(-c["theta_1p"])
-
-    def rot(x):  # cad._rot_z(−θ_1p) @ x
-        return _vec(ca * x[:, 0] + -sa * x[:, 1] + 0.0 * x[:, 2], sa * x[:, 0] + ca * x[:, 1] + 0.0 * x[:, 2],
-                    0.0 * x[:, 0] + 0.0 * x[:, 1] + 1.0 * x[:, 2])
-
     zero = np.zeros(m)
-    A = rot(_vec(c["d1"], c["d2"], zero))
-    wc = rot(w)
-    Ac = A + (-(T + g))[:, None] * wc
     qx = np.minimum(np.maximum(Ac[:, 0], x_in), x_out)
     qy = np.minimum(np.maximum(Ac[:, 1], -hy), hy)
     gap = np.hypot(Ac[:, 0] - qx, Ac[:, 1] - qy)
     rules.need(gap - (R + g))
-    rules.branch(Ac[:, 1])
     side = np.where(Ac[:, 1] > 0, -1.0, 1.0)
-    # --- the R1 bracket (cad.carriage_bracket, checked): the side face, else the x face
-    sy = -side
-    rules.branch(Ac[:, 0] - c["r_p"])
-    sx = np.where(Ac[:, 0] >= c["r_p"], 1.0, -1.0)
-    ex, ey = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
-    args = (Ac, wc, T, W, R, g, c["wall"], c["ch"])
-    r_side, r_x = _Rules(m), _Rules(m)
-    f_side = _face(r_side, _vec(zero, sy, zero), hy, ex, x_in, x_out, *args)
-    f_x = _face(r_x, _vec(sx, zero, zero), np.where(sx > 0, x_out, -x_in), ey, -hy, hy, *args)
-    use_side = r_side.ok
-    rules.ok &= r_side.ok | r_x.ok
-    rules.near |= r_side.near | (~r_side.ok & r_x.near)
-    b = _pick(use_side, f_side, f_x)
+    b = _bracket(rules, c, hy, x_in, x_out, wc, Ac)
     hz = c["ch"] / 2
     zc = b["zc"]
     ze = Ac[:, 2] - (wc[:, 0] * (qx - Ac[:, 0]) + wc[:, 1] * (qy - Ac[:, 1])) / wc[:, 2]

@@ -315,28 +315,36 @@ def test_sparse_assembly_equals_the_dense_sum(options):
 def test_frame_params_many_equals_stacked_frame_params_of(paper):
     # reference: frame_params_of per design (numpy), stacked. The batch covers the side face, the
     # front-face fallback (θ_1p = 0 on a 60 mm rail) and a bracket no face can carry (β = 5°: the
-    # unchecked side face), as in tests/design/prrr/test_cad.py. Bitwise equal but for the bonds,
-    # where numpy's vectorised power differs from the scalar one in the last bit (measured ≤ 1e-19 of
-    # each bond matrix's largest entry on 512 designs)
+    # unchecked side face), as in tests/design/prrr/test_cad.py. Bitwise equal but for the bracket's
+    # fields: the brackets come from the array form (cad_arrays.brackets_many: numpy's vectorised
+    # sin/cos, 3-vector products and power may differ from the scalar ones in the last bits; measured
+    # ≤ 3e-15 of each field's largest entry on 500 designs), 1e-12 of each design's largest entry here
     import jax
 
     from hapticopt.design.prrr import cad
 
     wide = io.apply_overrides(paper, ["geometry.theta_1p_deg=0", "structure.rail_width_mm=60"])
     refused = io.apply_overrides(paper, ["geometry.beta_deg=5"])
-    designs = [paper, wide, refused, io.apply_overrides(paper, ["geometry.d3_mm=90", "geometry.r_p_mm=110"])]
+    # and the hard designs of tests/analysis/prrr/test_draft_batch.py: β near 90° and near 0, a stroke
+    # of 0.1 mm, r_p = 100 mm
+    hard = [io.apply_overrides(paper, [o]) for o in ("geometry.beta_deg=89.999999", "geometry.beta_deg=1e-12",
+                                                     "geometry.stroke_mm=0.1", "geometry.r_p_mm=100")]
+    designs = [paper, wide, refused, io.apply_overrides(paper, ["geometry.d3_mm=90", "geometry.r_p_mm=110"]), *hard]
     assert cad.carriage_bracket(wide).face == "front"
     with pytest.raises(fm.InvalidDesign):
         cad.carriage_bracket(refused)
-    many = fm.frame_params_many(designs)
-    each = jax.tree.map(lambda *xs: np.stack(xs), *[fm.frame_params_of(d, xp=np) for d in designs])
-    for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(many), jax.tree.leaves(each), strict=True):
-        assert a.shape == b.shape, jax.tree_util.keystr(path)
-        if jax.tree_util.keystr(path) == ".bracket_bonds":
-            scale = np.abs(b).max(axis=(-1, -2), keepdims=True)
-            assert np.all(np.abs(a - b) <= 1e-15 * scale)
-        else:
-            np.testing.assert_array_equal(a, b, err_msg=jax.tree_util.keystr(path))
+    assert len(designs) >= fm.BRACKET_ARRAYS_FROM > 3  # the brackets' array form here, per design for 3
+    for batch in (designs, designs[:3]):
+        many = fm.frame_params_many(batch)
+        each = jax.tree.map(lambda *xs: np.stack(xs), *[fm.frame_params_of(d, xp=np) for d in batch])
+        for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(many), jax.tree.leaves(each), strict=True):
+            assert a.shape == b.shape, jax.tree_util.keystr(path)
+            if jax.tree_util.keystr(path) in (".bracket_points", ".root_zref", ".root_section", ".bracket_bonds"):
+                axes = tuple(range(1, b.ndim))
+                scale = np.abs(b).max(axis=axes, keepdims=True)
+                assert np.all(np.abs(a - b) <= 1e-12 * scale), jax.tree_util.keystr(path)
+            else:
+                np.testing.assert_array_equal(a, b, err_msg=jax.tree_util.keystr(path))
 
 
 def _variants(paper, k=5, seed=3):

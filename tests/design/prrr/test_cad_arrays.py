@@ -136,3 +136,48 @@ def test_roles_and_solid_counts_follow_the_part_builders():
     # closed count: base 1, rails/screws/motors 9, carriage 4 SOLID (block, arm, boss, root) ×3,
     # housing 1 ×3, link1 3 (bar, 2 bosses) ×3, link2 3 ×3, platform 3 arms × 2 + stem + ball = 8
     assert sum(solid) == 1 + 9 + 12 + 3 + 9 + 9 + 8
+
+
+def _assert_brackets_equal(designs) -> np.ndarray:
+    """:func:`cad_arrays.brackets_many` row by row against :func:`cad.carriage_bracket` (checked), on
+    every design it does not leave in ``rest``; returns ``rest``."""
+    b, rest = cad_arrays.brackets_many(designs)
+    for i, d in enumerate(designs):
+        if i in rest:
+            continue
+        one = cad.carriage_bracket(d)
+        want = dict(clevis=one.clevis, axis=one.axis, normal=one.normal, e_l=one.e_l, arm_length=one.arm_length,
+                    root_axes=one.root_axes, root_size=np.array(one.root_size), contact=one.contact_centre,
+                    n_p=one.contact_axes[:, 1], contact_size=np.array(one.contact_size))
+        assert set(want) == set(b)
+        for k, v in want.items():
+            assert np.all(np.abs(b[k][i] - v) <= REL * np.maximum(np.abs(v), SCALE)), (k, d.geometry)
+    return rest
+
+
+def test_brackets_equal_carriage_bracket_on_the_hard_cases():
+    designs = _hard()
+    rest = _assert_brackets_equal(designs)
+    # θ_1p = 0: w·N = 0 on the side face, a branch point left to the per-design function (which builds
+    # it); the walls, bosses, links and stem of 3–6 are layout rules, not the bracket's: tabled here
+    assert 7 in rest.tolist()
+    assert {0, 1, 2, 3, 4, 5, 6} <= set(range(len(designs))) - set(rest.tolist())
+
+
+def test_brackets_equal_carriage_bracket_on_a_wide_sample():
+    designs = _wide_sample(300, seed=5)
+    rest = _assert_brackets_equal(designs)
+    tabled = [i for i in range(len(designs)) if i not in rest]
+    faces = {cad.carriage_bracket(designs[i]).face for i in tabled}
+    assert "side" in faces and faces & {"front", "back"}  # both kinds of block face are covered
+    assert len(tabled) >= 60
+    for i in rest.tolist():  # every design left out is one no face carries (none near a threshold here)
+        with pytest.raises(InvalidDesign, match="no face of the carriage block"):
+            cad.carriage_bracket(designs[i])
+
+
+def test_bracket_no_face_carries_is_left_to_the_per_design_function():
+    d = _geometry(BASE, beta=math.radians(5.0))  # the R1 axis nearly vertical: no face carries it
+    with pytest.raises(InvalidDesign, match="no face of the carriage block can carry the R1"):
+        cad.carriage_bracket(d)
+    assert cad_arrays.brackets_many([BASE, d])[1].tolist() == [1]
