@@ -7,7 +7,7 @@ The verdicts are the evaluators' own rules (``statics.from_arrays``, ``structure
 ``workspace._result``, ``free_workspace.finish``, ``joint_limits.from_angles``,
 ``device_size.from_specs``, ``stability.evaluate``), several in the array forms each evaluator
 provides for a whole chunk (``statics.from_arrays_many``, ``structure.ok_many``,
-``workspace.result_rows``, ``joint_limits.from_angles_many``, ``stability.evaluate_many``, each tested
+``workspace.result_rows``, ``joint_limits.from_ranges_many``, ``stability.evaluate_many``, each tested
 equal to its per-design function); this module only computes the arrays they read, for a whole batch
 at a time. A ``*_many`` pass that raises falls back to the per-design function for each design.
 
@@ -17,8 +17,9 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   the collision-free cylinder: they do not depend on the radial sampling), the frame model's legs'
   stiffness terms (``frame_leg_terms``, default options, home pose: element parameters, springs and
   maps; the elements' stiffness, the assembly and the solves follow the jitted call in a numba kernel over designs,
-  ``frame_model.condense_terms_many``) and the joint angles over the required cylinder
-  (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy (the frame's by
+  ``frame_model.condense_terms_many``) and the joint ranges over the required cylinder
+  (``joint_limits.cylinder_ranges_of``: the IK of the grid's in-plane points, the angles reduced to
+  what the verdict reads inside the jitted call). Inputs are stacked with numpy (the frame's by
   ``frame_model.frame_params_many``, arrays over the batch); the batch is padded to
   the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a new batch
   size within a bucket costs no trace or compile (:data:`TRACES` counts traces); compiled code
@@ -80,7 +81,7 @@ from hapticopt.analysis.prrr import stability, statics, structure
 from hapticopt.analysis.prrr import workspace as WS
 from hapticopt.design.errors import HapticoptError, InvalidInput
 from hapticopt.design.prrr import cad, cad_arrays
-from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_frames
+from hapticopt.design.prrr.kinematics import PrrrParams, leg_frames
 from hapticopt.design.prrr.params import PrrrDesign
 
 #: registry evaluators computed by the batch (``stability`` from the statics rows: see the docstring)
@@ -133,10 +134,8 @@ def _core(inp: CoreInputs, groups: tuple[str, ...]) -> dict:
     if "frame" in groups:
         G, Ks, P, ik = fm.frame_leg_terms(inp.fp, jnp.zeros(3), fm.FrameOptions())  # assembled, solved in run_core
         out["frame"] = {"G": G, "Ks": Ks, "P": P, "reachable": ik.reachable, "reach_margin": ik.reach_margin}
-    if "joint" in groups:
-        pts = JL.cylinder_grid_of(inp.kin.stroke, inp.kin.beta, _REQUIRED_RADIUS, xp=jnp)
-        ik = inverse_kinematics(inp.kin, pts)
-        out["joint_theta"], out["joint_ok"] = ik.theta[:, WS.ELBOW_BRANCH], ik.reachable
+    if "joint" in groups:  # only the reductions the verdict reads leave XLA
+        out["joint"] = JL.cylinder_ranges_of(inp.kin, _REQUIRED_RADIUS, xp=jnp)
     return out
 
 
@@ -435,10 +434,9 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
         _many(res, "statics", designs, statics.from_arrays_many, arrays["statics"],
               one=lambda i: _guard(statics.from_arrays, designs[i], row("statics", i)))
     if "joint_limits" in want:
-        _many(res, "joint_limits", designs,
-              functools.partial(JL.from_angles_many, fidelity=draft, t0=t1), arrays["joint_theta"], arrays["joint_ok"],
-              one=lambda i: _guard(JL.from_angles, designs[i], arrays["joint_theta"][i], arrays["joint_ok"][i],
-                               fidelity=draft, t0=t1))
+        by_ranges = functools.partial(JL.from_ranges_many, n_points=JL.grid_size(), fidelity=draft, t0=t1)
+        _many(res, "joint_limits", designs, by_ranges, arrays["joint"],
+              one=lambda i: _guard(lambda: by_ranges([designs[i]], jax.tree.map(lambda v: v[i:i + 1], arrays["joint"]))[0]))
     if "structural_stiffness" in want:
         ok = _guard(structure.ok_many, arrays["frame"])
         options = fm.FrameOptions()
