@@ -439,11 +439,12 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
               one=lambda i: _guard(lambda: by_ranges([designs[i]], jax.tree.map(lambda v: v[i:i + 1], arrays["joint"]))[0]))
     if "structural_stiffness" in want:
         ok = _guard(structure.ok_many, arrays["frame"])
+        ok = [False] * n if isinstance(ok, Exception) else ok.tolist()
         options = fm.FrameOptions()
-        for i, d in enumerate(designs):  # a row not ok (or a failed pass): the per-design step
-            res[i]["structural_stiffness"] = (
-                structure.from_ok_arrays(row("frame", i), p=np.zeros(3), load_height=fm.LOAD_HEIGHT, options=options)
-                if not isinstance(ok, Exception) and ok[i] else _guard(_structure, d, row("frame", i)))
+        for i, (d, frame_row) in enumerate(zip(designs, _rows(arrays["frame"]))):
+            res[i]["structural_stiffness"] = (  # a row not ok (or a failed pass): the per-design step
+                structure.from_ok_arrays(frame_row, p=np.zeros(3), load_height=fm.LOAD_HEIGHT, options=options)
+                if ok[i] else _guard(_structure, d, frame_row))
     if "workspace" in want or "free_workspace" in want:
         ws_rows = WS.result_rows(arrays["workspace"])
         for i, vals in enumerate(ws_rows):
@@ -477,7 +478,7 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
         tim["interference"] = (time.perf_counter() - t2) / n
     if "free_workspace" in want:
         t3 = time.perf_counter()
-        _free_workspace(designs, specs, arrays, check, res, t3)
+        _free_workspace(designs, specs, ws_rows, check, res, t3)
         tim["free_workspace"] = (time.perf_counter() - t3) / n
     if "workspace" not in want:
         for r in res:
@@ -487,6 +488,12 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
         _stability(designs, arrays, res)
         tim["stability"] = (time.perf_counter() - t4) / n
     return [(r, {k: tim[k] for k in r}) for r in res]
+
+
+def _rows(group: dict) -> list[dict]:
+    """Per-design rows of a group of the core's stacked arrays (leading axis: the designs): the values
+    ``v[i]`` of each array (row views, numpy scalars), split by one ``list`` per array."""
+    return [dict(zip(group, vals)) for vals in zip(*(list(v) for v in group.values()))]
 
 
 def _many(res: list[dict], name: str, designs: list[PrrrDesign], fn, *arrays, one) -> None:
@@ -597,12 +604,14 @@ def _interference(designs, specs, wps, check, res, t0) -> None:
         res[i]["interference"] = IF.from_fractions(removed, overlap, t0)
 
 
-def _free_workspace(designs, specs, arrays, check, res, t0) -> None:
+def _free_workspace(designs, specs, ws_rows, check, res, t0) -> None:
+    """``free_workspace`` of every design that has part tables (or their exception); ``ws_rows``: the
+    workspace core's rows as Python floats (``WS.result_rows``: what ``FW.finish`` reads of the core)."""
     todo, r_max = [], []
     for i, d in enumerate(designs):
         if isinstance(specs[i], _Blocked):
             continue
-        core = {k: v[i] for k, v in arrays["workspace"].items()}
+        core = ws_rows[i]
         rm = FW.reach_limit(d, core)
         if bool(core["empty"]) or rm <= 0.0:
             res[i]["free_workspace"] = _guard(FW.finish, d, core, None, fidelity=Fidelity.DRAFT, t0=t0)
@@ -627,7 +636,6 @@ def _free_workspace(designs, specs, arrays, check, res, t0) -> None:
     r_free, n_chk, n_hit = FW.free_radius_many(collides, np.asarray(r_max), n_phi=_FREE.n_phi, n_r=_FREE.n_r,
                                                n_bisect=_FREE.n_bisect)
     for k, i in enumerate(todo):
-        core = {kk: v[i] for kk, v in arrays["workspace"].items()}
-        res[i]["free_workspace"] = _guard(FW.finish, designs[i], core,
+        res[i]["free_workspace"] = _guard(FW.finish, designs[i], ws_rows[i],
                                           (float(r_free[k]), int(n_chk[k]), int(n_hit[k])),
                                           fidelity=Fidelity.DRAFT, t0=t0)
