@@ -490,7 +490,7 @@ def evaluate_batch(designs: list[Any], *, fidelity: Fidelity = Fidelity.STANDARD
         return [ev for c in range(0, len(designs), draft_batch.MAX_CHUNK)
                 for ev in evaluate_batch(designs[c:c + draft_batch.MAX_CHUNK], fidelity=fidelity, only=only)]
     with _collector_paused():
-        blocked = {i for i, d in enumerate(designs) if assembly.closure(d)}
+        blocked = {i for i, message in enumerate(assembly.closure_many(designs)) if message}
         batched = [d for i, d in enumerate(designs) if i not in blocked]
         found_all = iter(draft_batch.evaluate_many(batched, only=only) if batched else [])
         out = []
