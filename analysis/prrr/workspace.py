@@ -446,13 +446,14 @@ def closure_many(designs: list[PrrrDesign]) -> list[str]:
     above float64 rounding (tested equal to :func:`closure` on designs that close, do not close, and
     have almost no workspace). A single closure in numpy took ≈ 0.4–0.6 ms, more than the rest of a
     batched draft evaluation of a design."""
-    todo = [d for d in dict.fromkeys(designs) if d not in _closures]
+    known = [_closures.get(d) for d in designs]
+    todo = list(dict.fromkeys(d for d, m in zip(designs, known) if m is None))
     if len(todo) >= CLOSURE_BATCH_AFTER:
         for k in range(0, len(todo), CLOSURE_CACHE // 2):  # a pass never drops its own designs
             part = todo[k:k + CLOSURE_CACHE // 2]
             for d, message in zip(part, closure_batch(part)):
                 _remember(d, message)
-    return [closure(d) for d in designs]
+    return [closure(d) if m is None else m for d, m in zip(designs, known)]
 
 
 def closure_batch(designs: list[PrrrDesign]) -> list[str]:
