@@ -485,7 +485,8 @@ def evaluate_batch(designs: list[Any], *, fidelity: Fidelity = Fidelity.STANDARD
 
     # a design whose chain does not close returns early from every evaluator: it takes the single path,
     # so its statuses are the single path's (one whose parts the CAD cannot lay out is batched: the
-    # batch gives its part evaluators their own early not-assemblable)
+    # batch gives its part evaluators their own early not-assemblable); the closures of the designs not
+    # seen before come from one jitted pass (assembly.closure_many), cached for the evaluators' own calls
     if len(designs) > draft_batch.MAX_CHUNK:  # chunk by chunk: each chunk's closures stay cached
         return [ev for c in range(0, len(designs), draft_batch.MAX_CHUNK)
                 for ev in evaluate_batch(designs[c:c + draft_batch.MAX_CHUNK], fidelity=fidelity, only=only)]
