@@ -113,7 +113,8 @@ def from_tables(tables, t0: float) -> list[DeviceSize]:
         if name.startswith(LINK_PARTS):
             links = links + mass[:, j]
         total = total + mass[:, j]
+    frame = (total - sea - links).tolist()  # each design's float(total[k] - sea[k] - links[k])
+    total, sea, links, height = (np.asarray(x, dtype=float).tolist() for x in (total, sea, links, tables.height))
     wall = time.perf_counter() - t0
-    return [DeviceSize(mass=float(total[k]), sea_mass=float(sea[k]), link_mass=float(links[k]),
-                       frame_mass=float(total[k] - sea[k] - links[k]), height=float(tables.height[k]), wall_s=wall)
-            for k in range(m)]
+    return [DeviceSize(mass=total[k], sea_mass=sea[k], link_mass=links[k], frame_mass=frame[k], height=height[k],
+                       wall_s=wall) for k in range(m)]
