@@ -407,12 +407,12 @@ def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = N
     carriages only turn about z and slide along it, so their xy extent is the same at every pose.
     Exact for boxes (corners) and vertical cylinders."""
     specs = part_specs(design) if specs is None else specs
-    frames = part_frames_batch(design, np.zeros((1, 3)), np.zeros((1, 3, 2)), np.zeros((1, 3)))
+    frames = _sliding_frames(design)
     out = 0.0
     for name, spec in specs.items():
         if spec.body != "base" and not spec.body.startswith("carriage_"):
             continue
-        Rf, of = frames[name][0][0], frames[name][1][0]
+        Rf, of = frames[name]
         for p in spec.primitives:
             if p.role != Role.SOLID:
                 continue
@@ -429,6 +429,22 @@ def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = N
                 out = max(out, float(np.max(np.hypot(ends[:, 0], ends[:, 1]))) + a)
             else:
                 out = max(out, math.hypot(o[0], o[1]) + a)
+    return out
+
+
+def _sliding_frames(design: PrrrDesign) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """World rotation (3, 3) and origin (3,) [m] of the parts that do not turn (the base's: base, rails,
+    screws, motors; the carriages and their housings) with every slider at 0: :func:`part_frames_arrays`'
+    values for those parts at one pose (the same operations on the same numbers), without the links'."""
+    eye, zero = np.eye(3), np.zeros(3)
+    out = {"base": (eye, zero)}
+    theta_1p = np.reshape(np.asarray(design.geometry.theta_1p, dtype=float), (-1, 1))
+    for i, gamma in zip(LEGS, GAMMAS):
+        a = gamma + theta_1p  # rail_direction(design, gamma)
+        ca, sa = float(np.cos(a)[0, 0]), float(np.sin(a)[0, 0])
+        carriage = (np.array([[ca, -sa, 0.0], [sa, ca, 0.0], [0.0, 0.0, 1.0]]), zero)  # columns u', t', e_z
+        out.update({f"rail_{i}": (eye, zero), f"screw_{i}": (eye, zero), f"motor_{i}": (eye, zero),
+                    f"carriage_{i}": carriage, f"housing_{i}": carriage})
     return out
 
 

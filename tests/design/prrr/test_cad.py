@@ -194,3 +194,19 @@ def test_bracket_face_falls_back_and_refuses_with_one_line(paper):
     with pytest.raises(InvalidDesign, match="beta_deg = 5: no face of the carriage block") as err:
         cad_prrr.carriage_bracket(io.apply_overrides(paper, ["geometry.beta_deg=5"]))
     assert "\n" not in str(err.value) and "side face" in str(err.value) and "front face" in str(err.value)
+
+
+def test_sliding_frames_are_part_frames_at_sliders_zero_bitwise(paper):
+    """The envelope's frames of the parts that do not turn (``_sliding_frames``) are
+    :func:`cad.part_frames_batch`'s at sliders 0 bit for bit (the reference path they replace in
+    :func:`cad.envelope_radius`), for the paper and for a turned carriage (θ1p ≠ 0)."""
+    import dataclasses
+
+    turned = dataclasses.replace(paper, geometry=dataclasses.replace(paper.geometry, theta_1p=0.3))
+    for design in (paper, turned):
+        want = cad_prrr.part_frames_batch(design, np.zeros((1, 3)), np.zeros((1, 3, 2)), np.zeros((1, 3)))
+        got = cad_prrr._sliding_frames(design)
+        assert set(got) == {n for n in want if not n.startswith(("link", "platform"))}
+        for name, (R, o) in got.items():
+            assert R.tobytes() == np.ascontiguousarray(want[name][0][0]).tobytes(), name
+            assert o.tobytes() == np.ascontiguousarray(want[name][1][0]).tobytes(), name
