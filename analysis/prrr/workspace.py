@@ -76,11 +76,17 @@ def base_envelope(design: PrrrDesign, *, specs: dict | None = None) -> float:
     ``hapticopt.design.prrr.cad`` (base plate, rails, screws, motors, carriages with their SEA
     housings: :func:`hapticopt.design.prrr.cad.envelope_radius`). Where the CAD cannot lay the
     parts out, the base plate and the rail circle r_p + rail_width/2 (a lower bound)."""
-    g, s = design.geometry, design.structure
     try:
         return cad_prrr.envelope_radius(design, specs=specs)
     except HapticoptError:
-        return max(s.base_radius, g.r_p + s.rail_width / 2.0)
+        return fallback_envelope(design)
+
+
+def fallback_envelope(design: PrrrDesign) -> float:
+    """:func:`base_envelope` where the CAD cannot lay the parts out [m]: the base plate and the rail
+    circle r_p + rail_width/2 (a lower bound)."""
+    g, s = design.geometry, design.structure
+    return max(s.base_radius, g.r_p + s.rail_width / 2.0)
 
 
 #: Elbow branch used for the links' swept extent: the CAD's assembly mode

@@ -448,10 +448,10 @@ def _sliding_frames(design: PrrrDesign) -> dict[str, tuple[np.ndarray, np.ndarra
     return out
 
 
-def device_height(design: PrrrDesign) -> float:
+def device_height(design: PrrrDesign, *, lay: PrrrLayout | None = None) -> float:
     """Height of the device [m]: base plate bottom to the rail tops or the motor tops, whichever is
-    higher (seed 002 Table 1: 231 mm)."""
-    L = layout(design)
+    higher (seed 002 Table 1: 231 mm); ``lay``: :func:`layout` of ``design`` when the caller has it."""
+    L = layout(design) if lay is None else lay
     top = max(L.z_rail_top, L.z_base_top + design.sea_module.motor_length)
     return top - L.z_base_top + design.structure.base_thickness
 
@@ -555,9 +555,10 @@ def _base(design: PrrrDesign, L: PrrrLayout) -> list:
     return [cylinder((0.0, 0.0, L.z_base_top - tb / 2), EZ, design.structure.base_radius, tb)]
 
 
-def part_specs(design: PrrrDesign) -> dict[str, PartSpec]:
-    """Every part in its own frame (see :func:`part_frames`), SI."""
-    L = layout(design)
+def part_specs(design: PrrrDesign, *, lay: PrrrLayout | None = None) -> dict[str, PartSpec]:
+    """Every part in its own frame (see :func:`part_frames`), SI; ``lay``: :func:`layout` of ``design``
+    when the caller has it."""
+    L = layout(design) if lay is None else lay
     rho = design.structure.density
     out: dict[str, PartSpec] = {"base": PartSpec(name="base", body="base", density=rho,
                                                  primitives=tuple(_base(design, L)))}
