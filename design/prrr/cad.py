@@ -409,6 +409,7 @@ def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = N
     specs = part_specs(design) if specs is None else specs
     frames = _sliding_frames(design)
     out = 0.0
+    rows: dict[Kind, list] = {Kind.BOX: [], Kind.CYLINDER: []}  # (Rf, of, R, o, dims) of each primitive
     for name, spec in specs.items():
         if spec.body != "base" and not spec.body.startswith("carriage_"):
             continue
@@ -416,20 +417,30 @@ def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = N
         for p in spec.primitives:
             if p.role != Role.SOLID:
                 continue
-            R, o = Rf @ p.R, Rf @ p.o + of
-            a, b, c = p.dims
-            if p.kind == Kind.BOX:
-                corners = _HALF_CORNERS * (a, b, c)
-                pts = o + corners @ R.T
-                out = max(out, float(np.max(np.hypot(pts[:, 0], pts[:, 1]))))
-            elif p.kind == Kind.CYLINDER:
-                ax = R[:, 2]
-                ends = o + np.outer((-b / 2, b / 2), ax)
-                # rim of a tilted cylinder: bounded by centre radius + a (+ half its axial projection)
-                out = max(out, float(np.max(np.hypot(ends[:, 0], ends[:, 1]))) + a)
+            if p.kind in rows:
+                rows[p.kind].append((Rf, of, p.R, p.o, p.dims))
             else:
-                out = max(out, math.hypot(o[0], o[1]) + a)
-    return out
+                o = Rf @ p.o + of
+                out = max(out, math.hypot(o[0], o[1]) + p.dims[0])
+    # every box and every cylinder at once: the products of the per-primitive matrices (a stacked
+    # matmul makes each one's product as the 2-D one does), the extents' maximum over all (exact, in
+    # any order; a NaN extent is skipped, as the loop's max(out, ·) skipped it)
+    found = [out]
+    for kind, prims in rows.items():
+        if not prims:
+            continue
+        Rf, of, Rp, op, dims = (np.array(col, dtype=float) for col in zip(*prims))
+        R = Rf @ Rp
+        o = (Rf @ op[..., None])[..., 0] + of
+        a, b, c = dims[:, 0], dims[:, 1], dims[:, 2]
+        if kind == Kind.BOX:
+            pts = o[:, None, :] + (_HALF_CORNERS * dims[:, None, :]) @ np.swapaxes(R, -1, -2)
+            found.append(np.max(np.hypot(pts[..., 0], pts[..., 1]), axis=1))
+        else:
+            ends = o[:, None, :] + np.stack([-b / 2, b / 2], axis=1)[:, :, None] * R[:, None, :, 2]
+            # rim of a tilted cylinder: bounded by centre radius + a (+ half its axial projection)
+            found.append(np.max(np.hypot(ends[..., 0], ends[..., 1]), axis=1) + a)
+    return float(np.fmax.reduce(np.concatenate([np.atleast_1d(v) for v in found])))
 
 
 def _sliding_frames(design: PrrrDesign) -> dict[str, tuple[np.ndarray, np.ndarray]]:
