@@ -375,6 +375,12 @@ def sample_points(wp: WorkspaceParams, *, n_phi: int, n_r: int, n_z: int) -> np.
     """Points of the reach ∩ stroke workspace [m], (m, 3): ``n_r`` radii on each of ``n_phi``
     rays per third of the circle (rotated copies fill the other two thirds), ``n_z`` heights
     spanning each column's z interval (inset by 1 % so every point is strictly inside)."""
+    return _sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)[0]
+
+
+def _sample_points(wp: WorkspaceParams, *, n_phi: int, n_r: int, n_z: int) -> tuple:
+    """:func:`sample_points` and its rays' outer intervals ``lo``, ``hi`` (n_phi,) [m] (for
+    :func:`workspace_sample_weights`, which weighs the points by them)."""
     wpn = WorkspaceParams(*(np.asarray(v, dtype=float) for v in wp))
     phi = (np.arange(n_phi) + 0.5) * (_THIRD / n_phi)
     _, _, _, lo, hi, holes = _ray_intervals(wpn, phi, np)
@@ -394,7 +400,7 @@ def sample_points(wp: WorkspaceParams, *, n_phi: int, n_r: int, n_z: int) -> np.
     z = z0[ok][:, None] + tz[None, :] * (z1 - z0)[ok][:, None]
     xy = np.stack([x[ok], y[ok]], axis=-1)
     xyz = np.concatenate([np.repeat(xy, n_z, axis=0), z.reshape(-1, 1)], axis=1)
-    return xyz
+    return xyz, lo, hi
 
 
 @jax.jit
@@ -639,12 +645,9 @@ def workspace_sample_weights(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: i
     [m³] (polar cells: r·Δr·Δφ·Δz); ``specs``: the design's part tables when the caller has them
     (:func:`workspace_params`); ``wp``: its default :func:`workspace_params` when the caller has them."""
     wp = workspace_params(design, specs=specs) if wp is None else wp
-    pts = sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)
+    pts, lo, hi = _sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)  # the rays' intervals once, for both
     if len(pts) == 0:
         return pts, np.zeros(0)
-    wpn = WorkspaceParams(*(np.asarray(v, dtype=float) for v in wp))
-    phi = (np.arange(n_phi) + 0.5) * (_THIRD / n_phi)
-    _, _, _, lo, hi, holes = _ray_intervals(wpn, phi, np)
     r = np.hypot(pts[:, 0], pts[:, 1])
     ang = np.mod(np.arctan2(pts[:, 1], pts[:, 0]), _THIRD)
     k = np.clip((ang / (_THIRD / n_phi)).astype(int), 0, n_phi - 1)
