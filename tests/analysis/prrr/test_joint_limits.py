@@ -45,3 +45,23 @@ def test_from_angles_many_equals_from_angles():
         assert got.margin == ref.margin or (math.isnan(got.margin) and math.isnan(ref.margin))
         statuses.add(ref.status)
     assert statuses == {Status.OK, Status.EMPTY, Status.NOT_MET}
+
+
+def test_cylinder_grid_is_the_polar_grid_and_its_cached_xy_stays_unchanged():
+    """cylinder_grid's points (its x, y made once per radius and counts) equal the polar grid written out
+    (the module docstring's rim-and-axis grid: φ_i = 2πi/n_φ, r_j = R j/n_r, heights ±(H/2)(1 − 1e-9)
+    with H = L − 2R cot β), bit for bit, for two designs in turn (the second reuses the cached x, y),
+    and the cached arrays cannot be written."""
+    n_phi, n_r, n_z, radius = 24, 6, 3, 0.07
+    for d in _designs()[:2] + _designs()[:1]:
+        g = d.geometry
+        h = max(g.stroke - 2.0 * radius / np.tan(g.beta), 0.0)
+        z = np.linspace(-h / 2, h / 2, n_z) * (1.0 - 1e-9)
+        phi = np.repeat(np.linspace(0.0, 2.0 * math.pi, n_phi, endpoint=False), n_r * n_z)  # φ-major order
+        r = np.tile(np.repeat(np.linspace(0.0, radius, n_r + 1)[1:], n_z), n_phi)
+        want = np.concatenate([np.stack([r * np.cos(phi), r * np.sin(phi), np.tile(z, n_phi * n_r)], axis=1),
+                               np.stack([np.zeros(n_z), np.zeros(n_z), z], axis=1)])
+        got = JL.cylinder_grid(d, radius, n_phi=n_phi, n_r=n_r, n_z=n_z)
+        assert got.shape == want.shape and got.tobytes() == want.tobytes()
+    x, _ = JL._grid_xy(radius, n_phi, n_r, n_z)
+    assert not x.flags.writeable
