@@ -467,12 +467,13 @@ def _use_kernel(n: int, compiled: bool | None) -> bool:
 
 @functools.lru_cache(maxsize=32)
 def _part_segments(prim_part: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The primitives grouped by part (``prim_part``: int64 bytes): their order (stable), the first
-    position of each part's group in it, and the parts that have a group (for ``ufunc.reduceat``)."""
+    """The primitives grouped by part (``prim_part``: int64 bytes): their order (stable; None where they
+    are in part order already, as :func:`prepare` lists them), the first position of each part's group
+    in it, and the parts that have a group (for ``ufunc.reduceat``)."""
     pp = np.frombuffer(prim_part, dtype=np.int64)
     order = np.argsort(pp, kind="stable")
     parts, starts = np.unique(pp[order], return_index=True)
-    return order, starts, parts
+    return (None if np.array_equal(order, np.arange(len(pp))) else order), starts, parts
 
 
 def _part_boxes(batch: PrimitiveBatch) -> tuple[np.ndarray, ...]:
@@ -485,9 +486,8 @@ def _part_boxes(batch: PrimitiveBatch) -> tuple[np.ndarray, ...]:
     plo = np.full((m, n_parts, 3), np.inf)
     phi = np.full((m, n_parts, 3), -np.inf)
     order, starts, parts = _part_segments(np.asarray(batch.prim_part, dtype=np.int64).tobytes())
-    if len(order):  # each part's primitives' smallest and largest extent (min and max: exact, in any order)
-        o = batch.o[:, order]
-        ext = loc_ext[:, order]
+    if len(starts):  # each part's primitives' smallest and largest extent (min and max: exact, in any order)
+        o, ext = (batch.o, loc_ext) if order is None else (batch.o[:, order], loc_ext[:, order])
         plo[:, parts] = np.minimum.reduceat(o - ext, starts, axis=1)
         phi[:, parts] = np.maximum.reduceat(o + ext, starts, axis=1)
     empty = ~np.isfinite(plo)  # a part without SOLID primitives is in no tested pair (_pair_tables)

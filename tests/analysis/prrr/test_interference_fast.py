@@ -399,8 +399,8 @@ def test_frame_rules_cover_the_cads_parts_and_nothing_else(paper):
 def test_part_boxes_are_each_parts_primitive_extents_bitwise(problem_sample):
     """``_part_boxes`` (one ``ufunc.reduceat`` over the primitives grouped by part) equals the reference
     it replaced, a loop over the parts taking the min and max of each part's primitives' extents (min and
-    max are exact, so the two agree bit for bit), on one design and on a stack of a layout's designs;
-    a part without SOLID primitives gets the zero box."""
+    max are exact, so the two agree bit for bit), on one design and on a stack of a layout's designs,
+    with the primitives in part order and shuffled; a part without SOLID primitives gets the zero box."""
 
     def reference(batch):
         m, P = len(batch.R), len(batch.kind)
@@ -432,8 +432,12 @@ def test_part_boxes_are_each_parts_primitive_extents_bitwise(problem_sample):
     last = len(m0.part_names) - 1
     moved = F.stack_models([dataclasses.replace(m0, prim_part=np.where(m0.prim_part == last, last - 1,
                                                                          m0.prim_part))])
+    # the primitives out of part order (the reduceat then runs on them sorted by part)
+    perm = np.random.default_rng(5).permutation(len(m0.kind))
+    shuffled = F.stack_models([dataclasses.replace(m0, prim_part=m0.prim_part[perm], kind=m0.kind[perm], R=m0.R[perm],
+                                                   o=m0.o[perm], half=m0.half[perm])])
     assert len(models) >= 5
-    for batch in batches + [moved]:
+    for batch in batches + [moved, shuffled]:
         got, want = F._part_boxes(batch)[:2], reference(batch)
         for g, w in zip(got, want):
             assert g.shape == w.shape and np.array_equal(_bits(g), _bits(w))
