@@ -126,9 +126,12 @@ def from_angles(design: PrrrDesign, th: np.ndarray, ok: np.ndarray, *, fidelity:
     if n_out == len(ok):
         return _verdict(design, len(ok), n_out, None, math.nan, fidelity=fidelity, t0=t0,
                         required_diameter=required_diameter)
-    th = th[ok]
-    lo, hi = th.min(axis=(0, 1)), th.max(axis=(0, 1))
-    return _verdict(design, len(ok), n_out, (lo, hi), float(np.abs(th[..., 1]).max()), fidelity=fidelity, t0=t0,
+    # the reachable points' angles joint-major, (3 joints, points · legs) contiguous: each joint's range
+    # and the largest |θ2| as reductions along rows (min and max: exact, so the same values as over the
+    # (points, legs) axes of ``th[ok]``, in a third of the time)
+    by_joint = np.ascontiguousarray(np.moveaxis(np.asarray(th, dtype=float), 2, 0)[:, ok]).reshape(3, -1)
+    lo, hi = by_joint.min(axis=1), by_joint.max(axis=1)
+    return _verdict(design, len(ok), n_out, (lo, hi), float(np.abs(by_joint[1]).max()), fidelity=fidelity, t0=t0,
                     required_diameter=required_diameter)
 
 

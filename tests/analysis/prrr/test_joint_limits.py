@@ -65,3 +65,23 @@ def test_cylinder_grid_is_the_polar_grid_and_its_cached_xy_stays_unchanged():
         assert got.shape == want.shape and got.tobytes() == want.tobytes()
     x, _ = JL._grid_xy(radius, n_phi, n_r, n_z)
     assert not x.flags.writeable
+
+
+def test_from_angles_ranges_are_the_reachable_angles_extremes():
+    """from_angles' joint ranges and elbow margin are the minimum and maximum over the reachable points'
+    angles and their largest |θ2| (the reference: ``th[ok]`` reduced over points and legs), exactly,
+    for the sample's designs (ok, not-met and partly reachable among them)."""
+    n = 0
+    for d in _designs():
+        ik = inverse_kinematics(params_of(d), JL.cylinder_grid(d, JL.FW.DEFAULT_REQUIRED_DIAMETER / 2.0))
+        th, ok = np.asarray(ik.theta)[:, ELBOW_BRANCH], np.asarray(ik.reachable)
+        got = JL.from_angles(d, th, ok, fidelity=Fidelity.DRAFT, t0=0.0)
+        if not ok.any():
+            assert got.status is Status.EMPTY
+            continue
+        sel = th[ok]
+        lo, hi = sel.min(axis=(0, 1)), sel.max(axis=(0, 1))
+        assert got.used == {f"r{j + 1}": (float(lo[j]), float(hi[j])) for j in range(3)}
+        assert got.margin == JL.elbow_limit(d) - float(np.abs(sel[..., 1]).max())
+        n += 1
+    assert n >= 5
