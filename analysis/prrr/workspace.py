@@ -232,18 +232,20 @@ def _edge_distance(wp: WorkspaceParams, rho, xp):
 
 def _newton_scalar(cu, ax, bx, d2, t, step_max):
     """:func:`_edge_distance`'s Newton steps for one design with numpy (scalars): the same operations on
-    the same numpy scalars, the selections (``where``, ``clip``, ``abs``) as Python conditionals, which
-    pick the same numbers (on numpy scalars each ``where`` or ``clip`` call cost ≈ 1–4 µs, most of the
-    one-design workspace core)."""
+    the same numbers as Python floats (IEEE double arithmetic either way; the cosine and sine still
+    numpy's), the selections (``where``, ``clip``, ``abs``) as Python conditionals, which pick the same
+    numbers (on numpy scalars each ``where`` or ``clip`` call cost ≈ 1–4 µs, most of the one-design
+    workspace core)."""
+    cu, ax, bx, d2, t = (float(v) for v in (cu, ax, bx, d2, t))
     for _ in range(_NEWTON):
-        c, sn = np.cos(t), np.sin(t)
+        c, sn = float(np.cos(t)), float(np.sin(t))
         x, y = cu + ax * c, d2 + bx * sn
         g1 = 2.0 * (-x * ax * sn + y * bx * c)
         g2 = 2.0 * ((ax * sn) ** 2 - x * ax * c + (bx * c) ** 2 - y * bx * sn)
         g2_scale = 2.0 * ((ax * sn) ** 2 + abs(x * ax * c) + (bx * c) ** 2 + abs(y * bx * sn))
         step = g1 / g2 if g2 > CURVATURE_REL * g2_scale else 0.0
         t = t - min(max(step, -step_max), step_max)  # clip (NaN stays NaN, as numpy's)
-    return t
+    return np.float64(t)
 
 
 def _ray_intervals(wp: WorkspaceParams, phi, xp):
