@@ -1,7 +1,8 @@
 """Size and mass of the 3-PRRR as built by the CAD (seed 002 Table 1: φ260 × 231 mm, 4.4 kg).
 
 Masses come from the analytic mass model of the part tables
-(:func:`hapticopt.design.prrr.cad.mass_properties`, tested against OpenCASCADE's integrals), split
+(:func:`hapticopt.design.prrr.cad.mass_properties`, tested against OpenCASCADE's integrals; its masses
+alone, :func:`hapticopt.design.mass_properties.analytic_masses`), split
 into the SEA modules (motor with belt, ball screw, spring housing: ``sea_module`` of the design),
 the moving links (links 1 and 2, platform) and the frame (base plate, rails, carriages). The
 height is the base plate's bottom to the rail tops (:func:`hapticopt.design.prrr.cad.device_height`);
