@@ -90,3 +90,43 @@ def test_from_ranges_many_equals_from_angles():
         assert abs(got.margin - ref.margin) <= 1e-12 * abs(ref.margin) or (math.isnan(got.margin) and math.isnan(ref.margin))
         statuses.add(ref.status)
     assert statuses == {Status.OK, Status.EMPTY, Status.NOT_MET}
+
+
+def test_cylinder_grid_is_the_polar_grid_and_its_cached_xy_stays_unchanged():
+    """cylinder_grid's points (its x, y made once per radius and counts) equal the polar grid written out
+    (the module docstring's rim-and-axis grid: φ_i = 2πi/n_φ, r_j = R j/n_r, heights ±(H/2)(1 − 1e-9)
+    with H = L − 2R cot β), bit for bit, for two designs in turn (the second reuses the cached x, y),
+    and the cached arrays cannot be written."""
+    n_phi, n_r, n_z, radius = 24, 6, 3, 0.07
+    for d in _designs()[:2] + _designs()[:1]:
+        g = d.geometry
+        h = max(g.stroke - 2.0 * radius / np.tan(g.beta), 0.0)
+        z = np.linspace(-h / 2, h / 2, n_z) * (1.0 - 1e-9)
+        phi = np.repeat(np.linspace(0.0, 2.0 * math.pi, n_phi, endpoint=False), n_r * n_z)  # φ-major order
+        r = np.tile(np.repeat(np.linspace(0.0, radius, n_r + 1)[1:], n_z), n_phi)
+        want = np.concatenate([np.stack([r * np.cos(phi), r * np.sin(phi), np.tile(z, n_phi * n_r)], axis=1),
+                               np.stack([np.zeros(n_z), np.zeros(n_z), z], axis=1)])
+        got = JL.cylinder_grid(d, radius, n_phi=n_phi, n_r=n_r, n_z=n_z)
+        assert got.shape == want.shape and got.tobytes() == want.tobytes()
+    x, _ = JL._grid_xy(radius, n_phi, n_r, n_z)
+    assert not x.flags.writeable
+
+
+def test_from_angles_ranges_are_the_reachable_angles_extremes():
+    """from_angles' joint ranges and elbow margin are the minimum and maximum over the reachable points'
+    angles and their largest |θ2| (the reference: ``th[ok]`` reduced over points and legs), exactly,
+    for the sample's designs (ok, not-met and partly reachable among them)."""
+    n = 0
+    for d in _designs():
+        ik = inverse_kinematics(params_np(d), JL.cylinder_grid(d, JL.FW.DEFAULT_REQUIRED_DIAMETER / 2.0), xp=np)
+        th, ok = np.asarray(ik.theta)[:, ELBOW_BRANCH], np.asarray(ik.reachable)
+        got = JL.from_angles(d, th, ok, fidelity=Fidelity.DRAFT, t0=0.0)
+        if not ok.any():
+            assert got.status is Status.EMPTY
+            continue
+        sel = th[ok]
+        lo, hi = sel.min(axis=(0, 1)), sel.max(axis=(0, 1))
+        assert got.used == {f"r{j + 1}": (float(lo[j]), float(hi[j])) for j in range(3)}
+        assert got.margin == JL.elbow_limit(d) - float(np.abs(sel[..., 1]).max())
+        n += 1
+    assert n >= 5

@@ -399,3 +399,22 @@ def test_closure_cache_drops_the_oldest_design(monkeypatch):
     for d in designs:
         W.closure(d)
     assert list(W._closures) == designs[1:]
+
+
+def test_scalar_newton_steps_equal_the_array_form_bitwise(problem_sample):
+    """One design's reach radius with numpy scalars (``_newton_scalar``: Python conditionals for
+    ``where``/``clip``/``abs``) equals the array form of ``_edge_distance`` (the same parameters as
+    one-element arrays, which take numpy's ``where`` and ``clip``) bit for bit, at the outer and inner
+    reach radii of draws within the problem's bounds, the preset and its closure parameters."""
+    designs = problem_sample(40, seed=35) + [io.load_preset("prrr-paper")]
+    n = 0
+    for d in designs:
+        for wp in (W.workspace_params(d, envelope=0.1), W._closure_params(d)):
+            one = W.WorkspaceParams(*(np.array([float(v)]) for v in wp))
+            for rho, rho1 in ((wp.rho_max, one.rho_max), (wp.rho_min, one.rho_min)):
+                got = W._edge_distance(wp, rho, np)
+                want = W._edge_distance(one, rho1, np)
+                assert np.ndim(got) == 0 and want.shape == (1,)
+                assert np.float64(got).tobytes() == want[0].tobytes()
+                n += 1
+    assert n == 4 * len(designs)
