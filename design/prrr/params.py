@@ -176,6 +176,37 @@ class PrrrDesign:
     def __post_init__(self) -> None:
         validate(self)
 
+    def __hash__(self) -> int:
+        """The dataclass's hash of the fields (the same value), computed once per design and kept on it:
+        a design is a dict key of several caches (the chain closure's, the CAD layout's, the batched draft
+        evaluator's), ~6 look-ups a design in a batched draft evaluation, each of which hashed the five
+        nested sections again. The fields are frozen, so the kept hash cannot go stale; it is not
+        pickled (:meth:`__getstate__`: the hash of the ``name`` string differs between processes)."""
+        try:
+            return self.__dict__[_HASH_KEPT]
+        except KeyError:
+            h = self.__dict__[_HASH_KEPT] = _fields_hash(self)
+            return h
+
+    def __getstate__(self) -> dict:
+        """The fields only (a copy or another process computes the hash afresh)."""
+        state = dict(self.__dict__)
+        state.pop(_HASH_KEPT, None)
+        return state
+
+
+#: the instance attribute that keeps a :class:`PrrrDesign`'s hash (not a field: not compared, not
+#: replaced, not pickled)
+_HASH_KEPT = "_hash_kept"
+
+
+def _fields_hash(design: PrrrDesign) -> int:
+    """The hash ``dataclass(frozen=True)`` gives: of the tuple of the compared fields."""
+    return hash(tuple(getattr(design, f.name) for f in _COMPARED))
+
+
+_COMPARED = tuple(f for f in dataclasses.fields(PrrrDesign) if f.compare)
+
 
 def validate(design: PrrrDesign) -> None:
     """Check every field's range and the cross-field rules; raise :class:`InvalidDesign`."""
