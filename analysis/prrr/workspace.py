@@ -702,6 +702,16 @@ def workspace_sample_weights(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: i
     return pts, weights
 
 
+def _max3(a: np.ndarray) -> np.ndarray:
+    """``a.max(axis=-1)`` of a last axis of 3, elementwise (maximum is exact: the same floats, NaN kept)."""
+    return np.maximum(np.maximum(a[..., 0], a[..., 1]), a[..., 2])
+
+
+def _min3(a: np.ndarray) -> np.ndarray:
+    """``a.min(axis=-1)`` of a last axis of 3, elementwise (the same floats, NaN kept)."""
+    return np.minimum(np.minimum(a[..., 0], a[..., 1]), a[..., 2])
+
+
 @functools.cache
 def _blas() -> ThreadpoolController:
     return ThreadpoolController()  # once: it enumerates the loaded BLAS libraries
@@ -732,8 +742,11 @@ def workspace_sample_weights_many(designs: list[PrrrDesign], wps: list[Workspace
     a = x[..., None] * np.cos(_GAMMA) + y[..., None] * np.sin(_GAMMA)
     beta, stroke = cols[0], cols[7]
     cot = np.array([1.0 / np.tan(b) for b in beta])[:, None, None]  # sample_points: np.tan of the float
-    z0 = -stroke[:, None, None] / 2.0 + cot * a.max(axis=-1)
-    z1 = stroke[:, None, None] / 2.0 + cot * a.min(axis=-1)
+    # the largest and smallest of the three legs' a by pairwise maximum and minimum: the same floats as
+    # ``a.max(axis=-1)`` (a reduction over an axis of 3 ran a length-3 inner loop per point: half the
+    # function's time)
+    z0 = -stroke[:, None, None] / 2.0 + cot * _max3(a)
+    z1 = stroke[:, None, None] / 2.0 + cot * _min3(a)
     ok = m3 & (z1 > z0)
     tz = 0.01 + 0.98 * (np.arange(n_z) + 0.5) / n_z
     z = z0[ok][:, None] + tz[None, :] * (z1 - z0)[ok][:, None]
@@ -750,7 +763,7 @@ def workspace_sample_weights_many(designs: list[PrrrDesign], wps: list[Workspace
     stroke_w = np.array([d.geometry.stroke for d in designs])
     with _blas().limit(limits=1, user_api="blas"):  # one thread: OpenBLAS's threads spin on 2 cores
         a = pts[:, :2] @ np.stack([np.cos(_GAMMA), np.sin(_GAMMA)])  # the per-design product, bit for bit
-    dz = np.maximum(stroke_w[owner] - cot_w[owner] * (a.max(axis=1) - a.min(axis=1)), 0.0) / n_z
+    dz = np.maximum(stroke_w[owner] - cot_w[owner] * (_max3(a) - _min3(a)), 0.0) / n_z
     w = rr * (hi - lo)[owner * n_phi + k] / n_r * (_THIRD / n_phi) * dz
     ends = np.cumsum(counts)
     return [(pts[e - c:e], w[e - c:e]) for e, c in zip(ends.tolist(), counts.tolist())]
