@@ -175,24 +175,31 @@ class PendingCore(NamedTuple):
 
     out: dict  # jax arrays (padded batch)
     n: int
+    frame: fm.FrameParams | None = None  # the frame group's inputs where the numba kernel computes it (not XLA)
 
 
 def start_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> PendingCore:
     """Dispatch the core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK),
     without waiting for it (jax's asynchronous dispatch: the compiled program runs on XLA's threads, which
-    do not hold the GIL, so the numba collision kernels run meanwhile)."""
+    do not hold the GIL, so the numba collision kernels run meanwhile). The frame group is left out of XLA
+    where ``frame_model.legs_kernel_ready``: :func:`finish_core` computes it in numba from its inputs."""
+    frame = None
+    if "frame" in groups and fm.legs_kernel_ready(n):
+        frame, groups, inp = inp.fp, tuple(g for g in groups if g != "frame"), inp._replace(fp=None)
     if not groups:
-        return PendingCore({}, n)
+        return PendingCore({}, n, frame)
     size = bucket(n)
     pad = jax.tree.map(lambda x: np.concatenate([x, np.repeat(x[-1:], size - n, axis=0)]) if size > n else x, inp)
-    return PendingCore(core_fn(groups)(pad), n)
+    return PendingCore(core_fn(groups)(pad), n, frame)
 
 
 def finish_core(pending: PendingCore) -> dict:
     """The numpy rows [:n] of a dispatched core (waits for it), the frame group assembled and solved."""
     n = pending.n
     out = jax.tree.map(lambda x: np.asarray(x)[:n], pending.out)
-    if "frame" in out:  # the legs' assembly and solves outside XLA (numba kernel over designs)
+    if pending.frame is not None:  # the legs built, assembled and solved in numba (no XLA frame group)
+        out["frame"] = fm.condense_home_many(pending.frame, fm.LOAD_HEIGHT)
+    elif "frame" in out:  # the legs' assembly and solves outside XLA (numba kernel over designs)
         fr = out["frame"]
         terms = fr.pop("G"), fr.pop("Ks"), fr.pop("P")
         out["frame"] = {**fm.condense_terms_many(*terms, fm.FrameOptions(), fm.LOAD_HEIGHT), **fr}

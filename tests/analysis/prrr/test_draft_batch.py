@@ -75,16 +75,17 @@ def test_batch_equals_single_path(both):
 
 
 def test_batch_with_the_compiled_frame_kernel_equals_single_path(both, monkeypatch):
-    # the frame group's numba kernel (assembly and Cholesky condensation) runs from
-    # frame_model.KERNEL_AFTER_DESIGNS designs per process on, numpy before; forced here, and seen to run
+    # the frame group's numba kernel (the legs built from their points, assembled and condensed by Cholesky;
+    # no frame group in XLA) runs from frame_model.KERNEL_AFTER_DESIGNS designs per process on, the XLA terms
+    # and numpy before; forced here, and seen to run
     pytest.importorskip("numba")
     from hapticopt.analysis.prrr import _frame_kernels
     from hapticopt.analysis.prrr import frame_model as fm
 
     calls = []
-    kernel = _frame_kernels.assemble_condense_kernel
+    kernel = _frame_kernels.home_legs_condense_kernel
     monkeypatch.setattr(fm, "KERNEL_AFTER_DESIGNS", 0)
-    monkeypatch.setattr(_frame_kernels, "assemble_condense_kernel", lambda *a: calls.append(1) or kernel(*a))
+    monkeypatch.setattr(_frame_kernels, "home_legs_condense_kernel", lambda *a: calls.append(1) or kernel(*a))
     designs, single, _ = both
     _assert_equal(designs, single, evaluate_batch(designs, fidelity=Fidelity.DRAFT))
     assert calls
