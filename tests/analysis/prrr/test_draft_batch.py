@@ -10,6 +10,7 @@ cylinder missed: ``infeasible``; parts the CAD cannot lay out: ``failed``), β n
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import math
 import sys
 
@@ -101,7 +102,7 @@ def _assert_equal(designs, single, batched) -> None:
         assert not bad, (d.geometry, {k: (ms[k], mb[k]) for k in bad})
 
 
-def test_batch_equals_single_path_within_the_problem_bounds(problem_sample):
+def test_batch_equals_single_path_within_the_problem_bounds(problem_sample, monkeypatch):
     """40 seeded designs within the bounds of the bundled workspace problem (and one whose chain
     does not close): equal statuses,
     messages and metrics, and the sample holds colliding designs, not-met cylinders, designs whose
@@ -111,6 +112,11 @@ def test_batch_equals_single_path_within_the_problem_bounds(problem_sample):
     designs = problem_sample(40, seed=2203) + [_geometry(BASE, d2=0.300)]
     single = [evaluate_all(d, fidelity=Fidelity.DRAFT) for d in designs]
     _assert_equal(designs, single, evaluate_batch(designs, fidelity=Fidelity.DRAFT))
+    if importlib.util.find_spec("numba") is not None:  # and with the frame group in numba (no XLA frame terms)
+        from hapticopt.analysis.prrr import frame_model as fm
+
+        monkeypatch.setattr(fm, "KERNEL_AFTER_DESIGNS", 0)
+        _assert_equal(designs, single, evaluate_batch(designs, fidelity=Fidelity.DRAFT))
     seen = {(name, str(st)) for ev in single for name, st in ev.statuses.items()}
     for case in [("interference", "collides"), ("interference", "ok"), ("free_workspace", "not-met"),
                  ("device_size", "not-assemblable"), ("device_size", "ok")]:
