@@ -1,9 +1,12 @@
 """numba kernels of :func:`hapticopt.analysis.prrr.frame_model.condense_legs` over many legs, from the
 legs' stiffness (:func:`condense_legs_kernel`) or from their unassembled terms
 (:func:`assemble_condense_kernel`: the elements' stiffness from their parameters, Σ Gᵀ K G over the
-maps' nonzero entries, then the same condensation; the batched draft evaluator's route). Imported only through
-:func:`hapticopt.analysis.prrr.frame_model.condense_many` / ``condense_terms_many``, so numba loads on
-first use.
+maps' nonzero entries, then the same condensation) or from the legs' points at the home pose
+(:func:`home_legs_condense_kernel`: the terms themselves built per leg, the draft frame's elements,
+springs and maps as ``frame_model.frame_leg_terms`` builds them, then :func:`assemble_condense_kernel`'s
+assembly and condensation; the batched draft evaluator's route, no terms over the batch). Imported only
+through :func:`hapticopt.analysis.prrr.frame_model.condense_many` / ``condense_terms_many`` /
+``condense_home_many``, so numba loads on first use.
 
 Per leg, the same quantities as the numpy/jax reference: the Jacobi scaling d of K_ii, the scaled
 matrix's solves with K_iP (six right-hand sides) and the probe (1/n)·1, K_PP − K_Pi K_ii⁻¹ K_iP, and

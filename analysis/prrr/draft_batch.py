@@ -17,7 +17,10 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   the collision-free cylinder: they do not depend on the radial sampling), the frame model's legs'
   stiffness terms (``frame_leg_terms``, default options, home pose: element parameters, springs and
   maps; the elements' stiffness, the assembly and the solves follow the jitted call in a numba kernel over designs,
-  ``frame_model.condense_terms_many``) and the joint angles over the required cylinder
+  ``frame_model.condense_terms_many``) until the frame's numba kernel pays (``frame_model.legs_kernel_ready``:
+  from then on the core leaves the frame group out and :func:`finish_core` computes it with
+  ``frame_model.condense_home_many``, the legs' points in numpy and their terms, assembly and solves in numba)
+  and the joint angles over the required cylinder
   (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy (the frame's by
   ``frame_model.frame_params_many``, arrays over the batch); the batch is padded to
   the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a new batch

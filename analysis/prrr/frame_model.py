@@ -5,10 +5,13 @@ it with numpy for a single design (no compilation: the CLI path, ~4 ms), :func:`
 and :func:`solve_frame_batch` with ``jax.numpy`` under jit/vmap (batches, gradients); tested equal.
 The jax path assembles each leg's stiffness on the columns where each element's map can be nonzero
 (:func:`_supports`, a static pattern of the topology), not on dense 12 × n maps; the batch's inputs
-come from :func:`frame_params_many` (arrays over the batch). The batched draft evaluator jits only the
-legs' unassembled terms (:func:`frame_leg_terms`) and assembles and condenses them in a numba kernel over
-designs (:func:`condense_terms_many`: Cholesky along each leg's chain of DOFs; equal to the single path
-to 1e-9, docs/runs.md "The frame group outside XLA").
+come from :func:`frame_params_many` (arrays over the batch). The batched draft evaluator computes the
+frame outside XLA: once its numba kernel pays (:func:`legs_kernel_ready`), :func:`condense_home_many` takes
+the legs' points at the home pose over the batch in numpy (:func:`home_legs_many`) and a numba kernel builds
+each leg's elements, springs and maps, assembles and condenses it; before that it jits only the legs'
+unassembled terms (:func:`frame_leg_terms`) and assembles and condenses them over designs
+(:func:`condense_terms_many`: Cholesky along each leg's chain of DOFs). Both equal to the single path to
+1e-9 (docs/runs.md "The frame group outside XLA", docs/performance.md).
 
 Each link is a 12-DOF Timoshenko beam (axial, torsion, two bending planes with shear) of the
 rectangular cross-section in ``design.structure``; the three revolute joints of every leg
