@@ -572,7 +572,7 @@ def _put_params(Pe, x1, x2, z, a1, a2, sc, props, E):
     Pe[17] = E
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def home_legs_condense_kernel(geo, Kb, sc, lay, patterns, cols, n, contrib, cond, gross):
     """The legs of the draft frame (``frame_model.FrameOptions()``: pins with neck springs, the CAD's
     carriage bracket, released joints, no SEA spring) from their points, built, assembled and condensed
@@ -587,7 +587,8 @@ def home_legs_condense_kernel(geo, Kb, sc, lay, patterns, cols, n, contrib, cond
     rocking, torsion) stiffness, then the section properties (area, i_y, i_z, torsion, κ, G) of the link,
     the bracket's root and the platform arm; ``lay`` (12,) the leg's DOF indices of Rb, Rj, Ae, A, Ap,
     phi1, B, B2, phi2, Qp, Q2, phi3 (``frame_model._leg_layout``). Outputs as
-    :func:`assemble_condense_kernel`."""
+    :func:`assemble_condense_kernel`. Runs without the GIL (``finish_core`` calls it before it waits for
+    XLA's groups; threads over designs may share it out)."""
     m = n - 6
     fcol, last, first = _structure(cols, n)
     kidx, kval = _nonzeros(patterns)
