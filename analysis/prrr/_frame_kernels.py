@@ -587,8 +587,9 @@ def home_legs_condense_kernel(geo, Kb, sc, lay, patterns, cols, n, contrib, cond
     rocking, torsion) stiffness, then the section properties (area, i_y, i_z, torsion, κ, G) of the link,
     the bracket's root and the platform arm; ``lay`` (12,) the leg's DOF indices of Rb, Rj, Ae, A, Ap,
     phi1, B, B2, phi2, Qp, Q2, phi3 (``frame_model._leg_layout``). Outputs as
-    :func:`assemble_condense_kernel`. Runs without the GIL (``finish_core`` calls it before it waits for
-    XLA's groups; threads over designs may share it out)."""
+    :func:`assemble_condense_kernel`. Runs without the GIL (threads over designs may share it out; run
+    before ``finish_core`` waits for XLA's groups it measured 0.97×, 1.553 vs 1.599 ms per design for the
+    whole batch of 1024 at load 4.2–4.5, so it runs after)."""
     m = n - 6
     fcol, last, first = _structure(cols, n)
     kidx, kval = _nonzeros(patterns)

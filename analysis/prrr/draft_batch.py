@@ -199,11 +199,9 @@ def start_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GRO
 def finish_core(pending: PendingCore) -> dict:
     """The numpy rows [:n] of a dispatched core (waits for it), the frame group assembled and solved."""
     n = pending.n
-    # the legs built, assembled and solved in numba (no XLA frame group), before waiting for XLA's groups
-    frame = fm.condense_home_many(pending.frame, fm.LOAD_HEIGHT) if pending.frame is not None else None
     out = jax.tree.map(lambda x: np.asarray(x)[:n], pending.out)
-    if frame is not None:
-        out["frame"] = frame
+    if pending.frame is not None:  # the legs built, assembled and solved in numba (no XLA frame group)
+        out["frame"] = fm.condense_home_many(pending.frame, fm.LOAD_HEIGHT)
     elif "frame" in out:  # the legs' assembly and solves outside XLA (numba kernel over designs)
         fr = out["frame"]
         terms = fr.pop("G"), fr.pop("Ks"), fr.pop("P")
