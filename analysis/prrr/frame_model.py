@@ -1289,7 +1289,7 @@ def condense_home_many(fp: FrameParams, load_height) -> dict[str, np.ndarray]:
                                   np.ascontiguousarray(np.repeat(sc, 3, axis=0)), lay_idx, _PATTERNS,
                                   np.ascontiguousarray(term_columns(options), dtype=np.int64), N, contrib, cond, gross)
         out = _outputs_many(contrib, cond, gross, n, 3, load_height)
-    return {**out, **ik}
+    return {**out, "reach_margin": ik["reach_margin"], "reachable": ik["reachable"]}  # the XLA route's order
 
 
 def _outputs_many(contrib, cond, gross, n: int, legs: int, load_height) -> dict[str, np.ndarray]:

@@ -335,3 +335,34 @@ def test_dispatched_core_equals_the_core():
                 assert np.array_equal(np.asarray(got[g][k]), np.asarray(ref[g][k]), equal_nan=True), (g, k)
         else:
             assert np.array_equal(got[g], ref[g], equal_nan=True), g
+
+
+def test_frame_group_leaves_xla_once_its_kernel_pays(monkeypatch):
+    """From ``frame_model.KERNEL_AFTER_DESIGNS`` designs per process on (forced here) the jitted core has no
+    frame group and ``finish_core`` computes it in numba (``frame_model.condense_home_many``): the same keys
+    as the XLA route's and its values to 1e-10 where that route's verdict can be ok (the same assembly and
+    factorisation; the maps and points built in numba instead of XLA), the IK's reachability equal."""
+    pytest.importorskip("numba")
+    from hapticopt.analysis.prrr import frame_model as fm
+
+    designs = _sample()[:4]
+    inp = draft_batch.stack_inputs(designs, None, ("frame",))
+    monkeypatch.setattr(fm, "KERNEL_AFTER_DESIGNS", 10**12)
+    xla = draft_batch.start_core(inp, len(designs), ("frame",))
+    assert xla.frame is None and "frame" in xla.out
+    ref = draft_batch.finish_core(xla)["frame"]
+    monkeypatch.setattr(fm, "KERNEL_AFTER_DESIGNS", 0)
+    pending = draft_batch.start_core(inp, len(designs), ("frame",))
+    assert pending.frame is not None and pending.out == {}
+    got = draft_batch.finish_core(pending)["frame"]
+    assert list(got) == list(ref)
+    np.testing.assert_array_equal(got["reachable"], ref["reachable"])
+    # rows whose condition the XLA route puts at or above COND_LIMIT (here β = 1e-12°: 1.5e18, and β near 90°:
+    # NaN) are rounding either way: not ok in both (NaN or ill-conditioned), and the batch solves them again
+    # by the single path; the others to 1e-10
+    fine = ref["condition"] < fm.COND_LIMIT
+    assert 0 < fine.sum() < len(designs)
+    assert np.all(~(got["condition"][~fine] < fm.COND_LIMIT))
+    for k in ref:
+        r = ref[k][fine]
+        np.testing.assert_allclose(got[k][fine], r, rtol=1e-10, atol=1e-10 * np.abs(r).max(), err_msg=k)

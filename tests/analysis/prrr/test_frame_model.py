@@ -455,7 +455,7 @@ def test_condense_home_many_equals_single_path_and_the_terms_route(paper):
         fm.stack_frame_params(designs))
     ref = fm.condense_terms_many(G, Ks, P, options, fm.LOAD_HEIGHT, compiled=True)
     out = fm.condense_home_many(fm.frame_params_many(designs), fm.LOAD_HEIGHT)
-    assert list(out) == list(ref) + ["reachable", "reach_margin"]
+    assert list(out) == list(ref) + ["reach_margin", "reachable"]
     np.testing.assert_array_equal(out["reachable"], np.asarray(ik.reachable))
     np.testing.assert_allclose(out["reach_margin"], np.asarray(ik.reach_margin), rtol=0, atol=1e-15)
     for key in ref:
