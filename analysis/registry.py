@@ -357,34 +357,51 @@ def _collect(fidelity: Fidelity, entries: list[EvaluatorEntry], produce: Callabl
     """The one failure policy: ``produce(entry)`` gives the evaluator's result (or raises, or returns
     the exception it raised); a failure is a ``failed`` status with its message, not a crash.
     ``timing(entry, measured_s)`` gives the seconds recorded for it."""
-    results: dict[str, Any] = {}
-    timings: dict[str, float] = {}
-    statuses: dict[str, Status] = {}
-    messages: dict[str, str] = {}
-    sources: dict[str, str] = {}
+    ev = Evaluation(fidelity=fidelity, results={}, timings_s={})
     for k, entry in enumerate(entries):
         if progress is not None:
             progress(entry.name, k, len(entries))
         t0 = time.perf_counter()
         try:
             result = produce(entry)
-            if isinstance(result, BaseException):
-                raise result
-            names = list(result.metrics())
-        except Exception as exc:  # noqa: BLE001 - the one failure policy: a status, not a crash
-            statuses[entry.name] = Status.FAILED
-            messages[entry.name] = describe_failure(exc)
-        else:
-            results[entry.name] = result
-            status = result.status
-            statuses[entry.name] = status if type(status) is Status else Status(status)
-            messages[entry.name] = result.message
-            sources.update(dict.fromkeys(names, entry.module))
-        timings[entry.name] = timing(entry, time.perf_counter() - t0)
+        except Exception as exc:  # noqa: BLE001 - recorded as a failure by _record
+            result = exc
+        _record(ev, entry, result)
+        ev.timings_s[entry.name] = timing(entry, time.perf_counter() - t0)
     if progress is not None:
         progress("", len(entries), len(entries))
-    return Evaluation(fidelity=fidelity, results=results, timings_s=timings, statuses=statuses,
-                      messages=messages, sources=sources)
+    return ev
+
+
+def _collect_found(entries: list[EvaluatorEntry], found: Mapping[str, Any], times: Mapping[str, float]) -> Evaluation:
+    """:func:`_collect` of results computed beforehand (the batch's: evaluator name → result or the
+    exception raised, and the seconds recorded for it, 0 where absent), without a timer per entry."""
+    ev = Evaluation(fidelity=Fidelity.DRAFT, results={}, timings_s={})
+    for entry in entries:
+        try:
+            result = found[entry.name]
+        except Exception as exc:  # noqa: BLE001 - recorded as a failure by _record
+            result = exc
+        _record(ev, entry, result)
+        ev.timings_s[entry.name] = times.get(entry.name, 0.0)
+    return ev
+
+
+def _record(ev: Evaluation, entry: EvaluatorEntry, result: Any) -> None:
+    """Put one evaluator's ``result`` (or the exception it raised) into ``ev``: the failure policy."""
+    try:
+        if isinstance(result, BaseException):
+            raise result
+        names = result.metrics()
+    except Exception as exc:  # noqa: BLE001 - the one failure policy: a status, not a crash
+        ev.statuses[entry.name] = Status.FAILED
+        ev.messages[entry.name] = describe_failure(exc)
+    else:
+        ev.results[entry.name] = result
+        status = result.status
+        ev.statuses[entry.name] = status if type(status) is Status else Status(status)
+        ev.messages[entry.name] = result.message
+        ev.sources.update(dict.fromkeys(names, entry.module))
 
 
 def _entries(device: str, only: tuple[str, ...] | None) -> list[EvaluatorEntry]:
@@ -468,12 +485,13 @@ def evaluate_batch(designs: list[Any], *, fidelity: Fidelity = Fidelity.STANDARD
 
     # a design whose chain does not close returns early from every evaluator: it takes the single path,
     # so its statuses are the single path's (one whose parts the CAD cannot lay out is batched: the
-    # batch gives its part evaluators their own early not-assemblable)
+    # batch gives its part evaluators their own early not-assemblable); the closures of the designs not
+    # seen before come from one jitted pass (assembly.closure_many), cached for the evaluators' own calls
     if len(designs) > draft_batch.MAX_CHUNK:  # chunk by chunk: each chunk's closures stay cached
         return [ev for c in range(0, len(designs), draft_batch.MAX_CHUNK)
                 for ev in evaluate_batch(designs[c:c + draft_batch.MAX_CHUNK], fidelity=fidelity, only=only)]
     with _collector_paused():
-        blocked = {i for i, d in enumerate(designs) if assembly.closure(d)}
+        blocked = {i for i, message in enumerate(assembly.closure_many(designs)) if message}
         batched = [d for i, d in enumerate(designs) if i not in blocked]
         found_all = iter(draft_batch.evaluate_many(batched, only=only) if batched else [])
         out = []
@@ -483,8 +501,7 @@ def evaluate_batch(designs: list[Any], *, fidelity: Fidelity = Fidelity.STANDARD
                 out.append(evaluate_all(design, fidelity=Fidelity.DRAFT, only=only))
                 continue
             found, times = next(found_all)
-            out.append(_collect(Fidelity.DRAFT, entries, lambda entry: found[entry.name],
-                                lambda entry, _: times.get(entry.name, 0.0)))
+            out.append(_collect_found(entries, found, times))
     return out
 
 

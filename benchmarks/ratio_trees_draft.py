@@ -46,10 +46,13 @@ RESULT_STEPS = (
     ("analysis.prrr.statics", "from_arrays"), ("analysis.prrr.statics", "from_arrays_many"),
     ("analysis.prrr.draft_batch", "_structure"), ("analysis.prrr.structure", "from_arrays_many"),
     ("analysis.prrr.workspace", "_result"), ("analysis.prrr.joint_limits", "from_angles"),
-    ("analysis.prrr.joint_limits", "from_angles_many"), ("analysis.prrr.free_workspace", "finish"),
+    ("analysis.prrr.joint_limits", "from_angles_many"), ("analysis.prrr.joint_limits", "from_ranges_many"),
+    ("analysis.prrr.free_workspace", "finish"),
     ("analysis.prrr.interference", "from_fractions"), ("analysis.prrr.draft_batch", "_stability"),
     ("analysis.prrr.stability", "evaluate"), ("analysis.prrr.stability", "evaluate_many"),
-    ("analysis.registry", "_collect"),
+    ("analysis.prrr.workspace", "_result_of"), ("analysis.prrr.structure", "from_ok_arrays"),
+    ("analysis.prrr.device_size", "from_tables"),
+    ("analysis.registry", "_collect"), ("analysis.registry", "_collect_found"),
 )
 
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import functools
 
-from hapticopt.analysis.prrr.workspace import CLOSURE_RAYS, closure  # noqa: F401  (re-exported)
+from hapticopt.analysis.prrr.workspace import CLOSURE_RAYS, closure, closure_many  # noqa: F401  (re-exported)
 from hapticopt.design.errors import HapticoptError
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.prrr.params import PrrrDesign

@@ -1,7 +1,8 @@
 """Size and mass of the 3-PRRR as built by the CAD (seed 002 Table 1: φ260 × 231 mm, 4.4 kg).
 
 Masses come from the analytic mass model of the part tables
-(:func:`hapticopt.design.prrr.cad.mass_properties`, tested against OpenCASCADE's integrals), split
+(:func:`hapticopt.design.prrr.cad.mass_properties`, tested against OpenCASCADE's integrals; its masses
+alone, :func:`hapticopt.design.mass_properties.analytic_masses`), split
 into the SEA modules (motor with belt, ball screw, spring housing: ``sea_module`` of the design),
 the moving links (links 1 and 2, platform) and the frame (base plate, rails, carriages). The
 height is the base plate's bottom to the rail tops (:func:`hapticopt.design.prrr.cad.device_height`);
@@ -20,6 +21,7 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr import assembly
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import HapticoptError
+from hapticopt.design import mass_properties as _mp
 from hapticopt.design import parts as _parts
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.prrr.params import PrrrDesign
@@ -66,7 +68,7 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, shar
         specs = cad_prrr.part_specs(design) if shared is None else shared.part_specs(design)
     except HapticoptError as exc:
         return failed(exc, t0)
-    return from_specs(design, specs, t0)
+    return from_specs(design, specs, t0, lay=None if shared is None else shared.layout(design))
 
 
 def failed(exc: Exception, t0: float) -> DeviceSize:
@@ -76,17 +78,20 @@ def failed(exc: Exception, t0: float) -> DeviceSize:
                       wall_s=time.perf_counter() - t0, status=Status.FAILED, message=f"size not computed: {exc}")
 
 
-def from_specs(design: PrrrDesign, specs: dict, t0: float) -> DeviceSize:
+def from_specs(design: PrrrDesign, specs: dict, t0: float, *, lay: Any = None) -> DeviceSize:
     """Mass split and height from the part tables ``specs`` (:func:`hapticopt.design.prrr.cad.part_specs`
-    of ``design``, shared with the batched draft evaluator's other steps)."""
+    of ``design``, shared with the batched draft evaluator's other steps; ``lay``: their
+    :func:`hapticopt.design.prrr.cad.layout` when the caller has it). The masses are the analytic mass
+    model's (:func:`hapticopt.design.mass_properties.analytic_masses`: its masses without the inertia
+    tensors, the same bits)."""
     try:
-        parts = cad_prrr.mass_properties(design, specs=specs).parts
-        height = cad_prrr.device_height(design)
+        masses = _mp.analytic_masses(specs)
+        height = cad_prrr.device_height(design, lay=lay)
     except HapticoptError as exc:
         return failed(exc, t0)
-    sea = sum(p.mass for n, p in parts.items() if n.startswith(SEA_PARTS))
-    links = sum(p.mass for n, p in parts.items() if n.startswith(LINK_PARTS))
-    total = sum(p.mass for p in parts.values())
+    sea = sum(m for n, m in masses.items() if n.startswith(SEA_PARTS))
+    links = sum(m for n, m in masses.items() if n.startswith(LINK_PARTS))
+    total = sum(masses.values())
     return DeviceSize(mass=total, sea_mass=sea, link_mass=links, frame_mass=total - sea - links, height=height,
                       wall_s=time.perf_counter() - t0)
 
@@ -113,7 +118,8 @@ def from_tables(tables, t0: float) -> list[DeviceSize]:
         if name.startswith(LINK_PARTS):
             links = links + mass[:, j]
         total = total + mass[:, j]
+    frame = (total - sea - links).tolist()  # each design's float(total[k] - sea[k] - links[k])
+    total, sea, links, height = (np.asarray(x, dtype=float).tolist() for x in (total, sea, links, tables.height))
     wall = time.perf_counter() - t0
-    return [DeviceSize(mass=float(total[k]), sea_mass=float(sea[k]), link_mass=float(links[k]),
-                       frame_mass=float(total[k] - sea[k] - links[k]), height=float(tables.height[k]), wall_s=wall)
-            for k in range(m)]
+    return [DeviceSize(mass=total[k], sea_mass=sea[k], link_mass=links[k], frame_mass=frame[k], height=height[k],
+                       wall_s=wall) for k in range(m)]

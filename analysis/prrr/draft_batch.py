@@ -7,7 +7,7 @@ The verdicts are the evaluators' own rules (``statics.from_arrays``, ``structure
 ``workspace._result``, ``free_workspace.finish``, ``joint_limits.from_angles``,
 ``device_size.from_specs``, ``stability.evaluate``), several in the array forms each evaluator
 provides for a whole chunk (``statics.from_arrays_many``, ``structure.ok_many``,
-``workspace.result_rows``, ``joint_limits.from_angles_many``, ``stability.evaluate_many``, each tested
+``workspace.result_rows``, ``joint_limits.from_ranges_many``, ``stability.evaluate_many``, each tested
 equal to its per-design function); this module only computes the arrays they read, for a whole batch
 at a time. A ``*_many`` pass that raises falls back to the per-design function for each design.
 
@@ -20,8 +20,9 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   ``frame_model.condense_terms_many``) until the frame's numba kernel pays (``frame_model.legs_kernel_ready``:
   from then on the core leaves the frame group out and :func:`finish_core` computes it with
   ``frame_model.condense_home_many``, the legs' points in numpy and their terms, assembly and solves in numba)
-  and the joint angles over the required cylinder
-  (IK on ``joint_limits.cylinder_grid_of``). Inputs are stacked with numpy (the frame's by
+  and the joint ranges over the required cylinder
+  (``joint_limits.cylinder_ranges_of``: the IK of the grid's in-plane points, the angles reduced to
+  what the verdict reads inside the jitted call). Inputs are stacked with numpy (the frame's by
   ``frame_model.frame_params_many``, arrays over the batch); the batch is padded to
   the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a new batch
   size within a bucket costs no trace or compile (:data:`TRACES` counts traces); compiled code
@@ -85,7 +86,7 @@ from hapticopt.analysis.prrr import stability, statics, structure
 from hapticopt.analysis.prrr import workspace as WS
 from hapticopt.design.errors import HapticoptError, InvalidInput
 from hapticopt.design.prrr import cad, cad_arrays
-from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_frames
+from hapticopt.design.prrr.kinematics import PrrrParams, leg_frames
 from hapticopt.design.prrr.params import PrrrDesign
 
 #: registry evaluators computed by the batch (``stability`` from the statics rows: see the docstring)
@@ -138,10 +139,8 @@ def _core(inp: CoreInputs, groups: tuple[str, ...]) -> dict:
     if "frame" in groups:
         G, Ks, P, ik = fm.frame_leg_terms(inp.fp, jnp.zeros(3), fm.FrameOptions())  # assembled, solved in run_core
         out["frame"] = {"G": G, "Ks": Ks, "P": P, "reachable": ik.reachable, "reach_margin": ik.reach_margin}
-    if "joint" in groups:
-        pts = JL.cylinder_grid_of(inp.kin.stroke, inp.kin.beta, _REQUIRED_RADIUS, xp=jnp)
-        ik = inverse_kinematics(inp.kin, pts)
-        out["joint_theta"], out["joint_ok"] = ik.theta[:, WS.ELBOW_BRANCH], ik.reachable
+    if "joint" in groups:  # only the reductions the verdict reads leave XLA
+        out["joint"] = JL.cylinder_ranges_of(inp.kin, _REQUIRED_RADIUS, xp=jnp)
     return out
 
 
@@ -535,17 +534,17 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
         _many(res, "statics", designs, statics.from_arrays_many, arrays["statics"],
               one=lambda i: _guard(statics.from_arrays, designs[i], row("statics", i)))
     if "joint_limits" in want:
-        _many(res, "joint_limits", designs,
-              functools.partial(JL.from_angles_many, fidelity=draft, t0=t1), arrays["joint_theta"], arrays["joint_ok"],
-              one=lambda i: _guard(JL.from_angles, designs[i], arrays["joint_theta"][i], arrays["joint_ok"][i],
-                               fidelity=draft, t0=t1))
+        by_ranges = functools.partial(JL.from_ranges_many, n_points=JL.grid_size(), fidelity=draft, t0=t1)
+        _many(res, "joint_limits", designs, by_ranges, arrays["joint"],
+              one=lambda i: _guard(lambda: by_ranges([designs[i]], jax.tree.map(lambda v: v[i:i + 1], arrays["joint"]))[0]))
     if "structural_stiffness" in want:
         ok = _guard(structure.ok_many, arrays["frame"])
+        ok = [False] * n if isinstance(ok, Exception) else ok.tolist()
         options = fm.FrameOptions()
-        for i, d in enumerate(designs):  # a row not ok (or a failed pass): the per-design step
-            res[i]["structural_stiffness"] = (
-                structure.from_ok_arrays(row("frame", i), p=np.zeros(3), load_height=fm.LOAD_HEIGHT, options=options)
-                if not isinstance(ok, Exception) and ok[i] else _guard(_structure, d, row("frame", i)))
+        for i, (d, frame_row) in enumerate(zip(designs, _rows(arrays["frame"]))):
+            res[i]["structural_stiffness"] = (  # a row not ok (or a failed pass): the per-design step
+                structure.from_ok_arrays(frame_row, p=np.zeros(3), load_height=fm.LOAD_HEIGHT, options=options)
+                if ok[i] else _guard(_structure, d, frame_row))
     if "workspace" in want or "free_workspace" in want:
         ws_rows = WS.result_rows(arrays["workspace"])
         for i, vals in enumerate(ws_rows):
@@ -569,7 +568,7 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
             res[i]["free_workspace"] = _guard(FW.finish, designs[i], ws_rows[i], None, fidelity=draft, t0=t1)
     if "free_workspace" in want:
         t3 = time.perf_counter()
-        _free_workspace(designs, check_specs, arrays, check, res, t3)
+        _free_workspace(designs, check_specs, ws_rows, check, res, t3)
         tim["free_workspace"] = (time.perf_counter() - t3) / n
     if "workspace" not in want:
         for r in res:
@@ -579,6 +578,12 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
         _stability(designs, arrays, res)
         tim["stability"] = (time.perf_counter() - t4) / n
     return [(r, {k: tim[k] for k in r}) for r in res]
+
+
+def _rows(group: dict) -> list[dict]:
+    """Per-design rows of a group of the core's stacked arrays (leading axis: the designs): the values
+    ``v[i]`` of each array (row views, numpy scalars), split by one ``list`` per array."""
+    return [dict(zip(group, vals)) for vals in zip(*(list(v) for v in group.values()))]
 
 
 def _many(res: list[dict], name: str, designs: list[PrrrDesign], fn, *arrays, one) -> None:
@@ -689,15 +694,26 @@ def _interference(designs, specs, wps, check, res, t0) -> None:
         res[i]["interference"] = IF.from_fractions(removed, overlap, t0)
 
 
-def _free_workspace(designs, specs, arrays, check, res, t0) -> None:
+def _blocked_tabled(design: PrrrDesign, spec: Any) -> str | None:
+    """``assembly.check(design, with_parts=True)`` of a design with array part tables (:class:`_Rows`):
+    its parts are laid out (``cad_arrays`` tables only designs that pass ``cad.layout``'s rules clearly),
+    so its chain closure alone (cached), without the CAD layout (≈ 0.16 ms a design not seen before);
+    None for the others (the evaluator asks ``assembly.check`` itself)."""
+    return assembly.closure(design) if isinstance(spec, _Rows) else None
+
+
+def _free_workspace(designs, specs, ws_rows, check, res, t0) -> None:
+    """``free_workspace`` of every design that has part tables (or their exception); ``ws_rows``: the
+    workspace core's rows as Python floats (``WS.result_rows``: what ``FW.finish`` reads of the core)."""
     todo, r_max = [], []
     for i, d in enumerate(designs):
         if isinstance(specs[i], _Blocked):
             continue
-        core = {k: v[i] for k, v in arrays["workspace"].items()}
+        core = ws_rows[i]
         rm = FW.reach_limit(d, core)
         if bool(core["empty"]) or rm <= 0.0:
-            res[i]["free_workspace"] = _guard(FW.finish, d, core, None, fidelity=Fidelity.DRAFT, t0=t0)
+            res[i]["free_workspace"] = _guard(FW.finish, d, core, None, fidelity=Fidelity.DRAFT, t0=t0,
+                                              blocked=_blocked_tabled(d, specs[i]))
         elif isinstance(specs[i], HapticoptError):
             res[i]["free_workspace"] = _guard(FW.finish, d, core, specs[i], fidelity=Fidelity.DRAFT, t0=t0)
         elif isinstance(specs[i], Exception):
@@ -719,7 +735,6 @@ def _free_workspace(designs, specs, arrays, check, res, t0) -> None:
     r_free, n_chk, n_hit = FW.free_radius_many(collides, np.asarray(r_max), n_phi=_FREE.n_phi, n_r=_FREE.n_r,
                                                n_bisect=_FREE.n_bisect)
     for k, i in enumerate(todo):
-        core = {kk: v[i] for kk, v in arrays["workspace"].items()}
-        res[i]["free_workspace"] = _guard(FW.finish, designs[i], core,
+        res[i]["free_workspace"] = _guard(FW.finish, designs[i], ws_rows[i],
                                           (float(r_free[k]), int(n_chk[k]), int(n_hit[k])),
-                                          fidelity=Fidelity.DRAFT, t0=t0)
+                                          fidelity=Fidelity.DRAFT, t0=t0, blocked=_blocked_tabled(designs[i], specs[i]))

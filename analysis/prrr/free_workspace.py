@@ -257,9 +257,11 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
 
 def finish(design: PrrrDesign, core: dict, found: tuple[float, int, int] | Exception | None, *, fidelity: Fidelity,
            t0: float, required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
-           required_height: float = DEFAULT_REQUIRED_HEIGHT) -> FreeWorkspace:
+           required_height: float = DEFAULT_REQUIRED_HEIGHT, blocked: str | None = None) -> FreeWorkspace:
     """The result from the reach core and ``found`` = (R_free, poses, colliding), the CAD's error, or
-    None when there is no workspace to check: the one place of the verdict (single and batched)."""
+    None when there is no workspace to check: the one place of the verdict (single and batched).
+    ``blocked``: ``assembly.check(design, with_parts=True)`` where the caller knows it (the batch, for
+    designs whose part tables it built: their parts are laid out), None to ask it here."""
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
     g = design.geometry
@@ -283,7 +285,8 @@ def finish(design: PrrrDesign, core: dict, found: tuple[float, int, int] | Excep
         return FreeWorkspace(**{**out.__dict__, "free_radius": nan, "cylinder_diameter": nan,
                                 "cylinder_height": nan, "height_at_required": nan})
 
-    blocked = assembly.check(design, with_parts=True)
+    if blocked is None:
+        blocked = assembly.check(design, with_parts=True)
     if blocked:
         return unusable(Status.NOT_ASSEMBLABLE, blocked)
     if found is None:

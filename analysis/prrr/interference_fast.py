@@ -465,6 +465,17 @@ def _use_kernel(n: int, compiled: bool | None) -> bool:
     return bool(compiled)
 
 
+@functools.lru_cache(maxsize=32)
+def _part_segments(prim_part: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The primitives grouped by part (``prim_part``: int64 bytes): their order (stable; None where they
+    are in part order already, as :func:`prepare` lists them), the first position of each part's group
+    in it, and the parts that have a group (for ``ufunc.reduceat``)."""
+    pp = np.frombuffer(prim_part, dtype=np.int64)
+    order = np.argsort(pp, kind="stable")
+    parts, starts = np.unique(pp[order], return_index=True)
+    return (None if np.array_equal(order, np.arange(len(pp))) else order), starts, parts
+
+
 def _part_boxes(batch: PrimitiveBatch) -> tuple[np.ndarray, ...]:
     """Every part's box in its part frame (centre, half widths: (m, parts, 3) [m]) from its primitives'
     exact extents, and the tested part pairs' parts and primitive-pair blocks (:func:`_part_pair_csr`)."""
@@ -474,11 +485,11 @@ def _part_boxes(batch: PrimitiveBatch) -> tuple[np.ndarray, ...]:
     n_parts = len(batch.part_names)
     plo = np.full((m, n_parts, 3), np.inf)
     phi = np.full((m, n_parts, 3), -np.inf)
-    for j in range(n_parts):
-        sel = batch.prim_part == j
-        if sel.any():
-            plo[:, j] = np.min(batch.o[:, sel] - loc_ext[:, sel], axis=1)
-            phi[:, j] = np.max(batch.o[:, sel] + loc_ext[:, sel], axis=1)
+    order, starts, parts = _part_segments(np.asarray(batch.prim_part, dtype=np.int64).tobytes())
+    if len(starts):  # each part's primitives' smallest and largest extent (min and max: exact, in any order)
+        o, ext = (batch.o, loc_ext) if order is None else (batch.o[:, order], loc_ext[:, order])
+        plo[:, parts] = np.minimum.reduceat(o - ext, starts, axis=1)
+        phi[:, parts] = np.maximum.reduceat(o + ext, starts, axis=1)
     empty = ~np.isfinite(plo)  # a part without SOLID primitives is in no tested pair (_pair_tables)
     plo[empty], phi[empty] = 0.0, 0.0
     pc_all, ph_all = 0.5 * (plo + phi), 0.5 * (phi - plo)  # (m, parts, 3)

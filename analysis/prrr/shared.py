@@ -4,7 +4,7 @@
 workspace and interference evaluators each need the CAD part tables (``cad.part_specs``) and the
 envelope of the fixed parts and carriages (``workspace.base_envelope``), the interference and free
 workspace evaluators the primitive tables of the collision check (``interference_fast.prepare``), and
-the device size evaluator the part tables again; the statics and stability evaluators the statics; the free workspace's passes and the interference
+the device size evaluator the part tables again and their layout (``cad.layout``, for the height); the statics and stability evaluators the statics; the free workspace's passes and the interference
 samples are checked by one point checker (``interference_fast.point_checker``: the design's stacked
 tables and joint tables once); the workspace and free workspace evaluators each
 compute the reach core (``workspace.workspace_core``), the latter reading only its entries that do
@@ -57,9 +57,15 @@ class DesignSteps:
 
         return self._step(design, "statics", lambda: statics.evaluate(design))
 
+    def layout(self, design: PrrrDesign) -> Any:
+        """:func:`hapticopt.design.prrr.cad.layout` of ``design`` (raises as it does): the part tables'
+        and the device height's."""
+        return self._step(design, "layout", lambda: cad_prrr.layout(design))
+
     def part_specs(self, design: PrrrDesign) -> dict:
-        """:func:`hapticopt.design.prrr.cad.part_specs` of ``design`` (raises as it does)."""
-        return self._step(design, "part_specs", lambda: cad_prrr.part_specs(design))
+        """:func:`hapticopt.design.prrr.cad.part_specs` of ``design`` from the shared :meth:`layout`
+        (raises as it does)."""
+        return self._step(design, "part_specs", lambda: cad_prrr.part_specs(design, lay=self.layout(design)))
 
     def envelope(self, design: PrrrDesign) -> float:
         """:func:`hapticopt.analysis.prrr.workspace.base_envelope` of ``design`` [m], from the shared
@@ -69,8 +75,8 @@ class DesignSteps:
         def envelope() -> float:
             try:
                 specs = self.part_specs(design)
-            except HapticoptError:
-                specs = None  # base_envelope's own fallback (the part tables are tried again there)
+            except HapticoptError:  # base_envelope's fallback (it would try the part tables again)
+                return workspace.fallback_envelope(design)
             return workspace.base_envelope(design, specs=specs)
 
         return self._step(design, "envelope", envelope)

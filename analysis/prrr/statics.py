@@ -122,8 +122,8 @@ def from_arrays_many(designs: list[PrrrDesign], out: dict) -> list[PrrrStatics]:
     finite = np.ones(len(designs), dtype=bool)
     for v in out.values():
         finite &= np.all(np.isfinite(v.reshape(len(designs), -1)), axis=1)
-    return [_result(d, {k: v[i] for k, v in out.items()}, float(r[i]), bool(finite[i]))
-            for i, d in enumerate(designs)]
+    rows = (dict(zip(out, vals)) for vals in zip(*(list(v) for v in out.values())))  # out[k][i] per design
+    return [_result(d, row, rc, ok) for d, row, rc, ok in zip(designs, rows, r.tolist(), finite.tolist())]
 
 
 def _result(design: PrrrDesign, out: dict, rcond: float, finite: bool) -> PrrrStatics:

@@ -76,11 +76,17 @@ def base_envelope(design: PrrrDesign, *, specs: dict | None = None) -> float:
     ``hapticopt.design.prrr.cad`` (base plate, rails, screws, motors, carriages with their SEA
     housings: :func:`hapticopt.design.prrr.cad.envelope_radius`). Where the CAD cannot lay the
     parts out, the base plate and the rail circle r_p + rail_width/2 (a lower bound)."""
-    g, s = design.geometry, design.structure
     try:
         return cad_prrr.envelope_radius(design, specs=specs)
     except HapticoptError:
-        return max(s.base_radius, g.r_p + s.rail_width / 2.0)
+        return fallback_envelope(design)
+
+
+def fallback_envelope(design: PrrrDesign) -> float:
+    """:func:`base_envelope` where the CAD cannot lay the parts out [m]: the base plate and the rail
+    circle r_p + rail_width/2 (a lower bound)."""
+    g, s = design.geometry, design.structure
+    return max(s.base_radius, g.r_p + s.rail_width / 2.0)
 
 
 #: Elbow branch used for the links' swept extent: the CAD's assembly mode
@@ -206,6 +212,9 @@ def _edge_distance(wp: WorkspaceParams, rho, xp):
     th = xp.linspace(0.0, 2.0 * math.pi, _N_ELLIPSE, endpoint=False)
     th0 = th[xp.argmin(f(th))]
     step_max = 2.0 * math.pi / _N_ELLIPSE
+    if xp is np and all(np.ndim(v) == 0 for v in (cu, ax, bx, d2, th0)):
+        t = _newton_scalar(cu, ax, bx, d2, th0, step_max)
+        return xp.sqrt(xp.minimum(f(t), f(th0)))
     t = th0
     for _ in range(_NEWTON):  # fixed count: unrolled under jit
         c, sn = xp.cos(t), xp.sin(t)
@@ -219,6 +228,24 @@ def _edge_distance(wp: WorkspaceParams, rho, xp):
         step = xp.where(ok, g1 / xp.where(ok, g2, 1.0), 0.0)
         t = t - xp.clip(step, -step_max, step_max)
     return xp.sqrt(xp.minimum(f(t), f(th0)))
+
+
+def _newton_scalar(cu, ax, bx, d2, t, step_max):
+    """:func:`_edge_distance`'s Newton steps for one design with numpy (scalars): the same operations on
+    the same numbers as Python floats (IEEE double arithmetic either way; the cosine and sine still
+    numpy's), the selections (``where``, ``clip``, ``abs``) as Python conditionals, which pick the same
+    numbers (on numpy scalars each ``where`` or ``clip`` call cost ≈ 1–4 µs, most of the one-design
+    workspace core)."""
+    cu, ax, bx, d2, t = (float(v) for v in (cu, ax, bx, d2, t))
+    for _ in range(_NEWTON):
+        c, sn = float(np.cos(t)), float(np.sin(t))
+        x, y = cu + ax * c, d2 + bx * sn
+        g1 = 2.0 * (-x * ax * sn + y * bx * c)
+        g2 = 2.0 * ((ax * sn) ** 2 - x * ax * c + (bx * c) ** 2 - y * bx * sn)
+        g2_scale = 2.0 * ((ax * sn) ** 2 + abs(x * ax * c) + (bx * c) ** 2 + abs(y * bx * sn))
+        step = g1 / g2 if g2 > CURVATURE_REL * g2_scale else 0.0
+        t = t - min(max(step, -step_max), step_max)  # clip (NaN stays NaN, as numpy's)
+    return np.float64(t)
 
 
 def _ray_intervals(wp: WorkspaceParams, phi, xp):
@@ -350,6 +377,12 @@ def sample_points(wp: WorkspaceParams, *, n_phi: int, n_r: int, n_z: int) -> np.
     """Points of the reach ∩ stroke workspace [m], (m, 3): ``n_r`` radii on each of ``n_phi``
     rays per third of the circle (rotated copies fill the other two thirds), ``n_z`` heights
     spanning each column's z interval (inset by 1 % so every point is strictly inside)."""
+    return _sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)[0]
+
+
+def _sample_points(wp: WorkspaceParams, *, n_phi: int, n_r: int, n_z: int) -> tuple:
+    """:func:`sample_points` and its rays' outer intervals ``lo``, ``hi`` (n_phi,) [m] (for
+    :func:`workspace_sample_weights`, which weighs the points by them)."""
     wpn = WorkspaceParams(*(np.asarray(v, dtype=float) for v in wp))
     phi = (np.arange(n_phi) + 0.5) * (_THIRD / n_phi)
     _, _, _, lo, hi, holes = _ray_intervals(wpn, phi, np)
@@ -369,7 +402,7 @@ def sample_points(wp: WorkspaceParams, *, n_phi: int, n_r: int, n_z: int) -> np.
     z = z0[ok][:, None] + tz[None, :] * (z1 - z0)[ok][:, None]
     xy = np.stack([x[ok], y[ok]], axis=-1)
     xyz = np.concatenate([np.repeat(xy, n_z, axis=0), z.reshape(-1, 1)], axis=1)
-    return xyz
+    return xyz, lo, hi
 
 
 @jax.jit
@@ -409,22 +442,64 @@ def _closure_params(design: PrrrDesign) -> WorkspaceParams:
     return WorkspaceParams(*(np.float64(v) for v in vals))
 
 
-#: cached for a whole chunk of the batched draft evaluator (1024 designs, each asked ~6 times:
-#: registry, statics, stability, structure and the part evaluators); 256 thrashed at batch 1024
-@functools.lru_cache(maxsize=4096)
+#: closure verdicts kept (design → message; oldest dropped first): a whole chunk of the batched draft
+#: evaluator (1024 designs, each asked ~6 times: registry, statics, stability, structure and the part
+#: evaluators); 256 thrashed at batch 1024
+CLOSURE_CACHE = 4096
+#: uncached designs from which :func:`closure_many` takes the jitted pass (fewer: numpy one by one, no compile)
+CLOSURE_BATCH_AFTER = 16
+_closures: dict[PrrrDesign, str] = {}
+
+
 def closure(design: PrrrDesign) -> str:
-    """'' when some pose closes every leg within its reach and slider stroke, else why not."""
-    if not bool(workspace_core(_closure_params(design), n_phi=CLOSURE_RAYS, n_r=2)["empty"]):
-        return ""
-    return _closure_message(design)
+    """'' when some pose closes every leg within its reach and slider stroke, else why not (cached:
+    :data:`CLOSURE_CACHE`)."""
+    found = _closures.get(design)
+    if found is None:
+        found = _remember(design, _closure_message(design) if _closure_empty(design) else "")
+    return found
+
+
+def _closure_empty(design: PrrrDesign) -> bool:
+    """Whether no pose closes the chain: the numpy workspace core at :data:`CLOSURE_RAYS` rays."""
+    return bool(workspace_core(_closure_params(design), n_phi=CLOSURE_RAYS, n_r=2)["empty"])
+
+
+def _remember(design: PrrrDesign, message: str) -> str:
+    if len(_closures) >= CLOSURE_CACHE:
+        _closures.pop(next(iter(_closures)), None)
+    _closures[design] = message
+    return message
+
+
+def closure_many(designs: list[PrrrDesign]) -> list[str]:
+    """:func:`closure` of every design; from :data:`CLOSURE_BATCH_AFTER` uncached designs on, those in
+    one jitted pass (:func:`closure_batch`), remembered for the later :func:`closure` calls. Its
+    emptiness is the numpy core's by the same rule: the threshold ``EMPTY_VOLUME_REL`` lies four decades
+    above float64 rounding (tested equal to :func:`closure` on designs that close, do not close, and
+    have almost no workspace). A single closure in numpy took ≈ 0.4–0.6 ms, more than the rest of a
+    batched draft evaluation of a design."""
+    known = [_closures.get(d) for d in designs]
+    todo = list(dict.fromkeys(d for d, m in zip(designs, known) if m is None))
+    if len(todo) >= CLOSURE_BATCH_AFTER:
+        for k in range(0, len(todo), CLOSURE_CACHE // 2):  # a pass never drops its own designs
+            part = todo[k:k + CLOSURE_CACHE // 2]
+            for d, message in zip(part, closure_batch(part)):
+                _remember(d, message)
+    return [closure(d) if m is None else m for d, m in zip(designs, known)]
 
 
 def closure_batch(designs: list[PrrrDesign]) -> list[str]:
-    """:func:`closure` of many designs in one vmapped, jitted call (compiled once per batch size)."""
+    """:func:`closure` of many designs in one vmapped, jitted call (the batch padded to the next power
+    of two: one compile per padded size), uncached."""
     if not designs:
         return []
-    empty = np.asarray(_batched(CLOSURE_RAYS, 2)(stack([_closure_params(d) for d in designs]))["empty"])
-    return [_closure_message(d) if e else "" for d, e in zip(designs, empty)]
+    n = len(designs)
+    size = 1 << (n - 1).bit_length()
+    cols = [np.array(col, dtype=np.float64) for col in zip(*(_closure_params(d) for d in designs))]
+    padded = WorkspaceParams(*(np.concatenate([c, np.repeat(c[-1:], size - n)]) for c in cols))
+    empty = np.asarray(_batched(CLOSURE_RAYS, 2)(padded)["empty"])[:n]
+    return [_closure_message(d) if e else "" for d, e in zip(designs, empty.tolist())]
 
 
 def _closure_message(design: PrrrDesign) -> str:
@@ -614,12 +689,9 @@ def workspace_sample_weights(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: i
     [m³] (polar cells: r·Δr·Δφ·Δz); ``specs``: the design's part tables when the caller has them
     (:func:`workspace_params`); ``wp``: its default :func:`workspace_params` when the caller has them."""
     wp = workspace_params(design, specs=specs) if wp is None else wp
-    pts = sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)
+    pts, lo, hi = _sample_points(wp, n_phi=n_phi, n_r=n_r, n_z=n_z)  # the rays' intervals once, for both
     if len(pts) == 0:
         return pts, np.zeros(0)
-    wpn = WorkspaceParams(*(np.asarray(v, dtype=float) for v in wp))
-    phi = (np.arange(n_phi) + 0.5) * (_THIRD / n_phi)
-    _, _, _, lo, hi, holes = _ray_intervals(wpn, phi, np)
     r = np.hypot(pts[:, 0], pts[:, 1])
     ang = np.mod(np.arctan2(pts[:, 1], pts[:, 0]), _THIRD)
     k = np.clip((ang / (_THIRD / n_phi)).astype(int), 0, n_phi - 1)

@@ -407,35 +407,62 @@ def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = N
     carriages only turn about z and slide along it, so their xy extent is the same at every pose.
     Exact for boxes (corners) and vertical cylinders."""
     specs = part_specs(design) if specs is None else specs
-    frames = part_frames_batch(design, np.zeros((1, 3)), np.zeros((1, 3, 2)), np.zeros((1, 3)))
+    frames = _sliding_frames(design)
     out = 0.0
+    rows: dict[Kind, list] = {Kind.BOX: [], Kind.CYLINDER: []}  # (Rf, of, R, o, dims) of each primitive
     for name, spec in specs.items():
         if spec.body != "base" and not spec.body.startswith("carriage_"):
             continue
-        Rf, of = frames[name][0][0], frames[name][1][0]
+        Rf, of = frames[name]
         for p in spec.primitives:
             if p.role != Role.SOLID:
                 continue
-            R, o = Rf @ p.R, Rf @ p.o + of
-            a, b, c = p.dims
-            if p.kind == Kind.BOX:
-                corners = _HALF_CORNERS * (a, b, c)
-                pts = o + corners @ R.T
-                out = max(out, float(np.max(np.hypot(pts[:, 0], pts[:, 1]))))
-            elif p.kind == Kind.CYLINDER:
-                ax = R[:, 2]
-                ends = o + np.outer((-b / 2, b / 2), ax)
-                # rim of a tilted cylinder: bounded by centre radius + a (+ half its axial projection)
-                out = max(out, float(np.max(np.hypot(ends[:, 0], ends[:, 1]))) + a)
+            if p.kind in rows:
+                rows[p.kind].append((Rf, of, p.R, p.o, p.dims))
             else:
-                out = max(out, math.hypot(o[0], o[1]) + a)
+                o = Rf @ p.o + of
+                out = max(out, math.hypot(o[0], o[1]) + p.dims[0])
+    # every box and every cylinder at once: the products of the per-primitive matrices (a stacked
+    # matmul makes each one's product as the 2-D one does), the extents' maximum over all (exact, in
+    # any order; a NaN extent is skipped, as the loop's max(out, ·) skipped it)
+    found = [out]
+    for kind, prims in rows.items():
+        if not prims:
+            continue
+        Rf, of, Rp, op, dims = (np.array(col, dtype=float) for col in zip(*prims))
+        R = Rf @ Rp
+        o = (Rf @ op[..., None])[..., 0] + of
+        a, b, c = dims[:, 0], dims[:, 1], dims[:, 2]
+        if kind == Kind.BOX:
+            pts = o[:, None, :] + (_HALF_CORNERS * dims[:, None, :]) @ np.swapaxes(R, -1, -2)
+            found.append(np.max(np.hypot(pts[..., 0], pts[..., 1]), axis=1))
+        else:
+            ends = o[:, None, :] + np.stack([-b / 2, b / 2], axis=1)[:, :, None] * R[:, None, :, 2]
+            # rim of a tilted cylinder: bounded by centre radius + a (+ half its axial projection)
+            found.append(np.max(np.hypot(ends[..., 0], ends[..., 1]), axis=1) + a)
+    return float(np.fmax.reduce(np.concatenate([np.atleast_1d(v) for v in found])))
+
+
+def _sliding_frames(design: PrrrDesign) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """World rotation (3, 3) and origin (3,) [m] of the parts that do not turn (the base's: base, rails,
+    screws, motors; the carriages and their housings) with every slider at 0: :func:`part_frames_arrays`'
+    values for those parts at one pose (the same operations on the same numbers), without the links'."""
+    eye, zero = np.eye(3), np.zeros(3)
+    out = {"base": (eye, zero)}
+    theta_1p = np.reshape(np.asarray(design.geometry.theta_1p, dtype=float), (-1, 1))
+    for i, gamma in zip(LEGS, GAMMAS):
+        a = gamma + theta_1p  # rail_direction(design, gamma)
+        ca, sa = float(np.cos(a)[0, 0]), float(np.sin(a)[0, 0])
+        carriage = (np.array([[ca, -sa, 0.0], [sa, ca, 0.0], [0.0, 0.0, 1.0]]), zero)  # columns u', t', e_z
+        out.update({f"rail_{i}": (eye, zero), f"screw_{i}": (eye, zero), f"motor_{i}": (eye, zero),
+                    f"carriage_{i}": carriage, f"housing_{i}": carriage})
     return out
 
 
-def device_height(design: PrrrDesign) -> float:
+def device_height(design: PrrrDesign, *, lay: PrrrLayout | None = None) -> float:
     """Height of the device [m]: base plate bottom to the rail tops or the motor tops, whichever is
-    higher (seed 002 Table 1: 231 mm)."""
-    L = layout(design)
+    higher (seed 002 Table 1: 231 mm); ``lay``: :func:`layout` of ``design`` when the caller has it."""
+    L = layout(design) if lay is None else lay
     top = max(L.z_rail_top, L.z_base_top + design.sea_module.motor_length)
     return top - L.z_base_top + design.structure.base_thickness
 
@@ -539,9 +566,10 @@ def _base(design: PrrrDesign, L: PrrrLayout) -> list:
     return [cylinder((0.0, 0.0, L.z_base_top - tb / 2), EZ, design.structure.base_radius, tb)]
 
 
-def part_specs(design: PrrrDesign) -> dict[str, PartSpec]:
-    """Every part in its own frame (see :func:`part_frames`), SI."""
-    L = layout(design)
+def part_specs(design: PrrrDesign, *, lay: PrrrLayout | None = None) -> dict[str, PartSpec]:
+    """Every part in its own frame (see :func:`part_frames`), SI; ``lay``: :func:`layout` of ``design``
+    when the caller has it."""
+    L = layout(design) if lay is None else lay
     rho = design.structure.density
     out: dict[str, PartSpec] = {"base": PartSpec(name="base", body="base", density=rho,
                                                  primitives=tuple(_base(design, L)))}

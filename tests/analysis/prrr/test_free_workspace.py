@@ -133,3 +133,17 @@ def test_paper_is_the_size_seed_002_built(paper):
     # SEA modules: 3 × (motor 0.40 + screw 0.12 + housing 0.20 kg), the preset's sea_module values
     assert s.sea_mass == pytest.approx(3 * (0.40 + 0.12 + 0.20), rel=1e-9)
     assert W.evaluate(paper, fidelity="draft").footprint_diameter <= 0.270
+
+
+def test_finish_takes_the_callers_assembly_verdict(paper):
+    """``blocked`` given (the batch's, for designs whose part tables it built) gives the result
+    ``assembly.check`` would: '' the same result as asking it, a message the not-assemblable one."""
+    core = W.workspace_core(W.workspace_params(paper), n_phi=48, n_r=2)
+    found = (0.08, 100, 0)
+    asked = FW.finish(paper, core, found, fidelity="draft", t0=0.0)
+    given_ok = FW.finish(paper, core, found, fidelity="draft", t0=0.0, blocked="")
+    assert asked.status is given_ok.status is Status.OK
+    assert {**asked.__dict__, "wall_s": 0.0} == {**given_ok.__dict__, "wall_s": 0.0}
+    out = FW.finish(paper, core, found, fidelity="draft", t0=0.0, blocked="the parts cannot be laid out: test")
+    assert out.status is Status.NOT_ASSEMBLABLE and out.message == "the parts cannot be laid out: test"
+    assert math.isnan(out.free_radius)

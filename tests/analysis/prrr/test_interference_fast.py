@@ -394,3 +394,51 @@ def test_frame_rules_cover_the_cads_parts_and_nothing_else(paper):
     assert int(leg[list(specs).index("carriage_3")]) == 2
     assert F._frame_rules(("base", "gizmo_1")) is None and F._frame_rules(("rail_4",)) is None
     assert F._frame_rules(("rail",)) is None and F._frame_rules(("platform_1",)) is None
+
+
+def test_part_boxes_are_each_parts_primitive_extents_bitwise(problem_sample):
+    """``_part_boxes`` (one ``ufunc.reduceat`` over the primitives grouped by part) equals the reference
+    it replaced, a loop over the parts taking the min and max of each part's primitives' extents (min and
+    max are exact, so the two agree bit for bit), on one design and on a stack of a layout's designs,
+    with the primitives in part order and shuffled; a part without SOLID primitives gets the zero box."""
+
+    def reference(batch):
+        m, P = len(batch.R), len(batch.kind)
+        ext = F._world_extent(np.tile(batch.kind, m), batch.R.reshape(-1, 3, 3),
+                              batch.half.reshape(-1, 3)).reshape(m, P, 3)
+        lo = np.full((m, len(batch.part_names), 3), np.inf)
+        hi = np.full((m, len(batch.part_names), 3), -np.inf)
+        for j in range(len(batch.part_names)):
+            sel = batch.prim_part == j
+            if sel.any():
+                lo[:, j] = np.min(batch.o[:, sel] - ext[:, sel], axis=1)
+                hi[:, j] = np.max(batch.o[:, sel] + ext[:, sel], axis=1)
+        empty = ~np.isfinite(lo)
+        lo[empty], hi[empty] = 0.0, 0.0
+        return 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+    models = []
+    for d in problem_sample(60, seed=47):
+        try:
+            models.append(F.prepare(d))
+        except InvalidDesign:
+            continue
+    groups: dict = {}
+    for m in models:
+        groups.setdefault(F.layout_key(m), []).append(m)
+    batches = [F.stack_models(g) for g in groups.values()] + [F.stack_models([m]) for m in models[:3]]
+    # a part with no SOLID primitive: the last part's primitives moved to the one before it
+    m0 = models[0]
+    last = len(m0.part_names) - 1
+    moved = F.stack_models([dataclasses.replace(m0, prim_part=np.where(m0.prim_part == last, last - 1,
+                                                                         m0.prim_part))])
+    # the primitives out of part order (the reduceat then runs on them sorted by part)
+    perm = np.random.default_rng(5).permutation(len(m0.kind))
+    shuffled = F.stack_models([dataclasses.replace(m0, prim_part=m0.prim_part[perm], kind=m0.kind[perm], R=m0.R[perm],
+                                                   o=m0.o[perm], half=m0.half[perm])])
+    assert len(models) >= 5
+    for batch in batches + [moved, shuffled]:
+        got, want = F._part_boxes(batch)[:2], reference(batch)
+        for g, w in zip(got, want):
+            assert g.shape == w.shape and np.array_equal(_bits(g), _bits(w))
+    assert np.all(F._part_boxes(moved)[1][:, last] == 0.0)

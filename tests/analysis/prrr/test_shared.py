@@ -60,7 +60,7 @@ def test_evaluate_all_equals_each_evaluator_alone(fidelity):
 def test_each_step_runs_once_per_call(monkeypatch):
     calls = []
     real = shared_mod.cad_prrr.part_specs
-    monkeypatch.setattr(shared_mod.cad_prrr, "part_specs", lambda d: calls.append(d) or real(d))
+    monkeypatch.setattr(shared_mod.cad_prrr, "part_specs", lambda d, **kw: calls.append(d) or real(d, **kw))
     registry.evaluate_all(BASE, fidelity=Fidelity.DRAFT)
     assert calls == [BASE]  # workspace, interference, free workspace and device size: one part table
     calls.clear()
@@ -68,10 +68,39 @@ def test_each_step_runs_once_per_call(monkeypatch):
     assert calls == [BASE]  # nothing outlives a call
 
 
+def test_the_layout_runs_once_per_call(monkeypatch):
+    """The part tables and the device height take the call's one layout (``assembly.parts``, which also
+    lays the parts out, caches its verdict per design: warmed first)."""
+    registry.evaluate_all(BASE, fidelity=Fidelity.DRAFT)
+    calls = []
+    real = shared_mod.cad_prrr.layout
+    monkeypatch.setattr(shared_mod.cad_prrr, "layout", lambda d: calls.append(d) or real(d))
+    ev = registry.evaluate_all(BASE, fidelity=Fidelity.DRAFT)
+    assert calls == [BASE] and ev.statuses["device_size"].value == "ok"
+
+
+def test_a_refused_layout_skips_the_envelopes_second_try(monkeypatch):
+    """Where the CAD cannot lay the parts out, the shared envelope is ``workspace.fallback_envelope``
+    without asking for the part tables again (``base_envelope`` would, and fall back to the same)."""
+    from hapticopt.analysis.prrr import workspace
+
+    refused = io.apply_overrides(BASE, ["geometry.theta_1p_deg=70"])  # the parts cannot be laid out
+    calls = []
+    real = shared_mod.cad_prrr.part_specs
+    monkeypatch.setattr(shared_mod.cad_prrr, "part_specs", lambda d, **kw: calls.append(d) or real(d, **kw))
+    steps = shared_mod.DesignSteps(refused)
+    got = steps.envelope(refused)
+    assert calls == []  # the shared layout refused: no part tables asked for
+    assert got == workspace.base_envelope(refused) == workspace.fallback_envelope(refused)
+    assert calls == [refused]  # base_envelope's own try
+    with pytest.raises(HapticoptError):
+        steps.part_specs(refused)
+
+
 def test_a_refused_step_raises_the_same_error_each_time(monkeypatch):
     steps = shared_mod.DesignSteps(BASE)
     refused = HapticoptError("the CAD refuses this layout")
-    monkeypatch.setattr(shared_mod.cad_prrr, "part_specs", lambda d: (_ for _ in ()).throw(refused))
+    monkeypatch.setattr(shared_mod.cad_prrr, "part_specs", lambda d, **kw: (_ for _ in ()).throw(refused))
     for _ in range(2):
         with pytest.raises(HapticoptError) as caught:
             steps.part_specs(BASE)

@@ -343,3 +343,78 @@ def test_link_extent_equals_the_joint_angle_route(paper: PrrrDesign, fidelity: F
         wp = W.workspace_params(design)
         got = float(W.workspace_core(wp, n_phi=smp.n_phi, n_r=smp.n_r, xp=np)["link_extent"])
         assert got == pytest.approx(_link_extent_by_angles(wp, smp.n_phi, smp.n_r), rel=1e-13, abs=0)
+
+
+def _closure_sample(problem_sample) -> list:
+    """Designs that close (the preset, most of the problem's sample), that do not (d2 = 300 mm: |ρ| ≥
+    300 mm > d3 + d4 everywhere; β = 1e-12 deg) and that have almost no workspace (stroke 0.1 mm)."""
+    base = io.load_preset("prrr-paper")
+    g = base.geometry
+    odd = [dataclasses.replace(base, geometry=dataclasses.replace(g, **kw))
+           for kw in ({"d2": 0.300}, {"stroke": 1e-4}, {"beta": math.radians(1e-12)}, {"beta": math.radians(89.999999)})]
+    return [base, *odd, *problem_sample(40, seed=2203)]
+
+
+def _numpy_closure(design) -> str:
+    """The reference: the numpy workspace core of one design, uncached (``closure``'s own rule)."""
+    return W._closure_message(design) if W._closure_empty(design) else ""
+
+
+def test_closure_batch_equals_the_numpy_closure(problem_sample):
+    designs = _closure_sample(problem_sample)
+    ref = [_numpy_closure(d) for d in designs]
+    assert W.closure_batch(designs) == ref
+    assert "" in ref and any(ref)  # designs that close and designs that do not
+
+
+def test_closure_many_remembers_the_batch_for_closure(problem_sample, monkeypatch):
+    designs = _closure_sample(problem_sample)
+    ref = [_numpy_closure(d) for d in designs]
+    monkeypatch.setattr(W, "_closures", {})
+    assert W.closure_many(designs + designs[:3]) == ref + ref[:3]  # a design twice: once in the pass
+
+    def numpy_again(design):
+        raise AssertionError("closure recomputed a design closure_many passed")
+
+    monkeypatch.setattr(W, "_closure_empty", numpy_again)
+    assert [W.closure(d) for d in designs] == ref
+
+
+def test_closure_many_of_a_few_designs_takes_the_numpy_path(monkeypatch):
+    base = io.load_preset("prrr-paper")
+    few = [dataclasses.replace(base, geometry=dataclasses.replace(base.geometry, d3=base.geometry.d3 * f))
+           for f in (0.9, 1.0, 1.1)]
+    monkeypatch.setattr(W, "_closures", {})
+    monkeypatch.setattr(W, "closure_batch", lambda designs: pytest.fail("a jitted pass for fewer than "
+                                                                         "CLOSURE_BATCH_AFTER designs"))
+    assert W.closure_many(few) == [_numpy_closure(d) for d in few] == ["", "", ""]
+
+
+def test_closure_cache_drops_the_oldest_design(monkeypatch):
+    base = io.load_preset("prrr-paper")
+    designs = [dataclasses.replace(base, geometry=dataclasses.replace(base.geometry, stroke=0.1 + 1e-3 * k))
+               for k in range(3)]
+    monkeypatch.setattr(W, "_closures", {})
+    monkeypatch.setattr(W, "CLOSURE_CACHE", 2)
+    for d in designs:
+        W.closure(d)
+    assert list(W._closures) == designs[1:]
+
+
+def test_scalar_newton_steps_equal_the_array_form_bitwise(problem_sample):
+    """One design's reach radius with numpy scalars (``_newton_scalar``: Python conditionals for
+    ``where``/``clip``/``abs``) equals the array form of ``_edge_distance`` (the same parameters as
+    one-element arrays, which take numpy's ``where`` and ``clip``) bit for bit, at the outer and inner
+    reach radii of draws within the problem's bounds, the preset and its closure parameters."""
+    designs = problem_sample(40, seed=35) + [io.load_preset("prrr-paper")]
+    n = 0
+    for d in designs:
+        for wp in (W.workspace_params(d, envelope=0.1), W._closure_params(d)):
+            one = W.WorkspaceParams(*(np.array([float(v)]) for v in wp))
+            for rho, rho1 in ((wp.rho_max, one.rho_max), (wp.rho_min, one.rho_min)):
+                got = W._edge_distance(wp, rho, np)
+                want = W._edge_distance(one, rho1, np)
+                assert np.ndim(got) == 0 and want.shape == (1,)
+                assert np.float64(got).tobytes() == want[0].tobytes()
+                n += 1
+    assert n == 4 * len(designs)

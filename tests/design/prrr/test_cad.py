@@ -194,3 +194,72 @@ def test_bracket_face_falls_back_and_refuses_with_one_line(paper):
     with pytest.raises(InvalidDesign, match="beta_deg = 5: no face of the carriage block") as err:
         cad_prrr.carriage_bracket(io.apply_overrides(paper, ["geometry.beta_deg=5"]))
     assert "\n" not in str(err.value) and "side face" in str(err.value) and "front face" in str(err.value)
+
+
+def test_sliding_frames_are_part_frames_at_sliders_zero_bitwise(paper):
+    """The envelope's frames of the parts that do not turn (``_sliding_frames``) are
+    :func:`cad.part_frames_batch`'s at sliders 0 bit for bit (the reference path they replace in
+    :func:`cad.envelope_radius`), for the paper and for a turned carriage (θ1p ≠ 0)."""
+    import dataclasses
+
+    turned = dataclasses.replace(paper, geometry=dataclasses.replace(paper.geometry, theta_1p=0.3))
+    for design in (paper, turned):
+        want = cad_prrr.part_frames_batch(design, np.zeros((1, 3)), np.zeros((1, 3, 2)), np.zeros((1, 3)))
+        got = cad_prrr._sliding_frames(design)
+        assert set(got) == {n for n in want if not n.startswith(("link", "platform"))}
+        for name, (R, o) in got.items():
+            assert R.tobytes() == np.ascontiguousarray(want[name][0][0]).tobytes(), name
+            assert o.tobytes() == np.ascontiguousarray(want[name][1][0]).tobytes(), name
+
+
+def test_envelope_radius_equals_the_per_primitive_loop_bitwise(paper):
+    """envelope_radius (every box and cylinder in stacked products) equals the per-primitive loop it
+    replaced, on the frames of :func:`cad.part_frames_batch` at sliders 0 (the reference path), bit for
+    bit: the paper, a turned carriage and ±10 % draws of its geometry (seeded)."""
+    import dataclasses
+
+    from hapticopt.design.errors import HapticoptError
+    from hapticopt.design.parts import Kind, Role
+
+    def reference(design, specs):
+        frames = cad_prrr.part_frames_batch(design, np.zeros((1, 3)), np.zeros((1, 3, 2)), np.zeros((1, 3)))
+        out = 0.0
+        for name, spec in specs.items():
+            if spec.body != "base" and not spec.body.startswith("carriage_"):
+                continue
+            Rf, of = frames[name][0][0], frames[name][1][0]
+            for p in spec.primitives:
+                if p.role != Role.SOLID:
+                    continue
+                R, o = Rf @ p.R, Rf @ p.o + of
+                a, b, c = p.dims
+                if p.kind == Kind.BOX:
+                    pts = o + (cad_prrr._HALF_CORNERS * (a, b, c)) @ R.T
+                    out = max(out, float(np.max(np.hypot(pts[:, 0], pts[:, 1]))))
+                elif p.kind == Kind.CYLINDER:
+                    ends = o + np.outer((-b / 2, b / 2), R[:, 2])
+                    out = max(out, float(np.max(np.hypot(ends[:, 0], ends[:, 1]))) + a)
+                else:
+                    out = max(out, math.hypot(o[0], o[1]) + a)
+        return out
+
+    rng = np.random.default_rng(11)
+    g = paper.geometry
+    designs = [paper, dataclasses.replace(paper, geometry=dataclasses.replace(g, theta_1p=0.3))]
+    for _ in range(40):
+        kw = {f: getattr(g, f) * rng.uniform(0.9, 1.1) for f in ("beta", "r_p", "d3", "d4", "stroke")}
+        try:
+            designs.append(dataclasses.replace(paper, geometry=dataclasses.replace(g, theta_1p=rng.uniform(-0.5, 0.5),
+                                                                                     **kw)))
+        except HapticoptError:
+            continue
+    n = 0
+    for design in designs:
+        try:
+            specs = cad_prrr.part_specs(design)
+        except HapticoptError:
+            continue
+        got = cad_prrr.envelope_radius(design, specs=specs)
+        assert type(got) is float and got.hex() == reference(design, specs).hex()
+        n += 1
+    assert n >= 10

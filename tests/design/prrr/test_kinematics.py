@@ -170,3 +170,31 @@ def test_vmap_over_designs_equals_one_at_a_time():
 
 def test_float64_is_on():
     assert kin.inverse_kinematics(kin.params_of(PrrrDesign()), jnp.zeros(3)).sliders.dtype == jnp.float64
+
+
+def test_numpy_leg_frames_reuse_read_only_constants_equal_to_fresh_ones():
+    """The numpy path's u, t, e_z (made once) equal a fresh :func:`_in_plane` bit for bit and cannot be
+    written; the leg frames built on them equal the jax path's to rounding."""
+    from hapticopt.design.prrr import kinematics as K
+
+    for got, fresh in zip(K._IN_PLANE_NP, K._in_plane(np)):
+        assert got.tobytes() == np.ascontiguousarray(fresh).tobytes() and not got.flags.writeable
+    for beta in (0.5, 1.1336):
+        for a, b in zip(K.leg_frames(beta, xp=np), K.leg_frames(beta)):
+            np.testing.assert_allclose(a, np.asarray(b), rtol=0, atol=1e-15)
+
+
+def test_numpy_ik_angles_are_the_branch_formulas_in_place():
+    """The numpy IK writes each branch's (θ1, θ2, θ3 = −(θ1 + θ2)) into one array: the two branches
+    share the elbow magnitude with opposite signs, θ3 is exactly −(θ1 + θ2), and the angles equal the
+    jax path's (a stack of the same formulas) to rounding, for a batch of points of shape (4, 5, 3)."""
+    from hapticopt.design import io
+    from hapticopt.design.prrr import kinematics as K
+
+    d = io.load_preset("prrr-paper")
+    pts = np.random.default_rng(2).uniform(-0.05, 0.05, (4, 5, 3))
+    th = K.inverse_kinematics(K.params_np(d), pts, xp=np).theta
+    assert th.shape == (4, 5, 2, 3, 3)
+    assert np.array_equal(th[..., 0, :, 1], -th[..., 1, :, 1])
+    assert np.array_equal(th[..., 2], -(th[..., 0] + th[..., 1]))
+    np.testing.assert_allclose(th, np.asarray(K.inverse_kinematics(K.params_of(d), pts).theta), rtol=0, atol=1e-12)
