@@ -441,7 +441,6 @@ def assemble_condense_kernel(G, Ks, P, patterns, cols, n, contrib, cond, gross):
     Kl, A, Lt, d, inv, x = np.empty((n, n)), np.empty((m, m)), np.empty((m, m)), np.empty(m), np.empty(m), np.empty(m)
     Y = np.empty((m, 6))
     T, M = cols.shape
-    E = P.shape[1]
     KG = np.empty((12, M))
     gr, gb, gv = np.empty(12 * M, dtype=np.int64), np.empty(12 * M, dtype=np.int64), np.empty(12 * M)
     width = np.empty(T, dtype=np.int64)  # each term's distinct columns (the padding repeats the first)
