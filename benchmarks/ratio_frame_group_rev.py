@@ -5,7 +5,9 @@ process (interleaved rounds, medians): ``python benchmarks/ratio_frame_group_rev
 Stages, each timed for both trees on the same designs: ``params`` (``frame_model.frame_params_many``:
 the stacking and the carriage brackets), ``terms`` (the jitted, vmapped ``frame_leg_terms`` at the home
 pose, as the draft core runs it; compiled before timing) and ``condense`` (``condense_terms_many`` with
-its numba kernel); ``total`` their sum. The older revision's ``frame_model`` and ``_frame_kernels`` are
+its numba kernel); ``total`` their sum. A tree with ``frame_model.condense_home_many`` (the frame group
+out of XLA) has no ``terms`` stage (≈ 0) and its ``condense`` is that function (the legs' points over the
+batch in numpy, then the numba kernel that builds, assembles and condenses the legs). The older revision's ``frame_model`` and ``_frame_kernels`` are
 loaded from git (``revisions.module_from``, the kernels from a temporary file so that numba caches
 them; its other imports resolve in this tree). Prints ms per design,
 the ratios old / new and the load average before and after."""
@@ -35,6 +37,8 @@ from hapticopt.analysis.prrr import frame_model as new  # noqa: E402
 
 def stages(fm, kernels, ds):
     opt = fm.FrameOptions()
+    if hasattr(fm, "condense_home_many"):  # no terms in XLA: the legs' points in numpy, the rest in numba
+        return (lambda: fm.frame_params_many(ds)), (lambda fp: fp), (lambda fp: fm.condense_home_many(fp, fm.LOAD_HEIGHT))
     terms_fn = jax.jit(jax.vmap(lambda fp: fm.frame_leg_terms(fp, jnp.zeros(3), opt)[:3]))
 
     def params():

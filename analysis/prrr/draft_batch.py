@@ -17,7 +17,10 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   the collision-free cylinder: they do not depend on the radial sampling), the frame model's legs'
   stiffness terms (``frame_leg_terms``, default options, home pose: element parameters, springs and
   maps; the elements' stiffness, the assembly and the solves follow the jitted call in a numba kernel over designs,
-  ``frame_model.condense_terms_many``) and the joint ranges over the required cylinder
+  ``frame_model.condense_terms_many``) until the frame's numba kernel pays (``frame_model.legs_kernel_ready``:
+  from then on the core leaves the frame group out and :func:`finish_core` computes it with
+  ``frame_model.condense_home_many``, the legs' points in numpy and their terms, assembly and solves in numba)
+  and the joint ranges over the required cylinder
   (``joint_limits.cylinder_ranges_of``: the IK of the grid's in-plane points, the angles reduced to
   what the verdict reads inside the jitted call). Inputs are stacked with numpy (the frame's by
   ``frame_model.frame_params_many``, arrays over the batch); the batch is padded to
@@ -174,24 +177,31 @@ class PendingCore(NamedTuple):
 
     out: dict  # jax arrays (padded batch)
     n: int
+    frame: fm.FrameParams | None = None  # the frame group's inputs where the numba kernel computes it (not XLA)
 
 
 def start_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> PendingCore:
     """Dispatch the core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK),
     without waiting for it (jax's asynchronous dispatch: the compiled program runs on XLA's threads, which
-    do not hold the GIL, so the numba collision kernels run meanwhile)."""
+    do not hold the GIL, so the numba collision kernels run meanwhile). The frame group is left out of XLA
+    where ``frame_model.legs_kernel_ready``: :func:`finish_core` computes it in numba from its inputs."""
+    frame = None
+    if "frame" in groups and fm.legs_kernel_ready(n):
+        frame, groups, inp = inp.fp, tuple(g for g in groups if g != "frame"), inp._replace(fp=None)
     if not groups:
-        return PendingCore({}, n)
+        return PendingCore({}, n, frame)
     size = bucket(n)
     pad = jax.tree.map(lambda x: np.concatenate([x, np.repeat(x[-1:], size - n, axis=0)]) if size > n else x, inp)
-    return PendingCore(core_fn(groups)(pad), n)
+    return PendingCore(core_fn(groups)(pad), n, frame)
 
 
 def finish_core(pending: PendingCore) -> dict:
     """The numpy rows [:n] of a dispatched core (waits for it), the frame group assembled and solved."""
     n = pending.n
     out = jax.tree.map(lambda x: np.asarray(x)[:n], pending.out)
-    if "frame" in out:  # the legs' assembly and solves outside XLA (numba kernel over designs)
+    if pending.frame is not None:  # the legs built, assembled and solved in numba (no XLA frame group)
+        out["frame"] = fm.condense_home_many(pending.frame, fm.LOAD_HEIGHT)
+    elif "frame" in out:  # the legs' assembly and solves outside XLA (numba kernel over designs)
         fr = out["frame"]
         terms = fr.pop("G"), fr.pop("Ks"), fr.pop("P")
         out["frame"] = {**fm.condense_terms_many(*terms, fm.FrameOptions(), fm.LOAD_HEIGHT), **fr}

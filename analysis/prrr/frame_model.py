@@ -5,10 +5,13 @@ it with numpy for a single design (no compilation: the CLI path, ~4 ms), :func:`
 and :func:`solve_frame_batch` with ``jax.numpy`` under jit/vmap (batches, gradients); tested equal.
 The jax path assembles each leg's stiffness on the columns where each element's map can be nonzero
 (:func:`_supports`, a static pattern of the topology), not on dense 12 × n maps; the batch's inputs
-come from :func:`frame_params_many` (arrays over the batch). The batched draft evaluator jits only the
-legs' unassembled terms (:func:`frame_leg_terms`) and assembles and condenses them in a numba kernel over
-designs (:func:`condense_terms_many`: Cholesky along each leg's chain of DOFs; equal to the single path
-to 1e-9, docs/runs.md "The frame group outside XLA").
+come from :func:`frame_params_many` (arrays over the batch). The batched draft evaluator computes the
+frame outside XLA: once its numba kernel pays (:func:`legs_kernel_ready`), :func:`condense_home_many` takes
+the legs' points at the home pose over the batch in numpy (:func:`home_legs_many`) and a numba kernel builds
+each leg's elements, springs and maps, assembles and condenses it; before that it jits only the legs'
+unassembled terms (:func:`frame_leg_terms`) and assembles and condenses them over designs
+(:func:`condense_terms_many`: Cholesky along each leg's chain of DOFs). Both equal to the single path to
+1e-9 (docs/runs.md "The frame group outside XLA", docs/performance.md).
 
 Each link is a 12-DOF Timoshenko beam (axial, torsion, two bending planes with shear) of the
 rectangular cross-section in ``design.structure``; the three revolute joints of every leg
@@ -1183,6 +1186,112 @@ def condense_terms_many(G, Ks, P, options: FrameOptions, load_height, *,
         return _outputs_many(contrib, cond, gross, n, legs, load_height)
 
 
+def legs_kernel_ready(n: int) -> bool:
+    """Whether :func:`condense_home_many` takes the next ``n`` designs (the batched draft evaluator then
+    computes no frame terms in XLA): from the call that takes this process's designs to
+    :data:`KERNEL_AFTER_DESIGNS` on (as :func:`condense_terms_many`), where :func:`kernel_availability`
+    allows."""
+    return _DESIGNS_CONDENSED[0] + n >= KERNEL_AFTER_DESIGNS and kernel_availability() is None
+
+
+def home_legs_many(fp: FrameParams) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The legs' inputs of the frame at the home pose p = 0 (default :class:`FrameOptions`: elbow branch 0,
+    joint zones on) of n designs (``fp`` numpy, leading batch axis), numpy over the batch: what
+    :func:`_leg_inputs` gives one design (:func:`~hapticopt.design.prrr.kinematics.inverse_kinematics`,
+    ``leg_chain``, the bracket in world axes), term by term the same operations (to rounding).
+
+    Returns (legs, ik): ``legs`` ``w``, ``S``, ``A``, ``B``, ``Q`` (n, 3, 3), ``bracket_points`` (n, 3, 3, 3),
+    ``root_zref`` (n, 3, 3), ``bonds`` (n, 3, 2, 6, 6) [SI]; ``ik`` ``reachable`` (n,) and ``reach_margin``
+    (n,) [m] of p = 0.
+    """
+    kin = fp.kin
+    n = len(kin.beta)
+
+    def s(x):
+        return np.asarray(x, dtype=float)[:, None]
+
+    def b(x):
+        return np.asarray(x, dtype=float)[:, None, None]
+
+    f = leg_frames(b(kin.beta), xp=np)
+    u, t = np.broadcast_to(f.u, (n, 3, 3)), np.broadcast_to(f.t, (n, 3, 3))
+    v, w = f.v, f.w
+    # kinematics.inverse_kinematics at p = 0
+    r5 = kin.b5 * np.sin(kin.beta)
+    q = np.zeros((1, 3)) - b(kin.b5) * w + b(r5) * _EZ
+    rel = q - (b(kin.d1) * u + b(kin.d2) * t)
+    sliders = (np.sum(rel * w, axis=-1) - s(kin.r4)) / s(np.sin(kin.beta))
+    rel = rel - sliders[..., None] * _EZ
+    rho_v, rho_t = np.sum(rel * v, axis=-1), np.sum(rel * t, axis=-1)
+    rho2 = rho_v**2 + rho_t**2
+    d3, d4 = s(kin.d3), s(kin.d4)
+    c2 = (rho2 - d3**2 - d4**2) / (2.0 * d3 * d4)
+    reach_ok = np.abs(c2) <= 1.0 + 1e-12
+    c2 = np.clip(c2, -1.0, 1.0)
+    elbow, s2, rho = np.arccos(c2), np.sqrt(1.0 - c2**2), np.sqrt(rho2)
+    phi, psi = np.arctan2(rho_t, rho_v), np.arctan2(d4 * s2, d3 + d4 * c2)
+    th1 = np.mod(phi - psi + np.pi, 2.0 * np.pi) - np.pi  # branch 0 (θ2 = elbow ≥ 0)
+    c_e = -(kin.b5 + kin.r4) / np.sin(kin.beta) + r5 + kin.d1 / np.tan(kin.beta)  # kinematics.slider_offset
+    half = s(kin.stroke / 2.0)
+    s_dev = sliders - s(c_e)
+    stroke_ok = np.abs(s_dev) <= half * (1.0 + 1e-12)
+    margin = np.minimum(np.minimum(rho - np.abs(d3 - d4), d3 + d4 - rho), half - np.abs(s_dev))
+    ik = {"reachable": np.all(reach_ok & stroke_ok, axis=-1), "reach_margin": np.min(margin, axis=-1)}
+
+    def e(angle):
+        return np.cos(angle)[..., None] * v + np.sin(angle)[..., None] * t
+
+    A = sliders[..., None] * _EZ + b(kin.d1) * u + b(kin.d2) * t  # kinematics.leg_chain
+    B = A + b(kin.d3) * e(th1)
+    Q = B + b(kin.d4) * e(th1 + elbow) + b(kin.r4) * w
+    c1, s1 = np.cos(b(fp.theta_1p)), np.sin(b(fp.theta_1p))
+    u_rail, t_rail = c1 * u + s1 * t, -s1 * u + c1 * t
+    S = sliders[..., None] * _EZ + b(fp.r_p) * u_rail
+    Rc = np.stack([u_rail, t_rail, np.broadcast_to(_EZ, u_rail.shape)], axis=-1)  # (n, 3 legs, 3, 3)
+    bp = sliders[..., None, None] * _EZ + np.einsum("nlij,nkj->nlki", Rc, fp.bracket_points)
+    zr = np.einsum("nlij,nj->nli", Rc, fp.root_zref)
+    R6 = np.zeros((n, 3, 1, 6, 6))
+    R6[..., :3, :3], R6[..., 3:, 3:] = Rc[:, :, None], Rc[:, :, None]
+    Kb = R6 @ np.asarray(fp.bracket_bonds)[:, None] @ np.swapaxes(R6, -1, -2)
+    return {"w": w, "S": S, "A": A, "B": B, "Q": Q, "bracket_points": bp, "root_zref": zr, "bonds": Kb}, ik
+
+
+def condense_home_many(fp: FrameParams, load_height) -> dict[str, np.ndarray]:
+    """:func:`condense_terms_many` of :func:`frame_leg_terms` (default :class:`FrameOptions`, home pose p = 0)
+    of n designs, without the terms: :func:`home_legs_many` (numpy over the batch) and the numba kernel
+    ``_frame_kernels.home_legs_condense_kernel``, which builds each leg's elements, springs and maps (on the
+    terms' columns) and assembles and condenses it as ``assemble_condense_kernel``. Returns the keys of
+    :func:`compliance_outputs` and the IK's ``reachable`` and ``reach_margin`` (leading axis n); the NaN
+    rules of :func:`condense_many`. Needs the kernel (:func:`kernel_availability`)."""
+    from hapticopt.analysis.prrr._frame_kernels import home_legs_condense_kernel
+
+    options = FrameOptions()
+    N, lay = _leg_layout(options)
+    fp = jax.tree.map(lambda x: np.asarray(x, dtype=float), fp)
+    legs, ik = home_legs_many(fp)
+    n = len(fp.kin.beta)
+    sec = fp.section
+    E, nu = sec.youngs_modulus, sec.poisson_ratio
+    props = [section_properties(sec, np),
+             section_properties(Section(fp.root_section[:, 0], fp.root_section[:, 1], E, nu), np),
+             section_properties(Section(2.0 * fp.stem_radius, sec.thickness, E, nu), np)]
+    k_neck = neck_stiffness(fp.pin_diameter, fp.layer - sec.thickness, E, nu, np)  # (4, n)
+    sc = np.column_stack([fp.joint_zone * 1.0, fp.layer, fp.lug_offset, fp.stem_radius, fp.kin.r4, E, *k_neck,
+                          *(np.broadcast_to(np.asarray(x, dtype=float), (n,)) for p_ in props for x in p_)])
+    geo = np.stack([legs[k] for k in ("w", "S", "A", "B", "Q")], axis=2)  # (n, 3 legs, 5, 3)
+    geo = np.concatenate([geo, legs["bracket_points"], legs["root_zref"][:, :, None]], axis=2).reshape(3 * n, 9, 3)
+    lay_idx = np.array([lay[k] for k in ("Rb", "Rj", "Ae", "A", "Ap", "phi1", "B", "B2", "phi2", "Qp", "Q2",
+                                         "phi3")], dtype=np.int64)
+    _DESIGNS_CONDENSED[0] += n
+    contrib, cond, gross = np.empty((3 * n, 6, 6)), np.empty(3 * n), np.empty((3 * n, 6))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        home_legs_condense_kernel(np.ascontiguousarray(geo), np.ascontiguousarray(legs["bonds"].reshape(3 * n, 2, 6, 6)),
+                                  np.ascontiguousarray(np.repeat(sc, 3, axis=0)), lay_idx, _PATTERNS,
+                                  np.ascontiguousarray(term_columns(options), dtype=np.int64), N, contrib, cond, gross)
+        out = _outputs_many(contrib, cond, gross, n, 3, load_height)
+    return {**out, "reach_margin": ik["reach_margin"], "reachable": ik["reachable"]}  # the XLA route's order
+
+
 def _outputs_many(contrib, cond, gross, n: int, legs: int, load_height) -> dict[str, np.ndarray]:
     """:func:`compliance_outputs` of n designs from their legs' condensation (legs × n flattened), NaN
     rows where the condensation cancels by :data:`CANCELLATION_LIMIT` or more."""
@@ -1266,7 +1375,7 @@ __all__ = [
     "BRACKET_ARRAYS_FROM", "CANCELLATION_LIMIT", "COND_LIMIT", "KERNEL_AFTER_DESIGNS", "LOAD_HEIGHT", "FrameOptions", "FrameParams", "Joints", "Offsets", "Section",
     "beam_global_stiffness", "beam_local_stiffness", "cantilever_compliance", "circle_properties",
     "closed_form_tip_deflection", "bond_stiffness", "bracket_frame", "compliance_outputs", "condense_legs",
-    "assemble_terms", "condense_many", "condense_terms_many", "frame_leg_terms", "frame_legs", "kernel_availability", "term_columns",
+    "assemble_terms", "condense_home_many", "condense_many", "condense_terms_many", "home_legs_many", "legs_kernel_ready", "frame_leg_terms", "frame_legs", "kernel_availability", "term_columns",
     "dof_count", "element_stiffness", "frame_arrays", "frame_params_many", "frame_params_of", "section_properties", "solve_frame",
     "solve_frame_batch", "solve_frame_jax", "stack_frame_params",
 ]

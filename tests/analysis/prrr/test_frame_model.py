@@ -422,3 +422,46 @@ def test_condense_terms_many_equals_single_path(paper, compiled):
         for key in out:
             np.testing.assert_allclose(out[key][i], single[key], rtol=1e-9,
                                        atol=1e-9 * np.abs(single[key]).max(), err_msg=key)
+
+
+def test_home_legs_many_equals_leg_inputs(paper):
+    # reference: _leg_inputs (the single path's IK, leg chain and bracket in world axes) of each design at
+    # p = 0, numpy; home_legs_many does the same operations over the batch (to rounding: 1e-14 of each
+    # array's largest entry), the reachability equal
+    designs = _variants(paper) + [io.apply_overrides(paper, ["geometry.stroke_mm=0.1"])]
+    legs, ik = fm.home_legs_many(fm.frame_params_many(designs))
+    for i, d in enumerate(designs):
+        _, (w, S, A, B, Q, bp, zr, Kb), ref = fm._leg_inputs(fm.frame_params_of(d, xp=np), np.zeros(3),
+                                                             fm.FrameOptions(), None, None, np)
+        for key, r in (("w", w), ("S", S), ("A", A), ("B", B), ("Q", Q), ("bracket_points", bp),
+                       ("root_zref", zr), ("bonds", Kb)):
+            np.testing.assert_allclose(legs[key][i], r, rtol=0, atol=1e-14 * np.abs(r).max(), err_msg=key)
+        assert ik["reachable"][i] == ref.reachable
+        np.testing.assert_allclose(ik["reach_margin"][i], ref.reach_margin, rtol=0, atol=1e-15)
+
+
+def test_condense_home_many_equals_single_path_and_the_terms_route(paper):
+    # references: solve_frame of each design (the single path, 1e-9 as the batch test) and the batch's XLA
+    # route (jitted frame_leg_terms, then condense_terms_many's kernel: the same assembly and
+    # factorisation, the maps and points built in numba instead of XLA; measured ≤ 6e-11 relative on the
+    # draft batch test's sample)
+    pytest.importorskip("numba")
+    import jax
+    import jax.numpy as jnp
+
+    designs = _variants(paper) + [io.apply_overrides(paper, ["geometry.stroke_mm=0.1"])]
+    options = fm.FrameOptions()
+    G, Ks, P, ik = jax.jit(jax.vmap(lambda f: fm.frame_leg_terms(f, jnp.zeros(3), options)))(
+        fm.stack_frame_params(designs))
+    ref = fm.condense_terms_many(G, Ks, P, options, fm.LOAD_HEIGHT, compiled=True)
+    out = fm.condense_home_many(fm.frame_params_many(designs), fm.LOAD_HEIGHT)
+    assert list(out) == list(ref) + ["reach_margin", "reachable"]
+    np.testing.assert_array_equal(out["reachable"], np.asarray(ik.reachable))
+    np.testing.assert_allclose(out["reach_margin"], np.asarray(ik.reach_margin), rtol=0, atol=1e-15)
+    for key in ref:
+        np.testing.assert_allclose(out[key], ref[key], rtol=1e-10, atol=1e-10 * np.abs(ref[key]).max(), err_msg=key)
+    for i, d in enumerate(designs):
+        single = fm.solve_frame(fm.frame_params_of(d))
+        for key in out:
+            np.testing.assert_allclose(out[key][i], single[key], rtol=1e-9,
+                                       atol=1e-9 * np.abs(single[key]).max(), err_msg=key)
