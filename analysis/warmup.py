@@ -40,6 +40,9 @@ def warm() -> list[tuple[str, str | None, float]]:
         fp = frame_model.frame_params_of(io.load_preset("prrr-paper"), xp=np)
         G, Ks, P, _ = frame_model.frame_leg_terms(fp, np.zeros(3), options, xp=np)
         frame_model.condense_terms_many(G[None], Ks[None], P[None], options, frame_model.LOAD_HEIGHT, compiled=True)
+        # the batch's frame group from the legs' points (large batches)
+        frame_model.condense_home_many(frame_model.frame_params_many([io.load_preset("prrr-paper")]),
+                                       frame_model.LOAD_HEIGHT)
     out.append(("frame condensation", reason, time.perf_counter() - t0))
     return out
 
