@@ -220,8 +220,15 @@ class _Checker:
         kernels = "hapticopt.analysis.prrr._interference_kernels"
         if (n < FAST.KERNEL_AFTER_POSES and kernels not in sys.modules) or FAST.availability() is not None:
             return self.pose_ik_numpy(owner, pts)
+        sliders, elbow, phi, psi, ok = self._planar_ik(owner, pts)
+        return sliders, _elbow_branch(elbow, phi, psi), ok
+
+    def _planar_ik(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Sliders (n, 3) [m], the elbow angle and in-plane angles φ, ψ (n, 3) [rad] and reachability (n,):
+        ``pose_ik_planar``'s arithmetic and numpy's arccos / arctan2 (needs the kernels loaded)."""
         from hapticopt.analysis.prrr import _interference_kernels as K  # loaded by availability()
 
+        n = len(pts)
         g = self.geo
         beta = g["beta"]
         sliders, rho_v, rho_t, c2, y, x = (np.empty((n, 3)) for _ in range(6))
@@ -229,7 +236,7 @@ class _Checker:
         K.pose_ik_planar(np.ascontiguousarray(owner, dtype=np.int64), np.ascontiguousarray(pts, dtype=np.float64),
                          np.cos(beta), np.sin(beta), np.tan(beta), *(g[f] for f in _KIN_FIELDS[1:]), _LEGS.u,
                          _LEGS.t, sliders, rho_v, rho_t, c2, y, x, ok)
-        return sliders, _elbow_branch(np.arccos(c2), np.arctan2(rho_t, rho_v), np.arctan2(y, x)), ok
+        return sliders, np.arccos(c2), np.arctan2(rho_t, rho_v), np.arctan2(y, x), ok
 
     def pose_ik_numpy(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`pose_ik` in numpy over every pose at once: ``inverse_kinematics``' operations
@@ -260,11 +267,40 @@ class _Checker:
                 np.all(reach_ok & stroke_ok, axis=-1))
 
     def __call__(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``."""
+        """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``.
+
+        Where the compiled check runs (``interference_fast``'s rule: from ``KERNEL_AFTER_POSES`` checked
+        poses on, numba loadable) and every layout group has joint tables: the pose IK's arithmetic and
+        the joint angles' cos / sin compiled (``interference_fast.joint_cos_sin``), numpy's arccos /
+        arctan2, and ``interference_fast.deepest_joints`` per group (no joint-angle or per-pair depth
+        arrays; a group holding every pose is passed without copies). Otherwise :meth:`pose_ik` and
+        ``interference_fast.check_joints``. The same values bit for bit either way (tested)."""
         n = len(pts)
         collides, reachable, depth = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)
         if n == 0:
             return collides, reachable, depth
+        if (FAST._POSES_CHECKED[0] + n < FAST.KERNEL_AFTER_POSES or FAST.availability() is not None
+                or any(tables is None for *_, tables in self.groups)):
+            return self._call_arrays(owner, pts, collides, reachable, depth)
+        FAST._POSES_CHECKED[0] += n
+        sliders, elbow, phi, psi, ok = self._planar_ik(owner, pts)
+        trig = FAST.joint_cos_sin(elbow, phi, psi, WS.ELBOW_BRANCH)
+        for local, batch, geometry, tables in self.groups:
+            lo = local[owner]
+            sel = np.flatnonzero(lo >= 0)
+            if len(sel) == 0:
+                continue
+            if len(sel) == n:  # one group holds every pose
+                hit, deepest = FAST.deepest_joints(lo, pts, sliders, trig, ok, tables)
+                return hit, ok, deepest
+            hit, deepest = FAST.deepest_joints(lo[sel], pts[sel], sliders[sel], tuple(x[sel] for x in trig), ok[sel],
+                                               tables)
+            collides[sel], reachable[sel], depth[sel] = hit, ok[sel], deepest
+        return collides, reachable, depth
+
+    def _call_arrays(self, owner, pts, collides, reachable, depth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`__call__` through :meth:`pose_ik`'s joint angles and ``interference_fast.check_joints``
+        (its rule: numpy, or the kernel where it runs)."""
         sliders, theta, ok = self.pose_ik(owner, pts)
         for local, batch, geometry, tables in self.groups:
             sel = np.flatnonzero(local[owner] >= 0)
