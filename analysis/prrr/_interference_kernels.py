@@ -252,15 +252,6 @@ RUN_BLOCK = 32
 
 
 @njit(cache=True, inline="always")
-def _part_box(R, t, pc, ph, wc, wh, j):
-    """World box (centre wc[j], half widths wh[j]) of part j with rotation R and origin t; the
-    products of :func:`check_poses` in their order."""
-    for i in range(3):
-        wc[j, i] = (R[i, 0] * pc[j, 0] + R[i, 1] * pc[j, 1] + R[i, 2] * pc[j, 2]) + t[i]
-        wh[j, i] = abs(R[i, 0]) * ph[j, 0] + abs(R[i, 1]) * ph[j, 1] + abs(R[i, 2]) * ph[j, 2]
-
-
-@njit(cache=True, inline="always")
 def _extent(k, Rw, h, i):
     """World half extent along axis i of a primitive of kind k (:func:`_pose_primitive`'s)."""
     a0, a1, a2 = abs(Rw[i, 0]), abs(Rw[i, 1]), abs(Rw[i, 2])
@@ -285,12 +276,14 @@ def _rotate_primitive(p, Rf, Rl, ol, h, k, Rw, ro, ext):
 
 
 @njit(cache=True, inline="always")
-def _pose_frames(q, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc, ph, Rpc, whd, Rq, tq, wc, wh,
-                 A, e1, e12):
-    """Rotations Rq of the links and origins tq of the moving parts at pose q of design m (the sliding
-    parts' and the platform's origins; the fixed parts' stay 0) and every part's world box (wc, wh; the
-    parts whose rotation is the design's: rotated centre Rpc plus origin, half widths whd):
-    :func:`hapticopt.design.prrr.cad.part_frames_arrays`' products, term by term."""
+def _pose_frames(q, m, u, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc_all, ph_all, Rpc, Rq, tq,
+                 wc, wh, ulo, uhi, A, e1, e12):
+    """At pose q of design m, into slot u of the block: the rotations Rq[u] of the links, the origins
+    tq[u] of the moving parts (the sliding parts' and the platform's; the fixed parts' stay 0) and the
+    world boxes (wc[u], wh[u]) of the parts that move (the links'; the centres of the sliding parts and
+    the platform: their rotated centre Rpc plus the origin; the rest is the design's, set up before), and
+    those boxes added to the block's union (ulo, uhi): :func:`hapticopt.design.prrr.cad.part_frames_arrays`'
+    products, term by term (scalar indexing: no array views in this per-pose step)."""
     n_parts = rule.shape[0]
     # the legs' link frames (cad.part_frames_arrays: e1, e12, A = D ez + d1 u + d2 t, B = A + d3 e1)
     for k in range(3):
@@ -305,29 +298,33 @@ def _pose_frames(q, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, 
         if r == _FIXED:
             continue
         k = leg[j]
-        if r == _SLIDE:
-            Dk = D[q, k]
-            tq[j, 0], tq[j, 1], tq[j, 2] = Dk * 0.0, Dk * 0.0, Dk * 1.0
-        elif r == _PLATFORM:
+        if r == _SLIDE or r == _PLATFORM:
+            if r == _SLIDE:
+                Dk = D[q, k]
+                tq[u, j, 0], tq[u, j, 1], tq[u, j, 2] = Dk * 0.0, Dk * 0.0, Dk * 1.0
+            else:
+                tq[u, j, 0], tq[u, j, 1], tq[u, j, 2] = pts[q, 0], pts[q, 1], pts[q, 2]
             for i in range(3):
-                tq[j, i] = pts[q, i]
+                wc[u, j, i] = Rpc[j, i] + tq[u, j, i]
         else:
-            x = e1[k] if r == _LINK1 else e12[k]
-            w = W[m, k]
+            link1 = r == _LINK1
             for i in range(3):
-                Rq[j, i, 0] = x[i]
-                Rq[j, i, 2] = w[i]
-                tq[j, i] = A[k, i] if r == _LINK1 else A[k, i] + d3[m] * e1[k, i]
-            Rq[j, 0, 1] = w[1] * x[2] - w[2] * x[1]  # np.cross(w, x)'s terms
-            Rq[j, 1, 1] = w[2] * x[0] - w[0] * x[2]
-            Rq[j, 2, 1] = w[0] * x[1] - w[1] * x[0]
-    for j in range(n_parts):
-        if rule[j] != _LINK1 and rule[j] != _LINK2:
+                Rq[u, j, i, 0] = e1[k, i] if link1 else e12[k, i]
+                Rq[u, j, i, 2] = W[m, k, i]
+                tq[u, j, i] = A[k, i] if link1 else A[k, i] + d3[m] * e1[k, i]
+            x0, x1, x2 = Rq[u, j, 0, 0], Rq[u, j, 1, 0], Rq[u, j, 2, 0]
+            w0, w1, w2 = W[m, k, 0], W[m, k, 1], W[m, k, 2]
+            Rq[u, j, 0, 1] = w1 * x2 - w2 * x1  # np.cross(w, x)'s terms
+            Rq[u, j, 1, 1] = w2 * x0 - w0 * x2
+            Rq[u, j, 2, 1] = w0 * x1 - w1 * x0
+            # the link's world box (check_poses' products in their order)
             for i in range(3):
-                wc[j, i] = Rpc[j, i] + tq[j, i]
-                wh[j, i] = whd[j, i]
-        else:
-            _part_box(Rq[j], tq[j], pc, ph, wc, wh, j)
+                R0, R1, R2 = Rq[u, j, i, 0], Rq[u, j, i, 1], Rq[u, j, i, 2]
+                wc[u, j, i] = (R0 * pc_all[m, j, 0] + R1 * pc_all[m, j, 1] + R2 * pc_all[m, j, 2]) + tq[u, j, i]
+                wh[u, j, i] = abs(R0) * ph_all[m, j, 0] + abs(R1) * ph_all[m, j, 1] + abs(R2) * ph_all[m, j, 2]
+        for i in range(3):
+            ulo[j, i] = min(ulo[j, i], wc[u, j, i] - wh[u, j, i])
+            uhi[j, i] = max(uhi[j, i], wc[u, j, i] + wh[u, j, i])
 
 
 @njit(cache=True, inline="always")
@@ -428,6 +425,23 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
             moving_pairs[nm] = jj
             nm += 1
     live_moving = np.empty(moving_pairs.shape[0], dtype=np.int64)  # per block: the moving pairs that can meet
+    # the distinct primitives of each side of each part pair (side 0: pair_a's, 1: pair_b's), in CSR form
+    side_start = np.zeros(2 * pp_a.shape[0] + 1, dtype=np.int64)
+    side_prim = np.empty(2 * pair_a.shape[0], dtype=np.int64)
+    seen = np.full(P, -1, dtype=np.int64)
+    n_side = 0
+    for jj in range(pp_a.shape[0]):
+        for side in range(2):
+            for k in range(start[jj], start[jj] + count[jj]):
+                pp = pair_a[k] if side == 0 else pair_b[k]
+                if seen[pp] != 2 * jj + side:
+                    seen[pp] = 2 * jj + side
+                    side_prim[n_side] = pp
+                    n_side += 1
+            side_start[2 * jj + side + 1] = n_side
+    passed = np.full(P, -1, dtype=np.int64)  # the (pose, part pair) tag at which primitive p passed
+    tag = -1
+    n_pass_a = 0
     ulo = np.empty((n_parts, 3))
     uhi = np.empty((n_parts, 3))
     live = np.zeros(pp_a.shape[0], dtype=np.bool_)  # per design: a fixed pair can meet at some z
@@ -460,6 +474,11 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                 R = Rd[j]
                 Rpc[j, i] = R[i, 0] * pc[j, 0] + R[i, 1] * pc[j, 1] + R[i, 2] * pc[j, 2]
                 whd[j, i] = abs(R[i, 0]) * ph[j, 0] + abs(R[i, 1]) * ph[j, 1] + abs(R[i, 2]) * ph[j, 2]
+            for u in range(B):  # the box half widths (and the fixed parts' centres) of every pose of the design
+                for i in range(3):
+                    whb[u, j, i] = whd[j, i]
+                    if rule[j] == _FIXED:
+                        wcb[u, j, i] = Rpc[j, i] + 0.0  # the origin's 0 added, as per pose before
         for p in range(P):
             if fixed_prim[p]:
                 _rotate_primitive(p, Rd[prim_part[p]], Rprim[p], oprim[p], half[p], kind[p], Rw, ro, ext)
@@ -507,15 +526,13 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                 break
             for j in range(n_parts):
                 for i in range(3):
-                    ulo[j, i], uhi[j, i] = np.inf, -np.inf
+                    if rule[j] == _FIXED:  # the design's box
+                        ulo[j, i], uhi[j, i] = wcb[0, j, i] - whb[0, j, i], wcb[0, j, i] + whb[0, j, i]
+                    else:
+                        ulo[j, i], uhi[j, i] = np.inf, -np.inf
             for t in range(nb):
-                wc, wh = wcb[t], whb[t]
-                _pose_frames(blk[t], m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc, ph, Rpc,
-                             whd, Rqb[t], tqb[t], wc, wh, A, e1, e12)
-                for j in range(n_parts):
-                    for i in range(3):
-                        ulo[j, i] = min(ulo[j, i], wc[j, i] - wh[j, i])
-                        uhi[j, i] = max(uhi[j, i], wc[j, i] + wh[j, i])
+                _pose_frames(blk[t], m, t, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc_all, ph_all,
+                             Rpc, Rqb, tqb, wcb, whb, ulo, uhi, A, e1, e12)
             n_live = 0
             for jj in moving_pairs:
                 a, b = pp_a[jj], pp_b[jj]
@@ -564,20 +581,41 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                             break
                     if not near:
                         continue
-                    for k in range(start[jj], start[jj] + count[jj]):
-                        pa, pb = pair_a[k], pair_b[k]
-                        # the world centres first (a link primitive's: its rotated centre, 9 products) and a
-                        # test on the bounding widths: a pair whose world boxes meet passes it
-                        for pp in (pa, pb):
+                    # each side's primitives: the world centre (a link primitive's: its rotated centre, 9
+                    # products) and a test of the bounding widths against the other part's box; a primitive
+                    # pair whose world boxes meet has both primitives pass (the part boxes hold their
+                    # primitives' boxes, RUN_MARGIN in bw covering the rounding)
+                    tag += 1
+                    n_pass = 0
+                    for side in range(2):
+                        for idx in range(side_start[2 * jj + side], side_start[2 * jj + side + 1]):
+                            pp = side_prim[idx]
+                            other = b if prim_part[pp] == a else a
                             if cstamp[pp] != qq:
                                 cstamp[pp] = qq
                                 j = prim_part[pp]
                                 if not fixed_prim[pp]:
-                                    Rf, ol = Rq[j], oprim[pp]
                                     for i in range(3):
-                                        ro[pp, i] = Rf[i, 0] * ol[0] + Rf[i, 1] * ol[1] + Rf[i, 2] * ol[2]
+                                        ro[pp, i] = (Rq[j, i, 0] * oprim[pp, 0] + Rq[j, i, 1] * oprim[pp, 1]
+                                                     + Rq[j, i, 2] * oprim[pp, 2])
                                 for i in range(3):
                                     cw[pp, i] = ro[pp, i] + tq[j, i]
+                            if (abs(cw[pp, 0] - wc[other, 0]) <= bw[pp, 0] + wh[other, 0]
+                                    and abs(cw[pp, 1] - wc[other, 1]) <= bw[pp, 1] + wh[other, 1]
+                                    and abs(cw[pp, 2] - wc[other, 2]) <= bw[pp, 2] + wh[other, 2]):
+                                passed[pp] = tag
+                                n_pass += 1
+                        if n_pass == 0:
+                            break
+                        if side == 0:
+                            n_pass_a = n_pass
+                            n_pass = 0
+                    if n_pass == 0 or n_pass_a == 0:
+                        continue
+                    for k in range(start[jj], start[jj] + count[jj]):
+                        pa, pb = pair_a[k], pair_b[k]
+                        if passed[pa] != tag or passed[pb] != tag:
+                            continue
                         if not (abs(cw[pa, 0] - cw[pb, 0]) <= bw[pa, 0] + bw[pb, 0]
                                 and abs(cw[pa, 1] - cw[pb, 1]) <= bw[pa, 1] + bw[pb, 1]
                                 and abs(cw[pa, 2] - cw[pb, 2]) <= bw[pa, 2] + bw[pb, 2]):
