@@ -445,6 +445,7 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
     ulo = np.empty((n_parts, 3))
     uhi = np.empty((n_parts, 3))
     live = np.zeros(pp_a.shape[0], dtype=np.bool_)  # per design: a fixed pair can meet at some z
+    live_fixed = np.empty(n_fixed, dtype=np.int64)  # … the list of those
     pair_live = np.zeros(pair_a.shape[0], dtype=np.bool_)  # … and its primitive pair
     A = np.empty((3, 3))
     e1 = np.empty((3, 3))
@@ -496,6 +497,7 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                     bw[p, i] = r + RUN_MARGIN
         # pairs of fixed and sliding parts: their x and y are the design's (the origins' x, y are ±0), so
         # the x, y tests of their boxes and the axes with no z component are decided once per design
+        n_live_fixed = 0
         for jj in fixed_pairs:
             a, b = pp_a[jj], pp_b[jj]
             live[jj] = (abs(Rpc[a, 0] - Rpc[b, 0]) <= whd[a, 0] + whd[b, 0]
@@ -512,6 +514,9 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                                 and not _separated_across_z(kind[pa], Rw[pa], half[pa], kind[pb], Rw[pb], half[pb],
                                                             ro[pb, 0] - ro[pa, 0], ro[pb, 1] - ro[pa, 1]))
                 live[jj] = live[jj] or pair_live[k]
+            if live[jj]:
+                live_fixed[n_live_fixed] = jj
+                n_live_fixed += 1
         r = q
         while r < e:
             # a block of up to B reachable poses of the run: their frames and boxes, and every part's box
@@ -546,9 +551,8 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
             for t in range(nb):
                 qq = blk[t]
                 Rq, tq, wc, wh = Rqb[t], tqb[t], wcb[t], whb[t]
-                for jj in fixed_pairs:  # x, y decided for the design above: z here
-                    if not live[jj]:
-                        continue
+                for u in range(n_live_fixed):  # x, y decided for the design above: z here
+                    jj = live_fixed[u]
                     a, b = pp_a[jj], pp_b[jj]
                     if not abs(wc[a, 2] - wc[b, 2]) <= wh[a, 2] + wh[b, 2]:
                         continue
