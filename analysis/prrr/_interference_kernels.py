@@ -16,9 +16,14 @@ the part frames built in the kernel from the joint values (``cad.part_frames_arr
 work that does not change with the pose done once per run of a design's poses: the rotations, boxes and
 primitives of the parts whose rotation is the design's (base, rails, screws, motors, carriages, housings,
 platform); the x and y tests of pairs of parts that only slide along z, and their separating axes with no
-z component (decided for every pose at once); the boxes of every part over the run, so that only the
-pairs with a moving part whose run boxes meet are tested per pose. Depths bit for bit those of
-:func:`check_poses` on ``part_frames_arrays``' frames.
+z component (decided for every pose at once); the boxes of every part over a block of up to
+:data:`RUN_BLOCK` poses of the run (each pose's frames and boxes built once and kept for the block), so
+that only the pairs with a moving part whose block boxes meet are tested per pose; for such a pair whose
+part boxes meet, each side's primitives tested by centre and bounding widths against the other part's
+box before any primitive is posed or any primitive pair tested. Depths bit for bit those of
+:func:`check_poses` on ``part_frames_arrays``' frames; a column map writes either every pair's depth or
+each pose's deepest. The entry kernels are compiled ``nogil`` and allocate their scratch themselves:
+calls on disjoint outputs may run in parallel threads.
 """
 
 from __future__ import annotations
@@ -334,13 +339,13 @@ def _fixed_part(rule, j):
 
 
 @njit(cache=True)
-def _separated_across_z(ka, Ra, ha, kb, Rb, hb, d0, d1):
+def _separated_across_z(ka, Ra, ha, kb, Rb, hb, d0, d1, d):
     """Whether one of :func:`_depth`'s axes with no z component (a frame axis or a cross product of
     frame axes whose z is exactly 0) has an overlap ≤ 0, for two primitives whose centres differ by
     (d0, d1, ·). On such an axis the overlap is :func:`_overlap`'s bit for bit whatever the z offset of
     the centres (its z term is ±0), so a pair of parts that only slide along z is then separated, depth
-    ≤ 0, at every pose of the design."""
-    d = np.array([d0, d1, 0.0])
+    ≤ 0, at every pose of the design. ``d`` (3,): scratch."""
+    d[0], d[1], d[2] = d0, d1, 0.0
     for i in range(3):
         if Ra[2, i] == 0.0 and _overlap(ka, Ra, ha, kb, Rb, hb, d, Ra[0, i], Ra[1, i], 0.0) <= 0.0:
             return True
@@ -512,7 +517,7 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                                 and (ro[pb, 0] - ext[pb, 0]) <= (ro[pa, 0] + ext[pa, 0])
                                 and (ro[pb, 1] - ext[pb, 1]) <= (ro[pa, 1] + ext[pa, 1])
                                 and not _separated_across_z(kind[pa], Rw[pa], half[pa], kind[pb], Rw[pb], half[pb],
-                                                            ro[pb, 0] - ro[pa, 0], ro[pb, 1] - ro[pa, 1]))
+                                                            ro[pb, 0] - ro[pa, 0], ro[pb, 1] - ro[pa, 1], d))
                 live[jj] = live[jj] or pair_live[k]
             if live[jj]:
                 live_fixed[n_live_fixed] = jj

@@ -26,8 +26,9 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   limits from the statics row (where that row's verdict is ok).
 * **numpy over all designs at once**: the interference poses (``workspace_sample_weights_many``:
   every design's sample points and weights in one pass, bit for bit the per-design function's; then
-  one separating-axis pass, ``interference_fast.check_joints``, over every pose of every design: its
-  compiled kernel builds the part frames from the pose IK's joint values) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
+  one separating-axis pass over every pose of every design, ``interference_fast.deepest_joints``
+  (compiled: the kernel builds the part frames from the pose IK's joint values, the cos / sin of the
+  joint angles compiled too, and keeps each pose's deepest overlap) or ``interference_fast.check_joints``) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
   column grid of every design in one pass, then each bisection in one pass). The column structure
   (moving parts translate together in z, fixed parts are prisms) is what makes one pose per
   column enough there. Pose IK is the numpy IK's (the single path's) values bit for bit: a numba kernel

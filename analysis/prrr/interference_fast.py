@@ -33,7 +33,9 @@ the same part tables (:func:`hapticopt.design.prrr.cad.part_specs`), without mes
   pairs (:mod:`._interference_kernels`, bitwise-equal depths; the numpy path is the reference and
   the fallback where :func:`availability` says why the kernel cannot run). :func:`check_joints` takes
   the poses as joint values and its kernel builds the part frames itself (no per-pose frame arrays),
-  doing the work that does not change with the pose once per design (docs/workspace_interference.md).
+  doing the work that does not change with the pose once per design (docs/workspace_interference.md);
+  :func:`deepest_joints` is that kernel keeping only each pose's deepest overlap, from the joint
+  angles' cos / sin (:func:`joint_cos_sin`), for the batched draft evaluator.
   Poses come from the numpy inverse kinematics (:func:`hapticopt.design.prrr.kinematics.inverse_kinematics`,
   ``xp=numpy``; the batched draft evaluator's jitted copy), in the CAD's elbow branch.
 
