@@ -30,12 +30,11 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_batched_draft import designs  # noqa: E402
-
-from hapticopt.analysis.fidelity import Fidelity  # noqa: E402
-from hapticopt.analysis.prrr import draft_batch as DB  # noqa: E402
-from hapticopt.analysis.prrr import interference_fast as F  # noqa: E402
-from hapticopt.analysis.registry import evaluate_batch  # noqa: E402
+from bench_batched_draft import designs
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr import draft_batch as DB
+from hapticopt.analysis.prrr import interference_fast as F
+from hapticopt.analysis.registry import evaluate_batch
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -57,7 +56,7 @@ def old_kernels(rev: str, folder: str):
 
 def old_call(chk, K, owner, pts):
     """fc9af43's ``_Checker.__call__`` (kernel route) with kernels ``K``."""
-    f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
+    f64 = functools.partial(np.ascontiguousarray, dtype=np.float64)
     g = chk.geo
     n = len(pts)
     collides, reachable, depth = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)
