@@ -10,7 +10,8 @@ The older side is the checker of the form of ``fc9af43`` (the start of the round
 the branch's (n, 3, 3) angles), numpy's cos / sin of θ₁ and θ₁ + θ₂, the (poses × part pairs) depth array
 and its two reductions, written out here, with REV's ``_interference_kernels`` module (``git show``, so
 REV must have that form's kernel signatures: ``check_joint_poses`` without a column map); this tree's
-checker is called as the batch calls it. Every replayed call's outputs (collides, reachable, deepest
+checker is called as the batch calls it, the process past ``interference_fast.KERNEL_AFTER_POSES`` (so the
+kernel route also for small n). Every replayed call's outputs (collides, reachable, deepest
 overlap) are asserted bit for bit equal between the two and to the batch's own. ``ratio_checker_rev.py``
 no longer isolates the checker: an older ``_Checker`` it loads calls this tree's kernels.
 """
@@ -107,7 +108,9 @@ def main(rev: str, n: int, rounds: int) -> None:
             return out
 
     ds = designs(n)
-    evaluate_batch(ds, fidelity=Fidelity.DRAFT)  # compile or load; past KERNEL_AFTER_POSES
+    evaluate_batch(ds, fidelity=Fidelity.DRAFT)  # compile or load
+    # past KERNEL_AFTER_POSES whatever n: this tree's checker takes the kernel route, as the older one here does
+    F._POSES_CHECKED[0] = max(F._POSES_CHECKED[0], F.KERNEL_AFTER_POSES)
     DB._Checker = Capture
     try:
         evaluate_batch(ds, fidelity=Fidelity.DRAFT)
