@@ -39,13 +39,15 @@ def wrap(mod, name: str, label: str | None = None) -> None:
 def main(n: int, only: tuple[str, ...] | None = None) -> None:
     for name in ("start_core", "finish_core", "stack_inputs", "_interference", "_free_workspace", "_structure", "envelopes"):
         wrap(DB, name)
-    for mod, name in ((DB.cad, "part_specs"), (DB.cad, "part_frames_arrays"), (DB.WS, "workspace_params"),
+    for mod, name, *label in ((DB.cad, "part_specs"), (DB.cad, "part_frames_arrays"), (DB.WS, "workspace_params"),
                       (DB.WS, "workspace_sample_weights"), (DB.FAST, "prepare"), (DB.FAST, "check_posed"),
                       (DB.DS, "from_specs"), (DB.stability, "evaluate"), (DB.statics, "from_arrays"),
                       (DB.JL, "from_angles"), (DB.FW, "finish"), (registry, "_collect"),
                       (DB.cad_arrays, "part_tables_many"), (DB.FAST, "models_from_tables"), (DB.DS, "from_tables"),
-                      (DB.WS, "workspace_params_many"), (DB.WS, "workspace_sample_weights_many")):
-        wrap(mod, name)
+                      (DB.WS, "workspace_params_many"), (DB.WS, "workspace_sample_weights_many"),
+                      (DB._Checker, "__call__", "checker (pose IK, cos / sin, check)"), (DB._Checker, "_planar_ik"),
+                      (DB.FAST, "joint_cos_sin"), (DB.FAST, "deepest_joints"), (DB.FAST, "check_joints")):
+        wrap(mod, name, *label)
     ds = designs(n)
     registry.evaluate_batch(ds, fidelity=Fidelity.DRAFT, only=only)
     T.clear()

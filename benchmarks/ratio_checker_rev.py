@@ -5,7 +5,9 @@ REV [n [rounds]]`` (default 1024 designs of ``bench_batched_draft.designs``, 3 r
 
 The older revision's ``analysis/prrr/draft_batch.py`` is loaded from ``git show REV:…`` and only its
 ``_Checker`` class is used (it calls this tree's ``interference_fast.check_posed``); every other step of
-the batch is this tree's, so the ratio is the checker's alone. Both batches' results are compared first
+the batch is this tree's, so the ratio is the checker's alone. The older ``_Checker`` runs this tree's
+``interference_fast`` and kernels too: since ``deepest_joints`` this compares the checkers' glue only;
+``ratio_checker_kernels_rev.py`` compares the older kernels as well. Both batches' results are compared first
 (equal statuses; metrics within 1e-9 relative, NaN where NaN; how many are not bit for bit equal is printed). Prints designs/s, the checker's ms per design (its calls
 timed inside the batch) and the ratios old / new.
 """

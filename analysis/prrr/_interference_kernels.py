@@ -16,9 +16,14 @@ the part frames built in the kernel from the joint values (``cad.part_frames_arr
 work that does not change with the pose done once per run of a design's poses: the rotations, boxes and
 primitives of the parts whose rotation is the design's (base, rails, screws, motors, carriages, housings,
 platform); the x and y tests of pairs of parts that only slide along z, and their separating axes with no
-z component (decided for every pose at once); the boxes of every part over the run, so that only the
-pairs with a moving part whose run boxes meet are tested per pose. Depths bit for bit those of
-:func:`check_poses` on ``part_frames_arrays``' frames.
+z component (decided for every pose at once); the boxes of every part over a block of up to
+:data:`RUN_BLOCK` poses of the run (each pose's frames and boxes built once and kept for the block), so
+that only the pairs with a moving part whose block boxes meet are tested per pose; for such a pair whose
+part boxes meet, each side's primitives tested by centre and bounding widths against the other part's
+box before any primitive is posed or any primitive pair tested. Depths bit for bit those of
+:func:`check_poses` on ``part_frames_arrays``' frames; a column map writes either every pair's depth or
+each pose's deepest. The entry kernels are compiled ``nogil`` and allocate their scratch themselves:
+calls on disjoint outputs may run in parallel threads.
 """
 
 from __future__ import annotations
@@ -179,7 +184,7 @@ def _pose_primitive(p, q, part, Rp, tp, Rprim, oprim, half, kind, Rw, cw, lo, hi
         hi[p, i] = cw[p, i] + e
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def check_poses(Rp, tp, owner, reachable, pc_all, ph_all, pp_a, pp_b, start, count, pair_a, pair_b,
                 prim_part, kind, Rprim_all, oprim_all, half_all, sgn, rim, depth):
     """Depths (c, part pairs) of the poses of one chunk, written into ``depth`` (zeros on entry).
@@ -246,15 +251,9 @@ _FIXED, _SLIDE, _LINK1, _LINK2, _PLATFORM = 0, 1, 2, 3, 4
 #: the boxes' bounds (~1e-16 m at these sizes), so a pair whose boxes meet at a pose (the exact test)
 #: meets in the unions
 RUN_MARGIN = 1e-9
-
-
-@njit(cache=True, inline="always")
-def _part_box(R, t, pc, ph, wc, wh, j):
-    """World box (centre wc[j], half widths wh[j]) of part j with rotation R and origin t; the
-    products of :func:`check_poses` in their order."""
-    for i in range(3):
-        wc[j, i] = (R[i, 0] * pc[j, 0] + R[i, 1] * pc[j, 1] + R[i, 2] * pc[j, 2]) + t[i]
-        wh[j, i] = abs(R[i, 0]) * ph[j, 0] + abs(R[i, 1]) * ph[j, 1] + abs(R[i, 2]) * ph[j, 2]
+#: reachable poses of one design whose frames and boxes :func:`check_joint_poses` keeps at a time (and
+#: whose union of part boxes decides which pairs with a moving part are tested at them)
+RUN_BLOCK = 32
 
 
 @njit(cache=True, inline="always")
@@ -282,11 +281,14 @@ def _rotate_primitive(p, Rf, Rl, ol, h, k, Rw, ro, ext):
 
 
 @njit(cache=True, inline="always")
-def _pose_frames(q, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc, ph, Rpc, Rq, tq, wc, wh,
-                 A, e1, e12):
-    """Rotations Rq and origins tq of the moving parts at pose q of design m (the sliding parts' and the
-    platform's origins; the fixed rotations are the design's, set up before) and every part's world box
-    (wc, wh): :func:`hapticopt.design.prrr.cad.part_frames_arrays`' products, term by term."""
+def _pose_frames(q, m, u, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc_all, ph_all, Rpc, Rq, tq,
+                 wc, wh, ulo, uhi, A, e1, e12):
+    """At pose q of design m, into slot u of the block: the rotations Rq[u] of the links, the origins
+    tq[u] of the moving parts (the sliding parts' and the platform's; the fixed parts' stay 0) and the
+    world boxes (wc[u], wh[u]) of the parts that move (the links'; the centres of the sliding parts and
+    the platform: their rotated centre Rpc plus the origin; the rest is the design's, set up before), and
+    those boxes added to the block's union (ulo, uhi): :func:`hapticopt.design.prrr.cad.part_frames_arrays`'
+    products, term by term (scalar indexing: no array views in this per-pose step)."""
     n_parts = rule.shape[0]
     # the legs' link frames (cad.part_frames_arrays: e1, e12, A = D ez + d1 u + d2 t, B = A + d3 e1)
     for k in range(3):
@@ -301,28 +303,33 @@ def _pose_frames(q, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, 
         if r == _FIXED:
             continue
         k = leg[j]
-        if r == _SLIDE:
-            Dk = D[q, k]
-            tq[j, 0], tq[j, 1], tq[j, 2] = Dk * 0.0, Dk * 0.0, Dk * 1.0
-        elif r == _PLATFORM:
+        if r == _SLIDE or r == _PLATFORM:
+            if r == _SLIDE:
+                Dk = D[q, k]
+                tq[u, j, 0], tq[u, j, 1], tq[u, j, 2] = Dk * 0.0, Dk * 0.0, Dk * 1.0
+            else:
+                tq[u, j, 0], tq[u, j, 1], tq[u, j, 2] = pts[q, 0], pts[q, 1], pts[q, 2]
             for i in range(3):
-                tq[j, i] = pts[q, i]
+                wc[u, j, i] = Rpc[j, i] + tq[u, j, i]
         else:
-            x = e1[k] if r == _LINK1 else e12[k]
-            w = W[m, k]
+            link1 = r == _LINK1
             for i in range(3):
-                Rq[j, i, 0] = x[i]
-                Rq[j, i, 2] = w[i]
-                tq[j, i] = A[k, i] if r == _LINK1 else A[k, i] + d3[m] * e1[k, i]
-            Rq[j, 0, 1] = w[1] * x[2] - w[2] * x[1]  # np.cross(w, x)'s terms
-            Rq[j, 1, 1] = w[2] * x[0] - w[0] * x[2]
-            Rq[j, 2, 1] = w[0] * x[1] - w[1] * x[0]
-    for j in range(n_parts):
-        if rule[j] != _LINK1 and rule[j] != _LINK2:
+                Rq[u, j, i, 0] = e1[k, i] if link1 else e12[k, i]
+                Rq[u, j, i, 2] = W[m, k, i]
+                tq[u, j, i] = A[k, i] if link1 else A[k, i] + d3[m] * e1[k, i]
+            x0, x1, x2 = Rq[u, j, 0, 0], Rq[u, j, 1, 0], Rq[u, j, 2, 0]
+            w0, w1, w2 = W[m, k, 0], W[m, k, 1], W[m, k, 2]
+            Rq[u, j, 0, 1] = w1 * x2 - w2 * x1  # np.cross(w, x)'s terms
+            Rq[u, j, 1, 1] = w2 * x0 - w0 * x2
+            Rq[u, j, 2, 1] = w0 * x1 - w1 * x0
+            # the link's world box (check_poses' products in their order)
             for i in range(3):
-                wc[j, i] = Rpc[j, i] + tq[j, i]
-        else:
-            _part_box(Rq[j], tq[j], pc, ph, wc, wh, j)
+                R0, R1, R2 = Rq[u, j, i, 0], Rq[u, j, i, 1], Rq[u, j, i, 2]
+                wc[u, j, i] = (R0 * pc_all[m, j, 0] + R1 * pc_all[m, j, 1] + R2 * pc_all[m, j, 2]) + tq[u, j, i]
+                wh[u, j, i] = abs(R0) * ph_all[m, j, 0] + abs(R1) * ph_all[m, j, 1] + abs(R2) * ph_all[m, j, 2]
+        for i in range(3):
+            ulo[j, i] = min(ulo[j, i], wc[u, j, i] - wh[u, j, i])
+            uhi[j, i] = max(uhi[j, i], wc[u, j, i] + wh[u, j, i])
 
 
 @njit(cache=True, inline="always")
@@ -332,13 +339,13 @@ def _fixed_part(rule, j):
 
 
 @njit(cache=True)
-def _separated_across_z(ka, Ra, ha, kb, Rb, hb, d0, d1):
+def _separated_across_z(ka, Ra, ha, kb, Rb, hb, d0, d1, d):
     """Whether one of :func:`_depth`'s axes with no z component (a frame axis or a cross product of
     frame axes whose z is exactly 0) has an overlap ≤ 0, for two primitives whose centres differ by
     (d0, d1, ·). On such an axis the overlap is :func:`_overlap`'s bit for bit whatever the z offset of
     the centres (its z term is ±0), so a pair of parts that only slide along z is then separated, depth
-    ≤ 0, at every pose of the design."""
-    d = np.array([d0, d1, 0.0])
+    ≤ 0, at every pose of the design. ``d`` (3,): scratch."""
+    d[0], d[1], d[2] = d0, d1, 0.0
     for i in range(3):
         if Ra[2, i] == 0.0 and _overlap(ka, Ra, ha, kb, Rb, hb, d, Ra[0, i], Ra[1, i], 0.0) <= 0.0:
             return True
@@ -355,13 +362,26 @@ def _separated_across_z(ka, Ra, ha, kb, Rb, hb, d0, d1):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def _rotate_only(p, Rf, Rl, h, k, Rw, ext):
+    """World rotation Rw[p] and world half extents ext[p] of primitive p in a part of rotation Rf
+    (:func:`_rotate_primitive` without the centre)."""
+    for i in range(3):
+        for kk in range(3):
+            Rw[p, i, kk] = Rf[i, 0] * Rl[0, kk] + Rf[i, 1] * Rl[1, kk] + Rf[i, 2] * Rl[2, kk]
+    for i in range(3):
+        ext[p, i] = _extent(k, Rw[p], h, i)
+
+
+@njit(cache=True, nogil=True)
 def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rslide, W, V, U, T, d1, d2, d3,
                       pc_all, ph_all, pp_a, pp_b, start, count, pair_a, pair_b, prim_part, kind, Rprim_all,
-                      oprim_all, half_all, sgn, rim, depth):
+                      oprim_all, half_all, sgn, rim, col, depth):
     """:func:`check_poses` with the part frames built here from the joint values (the products of
-    :func:`hapticopt.design.prrr.cad.part_frames_arrays`, term by term): ``depth`` (n, part pairs) as
-    :func:`check_poses` writes it from those frames, bit for bit.
+    :func:`hapticopt.design.prrr.cad.part_frames_arrays`, term by term): the depth of part pair jj at
+    pose q goes to ``depth[q, col[jj]]`` (the largest where pairs share a column, 0 where none meets:
+    ``col = arange`` gives :func:`check_poses`' ``depth`` bit for bit, ``col = zeros`` the deepest
+    overlap of each pose in one column); ``depth`` zeros on entry.
 
     rule, leg (parts,): each part's frame rule (_FIXED … _PLATFORM) and leg index; per pose: D (n, 3)
     sliders [m], c1, s1, c12, s12 (n, 3) cos / sin of θ₁ and of θ₁ + θ₂ per leg, pts (n, 3) platform
@@ -369,18 +389,27 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
     joint axis w and v, d1, d2, d3 (m,) [m]; U, T (3 legs, 3) the legs' u and t. The frames of the
     fixed and sliding parts (rotation constant per design) and their primitives' rotations, rotated
     centres and extents are computed once per run of poses of one design; per pose only the origin is
-    added, as in :func:`check_poses`."""
+    added, as in :func:`check_poses`. The moving parts' frames and every part's box are computed once
+    per pose, for a block of up to :data:`RUN_BLOCK` reachable poses of the run at a time (kept for the
+    pair tests). Allocates all its scratch (no shared state: calls on disjoint outputs may run in
+    parallel threads; it releases the GIL)."""
     n, n_parts = D.shape[0], rule.shape[0]
     P = kind.shape[0]
-    Rq = np.zeros((n_parts, 3, 3))  # part rotations of the pose (moving parts) or of the design (fixed)
-    tq = np.zeros((n_parts, 3))
-    wc = np.empty((n_parts, 3))
-    wh = np.empty((n_parts, 3))
-    Rpc = np.empty((n_parts, 3))  # fixed parts: rotated box centre (add the origin)
-    stamp = np.full(P, -1, dtype=np.int64)
+    B = RUN_BLOCK
+    Rd = np.zeros((n_parts, 3, 3))  # the design's rotation of the parts whose rotation is constant
+    whd = np.empty((n_parts, 3))  # … and their boxes' world half widths
+    Rpc = np.empty((n_parts, 3))  # … and rotated box centres (add the origin)
+    Rqb = np.zeros((B, n_parts, 3, 3))  # per pose of the block: link rotations,
+    tqb = np.zeros((B, n_parts, 3))  # part origins (fixed parts' stay 0),
+    wcb = np.empty((B, n_parts, 3))  # every part's world box
+    whb = np.empty((B, n_parts, 3))
+    blk = np.empty(B, dtype=np.int64)  # the block's poses
+    stamp = np.full(P, -1, dtype=np.int64)  # pose whose full world pose (Rw, ext, lo, hi) primitive p holds
+    cstamp = np.full(P, -1, dtype=np.int64)  # pose whose world centre cw primitive p holds
     Rw = np.empty((P, 3, 3))
     ro = np.empty((P, 3))
     ext = np.empty((P, 3))
+    bw = np.empty((P, 3))  # half widths bounding a primitive's world box at any rotation (+ RUN_MARGIN)
     cw = np.empty((P, 3))
     lo = np.empty((P, 3))
     hi = np.empty((P, 3))
@@ -400,11 +429,28 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
         else:
             moving_pairs[nm] = jj
             nm += 1
-    live_moving = np.empty(moving_pairs.shape[0], dtype=np.int64)  # per run: the moving pairs that can meet
-    n_live = 0
+    live_moving = np.empty(moving_pairs.shape[0], dtype=np.int64)  # per block: the moving pairs that can meet
+    # the distinct primitives of each side of each part pair (side 0: pair_a's, 1: pair_b's), in CSR form
+    side_start = np.zeros(2 * pp_a.shape[0] + 1, dtype=np.int64)
+    side_prim = np.empty(2 * pair_a.shape[0], dtype=np.int64)
+    seen = np.full(P, -1, dtype=np.int64)
+    n_side = 0
+    for jj in range(pp_a.shape[0]):
+        for side in range(2):
+            for k in range(start[jj], start[jj] + count[jj]):
+                pp = pair_a[k] if side == 0 else pair_b[k]
+                if seen[pp] != 2 * jj + side:
+                    seen[pp] = 2 * jj + side
+                    side_prim[n_side] = pp
+                    n_side += 1
+            side_start[2 * jj + side + 1] = n_side
+    passed = np.full(P, -1, dtype=np.int64)  # the (pose, part pair) tag at which primitive p passed
+    tag = -1
+    n_pass_a = 0
     ulo = np.empty((n_parts, 3))
     uhi = np.empty((n_parts, 3))
     live = np.zeros(pp_a.shape[0], dtype=np.bool_)  # per design: a fixed pair can meet at some z
+    live_fixed = np.empty(n_fixed, dtype=np.int64)  # … the list of those
     pair_live = np.zeros(pair_a.shape[0], dtype=np.bool_)  # … and its primitive pair
     A = np.empty((3, 3))
     e1 = np.empty((3, 3))
@@ -412,64 +458,91 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
     d = np.empty(3)
     sa = np.empty((sgn.shape[0], 3))
     sb = np.empty((sgn.shape[0], 3))
-    last = -1
-    for q in range(n):
-        if not reachable[q]:
-            continue
+    q = 0
+    while q < n:
         m = owner[q]
+        e = q  # the run of design m's poses: q … e − 1
+        while e < n and owner[e] == m:
+            e += 1
         pc, ph = pc_all[m], ph_all[m]
         Rprim, oprim, half = Rprim_all[m], oprim_all[m], half_all[m]
-        if m != last:  # a new design: its fixed and sliding parts' rotations, boxes and primitives
-            last = m
-            for j in range(n_parts):
-                if rule[j] == _FIXED or rule[j] == _PLATFORM:
-                    for i in range(3):
-                        for kk in range(3):
-                            Rq[j, i, kk] = 1.0 if i == kk else 0.0
-                elif rule[j] == _SLIDE:
-                    Rq[j] = Rslide[m, leg[j]]
+        # the design's fixed and sliding parts' rotations, boxes and primitives
+        for j in range(n_parts):
+            if rule[j] == _FIXED or rule[j] == _PLATFORM:
+                for i in range(3):
+                    for kk in range(3):
+                        Rd[j, i, kk] = 1.0 if i == kk else 0.0
+            elif rule[j] == _SLIDE:
+                Rd[j] = Rslide[m, leg[j]]
+            else:
+                continue
+            for i in range(3):
+                R = Rd[j]
+                Rpc[j, i] = R[i, 0] * pc[j, 0] + R[i, 1] * pc[j, 1] + R[i, 2] * pc[j, 2]
+                whd[j, i] = abs(R[i, 0]) * ph[j, 0] + abs(R[i, 1]) * ph[j, 1] + abs(R[i, 2]) * ph[j, 2]
+            for u in range(B):  # the box half widths (and the fixed parts' centres) of every pose of the design
+                for i in range(3):
+                    whb[u, j, i] = whd[j, i]
+                    if rule[j] == _FIXED:
+                        wcb[u, j, i] = Rpc[j, i] + 0.0  # the origin's 0 added, as per pose before
+        for p in range(P):
+            if fixed_prim[p]:
+                _rotate_primitive(p, Rd[prim_part[p]], Rprim[p], oprim[p], half[p], kind[p], Rw, ro, ext)
+                for i in range(3):
+                    bw[p, i] = ext[p, i] + RUN_MARGIN
+            else:  # a link's: the box's half diagonal, the cylinder's (radius, half length), the sphere's radius
+                h = half[p]
+                if kind[p] == _BOX:
+                    r = math.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2])
+                elif kind[p] == _CYL:
+                    r = math.sqrt(h[0] * h[0] + h[2] * h[2])
                 else:
-                    continue
+                    r = h[0]
                 for i in range(3):
-                    R = Rq[j]
-                    Rpc[j, i] = R[i, 0] * pc[j, 0] + R[i, 1] * pc[j, 1] + R[i, 2] * pc[j, 2]
-                    wh[j, i] = abs(R[i, 0]) * ph[j, 0] + abs(R[i, 1]) * ph[j, 1] + abs(R[i, 2]) * ph[j, 2]
-            for p in range(P):
-                if fixed_prim[p]:
-                    _rotate_primitive(p, Rq[prim_part[p]], Rprim[p], oprim[p], half[p], kind[p], Rw, ro, ext)
-            # pairs of fixed and sliding parts: their x and y are the design's (the origins' x, y are ±0), so
-            # the x, y tests of their boxes and the axes with no z component are decided once per design
-            for jj in fixed_pairs:
-                a, b = pp_a[jj], pp_b[jj]
-                live[jj] = (abs(Rpc[a, 0] - Rpc[b, 0]) <= wh[a, 0] + wh[b, 0]
-                            and abs(Rpc[a, 1] - Rpc[b, 1]) <= wh[a, 1] + wh[b, 1])
-                if not live[jj]:
-                    continue
-                live[jj] = False
-                for k in range(start[jj], start[jj] + count[jj]):
-                    pa, pb = pair_a[k], pair_b[k]
-                    pair_live[k] = ((ro[pa, 0] - ext[pa, 0]) <= (ro[pb, 0] + ext[pb, 0])
-                                    and (ro[pa, 1] - ext[pa, 1]) <= (ro[pb, 1] + ext[pb, 1])
-                                    and (ro[pb, 0] - ext[pb, 0]) <= (ro[pa, 0] + ext[pa, 0])
-                                    and (ro[pb, 1] - ext[pb, 1]) <= (ro[pa, 1] + ext[pa, 1])
-                                    and not _separated_across_z(kind[pa], Rw[pa], half[pa], kind[pb], Rw[pb], half[pb],
-                                                                ro[pb, 0] - ro[pa, 0], ro[pb, 1] - ro[pa, 1]))
-                    live[jj] = live[jj] or pair_live[k]
-            # the pairs with a moving part whose boxes can meet at some pose of this run of the design's poses:
-            # every part's box over the run (a pair that meets at a pose has its boxes inside these)
+                    bw[p, i] = r + RUN_MARGIN
+        # pairs of fixed and sliding parts: their x and y are the design's (the origins' x, y are ±0), so
+        # the x, y tests of their boxes and the axes with no z component are decided once per design
+        n_live_fixed = 0
+        for jj in fixed_pairs:
+            a, b = pp_a[jj], pp_b[jj]
+            live[jj] = (abs(Rpc[a, 0] - Rpc[b, 0]) <= whd[a, 0] + whd[b, 0]
+                        and abs(Rpc[a, 1] - Rpc[b, 1]) <= whd[a, 1] + whd[b, 1])
+            if not live[jj]:
+                continue
+            live[jj] = False
+            for k in range(start[jj], start[jj] + count[jj]):
+                pa, pb = pair_a[k], pair_b[k]
+                pair_live[k] = ((ro[pa, 0] - ext[pa, 0]) <= (ro[pb, 0] + ext[pb, 0])
+                                and (ro[pa, 1] - ext[pa, 1]) <= (ro[pb, 1] + ext[pb, 1])
+                                and (ro[pb, 0] - ext[pb, 0]) <= (ro[pa, 0] + ext[pa, 0])
+                                and (ro[pb, 1] - ext[pb, 1]) <= (ro[pa, 1] + ext[pa, 1])
+                                and not _separated_across_z(kind[pa], Rw[pa], half[pa], kind[pb], Rw[pb], half[pb],
+                                                            ro[pb, 0] - ro[pa, 0], ro[pb, 1] - ro[pa, 1], d))
+                live[jj] = live[jj] or pair_live[k]
+            if live[jj]:
+                live_fixed[n_live_fixed] = jj
+                n_live_fixed += 1
+        r = q
+        while r < e:
+            # a block of up to B reachable poses of the run: their frames and boxes, and every part's box
+            # over the block (a pair that meets at a pose has its boxes inside these)
+            nb = 0
+            while r < e and nb < B:
+                if reachable[r]:
+                    blk[nb] = r
+                    nb += 1
+                r += 1
+            if nb == 0:
+                break
             for j in range(n_parts):
                 for i in range(3):
-                    ulo[j, i], uhi[j, i] = np.inf, -np.inf
-            r = q
-            while r < owner.shape[0] and owner[r] == m:
-                if reachable[r]:
-                    _pose_frames(r, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc, ph, Rpc, Rq,
-                                 tq, wc, wh, A, e1, e12)
-                    for j in range(n_parts):
-                        for i in range(3):
-                            ulo[j, i] = min(ulo[j, i], wc[j, i] - wh[j, i])
-                            uhi[j, i] = max(uhi[j, i], wc[j, i] + wh[j, i])
-                r += 1
+                    if rule[j] == _FIXED:  # the design's box
+                        ulo[j, i], uhi[j, i] = wcb[0, j, i] - whb[0, j, i], wcb[0, j, i] + whb[0, j, i]
+                    else:
+                        ulo[j, i], uhi[j, i] = np.inf, -np.inf
+            for t in range(nb):
+                _pose_frames(blk[t], m, t, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc_all, ph_all,
+                             Rpc, Rqb, tqb, wcb, whb, ulo, uhi, A, e1, e12)
             n_live = 0
             for jj in moving_pairs:
                 a, b = pp_a[jj], pp_b[jj]
@@ -480,66 +553,102 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                         and ulo[b, 2] - RUN_MARGIN <= uhi[a, 2] + RUN_MARGIN):
                     live_moving[n_live] = jj
                     n_live += 1
-        _pose_frames(q, m, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d2, d3, pc, ph, Rpc, Rq, tq, wc, wh,
-                     A, e1, e12)
-        for jj in fixed_pairs:  # x, y decided for the design above: z here
-            if not live[jj]:
-                continue
-            a, b = pp_a[jj], pp_b[jj]
-            if not abs(wc[a, 2] - wc[b, 2]) <= wh[a, 2] + wh[b, 2]:
-                continue
-            for k in range(start[jj], start[jj] + count[jj]):
-                if not pair_live[k]:
-                    continue
-                pa, pb = pair_a[k], pair_b[k]
-                ja, jb = prim_part[pa], prim_part[pb]
-                ca2, cb2 = ro[pa, 2] + tq[ja, 2], ro[pb, 2] + tq[jb, 2]
-                if not (ca2 - ext[pa, 2] <= cb2 + ext[pb, 2] and cb2 - ext[pb, 2] <= ca2 + ext[pa, 2]):
-                    continue
-                for pp in (pa, pb):
-                    if stamp[pp] != q:
-                        stamp[pp] = q
-                        for i in range(3):
-                            cw[pp, i] = ro[pp, i] + tq[prim_part[pp], i]
-                            lo[pp, i] = cw[pp, i] - ext[pp, i]
-                            hi[pp, i] = cw[pp, i] + ext[pp, i]
-                dep = _depth_call(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
-                                  d, sgn, rim, sa, sb)
-                if dep > depth[q, jj]:
-                    depth[q, jj] = dep
-        for t in range(n_live):
-            jj = live_moving[t]
-            a, b = pp_a[jj], pp_b[jj]
-            near = True
-            for i in range(3):
-                if not abs(wc[a, i] - wc[b, i]) <= wh[a, i] + wh[b, i]:
-                    near = False
-                    break
-            if not near:
-                continue
-            for k in range(start[jj], start[jj] + count[jj]):
-                pa, pb = pair_a[k], pair_b[k]
-                for pp in (pa, pb):
-                    if stamp[pp] != q:
-                        stamp[pp] = q
-                        j = prim_part[pp]
-                        if not fixed_prim[pp]:
-                            _rotate_primitive(pp, Rq[j], Rprim[pp], oprim[pp], half[pp], kind[pp], Rw, ro, ext)
-                        for i in range(3):
-                            cw[pp, i] = ro[pp, i] + tq[j, i]
-                            lo[pp, i] = cw[pp, i] - ext[pp, i]
-                            hi[pp, i] = cw[pp, i] + ext[pp, i]
-                if not (lo[pa, 0] <= hi[pb, 0] and lo[pa, 1] <= hi[pb, 1] and lo[pa, 2] <= hi[pb, 2]
-                        and lo[pb, 0] <= hi[pa, 0] and lo[pb, 1] <= hi[pa, 1] and lo[pb, 2] <= hi[pa, 2]):
-                    continue
-                dep = _depth(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
-                             d, sgn, rim, sa, sb)
-                if dep > depth[q, jj]:
-                    depth[q, jj] = dep
+            for t in range(nb):
+                qq = blk[t]
+                Rq, tq, wc, wh = Rqb[t], tqb[t], wcb[t], whb[t]
+                for u in range(n_live_fixed):  # x, y decided for the design above: z here
+                    jj = live_fixed[u]
+                    a, b = pp_a[jj], pp_b[jj]
+                    if not abs(wc[a, 2] - wc[b, 2]) <= wh[a, 2] + wh[b, 2]:
+                        continue
+                    for k in range(start[jj], start[jj] + count[jj]):
+                        if not pair_live[k]:
+                            continue
+                        pa, pb = pair_a[k], pair_b[k]
+                        ja, jb = prim_part[pa], prim_part[pb]
+                        ca2, cb2 = ro[pa, 2] + tq[ja, 2], ro[pb, 2] + tq[jb, 2]
+                        if not (ca2 - ext[pa, 2] <= cb2 + ext[pb, 2] and cb2 - ext[pb, 2] <= ca2 + ext[pa, 2]):
+                            continue
+                        for pp in (pa, pb):
+                            if stamp[pp] != qq:
+                                stamp[pp] = cstamp[pp] = qq
+                                for i in range(3):
+                                    cw[pp, i] = ro[pp, i] + tq[prim_part[pp], i]
+                                    lo[pp, i] = cw[pp, i] - ext[pp, i]
+                                    hi[pp, i] = cw[pp, i] + ext[pp, i]
+                        dep = _depth_call(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
+                                          d, sgn, rim, sa, sb)
+                        if dep > depth[qq, col[jj]]:
+                            depth[qq, col[jj]] = dep
+                for u in range(n_live):
+                    jj = live_moving[u]
+                    a, b = pp_a[jj], pp_b[jj]
+                    near = True
+                    for i in range(3):
+                        if not abs(wc[a, i] - wc[b, i]) <= wh[a, i] + wh[b, i]:
+                            near = False
+                            break
+                    if not near:
+                        continue
+                    # each side's primitives: the world centre (a link primitive's: its rotated centre, 9
+                    # products) and a test of the bounding widths against the other part's box; a primitive
+                    # pair whose world boxes meet has both primitives pass (the part boxes hold their
+                    # primitives' boxes, RUN_MARGIN in bw covering the rounding)
+                    tag += 1
+                    n_pass = 0
+                    for side in range(2):
+                        for idx in range(side_start[2 * jj + side], side_start[2 * jj + side + 1]):
+                            pp = side_prim[idx]
+                            other = b if prim_part[pp] == a else a
+                            if cstamp[pp] != qq:
+                                cstamp[pp] = qq
+                                j = prim_part[pp]
+                                if not fixed_prim[pp]:
+                                    for i in range(3):
+                                        ro[pp, i] = (Rq[j, i, 0] * oprim[pp, 0] + Rq[j, i, 1] * oprim[pp, 1]
+                                                     + Rq[j, i, 2] * oprim[pp, 2])
+                                for i in range(3):
+                                    cw[pp, i] = ro[pp, i] + tq[j, i]
+                            if (abs(cw[pp, 0] - wc[other, 0]) <= bw[pp, 0] + wh[other, 0]
+                                    and abs(cw[pp, 1] - wc[other, 1]) <= bw[pp, 1] + wh[other, 1]
+                                    and abs(cw[pp, 2] - wc[other, 2]) <= bw[pp, 2] + wh[other, 2]):
+                                passed[pp] = tag
+                                n_pass += 1
+                        if n_pass == 0:
+                            break
+                        if side == 0:
+                            n_pass_a = n_pass
+                            n_pass = 0
+                    if n_pass == 0 or n_pass_a == 0:
+                        continue
+                    for k in range(start[jj], start[jj] + count[jj]):
+                        pa, pb = pair_a[k], pair_b[k]
+                        if passed[pa] != tag or passed[pb] != tag:
+                            continue
+                        if not (abs(cw[pa, 0] - cw[pb, 0]) <= bw[pa, 0] + bw[pb, 0]
+                                and abs(cw[pa, 1] - cw[pb, 1]) <= bw[pa, 1] + bw[pb, 1]
+                                and abs(cw[pa, 2] - cw[pb, 2]) <= bw[pa, 2] + bw[pb, 2]):
+                            continue
+                        for pp in (pa, pb):
+                            if stamp[pp] != qq:
+                                stamp[pp] = qq
+                                if not fixed_prim[pp]:
+                                    _rotate_only(pp, Rq[prim_part[pp]], Rprim[pp], half[pp], kind[pp], Rw, ext)
+                                for i in range(3):
+                                    lo[pp, i] = cw[pp, i] - ext[pp, i]
+                                    hi[pp, i] = cw[pp, i] + ext[pp, i]
+                        if not (lo[pa, 0] <= hi[pb, 0] and lo[pa, 1] <= hi[pb, 1] and lo[pa, 2] <= hi[pb, 2]
+                                and lo[pb, 0] <= hi[pa, 0] and lo[pb, 1] <= hi[pa, 1] and lo[pb, 2] <= hi[pa, 2]):
+                            continue
+                        dep = _depth(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
+                                     d, sgn, rim, sa, sb)
+                        if dep > depth[qq, col[jj]]:
+                            depth[qq, col[jj]] = dep
+        q = e
 
 
 # ---------------------------------------------------------------------------- pose inverse kinematics
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def pose_ik_planar(owner, pts, cb, sb, tb, d1, d2, d3, d4, r4, b5, stroke, U, T, sliders, rho_v, rho_t, c2, y, x,
                    reachable):
     """The arithmetic part of :func:`hapticopt.design.prrr.kinematics.inverse_kinematics` (its numpy
@@ -587,3 +696,32 @@ def pose_ik_planar(owner, pts, cb, sb, tb, d1, d2, d3, d4, r4, b5, stroke, U, T,
             y[q, k] = dd4 * math.sqrt(1.0 - c * c)
             x[q, k] = dd3 + dd4 * c
         reachable[q] = ok
+
+
+@njit(cache=True, nogil=True)
+def elbow_cos_sin(elbow, phi, psi, branch, trig, th1, th12, c1, s1, c12, s12):
+    """Per pose and leg (n, 3): θ₁ and θ₁ + θ₂ [rad] of IK branch ``branch`` (0: θ₁ = φ − ψ, θ₂ = elbow;
+    1: θ₁ = φ + ψ, θ₂ = −elbow; θ₁ wrapped to [−π, π) as ``np.mod(θ₁ + π, 2π) − π``: the float % is
+    numpy's mod, fmod with the sign of the divisor) and, where ``trig``, their cos and sin (libm's, as
+    numba calls it; :func:`hapticopt.analysis.prrr.interference_fast.numba_trig_is_numpys` says whether they
+    are numpy's bit for bit on this machine, else the caller takes numpy's of th1, th12)."""
+    two_pi = 2.0 * np.pi
+    for q in range(elbow.shape[0]):
+        for k in range(3):
+            if branch == 0:
+                t1, t2 = phi[q, k] - psi[q, k], elbow[q, k]
+            else:
+                t1, t2 = phi[q, k] + psi[q, k], -elbow[q, k]
+            t1 = (t1 + np.pi) % two_pi - np.pi
+            t12 = t1 + t2
+            th1[q, k], th12[q, k] = t1, t12
+            if trig:
+                c1[q, k], s1[q, k] = math.cos(t1), math.sin(t1)
+                c12[q, k], s12[q, k] = math.cos(t12), math.sin(t12)
+
+
+@njit(cache=True, nogil=True)
+def cos_sin(x, c, s):
+    """cos and sin of every entry of x (flat arrays; libm's, as numba calls it)."""
+    for i in range(x.shape[0]):
+        c[i], s[i] = math.cos(x[i]), math.sin(x[i])

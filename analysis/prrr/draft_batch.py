@@ -30,8 +30,9 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   limits from the statics row (where that row's verdict is ok).
 * **numpy over all designs at once**: the interference poses (``workspace_sample_weights_many``:
   every design's sample points and weights in one pass, bit for bit the per-design function's; then
-  one separating-axis pass, ``interference_fast.check_joints``, over every pose of every design: its
-  compiled kernel builds the part frames from the pose IK's joint values) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
+  one separating-axis pass over every pose of every design, ``interference_fast.deepest_joints``
+  (compiled: the kernel builds the part frames from the pose IK's joint values, the cos / sin of the
+  joint angles compiled too, and keeps each pose's deepest overlap) or ``interference_fast.check_joints``) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
   column grid of every design in one pass, then each bisection in one pass). The column structure
   (moving parts translate together in z, fixed parts are prisms) is what makes one pose per
   column enough there. Pose IK is the numpy IK's (the single path's) values bit for bit: a numba kernel
@@ -252,8 +253,15 @@ class _Checker:
         kernels = "hapticopt.analysis.prrr._interference_kernels"
         if (n < FAST.KERNEL_AFTER_POSES and kernels not in sys.modules) or FAST.availability() is not None:
             return self.pose_ik_numpy(owner, pts)
+        sliders, elbow, phi, psi, ok = self._planar_ik(owner, pts)
+        return sliders, _elbow_branch(elbow, phi, psi), ok
+
+    def _planar_ik(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Sliders (n, 3) [m], the elbow angle and in-plane angles φ, ψ (n, 3) [rad] and reachability (n,):
+        ``pose_ik_planar``'s arithmetic and numpy's arccos / arctan2 (needs the kernels loaded)."""
         from hapticopt.analysis.prrr import _interference_kernels as K  # loaded by availability()
 
+        n = len(pts)
         g = self.geo
         beta = g["beta"]
         sliders, rho_v, rho_t, c2, y, x = (np.empty((n, 3)) for _ in range(6))
@@ -261,7 +269,7 @@ class _Checker:
         K.pose_ik_planar(np.ascontiguousarray(owner, dtype=np.int64), np.ascontiguousarray(pts, dtype=np.float64),
                          np.cos(beta), np.sin(beta), np.tan(beta), *(g[f] for f in _KIN_FIELDS[1:]), _LEGS.u,
                          _LEGS.t, sliders, rho_v, rho_t, c2, y, x, ok)
-        return sliders, _elbow_branch(np.arccos(c2), np.arctan2(rho_t, rho_v), np.arctan2(y, x)), ok
+        return sliders, np.arccos(c2), np.arctan2(rho_t, rho_v), np.arctan2(y, x), ok
 
     def pose_ik_numpy(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`pose_ik` in numpy over every pose at once: ``inverse_kinematics``' operations
@@ -292,16 +300,53 @@ class _Checker:
                 np.all(reach_ok & stroke_ok, axis=-1))
 
     def __call__(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``."""
+        """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``.
+
+        Where the compiled check runs (``interference_fast``'s rule: from ``KERNEL_AFTER_POSES`` checked
+        poses on, numba loadable) and every layout group has joint tables: the pose IK's arithmetic and
+        the joint angles' cos / sin compiled (``interference_fast.joint_cos_sin``), numpy's arccos /
+        arctan2, and ``interference_fast.deepest_joints`` per group (no joint-angle or per-pair depth
+        arrays; a group holding every pose is passed without copies). Otherwise :meth:`pose_ik` and
+        ``interference_fast.check_joints``. The same values bit for bit either way (tested)."""
         n = len(pts)
         collides, reachable, depth = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)
         if n == 0:
             return collides, reachable, depth
+        if (FAST._POSES_CHECKED[0] + n < FAST.KERNEL_AFTER_POSES or FAST.availability() is not None
+                or any(tables is None for *_, tables in self.groups)):
+            return self._call_arrays(owner, pts, collides, reachable, depth)
+        FAST._POSES_CHECKED[0] += n
+        sliders, elbow, phi, psi, ok = self._planar_ik(owner, pts)
+        trig = FAST.joint_cos_sin(elbow, phi, psi, WS.ELBOW_BRANCH)
+        jobs = []
+        for local, batch, geometry, tables in self.groups:
+            lo = local[owner]
+            sel = np.flatnonzero(lo >= 0)
+            k = _kernel_threads(len(sel))
+            if len(sel) == n and k == 1:  # one group holds every pose, one thread
+                hit, deepest = FAST.deepest_joints(lo, pts, sliders, trig, ok, tables)
+                return hit, ok, deepest
+            jobs += [(part, lo, tables) for part in _shares(sel, owner, k)]
+
+        def run(job) -> None:
+            part, lo, tables = job
+            if part[-1] - part[0] + 1 == len(part):  # a contiguous share: views, no copies
+                part = slice(int(part[0]), int(part[-1]) + 1)
+            hit, deepest = FAST.deepest_joints(lo[part], pts[part], sliders[part], tuple(x[part] for x in trig),
+                                               ok[part], tables)
+            collides[part], reachable[part], depth[part] = hit, ok[part], deepest
+
+        _run_threaded(run, jobs)
+        return collides, reachable, depth
+
+    def _call_arrays(self, owner, pts, collides, reachable, depth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`__call__` through :meth:`pose_ik`'s joint angles and ``interference_fast.check_joints``
+        (its rule: numpy, or the kernel where it runs)."""
         sliders, theta, ok = self.pose_ik(owner, pts)
         jobs = []
         for local, batch, geometry, tables in self.groups:
             sel = np.flatnonzero(local[owner] >= 0)
-            jobs += [(part, local, batch, geometry, tables) for part in _shares(sel, owner, _kernel_threads(n))]
+            jobs += [(part, local, batch, geometry, tables) for part in _shares(sel, owner, _kernel_threads(len(sel)))]
 
         def run(job) -> None:
             part, local, batch, geometry, tables = job

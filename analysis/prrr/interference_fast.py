@@ -33,7 +33,9 @@ the same part tables (:func:`hapticopt.design.prrr.cad.part_specs`), without mes
   pairs (:mod:`._interference_kernels`, bitwise-equal depths; the numpy path is the reference and
   the fallback where :func:`availability` says why the kernel cannot run). :func:`check_joints` takes
   the poses as joint values and its kernel builds the part frames itself (no per-pose frame arrays),
-  doing the work that does not change with the pose once per design (docs/workspace_interference.md).
+  doing the work that does not change with the pose once per design (docs/workspace_interference.md);
+  :func:`deepest_joints` is that kernel keeping only each pose's deepest overlap, from the joint
+  angles' cos / sin (:func:`joint_cos_sin`), for the batched draft evaluator.
   Poses come from the numpy inverse kinematics (:func:`hapticopt.design.prrr.kinematics.inverse_kinematics`,
   ``xp=numpy``; the batched draft evaluator's jitted copy), in the CAD's elbow branch.
 
@@ -670,9 +672,63 @@ def check_joints(batch: PrimitiveBatch, owner: np.ndarray, points: np.ndarray, s
     th1, th12 = theta[:, :, 0], theta[:, :, 0] + theta[:, :, 1]
     K.check_joint_poses(*tables.head, f64(sliders), f64(np.cos(th1)), f64(np.sin(th1)), f64(np.cos(th12)),
                         f64(np.sin(th12)), f64(pts), np.ascontiguousarray(owner, dtype=np.int64), reachable,
-                        *tables.design, *tables.tail, depth)
+                        *tables.design, *tables.tail, np.arange(len(batch.part_pairs), dtype=np.int64), depth)
     return FastResult(points=pts, reachable=reachable, collides=np.any(depth > DEPTH_TOL, axis=1),
                       depth=depth, part_pairs=batch.part_pairs)
+
+
+@functools.cache
+def numba_trig_is_numpys() -> bool:
+    """Whether the compiled kernels' cos and sin (libm's, as numba calls them) are numpy's bit for bit
+    here, on 100,003 seeded angles over [−2π, 2π] (θ₁ + θ₂'s range) and the edge values; numpy may use
+    its own vectorised routines on some CPUs (it does for arccos and arctan2 on this project's AVX-512
+    machine, where cos and sin are libm's in both). Needs :func:`availability` None."""
+    from hapticopt.analysis.prrr import _interference_kernels as K
+
+    x = np.random.default_rng(20261126).uniform(-2.0 * np.pi, 2.0 * np.pi, 100_003)
+    x = np.concatenate([x, [0.0, -0.0, np.pi, -np.pi, 2.0 * np.pi, -2.0 * np.pi, np.pi / 2, 1e-300, -1e-300]])
+    c, s = np.empty_like(x), np.empty_like(x)
+    K.cos_sin(x, c, s)
+    return bool(np.array_equal(c.view(np.int64), np.cos(x).view(np.int64))
+                and np.array_equal(s.view(np.int64), np.sin(x).view(np.int64)))
+
+
+def joint_cos_sin(elbow: np.ndarray, phi: np.ndarray, psi: np.ndarray, branch: int) -> tuple[np.ndarray, ...]:
+    """cos and sin of θ₁ and of θ₁ + θ₂ (c1, s1, c12, s12: (n, 3 legs) each) of IK branch ``branch`` from
+    the elbow angle and the in-plane angles φ, ψ (n, 3) [rad] (``kinematics.inverse_kinematics``' branch
+    and wrap), bit for bit ``np.cos`` / ``np.sin`` of the ``theta`` that :func:`check_joints` takes: in one
+    compiled pass (:func:`._interference_kernels.elbow_cos_sin`) where :func:`numba_trig_is_numpys`, else
+    the angles compiled and numpy's cos and sin. Needs :func:`availability` None."""
+    from hapticopt.analysis.prrr import _interference_kernels as K
+
+    f64 = functools.partial(np.ascontiguousarray, dtype=np.float64)
+    n = len(elbow)
+    th1, th12, c1, s1, c12, s12 = (np.empty((n, 3)) for _ in range(6))
+    trig = numba_trig_is_numpys()
+    K.elbow_cos_sin(f64(elbow), f64(phi), f64(psi), int(branch), trig, th1, th12, c1, s1, c12, s12)
+    if not trig:
+        c1, s1, c12, s12 = np.cos(th1), np.sin(th1), np.cos(th12), np.sin(th12)
+    return c1, s1, c12, s12
+
+
+def deepest_joints(owner: np.ndarray, points: np.ndarray, sliders: np.ndarray, trig: tuple[np.ndarray, ...],
+                   reachable: np.ndarray, tables: JointTables) -> tuple[np.ndarray, np.ndarray]:
+    """(collides (n,), deepest part-pair overlap (n,) [m]) at poses given by their joint values: the
+    compiled :func:`check_joints` (``compiled=True``) with the cos and sin of the joint angles given
+    (``trig``: :func:`joint_cos_sin`'s c1, s1, c12, s12), its ``collides`` and ``depth.max(axis=1)``
+    bit for bit, the kernel keeping only each pose's deepest overlap (no (n, part pairs) array).
+    ``tables``: :func:`joint_tables` (not None); needs :func:`availability` None."""
+    from hapticopt.analysis.prrr import _interference_kernels as K
+
+    f64 = functools.partial(np.ascontiguousarray, dtype=np.float64)
+    n = len(points)
+    depth = np.zeros((n, 1))
+    n_pairs = len(tables.tail[2])
+    K.check_joint_poses(*tables.head, f64(sliders), *(f64(x) for x in trig), f64(points),
+                        np.ascontiguousarray(owner, dtype=np.int64), np.ascontiguousarray(reachable, dtype=np.bool_),
+                        *tables.design, *tables.tail, np.zeros(n_pairs, dtype=np.int64), depth)
+    deepest = depth[:, 0]
+    return deepest > DEPTH_TOL, deepest
 
 
 def _posed_primitives(batch, owner, Rp, hw, kind_flat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -294,15 +294,19 @@ def test_checker_on_two_threads_equals_one_thread_bitwise(both, monkeypatch):
         owner.append(np.full(len(p), i)), pts.append(p)
     owner, pts = np.concatenate(owner), np.concatenate(pts)
     monkeypatch.setattr(draft_batch, "POSES_PER_THREAD", 64)
-    for order in (np.arange(len(owner)), np.random.default_rng(5).permutation(len(owner))):
-        got = {}
-        for k in (1, 2):
-            monkeypatch.setattr(compiled, "_threads", k)
-            assert draft_batch._kernel_threads(len(owner)) == k
-            got[k] = check(owner[order], pts[order])
-        for a, b in zip(got[1], got[2], strict=True):
-            assert np.array_equal(np.asarray(a).view(np.uint8), np.asarray(b).view(np.uint8))
-        assert got[2][0].any() and not got[2][0].all()
+    for route in ("deepest_joints", "check_joints"):  # the compiled route, and through the joint angles
+        if route == "check_joints":
+            monkeypatch.setattr(check, "groups", [(*g[:3], None) for g in check.groups])
+        for order in (np.arange(len(owner)), np.random.default_rng(5).permutation(len(owner))):
+            got = {}
+            for k in (1, 2):
+                monkeypatch.setattr(compiled, "_threads", k)
+                monkeypatch.setattr(interference_fast, "_POSES_CHECKED", [interference_fast.KERNEL_AFTER_POSES])
+                assert draft_batch._kernel_threads(len(owner)) == k
+                got[k] = check(owner[order], pts[order])
+            for a, b in zip(got[1], got[2], strict=True):
+                assert np.array_equal(np.asarray(a).view(np.uint8), np.asarray(b).view(np.uint8))
+            assert got[2][0].any() and not got[2][0].all()
 
 
 def test_shares_cut_where_the_owner_changes():

@@ -220,6 +220,7 @@ def test_overlap_fraction_is_continuous_across_a_jump_of_the_removed_fraction(pa
 
 # --- the numba kernel of check_posed against its numpy reference -------------------------------
 
+
 def _bits(x: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(x, dtype=np.float64).view(np.int64)
 
@@ -347,12 +348,10 @@ def _geometry(designs):
     return F.LegGeometry(*(np.array([float(getattr(d.geometry, f)) for d in designs]) for f in F.LegGeometry._fields))
 
 
-def test_joint_kernel_equals_the_numpy_reference_on_the_cads_frames_bitwise(problem_sample):
-    """check_joints' kernel builds the part frames itself from the joint values: its depths equal, bit for
-    bit, the numpy reference's on cad.part_frames_arrays' frames of the same joint values, for every
-    design of the largest layout group of 16 seeded designs within the problem bounds in one call
-    (the last two designs' poses shuffled together, so a design's fixed parts are set up again and again), with colliding, shallow
-    and free poses and an unreachable point; its numpy path is that reference itself."""
+def _joint_problem(problem_sample) -> tuple:
+    """The largest layout group of 16 seeded designs within the problem bounds and their interference
+    poses (one unreachable point each; the last two designs' poses shuffled together, so a design's
+    fixed parts are set up again and again): batch, owner, pts, sliders, theta, ok, geometry."""
     designs = problem_sample(16, seed=4242, accept=F.prepare)
     models = [F.prepare(d) for d in designs]
     members = _largest_layout_group(models)
@@ -369,7 +368,16 @@ def test_joint_kernel_equals_the_numpy_reference_on_the_cads_frames_bitwise(prob
     order[-300:] = order[-300:][np.random.default_rng(7).permutation(300)]  # the last two designs' poses mixed
     owner, pts, sliders, theta, ok = (x[order] for x in (owner, pts, sliders, theta, ok))
     assert len(np.unique(owner[-300:])) >= 2 and np.count_nonzero(np.diff(owner[-300:])) > 50
-    geo = _geometry([designs[i] for i in members])
+    return batch, owner, pts, sliders, theta, ok, _geometry([designs[i] for i in members])
+
+
+def test_joint_kernel_equals_the_numpy_reference_on_the_cads_frames_bitwise(problem_sample):
+    """check_joints' kernel builds the part frames itself from the joint values: its depths equal, bit for
+    bit, the numpy reference's on cad.part_frames_arrays' frames of the same joint values, for every
+    design of the largest layout group of 16 seeded designs within the problem bounds in one call
+    (the last two designs' poses shuffled together, so a design's fixed parts are set up again and again), with colliding, shallow
+    and free poses and an unreachable point; its numpy path is that reference itself."""
+    batch, owner, pts, sliders, theta, ok, geo = _joint_problem(problem_sample)
     frames = cad_prrr.part_frames_arrays(geo.beta[owner], geo.d1[owner], geo.d2[owner], geo.d3[owner],
                                          geo.theta_1p[owner], sliders, theta, pts)
     ref = F.check_posed(batch, owner, pts, frames, ok, compiled=False)
@@ -442,3 +450,68 @@ def test_part_boxes_are_each_parts_primitive_extents_bitwise(problem_sample):
         for g, w in zip(got, want):
             assert g.shape == w.shape and np.array_equal(_bits(g), _bits(w))
     assert np.all(F._part_boxes(moved)[1][:, last] == 0.0)
+
+
+def test_deepest_joints_are_check_joints_deepest_bitwise(problem_sample):
+    """deepest_joints (the kernel keeping each pose's deepest overlap only, the cos / sin given: numpy's
+    of check_joints' theta) gives check_joints' collides and depth.max(axis=1) bit for bit."""
+    assert F.availability() is None
+    batch, owner, pts, sliders, theta, ok, geo = _joint_problem(problem_sample)
+    tables = F.joint_tables(batch, geo)
+    ref = F.check_joints(batch, owner, pts, sliders, theta, ok, geo, tables=tables, compiled=True)
+    th1, th12 = theta[:, :, 0], theta[:, :, 0] + theta[:, :, 1]
+    hit, deepest = F.deepest_joints(owner, pts, sliders, (np.cos(th1), np.sin(th1), np.cos(th12), np.sin(th12)),
+                                    ok, tables)
+    assert np.array_equal(hit, ref.collides)
+    assert np.array_equal(_bits(deepest), _bits(ref.depth.max(axis=1)))
+    assert ref.collides.any() and not ref.collides.all()
+
+
+@pytest.mark.parametrize("branch", [0, 1])
+@pytest.mark.parametrize("compiled_trig", [True, False])
+def test_joint_cos_sin_is_numpys_of_the_branch_angles_bitwise(branch, compiled_trig, monkeypatch):
+    """joint_cos_sin's cos / sin of θ₁ and θ₁ + θ₂ equal numpy's cos / sin of the angles the IK branch
+    gives (kinematics.inverse_kinematics: θ₁ = φ ∓ ψ wrapped by np.mod to [−π, π), θ₂ = ±elbow), bit for
+    bit, on 30,000 seeded angles and the wrap's edges (φ ∓ ψ = ±π, ±3π), with the compiled cos / sin and
+    with numpy's (the route where numba_trig_is_numpys is False)."""
+    assert F.availability() is None
+    monkeypatch.setattr(F, "numba_trig_is_numpys", lambda: compiled_trig)
+    rng = np.random.default_rng(515)
+    elbow = rng.uniform(0.0, np.pi, (10_000, 3))
+    phi = rng.uniform(-np.pi, np.pi, (10_000, 3))
+    psi = rng.uniform(0.0, np.pi, (10_000, 3))
+    edge = np.array([[np.pi, 0.0, 0.0], [-np.pi, 0.0, 0.0], [np.pi, -2.0 * np.pi, 2.0 * np.pi], [0.0, -0.0, 1.0]])
+    elbow, phi, psi = (np.concatenate([x, e]) for x, e in zip((elbow, phi, psi), (np.abs(edge), edge, edge[:, ::-1])))
+    th1, th2 = (phi - psi, elbow) if branch == 0 else (phi + psi, -elbow)
+    th1 = np.mod(th1 + np.pi, 2.0 * np.pi) - np.pi
+    want = (np.cos(th1), np.sin(th1), np.cos(th1 + th2), np.sin(th1 + th2))
+    got = F.joint_cos_sin(elbow, phi, psi, branch)
+    for g, w in zip(got, want, strict=True):
+        assert np.array_equal(_bits(g), _bits(w))
+
+
+def test_joint_kernels_release_the_gil_and_run_in_two_threads_bitwise(problem_sample):
+    """The kernels are compiled nogil and allocate their scratch themselves: two threads checking the two
+    halves of the poses at once (the split inside a design's run of poses) give bit for bit one call's
+    results."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from hapticopt.analysis.prrr import _interference_kernels as K
+
+    assert F.availability() is None
+    for kernel in (K.check_joint_poses, K.check_poses, K.pose_ik_planar, K.elbow_cos_sin, K.cos_sin):
+        assert kernel.targetoptions.get("nogil") is True, kernel
+    batch, owner, pts, sliders, theta, ok, geo = _joint_problem(problem_sample)
+    tables = F.joint_tables(batch, geo)
+    th1, th12 = theta[:, :, 0], theta[:, :, 0] + theta[:, :, 1]
+    trig = (np.cos(th1), np.sin(th1), np.cos(th12), np.sin(th12))
+    one = F.deepest_joints(owner, pts, sliders, trig, ok, tables)
+    h = len(owner) // 2 + 7
+    assert owner[h - 1] == owner[h]  # the split falls inside a run
+    halves = [slice(0, h), slice(h, None)]
+    with ThreadPoolExecutor(2) as pool:
+        for _ in range(3):
+            parts = list(pool.map(lambda s: F.deepest_joints(owner[s], pts[s], sliders[s], tuple(x[s] for x in trig),
+                                                               ok[s], tables), halves))
+            assert np.array_equal(np.concatenate([p[0] for p in parts]), one[0])
+            assert np.array_equal(_bits(np.concatenate([p[1] for p in parts])), _bits(one[1]))
