@@ -41,6 +41,12 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   pairs per pose (part boxes, primitive boxes, separating axes one at a time), which a fixed-shape
   jax program cannot do; on a CPU the pruned numpy pass was already the faster of the two, and its
   compiled kernel is faster still (measured: docs/workspace_interference.md).
+* **two things at once**: the jax core is dispatched (:func:`start_core`: jax's asynchronous dispatch, XLA's
+  own thread) before the interference check and collected after it (:func:`finish_core`), so the collision
+  kernel and the core run on two cores; the compiled check's calls are split into shares of whole designs
+  (:func:`_shares`) on ``compiled.threads()`` threads (the kernels release the GIL; a run's pool workers
+  use one). Results are the same bits on one thread or several (tested); measured in docs/performance.md
+  ("The batched draft evaluator at 2,000 designs/s").
 * **numpy, one table per part layout**: the CAD part tables (``cad_arrays.part_tables_many``: the
   layout and its buildability rules on (n,) columns, tested equal to ``cad.part_specs``), the
   interference model's primitive tables from them (``interference_fast.models_from_tables``), the
