@@ -95,18 +95,25 @@ def combine(name: str, body: str, members: list[PartMass]) -> PartMass:
                     volume=float(sum(p.volume for p in members)))
 
 
-def analytic(design: Any, *, specs: dict[str, _parts.PartSpec]) -> MassProperties:
-    """Closed-form mass properties from the part tables (no solids built).
-
-    ``specs`` is the device's part table (``design.<device>.cad.part_specs``); each device's
-    ``cad.mass_properties(design)`` calls this with its own.
-    """
+def _distinct_primitives(specs: dict[str, _parts.PartSpec]) -> tuple[dict[int, int], list]:
+    """(id of a primitive table → its index, the distinct tables in first-seen order): parts that share
+    one table are computed once."""
     unique: dict[int, int] = {}
     groups = []
     for spec in specs.values():
         if id(spec.primitives) not in unique:
             unique[id(spec.primitives)] = len(groups)
             groups.append(spec.primitives)
+    return unique, groups
+
+
+def analytic(design: Any, *, specs: dict[str, _parts.PartSpec]) -> MassProperties:
+    """Closed-form mass properties from the part tables (no solids built).
+
+    ``specs`` is the device's part table (``design.<device>.cad.part_specs``); each device's
+    ``cad.mass_properties(design)`` calls this with its own.
+    """
+    unique, groups = _distinct_primitives(specs)
     props = _parts.volume_properties_many(groups)
     out: dict[str, PartMass] = {}
     for name, spec in specs.items():
@@ -121,12 +128,7 @@ def analytic_masses(specs: dict[str, _parts.PartSpec]) -> dict[str, float]:
     """The part masses [kg] of :func:`analytic` alone (name -> mass, in ``specs``' order): the same
     grouping of the parts and the same volumes (:func:`hapticopt.design.parts.volume_many`), so the same
     bits (tested), without the centroids and inertia tensors."""
-    unique: dict[int, int] = {}
-    groups = []
-    for spec in specs.values():
-        if id(spec.primitives) not in unique:
-            unique[id(spec.primitives)] = len(groups)
-            groups.append(spec.primitives)
+    unique, groups = _distinct_primitives(specs)
     volume = _parts.volume_many(groups).tolist()
     return {name: spec.density * volume[unique[id(spec.primitives)]] for name, spec in specs.items()}
 

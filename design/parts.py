@@ -242,16 +242,22 @@ def volumes(kind: np.ndarray, dims: np.ndarray) -> np.ndarray:
     return v
 
 
-def volume_many(groups) -> np.ndarray:
-    """The volumes (n,) [m³] of :func:`volume_properties_many` alone: the same tables, the same volume
-    expressions (:func:`volumes`) and the same signed sum (one product with the same one-hot matrix),
-    so the same bits (tested), without the centroids and moments."""
+def _flat_tables(groups):
+    """The primitives of several parts as one table: (the primitives, their count, each one's part index,
+    kind, sign (+1 solid, −1 overlap or hole), dims)."""
     flat = [p for g in groups for p in g]
-    nf = len(flat)
     idx = np.repeat(np.arange(len(groups)), [len(g) for g in groups])
     kind = np.array([p.kind for p in flat])
     sign = np.where(np.array([p.role == Role.SOLID for p in flat]), 1.0, -1.0)
     dims = np.array([p.dims for p in flat], dtype=float)
+    return flat, len(flat), idx, kind, sign, dims
+
+
+def volume_many(groups) -> np.ndarray:
+    """The volumes (n,) [m³] of :func:`volume_properties_many` alone: the same tables, the same volume
+    expressions (:func:`volumes`) and the same signed sum (one product with the same one-hot matrix),
+    so the same bits (tested), without the centroids and moments."""
+    flat, nf, idx, kind, sign, dims = _flat_tables(groups)
     onehot = np.zeros((len(groups), nf))
     onehot[idx, np.arange(nf)] = sign
     return onehot @ volumes(kind, dims)
@@ -264,12 +270,7 @@ def volume_properties(prims) -> VolumeProps:
 
 def volume_properties_many(groups) -> list[VolumeProps]:
     """:func:`volume_properties` of several parts in one vectorised pass."""
-    flat = [p for g in groups for p in g]
-    nf = len(flat)
-    idx = np.repeat(np.arange(len(groups)), [len(g) for g in groups])
-    kind = np.array([p.kind for p in flat])
-    sign = np.where(np.array([p.role == Role.SOLID for p in flat]), 1.0, -1.0)
-    dims = np.array([p.dims for p in flat], dtype=float)
+    flat, nf, idx, kind, sign, dims = _flat_tables(groups)
     R = np.array([p.R for p in flat])
     o = np.array([p.o for p in flat])
     v, c_loc, I_loc = _local_props(kind, dims)

@@ -159,6 +159,15 @@ def _depth_call(ka, Ra, ha, ca, kb, Rb, hb, cb, d, sgn, rim, sa, sb):
     return _depth(ka, Ra, ha, ca, kb, Rb, hb, cb, d, sgn, rim, sa, sb)
 
 
+@njit(cache=True, inline="always")
+def _boxes_meet(wc, wh, a, b):
+    """Whether the world boxes (centres wc, half widths wh) of parts a and b overlap on every axis."""
+    for i in range(3):
+        if not abs(wc[a, i] - wc[b, i]) <= wh[a, i] + wh[b, i]:
+            return False
+    return True
+
+
 @njit(cache=True)
 def _pose_primitive(p, q, part, Rp, tp, Rprim, oprim, half, kind, Rw, cw, lo, hi):
     """World rotation, centre and world box of primitive p at pose q (the reference's
@@ -218,12 +227,7 @@ def check_poses(Rp, tp, owner, reachable, pc_all, ph_all, pp_a, pp_b, start, cou
         Rprim, oprim, half = Rprim_all[m], oprim_all[m], half_all[m]
         for jj in range(pp_a.shape[0]):
             a, b = pp_a[jj], pp_b[jj]
-            near = True
-            for i in range(3):
-                if not abs(wc[a, i] - wc[b, i]) <= wh[a, i] + wh[b, i]:
-                    near = False
-                    break
-            if not near:
+            if not _boxes_meet(wc, wh, a, b):
                 continue
             for k in range(start[jj], start[jj] + count[jj]):
                 pa, pb = pair_a[k], pair_b[k]
@@ -583,12 +587,7 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
                 for u in range(n_live):
                     jj = live_moving[u]
                     a, b = pp_a[jj], pp_b[jj]
-                    near = True
-                    for i in range(3):
-                        if not abs(wc[a, i] - wc[b, i]) <= wh[a, i] + wh[b, i]:
-                            near = False
-                            break
-                    if not near:
+                    if not _boxes_meet(wc, wh, a, b):
                         continue
                     # each side's primitives: the world centre (a link primitive's: its rotated centre, 9
                     # products) and a test of the bounding widths against the other part's box; a primitive

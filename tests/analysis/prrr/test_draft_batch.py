@@ -246,14 +246,11 @@ def test_other_fidelities_fall_back_to_the_single_path():
     assert _close(ev.metrics()["jacobian_condition"], evaluate_all(BASE, only=("statics",)).metrics()["jacobian_condition"])
 
 
-def test_checker_kernel_equals_its_numpy_path_bitwise(both, monkeypatch):
-    """The batch's collision checker (pose IK, then ``interference_fast.check_joints``, which builds the
-    part frames in the compiled kernel) gives bit for bit the depths, flags and reachability of its numpy
-    path (``cad.part_frames_arrays`` + the numpy ``check_posed``) on the interference poses of the
-    sample's designs with part tables, owners in design order and shuffled."""
+def _checker_and_poses(designs):
+    """The batch's checker of the designs whose parts lay out, and their interference poses (owner, points),
+    in design order."""
     from hapticopt.analysis.prrr import workspace as WS
 
-    designs, _, _ = both
     models = {}
     for i, d in enumerate(designs):
         try:
@@ -261,12 +258,20 @@ def test_checker_kernel_equals_its_numpy_path_bitwise(both, monkeypatch):
         except InvalidDesign:
             continue
     assert len(models) >= 4
-    check = draft_batch._Checker(designs, models)
     owner, pts = [], []
     for i in models:
         p, _ = WS.workspace_sample_weights(designs[i], **WS.INTERFERENCE_SAMPLING)
         owner.append(np.full(len(p), i)), pts.append(p)
-    owner, pts = np.concatenate(owner), np.concatenate(pts)
+    return draft_batch._Checker(designs, models), np.concatenate(owner), np.concatenate(pts)
+
+
+def test_checker_kernel_equals_its_numpy_path_bitwise(both, monkeypatch):
+    """The batch's collision checker (pose IK, then ``interference_fast.check_joints``, which builds the
+    part frames in the compiled kernel) gives bit for bit the depths, flags and reachability of its numpy
+    path (``cad.part_frames_arrays`` + the numpy ``check_posed``) on the interference poses of the
+    sample's designs with part tables, owners in design order and shuffled."""
+
+    check, owner, pts = _checker_and_poses(both[0])
     for order in (np.arange(len(owner)), np.random.default_rng(11).permutation(len(owner))):
         monkeypatch.setattr(interference_fast, "_POSES_CHECKED", [interference_fast.KERNEL_AFTER_POSES])
         fast = check(owner[order], pts[order])
@@ -283,16 +288,8 @@ def test_checker_on_two_threads_equals_one_thread_bitwise(both, monkeypatch):
     bit for bit what one thread gives, owners in design order and shuffled (a shuffled share cuts
     designs' runs of poses: the kernel sets each run up again)."""
     from hapticopt.analysis import compiled
-    from hapticopt.analysis.prrr import workspace as WS
 
-    designs, _, _ = both
-    models = {i: interference_fast.prepare(d) for i, d in enumerate(designs) if not assembly.parts(d)}
-    check = draft_batch._Checker(designs, models)
-    owner, pts = [], []
-    for i in models:
-        p, _ = WS.workspace_sample_weights(designs[i], **WS.INTERFERENCE_SAMPLING)
-        owner.append(np.full(len(p), i)), pts.append(p)
-    owner, pts = np.concatenate(owner), np.concatenate(pts)
+    check, owner, pts = _checker_and_poses(both[0])
     monkeypatch.setattr(draft_batch, "POSES_PER_THREAD", 64)
     for route in ("deepest_joints", "check_joints"):  # the compiled route, and through the joint angles
         if route == "check_joints":

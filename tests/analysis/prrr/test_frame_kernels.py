@@ -55,6 +55,19 @@ def test_kernel_leg_not_positive_definite_is_nan():
     assert np.all(np.isfinite(contrib[0])) and np.isfinite(cond[0])
 
 
+def _paper_legs(options):
+    """prrr-paper's leg terms at home (G, K_s, P contiguous), the terms' columns, the leg size n and the
+    legs' numpy-assembled stiffness K (element_stiffness + assemble_terms)."""
+    from hapticopt.design import io
+
+    G, Ks, P, _ = fm.frame_leg_terms(fm.frame_params_of(io.load_preset("prrr-paper"), xp=np), np.zeros(3), options,
+                                     xp=np)
+    G, Ks, P = (np.ascontiguousarray(x) for x in (G, Ks, P))
+    cols = fm.term_columns(options)
+    n = fm._leg_layout(options)[0]
+    return G, Ks, P, cols, n, fm.assemble_terms(G, np.concatenate([fm.element_stiffness(P, np), Ks], axis=1), cols, n)
+
+
 def test_assembling_kernel_equals_numpy_assembly():
     # the paper's legs as terms: assemble_condense_kernel (elements built in it, the factorisation over the
     # structure of the terms' columns, K_PP − Yᵀ Y with Y = L⁻¹ d K_iP) against element_stiffness +
@@ -62,15 +75,9 @@ def test_assembling_kernel_equals_numpy_assembly():
     # above) and condense_legs_kernel (the same Cholesky factorisation and Hager steps: the condition
     # estimate to 1e-12)
     from hapticopt.analysis.prrr._frame_kernels import assemble_condense_kernel
-    from hapticopt.design import io
 
     options = fm.FrameOptions()
-    G, Ks, P, _ = fm.frame_leg_terms(fm.frame_params_of(io.load_preset("prrr-paper"), xp=np), np.zeros(3), options,
-                                     xp=np)
-    G, Ks, P = (np.ascontiguousarray(x) for x in (G, Ks, P))
-    cols = fm.term_columns(options)
-    n = fm._leg_layout(options)[0]
-    K = fm.assemble_terms(G, np.concatenate([fm.element_stiffness(P, np), Ks], axis=1), cols, n)
+    G, Ks, P, cols, n, K = _paper_legs(options)
     ref = np.empty((3, 6, 6)), np.empty(3), np.empty((3, n - 6, 6)), np.empty((3, 6))
     condense_legs_kernel(K, *ref)
     out = np.empty((3, 6, 6)), np.empty(3), np.empty((3, 6))
@@ -92,14 +99,8 @@ def test_assembling_kernel_on_other_topologies(options):
     # entry (the condensation) and ≤ 1.9e-12 relative (the condition estimate), as the previous kernel
     # (fc9af43: 8.6e-12, 1.8e-12); a decade's margin
     from hapticopt.analysis.prrr._frame_kernels import assemble_condense_kernel
-    from hapticopt.design import io
 
-    G, Ks, P, _ = fm.frame_leg_terms(fm.frame_params_of(io.load_preset("prrr-paper"), xp=np), np.zeros(3), options,
-                                     xp=np)
-    G, Ks, P = (np.ascontiguousarray(x) for x in (G, Ks, P))
-    cols = fm.term_columns(options)
-    n = fm._leg_layout(options)[0]
-    K = fm.assemble_terms(G, np.concatenate([fm.element_stiffness(P, np), Ks], axis=1), cols, n)
+    G, Ks, P, cols, n, K = _paper_legs(options)
     lu_contrib, lu_cond, _ = fm.condense_legs(K, np)
     out = np.empty((3, 6, 6)), np.empty(3), np.empty((3, 6))
     assemble_condense_kernel(G, Ks, P, fm._PATTERNS, cols.astype(np.int64), n, *out)
