@@ -42,8 +42,8 @@ def baseline_stage(out: Path, cache: Path | None) -> dict:
     t0 = time.perf_counter()
     with Recorder(out, fingerprint="bench", resume=False, force=True) as rec, \
             EvaluationCache(cache) if cache is not None else _Null() as ecache:
-        draft = _recorded_evaluation(rec, problem.base, problem.fidelity_optimise, "baseline", ecache)
-        fine = _recorded_evaluation(rec, problem.base, problem.fidelity_final, "baseline", ecache)
+        draft = _recorded_evaluation(rec, problem.base, problem.fidelity_optimise, "baseline", cache=ecache)
+        fine = _recorded_evaluation(rec, problem.base, problem.fidelity_final, "baseline", cache=ecache)
     return {"stage_s": time.perf_counter() - t0, "provenance": _provenance_note(draft, fine),
             "metrics": json.dumps(fine.metrics)}
 

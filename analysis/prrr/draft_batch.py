@@ -17,8 +17,8 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   the collision-free cylinder: they do not depend on the radial sampling), the frame model's legs'
   stiffness terms (``frame_leg_terms``, default options, home pose: element parameters, springs and
   maps; the elements' stiffness, the assembly and the solves follow the jitted call in a numba kernel over designs,
-  ``frame_model.condense_terms_many``) until the frame's numba kernel pays (``frame_model.legs_kernel_ready``:
-  from then on the core leaves the frame group out and :func:`finish_core` computes it with
+  ``frame_model.condense_terms_many``), or, in a batch padded to ``frame_model.KERNEL_AFTER_DESIGNS`` or
+  more (``frame_model.legs_kernel_ready``, a rule by the padded size: no retrace), the core leaves the frame group out and :func:`finish_core` computes it with
   ``frame_model.condense_home_many``, the legs' points in numpy and their terms, assembly and solves in numba)
   and the joint ranges over the required cylinder
   (``joint_limits.cylinder_ranges_of``: the IK of the grid's in-plane points, the angles reduced to
@@ -191,9 +191,10 @@ def start_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GRO
     """Dispatch the core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK),
     without waiting for it (jax's asynchronous dispatch: the compiled program runs on XLA's threads, which
     do not hold the GIL, so the numba collision kernels run meanwhile). The frame group is left out of XLA
-    where ``frame_model.legs_kernel_ready``: :func:`finish_core` computes it in numba from its inputs."""
+    where ``frame_model.legs_kernel_ready`` for the padded size: :func:`finish_core` computes it in numba from
+    its inputs."""
     frame = None
-    if "frame" in groups and fm.legs_kernel_ready(n):
+    if "frame" in groups and fm.legs_kernel_ready(bucket(n)):
         frame, groups, inp = inp.fp, tuple(g for g in groups if g != "frame"), inp._replace(fp=None)
     if not groups:
         return PendingCore({}, n, frame)

@@ -6,7 +6,7 @@ and :func:`solve_frame_batch` with ``jax.numpy`` under jit/vmap (batches, gradie
 The jax path assembles each leg's stiffness on the columns where each element's map can be nonzero
 (:func:`_supports`, a static pattern of the topology), not on dense 12 × n maps; the batch's inputs
 come from :func:`frame_params_many` (arrays over the batch). The batched draft evaluator computes the
-frame outside XLA: once its numba kernel pays (:func:`legs_kernel_ready`), :func:`condense_home_many` takes
+frame outside XLA: in a batch padded to :data:`KERNEL_AFTER_DESIGNS` or more (:func:`legs_kernel_ready`), :func:`condense_home_many` takes
 the legs' points at the home pose over the batch in numpy (:func:`home_legs_many`) and a numba kernel builds
 each leg's elements, springs and maps, assembles and condenses it; before that it jits only the legs'
 unassembled terms (:func:`frame_leg_terms`) and assembles and condenses them over designs
@@ -1186,12 +1186,13 @@ def condense_terms_many(G, Ks, P, options: FrameOptions, load_height, *,
         return _outputs_many(contrib, cond, gross, n, legs, load_height)
 
 
-def legs_kernel_ready(n: int) -> bool:
-    """Whether :func:`condense_home_many` takes the next ``n`` designs (the batched draft evaluator then
-    computes no frame terms in XLA): from the call that takes this process's designs to
-    :data:`KERNEL_AFTER_DESIGNS` on (as :func:`condense_terms_many`), where :func:`kernel_availability`
-    allows."""
-    return _DESIGNS_CONDENSED[0] + n >= KERNEL_AFTER_DESIGNS and kernel_availability() is None
+def legs_kernel_ready(size: int) -> bool:
+    """Whether :func:`condense_home_many` takes a batch padded to ``size`` designs (the batched draft
+    evaluator then computes no frame terms in XLA): from :data:`KERNEL_AFTER_DESIGNS` designs a batch on,
+    where :func:`kernel_availability` allows. A rule by the padded size, not by the designs this process
+    has seen: a padded size then always compiles the same jitted core (a count crossed within a process
+    would trace it again)."""
+    return size >= KERNEL_AFTER_DESIGNS and kernel_availability() is None
 
 
 def home_legs_many(fp: FrameParams) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:

@@ -78,8 +78,8 @@ def test_batch_equals_single_path(both):
 
 def test_batch_with_the_compiled_frame_kernel_equals_single_path(both, monkeypatch):
     # the frame group's numba kernel (the legs built from their points, assembled and condensed by Cholesky;
-    # no frame group in XLA) runs from frame_model.KERNEL_AFTER_DESIGNS designs per process on, the XLA terms
-    # and numpy before; forced here, and seen to run
+    # no frame group in XLA) runs in batches padded to frame_model.KERNEL_AFTER_DESIGNS or more, the XLA terms
+    # and numpy below; forced here, and seen to run
     pytest.importorskip("numba")
     from hapticopt.analysis.prrr import _frame_kernels
     from hapticopt.analysis.prrr import frame_model as fm
@@ -347,7 +347,7 @@ def test_designs_with_array_part_tables_are_laid_out(problem_sample):
 
 
 def test_frame_group_leaves_xla_once_its_kernel_pays(monkeypatch):
-    """From ``frame_model.KERNEL_AFTER_DESIGNS`` designs per process on (forced here) the jitted core has no
+    """In a batch padded to ``frame_model.KERNEL_AFTER_DESIGNS`` or more (forced here) the jitted core has no
     frame group and ``finish_core`` computes it in numba (``frame_model.condense_home_many``): the same keys
     as the XLA route's and its values to 1e-10 where that route's verdict can be ok (the same assembly and
     factorisation; the maps and points built in numba instead of XLA), the IK's reachability equal."""
@@ -375,3 +375,21 @@ def test_frame_group_leaves_xla_once_its_kernel_pays(monkeypatch):
     for k in ref:
         r = ref[k][fine]
         np.testing.assert_allclose(got[k][fine], r, rtol=1e-10, atol=1e-10 * np.abs(r).max(), err_msg=k)
+
+
+def test_designs_seen_by_the_process_do_not_change_the_compiled_core(monkeypatch):
+    """The frame group's route is chosen by the padded batch size (``frame_model.legs_kernel_ready``), not by
+    the designs the process has condensed: a bucket compiles one core, before and after a process passes
+    ``frame_model.KERNEL_AFTER_DESIGNS`` designs (measured before: a batch of 64 traced again once the
+    process had seen 1,000 designs, ``benchmarks/bench_batched_draft.py``)."""
+    from hapticopt.analysis.prrr import frame_model as fm
+
+    designs = _sample()[:4]
+    evaluate_batch(designs, fidelity=Fidelity.DRAFT)
+    traces = dict(draft_batch.TRACES)
+    for seen in (0, fm.KERNEL_AFTER_DESIGNS, 10 * fm.KERNEL_AFTER_DESIGNS):
+        monkeypatch.setattr(fm, "_DESIGNS_CONDENSED", [seen])
+        evaluate_batch(designs, fidelity=Fidelity.DRAFT)
+    assert dict(draft_batch.TRACES) == traces
+    assert not fm.legs_kernel_ready(draft_batch.bucket(len(designs)))
+    assert fm.legs_kernel_ready(draft_batch.MAX_CHUNK) == (fm.kernel_availability() is None)
