@@ -168,6 +168,18 @@ def _boxes_meet(wc, wh, a, b):
     return True
 
 
+@njit(cache=True, inline="always")
+def _extent(k, Rw, h, i):
+    """World half extent along axis i of a primitive of kind k (its world box: the support along that axis)."""
+    a0, a1, a2 = abs(Rw[i, 0]), abs(Rw[i, 1]), abs(Rw[i, 2])
+    if k == _BOX:
+        return a0 * h[0] + a1 * h[1] + a2 * h[2]
+    if k == _CYL:
+        s = 1.0 - a2 * a2
+        return h[2] * a2 + h[0] * math.sqrt(s if s > 0.0 else 0.0)
+    return h[0]
+
+
 @njit(cache=True)
 def _pose_primitive(p, q, part, Rp, tp, Rprim, oprim, half, kind, Rw, cw, lo, hi):
     """World rotation, centre and world box of primitive p at pose q (the reference's
@@ -181,14 +193,7 @@ def _pose_primitive(p, q, part, Rp, tp, Rprim, oprim, half, kind, Rw, cw, lo, hi
             Rw[p, i, k] = Rf[i, 0] * Rl[0, k] + Rf[i, 1] * Rl[1, k] + Rf[i, 2] * Rl[2, k]
     for i in range(3):
         cw[p, i] = (Rf[i, 0] * ol[0] + Rf[i, 1] * ol[1] + Rf[i, 2] * ol[2]) + tp[q, part, i]
-        a0, a1, a2 = abs(Rw[p, i, 0]), abs(Rw[p, i, 1]), abs(Rw[p, i, 2])
-        if kind[p] == _BOX:
-            e = a0 * h[0] + a1 * h[1] + a2 * h[2]
-        elif kind[p] == _CYL:
-            s = 1.0 - a2 * a2
-            e = h[2] * a2 + h[0] * math.sqrt(s if s > 0.0 else 0.0)
-        else:
-            e = h[0]
+        e = _extent(kind[p], Rw[p], h, i)
         lo[p, i] = cw[p, i] - e
         hi[p, i] = cw[p, i] + e
 
@@ -258,18 +263,6 @@ RUN_MARGIN = 1e-9
 #: reachable poses of one design whose frames and boxes :func:`check_joint_poses` keeps at a time (and
 #: whose union of part boxes decides which pairs with a moving part are tested at them)
 RUN_BLOCK = 32
-
-
-@njit(cache=True, inline="always")
-def _extent(k, Rw, h, i):
-    """World half extent along axis i of a primitive of kind k (:func:`_pose_primitive`'s)."""
-    a0, a1, a2 = abs(Rw[i, 0]), abs(Rw[i, 1]), abs(Rw[i, 2])
-    if k == _BOX:
-        return a0 * h[0] + a1 * h[1] + a2 * h[2]
-    if k == _CYL:
-        s = 1.0 - a2 * a2
-        return h[2] * a2 + h[0] * math.sqrt(s if s > 0.0 else 0.0)
-    return h[0]
 
 
 @njit(cache=True, inline="always")

@@ -394,7 +394,10 @@ def _shares(sel: np.ndarray, owner: np.ndarray, k: int) -> list[np.ndarray]:
     return [sel[a:b] for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
 
 
-_POOL: list = []
+@functools.cache
+def _pool() -> ThreadPoolExecutor:
+    """The kernel threads beside the calling one (made at first use, sized by ``compiled.threads()``)."""
+    return ThreadPoolExecutor(max_workers=max(1, compiled.threads() - 1), thread_name_prefix="hapticopt-kernel")
 
 
 def _run_threaded(fn, jobs: list) -> None:
@@ -404,9 +407,7 @@ def _run_threaded(fn, jobs: list) -> None:
         for job in jobs:
             fn(job)
         return
-    if not _POOL:
-        _POOL.append(ThreadPoolExecutor(max_workers=max(1, compiled.threads() - 1), thread_name_prefix="hapticopt-kernel"))
-    futures = [_POOL[0].submit(fn, job) for job in jobs[1:]]
+    futures = [_pool().submit(fn, job) for job in jobs[1:]]
     fn(jobs[0])
     for f in futures:
         f.result()
