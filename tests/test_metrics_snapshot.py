@@ -1,8 +1,8 @@
-"""The layout move changed no number: CLI JSON against a committed regression snapshot.
+"""A refactoring changed no number: CLI JSON against a committed regression snapshot.
 
-Snapshot: tests/snapshots/layout_metrics.json, made by ``benchmarks/snapshot_layout.py`` on the
-code before the modules moved (both presets at draft and standard fidelity, and the scenes
-stiffness-25 and master-transparency). Wall times, the free-text reasons (which name module
+Snapshot: tests/snapshots/metrics.json, made by ``scripts/snapshot_metrics.py`` on 1531152, the
+code before the one-path consolidation (issue 29): the three presets at draft, standard and fine
+fidelity, and the scenes stiffness-25, free-space-x, master-transparency and handle-ball. Wall times, the free-text reasons (which name module
 paths) and which closed-loop engine ran are not compared. A later change that moves a metric on purpose regenerates the snapshot
 with that script and says why in its commit.
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SNAPSHOT = ROOT / "tests" / "snapshots" / "layout_metrics.json"
+SNAPSHOT = ROOT / "tests" / "snapshots" / "metrics.json"
 # closed_loop_engine: which loop ran (compiled or Python) — they are bit-identical (tests/analysis/loop/test_mujoco_compiled.py)
 IGNORED_KEYS = {"timings_s", "wall_time_s", "backend_reason", "resolution_reason", "closed_loop_engine"}
 #: a float equal to this relative tolerance is the same number (BLAS kernels differ at ~1e-12)
@@ -25,7 +25,7 @@ REL_TOL = 1e-9
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("snapshot_layout", ROOT / "benchmarks" / "snapshot_layout.py")
+    spec = importlib.util.spec_from_file_location("snapshot_metrics", ROOT / "scripts" / "snapshot_metrics.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
