@@ -6,7 +6,7 @@ REV is checked out into a temporary ``git worktree`` with its own venv (as ``/wo
 the running interpreter's site-packages as plain path lines, so neither tree's editable install leaks into
 the other, then ``pip install --no-deps -e .`` and the numba warm-up). Each round runs the stage once per
 tree, each in a fresh process, in an order that alternates by round; every process does the stage once
-untimed first (jit traces, numba loads, caches) unless the stage is a whole command. Prints the medians,
+untimed first (jit traces, numba loads, caches) unless the stage is a whole command (make-run, startup). Prints the medians,
 the ratio new/old (per round and its median) and the load average before and after.
 
 Stages (the figures docs/performance.md quotes):
@@ -15,7 +15,8 @@ Stages (the figures docs/performance.md quotes):
 * ``draft-one`` — ``registry.evaluate_all`` at draft, one design at a time over ``--n`` designs (default 16);
 * ``fea-fine`` — the structural evaluator at fine (frame model and solid FEA of the CAD) on prrr-paper;
 * ``verify`` — ``verify.simulate`` of ``--scene`` (default stiffness-25) at standard on its device's preset;
-* ``make-run`` — the three commands of ``make run`` in an empty folder (a fresh process each, imports included).
+* ``make-run`` — the three commands of ``make run`` in an empty folder (a fresh process each, imports included);
+* ``startup`` — ``hapticopt evaluate --preset prrr-paper`` from a fresh interpreter to its first byte of output.
 
 The designs are seeded, ±10 % around prrr-paper (the same as ``bench_batched_draft.designs``).
 """
@@ -34,7 +35,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-STAGES = ("draft-batch", "draft-one", "fea-fine", "verify", "make-run")
+STAGES = ("draft-batch", "draft-one", "fea-fine", "verify", "make-run", "startup")
 PRESET_OF = {"prrr": "prrr-paper", "master": "master-paper", "handle": "handle-paper"}
 
 
@@ -107,10 +108,23 @@ def _make_run(py: str, work: Path) -> float:
     return time.perf_counter() - t
 
 
+def _first_output(py: str, work: Path) -> float:
+    """Wall seconds from starting ``hapticopt evaluate --preset prrr-paper`` to its first byte on stdout."""
+    t = time.perf_counter()
+    proc = subprocess.Popen([py, "-m", "hapticopt.optim.cli", "evaluate", "--preset", "prrr-paper"], cwd=work,
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    proc.stdout.read(1)
+    t = time.perf_counter() - t
+    proc.communicate()
+    return t
+
+
 def once(py: str, stage: str, n: int | None, scene: str) -> tuple[float, str]:
     with tempfile.TemporaryDirectory(prefix="ab-run-") as work:
         if stage == "make-run":
             return _make_run(py, Path(work)), "s"
+        if stage == "startup":
+            return _first_output(py, Path(work)), "s"
         args = [py, str(Path(__file__).resolve()), "--child", stage, "--scene", scene]
         out = subprocess.run(args + (["--n", str(n)] if n else []), cwd=work, capture_output=True, text=True)
         if out.returncode:
