@@ -19,17 +19,16 @@ import time
 from pathlib import Path
 
 import pytest
+from hapticopt.optim.cache import EvaluationCache
+from hapticopt.optim.pipeline import _provenance_note, _recorded_evaluation
+from hapticopt.optim.problem import load_problem
+from hapticopt.optim.recorder import Recorder
 
 PROBLEM = "prrr-workspace"
 
 
 def baseline_stage(out: Path, cache: Path | None) -> dict:
     """Run the baseline stage of PROBLEM into a new run directory ``out``; stage wall time and provenance."""
-    from hapticopt.optim.cache import EvaluationCache
-    from hapticopt.optim.pipeline import _provenance_note, _recorded_evaluation
-    from hapticopt.optim.problem import load_problem
-    from hapticopt.optim.recorder import Recorder
-
     problem = load_problem(PROBLEM)
     t0 = time.perf_counter()
     with Recorder(out, fingerprint="bench", resume=False, force=True) as rec, \

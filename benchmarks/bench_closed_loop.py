@@ -14,6 +14,7 @@ from hapticopt.analysis.prrr import closed_loop as cl
 from hapticopt.analysis.loop.scene import Effect, load_scene
 from hapticopt.analysis.prrr.zwidth import zwidth_map
 from hapticopt.design import io
+from hapticopt.analysis import verify
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +63,6 @@ def test_repeated_simulate_vs_compiled_run(benchmark, paper, scene):
     import statistics
     import time
 
-    from hapticopt.analysis import verify
 
     sc = load_scene(scene)
     sim = _sim(paper, sc)
