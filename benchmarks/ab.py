@@ -2,9 +2,10 @@
 
     python benchmarks/ab.py REV STAGE [--rounds N] [--n N] [--scene S] [--keep DIR]
 
-REV is checked out into a temporary ``git worktree`` with its own venv (as ``/work/mkwt.sh`` makes one:
-the running interpreter's site-packages as plain path lines, so neither tree's editable install leaks into
-the other, then ``pip install --no-deps -e .`` and the numba warm-up). Each round runs the stage once per
+REV is checked out into a temporary ``git worktree`` with its own venv: the running interpreter's
+site-packages as plain path lines (so neither tree's editable install leaks into the other), then
+``pip install --no-deps -e .``. For whole-command stages both trees first run the numba warm-up of
+``make setup``. Each round runs the stage once per
 tree, each in a fresh process, in an order that alternates by round; every process does the stage once
 untimed first (jit traces, numba loads, caches) unless the stage is a whole command (make-run, startup). Prints the medians,
 the ratio new/old (per round and its median) and the load average before and after.
@@ -148,9 +149,13 @@ def old_tree(rev: str, where: Path) -> str:
     Path(mine, "zz_ab_site.pth").write_text("".join(p + "\n" for p in site_paths()))
     subprocess.run([py, "-m", "pip", "install", "-q", "--no-deps", "-e", "."], cwd=where, check=True,
                    capture_output=True)
-    # the install step of `make setup`: numba kernels compiled once, not in the timed rounds
-    subprocess.run([py, "-m", "hapticopt.analysis.warmup"], cwd=where, capture_output=True)
     return py
+
+
+def warm(py: str) -> None:
+    """The install step of `make setup` (numba kernels compiled into their cache), for the stages whose
+    timed rounds are whole commands; the other stages' untimed first call compiles or loads them."""
+    subprocess.run([py, "-m", "hapticopt.analysis.warmup"], cwd=tempfile.gettempdir(), capture_output=True)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -178,6 +183,9 @@ def main(argv: list[str] | None = None) -> None:
             print(f"building {a.rev} ({sha}) in {where} ...", flush=True)
             py_old = old_tree(a.rev, where)
         trees = {"old": py_old, "new": sys.executable}
+        if a.stage in ("make-run", "startup"):
+            for py in trees.values():
+                warm(py)
         load0 = os.getloadavg()
         times: dict[str, list[float]] = {"old": [], "new": []}
         unit = ""
