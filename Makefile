@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test hardcases bench setup clean
+.PHONY: run test lint hardcases bench setup clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +25,10 @@ run: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# ruff with the rule set of pyproject.toml's [tool.ruff] (mistakes, not style); .ci/run runs it first.
+lint: $(STAMP)
+	$(BIN)/ruff check design analysis optim tests benchmarks
 
 # Verdicts near singularities and thresholds (pytest -m hardcase) under two OpenBLAS kernels:
 # a verdict that flips with the BLAS kernel is a rounding-level threshold (issue 14).

@@ -17,7 +17,6 @@ import math
 import statistics
 import time
 
-import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr import free_workspace as FW

@@ -8,6 +8,7 @@ import pytest
 
 from hapticopt.analysis import interference as itf
 from hapticopt.design import io, mass_properties as mp
+from hapticopt.design.export import export
 
 
 @pytest.fixture(scope="module")
@@ -16,8 +17,6 @@ def paper():
 
 
 def test_export_prrr_paper(benchmark, paper, tmp_path):
-    from hapticopt.design.export import export
-
     export(paper, tmp_path / "warm")  # imports (build123d, jax) are not part of the target
     benchmark.pedantic(export, args=(paper, tmp_path / "out"), rounds=3, iterations=1)
 

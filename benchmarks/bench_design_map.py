@@ -36,25 +36,3 @@ def test_design_map_10x10(benchmark, paper):
     benchmark.extra_info.update(cpu_s=time.process_time() - cpu0, wall_s=m.wall_time, load_average=os.getloadavg()[0])
     assert m.residual.shape == (10, 10) and np.isfinite(m.residual[0]).all()
 
-
-@pytest.mark.parametrize("strategy", ["per_T", "period_free"])
-def test_sweeps_compile_strategy(benchmark, paper, strategy):
-    """The ten K_p sweeps of the map alone, compiled once per T (matrices folded in) or once for every
-    T (``Simulator(period_free=True)``), side by side in one process (docs/seed002_experiments.md)."""
-    from hapticopt.analysis.prrr.closed_loop import Simulator, batch_gains, setup
-    from hapticopt.analysis.prrr.design_map import _with
-
-    sc = load_scene("free-space-x")
-    sts = [setup(paper, _with(sc, period=T, duration=2.0)) for T in PERIODS]
-
-    def per_T():
-        for st in sts:
-            Simulator(st).run(batch_gains(st.gains, kp=GAINS), batch=len(GAINS))
-
-    def period_free():
-        sim = Simulator(sts[0], period_free=True)
-        for st in sts:
-            sim.run(batch_gains(st.gains, kp=GAINS), batch=len(GAINS), setup=st)
-
-    benchmark.pedantic(per_T if strategy == "per_T" else period_free, rounds=2, iterations=1)
-    benchmark.extra_info.update(load_average=os.getloadavg()[0])

@@ -5,13 +5,14 @@ the closed-loop overhead over raw ``mj_step`` at the same substeps ≤ 1.5×. Bo
 extra_info (``real_time_factor``, ``loop_overhead``, wall and process-CPU figures, the load
 average — the machine is shared, so CPU time is the closer estimate of an idle machine); no
 timed asserts. Draft (0.25 ms Euler) and standard (0.1 ms Euler) fidelity, FREE and
-TRANSLATIONAL platform; the master-wall and master-protocol-x (dynamics compensation) scenes on the MuJoCo master,
-and master-protocol-x's compiled loop split (with / without compensation, the native replay floor, raw).
+TRANSLATIONAL platform; the master-wall and master-protocol-x (dynamics compensation) scenes on the MuJoCo master.
+The loop-overhead tests run the compiled loop, the Python loop and raw ``mj_step`` interleaved in one process
+and report the medians of the per-round ratios (docs/performance.md's MuJoCo table).
 """
 
 from __future__ import annotations
 
-import functools
+import dataclasses
 import os
 import statistics
 import time
@@ -21,9 +22,12 @@ import pytest
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.prrr.mujoco_plant import choose_backend, model_options, simulate
+from hapticopt.analysis.loop.scene import Backend, Effect, load_scene, resolve
+from hapticopt.analysis.master import mujoco_plant as mm
+from hapticopt.analysis.prrr import closed_loop
+from hapticopt.analysis.prrr.firmware_numpy import NumpyController
 from hapticopt.analysis.prrr.mujoco_model import Platform, build, set_pose
-from hapticopt.analysis.loop.scene import Backend, load_scene
+from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant, choose_backend, model_options, simulate
 from hapticopt.design import io
 
 DESIGN = io.load_preset("prrr-paper")
@@ -78,12 +82,10 @@ def test_stiffness_25_translational_platform(benchmark, fidelity):
 
 
 def test_master_wall(benchmark):
-    from hapticopt.analysis.master import mujoco_plant as mujoco_master
-
     master = io.load_preset("master-paper")
     scene = load_scene("master-wall")
     out = []
-    benchmark.pedantic(lambda: out.append(mujoco_master.simulate(master, scene)), rounds=3, iterations=1)
+    benchmark.pedantic(lambda: out.append(mm.simulate(master, scene)), rounds=3, iterations=1)
     wall = statistics.median(r.wall_time for r in out)
     benchmark.extra_info.update(real_time_factor=scene.duration / wall, wall_s=wall, load_average=os.getloadavg()[0])
 
@@ -103,9 +105,6 @@ def _master_loop_and_raw(fidelity: Fidelity, rounds: int = 5, scene_name: str = 
 
     ``python_ticks``: the Python loop runs only that many ticks (the compensation scenes' Python loop costs ≈ 1 ms a
     tick), against raw mj_step over the same ticks ("raw_python"); None: the scene's ticks."""
-    from hapticopt.analysis.master import mujoco_plant as mm
-    from hapticopt.analysis.loop.scene import Effect, resolve
-
     master = io.load_preset("master-paper")
     scene = load_scene(scene_name)
     res = resolve(scene)
@@ -145,110 +144,9 @@ def _master_loop_and_raw(fidelity: Fidelity, rounds: int = 5, scene_name: str = 
     return out
 
 
-def _master_protocol_split(fidelity: Fidelity, rounds: int = 5,
-                           scene_name: str = "master-protocol-x") -> dict[str, list[float]]:
-    """A compensation scene's compiled loop split side by side, all over the scene's ticks, interleaved in each round:
-    "compiled" (``MasterPlant.run`` with dynamics compensation), "no_compensation" (the same controller without it),
-    "replay" (the floor: ``mj_step`` called from native code with the compensated run's own commands and hand
-    reference written each tick — no firmware law, no records) and "raw" (``mj_step`` from Python, the target's
-    baseline) [s]. The replay steps the compensated run's trajectory exactly (same commands, same hand)."""
-    import dataclasses
-
-    import numpy as np
-    from numba import njit
-
-    from hapticopt.analysis.master import mujoco_plant as mm
-    from hapticopt.analysis.loop import mujoco_compiled as mc
-    from hapticopt.analysis.loop.scene import Effect, resolve
-
-    mj_step = mc.kernels()._mj_step
-
-    @njit
-    def replay(m, d, n, nstep, ctrl, TAU, qs, qfa, hq, hd, REF, DREF):
-        for k in range(n):
-            for j in range(3):
-                ctrl[j] = TAU[k, j]
-                qs[hq[j]] = REF[k, j]
-                qfa[hd[j]] = DREF[k, j]
-            for _ in range(nstep):
-                mj_step(m, d)
-
-    master = io.load_preset("master-paper")
-    scene = load_scene(scene_name)
-    res = resolve(scene)
-    T = scene.controller.period
-    plant = mm.MasterPlant(master, scene, res, period=T, fidelity=fidelity)
-    m, d = plant.model, plant.data
-    N = int(round(scene.duration / T))
-    kw = dict(frequency=scene.motion.frequency, quantize=Effect.QUANTIZATION in res.effects)
-    spring = m.qpos_spring.copy()  # the loops write the hand reference here; the replay and raw start from it
-
-    def controller(comp: bool):
-        ctl = mm.controller_for(master, scene, res, plant.x0, plant.q0, T)
-        return ctl if comp else mm.MasterController(dataclasses.replace(ctl.cfg, compensation_model=None))
-
-    TAU = np.ascontiguousarray(plant.run(controller(True), ticks=N, **kw)["torque"].reshape(N, 3))
-    assert plant.loop_engine == "compiled", plant.loop_reason
-    mo, w = scene.motion, 2.0 * np.pi * scene.motion.frequency
-    tm = (np.arange(N) + 0.5) * T
-    amp, off, ph = np.asarray(mo.amplitude), np.asarray(mo.offset), np.asarray(mo.phase)
-    REF = np.ascontiguousarray(off + amp * np.sin(w * tm[:, None] + ph))
-    DREF = np.ascontiguousarray(scene.operator.damping * amp * w * np.cos(w * tm[:, None] + ph))
-    hq, hd = np.asarray(plant.hand_qpos, dtype=np.intp), np.asarray(plant.hand_dof, dtype=np.intp)
-
-    def run_replay() -> float:
-        m.qpos_spring[:] = spring
-        plant.reset()
-        t0 = time.perf_counter()
-        replay(m._address, d._address, N, plant.substeps, d.ctrl, TAU, m.qpos_spring, d.qfrc_applied, hq, hd,
-               REF, DREF)
-        return time.perf_counter() - t0
-
-    run_replay()  # compile the replay outside the timing
-    out: dict[str, list[float]] = {"compiled": [], "no_compensation": [], "replay": [], "raw": []}
-    def loop(name: str) -> None:
-        ctl = controller(name == "compiled")
-        t0 = time.perf_counter()
-        plant.run(ctl, ticks=N, **kw)
-        out[name].append(time.perf_counter() - t0)
-        assert plant.loop_engine == "compiled", plant.loop_reason
-
-    def raw() -> None:
-        m.qpos_spring[:] = spring
-        plant.reset()
-        out["raw"].append(_raw(m, d, N, plant.substeps))
-
-    steps = (lambda: loop("compiled"), lambda: loop("no_compensation"), lambda: out["replay"].append(run_replay()), raw)
-    for r in range(rounds):
-        for fn in steps if r % 2 == 0 else steps[::-1]:  # the order reversed every other round
-            fn()
-    return out
-
-
-def _split_ratios(out: dict[str, list[float]]) -> dict[str, float]:
-    """Medians and quartiles of the per-round ratios of :func:`_master_protocol_split`'s runs over raw, and of the
-    compensated loop over the one without compensation."""
-    res: dict[str, float] = {}
-    pairs = [(k, "raw") for k in ("compiled", "no_compensation", "replay")] + [("compiled", "no_compensation")]
-    for a, b in pairs:
-        r = [x / y for x, y in zip(out[a], out[b])]
-        q = statistics.quantiles(r, n=4) if len(r) > 1 else [r[0]] * 3
-        res[f"{a}_over_{b}"] = statistics.median(r)
-        res[f"{a}_over_{b}_quartiles"] = (q[0], q[2])
-    res["load_average"] = os.getloadavg()[0]
-    return res
-
-
 def _prrr_loop_and_raw(fidelity: Fidelity, rounds: int = 5) -> dict[str, list[float]]:
     """The stiffness-25 closed loop (``MujocoPlant.run``, FREE platform) compiled and in Python, and raw
     ``mj_step`` of the same model (energy on) for the same ticks and substeps, interleaved [s]."""
-    import dataclasses
-
-    from hapticopt.analysis.prrr import closed_loop
-    from hapticopt.analysis.prrr.firmware_numpy import NumpyController
-    from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant
-    from hapticopt.analysis.loop.scene import Effect
-
     scene = load_scene("stiffness-25")
     ch = choose_backend(scene, force=Backend.MULTIBODY)
     st = closed_loop.setup(DESIGN, dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS}),
@@ -302,13 +200,6 @@ def test_master_protocol_loop_overhead(benchmark, fidelity):
     benchmark.extra_info.update(_ratios(out))
 
 
-def test_master_protocol_split(benchmark):
-    """master-protocol-x at draft: the compiled loop with compensation, without it, the native-replay floor and raw
-    mj_step, side by side (docs/performance.md)."""
-    out = benchmark.pedantic(lambda: _master_protocol_split(Fidelity.DRAFT), rounds=1, iterations=1)
-    benchmark.extra_info.update(_split_ratios(out))
-
-
 @pytest.mark.parametrize("fidelity", [Fidelity.DRAFT, Fidelity.STANDARD], ids=lambda f: f.value)
 def test_prrr_loop_overhead(benchmark, fidelity):
     """The 3-PRRR's closed loop (stiffness-25, FREE) over raw mj_step on the same model (target ≤ 1.10×), compiled
@@ -316,30 +207,3 @@ def test_prrr_loop_overhead(benchmark, fidelity):
     out = benchmark.pedantic(lambda: _prrr_loop_and_raw(fidelity), rounds=1, iterations=1)
     benchmark.extra_info.update(_ratios(out))
 
-
-if __name__ == "__main__":  # python benchmarks/bench_mujoco.py [rounds] [row ...]: the ratio table of docs/performance.md
-    import sys
-
-    n = int(sys.argv[1]) if len(sys.argv) > 1 else 7
-    protocol = functools.partial(_master_loop_and_raw, scene_name="master-protocol-x", python_ticks=1000)
-    rows = {"prrr": ("3-PRRR stiffness-25 FREE", _prrr_loop_and_raw), "master-wall": ("master-wall", _master_loop_and_raw),
-            "master-protocol-x": ("master-protocol-x", protocol)}
-    wanted = sys.argv[2:] or [*rows, "split"]  # "split": master-protocol-x with / without compensation / replay / raw
-    unknown = set(wanted) - {*rows, "split"}
-    if unknown:
-        sys.exit(f"unknown rows {sorted(unknown)}: allowed {sorted({*rows, 'split'})}")
-    for key in wanted:
-        for fid in (Fidelity.DRAFT, Fidelity.STANDARD):
-            if key == "split":
-                r = _split_ratios(_master_protocol_split(fid, rounds=n))
-                print(f"master-protocol-x split {fid.value:8s} " + "  ".join(
-                    f"{k.replace('_over_', '/')} {r[k]:.3f} ({r[k + '_quartiles'][0]:.3f}-{r[k + '_quartiles'][1]:.3f})"
-                    for k in r if k.endswith(("_raw", "_compensation"))) + f"  (median of {n} per-round ratios, load "
-                    f"{r['load_average']:.2f})", flush=True)
-                continue
-            name, fn = rows[key]
-            r = _ratios(fn(fid, rounds=n))
-            q1, q3 = r["compiled_over_raw_quartiles"]
-            print(f"{name:26s} {fid.value:8s} compiled/raw {r['compiled_over_raw']:.3f} (quartiles {q1:.3f}-{q3:.3f})"
-                  f"  python/raw {r['python_over_raw']:.3f}  (median of {n} per-round ratios, load "
-                  f"{r['load_average']:.2f})", flush=True)

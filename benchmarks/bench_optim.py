@@ -13,6 +13,8 @@ import pytest
 from hapticopt.optim import driver
 from hapticopt.optim.evaluation import Outcome, PointResult, PointTask
 from hapticopt.optim.problem import load_problem, problem_from_dict
+from hapticopt.optim.recorder import Recorder
+from hapticopt.optim.pipeline import evaluate_design, evaluators_for
 
 N_EVALS = 200
 
@@ -37,8 +39,6 @@ def _overhead_problem():
 
 def test_driver_overhead_per_evaluation(benchmark, tmp_path):
     """Driver + nlopt + guard + history + recorder per point, evaluator excluded (≤ 1 ms)."""
-    from hapticopt.optim.recorder import Recorder
-
     problem = _overhead_problem()
     counter = iter(range(10**6))
 
@@ -61,8 +61,6 @@ def test_driver_overhead_without_recorder(benchmark):
 
 @pytest.fixture(scope="module")
 def bundled():
-    from hapticopt.optim.pipeline import evaluate_design, evaluators_for
-
     p = load_problem("prrr-workspace").with_optimiser(max_evals=100, starts=1)
     base = evaluate_design(p.base, p.fidelity_optimise)
     only = evaluators_for(p, base)

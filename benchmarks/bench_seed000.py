@@ -15,6 +15,12 @@ from hapticopt.analysis.control import upsampling as up
 from hapticopt.analysis.handle import model as hm
 from hapticopt.analysis.handle import stability as hs
 from threadpoolctl import threadpool_limits
+from hapticopt.design import io
+from hapticopt.analysis.registry import EVALUATORS
+from hapticopt.analysis import verify
+from hapticopt.analysis.loop.scene import load_scene
+from hapticopt.analysis.handle.firmware import HandleFirmware, HandleFirmwareConfig, WallKind, WallLaw
+from hapticopt.analysis.prrr import multirate as mr
 
 H = hm.HANDLE_PAPER
 
@@ -57,15 +63,11 @@ def test_lifted_limit_as_intended(benchmark):
 # ------------------------------------------------------------------ the handle device (registry evaluators)
 @pytest.fixture(scope="module")
 def handle_paper():
-    from hapticopt.design import io
-
     return io.load_preset("handle-paper")
 
 
 @pytest.mark.parametrize("name", ["stability", "upsampling", "zwidth"])
 def test_handle_evaluator(benchmark, handle_paper, name):
-    from hapticopt.analysis.registry import EVALUATORS
-
     entry = next(e for e in EVALUATORS["handle"] if e.name == name)
     mod = entry.load()
     r = benchmark.pedantic(mod.evaluate, args=(handle_paper,), rounds=5, iterations=1)
@@ -74,17 +76,12 @@ def test_handle_evaluator(benchmark, handle_paper, name):
 
 @pytest.mark.parametrize("scene", ["handle-wall", "handle-ball"])
 def test_handle_scene(benchmark, handle_paper, scene):
-    from hapticopt.analysis import verify
-    from hapticopt.analysis.loop.scene import load_scene
-
     sc = load_scene(scene)
     r = benchmark.pedantic(verify.simulate, args=(handle_paper, sc), rounds=3, iterations=1)
     assert r.stable
 
 
 def test_handle_firmware_step(benchmark):
-    from hapticopt.analysis.handle.firmware import HandleFirmware, HandleFirmwareConfig, WallKind, WallLaw
-
     cfg = HandleFirmwareConfig(period_s=1e-3, upsampling=4, variant=up.DEFAULT_VARIANT, ar_coefficients=(2.0, -1.0),
                                wall=WallLaw(kind=WallKind.ONE_SIDED, stiffness_N_per_m=3e3, damping_N_s_per_m=0.0,
                                             half_width_m=5e-3))
@@ -97,9 +94,6 @@ def test_handle_firmware_step(benchmark):
 # ------------------------------------------------------------------ the 3-PRRR's lifted loop
 @pytest.mark.parametrize("L", [1, 4])
 def test_prrr_lifted_limit(benchmark, L):
-    from hapticopt.analysis.prrr import multirate as mr
-    from hapticopt.design import io
-
     d = io.load_preset("prrr-paper")
     s = mr.LoopSettings(upsampling=L, variant=up.DEFAULT_VARIANT)
     lim = benchmark.pedantic(mr.stiffness_limit, args=(d, s), rounds=5, iterations=1)

@@ -12,6 +12,10 @@ import pytest
 
 from hapticopt.analysis.control import impedance_learning as il
 from hapticopt.analysis.control import two_link as tl
+from hapticopt.analysis.loop.scene import load_scene
+from hapticopt.design.io import load_preset
+from hapticopt.analysis.control import ioic_online as ioic
+from hapticopt.analysis import verify
 
 CFG = il.OuterLoopConfig()
 
@@ -56,23 +60,18 @@ def test_outer_loop_15s(benchmark):
 
 # ---------------------------------------------------------------------- in our devices (issue 18 item 5)
 def _device(preset, scene):
-    from hapticopt.analysis.loop.scene import load_scene
-    from hapticopt.design.io import load_preset
-
     return load_preset(preset), load_scene(scene)
 
 
 def test_online_learning_at_t_learn(benchmark):
     """The firmware's learning step at t_learn: eq 7's data from 500 tick samples + eq 9."""
-    from hapticopt.analysis.control import ioic_online as io
-
     a, b, q, r = CFG.matrices()
     data = il.collect_data(a, b, np.array([CFG.k0]), CFG.noise, np.array([-0.4, 0.0, 0.0]),
                            duration=0.5, n_intervals=50, substeps=10)
     x, u = data.x_fine, data.u_fine[:-1]
 
     def learn():
-        return il.policy_iteration(io.data_from_samples(x, u, 1e-3, 10), np.array([CFG.k0]), q, r)
+        return il.policy_iteration(ioic.data_from_samples(x, u, 1e-3, 10), np.array([CFG.k0]), q, r)
 
     assert benchmark(learn).status is il.LearningStatus.OK
 
@@ -81,7 +80,6 @@ def test_online_learning_at_t_learn(benchmark):
 def test_device_ioic_scene(benchmark, preset, scene):
     """The bundled IOIC scene (6 s at 1 kHz): master IOIC + NTSMTC on MuJoCo, 3-PRRR IOIC over the
     SEA loops on the lumped plant (the master's model terms compiled outside the timing)."""
-    from hapticopt.analysis import verify
 
     design, sc = _device(preset, scene)
     verify.simulate(design, sc)

@@ -1,21 +1,13 @@
-"""Cold start of the command line (issue 22 item 5): a fresh interpreter each round.
+"""Cold start of the command line: a fresh interpreter each round.
 
 Run: ``pytest benchmarks/bench_startup.py -o python_files='bench_*.py' --benchmark-enable``
 (wall time of ``import hapticopt.optim.cli``, ``hapticopt --help``, and ``hapticopt evaluate --preset
-prrr-paper`` to its first byte of output).
-
-Side by side against another checkout (medians of N interleaved cold starts, and the ratio)::
-
-    python benchmarks/bench_startup.py --before /path/to/shim-of-old-tree [--rounds 7]
-
-where each argument is a ``PYTHONPATH`` under which ``import hapticopt`` finds that tree.
+prrr-paper`` to its first byte of output). Against another revision: ``benchmarks/ab.py REV startup``.
 """
 
 from __future__ import annotations
 
-import argparse
 import os
-import statistics
 import subprocess
 import sys
 import time
@@ -51,22 +43,3 @@ def first_output_s(args: list[str], pythonpath: str | None = None) -> float:
 def test_cold_start(benchmark, case):
     benchmark.pedantic(first_output_s, args=(CASES[case],), rounds=5, iterations=1)
 
-
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--before", required=True, help="PYTHONPATH of the tree to compare against")
-    ap.add_argument("--after", default=os.environ.get("PYTHONPATH"), help="PYTHONPATH of this tree (default: $PYTHONPATH)")
-    ap.add_argument("--rounds", type=int, default=7)
-    ns = ap.parse_args()
-    for name, args in CASES.items():
-        before, after = [], []
-        for _ in range(ns.rounds):  # interleaved: load changes hit both alike
-            before.append(first_output_s(args, ns.before))
-            after.append(first_output_s(args, ns.after))
-        b, a = statistics.median(before), statistics.median(after)
-        print(f"{name}: before median {b:.3f} s, after median {a:.3f} s, ratio before/after {b / a:.2f} "
-              f"({ns.rounds} interleaved cold starts each)")
-
-
-if __name__ == "__main__":
-    main()

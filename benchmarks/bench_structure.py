@@ -1,53 +1,30 @@
-"""Frame-model speed (targets: ≤ 5 ms per design single, ≤ 1 ms per design batched).
+"""Structural stiffness speed: the evaluator on one design (target ≤ 5 ms) and in a batch of 256 through the
+registry's batched draft path (target ≤ 1 ms per design).
 
 Run with ``make bench``. FEA timings come from benchmarks/accuracy_structure.py (minutes).
 """
 
 import dataclasses
 
-import jax
 import numpy as np
-import pytest
 
-from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.prrr import structure
+from hapticopt.analysis.registry import evaluate_batch
 from hapticopt.design import io
 
+PAPER = io.load_preset("prrr-paper")
 N_BATCH = 256
 
 
-@pytest.fixture(scope="module")
-def paper():
-    return io.load_preset("prrr-paper")
-
-
-def test_frame_single(benchmark, paper):
-    # numpy path (what `hapticopt evaluate` uses): no compilation
-    fp = fm.frame_params_of(paper, xp=np)
-    out = benchmark(fm.solve_frame, fp)
-    assert np.all(np.isfinite(out["stiffness_load"]))
-
-
-def test_frame_single_jax(benchmark, paper):
-    fp = fm.frame_params_of(paper)
-    fm.solve_frame_jax(fp)  # compile outside the timing
-    out = benchmark(fm.solve_frame_jax, fp)
-    assert np.all(np.isfinite(out["stiffness_load"]))
-
-
-def test_structural_evaluate_cold_numpy(benchmark, paper):
-    # the evaluator end to end on the numpy path (design -> metrics), as the CLI calls it
-    from hapticopt.analysis.prrr import structure as ss
-
-    out = benchmark(lambda: ss.evaluate(paper).metrics())
+def test_structural_evaluate(benchmark):
+    out = benchmark(lambda: structure.evaluate(PAPER, fidelity=Fidelity.DRAFT).metrics())
     assert len(out["structural_stiffness_N_per_mm"]) == 3
 
 
-def test_frame_batched_per_design(benchmark, paper):
-    rng = np.random.default_rng(0)
-    betas = np.deg2rad(rng.uniform(45.0, 70.0, N_BATCH))
-    designs = [dataclasses.replace(paper, geometry=dataclasses.replace(paper.geometry, beta=b)) for b in betas]
-    fp = fm.stack_frame_params(designs)
-    fm.solve_frame_batch(fp)
-    out = benchmark(lambda: jax.block_until_ready(fm.solve_frame_batch(fp)))
+def test_structural_batched(benchmark):
+    betas = np.deg2rad(np.random.default_rng(0).uniform(45.0, 70.0, N_BATCH))
+    ds = [dataclasses.replace(PAPER, geometry=dataclasses.replace(PAPER.geometry, beta=b)) for b in betas]
+    evaluate_batch(ds, fidelity=Fidelity.DRAFT, only=("structural_stiffness",))
+    benchmark(evaluate_batch, ds, fidelity=Fidelity.DRAFT, only=("structural_stiffness",))
     benchmark.extra_info["designs_per_call"] = N_BATCH
-    assert out["stiffness_load"].shape == (N_BATCH, 3)

@@ -88,19 +88,3 @@ def test_pareto_front_2000_evaluations(benchmark):
           f"evaluators per point in the front {1e3 * inside:.2f} ms (ratio {per / inside:.2f})")
     assert res.n_evaluated >= 0.9 * FRONT_EVALS
 
-
-@pytest.mark.parametrize("mode", ["per-point", "batched"])
-def test_sweep_1000_statics_batched(benchmark, mode):
-    """The 3-PRRR statics alone over 1000 β values: the registry loop per point (inline) against one
-    jit-compiled vmap per 256-design chunk (``--batch``; compile included in the first round)."""
-    sweep = Sweep(base=BASE, axes=(parse_axis(f"geometry.beta_deg=45:65:{N_SWEEP}", BASE),), fidelity=Fidelity.DRAFT,
-                  only=("statics",))
-    single = _single(("statics",))
-    res = benchmark.pedantic(lambda: run_sweep(sweep, executor=InlineExecutor(), batch=mode == "batched"),
-                             rounds=3, iterations=1)
-    wall = benchmark.stats.stats.median
-    benchmark.extra_info.update(wall_s=wall, single_design_ms=1e3 * single, ms_per_design=1e3 * wall / N_SWEEP,
-                                ratio_to_single=wall / N_SWEEP / single)
-    print(f"\nstatics sweep {mode}: {N_SWEEP} designs, median {wall:.3f} s = {1e3 * wall / N_SWEEP:.3f} ms/design; "
-          f"single design {1e3 * single:.3f} ms; ratio {wall / N_SWEEP / single:.2f}")
-    assert res.n_ok == N_SWEEP

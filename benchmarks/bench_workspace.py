@@ -1,8 +1,9 @@
-"""Workspace benchmarks (issue 4), 2-core CPU.
+"""Workspace benchmarks, 2-core CPU.
 
 Targets: draft workspace + conditioning of one design ≤ 20 ms (3-PRRR and master, warm);
 1000 designs batched ≤ 2 s (3-PRRR draft, after the one-off jit compile, which is reported
-separately by ``test_prrr_batch_compile``).
+separately by ``test_prrr_batch_compile``); the fast interference check of the 216 workspace samples
+(the ``interference`` evaluator) ≤ 50 ms.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 from hapticopt.analysis.master import workspace as master_workspace
 from hapticopt.analysis.prrr import workspace as prrr_workspace, statics as prrr_statics
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.registry import evaluate_all
 from hapticopt.design import io
 
 PRRR = io.load_preset("prrr-paper")
@@ -74,3 +76,9 @@ def test_prrr_batch_compile(benchmark):
         return time.perf_counter() - t
 
     benchmark.pedantic(first, rounds=1, iterations=1)
+
+
+def test_prrr_interference_samples(benchmark):
+    evaluate_all(PRRR, fidelity=Fidelity.STANDARD, only=("interference",))
+    ev = benchmark(evaluate_all, PRRR, fidelity=Fidelity.STANDARD, only=("interference",))
+    assert ev.metrics()["interference_removed_fraction"] == 0.0

@@ -27,11 +27,6 @@ def volume_from_mm3(v_mm3: float) -> float:
     return float(v_mm3) * 1e-9
 
 
-def volume_to_mm3(v_m3: float) -> float:
-    """Volume [m³] -> [mm³]."""
-    return float(v_m3) * 1e9
-
-
 def inertia_from_mm5(i_mm5):
     """Volume-weighted second moments [mm⁵] -> [m⁵] (multiply by density for kg·m²)."""
     return np.asarray(i_mm5, dtype=float) * 1e-15

@@ -61,14 +61,6 @@ def _mjcf(design: Any, p, masses) -> str:
     return mjcf_master.master_mjcf(design)
 
 
-def build_assembly(design: Any, p=None) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """Part solids (own frames, mm) and their posed frames at ``p`` [m] (None: the home pose)."""
-    cad = _cad(design)
-    solids = cad.build_parts(design)
-    pose = cad.solve_pose(design, cad.home_point(design) if p is None else p)
-    return solids, cad.part_frames(design, pose)
-
-
 #: the steps of :func:`export`, in order (``on_step(step, done, total)`` names them)
 STEPS = ("cad", "mass properties + MJCF", "STEP", "STL", "render")
 

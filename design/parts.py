@@ -300,29 +300,6 @@ def volume_properties_many(groups) -> list[VolumeProps]:
     return [VolumeProps(volume=float(V[k]), centroid=cen[k], inertia=Jc[k]) for k in range(n)]
 
 
-def bbox(prims, T: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Axis-aligned bounds (lo, hi) [m] of the SOLID primitives, optionally after transform ``T``."""
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
-    for p in prims:
-        if p.role != Role.SOLID:
-            continue
-        R, o = p.R, p.o
-        if T is not None:
-            R, o = T[:3, :3] @ R, T[:3, :3] @ o + T[:3, 3]
-        a, b, c = p.dims
-        if p.kind == Kind.BOX:
-            ext = np.abs(R) @ np.array([a, b, c]) / 2
-        elif p.kind == Kind.CYLINDER:
-            az = R[:, 2]
-            ext = a * np.sqrt(np.clip(1 - az * az, 0, 1)) + b / 2 * np.abs(az)
-        else:
-            ext = np.full(3, a)
-        lo = np.minimum(lo, o - ext)
-        hi = np.maximum(hi, o + ext)
-    return lo, hi
-
-
 # ---------------------------------------------------------------------------- manifold3d meshes
 def manifold_of(spec: PartSpec, *, segments: int = 32):
     """The part as a manifold3d ``Manifold`` in its own frame, in mm."""

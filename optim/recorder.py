@@ -186,7 +186,7 @@ class Recorder:
 
     def record(self, key: str, result: PointResult, *, start: int, stage: str, fidelity: str) -> None:
         """Write one evaluation in its own transaction, on disk once this returns (WAL fsynced,
-        :data:`SYNCHRONOUS` = FULL: ~0.2 ms more per evaluation than NORMAL, ``benchmarks/bench_recorder.py``)."""
+        :data:`SYNCHRONOUS` = FULL: ~0.2 ms more per evaluation than NORMAL)."""
         row = (key, self.session, start, stage, fidelity, json.dumps([float(v) for v in result.x]),
                str(result.outcome), result.message, json.dumps(list(result.values)),
                None if result.gradients is None else json.dumps([list(r) for r in result.gradients]),

@@ -138,11 +138,6 @@ class ExplorationNoise:
         ph = np.asarray(self.phases, dtype=float)
         return np.sum(a * np.sin(w * t[..., None] + ph), axis=-1)
 
-    @property
-    def max_frequency(self) -> float:
-        return max(self.frequencies, default=0.0)
-
-
 # --------------------------------------------------------------------------------------------
 # Data phase (eq 7, 8)
 

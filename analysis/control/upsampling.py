@@ -305,7 +305,10 @@ def lifted_stiffness_limit(plant: Plant, fw: Firmware, *, reference_N_per_m: flo
     if not (np.isfinite(reference_N_per_m) and reference_N_per_m > 0.0):
         raise ValueError(f"reference_N_per_m = {reference_N_per_m!r}: allowed finite > 0 [N/m]")
     fast = _zoh(plant.A, plant.b, fw.period_s / fw.upsampling)
-    g = lambda K: lifted_margin(plant, fw, K, _fast=fast)
+
+    def g(K: float) -> float:
+        return lifted_margin(plant, fw, K, _fast=fast)
+
     lo = 1e-3 * reference_N_per_m
     if lifted_verdict(g(lo), fw.period_s) != "stable":
         return LiftedLimit(math.nan, "unstable_without_wall", math.nan, lo)

@@ -60,9 +60,8 @@ class Method(StrEnum):
 
 #: largest system [unknowns] that ``Method.AUTO`` factors directly (docs/structure.md, "Linear solver")
 DIRECT_MAX_UNKNOWNS = 400_000
-#: BLAS threads during factorisation and solves: one. Two gained nothing consistent for the direct
-#: solve on the 2-core machine (0.77× at CAD level 0, 1.1–1.3× at level 2, load 7–8; docs/structure.md)
-#: and spun against each other in AMG-CG under load (2.5–3.4× slower, docs/pitfalls.md); one thread
+#: BLAS threads during factorisation and solves: one. Two gain nothing consistent for the direct solve
+#: (docs/structure.md) and spin against each other in AMG-CG under load (docs/pitfalls.md); one thread
 #: also leaves the other core to a parallel evaluation
 BLAS_THREADS = 1
 #: AMG-CG: coarsest grid size [unknowns] solved directly

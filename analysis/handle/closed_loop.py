@@ -138,7 +138,6 @@ class HandleLoopResult:
     predictor: dict[str, Any] = field(default_factory=dict)  #: ``HandleFirmware.predictor_report()``
 
     def metrics(self) -> dict[str, Any]:
-        st = self.setup
         return {**self._core_metrics(), **self.predictor}
 
     def _core_metrics(self) -> dict[str, Any]:

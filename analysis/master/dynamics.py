@@ -182,12 +182,6 @@ def gravity_parameters(model: MassModel) -> GravityParameters:
     return GravityParameters(G1=G1, G2=G2, moving_mass=M, com_offset=P)
 
 
-def gravity_torque_from_parameters(gp: GravityParameters, q: jax.Array) -> jax.Array:
-    """The eq-4 form [0, G1 cos θ2, G2 sin θ3] (…, 3) [N·m] (fast path; tested against :func:`gravity_torque`)."""
-    q = jnp.asarray(q, dtype=float)
-    return jnp.stack([jnp.zeros_like(q[..., 0]), gp.G1 * jnp.cos(q[..., 1]), gp.G2 * jnp.sin(q[..., 2])], axis=-1)
-
-
 def balancing_counterweights(design: MasterDesign, bodies: tuple[BodyMass, ...] | None = None) -> tuple[float, float]:
     """Counterweight masses (upper, forearm) [kg] at the design's distances giving perfect balance (P = 0).
 

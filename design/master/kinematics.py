@@ -137,13 +137,6 @@ def planar_jacobian(params: MasterParams, q: jax.Array) -> jax.Array:
     return jnp.stack([row_rho, row_z], axis=-2)
 
 
-def singularity_measure(params: MasterParams, q: jax.Array) -> jax.Array:
-    """cos(θ2 − θ3) = sin φ: 1 at a right-angled elbow, 0 at the parallelogram singularity."""
-    del params
-    q = jnp.asarray(q)
-    return jnp.cos(q[..., 1] - q[..., 2])
-
-
 class IkSolution(NamedTuple):
     """Inverse kinematics of handle positions p (…, 3)."""
 
@@ -247,9 +240,3 @@ def link_frames(params: MasterParams, q: jax.Array) -> LinkFrames:
     )
 
 
-def joint_grid(params: MasterParams, n_theta3: int, n_phi: int, *, theta1: float = 0.0) -> jax.Array:
-    """Joint vectors (n_theta3·n_phi, 3) on a uniform grid of the (θ3, φ) ranges, limits included."""
-    t3 = jnp.linspace(params.theta3_min, params.theta3_max, n_theta3)
-    ph = jnp.linspace(params.parallelogram_min, params.parallelogram_max, n_phi)
-    T3, PH = jnp.meshgrid(t3, ph, indexing="ij")
-    return q_from_theta3_phi(jnp.full(T3.shape, theta1), T3, PH).reshape(-1, 3)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -55,7 +56,7 @@ def test_overrides_use_toml_keys(prrr_paper):
 
 
 def test_designs_are_frozen(prrr_paper):
-    with pytest.raises(Exception):
+    with pytest.raises(dataclasses.FrozenInstanceError):
         prrr_paper.geometry.beta = 1.0  # type: ignore[misc]
 
 

@@ -12,7 +12,6 @@ import sqlite3
 import struct
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 

@@ -98,7 +98,7 @@ def test_link_frames_chain_consistency(params):
     q = jnp.asarray(_random_q(params, 7, seed=3))
     fr = mk.link_frames(params, q)
     np.testing.assert_allclose(fr.handle.origin, mk.forward_kinematics(params, q), atol=1e-15)
-    L5, L4, d = float(params.upper_arm), float(params.forearm), float(params.driver_link)
+    L5, d = float(params.upper_arm), float(params.driver_link)
     ex = lambda f: np.asarray(f.rotation[..., :, 0])  # noqa: E731
     np.testing.assert_allclose(fr.forearm.origin, fr.upper_arm.origin + L5 * ex(fr.upper_arm), atol=1e-15)
     # parallelogram closes: coupler end = forearm rear extension end

@@ -1,0 +1,213 @@
+"""One user-facing stage of this checkout against an older revision, side by side.
+
+    python benchmarks/ab.py REV STAGE [--rounds N] [--n N] [--scene S] [--keep DIR]
+
+REV is checked out into a temporary ``git worktree`` with its own venv: the running interpreter's
+site-packages as plain path lines (so neither tree's editable install leaks into the other), then
+``pip install --no-deps -e .``. For whole-command stages both trees first run the numba warm-up of
+``make setup``. Each round runs the stage once per
+tree, each in a fresh process, in an order that alternates by round; every process does the stage once
+untimed first (jit traces, numba loads, caches) unless the stage is a whole command (make-run, startup). Prints the medians,
+the ratio new/old (per round and its median) and the load average before and after.
+
+Stages (the figures docs/performance.md quotes):
+
+* ``draft-batch`` — ``registry.evaluate_batch`` at draft of ``--n`` designs (default 1024), ms per design;
+* ``draft-one`` — ``registry.evaluate_all`` at draft, one design at a time over ``--n`` designs (default 16);
+* ``fea-fine`` — the structural evaluator at fine (frame model and solid FEA of the CAD) on prrr-paper;
+* ``verify`` — ``verify.simulate`` of ``--scene`` (default stiffness-25) at standard on its device's preset;
+* ``make-run`` — the three commands of ``make run`` in an empty folder (a fresh process each, imports included);
+* ``startup`` — ``hapticopt evaluate --preset prrr-paper`` from a fresh interpreter to its first byte of output.
+
+The designs are seeded, ±10 % around prrr-paper (the same as ``bench_batched_draft.designs``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+STAGES = ("draft-batch", "draft-one", "fea-fine", "verify", "make-run", "startup")
+PRESET_OF = {"prrr": "prrr-paper", "master": "master-paper", "handle": "handle-paper"}
+
+
+# ---- the child: runs in either tree's interpreter, imports only that tree's hapticopt ----
+
+def _designs(n: int, seed: int = 0) -> list:
+    import dataclasses
+
+    import numpy as np
+
+    from hapticopt.design import io
+    from hapticopt.design.errors import InvalidDesign
+    base = io.load_preset("prrr-paper")
+    rng, g, out = np.random.default_rng(seed), base.geometry, []
+    while len(out) < n:
+        kw = dict(beta=g.beta * rng.uniform(0.9, 1.1), r_p=g.r_p * rng.uniform(0.9, 1.1),
+                  d3=g.d3 * rng.uniform(0.9, 1.1), d4=g.d4 * rng.uniform(0.9, 1.1),
+                  stroke=g.stroke * rng.uniform(0.9, 1.1))
+        try:
+            out.append(dataclasses.replace(base, geometry=dataclasses.replace(g, **kw)))
+        except InvalidDesign:
+            continue
+    return out
+
+
+def _stage_fn(stage: str, n: int | None, scene: str):
+    """(the stage as a function of no arguments, the number of units its time is divided by, the unit)."""
+    from hapticopt.analysis import registry
+    from hapticopt.analysis.fidelity import Fidelity
+    if stage == "draft-batch":
+        ds = _designs(n or 1024)
+        return (lambda: registry.evaluate_batch(ds, fidelity=Fidelity.DRAFT)), len(ds), "ms/design"
+    if stage == "draft-one":
+        ds = _designs(n or 16)
+        return (lambda: [registry.evaluate_all(d, fidelity=Fidelity.DRAFT) for d in ds]), len(ds), "ms/design"
+    if stage == "fea-fine":
+        from hapticopt.design import io
+        d = io.load_preset("prrr-paper")
+        return (lambda: registry.evaluate_all(d, fidelity=Fidelity.FINE, only=("structural_stiffness",))), 1, "ms"
+    if stage == "verify":
+        from hapticopt.analysis import verify
+        from hapticopt.analysis.loop.scene import load_scene
+        from hapticopt.design import io
+        sc = load_scene(scene)
+        d = io.load_preset(PRESET_OF[sc.device])
+        return (lambda: verify.simulate(d, sc, fidelity=Fidelity.STANDARD)), 1, "ms"
+    raise SystemExit(f"unknown stage {stage!r}; one of {', '.join(STAGES)}")
+
+
+def child(stage: str, n: int | None, scene: str) -> None:
+    fn, units, unit = _stage_fn(stage, n, scene)
+    fn()  # untimed: traces, compiled kernels, caches
+    t = time.perf_counter()
+    fn()
+    print(json.dumps({"value": 1e3 * (time.perf_counter() - t) / units, "unit": unit}))
+
+
+# ---- the parent ----
+
+def _make_run(py: str, work: Path) -> float:
+    """Wall seconds of `make run`'s three commands, in ``work`` (empty), through ``py``."""
+    cli = [py, "-m", "hapticopt.optim.cli"]
+    t = time.perf_counter()
+    for args, ok in ((["evaluate", "--preset", "prrr-paper"], (0, 3)),
+                     (["export", "--preset", "prrr-paper", "--render"], (0,)),
+                     (["optimise", "prrr-workspace", "--quiet"], (0, 3))):
+        rc = subprocess.run(cli + args, cwd=work, capture_output=True, text=True)
+        if rc.returncode not in ok:
+            raise SystemExit(f"{py}: {' '.join(args)} exited {rc.returncode}:\n{rc.stderr[-2000:]}")
+    return time.perf_counter() - t
+
+
+def _first_output(py: str, work: Path) -> float:
+    """Wall seconds from starting ``hapticopt evaluate --preset prrr-paper`` to its first byte on stdout."""
+    t = time.perf_counter()
+    proc = subprocess.Popen([py, "-m", "hapticopt.optim.cli", "evaluate", "--preset", "prrr-paper"], cwd=work,
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    proc.stdout.read(1)
+    t = time.perf_counter() - t
+    proc.communicate()
+    return t
+
+
+def once(py: str, stage: str, n: int | None, scene: str) -> tuple[float, str]:
+    with tempfile.TemporaryDirectory(prefix="ab-run-") as work:
+        if stage == "make-run":
+            return _make_run(py, Path(work)), "s"
+        if stage == "startup":
+            return _first_output(py, Path(work)), "s"
+        args = [py, str(Path(__file__).resolve()), "--child", stage, "--scene", scene]
+        out = subprocess.run(args + (["--n", str(n)] if n else []), cwd=work, capture_output=True, text=True)
+        if out.returncode:
+            raise SystemExit(f"{py} {stage} exited {out.returncode}:\n{out.stderr[-3000:]}")
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        return r["value"], r["unit"]
+
+
+def site_paths() -> list[str]:
+    """The running interpreter's package folders (its venv's and any it names by a plain path line)."""
+    return [p for p in sys.path if p.rstrip("/").endswith(("site-packages", "dist-packages")) and Path(p).is_dir()]
+
+
+def old_tree(rev: str, where: Path) -> str:
+    """Check ``rev`` out at ``where`` with a venv of its own; the venv's python."""
+    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "-q", "--detach", str(where), rev], check=True)
+    subprocess.run([sys.executable, "-m", "venv", str(where / ".venv")], check=True)
+    py = str(where / ".venv" / "bin" / "python")
+    mine = subprocess.run([py, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                          check=True, capture_output=True, text=True).stdout.strip()
+    Path(mine, "zz_ab_site.pth").write_text("".join(p + "\n" for p in site_paths()))
+    subprocess.run([py, "-m", "pip", "install", "-q", "--no-deps", "-e", "."], cwd=where, check=True,
+                   capture_output=True)
+    return py
+
+
+def warm(py: str) -> None:
+    """The install step of `make setup` (numba kernels compiled into their cache), for the stages whose
+    timed rounds are whole commands; the other stages' untimed first call compiles or loads them."""
+    subprocess.run([py, "-m", "hapticopt.analysis.warmup"], cwd=tempfile.gettempdir(), capture_output=True)
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("rev", nargs="?")
+    ap.add_argument("stage", choices=STAGES)
+    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--n", type=int, default=None, help="designs (draft-batch, draft-one)")
+    ap.add_argument("--scene", default="stiffness-25", help="the verify stage's scene")
+    ap.add_argument("--keep", type=Path, help="build the old tree here and keep it (reused when it exists)")
+    ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.child:
+        return child(a.stage, a.n, a.scene)
+    if not a.rev:
+        ap.error("REV is required")
+    tmp = Path(tempfile.mkdtemp(prefix="ab-"))
+    where = a.keep or tmp / "old"
+    try:
+        sha = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", a.rev], check=True,
+                             capture_output=True, text=True).stdout.strip()
+        if a.keep and (where / ".venv" / "bin" / "python").exists():
+            py_old = str(where / ".venv" / "bin" / "python")
+        else:
+            print(f"building {a.rev} ({sha}) in {where} ...", flush=True)
+            py_old = old_tree(a.rev, where)
+        trees = {"old": py_old, "new": sys.executable}
+        if a.stage in ("make-run", "startup"):
+            for py in trees.values():
+                warm(py)
+        load0 = os.getloadavg()
+        times: dict[str, list[float]] = {"old": [], "new": []}
+        unit = ""
+        for r in range(a.rounds):
+            for name in (("old", "new") if r % 2 == 0 else ("new", "old")):
+                v, unit = once(trees[name], a.stage, a.n, a.scene)
+                times[name].append(v)
+            print(f"round {r + 1}: old {times['old'][-1]:.3f}, new {times['new'][-1]:.3f} {unit}, "
+                  f"new/old {times['new'][-1] / times['old'][-1]:.3f}; load {os.getloadavg()[0]:.2f}", flush=True)
+        mo, mn = statistics.median(times["old"]), statistics.median(times["new"])
+        ratios = [b / o for o, b in zip(times["old"], times["new"])]
+        load1 = os.getloadavg()
+        stage = a.stage + (f" {a.scene}" if a.stage == "verify" else "") + (f" n={a.n}" if a.n else "")
+        print(f"{stage}: old {a.rev} ({sha}) {mo:.3f} {unit}, new {ROOT.name} {mn:.3f} {unit}; "
+              f"new/old {mn / mo:.3f} (median of per-round ratios {statistics.median(ratios):.3f}, "
+              f"{a.rounds} interleaved rounds); load {load0[0]:.2f}/{load0[1]:.2f}/{load0[2]:.2f} before, "
+              f"{load1[0]:.2f}/{load1[1]:.2f}/{load1[2]:.2f} after")
+    finally:
+        if not a.keep:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(where)], capture_output=True)
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
