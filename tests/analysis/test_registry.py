@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from hapticopt.analysis import registry
+from hapticopt.analysis.compute import Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidInput
@@ -106,3 +107,50 @@ def test_evaluate_all_pauses_the_cyclic_collector_at_draft_and_restores_it(monke
         gc.enable() if was else gc.disable()
     assert seen == [inside]
     assert ev.statuses["statics"] == "failed"  # the probe's error is a status, as before
+
+
+def test_compute_goes_only_to_the_entries_that_take_it(monkeypatch):
+    """``compute=`` reaches exactly the evaluators whose entry says ``takes_compute`` (the same object the
+    caller passed), ``shared=`` those that say ``shared``; the others get neither keyword."""
+    seen: dict[str, set[str]] = {}
+    got: list[object] = []
+
+    def load(entry):
+        def evaluate(design, *, fidelity, **kw):
+            seen[entry.name] = set(kw)
+            got.extend(v for k, v in kw.items() if k == "compute")
+            raise RuntimeError("probe")  # a failed status: the loop goes on
+
+        return type("Probe", (), {"evaluate": staticmethod(evaluate)})
+
+    monkeypatch.setattr(registry.EvaluatorEntry, "load", load)
+    route = Compute(backend="numpy", threads=1)
+    ev = registry.evaluate_all(io.load_preset("prrr-paper"), fidelity=Fidelity.DRAFT, compute=route)
+    for entry in registry.EVALUATORS["prrr"]:
+        expected = {k for k, on in (("shared", entry.shared), ("compute", entry.takes_compute)) if on}
+        assert seen[entry.name] == expected, entry.name
+        assert ev.statuses[entry.name] == "failed"
+    assert got and all(c is route for c in got)
+    assert {e.name for e in registry.EVALUATORS["prrr"] if e.takes_compute} == {
+        "structural_stiffness", "interference", "free_workspace"}
+
+
+def test_batch_entries_name_functions_that_exist():
+    """Every batch evaluator and single-path check a :data:`registry.BATCHED` entry names can be loaded."""
+    for device, batch in registry.BATCHED.items():
+        assert device in registry.EVALUATORS
+        assert callable(registry._function(batch.evaluate_many)) and callable(registry._function(batch.single_path))
+        assert batch.chunk >= 1
+
+
+def test_evaluate_batch_of_other_levels_or_devices_is_evaluate_all_of_each(monkeypatch):
+    """A list at a level no batch evaluator serves, or of a device without one, takes evaluate_all per
+    design with the caller's Compute."""
+    calls = []
+    monkeypatch.setattr(registry, "evaluate_all", lambda d, **kw: calls.append((d.name, kw["compute"])) or d.name)
+    route = Compute(threads=1)
+    prrr, master = io.load_preset("prrr-paper"), io.load_preset("master-paper")
+    assert registry.evaluate_batch([prrr, prrr], fidelity=Fidelity.STANDARD, compute=route) == [prrr.name] * 2
+    assert registry.evaluate_batch([master], fidelity=Fidelity.DRAFT, compute=route) == [master.name]
+    assert registry.evaluate_batch([], fidelity=Fidelity.DRAFT) == []
+    assert calls == [(prrr.name, route)] * 2 + [(master.name, route)]
