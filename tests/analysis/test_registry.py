@@ -86,29 +86,6 @@ def test_run_plotter_returns_the_files_it_wrote_for_a_relative_folder(monkeypatc
         registry.run_plotter(entry, design, None, Path("run/plots"))
 
 
-@pytest.mark.parametrize(("enabled", "level", "inside"), [(True, Fidelity.DRAFT, False), (False, Fidelity.DRAFT, False),
-                                                          (True, Fidelity.STANDARD, True)])
-def test_evaluate_all_pauses_the_cyclic_collector_at_draft_and_restores_it(monkeypatch, enabled: bool,
-                                                                           level: Fidelity, inside: bool):
-    """At draft the evaluators run with the collector off, at the longer levels as it was; after the
-    call it is as it was before."""
-    import gc  # noqa: PLC0415
-
-    seen = []
-    monkeypatch.setattr(registry.EvaluatorEntry, "load",
-                        lambda self: type("Probe", (), {"evaluate": staticmethod(
-                            lambda design, **kw: seen.append(gc.isenabled()) or 1 / 0)}))
-    was = gc.isenabled()
-    try:
-        gc.enable() if enabled else gc.disable()
-        ev = registry.evaluate_all(io.load_preset("prrr-paper"), fidelity=level, only=("statics",))
-        assert gc.isenabled() is enabled
-    finally:
-        gc.enable() if was else gc.disable()
-    assert seen == [inside]
-    assert ev.statuses["statics"] == "failed"  # the probe's error is a status, as before
-
-
 def test_compute_goes_only_to_the_entries_that_take_it(monkeypatch):
     """``compute=`` reaches exactly the evaluators whose entry says ``takes_compute`` (the same object the
     caller passed), ``shared=`` those that say ``shared``; the others get neither keyword."""
