@@ -141,10 +141,6 @@ def load_design_arg(file: Path | None, preset: str | None, assignments: list[str
     return io.apply_overrides(design, list(assignments or []))
 
 
-def is_tty() -> bool:
-    return sys.stdout.isatty()
-
-
 CACHE_HELP = ("Evaluation cache file: a design's whole evaluation at a fidelity, reused when the same design, "
               "fidelity and code meet again (default: DIR/" + CACHE_FILENAME + "; give one FILE to share it "
               "among runs and commands).")
