@@ -6,7 +6,7 @@ frozen and has ``metrics() -> dict`` (engineering units, unit in the name), ``st
 ``plots`` module (``"module:function"``, called as ``fn(design, result, out_dir)``). Modules are
 imported lazily so that a CLI call pays only for what it runs.
 
-The one evaluator convention (docs/architecture.md, "Evaluators"): ``evaluate(design, *, fidelity)``,
+The one evaluator convention (docs/architecture.md, "One evaluator convention"): ``evaluate(design, *, fidelity)``,
 plus two keywords an entry declares, never found by inspecting signatures:
 
 * ``shared=``: the steps several evaluators of one device take for a design (the 3-PRRR's part tables,
