@@ -61,9 +61,8 @@ def end_process(code: int) -> None:
     stdout and stderr, then ``os._exit``. Call it from an exit handler registered first (it then runs
     after every other one: pool joins, log flushes) — :func:`skip_teardown_at_exit`.
 
-    The teardown frees every module's objects one by one; with build123d (OpenCASCADE) loaded it took
-    1.7–2.1 s of a process's end, with jax 0.4–0.6 s, against 0.06–0.14 s without it (one run each,
-    load ≈ 5; docs/performance.md). Nothing of ours needs it: files and databases are closed by then.
+    The teardown frees every module's objects one by one, which takes seconds with build123d (OpenCASCADE)
+    or jax loaded (docs/performance.md). Nothing of ours needs it: files and databases are closed by then.
     """
     for stream in (sys.stdout, sys.stderr):
         try:

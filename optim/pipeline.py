@@ -129,8 +129,8 @@ def _scene_task(design: Any, scene: str, fidelity: Fidelity, verifier: Any, comp
 
 def warm_verification(compiled_loops: bool = False) -> None:
     """In the verification worker, once at its start: the imports (this module's) and jax's runtime; with
-    ``compiled_loops`` also the compiled MuJoCo loops (numba import and cache load ≈ 1 s, a first compile ≈ 9 s:
-    docs/performance.md)."""
+    ``compiled_loops`` also the compiled MuJoCo loops (the numba import and cache load, or a first compile:
+    seconds, docs/performance.md)."""
     from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
     import jax.numpy as jnp
 
