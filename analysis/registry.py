@@ -6,9 +6,17 @@ frozen and has ``metrics() -> dict`` (engineering units, unit in the name), ``st
 ``plots`` module (``"module:function"``, called as ``fn(design, result, out_dir)``). Modules are
 imported lazily so that a CLI call pays only for what it runs.
 
-Steps several evaluators of one device take for a design (the 3-PRRR's part tables, envelope and
-reach core: :data:`SHARED_STEPS`) run once per :func:`evaluate_all` call, handed explicitly to the
-evaluators whose entry says ``shared=True``.
+The one evaluator convention (docs/architecture.md, "One evaluator convention"): ``evaluate(design, *, fidelity)``,
+plus two keywords an entry declares, never found by inspecting signatures:
+
+* ``shared=``: the steps several evaluators of one device take for a design (the 3-PRRR's part tables,
+  envelope and reach core: :data:`SHARED_STEPS`), made once per :func:`evaluate_all` call and handed to
+  the evaluators whose entry says ``shared=True``;
+* ``compute=``: the caller's :class:`~hapticopt.analysis.compute.Compute` (route and kernel threads),
+  handed to the evaluators whose entry says ``takes_compute=True`` (those with more than one route).
+
+A device may have a batch evaluator (:data:`BATCHED`): :func:`evaluate_batch` sends a list of its
+designs there at the fidelity it serves, with equal results.
 
 One failure policy for every caller (``hapticopt evaluate``, the optimiser's design points and
 the pipeline): an evaluator that raises is reported as :attr:`Status.FAILED` with the
@@ -17,8 +25,6 @@ exception's type, message and location (file:line); the other evaluators still r
 
 from __future__ import annotations
 
-import contextlib
-import gc
 import importlib
 import time
 import traceback
@@ -29,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidDesign, InvalidInput
@@ -67,6 +74,7 @@ class EvaluatorEntry:
     slow_at: tuple[str, ...] = ()  # fidelities at which it takes seconds (the pipeline runs it in a second process)
     metrics: tuple[MetricDoc, ...] = ()  # every metric it can report (tests/analysis/test_registry.py checks)
     shared: bool = False  # its evaluate() takes ``shared=``, the call's SHARED_STEPS of the design
+    takes_compute: bool = False  # its evaluate() takes ``compute=``, the caller's route (more than one route)
 
     def load(self) -> Any:
         return importlib.import_module(self.module)
@@ -97,7 +105,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("stiffness_limit_N_per_mm", "largest renderable stiffness per axis x, y, z from the SEA springs, diag J⁻ᵀ(kI)J⁻¹ (seed 002 eq 14–15)"),
             _m("effective_mass_kg", "3×3 equivalent mass matrix of the moving parts at the end-effector (seed 002 eq 7)"),
         )),
-        EvaluatorEntry(name="structural_stiffness", module=_A + "prrr.structure",
+        EvaluatorEntry(name="structural_stiffness", module=_A + "prrr.structure", takes_compute=True,
                        plot=_A + "prrr.plots:structure_plots",
                        fidelity="draft/standard: Timoshenko frame model; fine: also the solid FEA of the CAD (tens of seconds)",
                        slow_at=_FINE,
@@ -131,13 +139,13 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("workspace_interference_removed_fraction", "share of the sampled workspace volume lost to part collisions (manifold3d meshes)", *_FINE),
             _m("workspace_free_volume_mm3", "workspace volume after removing the colliding share", *_FINE),
         )),
-        EvaluatorEntry(name="interference", module=_A + "prrr.interference", shared=True,
+        EvaluatorEntry(name="interference", module=_A + "prrr.interference", shared=True, takes_compute=True,
                        fidelity="the same convex-primitive model at every level (conservative against manifold3d)",
                        metrics=(
             _m("interference_removed_fraction", "share of the sampled workspace volume whose poses make two parts collide (0 … 1)"),
             _m("interference_overlap_fraction", "continuous companion: poses weighted by their deepest overlap up to 1 mm (0 … 1)"),
         )),
-        EvaluatorEntry(name="free_workspace", module=_A + "prrr.free_workspace", shared=True,
+        EvaluatorEntry(name="free_workspace", module=_A + "prrr.free_workspace", shared=True, takes_compute=True,
                        fidelity="draft/standard: sampling with the fast separating-axis checker; fine: manifold3d meshes (the reference)",
                        metrics=(
             _m("workspace_free_radius_mm", "radius about z within which every column is reached and collision-free"),
@@ -258,6 +266,30 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
 SHARED_STEPS: dict[str, str] = {"prrr": _A + "prrr.shared:DesignSteps"}
 
 
+@dataclass(frozen=True, kw_only=True)
+class BatchEntry:
+    """A device's batch evaluator: :func:`evaluate_all` of many designs at one fidelity in one pass."""
+
+    fidelity: Fidelity  # the one level it serves (the others: one design at a time)
+    evaluate_many: str  # "module:function" (designs, *, only, compute) -> per design (name -> result or the
+    # exception raised, name -> seconds), every evaluator of the device in ``only``
+    single_path: str  # "module:function" (designs, *, compute) -> per design '' (batched) or why it takes the
+    # single path instead (a 3-PRRR chain that does not close returns early from every evaluator)
+    chunk: int  # designs per pass at most (the single-path check's verdicts stay cached for the evaluators)
+
+
+#: device -> its batch evaluator (none for a device not named here)
+BATCHED: dict[str, BatchEntry] = {
+    "prrr": BatchEntry(fidelity=Fidelity.DRAFT, evaluate_many=_A + "prrr.draft_batch:evaluate_many",
+                       single_path=_A + "prrr.assembly:closure_many", chunk=1024),
+}
+
+
+def _function(spec: str) -> Callable[..., Any]:
+    module, _, name = spec.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
 #: unit tokens a metric name may end with (``_N``, ``_N_per_mm``, ``_MPa_per_N`` …) -> printed symbol
 UNIT_SYMBOLS: dict[str, str] = {
     "mm": "mm", "m": "m", "um": "µm", "mm3": "mm³", "deg": "deg", "rad": "rad", "kg": "kg", "g": "g",
@@ -277,11 +309,6 @@ def metric_unit(name: str) -> str:
     if len(parts) >= 2 and parts[-1] in UNIT_SYMBOLS:
         return UNIT_SYMBOLS[parts[-1]]
     return ""
-
-
-def metric_docs(device: str) -> dict[str, tuple[EvaluatorEntry, MetricDoc]]:
-    """Metric name -> (its evaluator, its description) for one device."""
-    return {m.name: (e, m) for e in EVALUATORS[device] for m in e.metrics}
 
 
 def glossary(device: str | None = None) -> list[dict[str, Any]]:
@@ -373,10 +400,11 @@ def _collect(fidelity: Fidelity, entries: list[EvaluatorEntry], produce: Callabl
     return ev
 
 
-def _collect_found(entries: list[EvaluatorEntry], found: Mapping[str, Any], times: Mapping[str, float]) -> Evaluation:
+def _collect_found(fidelity: Fidelity, entries: list[EvaluatorEntry], found: Mapping[str, Any],
+                   times: Mapping[str, float]) -> Evaluation:
     """:func:`_collect` of results computed beforehand (the batch's: evaluator name → result or the
     exception raised, and the seconds recorded for it, 0 where absent), without a timer per entry."""
-    ev = Evaluation(fidelity=Fidelity.DRAFT, results={}, timings_s={})
+    ev = Evaluation(fidelity=fidelity, results={}, timings_s={})
     for entry in entries:
         try:
             result = found[entry.name]
@@ -409,31 +437,23 @@ def _entries(device: str, only: tuple[str, ...] | None) -> list[EvaluatorEntry]:
 
 
 def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
-                 only: tuple[str, ...] | None = None, progress: StepFn | None = None) -> Evaluation:
+                 only: tuple[str, ...] | None = None, progress: StepFn | None = None,
+                 compute: Compute = DEFAULT) -> Evaluation:
     """Run every evaluator registered for the design's device (or those named in ``only``); the steps
-    several of them take for the design (:data:`SHARED_STEPS`) run once for the call. At draft fidelity
-    Python's cyclic garbage collector is paused for the call (:func:`_collector_paused`): with a batch's
-    objects alive in the process, its collections took ≈ 5 % of a 3-PRRR draft call (32 designs after a
-    batch of 64, interleaved rounds, load 2.5); the longer levels (meshes, solid FEA) keep it running,
-    so that their cyclic garbage does not pile up over a call of seconds to minutes."""
-    if fidelity not in (Fidelity.DRAFT, Fidelity.DRAFT.value):  # a level the evaluators refuse is theirs to report
-        return _evaluate_all(design, fidelity=fidelity, only=only, progress=progress)
-    with _collector_paused():
-        return _evaluate_all(design, fidelity=fidelity, only=only, progress=progress)
-
-
-def _evaluate_all(design: Any, *, fidelity: Fidelity, only: tuple[str, ...] | None,
-                  progress: StepFn | None) -> Evaluation:
+    several of them take for the design (:data:`SHARED_STEPS`) run once for the call; ``compute`` goes to
+    the evaluators whose entry says ``takes_compute``."""
     entries = _entries(design.device, only)
     shared = None
     if design.device in SHARED_STEPS and any(e.shared for e in entries):
-        module, _, cls = SHARED_STEPS[design.device].partition(":")
-        shared = getattr(importlib.import_module(module), cls)(design)
+        shared = _function(SHARED_STEPS[design.device])(design)
 
     def produce(entry: EvaluatorEntry) -> Any:
+        kw: dict[str, Any] = {}
         if entry.shared and shared is not None:
-            return entry.load().evaluate(design, fidelity=fidelity, shared=shared)
-        return entry.load().evaluate(design, fidelity=fidelity)
+            kw["shared"] = shared
+        if entry.takes_compute:
+            kw["compute"] = compute
+        return entry.load().evaluate(design, fidelity=fidelity, **kw)
 
     return _collect(fidelity, entries, produce, lambda entry, measured: measured, progress)
 
@@ -471,52 +491,28 @@ def write_plots(design: Any, evaluation: Evaluation, out_dir: Path) -> list[Path
 
 
 def evaluate_batch(designs: list[Any], *, fidelity: Fidelity = Fidelity.STANDARD,
-                   only: tuple[str, ...] | None = None) -> list[Evaluation]:
-    """:func:`evaluate_all` of many designs: equal results and statuses, and the same failure
-    policy. 3-PRRR designs at draft fidelity go through the batched evaluator
-    (:mod:`hapticopt.analysis.prrr.draft_batch`, one jitted pass for the batch); any other
-    device or fidelity is evaluated one design at a time."""
+                   only: tuple[str, ...] | None = None, compute: Compute = DEFAULT) -> list[Evaluation]:
+    """:func:`evaluate_all` of many designs: equal results and statuses, and the same failure policy.
+    Designs of one device with a batch evaluator (:data:`BATCHED`) at its fidelity go through it, chunk by
+    chunk, except those its ``single_path`` check sends to :func:`evaluate_all`; any other list is
+    evaluated one design at a time."""
     designs = list(designs)
-    if not designs:
-        return []
-    if Fidelity(fidelity) is not Fidelity.DRAFT or any(d.device != "prrr" for d in designs):
-        return [evaluate_all(d, fidelity=fidelity, only=only) for d in designs]
-    from hapticopt.analysis.prrr import assembly, draft_batch  # jax: loaded only where a batch is evaluated
-
-    # a design whose chain does not close returns early from every evaluator: it takes the single path,
-    # so its statuses are the single path's (one whose parts the CAD cannot lay out is batched: the
-    # batch gives its part evaluators their own early not-assemblable); the closures of the designs not
-    # seen before come from one jitted pass (assembly.closure_many), cached for the evaluators' own calls
-    if len(designs) > draft_batch.MAX_CHUNK:  # chunk by chunk: each chunk's closures stay cached
-        return [ev for c in range(0, len(designs), draft_batch.MAX_CHUNK)
-                for ev in evaluate_batch(designs[c:c + draft_batch.MAX_CHUNK], fidelity=fidelity, only=only)]
-    with _collector_paused():
-        blocked = {i for i, message in enumerate(assembly.closure_many(designs)) if message}
-        batched = [d for i, d in enumerate(designs) if i not in blocked]
-        found_all = iter(draft_batch.evaluate_many(batched, only=only) if batched else [])
-        out = []
-        entries = _entries("prrr", only)
-        for i, design in enumerate(designs):
-            if i in blocked:
-                out.append(evaluate_all(design, fidelity=Fidelity.DRAFT, only=only))
-                continue
-            found, times = next(found_all)
-            out.append(_collect_found(entries, found, times))
+    devices = {d.device for d in designs}
+    batch = BATCHED.get(devices.pop()) if len(devices) == 1 else None
+    if batch is None or Fidelity(fidelity) is not batch.fidelity:
+        return [evaluate_all(d, fidelity=fidelity, only=only, compute=compute) for d in designs]
+    single_path, evaluate_many = _function(batch.single_path), _function(batch.evaluate_many)
+    entries = _entries(designs[0].device, only)
+    out: list[Evaluation] = []
+    for c in range(0, len(designs), batch.chunk):
+        chunk = designs[c:c + batch.chunk]
+        single = {i for i, why in enumerate(single_path(chunk, compute=compute)) if why}
+        found_all = iter(evaluate_many([d for i, d in enumerate(chunk) if i not in single], only=only,
+                                       compute=compute))
+        for i, design in enumerate(chunk):
+            if i in single:
+                out.append(evaluate_all(design, fidelity=fidelity, only=only, compute=compute))
+            else:
+                found, times = next(found_all)
+                out.append(_collect_found(batch.fidelity, entries, found, times))
     return out
-
-
-@contextlib.contextmanager
-def _collector_paused():
-    """Python's cyclic garbage collector off for a batch or one design's evaluation (restored after, as
-    it was): a chunk of 1024
-    designs allocates ~10⁶ short-lived containers, freed by reference counting, whose allocation
-    counts set off full collections of every object the process holds (jax's and numpy's included):
-    2 full collections took 0.71 s of a 12.8 s batch of 1024 designs (load 5.4). Cyclic garbage of
-    the batch (few: the tracebacks of exceptions kept as values) waits for the next collection."""
-    was = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was:
-            gc.enable()

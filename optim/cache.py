@@ -56,6 +56,7 @@ import numpy as np
 import hapticopt.analysis
 import hapticopt.design
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.registry import EVALUATORS, evaluate_all
 from hapticopt.analysis.status import Status
 from hapticopt.optim.versions import package_versions
@@ -301,7 +302,7 @@ def cached(design: Any, fidelity: Fidelity, cache: EvaluationCache | None,
 
 def evaluate(design: Any, fidelity: Fidelity, *, cache: EvaluationCache | None, only: tuple[str, ...] | None = None,
              written_by: str = "hapticopt", reuse: bool = True,
-             progress: Callable[[str, int, int], None] | None = None) -> CachedEvaluation:
+             progress: Callable[[str, int, int], None] | None = None, compute: Compute = DEFAULT) -> CachedEvaluation:
     """The registry's evaluation of ``design`` (:func:`hapticopt.analysis.registry.evaluate_all`),
     served from ``cache`` when it holds this key, else computed and stored (unless an evaluator raised).
     ``reuse=False`` always computes (the caller needs the evaluators' result objects, e.g. for
@@ -310,7 +311,7 @@ def evaluate(design: Any, fidelity: Fidelity, *, cache: EvaluationCache | None, 
     found = cached(design, fidelity, cache, only) if reuse else None
     if found is not None:
         return found
-    ev = evaluate_all(design, fidelity=fidelity, only=only, progress=progress)
+    ev = evaluate_all(design, fidelity=fidelity, only=only, progress=progress, compute=compute)
     out = CachedEvaluation(fidelity=Fidelity(fidelity), metrics=ev.metrics(),
                            statuses={k: str(v) for k, v in ev.statuses.items()}, messages=dict(ev.messages),
                            modules=dict(ev.sources), timings_s=dict(ev.timings_s), results=dict(ev.results))

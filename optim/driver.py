@@ -37,8 +37,9 @@ from typing import Any
 import nlopt
 import numpy as np
 
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.optim.evaluation import GradientMode, Outcome, PointResult, PointTask, evaluate_point, jax_twin
-from hapticopt.optim.executor import InlineExecutor, worker_count
+from hapticopt.optim.executor import InlineExecutor, worker_compute, worker_count
 from hapticopt.optim.problem import Algorithm, MetricRef, Problem, Sense
 from hapticopt.optim.recorder import Recorder, point_key
 
@@ -205,9 +206,10 @@ class _Run:
     def __init__(self, problem: Problem, *, executor: Executor, recorder: Recorder | None,
                  evaluate_fn: Callable[[PointTask], PointResult], only: tuple[str, ...] | None,
                  gradient: GradientMode, jax_sources: tuple[tuple[str, str], ...], progress: ProgressFn | None,
-                 deadline: float) -> None:
+                 deadline: float, compute: Compute = DEFAULT) -> None:
         self.problem = problem
         self.executor = executor
+        self.compute = worker_compute(executor, compute)  # the route handed to each point's task
         self.recorder = recorder
         self.evaluate_fn = evaluate_fn
         self.only = only
@@ -244,7 +246,7 @@ class _Run:
                 return prev, Source.REPLAYED
         task = PointTask(base=self.problem.base, variables=self.problem.variables, x=x,
                          fidelity=self.problem.fidelity_optimise, refs=self.refs, only=self.only,
-                         gradient=self.gradient, jax_sources=self.jax_sources)
+                         gradient=self.gradient, jax_sources=self.jax_sources, compute=self.compute)
         try:
             result = self.executor.submit(self.evaluate_fn, task).result()
         except Exception as exc:  # a worker crash is a handled outcome too
@@ -423,8 +425,9 @@ class _Start:
 def run(problem: Problem, *, executor: Executor | None = None, recorder: Recorder | None = None,
         metric_modules: dict[str, str] | None = None, only: tuple[str, ...] | None = None,
         evaluate_fn: Callable[[PointTask], PointResult] = evaluate_point,
-        progress: ProgressFn | None = None) -> RunResult:
-    """Optimise ``problem``; every start is an independent, seeded nlopt run.
+        progress: ProgressFn | None = None, compute: Compute = DEFAULT) -> RunResult:
+    """Optimise ``problem``; every start is an independent, seeded nlopt run; ``compute`` is the route of
+    the points' evaluations (one kernel thread each in a pool's worker).
 
     ``metric_modules`` maps metric names to the evaluator module producing them (from a
     baseline evaluation; needed for jax gradients). ``only`` restricts the evaluators run per
@@ -452,7 +455,7 @@ def run(problem: Problem, *, executor: Executor | None = None, recorder: Recorde
             notes.append("gradients from jax (evaluators' jax twins)")
     state = _Run(problem, executor=executor, recorder=recorder, evaluate_fn=evaluate_fn, only=only,
                  gradient=gradient, jax_sources=jax_sources, progress=progress,
-                 deadline=time.monotonic() + cfg.max_time_s)
+                 deadline=time.monotonic() + cfg.max_time_s, compute=compute)
     starts = [_Start(state, i, u0, b) for i, (u0, b) in
               enumerate(zip(start_points(problem), _budgets(cfg.max_evals, cfg.starts)))]
     parallel = min(worker_count(executor), len(starts))

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.registry import evaluate_all, evaluate_batch
 from hapticopt.design.errors import InvalidDesign
@@ -66,6 +67,7 @@ class PointTask:
     gradient: GradientMode = GradientMode.NONE
     jax_sources: tuple[tuple[str, str], ...] = ()  # metric name -> evaluator module with a jax twin
     cache: str | None = None  # evaluation cache file (hapticopt.optim.cache) for the design's evaluation, or None
+    compute: Compute = DEFAULT  # the route (one kernel thread in a pool's worker: executor.worker_compute)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,11 +95,11 @@ def _cache(path: str) -> EvaluationCache:
     return _CACHES[key]
 
 
-def run_evaluators(design: Any, fidelity: Fidelity, only: tuple[str, ...] | None
+def run_evaluators(design: Any, fidelity: Fidelity, only: tuple[str, ...] | None, compute: Compute = DEFAULT
                    ) -> tuple[dict[str, Any], dict[str, str], dict[str, float], str]:
     """metrics, statuses, timings, failure message ('' if none): the registry's one loop, flattened
     to plain values for the record (exceptions are already statuses there)."""
-    ev = evaluate_all(design, fidelity=fidelity, only=only)
+    ev = evaluate_all(design, fidelity=fidelity, only=only, compute=compute)
     return ev.metrics(), {k: str(v) for k, v in ev.statuses.items()}, dict(ev.timings_s), ev.failures()
 
 
@@ -112,19 +114,19 @@ def evaluate_point(task: PointTask) -> PointResult:
     provenance = ""
     if task.cache is not None:
         ev = evaluation_cache.evaluate(design, task.fidelity, cache=_cache(task.cache), only=task.only,
-                                       written_by="hapticopt sweep")
+                                       written_by="hapticopt sweep", compute=task.compute)
         metrics, statuses, timings, provenance = ev.metrics, ev.statuses, dict(ev.timings_s), ev.provenance
         failure = "; ".join(f"{name}: {ev.messages.get(name) or 'failed'}"
                             for name, st in statuses.items() if st == str(Status.FAILED))
     else:
-        metrics, statuses, timings, failure = run_evaluators(design, task.fidelity, task.only)
+        metrics, statuses, timings, failure = run_evaluators(design, task.fidelity, task.only, task.compute)
     return _point(task, x, metrics, statuses, timings, failure, provenance)
 
 
 def evaluate_points(tasks: Sequence[PointTask]) -> list[PointResult]:
     """:func:`evaluate_point` of many tasks in this process, equal results: the designs go through
     :func:`hapticopt.analysis.registry.evaluate_batch` together (3-PRRR draft designs: one batched
-    pass), grouped by fidelity and evaluator selection."""
+    pass), grouped by fidelity, evaluator selection and route."""
     out: list[PointResult | None] = [None] * len(tasks)
     groups: dict[tuple, list[tuple[int, Any]]] = {}
     for i, task in enumerate(tasks):
@@ -135,9 +137,9 @@ def evaluate_points(tasks: Sequence[PointTask]) -> list[PointResult]:
             out[i] = PointResult(x=x, outcome=Outcome.INVALID_DESIGN, message=str(exc),
                                  values=tuple(math.nan for _ in task.refs))
             continue
-        groups.setdefault((task.fidelity, task.only), []).append((i, design))
-    for (fidelity, only), members in groups.items():
-        evs = evaluate_batch([d for _, d in members], fidelity=fidelity, only=only)
+        groups.setdefault((task.fidelity, task.only, task.compute), []).append((i, design))
+    for (fidelity, only, compute), members in groups.items():
+        evs = evaluate_batch([d for _, d in members], fidelity=fidelity, only=only, compute=compute)
         for (i, _), ev in zip(members, evs):
             task = tasks[i]
             out[i] = _point(task, tuple(float(v) for v in task.x), ev.metrics(),
@@ -291,7 +293,8 @@ def fd_gradients(task: PointTask, x: Sequence[float], values: Sequence[float], *
                     shifted[(i, sgn)] = design_at(task.base, task.variables, xp)
                 except InvalidDesign:
                     pass
-    evs = dict(zip(shifted, evaluate_batch(list(shifted.values()), fidelity=task.fidelity, only=task.only)))
+    evs = dict(zip(shifted, evaluate_batch(list(shifted.values()), fidelity=task.fidelity, only=task.only,
+                                           compute=task.compute)))
     for i, var in enumerate(task.variables):
         h = rel_step * (var.upper - var.lower)
         pts = []

@@ -23,8 +23,8 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from typing import Any
 
+from hapticopt.analysis.compute import Compute
 from hapticopt.design.errors import InvalidInput, short
-from hapticopt.analysis import compiled
 
 
 class InlineExecutor(Executor):
@@ -61,9 +61,8 @@ def end_process(code: int) -> None:
     stdout and stderr, then ``os._exit``. Call it from an exit handler registered first (it then runs
     after every other one: pool joins, log flushes) — :func:`skip_teardown_at_exit`.
 
-    The teardown frees every module's objects one by one; with build123d (OpenCASCADE) loaded it took
-    1.7–2.1 s of a process's end, with jax 0.4–0.6 s, against 0.06–0.14 s without it (one run each,
-    load ≈ 5; docs/performance.md). Nothing of ours needs it: files and databases are closed by then.
+    The teardown frees every module's objects one by one, which takes seconds with build123d (OpenCASCADE)
+    or jax loaded (docs/performance.md). Nothing of ours needs it: files and databases are closed by then.
     """
     for stream in (sys.stdout, sys.stderr):
         try:
@@ -91,11 +90,19 @@ def start_child(parent_pid: int) -> None:
     """First call in every child process of a run (pool workers, the side process, the verification
     worker): :func:`watch_parent`, and an end without the module teardown (:func:`skip_teardown_at_exit`,
     status 0: a child reaches its exit handlers only when its loop has returned — the stdlib pool's
-    worker loop and :func:`hapticopt.optim.worker._serve` — since a crash by a signal runs none), and one
-    thread for the batch kernels (:func:`hapticopt.analysis.compiled.set_threads`)."""
+    worker loop and :func:`hapticopt.optim.worker._serve` — since a crash by a signal runs none). How
+    many kernel threads its work uses is the :class:`Compute` the work is handed (:func:`worker_compute`)."""
     watch_parent(parent_pid)
     skip_teardown_at_exit(lambda: 0)
-    compiled.set_threads(1)  # the pool's workers share the CPUs: one kernel thread each
+
+
+def worker_compute(executor: Any, compute: Compute) -> Compute:
+    """The :class:`Compute` for work handed to ``executor``: the caller's own where the work runs in the
+    calling thread (:class:`InlineExecutor`), else one kernel thread with the caller's backend (a pool's
+    workers, local or Dask, and a run's other child processes share the CPUs among themselves)."""
+    if isinstance(executor, InlineExecutor):
+        return compute
+    return Compute(backend=compute.backend, threads=1)
 
 
 def default_workers() -> int:

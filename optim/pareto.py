@@ -32,6 +32,7 @@ from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import Any
 
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.optim import driver
 from hapticopt.optim.driver import EvalRecord, RunResult
 from hapticopt.optim.evaluation import Outcome, PointResult
@@ -181,8 +182,9 @@ def _with_start(problem: Problem, x: Sequence[float]) -> Problem:
 
 def run_front(problem: Problem, *, executor: Executor | None = None, recorder: Recorder | None = None,
               metric_modules: dict[str, str] | None = None, only: tuple[str, ...] | None = None,
-              progress: Callable[[str, int], None] | None = None) -> FrontResult:
-    """Trace the front of a two-objective ``problem`` (budget: ``max_evals`` per front, shared evenly)."""
+              progress: Callable[[str, int], None] | None = None, compute: Compute = DEFAULT) -> FrontResult:
+    """Trace the front of a two-objective ``problem`` (budget: ``max_evals`` per front, shared evenly);
+    ``compute``: the route of the points' evaluations (:func:`driver.run`'s)."""
     if not problem.is_multi_objective or problem.pareto is None:
         raise ValueError(f"problem {problem.name} has one objective: use driver.run")
     t0 = time.perf_counter()
@@ -197,7 +199,8 @@ def run_front(problem: Problem, *, executor: Executor | None = None, recorder: R
         nonlocal n_eval, n_repl
         sub = sub.with_optimiser(max_evals=per_run)
         shared.refs = sub.metric_refs()
-        res = driver.run(sub, executor=executor, recorder=shared, metric_modules=metric_modules, only=only)  # type: ignore[arg-type]
+        res = driver.run(sub, executor=executor, recorder=shared, metric_modules=metric_modules, only=only,  # type: ignore[arg-type]
+                         compute=compute)
         runs.append((label, eps, res))
         n_eval += res.n_evaluated
         n_repl += res.n_replayed

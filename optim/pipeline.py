@@ -22,6 +22,7 @@ from concurrent.futures import Executor, Future
 from pathlib import Path
 from typing import Any
 
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design import io
@@ -38,7 +39,7 @@ from hapticopt.optim.recorder import Recorder, check_run_dir, run_lock
 from hapticopt.optim.runs import problem_info
 from hapticopt.design.atomic import file_set, remove_stale_temp_files
 from hapticopt.design.paths import writable_dir
-from hapticopt.optim.executor import InlineExecutor, check_scheduler, make_executor
+from hapticopt.optim.executor import InlineExecutor, check_scheduler, make_executor, worker_compute
 from hapticopt.optim import side as side_process
 from hapticopt.optim.side import side_executor
 from hapticopt.optim.worker import SupervisedWorker
@@ -54,11 +55,12 @@ StepFn = Callable[[str, int, int], None]
 
 
 def evaluate_design(design: Any, fidelity: Fidelity, on_step: StepFn | None = None, *,
-                    cache: EvaluationCache | None = None, reuse: bool = True) -> DesignEvaluation:
+                    cache: EvaluationCache | None = None, reuse: bool = True,
+                    compute: Compute = DEFAULT) -> DesignEvaluation:
     """Every registered evaluator on ``design`` (the registry's one loop and failure policy),
     through the evaluation ``cache`` when one is given (:func:`hapticopt.optim.cache.evaluate`)."""
     ev = evaluation_cache.evaluate(design, fidelity, cache=cache, reuse=reuse, written_by="hapticopt optimise",
-                                   progress=on_step)
+                                   progress=on_step, compute=compute)
     return DesignEvaluation(fidelity=fidelity, metrics=ev.metrics, modules=ev.modules, statuses=ev.statuses,
                             messages=ev.messages, timings_s=ev.timings_s, results=ev.results,
                             provenance=ev.provenance)
@@ -101,9 +103,9 @@ def evaluators_for(problem: Problem, evaluation: DesignEvaluation) -> tuple[str,
 STIFFNESS_ERROR_LIMIT_PCT = 10.0
 
 
-def run_scene(design: Any, scene: str, fidelity: Fidelity) -> Any:
+def run_scene(design: Any, scene: str, fidelity: Fidelity, compute: Compute = DEFAULT) -> Any:
     """The closed-loop verification of ``design`` in the bundled or file scene ``scene``."""
-
+    # TODO(merge, issue 29): pass compute=compute once the firmware branch's verify.simulate takes it
     return closed_loop_verify.simulate(design, load_scene(scene), fidelity=fidelity)
 
 
@@ -117,18 +119,18 @@ def verdict_of(metrics: dict[str, Any]) -> tuple[bool, str]:
     return True, "stable" + (f", stiffness error {err:.3g} %" if isinstance(err, (int, float)) else "")
 
 
-def _scene_task(design: Any, scene: str, fidelity: Fidelity, verifier: Any
+def _scene_task(design: Any, scene: str, fidelity: Fidelity, verifier: Any, compute: Compute = DEFAULT
                 ) -> tuple[dict[str, Any], str, TimeHistory | None]:
     """In the verification worker: one scene → (metrics, message, time history for the report)."""
-    result = verifier(design, scene) if verifier is not None else run_scene(design, scene, fidelity)
+    result = verifier(design, scene) if verifier is not None else run_scene(design, scene, fidelity, compute)
     history = TimeHistory.from_traces(getattr(result, "traces", None))
     return jsonable(result.metrics()), str(getattr(result, "message", "")), history
 
 
 def warm_verification(compiled_loops: bool = False) -> None:
     """In the verification worker, once at its start: the imports (this module's) and jax's runtime; with
-    ``compiled_loops`` also the compiled MuJoCo loops (numba import and cache load ≈ 1 s, a first compile ≈ 9 s:
-    docs/performance.md)."""
+    ``compiled_loops`` also the compiled MuJoCo loops (the numba import and cache load, or a first compile:
+    seconds, docs/performance.md)."""
     from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
     import jax.numpy as jnp
 
@@ -147,7 +149,7 @@ def verification_worker(scenes: Sequence[str] = ()) -> SupervisedWorker:
 
 def _verify(design: Any, scenes: tuple[str, ...], out_dir: Path, fidelity: Fidelity, max_time_s: float,
             verifier: Callable[[Any, str], Any] | None = None, worker: SupervisedWorker | None = None,
-            on_step: StepFn | None = None) -> tuple[StageOutcome, tuple[Verdict, ...]]:
+            on_step: StepFn | None = None, compute: Compute = DEFAULT) -> tuple[StageOutcome, tuple[Verdict, ...]]:
     """Each scene in turn in one long-lived child process (``worker``, started here if not given),
     ``max_time_s`` each: a scene that hangs is killed there, one that crashes the process (a segfault,
     the OOM killer) fails its verdict, and the next scene gets a fresh process."""
@@ -161,7 +163,7 @@ def _verify(design: Any, scenes: tuple[str, ...], out_dir: Path, fidelity: Fidel
         for k, scene in enumerate(scenes):
             if on_step is not None:
                 on_step(scene, k, len(scenes))
-            o = worker.call(_scene_task, (design, scene, fidelity, verifier), timeout_s=max_time_s)
+            o = worker.call(_scene_task, (design, scene, fidelity, verifier, compute), timeout_s=max_time_s)
             history = None
             if o.kind == "ok":
                 metrics, message, history = o.value
@@ -196,8 +198,9 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
                  workers: int | None = None, progress: ProgressFn | None = None, export: bool = True,
                  verify: bool = True, on_stage: Callable[[str], None] | None = None,
                  verifier: Callable[[Any, str], Any] | None = None, on_step: StepFn | None = None,
-                 cache: str | Path | None = None) -> PipelineResult:
-    """Run every stage; returns the result and writes the run directory.
+                 cache: str | Path | None = None, compute: Compute = DEFAULT) -> PipelineResult:
+    """Run every stage; returns the result and writes the run directory. ``compute`` is the route of every
+    evaluation and simulation (one kernel thread in a worker process of a pool: :func:`worker_compute`).
 
     ``on_stage(name)`` is called as each stage starts (baseline, optimise, final, plots, export,
     verify, report); ``on_step(what, done, total)`` inside the stages that have steps (baseline and
@@ -224,7 +227,7 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
         return _run_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
                            progress=progress,
                            export=export, verify=verify, on_stage=on_stage, verifier=verifier, on_step=on_step,
-                           verify_worker=verify_worker, cache=cache, side=side)
+                           verify_worker=verify_worker, cache=cache, side=side, compute=compute)
 
 
 def _baseline_payload(ev: DesignEvaluation) -> dict[str, Any]:
@@ -256,14 +259,15 @@ def _design_evaluation(ev: CachedEvaluation) -> DesignEvaluation:
 
 
 def _recorded_evaluation(rec: Recorder, design: Any, fidelity: Fidelity, name: str,
-                         on_step: StepFn | None = None, cache: EvaluationCache | None = None) -> DesignEvaluation:
+                         on_step: StepFn | None = None, cache: EvaluationCache | None = None,
+                         compute: Compute = DEFAULT) -> DesignEvaluation:
     """``evaluate_design(design, fidelity)``, replayed from the recorder when an earlier session has it,
     else served from the evaluation cache when it has it."""
     key = f"{name}|{fidelity}"
     found = _replayed(rec, key)
     if found is not None:
         return found
-    ev = evaluate_design(design, fidelity, on_step, cache=cache)
+    ev = evaluate_design(design, fidelity, on_step, cache=cache, compute=compute)
     rec.record_stage(key, _baseline_payload(ev))
     return ev
 
@@ -283,7 +287,7 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
                 progress: ProgressFn | None, export: bool, verify: bool, on_stage: Callable[[str], None] | None,
                 verifier: Callable[[Any, str], Any] | None, on_step: StepFn | None = None,
                 verify_worker: SupervisedWorker | None = None, cache: str | Path | None = None,
-                side: Executor | None = None) -> PipelineResult:
+                side: Executor | None = None, compute: Compute = DEFAULT) -> PipelineResult:
     side = InlineExecutor() if side is None else side
     stages: list[StageOutcome] = []
     files: dict[str, str] = {}
@@ -319,7 +323,8 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
 
         def submit_base(names: tuple[str, ...], where: Executor) -> None:
             if names:
-                pending_base.append((names, where.submit(side_process.evaluate, problem.base, fid, names)))
+                pending_base.append((names, where.submit(side_process.evaluate, problem.base, fid, names,
+                                                         compute=worker_compute(where, compute))))
 
         if fid != problem.fidelity_optimise:
             baseline = _replayed(rec, final_key)
@@ -331,7 +336,7 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
                 elif beside:  # a head start: the side process imports and meshes during the draft baseline
                     submit_base(slow, side)
         base_opt = _recorded_evaluation(rec, problem.base, problem.fidelity_optimise, "baseline",
-                                        at(problem.fidelity_optimise), ecache)
+                                        at(problem.fidelity_optimise), ecache, compute)
         check_metrics(problem, base_opt.metrics)
         only = evaluators_for(problem, base_opt)
         if fid == problem.fidelity_optimise:
@@ -350,7 +355,7 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         t = stage("optimise")
         try:
             result = driver.run(problem, executor=executor, recorder=rec, metric_modules=base_opt.modules,
-                                only=only, progress=progress)
+                                only=only, progress=progress, compute=compute)
         except BaseException:
             rec.set_status("interrupted")
             raise
@@ -370,7 +375,8 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         optimum_design = dataclasses.replace(optimum_design, name=f"{problem.name}-optimum",
                                              description=f"optimum of problem {problem.name}")
         if baseline is None:  # computed beside the optimisation: collected (computed here if a process died)
-            parts = [side_process.collect(f, lambda names=names: side_process.evaluate(problem.base, fid, names))[0]
+            parts = [side_process.collect(f, lambda names=names: side_process.evaluate(problem.base, fid, names,
+                                                                                         compute=compute))[0]
                      for names, f in pending_base]
             computed = evaluation_cache.merge(problem.base, parts)
             evaluation_cache.store(ecache, problem.base, computed, written_by="hapticopt optimise")
@@ -381,13 +387,15 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         (out / "plots").mkdir(exist_ok=True)
         there = slow if beside else ()
         here = tuple(e.name for e in EVALUATORS[problem.device] if e.name not in there)
-        pending_final = side.submit(side_process.evaluate, optimum_design, fid, there, out / "plots") if there else None
+        pending_final = side.submit(side_process.evaluate, optimum_design, fid, there, out / "plots",
+                                    compute=worker_compute(side, compute)) if there else None
         pending_export = side.submit(side_process.export, optimum_design, out) if export and beside else None
-        parts = [evaluation_cache.evaluate(optimum_design, fid, cache=None, only=here, progress=at(fid))]
+        parts = [evaluation_cache.evaluate(optimum_design, fid, cache=None, only=here, progress=at(fid),
+                                           compute=compute)]
         side_drawn: dict[str, tuple[list[str], str]] = {}
         if there:
-            side_ev, drawn = side_process.collect(pending_final, lambda: side_process.evaluate(optimum_design, fid,
-                                                                                                there, out / "plots"))
+            side_ev, drawn = side_process.collect(pending_final, lambda: side_process.evaluate(
+                optimum_design, fid, there, out / "plots", compute=compute))
             parts.append(side_ev)
             side_drawn = {name: (files, failure) for name, files, failure in drawn}
         merged = evaluation_cache.merge(optimum_design, parts)
@@ -450,7 +458,8 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
     if verify:
         t = stage("verify")
         vs, verdicts = _verify(optimum_design, problem.scenes, out, problem.fidelity_verify,
-                               problem.verify_max_time_s, verifier, verify_worker, on_step)
+                               problem.verify_max_time_s, verifier, verify_worker, on_step,
+                               worker_compute(verify_worker, compute))
         stages.append(dataclasses.replace(vs, wall_s=time.perf_counter() - t))
 
     t = stage("report")
@@ -490,7 +499,7 @@ def _write_result_json(p: PipelineResult, dest: Path) -> None:
 def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False, force: bool = False,
                        scheduler: str = "local", workers: int | None = None,
                        progress: Callable[[str, int], None] | None = None,
-                       cache: str | Path | None = None) -> dict[str, Any]:
+                       cache: str | Path | None = None, compute: Compute = DEFAULT) -> dict[str, Any]:
     """A two-objective problem: trace the front (:func:`optim.pareto.run_front`), re-evaluate the
     chosen design at the final fidelity, write ``chosen.toml``, ``front.csv``, ``front.svg``,
     ``result.json`` and the report. Returns the ``result.json`` payload."""
@@ -502,13 +511,13 @@ def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = 
         remove_stale_temp_files(out)
         with (EvaluationCache(cache) if cache is not None else contextlib.nullcontext()) as ecache:
             return _run_front_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
-                                     progress=progress, cache=ecache)
+                                     progress=progress, cache=ecache, compute=compute)
 
 
 def _run_front_locked(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str,
                       workers: int | None, progress: Callable[[str, int], None] | None,
-                      cache: EvaluationCache | None = None) -> dict[str, Any]:
-    base_opt = evaluate_design(problem.base, problem.fidelity_optimise, cache=cache)
+                      cache: EvaluationCache | None = None, compute: Compute = DEFAULT) -> dict[str, Any]:
+    base_opt = evaluate_design(problem.base, problem.fidelity_optimise, cache=cache, compute=compute)
     check_metrics(problem, base_opt.metrics)
     single = dataclasses.replace(problem, objectives=(), pareto=None)
     needed = {base_opt.modules[r.name] for r in problem.all_metric_refs() if r.name in base_opt.modules}
@@ -526,14 +535,14 @@ def _run_front_locked(problem: Problem, out: Path, *, resume: bool, force: bool,
                           design_toml=io.dumps(problem.base), metrics=base_opt.metrics, statuses=base_opt.statuses)
         with make_executor(scheduler, workers=workers) as executor:
             result = pareto.run_front(problem, executor=executor, recorder=rec, metric_modules=base_opt.modules,
-                                      only=only, progress=progress)
+                                      only=only, progress=progress, compute=compute)
         rec.end_session(status="front traced", n_evaluated=result.n_evaluated, n_replayed=result.n_replayed,
                         max_evals=problem.optimiser.max_evals)
         chosen = result.chosen
         chosen_design = problem.design_at(chosen.x) if chosen is not None else problem.base
         chosen_design = dataclasses.replace(chosen_design, name=f"{problem.name}-chosen",
                                             description=f"chosen design on the Pareto front of {problem.name}")
-        final = evaluate_design(chosen_design, problem.fidelity_final, cache=cache)
+        final = evaluate_design(chosen_design, problem.fidelity_final, cache=cache, compute=compute)
         cons = _constraints_at(problem, final.metrics)
         feasible_final = holds(cons, final.statuses)
         rec.record_design("chosen", fidelity=str(problem.fidelity_final), x=chosen.x if chosen else problem.start,

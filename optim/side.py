@@ -30,6 +30,7 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.registry import EVALUATORS, describe_failure, run_plotter
 from hapticopt.optim import cache as evaluation_cache
 from hapticopt.optim.cache import CachedEvaluation
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.optim.executor import InlineExecutor, start_child
 
 
@@ -63,11 +64,12 @@ def slow_evaluators(device: str, fidelity: Fidelity) -> tuple[str, ...]:
 
 
 def evaluate(design: Any, fidelity: Fidelity, only: tuple[str, ...],
-             plots_dir: Path | None = None) -> tuple[CachedEvaluation, list[tuple[str, list[str], str]]]:
+             plots_dir: Path | None = None, compute: Compute = DEFAULT
+             ) -> tuple[CachedEvaluation, list[tuple[str, list[str], str]]]:
     """The evaluators ``only`` of ``design`` at ``fidelity`` (no cache: the caller stores the merged
     evaluation) and, with ``plots_dir``, their pictures there. Returns (the evaluation without its
     result objects, [(evaluator, picture files, failure message or '')])."""
-    ev = evaluation_cache.evaluate(design, fidelity, cache=None, only=only)
+    ev = evaluation_cache.evaluate(design, fidelity, cache=None, only=only, compute=compute)
     drawn = []
     if plots_dir is not None:
         for entry in EVALUATORS[design.device]:

@@ -30,6 +30,8 @@ from typing import Any
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import numpy as np
 
+from hapticopt.analysis import registry
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.registry import EVALUATORS
 from hapticopt.design import io
@@ -37,6 +39,7 @@ from hapticopt.design.atomic import atomic_path, write_text
 from hapticopt.design.errors import InvalidDesign, InvalidInput
 from hapticopt.design.units import TO_SI, pretty
 from hapticopt.optim.evaluation import Outcome, PointResult, PointTask, evaluate_point, evaluate_points
+from hapticopt.optim.executor import worker_compute
 from hapticopt.optim.problem import Variable, numeric_key
 from hapticopt.optim.recorder import Recorder, point_key
 from hapticopt.optim.runs import software_versions
@@ -186,30 +189,32 @@ BATCH_CHUNK = 256
 
 
 def batch_supported(sweep: "Sweep") -> bool:
-    """True for a 3-PRRR sweep at draft fidelity (every evaluator has a batched form there:
-    :mod:`hapticopt.analysis.prrr.draft_batch`), or when ``--only`` names evaluators of
-    :data:`BATCHED` only."""
-    if sweep.base.device == "prrr" and Fidelity(sweep.fidelity) is Fidelity.DRAFT:
+    """True at the fidelity of the device's batch evaluator (:data:`hapticopt.analysis.registry.BATCHED`:
+    the 3-PRRR's draft, every evaluator), or when ``--only`` names evaluators of :data:`BATCHED` only."""
+    whole = registry.BATCHED.get(sweep.base.device)
+    if whole is not None and Fidelity(sweep.fidelity) is whole.fidelity:
         return True
     allowed = BATCHED.get(sweep.base.device, ())
     return sweep.only is not None and len(sweep.only) > 0 and all(name in allowed for name in sweep.only)
 
 
-def _run_batched(sweep: "Sweep", xs: Sequence[tuple[float, ...]]) -> list[PointResult]:
+def _run_batched(sweep: "Sweep", xs: Sequence[tuple[float, ...]], compute: Compute) -> list[PointResult]:
     """The batched twin of :func:`evaluate_point` for ``xs`` (no objective references): equal results."""
     return evaluate_points([PointTask(base=sweep.base, variables=sweep.variables, x=tuple(x), fidelity=sweep.fidelity,
-                                      refs=(), only=sweep.only) for x in xs])
+                                      refs=(), only=sweep.only, compute=compute) for x in xs])
 
 
 def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = None,
               progress: ProgressFn | None = None,
               evaluate_fn: Callable[[PointTask], PointResult] = evaluate_point,
-              timeout_s: float | None = None, batch: bool = False, cache: str | Path | None = None) -> SweepResult:
+              timeout_s: float | None = None, batch: bool = False, cache: str | Path | None = None,
+              compute: Compute = DEFAULT) -> SweepResult:
     """Evaluate every grid point (recorded points are replayed); results in grid order.
     ``timeout_s`` bounds the wait for the executor (:class:`TimeoutError` past it). ``batch``
     evaluates in this process with the evaluators' batched jax forms (:func:`batch_supported`).
     ``cache``: the evaluation cache file (:mod:`hapticopt.optim.cache`) the workers consult and fill
-    (not the batched forms); a point served from it is recorded with stage ``sweep (evaluation cache)``."""
+    (not the batched forms); a point served from it is recorded with stage ``sweep (evaluation cache)``.
+    ``compute``: the route (batched: this process's; on the executor: :func:`executor.worker_compute`)."""
     if batch and not batch_supported(sweep):
         allowed = BATCHED.get(sweep.base.device, ())
         raise InvalidInput(f"--batch needs a 3-PRRR draft sweep, or --only naming evaluators with a batched form: "
@@ -234,7 +239,7 @@ def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = N
     if batch:
         for c in range(0, len(todo), BATCH_CHUNK):
             idx = todo[c:c + BATCH_CHUNK]
-            for i, res in zip(idx, _run_batched(sweep, [points[i] for i in idx])):
+            for i, res in zip(idx, _run_batched(sweep, [points[i] for i in idx], compute)):
                 if recorder is not None:
                     recorder.record(keys[i], res, start=0, stage="sweep", fidelity=fid)
                 results[i] = res
@@ -244,7 +249,8 @@ def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = N
         todo = []
     futures = {executor.submit(evaluate_fn, PointTask(base=sweep.base, variables=sweep.variables, x=points[i],
                                                       fidelity=sweep.fidelity, refs=(), only=sweep.only,
-                                                      cache=None if cache is None else str(cache))): i
+                                                      cache=None if cache is None else str(cache),
+                                                      compute=worker_compute(executor, compute))): i
                for i in todo}
     for fut in as_completed(futures, timeout=timeout_s):
         i = futures[fut]

@@ -2,7 +2,7 @@
 
 The pipeline's verify stage ran each scene in a process of its own so that a scene that hangs,
 segfaults or exhausts memory could not take the run down; every scene then paid a process
-start-up (≈ 2.5 s of imports, against ≈ 0.02 s of simulation). :class:`SupervisedWorker` keeps that
+start-up (seconds of imports, against milliseconds of simulation). :class:`SupervisedWorker` keeps that
 safety with one process: it runs the calls in turn; a call that outlives its limit gets the
 process killed, a process that dies (a signal, ``os._exit``, the OOM killer) is noticed at once
 (its sentinel), and either way the call is reported as a value (:class:`Outcome`) and the next

@@ -44,7 +44,7 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
 * **two things at once**: the jax core is dispatched (:func:`start_core`: jax's asynchronous dispatch, XLA's
   own thread) before the interference check and collected after it (:func:`finish_core`), so the collision
   kernel and the core run on two cores; the compiled check's calls are split into shares of whole designs
-  (:func:`_shares`) on ``compiled.threads()`` threads (the kernels release the GIL; a run's pool workers
+  (:func:`_shares`) on ``Compute.thread_count()`` threads (the kernels release the GIL; a run's pool workers
   use one). Results are the same bits on one thread or several (tested); measured in docs/performance.md
   ("The batched draft evaluator at 2,000 designs/s").
 * **numpy, one table per part layout**: the CAD part tables (``cad_arrays.part_tables_many``: the
@@ -79,7 +79,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from hapticopt.analysis import compiled
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.analysis.prrr import assembly
@@ -233,7 +233,8 @@ def _elbow_branch(elbow: np.ndarray, phi: np.ndarray, psi: np.ndarray) -> np.nda
 class _Checker:
     """Collision checks of poses of many designs (owner index per pose), grouped by part layout."""
 
-    def __init__(self, designs: list[PrrrDesign], models: dict[int, FAST.FastModel]) -> None:
+    def __init__(self, designs: list[PrrrDesign], models: dict[int, FAST.FastModel], threads: int = 1) -> None:
+        self.threads = threads  # kernel threads of a check (the caller's Compute.thread_count())
         self.idx = np.array(sorted(models), dtype=int)
         geo = [d.geometry for d in designs]
         self.geo = {f: np.array([float(getattr(g, f)) for g in geo]) for f in _KIN_FIELDS + ("theta_1p",)}
@@ -329,7 +330,7 @@ class _Checker:
         for local, batch, geometry, tables in self.groups:
             lo = local[owner]
             sel = np.flatnonzero(lo >= 0)
-            k = _kernel_threads(len(sel))
+            k = _kernel_threads(len(sel), self.threads)
             if len(sel) == n and k == 1:  # one group holds every pose, one thread
                 hit, deepest = FAST.deepest_joints(lo, pts, sliders, trig, ok, tables)
                 return hit, ok, deepest
@@ -353,7 +354,7 @@ class _Checker:
         jobs = []
         for local, batch, geometry, tables in self.groups:
             sel = np.flatnonzero(local[owner] >= 0)
-            jobs += [(part, local, batch, geometry, tables) for part in _shares(sel, owner, _kernel_threads(len(sel)))]
+            jobs += [(part, local, batch, geometry, tables) for part in _shares(sel, owner, _kernel_threads(len(sel), self.threads))]
 
         def run(job) -> None:
             part, local, batch, geometry, tables = job
@@ -371,12 +372,12 @@ class _Checker:
 POSES_PER_THREAD = 2048
 
 
-def _kernel_threads(n: int) -> int:
-    """Threads for a check of ``n`` poses: ``compiled.threads()``, fewer for a small check, one where the
+def _kernel_threads(n: int, threads: int) -> int:
+    """Threads for a check of ``n`` poses: ``threads``, fewer for a small check, one where the
     collision kernel does not run (numpy path)."""
-    if n < 2 * POSES_PER_THREAD or compiled.threads() == 1 or FAST.availability() is not None:
+    if n < 2 * POSES_PER_THREAD or threads == 1 or FAST.availability() is not None:
         return 1
-    return max(1, min(compiled.threads(), n // POSES_PER_THREAD))
+    return max(1, min(threads, n // POSES_PER_THREAD))
 
 
 def _shares(sel: np.ndarray, owner: np.ndarray, k: int) -> list[np.ndarray]:
@@ -395,9 +396,9 @@ def _shares(sel: np.ndarray, owner: np.ndarray, k: int) -> list[np.ndarray]:
 
 
 @functools.cache
-def _pool() -> ThreadPoolExecutor:
-    """The kernel threads beside the calling one (made at first use, sized by ``compiled.threads()``)."""
-    return ThreadPoolExecutor(max_workers=max(1, compiled.threads() - 1), thread_name_prefix="hapticopt-kernel")
+def _pool(workers: int) -> ThreadPoolExecutor:
+    """``workers`` kernel threads beside the calling one (one pool per size asked for)."""
+    return ThreadPoolExecutor(max_workers=workers, thread_name_prefix="hapticopt-kernel")
 
 
 def _run_threaded(fn, jobs: list) -> None:
@@ -407,7 +408,8 @@ def _run_threaded(fn, jobs: list) -> None:
         for job in jobs:
             fn(job)
         return
-    futures = [_pool().submit(fn, job) for job in jobs[1:]]
+    pool = _pool(len(jobs) - 1)
+    futures = [pool.submit(fn, job) for job in jobs[1:]]
     fn(jobs[0])
     for f in futures:
         f.result()
@@ -520,17 +522,17 @@ def _guard(fn, *args, **kw) -> Any:
         return exc
 
 
-def evaluate_many(designs: list[PrrrDesign], *, only: tuple[str, ...] | None = None
+def evaluate_many(designs: list[PrrrDesign], *, only: tuple[str, ...] | None = None, compute: Compute = DEFAULT
                   ) -> list[tuple[dict[str, Any], dict[str, float]]]:
     """Draft results of ``designs``: per design (evaluator name → result or the exception raised,
     evaluator name → seconds, the batch's wall time of that step divided by the batch size)."""
     out: list[tuple[dict[str, Any], dict[str, float]]] = []
     for c in range(0, len(designs), MAX_CHUNK):
-        out.extend(_chunk(list(designs[c:c + MAX_CHUNK]), only))
+        out.extend(_chunk(list(designs[c:c + MAX_CHUNK]), only, compute))
     return out
 
 
-def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tuple[dict[str, Any], dict[str, float]]]:
+def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None, compute: Compute = DEFAULT) -> list[tuple[dict[str, Any], dict[str, float]]]:
     n = len(designs)
     want = [name for name in BATCHED + ("stability",) if only is None or name in only]
     res: list[dict[str, Any]] = [{} for _ in designs]
@@ -568,7 +570,7 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None) -> list[tupl
     for i, err in model_errors.items():
         check_specs[i] = err
     if "interference" in want or "free_workspace" in want:
-        check = _Checker(designs, models)
+        check = _Checker(designs, models, compute.thread_count())
     if "interference" in want:
         for i in no_parts:
             res[i]["interference"] = _guard(IF.evaluate, designs[i], fidelity=draft)

@@ -86,7 +86,7 @@ import jax.scipy.linalg
 import numpy as np
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
-from hapticopt.analysis import compiled
+from hapticopt.analysis import compute
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.prrr import cad_arrays
 from hapticopt.design.prrr.cad import carriage_bracket
@@ -1099,7 +1099,7 @@ def compliance_outputs(KP: jax.Array, cond_legs: jax.Array, load_height, xp=jnp)
 def kernel_availability() -> str | None:
     """None when the compiled kernel of :func:`condense_many` can run here, else why not (one line); the
     numpy path runs then."""
-    return compiled.unavailable(_load_kernels, "the compiled frame kernel's module")
+    return compute.unavailable(_load_kernels, "the compiled frame kernel's module")
 
 
 def _load_kernels() -> None:

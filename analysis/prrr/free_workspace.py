@@ -58,6 +58,7 @@ from typing import Any
 import numpy as np
 
 from hapticopt.analysis import interference
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr import interference_fast
 from hapticopt.analysis.prrr import assembly
@@ -230,7 +231,8 @@ def reach_limit(design: PrrrDesign, core: dict) -> float:
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
              required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
-             required_height: float = DEFAULT_REQUIRED_HEIGHT, shared: Any = None) -> FreeWorkspace:
+             required_height: float = DEFAULT_REQUIRED_HEIGHT, shared: Any = None,
+             compute: Compute = DEFAULT) -> FreeWorkspace:  # compute: TODO(merge) the collide branch routes by it
     """Collision-free workspace metrics of ``design`` (see the module docstring); ``shared``: the
     registry call's :class:`hapticopt.analysis.prrr.shared.DesignSteps` of ``design`` (the envelope
     and the fast checker's primitive tables)."""

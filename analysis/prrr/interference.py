@@ -25,6 +25,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import HapticoptError
@@ -51,7 +52,8 @@ class PrrrInterference:
                 "interference_overlap_fraction": self.overlap_fraction}
 
 
-def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, shared: Any = None) -> PrrrInterference:
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, shared: Any = None,
+             compute: Compute = DEFAULT) -> PrrrInterference:  # compute: TODO(merge) the collide branch routes by it
     """Fast interference over the workspace samples (same model and samples at every fidelity).
 
     Status ``ok`` when no sampled pose makes two parts collide; ``collides`` (numbers kept: the

@@ -56,7 +56,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from hapticopt.analysis import compiled
+from hapticopt.analysis import compute
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.parts import Kind, Role
 from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
@@ -448,7 +448,7 @@ _POSES_CHECKED = [0]
 def availability() -> str | None:
     """None when the compiled kernel of :func:`check_posed` can run here, else why not (one line); the
     numpy reference runs then."""
-    return compiled.unavailable(_load_kernels, "the compiled interference kernel's module")
+    return compute.unavailable(_load_kernels, "the compiled interference kernel's module")
 
 
 def _load_kernels() -> None:

@@ -12,8 +12,9 @@ not depend on the radial sampling. :class:`DesignSteps` holds one design and tak
 of these steps the first time an evaluator asks for it, then hands the same value (or re-raises the
 same exception) to the next: the evaluators' results are those of taking each step themselves.
 
-It is made by the registry for one ``evaluate_all`` call and passed explicitly (``shared=``) to the
-evaluators whose registry entry says they take it; nothing outlives the call. Every step is a pure
+It is made by the registry for one ``evaluate_all`` call and passed explicitly (``shared=``, part of the
+one evaluator convention: docs/architecture.md) to the evaluators whose registry entry says they take
+it; nothing outlives the call. Every step is a pure
 function of the frozen design, so the memo is keyed by the design itself: a step asked for another
 design raises.
 """

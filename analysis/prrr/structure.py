@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidDesign, InvalidInput
@@ -150,7 +151,8 @@ def _result(out: dict, p: np.ndarray, load_height: float, options: fm.FrameOptio
         condition=float(out["condition"]), options=options, status=status, message=message)
 
 
-def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD) -> StructuralStiffness:
+def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
+             compute: Compute = DEFAULT) -> StructuralStiffness:  # compute: TODO(merge) the frame branch routes by it
     """Structural stiffness at the home pose, load Δz = 58 mm (seed 002 Table 3).
 
     ``not-assemblable`` (metrics NaN) when the chain does not close

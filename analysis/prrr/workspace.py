@@ -60,6 +60,7 @@ import jax.numpy as jnp
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
+from hapticopt.analysis.compute import DEFAULT, Backend, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.prrr.kinematics import PrrrParams, condition_2norm, inverse_kinematics, jacobian
 from hapticopt.analysis.status import Status
@@ -444,15 +445,16 @@ def _closure_params(design: PrrrDesign) -> WorkspaceParams:
 
 #: closure verdicts kept (design → message; oldest dropped first): a whole chunk of the batched draft
 #: evaluator (1024 designs, each asked ~6 times: registry, statics, stability, structure and the part
-#: evaluators); 256 thrashed at batch 1024
+#: evaluators). A memo of a pure function: it never changes which route computes a verdict.
 CLOSURE_CACHE = 4096
-#: uncached designs from which :func:`closure_many` takes the jitted pass (fewer: numpy one by one, no compile)
+#: distinct designs of one :func:`closure_many` call from which it takes the jitted pass (fewer: numpy one
+#: by one, no compile)
 CLOSURE_BATCH_AFTER = 16
 _closures: dict[PrrrDesign, str] = {}
 
 
 def closure(design: PrrrDesign) -> str:
-    """'' when some pose closes every leg within its reach and slider stroke, else why not (cached:
+    """'' when some pose closes every leg within its reach and slider stroke, else why not (remembered:
     :data:`CLOSURE_CACHE`)."""
     found = _closures.get(design)
     if found is None:
@@ -472,21 +474,20 @@ def _remember(design: PrrrDesign, message: str) -> str:
     return message
 
 
-def closure_many(designs: list[PrrrDesign]) -> list[str]:
-    """:func:`closure` of every design; from :data:`CLOSURE_BATCH_AFTER` uncached designs on, those in
-    one jitted pass (:func:`closure_batch`), remembered for the later :func:`closure` calls. Its
-    emptiness is the numpy core's by the same rule: the threshold ``EMPTY_VOLUME_REL`` lies four decades
-    above float64 rounding (tested equal to :func:`closure` on designs that close, do not close, and
-    have almost no workspace). A single closure in numpy took ≈ 0.4–0.6 ms, more than the rest of a
-    batched draft evaluation of a design."""
-    known = [_closures.get(d) for d in designs]
-    todo = list(dict.fromkeys(d for d, m in zip(designs, known) if m is None))
-    if len(todo) >= CLOSURE_BATCH_AFTER:
-        for k in range(0, len(todo), CLOSURE_CACHE // 2):  # a pass never drops its own designs
-            part = todo[k:k + CLOSURE_CACHE // 2]
-            for d, message in zip(part, closure_batch(part)):
-                _remember(d, message)
-    return [closure(d) if m is None else m for d, m in zip(designs, known)]
+def closure_many(designs: list[PrrrDesign], *, compute: Compute = DEFAULT) -> list[str]:
+    """:func:`closure` of every design, remembered for the later :func:`closure` calls. The route follows
+    the call alone: :data:`CLOSURE_BATCH_AFTER` distinct designs or more go through one jitted pass
+    (:func:`closure_batch`) unless ``compute`` says numpy; fewer take :func:`closure` one by one. Both give
+    the same verdicts: the emptiness threshold ``EMPTY_VOLUME_REL`` lies four decades above float64
+    rounding (tested on designs that close, do not close, and have almost no workspace)."""
+    unique = list(dict.fromkeys(designs))
+    if len(unique) < CLOSURE_BATCH_AFTER or compute.backend is Backend.NUMPY:
+        return [closure(d) for d in designs]
+    found: dict[PrrrDesign, str] = {}
+    for k in range(0, len(unique), CLOSURE_CACHE // 2):  # a pass never drops its own designs
+        part = unique[k:k + CLOSURE_CACHE // 2]
+        found.update((d, _remember(d, message)) for d, message in zip(part, closure_batch(part)))
+    return [found[d] for d in designs]
 
 
 def closure_batch(designs: list[PrrrDesign]) -> list[str]:

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import operator
 from dataclasses import dataclass, field
 
 from hapticopt.design.errors import InvalidDesign
@@ -34,38 +33,6 @@ _LEN = dict(lo=0.0, hi=2000.0, lo_open=True)
 THETA_1P_PAPER_DEG = 83.0
 
 
-#: the instance attribute that keeps a design's or a section's hash (not a field: not compared, not
-#: replaced, not pickled)
-_HASH_KEPT = "_hash_kept"
-
-
-def _keeps_hash(cls: type) -> type:
-    """Give a frozen dataclass a hash kept on the instance: the value ``dataclass`` generates (the hash of
-    the tuple of the compared fields), computed once. A design is a dict key of several caches (the chain
-    closure's, the CAD layout's, the batched draft evaluator's): ~6 look-ups a design in a batched draft
-    evaluation, each of which hashed the five nested sections and their floats again (7 µs a design,
-    against 0.1 µs for a kept hash). The fields are frozen, so the kept hash cannot go stale; it is left
-    out of the pickled state and of copies (the hash of a string, e.g. ``name``, differs between
-    processes), which compute it afresh. Equality is the dataclass's, on the fields."""
-    fields_of = operator.attrgetter(*(f.name for f in dataclasses.fields(cls) if f.compare))
-
-    def __hash__(self) -> int:
-        try:
-            return self.__dict__[_HASH_KEPT]
-        except KeyError:
-            h = self.__dict__[_HASH_KEPT] = hash(fields_of(self))
-            return h
-
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state.pop(_HASH_KEPT, None)
-        return state
-
-    cls.__hash__, cls.__getstate__ = __hash__, __getstate__
-    return cls
-
-
-@_keeps_hash
 @dataclass(frozen=True, kw_only=True)
 class PrrrGeometry:
     """Kinematic geometry (seed 002 Table 2 defaults)."""
@@ -95,7 +62,6 @@ class PrrrGeometry:
         return -(self.b5 + self.r4) / math.sin(self.beta) + self.r5 + self.d1 / math.tan(self.beta)
 
 
-@_keeps_hash
 @dataclass(frozen=True, kw_only=True)
 class SeaActuator:
     """Series-elastic actuator per leg (seed 002 Table 4; eq 3, 6)."""
@@ -116,7 +82,6 @@ class SeaActuator:
                                       doc="spring-deflection and slider encoder resolution (Table 1)")
 
 
-@_keeps_hash
 @dataclass(frozen=True, kw_only=True)
 class EndEffector:
     """End-effector (seed 002 Table 4: M includes the links as a point mass)."""
@@ -127,7 +92,6 @@ class EndEffector:
                                    doc="handle ball diameter")
 
 
-@_keeps_hash
 @dataclass(frozen=True, kw_only=True)
 class Structure:
     """Cross-sections and material of the links (not given in seed 002; documented defaults)."""
@@ -170,7 +134,6 @@ class Structure:
                                       "0.0384 N·m × 78.06 rad/m, is the 3 N seed 002 compensates)")
 
 
-@_keeps_hash
 @dataclass(frozen=True, kw_only=True)
 class SeaModule:
     """Physical parts of each leg's SEA drive (seed 002 Fig. 3: motor, belt, ball screw, spring
@@ -194,7 +157,6 @@ class SeaModule:
                                 doc="spring housing with springs, nut and deflection encoder (moves with the carriage)")
 
 
-@_keeps_hash
 @dataclass(frozen=True, kw_only=True)
 class PrrrDesign:
     """A complete 3-PRRR design. Frozen; change with :func:`dataclasses.replace`."""

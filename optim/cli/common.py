@@ -22,10 +22,11 @@ import sys
 import traceback
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Annotated, Any, Optional, TypeVar
 
 import typer
 
+from hapticopt.analysis.compute import MAX_THREADS, Backend, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.errors import HapticoptError, InvalidInput, short
 from hapticopt.design import io
@@ -140,10 +141,6 @@ def load_design_arg(file: Path | None, preset: str | None, assignments: list[str
     return io.apply_overrides(design, list(assignments or []))
 
 
-def is_tty() -> bool:
-    return sys.stdout.isatty()
-
-
 CACHE_HELP = ("Evaluation cache file: a design's whole evaluation at a fidelity, reused when the same design, "
               "fidelity and code meet again (default: DIR/" + CACHE_FILENAME + "; give one FILE to share it "
               "among runs and commands).")
@@ -171,3 +168,28 @@ def parse_fidelity(text: str) -> Fidelity:
     except ValueError:
         allowed = ", ".join(f.value for f in Fidelity)
         raise InvalidInput(f"--fidelity = {short(text)} is not a fidelity level: allowed {allowed}") from None
+
+
+#: ``--compute``: the route of the kernels that have more than one (every command that evaluates, verifies,
+#: optimises or sweeps; :class:`hapticopt.analysis.compute.Compute`). Not ``--backend``: ``verify``'s
+#: ``--backend`` already names the plant (lumped or multibody).
+ComputeOption = Annotated[str, typer.Option(
+    "--compute", metavar="|".join(b.value for b in Backend),
+    help="Route of the kernels that have more than one: auto (decided by the size of each call), numpy, numba "
+         "or jax. Results are the same on every route.")]
+#: ``--threads``: the kernel threads a batch may use (a run's pool workers use one each)
+ThreadsOption = Annotated[Optional[int], typer.Option(
+    "--threads", show_default=False,
+    help=f"Kernel threads a batch may use, 1 to {MAX_THREADS} (default: the CPUs of this process; a run's "
+         "worker processes use one each).")]
+
+
+def parse_compute(backend: str, threads: int | None) -> Compute:
+    """``--compute`` and ``--threads`` as the route value; one line naming the flag, its value and what is
+    allowed otherwise."""
+    allowed = ", ".join(b.value for b in Backend)
+    if backend not in {b.value for b in Backend}:
+        raise InvalidInput(f"--compute = {short(backend)} is not allowed: one of {allowed}")
+    if threads is not None and not 1 <= threads <= MAX_THREADS:
+        raise InvalidInput(f"--threads = {threads} is not allowed: an integer from 1 to {MAX_THREADS}")
+    return Compute(backend=backend, threads=threads)

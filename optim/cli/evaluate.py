@@ -9,7 +9,10 @@ from typing import Annotated, Optional
 
 import typer
 
-from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors, parse_fidelity, statuses_not_ok
+from hapticopt.optim.cli.common import (
+    ComputeOption, ThreadsOption, load_design_arg, not_met, one_line_errors, parse_compute, parse_fidelity,
+    statuses_not_ok,
+)
 from hapticopt.analysis.registry import EVALUATORS, evaluate_all, write_plots
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.progress import StageLine, make_progress
@@ -28,11 +31,14 @@ def evaluate(
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, metrics, status, timings_s}.")] = False,
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write pictures of the evaluators' results to this directory.")] = None,
     sweep: Annotated[Optional[str], typer.Option("--sweep", help="Named trade-off sweep (master: counterweight, the seed-003 trade-off of bandwidth and unbalance force against counterweight mass); writes a plot and a CSV table to --plots DIR or the current directory. Any numeric key: `hapticopt sweep`.")] = None,
+    compute: ComputeOption = "auto",
+    threads: ThreadsOption = None,
 ) -> None:
     """Evaluate a design and print its metrics (units in the metric names) and each evaluator's status (exit 3 unless every status is ok)."""
     t_start = time.perf_counter()
 
     level = parse_fidelity(fidelity)
+    route = parse_compute(compute, threads)
     t_import = time.perf_counter()
     design = load_design_arg(file, preset, set_)
     if plots is not None:
@@ -43,7 +49,7 @@ def evaluate(
     with make_progress(err, transient=True, disable=as_json or not err.is_terminal) as bar:
         line = StageLine(bar, "evaluate", len(EVALUATORS[design.device]))
         line.note(f"{design.name} at {level} fidelity")
-        evaluation = evaluate_all(design, fidelity=level,
+        evaluation = evaluate_all(design, fidelity=level, compute=route,
                                   progress=lambda what, done, total: line.step(
                                       f"{level}: {what}" if what else "", done, total))
     timings = {"imports": t_import - t_start, **evaluation.timings_s}

@@ -8,7 +8,9 @@ from typing import Annotated, Optional
 
 import typer
 
-from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, not_met, one_line_errors
+from hapticopt.optim.cli.common import (
+    CACHE_HELP, NO_CACHE_HELP, ComputeOption, ThreadsOption, cache_file, not_met, one_line_errors, parse_compute,
+)
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.problem import INT_RANGES, load_problem
 from hapticopt.optim.cli import render
@@ -37,9 +39,12 @@ def optimise(
     as_json: Annotated[bool, typer.Option("--json", help="Print the run's result.json (instead of the summary lines).")] = False,
     cache: Annotated[Optional[Path], typer.Option("--cache", help=CACHE_HELP.replace("DIR", "OUT"))] = None,
     no_cache: Annotated[bool, typer.Option("--no-cache", help=NO_CACHE_HELP)] = False,
+    compute: ComputeOption = "auto",
+    threads: ThreadsOption = None,
 ) -> None:
     """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front). Exit 3 when the final point breaks a constraint (written as best_infeasible.toml)."""
 
+    route = parse_compute(compute, threads)
     prob = load_problem(problem)
     if max_evals is not None:
         lo, hi = INT_RANGES["max_evals"]
@@ -71,7 +76,7 @@ def optimise(
                 line.note(f"run {label} done, {n} evaluated")
 
             res = run_front_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
-                                     workers=workers, cache=cache_path, progress=on_run)
+                                     workers=workers, cache=cache_path, progress=on_run, compute=route)
         ch = res["chosen"]
         if as_json:
             typer.echo(json.dumps(res, indent=2, default=str))
@@ -119,7 +124,7 @@ def optimise(
 
         result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler, workers=workers,
                               progress=on_point, export=export, verify=verify, on_stage=on_stage,
-                              on_step=line.step, cache=cache_path)
+                              on_step=line.step, cache=cache_path, compute=route)
         line.stage("done", 1, f"{out_dir / 'report.html'}")
         line.count(1)
     if as_json:  # the exit code below still says whether the requirement holds

@@ -67,7 +67,3 @@ class StageLine:
             self.progress.update(self.task, completed=done)
         else:
             self.progress.update(self.task, completed=done, total=total)
-
-    def stepper(self) -> Callable[[str, int, int], None]:
-        """``on_step`` callback for the pipeline, the registry loop and the export."""
-        return self.step

@@ -14,7 +14,8 @@ from hapticopt.design.atomic import write_text
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import (
-    CACHE_HELP, NO_CACHE_HELP, cache_file, load_design_arg, one_line_errors, parse_fidelity,
+    CACHE_HELP, NO_CACHE_HELP, ComputeOption, ThreadsOption, cache_file, load_design_arg, one_line_errors,
+    parse_compute, parse_fidelity,
 )
 from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.optim.executor import make_executor
@@ -75,11 +76,14 @@ def sweep(
                                                          "replayed, out_dir, files} instead of the summary.")] = False,
     cache: Annotated[Optional[Path], typer.Option("--cache", help=CACHE_HELP.replace("DIR", "OUT"))] = None,
     no_cache: Annotated[bool, typer.Option("--no-cache", help=NO_CACHE_HELP)] = False,
+    compute: ComputeOption = "auto",
+    threads: ThreadsOption = None,
 ) -> None:
     """Sweep one or two numeric design keys over a grid; writes sweep.csv, a plot per metric and the record."""
     from hapticopt.optim import sweep as sw  # heavy (evaluators, jax): imported when the command runs
 
     level = parse_fidelity(fidelity)
+    route = parse_compute(compute, threads)
     file = None
     axes_text = list(args)
     if axes_text and "=" not in axes_text[0]:
@@ -110,7 +114,7 @@ def sweep(
                 with make_executor(scheduler, workers=workers) as executor:
                     result = sw.run_sweep(spec, executor=executor, recorder=rec,
                                           progress=lambda done, total: line.count(done, total), batch=batch,
-                                          cache=cache_path)
+                                          cache=cache_path, compute=route)
             except BaseException:
                 rec.set_status("interrupted")
                 raise

@@ -12,7 +12,9 @@ from typing import Annotated, Any, Optional
 import typer
 
 from hapticopt.optim.cli import render
-from hapticopt.optim.cli.common import load_design_arg, not_met, one_line_errors, parse_fidelity
+from hapticopt.optim.cli.common import (
+    ComputeOption, ThreadsOption, load_design_arg, not_met, one_line_errors, parse_compute, parse_fidelity,
+)
 from hapticopt.optim.cli.progress import StageLine, make_progress
 import numpy as np
 from hapticopt.design.atomic import atomic_path
@@ -65,6 +67,8 @@ def verify(
     fidelity: Annotated[str, typer.Option("--fidelity", help="draft, standard or fine.")] = "standard",
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, scene, metrics, status, message}.")] = False,
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write pictures of the run to this directory.")] = None,
+    compute: ComputeOption = "auto",
+    threads: ThreadsOption = None,
 ) -> None:
     """Simulate the design in closed loop with the firmware controller in a scene (exit 3 unless the verdict is ok)."""
     from hapticopt.analysis import verify as closed_loop_verify  # heavy (plants, jax): when the command runs
@@ -72,6 +76,7 @@ def verify(
 
 
     level = parse_fidelity(fidelity)
+    route = parse_compute(compute, threads)  # noqa: F841  TODO(merge, issue 29): simulate(..., compute=route)
     if backend not in ("auto", "lumped", "multibody"):
         raise InvalidInput(f"--backend = {short(backend)} is not a backend: allowed auto, lumped, multibody")
     force = None if backend == "auto" else Backend(backend)

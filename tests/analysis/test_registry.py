@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from hapticopt.analysis import registry
+from hapticopt.analysis.compute import Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidInput
@@ -85,24 +86,48 @@ def test_run_plotter_returns_the_files_it_wrote_for_a_relative_folder(monkeypatc
         registry.run_plotter(entry, design, None, Path("run/plots"))
 
 
-@pytest.mark.parametrize(("enabled", "level", "inside"), [(True, Fidelity.DRAFT, False), (False, Fidelity.DRAFT, False),
-                                                          (True, Fidelity.STANDARD, True)])
-def test_evaluate_all_pauses_the_cyclic_collector_at_draft_and_restores_it(monkeypatch, enabled: bool,
-                                                                           level: Fidelity, inside: bool):
-    """At draft the evaluators run with the collector off, at the longer levels as it was; after the
-    call it is as it was before."""
-    import gc  # noqa: PLC0415
+def test_compute_goes_only_to_the_entries_that_take_it(monkeypatch):
+    """``compute=`` reaches exactly the evaluators whose entry says ``takes_compute`` (the same object the
+    caller passed), ``shared=`` those that say ``shared``; the others get neither keyword."""
+    seen: dict[str, set[str]] = {}
+    got: list[object] = []
 
-    seen = []
-    monkeypatch.setattr(registry.EvaluatorEntry, "load",
-                        lambda self: type("Probe", (), {"evaluate": staticmethod(
-                            lambda design, **kw: seen.append(gc.isenabled()) or 1 / 0)}))
-    was = gc.isenabled()
-    try:
-        gc.enable() if enabled else gc.disable()
-        ev = registry.evaluate_all(io.load_preset("prrr-paper"), fidelity=level, only=("statics",))
-        assert gc.isenabled() is enabled
-    finally:
-        gc.enable() if was else gc.disable()
-    assert seen == [inside]
-    assert ev.statuses["statics"] == "failed"  # the probe's error is a status, as before
+    def load(entry):
+        def evaluate(design, *, fidelity, **kw):
+            seen[entry.name] = set(kw)
+            got.extend(v for k, v in kw.items() if k == "compute")
+            raise RuntimeError("probe")  # a failed status: the loop goes on
+
+        return type("Probe", (), {"evaluate": staticmethod(evaluate)})
+
+    monkeypatch.setattr(registry.EvaluatorEntry, "load", load)
+    route = Compute(backend="numpy", threads=1)
+    ev = registry.evaluate_all(io.load_preset("prrr-paper"), fidelity=Fidelity.DRAFT, compute=route)
+    for entry in registry.EVALUATORS["prrr"]:
+        expected = {k for k, on in (("shared", entry.shared), ("compute", entry.takes_compute)) if on}
+        assert seen[entry.name] == expected, entry.name
+        assert ev.statuses[entry.name] == "failed"
+    assert got and all(c is route for c in got)
+    assert {e.name for e in registry.EVALUATORS["prrr"] if e.takes_compute} == {
+        "structural_stiffness", "interference", "free_workspace"}
+
+
+def test_batch_entries_name_functions_that_exist():
+    """Every batch evaluator and single-path check a :data:`registry.BATCHED` entry names can be loaded."""
+    for device, batch in registry.BATCHED.items():
+        assert device in registry.EVALUATORS
+        assert callable(registry._function(batch.evaluate_many)) and callable(registry._function(batch.single_path))
+        assert batch.chunk >= 1
+
+
+def test_evaluate_batch_of_other_levels_or_devices_is_evaluate_all_of_each(monkeypatch):
+    """A list at a level no batch evaluator serves, or of a device without one, takes evaluate_all per
+    design with the caller's Compute."""
+    calls = []
+    monkeypatch.setattr(registry, "evaluate_all", lambda d, **kw: calls.append((d.name, kw["compute"])) or d.name)
+    route = Compute(threads=1)
+    prrr, master = io.load_preset("prrr-paper"), io.load_preset("master-paper")
+    assert registry.evaluate_batch([prrr, prrr], fidelity=Fidelity.STANDARD, compute=route) == [prrr.name] * 2
+    assert registry.evaluate_batch([master], fidelity=Fidelity.DRAFT, compute=route) == [master.name]
+    assert registry.evaluate_batch([], fidelity=Fidelity.DRAFT) == []
+    assert calls == [(prrr.name, route)] * 2 + [(master.name, route)]

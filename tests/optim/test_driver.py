@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from concurrent.futures import Executor
 
 import nlopt
 import numpy as np
 import pytest
 
+from hapticopt.analysis.compute import Compute
 from hapticopt.optim import driver
 from hapticopt.optim.driver import StartStatus
 from hapticopt.optim.evaluation import (
@@ -20,6 +22,7 @@ from hapticopt.optim.evaluation import (
     fd_gradients,
     jax_gradients,
 )
+from hapticopt.optim.executor import InlineExecutor
 from hapticopt.optim.problem import MetricRef, problem_from_dict
 
 #: seed 002 / seed digest: cond(J) = 1 at the isotropic angle β* = atan(1/√2) = 35.264°
@@ -229,3 +232,23 @@ def test_master_counterweight_on_unbalance_boundary_beats_balanced():
     # under Prescott it stops 16 % inside (0.0839 N measured): near the boundary, never past it
     assert 0.08 <= unbalance <= 0.1 * (1 + 1e-3)
     assert res.best.objective > p.objective.metric.value(base.metrics)  # beats the balanced bandwidth
+
+
+class _OtherProcessExecutor(Executor):  # stands for a pool: an Executor that is not the inline one
+    def submit(self, fn, /, *args, **kwargs):
+        return InlineExecutor().submit(fn, *args, **kwargs)
+
+
+@pytest.mark.parametrize(("executor", "expected_threads"), [(InlineExecutor(), 2), (_OtherProcessExecutor(), 1)])
+def test_each_point_gets_the_runs_route(executor, expected_threads):
+    """The run's Compute reaches every point's task: as given where points run inline, with one kernel
+    thread where they run in other processes (``executor.worker_compute``)."""
+    seen = []
+
+    def evaluate(task: PointTask):
+        seen.append(task.compute)
+        return evaluate_point(task)
+
+    run(beta_problem("LN_BOBYQA", max_evals=4), executor=executor, evaluate_fn=evaluate,
+        compute=Compute(backend="numba", threads=2))
+    assert seen and set(seen) == {Compute(backend="numba", threads=expected_threads)}

@@ -8,7 +8,8 @@ import pytest
 
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim import driver
-from hapticopt.optim.executor import InlineExecutor, make_executor, worker_count
+from hapticopt.analysis.compute import Compute
+from hapticopt.optim.executor import InlineExecutor, make_executor, worker_compute, worker_count
 from hapticopt.optim.problem import load_problem
 
 ONLY = ("statics",)  # the problem's metrics all come from hapticopt.analysis.prrr.statics
@@ -98,13 +99,11 @@ def test_cli_main_ends_with_the_command_status():
     assert ok.returncode == 0 and "Usage" in ok.stdout
 
 
-def _kernel_threads_here() -> int:
-    from hapticopt.analysis import compiled
-
-    return compiled.threads()
-
-
-def test_a_pool_worker_runs_the_batch_kernels_on_one_thread():
-    """The local pool's workers share the CPUs: each is set to one kernel thread (``start_child``)."""
-    with make_executor("local", workers=1) as pool:
-        assert pool.submit(_kernel_threads_here).result(timeout=120) == 1
+@pytest.mark.parametrize("backend", ["auto", "numpy", "numba", "jax"])
+def test_work_in_a_pool_gets_one_kernel_thread_and_the_callers_backend(backend):
+    """A pool's workers share the CPUs: the work submitted there is handed one kernel thread, the caller's
+    backend; work run inline keeps the caller's Compute (``worker_compute``)."""
+    mine = Compute(backend=backend, threads=2)
+    assert worker_compute(InlineExecutor(), mine) is mine
+    with make_executor("local", workers=1) as pool:  # no worker starts before a submit
+        assert worker_compute(pool, mine) == Compute(backend=backend, threads=1)

@@ -287,8 +287,6 @@ def test_checker_on_two_threads_equals_one_thread_bitwise(both, monkeypatch):
     """The checker's kernel on two threads (each a share of the designs, ``draft_batch._shares``) gives
     bit for bit what one thread gives, owners in design order and shuffled (a shuffled share cuts
     designs' runs of poses: the kernel sets each run up again)."""
-    from hapticopt.analysis import compiled
-
     check, owner, pts = _checker_and_poses(both[0])
     monkeypatch.setattr(draft_batch, "POSES_PER_THREAD", 64)
     for route in ("deepest_joints", "check_joints"):  # the compiled route, and through the joint angles
@@ -297,9 +295,9 @@ def test_checker_on_two_threads_equals_one_thread_bitwise(both, monkeypatch):
         for order in (np.arange(len(owner)), np.random.default_rng(5).permutation(len(owner))):
             got = {}
             for k in (1, 2):
-                monkeypatch.setattr(compiled, "_threads", k)
+                check.threads = k
                 monkeypatch.setattr(interference_fast, "_POSES_CHECKED", [interference_fast.KERNEL_AFTER_POSES])
-                assert draft_batch._kernel_threads(len(owner)) == k
+                assert draft_batch._kernel_threads(len(owner), k) == k
                 got[k] = check(owner[order], pts[order])
             for a, b in zip(got[1], got[2], strict=True):
                 assert np.array_equal(np.asarray(a).view(np.uint8), np.asarray(b).view(np.uint8))

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from hapticopt.analysis.compute import Compute
 from hapticopt.analysis.prrr import plots as prrr_plots
 from hapticopt.analysis.prrr import workspace as W
 from hapticopt.analysis.fidelity import Fidelity
@@ -388,6 +389,22 @@ def test_closure_many_of_a_few_designs_takes_the_numpy_path(monkeypatch):
     monkeypatch.setattr(W, "closure_batch", lambda designs: pytest.fail("a jitted pass for fewer than "
                                                                          "CLOSURE_BATCH_AFTER designs"))
     assert W.closure_many(few) == [_numpy_closure(d) for d in few] == ["", "", ""]
+
+
+def test_closure_many_route_follows_the_call_not_the_memo(problem_sample, monkeypatch):
+    """A call of many designs takes the jitted pass even when the memo holds some of them (the route is
+    the call's, not the process's), and takes numpy one by one when its Compute says numpy."""
+    designs = _closure_sample(problem_sample)
+    ref = [_numpy_closure(d) for d in designs]
+    monkeypatch.setattr(W, "_closures", {})
+    W.closure_many(designs[:3])  # remembered: the memo now holds three of them
+    passed = []
+    real = W.closure_batch
+    monkeypatch.setattr(W, "closure_batch", lambda ds: passed.extend(ds) or real(ds))
+    assert W.closure_many(designs) == ref and passed == list(dict.fromkeys(designs))
+    monkeypatch.setattr(W, "_closures", {})
+    monkeypatch.setattr(W, "closure_batch", lambda ds: pytest.fail("a jitted pass with Compute numpy"))
+    assert W.closure_many(designs, compute=Compute(backend="numpy")) == ref
 
 
 def test_closure_cache_drops_the_oldest_design(monkeypatch):

@@ -7,8 +7,10 @@ import errno
 import pytest
 from typer.testing import CliRunner
 
+from hapticopt.analysis.compute import Compute
 from hapticopt.optim.cli import app
 from hapticopt.optim.cli import evaluate as cli_evaluate
+from hapticopt.optim.cli.common import parse_compute
 
 runner = CliRunner()
 
@@ -85,3 +87,38 @@ def test_every_command_documents_the_exit_codes():
         for words in ("Exit codes:", "0 done; every requirement", "2 bad input", "3 done, but the result breaks",
                       "best_infeasible.toml", "4 internal error"):
             assert words in text, (name, words)
+
+
+ROUTE_COMMANDS = (["evaluate", "--preset", "prrr-paper"], ["verify", "--preset", "prrr-paper"],
+                  ["optimise", "no-such-problem"], ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=30:70:3"])
+
+
+@pytest.mark.parametrize("command", ROUTE_COMMANDS, ids=lambda c: c[0])
+@pytest.mark.parametrize(("flags", "expected"), [
+    (["--compute", "fast"], "error: --compute = 'fast' is not allowed: one of auto, numpy, numba, jax"),
+    (["--threads", "0"], "error: --threads = 0 is not allowed: an integer from 1 to 256"),
+    (["--compute", "numba", "--threads", "257"], "error: --threads = 257 is not allowed: an integer from 1 to 256"),
+])
+def test_a_bad_route_flag_is_one_line_naming_it_exit_2(command, flags, expected):
+    """Every command that evaluates, verifies, optimises or sweeps takes --compute and --threads, checked
+    first (before the design, problem or scene is read)."""
+    res = runner.invoke(app, command + flags)
+    assert res.exit_code == 2
+    assert _one_line(res) == expected
+
+
+@pytest.mark.parametrize(("backend", "threads"), [("auto", None), ("numpy", 1), ("numba", 2), ("jax", 256)])
+def test_parse_compute_gives_the_route_value(backend, threads):
+    assert parse_compute(backend, threads) == Compute(backend=backend, threads=threads)
+
+
+def test_evaluate_hands_the_route_to_the_registry(monkeypatch):
+    seen = []
+
+    def evaluate_all(design, **kw):
+        seen.append(kw["compute"])
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(cli_evaluate, "evaluate_all", evaluate_all)
+    runner.invoke(app, ["evaluate", "--preset", "prrr-paper", "--compute", "numpy", "--threads", "1"])
+    assert seen == [Compute(backend="numpy", threads=1)]
