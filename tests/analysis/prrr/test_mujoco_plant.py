@@ -126,7 +126,7 @@ def test_every_bundled_scene_keeps_the_chains_closed(name):
 def test_fused_loop_equals_reference_loop(name):
     """MujocoPlant.run (records raw state, checks every 100 ticks vectorised) against the plain
     reference loop closed_loop.run_with_plant on the same plant: same traces (≤ 1e-9), same stop."""
-    from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+    from hapticopt.analysis.prrr.firmware_numpy import ScalarController
     from hapticopt.analysis.fidelity import Fidelity
     from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant, model_options
 
@@ -137,9 +137,9 @@ def test_fused_loop_equals_reference_loop(name):
     plant = MujocoPlant(DESIGN, scene, model_options(scene, ch.resolution, fidelity=Fidelity.DRAFT,
                                                      platform=Platform.FREE), period=st.period)
     plant.enable_energy()
-    ref = closed_loop.run_with_plant(plant, NumpyController(st.cfg, st.gains), st)
+    ref = closed_loop.run_with_plant(plant, ScalarController(st.cfg, st.gains), st)
     h_ref = plant.health
-    fast = plant.run(NumpyController(st.cfg, st.gains), st)
+    fast = plant.run(ScalarController(st.cfg, st.gains), st)
     for k in ("position", "velocity", "hand_force", "actuator_force", "force_reference"):
         np.testing.assert_allclose(getattr(fast, k), getattr(ref, k), rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.energy, ref.energy, rtol=1e-9, atol=1e-12)
@@ -151,7 +151,7 @@ def test_fused_loop_equals_reference_loop(name):
 
 def test_fused_loop_stops_where_the_reference_stops():
     """An unstable wall: the window check finds the same first bad tick as the per-tick check."""
-    from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+    from hapticopt.analysis.prrr.firmware_numpy import ScalarController
     from hapticopt.analysis.fidelity import Fidelity
     from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant, model_options
 
@@ -167,8 +167,8 @@ def test_fused_loop_stops_where_the_reference_stops():
     st = closed_loop.setup(DESIGN, scene, fidelity=Fidelity.DRAFT)
     plant = MujocoPlant(DESIGN, scene, model_options(scene, ch.resolution, fidelity=Fidelity.DRAFT), period=st.period)
     plant.enable_energy()
-    ref = closed_loop.run_with_plant(plant, NumpyController(st.cfg, st.gains), st)
-    fast = plant.run(NumpyController(st.cfg, st.gains), st)
+    ref = closed_loop.run_with_plant(plant, ScalarController(st.cfg, st.gains), st)
+    fast = plant.run(ScalarController(st.cfg, st.gains), st)
     assert ref.stop_tick[0] >= 0 and fast.stop_tick[0] == ref.stop_tick[0]
     assert plant.bad_qacc and any("BADQACC" in w for w in plant.warnings())
 
