@@ -1,9 +1,9 @@
-"""The multibody (MuJoCo) plant of the 3-PRRR for the closed-loop runner.
+"""The multibody (MuJoCo) plant of the 3-PRRR in the closed loop.
 
-Implements :class:`hapticopt.analysis.loop.plant.Plant` on the model of :mod:`hapticopt.analysis.prrr.mujoco_model`: the
+The model of :mod:`hapticopt.analysis.prrr.mujoco_model` against the
 firmware controller (``hapticopt.analysis.prrr.firmware_numpy``'s scalar law, or ``hapticopt.analysis.prrr.firmware``'s
 with interpolation) at its period T; its commands are held (zero-order hold, or L samples per period with the seed 000 interpolation) over ``T / timestep``
-MuJoCo substeps; the runner reads the plant's sensors and quantises them exactly as for the
+MuJoCo substeps; the loop reads the plant's sensors and quantises them exactly as for the
 lumped plant. The operator hand is a body (mass m_h on springs k_h and dampers b_h to the
 reference motion, seed 000 eq 1) tied to the handle by a ``<connect>``; its reference is
 updated once per period at the period's midpoint (second-order accurate).
@@ -12,11 +12,7 @@ Every run reports constraint health (worst closed-chain violation, platform rota
 end-effector vs forward-kinematics closure) and MuJoCo's warnings; a run that leaves the
 tolerance (:data:`VIOLATION_TOL`, :data:`ROTATION_TOL`) or raised a warning is flagged in its
 status and message, never silently reported. A ``BADQACC`` warning (MuJoCo resets the state
-on it) makes the observation non-finite so the runner stops the run as unstable.
-
-Backend choice (:func:`choose_backend`): the lumped plant when the scene's effects allow it
-(it is exact for the rigid translational dynamics), the multibody plant when
-``link_dynamics`` is on, or whichever the caller forces; the reason is reported.
+on it, its clock goes back) stops the run as unstable.
 """
 
 from __future__ import annotations
@@ -37,13 +33,11 @@ from hapticopt.analysis.loop import mujoco_compiled as mc
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
 from hapticopt.analysis.loop.operator import Operator
 from hapticopt.analysis.prrr.mujoco_model import LinkMasses, ModelOptions, Platform, PrrrMj, build, set_pose
-from hapticopt.analysis.loop.plant import Observation, Sensors
 from hapticopt.analysis.loop.scene import Backend, Effect, FrictionLocation, Resolution, Scene, resolve
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.analysis.prrr import closed_loop
-from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
 from hapticopt.analysis.prrr.closed_loop import Traces
 from hapticopt.analysis.loop.scene import StabilityCriterion
 
@@ -51,23 +45,8 @@ from hapticopt.analysis.loop.scene import StabilityCriterion
 VIOLATION_TOL = 1e-5
 ROTATION_TOL = 1e-4
 
-_BADQACC = 5  # index of mjWARN_BADQACC in MjData.warning (mujoco 4: mjtWarning; checked in the tests)
 #: ticks between the vectorised health/instability checks of the fast loop (every tick is checked)
 CHECK_EVERY = 100
-
-
-@dataclass(frozen=True, kw_only=True)
-class BackendChoice:
-    backend: Backend
-    reason: str
-    resolution: Resolution
-
-
-def choose_backend(scene: Scene, *, force: Backend | None = None) -> BackendChoice:
-    """Lumped when the effects allow it, multibody when ``link_dynamics`` is on (or the device is
-    the master); ``force`` (else the scene's ``backend`` key) overrides — see :func:`hapticopt.analysis.loop.scene.resolve`."""
-    res = resolve(scene, force=force)
-    return BackendChoice(backend=res.backend, reason=res.reason, resolution=res)
 
 
 def model_options(scene: Scene, resolution: Resolution, *, fidelity: Fidelity = Fidelity.STANDARD,
@@ -93,7 +72,7 @@ def model_options(scene: Scene, resolution: Resolution, *, fidelity: Fidelity = 
 
 
 class MujocoPlant:
-    """:class:`hapticopt.analysis.loop.plant.Plant` on the MuJoCo 3-PRRR. Not thread-safe (owns one MjData)."""
+    """The MuJoCo 3-PRRR in the firmware's closed loop (:meth:`run`). Not thread-safe (owns one MjData)."""
 
     backend = "multibody"
 
@@ -124,9 +103,6 @@ class MujocoPlant:
         m = self.model
         self._eq_rows = 3 * m.neq
         self._free = options.platform is Platform.FREE
-        self._ee_body_id = int(self.mj.ee_body)
-        self._carriage_ids = np.asarray(self.mj.carriage_body)
-        self._carriage_home_z = np.asarray(self.mj.carriage_home_z)
         self._J = np.asarray(self.mj.jacobian)
         self._ee_pos = self.mj.ee_qpos[:3]
         ee_dof = m.jnt_dofadr[m.body_jntadr[self.mj.ee_body]]
@@ -165,54 +141,6 @@ class MujocoPlant:
             d.qpos[self.mj.hand_qpos] = p0
         mj.mj_forward(self.model, d)
 
-    def sensors(self) -> Sensors:
-        q = self.data.qpos
-        slider = self.mj.sliders(q) - self.mj.c_e
-        if self.ideal:
-            defl = self.u / self.spring  # the spring carries exactly the commanded force
-        else:
-            defl = self.mj.deflection(q)
-        return Sensors(slider=slider, deflection=defl)
-
-    def advance(self, commands: np.ndarray) -> None:
-        mj, m, d = self._mujoco, self.model, self.data
-        commands = np.atleast_2d(commands)
-        h = self.per_sample * m.opt.timestep
-        for row in commands:
-            self.u = row
-            d.ctrl[:] = self.gain * row
-            if self._hand is not None:
-                self._set_reference(self.t + 0.5 * h)
-            mj.mj_step(m, d, nstep=self.per_sample)
-            self.t += h
-        self._check()
-
-    def observe(self) -> Observation:
-        d = self.data
-        if self.bad_qacc:
-            nan = np.full(3, np.nan)
-            return Observation(position=nan, velocity=nan, hand_force=nan, actuator_force=nan, energy=math.nan)
-        p = d.qpos[self._ee_pos].copy()
-        v = d.qvel[self._ee_dof].copy()
-        if self._hand is not None:
-            h = self._hand
-            ref, dref = self.reference(self.t)
-            qh, vh = d.qpos[self.mj.hand_qpos], d.qvel[self.mj.hand_dof]
-            hand = h.stiffness * (ref - qh) + h.damping * (dref - vh) - h.mass * d.qacc[self.mj.hand_dof]
-        else:
-            hand = np.zeros(3)
-        if self.ideal:
-            f = self.u.copy()
-        elif self.rigid:  # force the transmission delivers to the output: ηF − ξḊ − M_m D̈
-            dof = self._slider_dof
-            xi = self.design.actuator.viscous if self.options.viscous_friction else 0.0
-            f = self.gain * self.u - xi * d.qvel[dof] - self.design.actuator.motor_mass * d.qacc[dof]
-        else:
-            f = self.spring * self.mj.deflection(d.qpos)
-        defl = self.mj.deflection(d.qpos)
-        energy = float(d.energy[1]) + 0.5 * self.spring * float(defl @ defl) if self._energy else math.nan
-        return Observation(position=p, velocity=v, hand_force=hand, actuator_force=self.JinvT @ f, energy=energy)
-
     # ----------------------------------------------------------------------------- internals
     def enable_energy(self) -> None:
         """Let MuJoCo compute kinetic energy (observation ``energy``); costs ≈ one mass-matrix product."""
@@ -229,27 +157,6 @@ class MujocoPlant:
         self.model.qpos_spring[self._hand_spring_adr] = ref
         self.data.qfrc_applied[self.mj.hand_dof] = self._hand.damping * dref
 
-    def _check(self) -> None:
-        """Update the worst constraint health (state at the start of the last substep)."""
-        d = self.data
-        if d.warning[_BADQACC].number > 0:
-            self.bad_qacc = True
-        n = self._eq_rows
-        viol = float(np.abs(d.efc_pos[:n]).max()) if n and d.nefc >= n else 0.0
-        rot = 0.0
-        if self._free:  # rotation angle from the quaternion's scalar part (resolution ≈ 1e-8 rad)
-            rot = 2.0 * math.acos(min(1.0, abs(float(d.xquat[self._ee_body_id, 0]))))
-        xpos = d.xpos
-        dz = xpos[self._carriage_ids, 2] - self._carriage_home_z
-        closure = float(np.linalg.norm(xpos[self._ee_body_id] - self._J @ dz))
-        w = self._worst
-        if viol > w[0]:
-            w[0] = viol
-        if rot > w[1]:
-            w[1] = rot
-        if closure > w[2]:
-            w[2] = closure
-
     # ----------------------------------------------------------------------------- fast loop
     def run(self, controller: Any, st: Any, *, check_every: int = CHECK_EVERY, compute: Compute = DEFAULT) -> Any:
         """The closed loop of :func:`hapticopt.analysis.prrr.closed_loop.run_with_plant`, fused around ``mj_step``.
@@ -261,7 +168,8 @@ class MujocoPlant:
         vectorised every ``check_every`` ticks over the whole window (every tick is checked, none is
         skipped: the first bad tick in the window is found and the traces stop there exactly as in
         the reference loop; the plant may have run up to ``check_every − 1`` ticks beyond, which
-        nothing reads). Tested equal to the reference loop (``tests/analysis/prrr/test_mujoco_plant.py``).
+        nothing reads). Tested equal to a stepped reference (the plant as a ``Plant`` in
+        :func:`hapticopt.analysis.prrr.closed_loop.run_with_plant`, ``tests/analysis/prrr/test_mujoco_plant.py``).
 
         ``compute``: with a :class:`ScalarController` the ticks run in the compiled loop
         (:mod:`hapticopt.analysis.prrr._mujoco_kernel`, the same law compiled: bit-identical records) unless
@@ -582,8 +490,7 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
     """Run ``scene`` on ``design`` with the firmware controller in the loop on the MuJoCo plant (``compute``: which
     tick loop runs, see :meth:`MujocoPlant.run`)."""
 
-    choice = choose_backend(scene, force=Backend.MULTIBODY)
-    res = choice.resolution
+    res = resolve(scene, force=Backend.MULTIBODY)
     # the runner's setup (controller, gains, ticks, energy scale) is backend-independent; it is
     # built on the scene without link_dynamics, which only the plant needs
     lumped_scene = dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS})
@@ -616,57 +523,9 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
     return MultibodyResult(
         loop=loop, health=health, warnings=warns, substeps=plant.substeps, timestep=float(plant.model.opt.timestep),
         integrator=options.solver.integrator.value, platform=options.platform.value,
-        link_masses=options.link_masses.value, reason=reason or choice.reason, wall_time=wall,
+        link_masses=options.link_masses.value, reason=reason or res.reason, wall_time=wall,
         status=status, message=message, loop_engine=plant.loop_engine, loop_reason=plant.loop_reason,
     )
-
-
-# ------------------------------------------------------------------------- stability limits
-def _setup_and_plant(design: PrrrDesign, scene: Scene, backend: Backend, fidelity: Fidelity,
-                     platform: Platform, link_masses: LinkMasses | None):
-
-    lumped_scene = dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS})
-    st = closed_loop.setup(design, lumped_scene, fidelity=fidelity)
-    if backend == Backend.LUMPED:
-        return st, LumpedPlant(st.model, st.period, st.substeps)
-    choice = choose_backend(scene, force=Backend.MULTIBODY)
-    options = model_options(scene, choice.resolution, fidelity=fidelity, platform=platform, link_masses=link_masses)
-    plant = MujocoPlant(design, scene, options, period=st.period, interpolation=st.cfg.interpolation)
-    plant.enable_energy()
-    return dataclasses.replace(st, resolution=choice.resolution, substeps=plant.substeps), plant
-
-
-def stiffness_limit(design: PrrrDesign, scene: Scene, *, backend: Backend, axis: int = 0,
-                    bracket: tuple[float, float], iterations: int = 7, fidelity: Fidelity = Fidelity.STANDARD,
-                    platform: Platform = Platform.TRANSLATIONAL,
-                    link_masses: LinkMasses | None = LinkMasses.LUMPED) -> tuple[float, float]:
-    """Largest stable virtual stiffness K_v along ``axis`` [N/m] by bisection (geometric mean).
-
-    Both plants run the same Python loop (:func:`hapticopt.analysis.prrr.closed_loop.run_with_plant`) and the
-    same stability classification (the scene's criterion, e.g. ``decay``). Returns the bracket
-    (stable, unstable) after ``iterations`` halvings of its log-width.
-    """
-
-    st, plant = _setup_and_plant(design, scene, backend, fidelity, platform, link_masses)
-    lo, hi = bracket
-
-    def stable(K: float) -> bool:
-        stiff = np.array(st.gains.stiffness, dtype=float)
-        stiff[axis] = K
-        gains = st.gains._replace(stiffness=np.asarray(stiff))
-        ctl = firmware_numpy.controller(st.cfg, gains)
-        tr = (plant.run(ctl, dataclasses.replace(st, gains=gains)) if isinstance(plant, MujocoPlant)
-              else closed_loop.run_with_plant(plant, ctl, dataclasses.replace(st, gains=gains)))
-        ok, _ = closed_loop.classify(tr, st)
-        return bool(ok[0])
-
-    for _ in range(iterations):
-        mid = math.sqrt(lo * hi)
-        if stable(mid):
-            lo = mid
-        else:
-            hi = mid
-    return lo, hi
 
 
 def warm_up() -> str | None:

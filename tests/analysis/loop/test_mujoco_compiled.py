@@ -19,7 +19,7 @@ from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax a
 from hapticopt.analysis.compute import Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop import mujoco_compiled as mc
-from hapticopt.analysis.loop.scene import Backend, Effect, load_scene
+from hapticopt.analysis.loop.scene import Backend, Effect, load_scene, resolve
 from hapticopt.analysis.prrr import closed_loop
 from hapticopt.analysis.prrr import mujoco_plant as prrr_mj
 from hapticopt.analysis.prrr import firmware_numpy
@@ -45,10 +45,10 @@ def test_compiled_loops_are_available_here():
 
 
 def _prrr_plant(scene, fidelity):
-    ch = prrr_mj.choose_backend(scene, force=Backend.MULTIBODY)
+    ch = resolve(scene, force=Backend.MULTIBODY)
     st = closed_loop.setup(PRRR, dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS}),
                            fidelity=fidelity)
-    plant = prrr_mj.MujocoPlant(PRRR, scene, prrr_mj.model_options(scene, ch.resolution, fidelity=fidelity,
+    plant = prrr_mj.MujocoPlant(PRRR, scene, prrr_mj.model_options(scene, ch, fidelity=fidelity,
                                                                    platform=Platform.FREE), period=st.period)
     plant.enable_energy()
     return plant, dataclasses.replace(st, substeps=plant.substeps)
