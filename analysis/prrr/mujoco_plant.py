@@ -159,17 +159,17 @@ class MujocoPlant:
 
     # ----------------------------------------------------------------------------- fast loop
     def run(self, controller: Any, st: Any, *, check_every: int = CHECK_EVERY, compute: Compute = DEFAULT) -> Any:
-        """The closed loop of :func:`hapticopt.analysis.prrr.closed_loop.run_with_plant`, fused around ``mj_step``.
+        """The firmware's closed loop on this plant, fused around ``mj_step``; raw traces for
+        :func:`hapticopt.analysis.prrr.closed_loop.metrics_from_traces`.
 
-        Same sensors, quantisation, controller calls, delay line, hand reference and stop rule;
-        per tick only raw state is copied into preallocated arrays (qpos, qvel, qacc, kinetic
+        Sensors, quantisation, controller calls, delay line, hand reference and stop rule as in a plain
+        tick-by-tick loop; per tick only raw state is copied into preallocated arrays (qpos, qvel, qacc, kinetic
         energy, equality residuals ``efc_pos``, platform quaternion, body positions, MuJoCo's
         clock); observables, energy, constraint health and the instability checks are computed
         vectorised every ``check_every`` ticks over the whole window (every tick is checked, none is
         skipped: the first bad tick in the window is found and the traces stop there exactly as in
         the reference loop; the plant may have run up to ``check_every − 1`` ticks beyond, which
-        nothing reads). Tested equal to a stepped reference (the plant as a ``Plant`` in
-        :func:`hapticopt.analysis.prrr.closed_loop.run_with_plant`, ``tests/analysis/prrr/test_mujoco_plant.py``).
+        nothing reads). Tested equal to a plain tick-by-tick reference (``tests/analysis/prrr/test_mujoco_plant.py``).
 
         ``compute``: with a :class:`ScalarController` the ticks run in the compiled loop
         (:mod:`hapticopt.analysis.prrr._mujoco_kernel`, the same law compiled: bit-identical records) unless

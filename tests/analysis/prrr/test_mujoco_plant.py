@@ -11,7 +11,7 @@ import pytest
 from hapticopt.analysis import verify
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.prrr import closed_loop, firmware
-from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
+from prrr_stepped_loop import LumpedPlant, run_with_plant
 from hapticopt.analysis.prrr.mujoco_plant import ROTATION_TOL, VIOLATION_TOL, MujocoPlant, model_options, simulate
 from hapticopt.analysis.prrr.mujoco_model import LinkMasses, Platform, SolverSettings
 from hapticopt.analysis.fidelity import Fidelity
@@ -31,7 +31,7 @@ BADQACC = 5
 
 class SteppedPlant(MujocoPlant):
     """The MuJoCo plant as a :class:`hapticopt.analysis.loop.plant.Plant`, stepped tick by tick from
-    :func:`closed_loop.run_with_plant`: the plain reference the fused :meth:`MujocoPlant.run` is held to."""
+    :func:`run_with_plant`: the plain reference the fused :meth:`MujocoPlant.run` is held to."""
 
     def sensors(self) -> Sensors:
         q = self.data.qpos
@@ -126,7 +126,7 @@ def stiffness_limit(design, scene, *, backend, axis=0, bracket, iterations=7, fi
         stiff[axis] = mid
         s = dataclasses.replace(st, gains=st.gains._replace(stiffness=stiff))
         ctl = controller(s.cfg, s.gains)
-        tr = plant.run(ctl, s) if isinstance(plant, MujocoPlant) else closed_loop.run_with_plant(plant, ctl, s)
+        tr = plant.run(ctl, s) if isinstance(plant, MujocoPlant) else run_with_plant(plant, ctl, s)
         if closed_loop.classify(tr, st)[0][0]:
             lo = mid
         else:
@@ -139,7 +139,7 @@ def lumped_traces(scene):
     st = closed_loop.setup(DESIGN, scene)
     plant = LumpedPlant(st.model, st.period, st.substeps)
     assert isinstance(plant, Plant)
-    tr = closed_loop.run_with_plant(plant, firmware.FirmwareController(st.cfg, st.gains), st)
+    tr = run_with_plant(plant, firmware.FirmwareController(st.cfg, st.gains), st)
     return tr, st
 
 
@@ -231,7 +231,7 @@ def test_every_bundled_scene_keeps_the_chains_closed(name):
 @pytest.mark.parametrize("name", ["stiffness-25-links", "virtual-box", "z-width"])
 def test_fused_loop_equals_reference_loop(name):
     """MujocoPlant.run (records raw state, checks every 100 ticks vectorised) against the plain
-    reference loop closed_loop.run_with_plant on the same plant: same traces (≤ 1e-9), same stop."""
+    reference loop run_with_plant on the same plant: same traces (≤ 1e-9), same stop."""
 
     scene = dataclasses.replace(load_scene(name), duration=0.25)
     ch = resolve(scene, force=Backend.MULTIBODY)
@@ -240,7 +240,7 @@ def test_fused_loop_equals_reference_loop(name):
     plant = SteppedPlant(DESIGN, scene, model_options(scene, ch, fidelity=Fidelity.DRAFT,
                                                      platform=Platform.FREE), period=st.period)
     plant.enable_energy()
-    ref = closed_loop.run_with_plant(plant, ScalarController(st.cfg, st.gains), st)
+    ref = run_with_plant(plant, ScalarController(st.cfg, st.gains), st)
     h_ref = plant.health
     fast = plant.run(ScalarController(st.cfg, st.gains), st)
     for k in ("position", "velocity", "hand_force", "actuator_force", "force_reference"):
@@ -266,7 +266,7 @@ def test_fused_loop_stops_where_the_reference_stops():
     st = closed_loop.setup(DESIGN, scene, fidelity=Fidelity.DRAFT)
     plant = SteppedPlant(DESIGN, scene, model_options(scene, ch, fidelity=Fidelity.DRAFT), period=st.period)
     plant.enable_energy()
-    ref = closed_loop.run_with_plant(plant, ScalarController(st.cfg, st.gains), st)
+    ref = run_with_plant(plant, ScalarController(st.cfg, st.gains), st)
     fast = plant.run(ScalarController(st.cfg, st.gains), st)
     assert ref.stop_tick[0] >= 0 and fast.stop_tick[0] == ref.stop_tick[0]
     assert plant.bad_qacc and any("BADQACC" in w for w in plant.warnings())
