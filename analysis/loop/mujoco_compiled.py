@@ -3,9 +3,10 @@
 The plants' Python loops (``hapticopt.analysis.prrr.mujoco_plant.MujocoPlant.run``,
 ``hapticopt.analysis.master.mujoco_plant.MasterPlant.run``) call ``mj_step(model, data, nstep=k)``
 once per firmware tick with the command held; the Python firmware and the per-tick bookkeeping
-between the calls cost 1.2–2.5× raw ``mj_step``. Here the same tick loop runs in numba
-(``@njit(cache=True)``): the encoder read, the firmware law (term by term and in the order of the
-Python controllers, so the traces are bit-identical; the master's dynamics compensation, whose reference
+between the calls cost more than the physics. Here the same tick loop runs in numba
+(``@njit(cache=True)``; the 3-PRRR's in :mod:`hapticopt.analysis.prrr._mujoco_kernel`): the encoder read, the
+firmware law (the 3-PRRR's is the Python loop's own function compiled; the master's term by term and in the
+order of its Python controller: the traces are bit-identical; the master's dynamics compensation, whose reference
 differences M̂ numerically, in closed form — M̂ in a 13-function trig basis of (θ2, θ3) identified once per plant and model —
 within the reference's rounding envelope), the delay line, the hand reference, the
 ``mj_step`` calls and the per-tick records into preallocated arrays. Python runs once per chunk

@@ -4,13 +4,14 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
-from hapticopt.analysis.prrr import closed_loop, firmware
+from hapticopt.analysis.prrr import closed_loop, firmware, firmware_numpy
 from hapticopt.analysis.prrr.firmware_numpy import ScalarController, controller
 from hapticopt.analysis.loop.scene import BoxMode, EnvKind, FirmwareMode, load_scene, scene_names
 from hapticopt.design.io import load_preset
@@ -79,3 +80,36 @@ def test_interpolation_is_the_jax_laws():
     assert isinstance(controller(cfg, gains), firmware.FirmwareController)
     with pytest.raises(ValueError, match="interpolation 1"):
         ScalarController(cfg, gains)
+
+
+def test_the_scalar_law_is_written_once():
+    """The MuJoCo loops' law is firmware_numpy.tick alone: the compiled loop calls it (no inlined copy: no
+    tanh/sin of its own) and the removed second paths do not come back."""
+    root = Path(firmware_numpy.__file__).resolve().parents[1]  # analysis/
+    kernel = (root / "prrr" / "_mujoco_kernel.py").read_text()
+    assert "_law(" in kernel and "tanh" not in kernel and "math.sin" not in kernel
+    for path in root.rglob("*.py"):
+        text = path.read_text()
+        for name in ("step_generic", "_step_scalar", "NumpyController"):
+            assert name not in text, f"{name} in {path}"
+
+
+def test_the_compiled_law_is_the_python_law_bit_for_bit():
+    """numba.njit(tick), as the compiled MuJoCo loop runs it, gives the Python call's bits on every variant
+    (the MuJoCo scenes reach only some branches: box outside and the force reference are checked here)."""
+    import numba
+
+    law = numba.njit(firmware_numpy.tick)
+    rng = np.random.default_rng(3)
+    for name, cfg, gains in _variants():
+        py = ScalarController(cfg, gains)
+        args = [np.array(a, dtype=np.int64 if i == 1 else np.float64) for i, a in enumerate(py.args)]
+        s = np.cumsum(np.round(rng.normal(0, 400, (80, 3))), axis=0)
+        dfl = np.round(rng.normal(0, 300, (80, 3)))
+        py.reset(s[0])
+        st, out = np.array(py.state), np.empty(3)
+        for k, (a, b) in enumerate(zip(s, dfl)):
+            want = py.step(a.tolist(), b.tolist())[0]
+            law(*args, st, k, a, b, out)
+            assert out.tobytes() == want.tobytes() and st.tobytes() == np.array(py.state).tobytes(), name
+
