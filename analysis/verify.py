@@ -9,13 +9,15 @@ models the scene's effects and runs it: the 3-PRRR's lumped SEA plant fused with
 (``controller.mode = "ioic"``, seed 001) run the device's IOIC firmware instead: the master's
 IOIC + NTSMTC on its MuJoCo plant (:func:`hapticopt.analysis.master.ioic.simulate`), the 3-PRRR's
 IOIC over its SEA force loops on the lumped plant (:func:`hapticopt.analysis.prrr.ioic.simulate`).
-Every result's metrics name the backend and the reason (``backend``, ``backend_reason``).
+Every result's metrics name the backend and the reason (``backend``, ``backend_reason``). ``compute`` chooses
+the MuJoCo plants' tick loop (compiled or Python: the same records); the other plants have one route.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.handle import closed_loop as handle_loop
 from hapticopt.analysis.loop.scene import Backend, FirmwareMode, Scene, resolve
@@ -26,7 +28,7 @@ from hapticopt.analysis.prrr import mujoco_plant as prrr_mujoco
 
 
 def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
-             backend: Backend | None = None) -> Any:
+             backend: Backend | None = None, compute: Compute = DEFAULT) -> Any:
     """Run ``scene`` on ``design`` on the backend the resolver picks (or ``backend`` forces)."""
     res = resolve(scene, force=backend)
     if scene.device == "handle":
@@ -43,8 +45,8 @@ def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDAR
 
         return prrr_ioic.simulate(design, scene, fidelity=fidelity)
     if scene.device == "master":
-        return master_mujoco.simulate(design, scene, fidelity=fidelity, reason=res.reason)
+        return master_mujoco.simulate(design, scene, fidelity=fidelity, reason=res.reason, compute=compute)
     if res.backend == Backend.MULTIBODY:
-        return prrr_mujoco.simulate(design, scene, fidelity=fidelity, reason=res.reason)
+        return prrr_mujoco.simulate(design, scene, fidelity=fidelity, reason=res.reason, compute=compute)
 
     return closed_loop.simulate_lumped(design, scene, fidelity=fidelity)

@@ -14,8 +14,7 @@ import time
 
 import numpy as np
 
-from hapticopt.analysis.loop import mujoco_compiled
-from hapticopt.analysis.prrr import frame_model, interference_fast
+from hapticopt.analysis.prrr import frame_model, interference_fast, mujoco_plant as prrr_mujoco
 from hapticopt.design import io
 
 
@@ -30,7 +29,7 @@ def warm() -> list[tuple[str, str | None, float]]:
         interference_fast.check_points(model, np.array([[0.0, 0.0, 0.0]]), compiled=True)
     out.append(("collision check", reason, time.perf_counter() - t0))
     t0 = time.perf_counter()
-    out.append(("MuJoCo closed loops", mujoco_compiled.warm_up(), time.perf_counter() - t0))
+    out.append(("MuJoCo closed loops", prrr_mujoco.warm_up(), time.perf_counter() - t0))
     t0 = time.perf_counter()
     reason = frame_model.kernel_availability()
     if reason is None:  # the batched draft evaluator's frame assembly and condensation (one design's legs)

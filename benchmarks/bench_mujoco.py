@@ -22,12 +22,13 @@ import pytest
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.compute import Compute
 from hapticopt.analysis.loop.scene import Backend, Effect, load_scene, resolve
 from hapticopt.analysis.master import mujoco_plant as mm
 from hapticopt.analysis.prrr import closed_loop
-from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+from hapticopt.analysis.prrr.firmware_numpy import ScalarController
 from hapticopt.analysis.prrr.mujoco_model import Platform, build, set_pose
-from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant, choose_backend, model_options, simulate
+from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant, model_options, simulate
 from hapticopt.design import io
 
 DESIGN = io.load_preset("prrr-paper")
@@ -35,7 +36,7 @@ DESIGN = io.load_preset("prrr-paper")
 
 def _raw_mj_step(scene, platform: Platform, fidelity: Fidelity) -> tuple[float, float]:
     """Raw mj_step of the same model (energy on, as in the loop) for the scene's duration: (wall, CPU) [s]."""
-    res = choose_backend(scene, force=Backend.MULTIBODY).resolution
+    res = resolve(scene, force=Backend.MULTIBODY)
     opts = model_options(scene, res, fidelity=fidelity, platform=platform)
     mj = build(DESIGN, opts)
     mj.model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
@@ -121,7 +122,7 @@ def _master_loop_and_raw(fidelity: Fidelity, rounds: int = 5, scene_name: str = 
     def loop(engine: str, n: int) -> None:
         ctl = mm.controller_for(master, scene, res, plant.x0, plant.q0, T)
         t0 = time.perf_counter()
-        plant.run(ctl, ticks=n, compiled=engine == "compiled", **kw)
+        plant.run(ctl, ticks=n, compute=Compute(backend="numba" if engine == "compiled" else "numpy"), **kw)
         out[engine].append(time.perf_counter() - t0)
         assert plant.loop_engine == engine, plant.loop_reason
 
@@ -148,20 +149,20 @@ def _prrr_loop_and_raw(fidelity: Fidelity, rounds: int = 5) -> dict[str, list[fl
     """The stiffness-25 closed loop (``MujocoPlant.run``, FREE platform) compiled and in Python, and raw
     ``mj_step`` of the same model (energy on) for the same ticks and substeps, interleaved [s]."""
     scene = load_scene("stiffness-25")
-    ch = choose_backend(scene, force=Backend.MULTIBODY)
+    ch = resolve(scene, force=Backend.MULTIBODY)
     st = closed_loop.setup(DESIGN, dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS}),
                            fidelity=fidelity)
-    plant = MujocoPlant(DESIGN, scene, model_options(scene, ch.resolution, fidelity=fidelity, platform=Platform.FREE),
+    plant = MujocoPlant(DESIGN, scene, model_options(scene, ch, fidelity=fidelity, platform=Platform.FREE),
                         period=st.period, interpolation=st.cfg.interpolation)
     plant.enable_energy()
-    st = dataclasses.replace(st, resolution=ch.resolution, substeps=plant.substeps)
+    st = dataclasses.replace(st, resolution=ch, substeps=plant.substeps)
     out: dict[str, list[float]] = {"compiled": [], "python": [], "raw": []}
-    plant.run(NumpyController(st.cfg, st.gains), dataclasses.replace(st, ticks=10))  # load the kernel
+    plant.run(ScalarController(st.cfg, st.gains), dataclasses.replace(st, ticks=10))  # load the kernel
     for _ in range(rounds):
         for engine in ("compiled", "python"):
-            ctl = NumpyController(st.cfg, st.gains)
+            ctl = ScalarController(st.cfg, st.gains)
             t0 = time.perf_counter()
-            plant.run(ctl, st, compiled=engine == "compiled")
+            plant.run(ctl, st, compute=Compute(backend="numba" if engine == "compiled" else "numpy"))
             out[engine].append(time.perf_counter() - t0)
             assert plant.loop_engine == engine, plant.loop_reason
         plant.reset()

@@ -3,9 +3,10 @@
 The plants' Python loops (``hapticopt.analysis.prrr.mujoco_plant.MujocoPlant.run``,
 ``hapticopt.analysis.master.mujoco_plant.MasterPlant.run``) call ``mj_step(model, data, nstep=k)``
 once per firmware tick with the command held; the Python firmware and the per-tick bookkeeping
-between the calls cost 1.2–2.5× raw ``mj_step``. Here the same tick loop runs in numba
-(``@njit(cache=True)``): the encoder read, the firmware law (term by term and in the order of the
-Python controllers, so the traces are bit-identical; the master's dynamics compensation, whose reference
+between the calls cost more than the physics. Here the same tick loop runs in numba
+(``@njit(cache=True)``; the 3-PRRR's in :mod:`hapticopt.analysis.prrr._mujoco_kernel`): the encoder read, the
+firmware law (the 3-PRRR's is the Python loop's own function compiled; the master's term by term and in the
+order of its Python controller: the traces are bit-identical; the master's dynamics compensation, whose reference
 differences M̂ numerically, in closed form — M̂ in a 13-function trig basis of (θ2, θ3) identified once per plant and model —
 within the reference's rounding envelope), the delay line, the hand reference, the
 ``mj_step`` calls and the per-tick records into preallocated arrays. Python runs once per chunk
@@ -22,7 +23,7 @@ Native access:
   and the sizes ne / nefc are read from the mjData struct after each step at offsets found once per
   process by :func:`layout` and checked on a probe model (two states with different ne / nefc);
   a layout that does not check out makes :func:`availability` report why and the plants run the
-  Python loop.
+  Python loop (unless the caller's ``Compute`` forces numba: then they raise).
 
 A MuJoCo *error* (``mju_error``, e.g. arena overflow) inside the compiled loop goes to MuJoCo's
 default handler (message, process exit) instead of ``mujoco.FatalError``; the plants' fixed models
@@ -43,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hapticopt.analysis.compute import unavailable
 from hapticopt.analysis.loop.scene import Backend, load_scene, resolve
 from hapticopt.design.errors import InvalidInput
 
@@ -133,28 +135,27 @@ def layout() -> Layout:
 
 
 @functools.cache
+def _native() -> None:
+    """Load ``libmujoco`` for the linker and check the mjData layout (once per process: facts of this machine)."""
+    import llvmlite.binding as llvm
+
+    llvm.load_library_permanently(_libmujoco_path())
+    layout()
+
+
+def _load() -> None:
+    _native()
+    from hapticopt.analysis.loop import _mujoco_kernels  # noqa: F401
+
+
 def availability() -> str | None:
     """None when the compiled loops can run here, else why not (one line)."""
-    try:
-        import llvmlite.binding as llvm
-        import numba  # noqa: F401
-    except ImportError as e:  # pragma: no cover - numba is a dependency
-        return f"numba not importable ({e})"
-    try:
-        llvm.load_library_permanently(_libmujoco_path())
-        layout()
-    except (OSError, RuntimeError) as e:
-        return f"MuJoCo not reachable from compiled code: {e}"
-    try:  # numba raises at decoration when no cache folder is writable (NUMBA_CACHE_DIR, __pycache__, ~/.cache)
-        from hapticopt.analysis.loop import _mujoco_kernels  # noqa: F401
-    except (OSError, RuntimeError) as e:
-        return f"the compiled loops' module did not load: {e}"
-    return None
+    return unavailable(_load, "the compiled MuJoCo loops")
 
 
 def kernels():
-    """The compiled kernels module (imported on first use: numba loads only when a plant runs); its ``ENV_*`` and
-    ``LOOP_*`` codes name the law's branches."""
+    """The master's compiled kernels module (imported on first use: numba loads only when a plant runs); the
+    3-PRRR's is :mod:`hapticopt.analysis.prrr._mujoco_kernel` (load it after :func:`availability` says None)."""
     reason = availability()
     if reason is not None:
         raise RuntimeError(reason)
@@ -164,13 +165,13 @@ def kernels():
 
 
 def warm_up() -> str | None:
-    """Load (or compile) both kernels now by running each for zero ticks on the probe model; returns
-    why the compiled loops are unavailable (None: ready). For a worker to call at start."""
+    """Load (or compile) the master's kernels now by running them for zero ticks; returns why the compiled loops
+    are unavailable (None: ready). For a worker to call at start (with the 3-PRRR's:
+    :func:`hapticopt.analysis.prrr.mujoco_plant.warm_up`)."""
     reason = availability()
     if reason is not None:
         return reason
-    k = kernels()
-    k.warm()
+    kernels().warm()
     return None
 
 

@@ -39,6 +39,7 @@ import numpy as np
 from hapticopt.analysis.loop.traces import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.master.firmware import MasterController, MasterFirmwareConfig
+from hapticopt.analysis.compute import DEFAULT, Backend as ComputeBackend, Compute
 from hapticopt.analysis.loop import mujoco_compiled as mc
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
 from hapticopt.analysis.loop.scene import (
@@ -189,12 +190,12 @@ class MasterPlant:
         return tuple(f"{self._mujoco.mjtWarning(i).name} x{w.number}" for i, w in enumerate(self.data.warning)
                      if w.number > 0)
 
-    def _kernels(self, controller: MasterController, compiled: bool) -> Any:
+    def _kernels(self, controller: MasterController, compute: Compute, ticks: int) -> Any:
         """The compiled kernels when they can run ``controller`` (else None); records the engine and why."""
         cfg = controller.cfg
         why = None
-        if not compiled:
-            why = "compiled=False (the Python reference loop)"
+        if not compute.use_numba(ticks, 1):
+            why = f"compute backend {compute.backend.value}: the Python loop"
         elif type(controller) is not MasterController:
             why = f"controller {type(controller).__name__} has no compiled law (MasterController has)"
         elif cfg.compensation_model is not None and not _one_hot(cfg.compensation_model.frame):
@@ -205,6 +206,8 @@ class MasterPlant:
             why = "the controller was homed at another pose than the plant's start"
         else:
             why = mc.availability()
+            if why is not None and compute.backend is ComputeBackend.NUMBA:
+                raise RuntimeError(f"compute backend numba: {why}")
         self._comp_coef = np.zeros((13, 6))
         if why is None and cfg.compensation_model is not None:
             kc = mc.kernels()
@@ -260,13 +263,13 @@ class MasterPlant:
         return pre, post
 
     def run(self, controller: MasterController, *, ticks: int, frequency: float, quantize: bool,
-            delay_ticks: int = 0, compiled: bool = True) -> dict[str, np.ndarray]:
+            delay_ticks: int = 0, compute: Compute = DEFAULT) -> dict[str, np.ndarray]:
         """Closed loop for ``ticks`` periods with the hand reference at ``frequency`` [Hz]; raw records.
 
-        ``compiled`` (default): the ticks run in the compiled loop of :mod:`hapticopt.analysis.loop.mujoco_compiled`
-        when it can run this controller — bit-identical records without dynamics compensation; with it (Ĉ q̂̇ in
+        ``compute``: the ticks run in the compiled loop of :mod:`hapticopt.analysis.loop.mujoco_compiled` (unless it
+        says numpy; with numba, an unavailable loop raises) when it can run this controller — bit-identical records without dynamics compensation; with it (Ĉ q̂̇ in
         closed form there, by central differences of M̂ here) within the reference's own rounding envelope
-        (docs/performance.md §2); else, or with ``compiled=False``, in Python. :attr:`loop_engine` / :attr:`loop_reason` say which ran and why."""
+        (docs/performance.md §2); else in Python. :attr:`loop_engine` / :attr:`loop_reason` say which ran and why."""
         mj, m, d = self._mujoco, self.model, self.data
         self.reset()
         scale = controller.cfg.counts_per_rev / (2.0 * math.pi)
@@ -312,7 +315,7 @@ class MasterPlant:
         hand_ne = -1  # d.ne they were found at
         step = mj.mj_step
         substeps = self.substeps
-        kern = self._kernels(controller, compiled)
+        kern = self._kernels(controller, compute, ticks)
         # the Python loop's closure residual rows (|·|.max per tick after the loop; the compiled loop writes the max)
         EFR = np.zeros((N, n)) if kern is None else None
         if kern is not None:
@@ -499,9 +502,9 @@ def _fit(A: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD, reason: str | None = None,
-             solver: SolverSettings | None = None, compiled: bool = True) -> MasterResult:
-    """Run a master scene with the master firmware in the loop on the MuJoCo plant (``compiled``: the compiled loop
-    where it can run the controller, see :meth:`MasterPlant.run`)."""
+             solver: SolverSettings | None = None, compute: Compute = DEFAULT) -> MasterResult:
+    """Run a master scene with the master firmware in the loop on the MuJoCo plant (``compute``: which tick loop
+    runs, see :meth:`MasterPlant.run`)."""
 
     if getattr(design, "device", None) != "master":
         raise InvalidInput(f"scene {scene.name} is a master scene; design {getattr(design, 'name', '?')!r} is a "
@@ -536,7 +539,7 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
         gains = []
         for f in freqs:
             n = int(round(scene.sweep_periods / f / T))
-            r = plant.run(ctl, ticks=n, frequency=float(f), quantize=Effect.QUANTIZATION in fx, delay_ticks=delay, compiled=compiled)
+            r = plant.run(ctl, ticks=n, frequency=float(f), quantize=Effect.QUANTIZATION in fx, delay_ticks=delay, compute=compute)
             runs.append(r)
             if r["stop"][0] >= 0:
                 gains.append(math.nan)
@@ -558,7 +561,7 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
         })
     else:
         r = plant.run(ctl, ticks=max(1, int(round(scene.duration / T))), frequency=scene.motion.frequency,
-                      quantize=Effect.QUANTIZATION in fx, delay_ticks=delay, compiled=compiled)
+                      quantize=Effect.QUANTIZATION in fx, delay_ticks=delay, compute=compute)
         runs.append(r)
         n = r["position"].shape[0]
         stop = int(r["stop"][0])

@@ -8,8 +8,9 @@ continuous-time limit (tested to converge to the eigenvalue analysis, ``tests``)
 
 The lumped plant runs fused with the controller in one compiled loop (``jax.lax.scan`` over
 chunks of ticks, batched over any number of controller gains: the Z-width map is one batched
-run). Other plants implement :class:`hapticopt.analysis.loop.plant.Plant` and run in :func:`run_with_plant`
-(plain Python loop), whose traces feed the same :func:`metrics_from_traces`.
+run). The MuJoCo plant runs its own fused loop (:meth:`hapticopt.analysis.prrr.mujoco_plant.MujocoPlant.run`),
+whose traces feed the same :func:`metrics_from_traces`. The tests hold both to a plain tick-by-tick loop over
+``hapticopt.analysis.loop.plant.Plant`` objects (``tests/analysis/prrr/prrr_stepped_loop.py``).
 
 Instability is detected early and the run stops cleanly (the state freezes at the last finite
 values, the time is reported): non-finite or runaway state, energy beyond 10³ (driven) / 10⁶
@@ -45,7 +46,6 @@ from hapticopt.analysis.prrr.lumped_plant import (
     solve_friction,
 )
 from hapticopt.analysis.loop import paper
-from hapticopt.analysis.loop.plant import Plant
 from hapticopt.analysis.loop.scene import (
     BoxMode,
     Effect,
@@ -368,21 +368,18 @@ class _PlantView(NamedTuple):
 
 #: how often a closed loop was traced (tests: a second run of the same structure must not retrace)
 TRACE_COUNT = {"chunk": 0}
-_COMPILED: dict[LoopStructure, Any] = {}
+
+
+@functools.cache
+def compiled_chunk(key: LoopStructure):
+    """The jitted ``chunk(gains, consts, carry) -> (carry, outputs)`` of ``key``, built once per process."""
+    return jax.jit(_make_chunk(key))
 
 
 def clear_compiled() -> None:
     """Forget every compiled loop (tests; a fresh compile of the next run)."""
-    _COMPILED.clear()
-    _COMPILED_INIT.clear()
-
-
-def compiled_chunk(key: LoopStructure):
-    """The jitted ``chunk(gains, consts, carry) -> (carry, outputs)`` of ``key``, built once per process."""
-    fn = _COMPILED.get(key)
-    if fn is None:
-        fn = _COMPILED[key] = jax.jit(_make_chunk(key))
-    return fn
+    compiled_chunk.cache_clear()
+    compiled_init.cache_clear()
 
 
 def _make_chunk(key: LoopStructure):
@@ -464,15 +461,10 @@ def _make_chunk(key: LoopStructure):
     return chunk
 
 
-_COMPILED_INIT: dict[tuple[LoopStructure, int], Any] = {}
-
-
+@functools.cache
 def compiled_init(key: LoopStructure, batch: int):
     """The jitted ``init(gains, spring, x0) -> carry`` of ``key`` for ``batch`` controllers."""
-    fn = _COMPILED_INIT.get((key, batch))
-    if fn is None:
-        fn = _COMPILED_INIT[(key, batch)] = jax.jit(_make_init(key, batch))
-    return fn
+    return jax.jit(_make_init(key, batch))
 
 
 def _make_init(key: LoopStructure, batch: int):
@@ -568,45 +560,6 @@ class Simulator:
 def batch_gains(gains: firmware.Gains, **fields: Any) -> firmware.Gains:
     """``gains`` with some entries replaced by batched arrays (leading axis = batch)."""
     return gains._replace(**{k: jnp.asarray(v, dtype=jnp.float64) for k, v in fields.items()})
-
-
-# ---------------------------------------------------------------------------- generic plant loop
-def run_with_plant(plant: Plant, controller: firmware.FirmwareController, st: Setup) -> Traces:
-    """Plain Python closed loop for any :class:`hapticopt.analysis.loop.plant.Plant` (the reference path)."""
-    res = float(st.gains.resolution)
-    N = st.ticks
-    q = np.round if st.quantize else (lambda a: a)
-    plant.reset()
-    s = plant.sensors()
-    controller.reset(q(s.slider / res))
-    delay: list[np.ndarray] = [np.zeros((st.cfg.interpolation, 3))] * st.delay_ticks
-    rec = {k: np.zeros((N, 1, 3)) for k in ("position", "velocity", "hand_force", "actuator_force", "force_reference")}
-    energy = np.zeros((N, 1))
-    sat = np.zeros((N, 1), dtype=bool)
-    stop = -1
-    limit = float(st.gains.motor_limit)
-    explode = (1e6 if st.scene.stability == StabilityCriterion.DECAY else 1e3) * st.energy_scale
-    for k in range(N):
-        s = plant.sensors()
-        cmd = controller.step(q(s.slider / res), q(s.deflection / res))
-        if st.delay_ticks:
-            delay.append(cmd)
-            cmd = delay.pop(0)
-        plant.advance(cmd)
-        o = plant.observe()
-        e = o.energy + 0.5 * float(np.dot(np.asarray(st.gains.stiffness), o.position**2))
-        if not (np.all(np.isfinite(o.position)) and e < explode and np.all(np.abs(o.position) < 1.0)):
-            stop = k
-            break
-        sat[k, 0] = st.cfg.saturation and bool(np.any(np.abs(cmd) >= limit * (1 - 1e-12)))
-        energy[k, 0] = e
-        for name, val in (("position", o.position), ("velocity", o.velocity), ("hand_force", o.hand_force),
-                          ("actuator_force", o.actuator_force), ("force_reference", controller.last_force)):
-            rec[name][k, 0] = val
-    if stop >= 0:
-        for arr in (*rec.values(), energy, sat):
-            arr[stop:] = arr[stop - 1] if stop > 0 else 0
-    return Traces(period=st.period, energy=energy, saturated=sat, stop_tick=np.array([stop]), **rec)
 
 
 @functools.lru_cache(maxsize=1)

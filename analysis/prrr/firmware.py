@@ -20,9 +20,13 @@ counts (integers when quantisation is on). Per tick:
 7. motor-force saturation |F| ≤ F_max/η (anti-windup: the integral is clamped too)
 
 The law is a pure function :func:`step` on arrays (jax, compiled once per structure, batched
-over any leading axis: the Z-width map runs hundreds of controllers in one call). Structure
-(which terms exist) is static in :class:`FirmwareConfig`: a term that is off is not traced, so
-it costs nothing. :class:`FirmwareController` wraps it as an object with ``step(sensors)``.
+over any leading axis and fused with the lumped plant in one compiled loop: the Z-width map runs hundreds of
+controllers in one call). Structure (which terms exist) is static in :class:`FirmwareConfig`: a term that is
+off is not traced, so it costs nothing. :class:`FirmwareController` wraps it as an object with
+``step(sensors)``. The MuJoCo loops step one controller per tick between ``mj_step`` calls, where a jax dispatch
+per tick would cost more than the physics: they run the same law written for one controller on scalars
+(:func:`hapticopt.analysis.prrr.firmware_numpy.tick`, compiled there by numba; without interpolation),
+held equal to this one in ``tests/analysis/prrr/test_firmware_numpy.py``.
 """
 
 from __future__ import annotations
@@ -187,7 +191,7 @@ def interpolation_weights(cfg: FirmwareConfig) -> np.ndarray:
     return spline_weights(cfg.interpolation, cfg.interpolation_variant)
 
 
-def predictions(ar: tuple[float, ...], history, xp=np):
+def predictions(ar: tuple[float, ...], history):
     """(f̂_{i+1}, f̂_{i+2}) by the AR recursion from history (…, 3, 3) = [f_{i−2}, f_{i−1}, f_i]."""
     pred = sum(a * history[..., 2 - j, :] for j, a in enumerate(ar))
     newest = [pred, history[..., 2, :], history[..., 1, :]]  # f̂_{i+1}, f_i, f_{i−1}

@@ -35,7 +35,6 @@ from enum import StrEnum
 import numpy as np
 import scipy.linalg
 
-from hapticopt.analysis.loop.plant import Observation, Sensors
 from hapticopt.design.prrr.cad import DEFAULT_BRANCH
 from hapticopt.design.prrr.kinematics import jacobian, joint_rate_jacobian, params_of
 from hapticopt.analysis.loop.scene import Effect, FrictionLocation, Resolution, Scene
@@ -340,51 +339,3 @@ def observables(model: LumpedModel, x, u, lam, xp=np):
              - model.motor_mass * xdot[..., model.out_vel])
     energy = 0.5 * xp.einsum("...i,ij,...j->...", x, model.Q, x)
     return p, v, hand, f @ JinvT.T, energy
-
-
-class LumpedPlant:
-    """The :class:`hapticopt.analysis.loop.plant.Plant` implementation on the lumped model (plain numpy, one device).
-
-    The closed-loop runner uses a fused, compiled version of the same update
-    (``hapticopt.analysis.prrr.closed_loop``); this object is the plain reference it is tested against and the
-    template for other backends.
-    """
-
-    backend = "lumped"
-
-    def __init__(self, model: LumpedModel, period: float, substeps: int) -> None:
-        self.model = model
-        self.substeps = substeps
-        self.disc = discretise(model, period / substeps)
-        S = model.friction_map
-        self.G = S @ self.disc.Bld[model.out_vel] @ S.T if S is not None else None
-        self.reset()
-
-    def reset(self) -> None:
-        self.x = self.model.x0.copy()
-        self.u = np.zeros(3)
-        self.lam = np.zeros(3)  # slider-space friction force
-        self.mu = np.zeros(0 if self.model.friction_map is None else self.model.friction_map.shape[0])
-
-    def sensors(self) -> Sensors:
-        slider, defl = sensor_values(self.model, self.x, self.u)
-        return Sensors(slider=np.asarray(slider), deflection=np.asarray(defl))
-
-    def advance(self, commands: np.ndarray) -> None:
-        commands = np.atleast_2d(commands)
-        per = self.substeps // commands.shape[0]
-        d = self.disc
-        for j in range(self.substeps):
-            self.u = commands[j // per]
-            x = d.Ad @ self.x + d.Bud @ self.u + d.cd
-            S = self.model.friction_map
-            if S is not None:
-                self.mu = solve_friction(np, S @ x[self.model.out_vel], self.G, self.model.friction_limit, self.mu,
-                                         FRICTION_ITERS)
-                self.lam = S.T @ self.mu
-                x = x + d.Bld @ self.lam
-            self.x = x
-
-    def observe(self) -> Observation:
-        p, v, hand, f, e = observables(self.model, self.x, self.u, self.lam)
-        return Observation(position=p, velocity=v, hand_force=hand, actuator_force=f, energy=float(e))

@@ -1,9 +1,9 @@
-"""The multibody (MuJoCo) plant of the 3-PRRR for the closed-loop runner.
+"""The multibody (MuJoCo) plant of the 3-PRRR in the closed loop.
 
-Implements :class:`hapticopt.analysis.loop.plant.Plant` on the model of :mod:`hapticopt.analysis.prrr.mujoco_model`: the
-firmware controller (``hapticopt.analysis.prrr.firmware``'s law, run through its tested numpy fast path
-``hapticopt.analysis.prrr.firmware_numpy``) at its period T; its commands are held (zero-order hold, or L samples per period with the seed 000 interpolation) over ``T / timestep``
-MuJoCo substeps; the runner reads the plant's sensors and quantises them exactly as for the
+The model of :mod:`hapticopt.analysis.prrr.mujoco_model` against the
+firmware controller (``hapticopt.analysis.prrr.firmware_numpy``'s scalar law, or ``hapticopt.analysis.prrr.firmware``'s
+with interpolation) at its period T; its commands are held (zero-order hold, or L samples per period with the seed 000 interpolation) over ``T / timestep``
+MuJoCo substeps; the loop reads the plant's sensors and quantises them exactly as for the
 lumped plant. The operator hand is a body (mass m_h on springs k_h and dampers b_h to the
 reference motion, seed 000 eq 1) tied to the handle by a ``<connect>``; its reference is
 updated once per period at the period's midpoint (second-order accurate).
@@ -12,11 +12,7 @@ Every run reports constraint health (worst closed-chain violation, platform rota
 end-effector vs forward-kinematics closure) and MuJoCo's warnings; a run that leaves the
 tolerance (:data:`VIOLATION_TOL`, :data:`ROTATION_TOL`) or raised a warning is flagged in its
 status and message, never silently reported. A ``BADQACC`` warning (MuJoCo resets the state
-on it) makes the observation non-finite so the runner stops the run as unstable.
-
-Backend choice (:func:`choose_backend`): the lumped plant when the scene's effects allow it
-(it is exact for the rigid translational dynamics), the multibody plant when
-``link_dynamics`` is on, or whichever the caller forces; the reason is reported.
+on it, its clock goes back) stops the run as unstable.
 """
 
 from __future__ import annotations
@@ -30,19 +26,18 @@ from typing import Any
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+from hapticopt.analysis.compute import DEFAULT, Backend as ComputeBackend, Compute
+from hapticopt.analysis.prrr import firmware_numpy
+from hapticopt.analysis.prrr.firmware_numpy import ScalarController
 from hapticopt.analysis.loop import mujoco_compiled as mc
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
 from hapticopt.analysis.loop.operator import Operator
 from hapticopt.analysis.prrr.mujoco_model import LinkMasses, ModelOptions, Platform, PrrrMj, build, set_pose
-from hapticopt.analysis.loop.plant import Observation, Sensors
-from hapticopt.analysis.loop.scene import Backend, Effect, EnvKind, FrictionLocation, Resolution, Scene, resolve
-from hapticopt.analysis.prrr.firmware import ForceLoop
+from hapticopt.analysis.loop.scene import Backend, Effect, FrictionLocation, Resolution, Scene, resolve
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.analysis.prrr import closed_loop
-from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
 from hapticopt.analysis.prrr.closed_loop import Traces
 from hapticopt.analysis.loop.scene import StabilityCriterion
 
@@ -50,23 +45,8 @@ from hapticopt.analysis.loop.scene import StabilityCriterion
 VIOLATION_TOL = 1e-5
 ROTATION_TOL = 1e-4
 
-_BADQACC = 5  # index of mjWARN_BADQACC in MjData.warning (mujoco 4: mjtWarning; checked in the tests)
 #: ticks between the vectorised health/instability checks of the fast loop (every tick is checked)
 CHECK_EVERY = 100
-
-
-@dataclass(frozen=True, kw_only=True)
-class BackendChoice:
-    backend: Backend
-    reason: str
-    resolution: Resolution
-
-
-def choose_backend(scene: Scene, *, force: Backend | None = None) -> BackendChoice:
-    """Lumped when the effects allow it, multibody when ``link_dynamics`` is on (or the device is
-    the master); ``force`` (else the scene's ``backend`` key) overrides — see :func:`hapticopt.analysis.loop.scene.resolve`."""
-    res = resolve(scene, force=force)
-    return BackendChoice(backend=res.backend, reason=res.reason, resolution=res)
 
 
 def model_options(scene: Scene, resolution: Resolution, *, fidelity: Fidelity = Fidelity.STANDARD,
@@ -92,7 +72,7 @@ def model_options(scene: Scene, resolution: Resolution, *, fidelity: Fidelity = 
 
 
 class MujocoPlant:
-    """:class:`hapticopt.analysis.loop.plant.Plant` on the MuJoCo 3-PRRR. Not thread-safe (owns one MjData)."""
+    """The MuJoCo 3-PRRR in the firmware's closed loop (:meth:`run`). Not thread-safe (owns one MjData)."""
 
     backend = "multibody"
 
@@ -123,9 +103,6 @@ class MujocoPlant:
         m = self.model
         self._eq_rows = 3 * m.neq
         self._free = options.platform is Platform.FREE
-        self._ee_body_id = int(self.mj.ee_body)
-        self._carriage_ids = np.asarray(self.mj.carriage_body)
-        self._carriage_home_z = np.asarray(self.mj.carriage_home_z)
         self._J = np.asarray(self.mj.jacobian)
         self._ee_pos = self.mj.ee_qpos[:3]
         ee_dof = m.jnt_dofadr[m.body_jntadr[self.mj.ee_body]]
@@ -164,54 +141,6 @@ class MujocoPlant:
             d.qpos[self.mj.hand_qpos] = p0
         mj.mj_forward(self.model, d)
 
-    def sensors(self) -> Sensors:
-        q = self.data.qpos
-        slider = self.mj.sliders(q) - self.mj.c_e
-        if self.ideal:
-            defl = self.u / self.spring  # the spring carries exactly the commanded force
-        else:
-            defl = self.mj.deflection(q)
-        return Sensors(slider=slider, deflection=defl)
-
-    def advance(self, commands: np.ndarray) -> None:
-        mj, m, d = self._mujoco, self.model, self.data
-        commands = np.atleast_2d(commands)
-        h = self.per_sample * m.opt.timestep
-        for row in commands:
-            self.u = row
-            d.ctrl[:] = self.gain * row
-            if self._hand is not None:
-                self._set_reference(self.t + 0.5 * h)
-            mj.mj_step(m, d, nstep=self.per_sample)
-            self.t += h
-        self._check()
-
-    def observe(self) -> Observation:
-        d = self.data
-        if self.bad_qacc:
-            nan = np.full(3, np.nan)
-            return Observation(position=nan, velocity=nan, hand_force=nan, actuator_force=nan, energy=math.nan)
-        p = d.qpos[self._ee_pos].copy()
-        v = d.qvel[self._ee_dof].copy()
-        if self._hand is not None:
-            h = self._hand
-            ref, dref = self.reference(self.t)
-            qh, vh = d.qpos[self.mj.hand_qpos], d.qvel[self.mj.hand_dof]
-            hand = h.stiffness * (ref - qh) + h.damping * (dref - vh) - h.mass * d.qacc[self.mj.hand_dof]
-        else:
-            hand = np.zeros(3)
-        if self.ideal:
-            f = self.u.copy()
-        elif self.rigid:  # force the transmission delivers to the output: ηF − ξḊ − M_m D̈
-            dof = self._slider_dof
-            xi = self.design.actuator.viscous if self.options.viscous_friction else 0.0
-            f = self.gain * self.u - xi * d.qvel[dof] - self.design.actuator.motor_mass * d.qacc[dof]
-        else:
-            f = self.spring * self.mj.deflection(d.qpos)
-        defl = self.mj.deflection(d.qpos)
-        energy = float(d.energy[1]) + 0.5 * self.spring * float(defl @ defl) if self._energy else math.nan
-        return Observation(position=p, velocity=v, hand_force=hand, actuator_force=self.JinvT @ f, energy=energy)
-
     # ----------------------------------------------------------------------------- internals
     def enable_energy(self) -> None:
         """Let MuJoCo compute kinetic energy (observation ``energy``); costs ≈ one mass-matrix product."""
@@ -228,44 +157,25 @@ class MujocoPlant:
         self.model.qpos_spring[self._hand_spring_adr] = ref
         self.data.qfrc_applied[self.mj.hand_dof] = self._hand.damping * dref
 
-    def _check(self) -> None:
-        """Update the worst constraint health (state at the start of the last substep)."""
-        d = self.data
-        if d.warning[_BADQACC].number > 0:
-            self.bad_qacc = True
-        n = self._eq_rows
-        viol = float(np.abs(d.efc_pos[:n]).max()) if n and d.nefc >= n else 0.0
-        rot = 0.0
-        if self._free:  # rotation angle from the quaternion's scalar part (resolution ≈ 1e-8 rad)
-            rot = 2.0 * math.acos(min(1.0, abs(float(d.xquat[self._ee_body_id, 0]))))
-        xpos = d.xpos
-        dz = xpos[self._carriage_ids, 2] - self._carriage_home_z
-        closure = float(np.linalg.norm(xpos[self._ee_body_id] - self._J @ dz))
-        w = self._worst
-        if viol > w[0]:
-            w[0] = viol
-        if rot > w[1]:
-            w[1] = rot
-        if closure > w[2]:
-            w[2] = closure
-
     # ----------------------------------------------------------------------------- fast loop
-    def run(self, controller: Any, st: Any, *, check_every: int = CHECK_EVERY, compiled: bool = True) -> Any:
-        """The closed loop of :func:`hapticopt.analysis.prrr.closed_loop.run_with_plant`, fused around ``mj_step``.
+    def run(self, controller: Any, st: Any, *, check_every: int = CHECK_EVERY, compute: Compute = DEFAULT) -> Any:
+        """The firmware's closed loop on this plant, fused around ``mj_step``; raw traces for
+        :func:`hapticopt.analysis.prrr.closed_loop.metrics_from_traces`.
 
-        Same sensors, quantisation, controller calls, delay line, hand reference and stop rule;
-        per tick only raw state is copied into preallocated arrays (qpos, qvel, qacc, kinetic
+        Sensors, quantisation, controller calls, delay line, hand reference and stop rule as in a plain
+        tick-by-tick loop; per tick only raw state is copied into preallocated arrays (qpos, qvel, qacc, kinetic
         energy, equality residuals ``efc_pos``, platform quaternion, body positions, MuJoCo's
         clock); observables, energy, constraint health and the instability checks are computed
         vectorised every ``check_every`` ticks over the whole window (every tick is checked, none is
         skipped: the first bad tick in the window is found and the traces stop there exactly as in
         the reference loop; the plant may have run up to ``check_every − 1`` ticks beyond, which
-        nothing reads). Tested equal to the reference loop (``tests/analysis/prrr/test_mujoco_plant.py``).
+        nothing reads). Tested equal to a plain tick-by-tick reference (``tests/analysis/prrr/test_mujoco_plant.py``).
 
-        ``compiled`` (default): the ticks run in the compiled loop of
-        :mod:`hapticopt.analysis.loop.mujoco_compiled` when it can run this controller (the scalar
-        :class:`NumpyController`: interpolation 1, no outside-box walls) — bit-identical records; else,
-        or with ``compiled=False``, in Python. :attr:`loop_engine` / :attr:`loop_reason` say which ran and why.
+        ``compute``: with a :class:`ScalarController` the ticks run in the compiled loop
+        (:mod:`hapticopt.analysis.prrr._mujoco_kernel`, the same law compiled: bit-identical records) unless
+        ``compute`` says numpy or numba cannot load here (then in Python; with backend numba that raises);
+        another controller (the jax law, interpolation > 1) runs in Python. :attr:`loop_engine` /
+        :attr:`loop_reason` say which ran and why.
         """
 
         mj, m, d = self._mujoco, self.model, self.data
@@ -304,8 +214,7 @@ class MujocoPlant:
 
         sc, _ = counts()
         controller.reset(sc)
-        direct = not self.ideal and getattr(controller, "scalar", False)
-        kern = self._kernels(controller, compiled)
+        kern = self._kernels(controller, compute, N)
         L = st.cfg.interpolation
         delay: list[np.ndarray] = [np.zeros((L, 3))] * st.delay_ticks
         nq, nv = m.nq, m.nv
@@ -347,18 +256,14 @@ class MujocoPlant:
         while k < N:
             end = min(N, start + check_every)
             if kern is not None:  # runs windows on until one holds a possibly bad tick (exact check below) or N
-                end = kern.prrr_chunk(*nat[0], start, N, per, *nat[1])
+                end = kern(*nat[0], start, N, per, *nat[1])
                 if end < 0:  # no tick was possibly bad: none is (the prefilter is conservative)
                     end = N
                     break
                 start = ((end - 1) // check_every) * check_every  # that window
             for k in range(start, end) if kern is None else ():
-                if direct:  # the scalar controller takes Python lists
-                    sc, dc = counts()
-                    cmd = controller.step(sc.tolist(), dc.tolist())
-                else:
-                    sc, dc = counts()
-                    cmd = controller.step(sc, dc)
+                sc, dc = counts()
+                cmd = controller.step(sc.tolist(), dc.tolist())
                 if delay:
                     delay.append(cmd)
                     cmd = delay.pop(0)
@@ -405,27 +310,29 @@ class MujocoPlant:
                 arr[stop:] = arr[stop - 1] if stop > 0 else 0
         return Traces(period=st.period, energy=energy, saturated=sat, stop_tick=np.array([stop]), **rec)
 
-    def _kernels(self, controller: Any, compiled: bool) -> Any:
-        """The compiled kernels when they can run ``controller`` (else None); records the engine and why."""
-        why = None
-        if not compiled:
-            why = "compiled=False (the Python reference loop)"
-        elif type(controller) is not NumpyController:
-            why = f"controller {type(controller).__name__} has no compiled law (NumpyController has)"
-        elif not controller.scalar:
-            why = ("interpolation > 1 or outside-box walls: the generic numpy controller path "
-                   "(the compiled law is the scalar path's)")
+    def _kernels(self, controller: Any, compute: Compute, ticks: int) -> Any:
+        """The compiled tick loop when ``compute`` and ``controller`` allow it (else None); records the engine and
+        why."""
+        if not isinstance(controller, ScalarController):
+            why = f"controller {type(controller).__name__} has no compiled law (the scalar law of interpolation 1 has)"
+        elif not compute.use_numba(ticks, 1):
+            why = f"compute backend {compute.backend.value}: the Python loop"
         else:
             why = mc.availability()
+            if why is not None and compute.backend is ComputeBackend.NUMBA:
+                raise RuntimeError(f"compute backend numba: {why}")
         self.loop_engine = "python" if why else "compiled"
         self.loop_reason = why or "compiled loop (numba): firmware law and mj_step in one native loop"
-        return None if why else mc.kernels()
+        if why:
+            return None
+        from hapticopt.analysis.prrr import _mujoco_kernel  # numba: loaded once availability() says it can
+
+        return _mujoco_kernel.prrr_chunk
 
     def _native_args(self, controller, st, N, REF, DREF, Qp, Qv, Qa, KE, clock, CMD, Fref, EF, K, explode, check_every):
-        """Arguments of :func:`prrr_chunk`: (before start/end/nstep, after)."""
-        m, d, c = self.model, self.data, controller
-        cfg = c.cfg
-        lay, kc = mc.layout(), mc.kernels()
+        """Arguments of :func:`hapticopt.analysis.prrr._mujoco_kernel.prrr_chunk`: (before start/end/nstep, after)."""
+        m, d = self.model, self.data
+        lay = mc.layout()
         off = np.array([lay.time, lay.nefc, lay.efc_pos], dtype=np.int64)
         ip = lambda x: np.ascontiguousarray(x, dtype=np.intp)  # noqa: E731
         sl_idx = ip(self.mj.slider_qpos)
@@ -437,19 +344,11 @@ class MujocoPlant:
         else:
             spr = hd = np.zeros(3, dtype=np.intp)
             REF = DREF = np.zeros((1, 3))
-        env = {EnvKind.FREE: kc.ENV_FREE, EnvKind.SPRING: kc.ENV_SPRING, EnvKind.BOX: kc.ENV_BOX,
-               EnvKind.FORCE: kc.ENV_FORCE}[cfg.env]
-        loop = {ForceLoop.SEA: kc.LOOP_SEA, ForceLoop.RIGID: kc.LOOP_RIGID, ForceLoop.IDEAL: kc.LOOP_IDEAL}[cfg.force_loop]
-        par = np.array([1.0 / float(st.gains.resolution), c._res, cfg.period, cfg.velocity_alpha, c._Kb, c._Bb,
-                        c._fomega, c._fc, c._fcv, c._weight, c._spring, c._kp, c._ki * cfg.period, c._limit, c._eta,
-                        self.gain])
-        flg = np.array([st.quantize, has_motor, env, cfg.friction_compensation, cfg.gravity_compensation, loop,
-                        cfg.integral, cfg.saturation, self._hand is not None, self._eq_rows, st.delay_ticks],
-                       dtype=np.int64)
-        f3 = lambda x: np.array(np.broadcast_to(np.asarray(x, dtype=np.float64), (3,)))  # noqa: E731  (a writable copy: one kernel type)
-        state = np.zeros(12)
-        state[0:3] = c._sp
-        ist = np.zeros(2, dtype=np.int64)
+        law = [np.array(a, dtype=np.int64 if i == 1 else np.float64) for i, a in enumerate(controller.args)]
+        lpar = np.array([1.0 / float(st.gains.resolution), self.gain])
+        lflg = np.array([st.quantize, has_motor, self._hand is not None, self._eq_rows, st.delay_ticks], dtype=np.int64)
+        state = np.array(controller.state)
+        ist = np.array([controller.tick, 0], dtype=np.int64)
         dbuf = np.zeros((max(1, st.delay_ticks), 3))
         # the window check's prefilter (_window_bad's quantities): end-effector, spring deflection, its stiffness
         ee = ip(self._ee_pos)
@@ -459,19 +358,16 @@ class MujocoPlant:
         mo_e = ip(self.mj.motor_qpos) if mo_chk else sl_idx
         pre = (m._address, d._address, off)
         post = (d.qpos, d.qvel, d.qacc, d.ctrl, d.energy, m.qpos_spring, d.qfrc_applied, sl_idx, mo_idx, spr, hd,
-                REF, DREF, par, flg, np.ascontiguousarray(c._J, dtype=np.float64), f3(c._K), f3(c._B), f3(c._anchor),
-                f3(c._half), f3(c._famp), f3(c._fphase), state, ist, dbuf, Qp, Qv, Qa, KE, clock, CMD, Fref, EF,
-                ee, mo_e, f3(K), chk_f, chk_i)
+                REF, DREF, *law, lpar, lflg, state, ist, dbuf, Qp, Qv, Qa, KE, clock, CMD, Fref, EF,
+                ee, mo_e, np.array(np.broadcast_to(K, (3,))), chk_f, chk_i)
         return pre, post
 
     def _native_done(self, controller, nat, CMD, end) -> None:
         """After a compiled run: the plant's held command and the controller's state as the Python loop leaves them."""
-        state, ist = nat[1][22], nat[1][23]
+        state, ist = nat[1][24], nat[1][25]
         self.u = CMD[end - 1, 0].copy()
-        c = controller
-        c._sp, c._sv, c._si = state[0:3].tolist(), state[3:6].tolist(), state[6:9].tolist()
-        c._tick = int(ist[0])
-        c.last_force = state[9:12].copy()
+        controller.state = state.tolist()
+        controller.tick = int(ist[0])
 
     def _observables(self, Qp, Qv, Qa, KE, U, K) -> dict[str, np.ndarray]:
         """Vectorised :meth:`observe` over recorded ticks (time of tick k's end: (k + 1)·T)."""
@@ -589,12 +485,12 @@ class MultibodyResult:
 
 def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD,
              platform: Platform = Platform.FREE, link_masses: LinkMasses | None = None,
-             solver: SolverSettings | None = None, reason: str | None = None, compiled: bool = True) -> MultibodyResult:
-    """Run ``scene`` on ``design`` with the firmware controller in the loop on the MuJoCo plant (``compiled``: the
-    compiled loop where it can run the controller, see :meth:`MujocoPlant.run`)."""
+             solver: SolverSettings | None = None, reason: str | None = None,
+             compute: Compute = DEFAULT) -> MultibodyResult:
+    """Run ``scene`` on ``design`` with the firmware controller in the loop on the MuJoCo plant (``compute``: which
+    tick loop runs, see :meth:`MujocoPlant.run`)."""
 
-    choice = choose_backend(scene, force=Backend.MULTIBODY)
-    res = choice.resolution
+    res = resolve(scene, force=Backend.MULTIBODY)
     # the runner's setup (controller, gains, ticks, energy scale) is backend-independent; it is
     # built on the scene without link_dynamics, which only the plant needs
     lumped_scene = dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS})
@@ -605,9 +501,9 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
     plant = MujocoPlant(design, scene, options, period=st.period, interpolation=st.cfg.interpolation)
     plant.enable_energy()
     st = dataclasses.replace(st, resolution=res, substeps=plant.substeps)
-    controller = NumpyController(st.cfg, st.gains)
+    controller = firmware_numpy.controller(st.cfg, st.gains)
     t0 = time.perf_counter()
-    traces = plant.run(controller, st, compiled=compiled)
+    traces = plant.run(controller, st, compute=compute)
     wall = time.perf_counter() - t0
     loop = closed_loop.metrics_from_traces(traces, st, 0, backend="multibody", wall_time=wall)
     warns = plant.warnings()
@@ -627,54 +523,17 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
     return MultibodyResult(
         loop=loop, health=health, warnings=warns, substeps=plant.substeps, timestep=float(plant.model.opt.timestep),
         integrator=options.solver.integrator.value, platform=options.platform.value,
-        link_masses=options.link_masses.value, reason=reason or choice.reason, wall_time=wall,
+        link_masses=options.link_masses.value, reason=reason or res.reason, wall_time=wall,
         status=status, message=message, loop_engine=plant.loop_engine, loop_reason=plant.loop_reason,
     )
 
 
-# ------------------------------------------------------------------------- stability limits
-def _setup_and_plant(design: PrrrDesign, scene: Scene, backend: Backend, fidelity: Fidelity,
-                     platform: Platform, link_masses: LinkMasses | None):
+def warm_up() -> str | None:
+    """Load (or compile) the compiled MuJoCo loops of both devices now (zero ticks each); returns why they are
+    unavailable (None: ready). For a worker to call at start."""
+    reason = mc.warm_up()
+    if reason is None:
+        from hapticopt.analysis.prrr import _mujoco_kernel  # numba
 
-    lumped_scene = dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS})
-    st = closed_loop.setup(design, lumped_scene, fidelity=fidelity)
-    if backend == Backend.LUMPED:
-        return st, LumpedPlant(st.model, st.period, st.substeps)
-    choice = choose_backend(scene, force=Backend.MULTIBODY)
-    options = model_options(scene, choice.resolution, fidelity=fidelity, platform=platform, link_masses=link_masses)
-    plant = MujocoPlant(design, scene, options, period=st.period, interpolation=st.cfg.interpolation)
-    plant.enable_energy()
-    return dataclasses.replace(st, resolution=choice.resolution, substeps=plant.substeps), plant
-
-
-def stiffness_limit(design: PrrrDesign, scene: Scene, *, backend: Backend, axis: int = 0,
-                    bracket: tuple[float, float], iterations: int = 7, fidelity: Fidelity = Fidelity.STANDARD,
-                    platform: Platform = Platform.TRANSLATIONAL,
-                    link_masses: LinkMasses | None = LinkMasses.LUMPED) -> tuple[float, float]:
-    """Largest stable virtual stiffness K_v along ``axis`` [N/m] by bisection (geometric mean).
-
-    Both plants run the same Python loop (:func:`hapticopt.analysis.prrr.closed_loop.run_with_plant`) and the
-    same stability classification (the scene's criterion, e.g. ``decay``). Returns the bracket
-    (stable, unstable) after ``iterations`` halvings of its log-width.
-    """
-
-    st, plant = _setup_and_plant(design, scene, backend, fidelity, platform, link_masses)
-    lo, hi = bracket
-
-    def stable(K: float) -> bool:
-        stiff = np.array(st.gains.stiffness, dtype=float)
-        stiff[axis] = K
-        gains = st.gains._replace(stiffness=np.asarray(stiff))
-        ctl = NumpyController(st.cfg, gains)
-        tr = (plant.run(ctl, dataclasses.replace(st, gains=gains)) if isinstance(plant, MujocoPlant)
-              else closed_loop.run_with_plant(plant, ctl, dataclasses.replace(st, gains=gains)))
-        ok, _ = closed_loop.classify(tr, st)
-        return bool(ok[0])
-
-    for _ in range(iterations):
-        mid = math.sqrt(lo * hi)
-        if stable(mid):
-            lo = mid
-        else:
-            hi = mid
-    return lo, hi
+        _mujoco_kernel.warm()
+    return reason

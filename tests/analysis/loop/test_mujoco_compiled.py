@@ -1,6 +1,6 @@
 """The compiled MuJoCo closed loops (analysis/loop/mujoco_compiled.py) against the Python loops they replace.
 
-The reference is each plant's own Python loop (``run(..., compiled=False)``): the compiled loop must give the
+The reference is each plant's own Python loop (``run(..., compute=PYTHON)``): the compiled loop must give the
 same records bit for bit (the requirement is ≤ 1e-12 relative; the law is mirrored operation by operation,
 so equality is exact), the same stop tick, saturation flags, constraint health and status. Scenes: the five
 3-PRRR scenes and the master scenes of docs/performance.md, draft and standard, shortened to 0.3 s. The master scenes
@@ -16,12 +16,14 @@ import numpy as np
 import pytest
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+from hapticopt.analysis.compute import Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop import mujoco_compiled as mc
-from hapticopt.analysis.loop.scene import Backend, Effect, load_scene
+from hapticopt.analysis.loop.scene import Backend, Effect, load_scene, resolve
 from hapticopt.analysis.prrr import closed_loop
 from hapticopt.analysis.prrr import mujoco_plant as prrr_mj
-from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+from hapticopt.analysis.prrr import firmware_numpy
+from hapticopt.analysis.prrr.firmware_numpy import ScalarController
 from hapticopt.analysis.prrr.mujoco_model import Platform
 from hapticopt.analysis.master import mujoco_plant as master_mj
 from hapticopt.analysis.master.firmware import MasterController
@@ -31,6 +33,7 @@ PRRR = load_preset("prrr-paper")
 MASTER = load_preset("master-paper")
 PRRR_SCENES = ["stiffness-25", "free-space", "virtual-box", "free-space-x", "stiffness-25-links"]
 FIDELITIES = [Fidelity.DRAFT, Fidelity.STANDARD]
+PYTHON = Compute(backend="numpy")  # the plants' Python loops: the reference
 TRACE_KEYS = ("position", "velocity", "hand_force", "actuator_force", "force_reference", "energy")
 
 
@@ -42,10 +45,10 @@ def test_compiled_loops_are_available_here():
 
 
 def _prrr_plant(scene, fidelity):
-    ch = prrr_mj.choose_backend(scene, force=Backend.MULTIBODY)
+    ch = resolve(scene, force=Backend.MULTIBODY)
     st = closed_loop.setup(PRRR, dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS}),
                            fidelity=fidelity)
-    plant = prrr_mj.MujocoPlant(PRRR, scene, prrr_mj.model_options(scene, ch.resolution, fidelity=fidelity,
+    plant = prrr_mj.MujocoPlant(PRRR, scene, prrr_mj.model_options(scene, ch, fidelity=fidelity,
                                                                    platform=Platform.FREE), period=st.period)
     plant.enable_energy()
     return plant, dataclasses.replace(st, substeps=plant.substeps)
@@ -64,8 +67,8 @@ def _assert_same_traces(a, b):
 def test_prrr_compiled_equals_python_loop(name, fidelity):
     scene = dataclasses.replace(load_scene(name), duration=0.3)
     plant, st = _prrr_plant(scene, fidelity)
-    ref_ctl, fast_ctl = NumpyController(st.cfg, st.gains), NumpyController(st.cfg, st.gains)
-    ref = plant.run(ref_ctl, st, compiled=False)
+    ref_ctl, fast_ctl = ScalarController(st.cfg, st.gains), ScalarController(st.cfg, st.gains)
+    ref = plant.run(ref_ctl, st, compute=PYTHON)
     assert plant.loop_engine == "python"
     h_ref, u_ref, warn_ref = plant.health, plant.u.copy(), plant.warnings()
     fast = plant.run(fast_ctl, st)
@@ -74,20 +77,18 @@ def test_prrr_compiled_equals_python_loop(name, fidelity):
     assert plant.health == h_ref and plant.warnings() == warn_ref
     np.testing.assert_array_equal(plant.u, u_ref)  # the held command, as the Python loop leaves it
     # the controller ends in the Python loop's state (a caller may step it on)
-    assert (fast_ctl._sp, fast_ctl._sv, fast_ctl._si, fast_ctl._tick) == (ref_ctl._sp, ref_ctl._sv, ref_ctl._si,
-                                                                          ref_ctl._tick)
-    np.testing.assert_array_equal(fast_ctl.last_force, ref_ctl.last_force)
+    assert (fast_ctl.state, fast_ctl.tick) == (ref_ctl.state, ref_ctl.tick)
 
 
 @pytest.mark.parametrize("fidelity", FIDELITIES, ids=lambda f: f.value)
 def test_prrr_simulate_status_and_health_equal(fidelity):
     scene = dataclasses.replace(load_scene("stiffness-25-links"), duration=0.3)
-    ref = prrr_mj.simulate(PRRR, scene, fidelity=fidelity, compiled=False)
+    ref = prrr_mj.simulate(PRRR, scene, fidelity=fidelity, compute=PYTHON)
     fast = prrr_mj.simulate(PRRR, scene, fidelity=fidelity)
     assert (fast.loop_engine, ref.loop_engine) == ("compiled", "python")
     assert fast.status == ref.status and fast.message == ref.message and fast.health == ref.health
     assert fast.metrics()["closed_loop_engine"] == "compiled"
-    assert ref.metrics()["closed_loop_engine"].startswith("python: compiled=False")
+    assert ref.metrics()["closed_loop_engine"].startswith("python: compute backend numpy")
     _assert_same_traces(ref.traces, fast.traces)
 
 
@@ -97,9 +98,9 @@ def test_prrr_unstable_run_stops_at_the_same_tick():
     scene = dataclasses.replace(box, environment=dataclasses.replace(box.environment, wall_stiffness=1000 * 28e3),
                                 duration=0.2, effects=box.effects - {Effect.SATURATION})
     plant, st = _prrr_plant(scene, Fidelity.DRAFT)
-    ref = plant.run(NumpyController(st.cfg, st.gains), st, compiled=False)
+    ref = plant.run(ScalarController(st.cfg, st.gains), st, compute=PYTHON)
     bad_ref, warn_ref = plant.bad_qacc, plant.warnings()
-    fast = plant.run(NumpyController(st.cfg, st.gains), st)
+    fast = plant.run(ScalarController(st.cfg, st.gains), st)
     assert plant.loop_engine == "compiled"
     assert ref.stop_tick[0] >= 0
     _assert_same_traces(ref, fast)
@@ -107,12 +108,12 @@ def test_prrr_unstable_run_stops_at_the_same_tick():
 
 
 def test_prrr_interpolated_controller_falls_back_with_the_reason():
-    """Interpolation > 1 uses the generic numpy controller path: the Python loop runs and says why."""
+    """Interpolation > 1 is the jax law's (FirmwareController): the Python loop runs it and says why."""
     scene = dataclasses.replace(load_scene("stiffness-25"), duration=0.05)
     scene = dataclasses.replace(scene, controller=dataclasses.replace(scene.controller, interpolation=4))
     plant, st = _prrr_plant(scene, Fidelity.DRAFT)
-    plant.run(NumpyController(st.cfg, st.gains), st)
-    assert plant.loop_engine == "python" and "interpolation > 1" in plant.loop_reason
+    plant.run(firmware_numpy.controller(st.cfg, st.gains), st)
+    assert plant.loop_engine == "python" and "FirmwareController has no compiled law" in plant.loop_reason
 
 
 def test_unavailable_compiled_loop_falls_back_with_the_reason(monkeypatch):
@@ -122,9 +123,16 @@ def test_unavailable_compiled_loop_falls_back_with_the_reason(monkeypatch):
     assert r.loop_engine == "python" and r.metrics()["closed_loop_engine"] == "python: numba not importable (test)"
 
 
+def test_forced_numba_raises_where_the_compiled_loop_cannot_load(monkeypatch):
+    monkeypatch.setattr(mc, "availability", lambda: "numba not importable (test)")
+    scene = dataclasses.replace(load_scene("stiffness-25"), duration=0.05)
+    with pytest.raises(RuntimeError, match=r"compute backend numba: numba not importable \(test\)"):
+        prrr_mj.simulate(PRRR, scene, fidelity=Fidelity.DRAFT, compute=Compute(backend="numba"))
+
+
 def _master_runs(name, fidelity, duration):
     scene = dataclasses.replace(load_scene(name), duration=duration, sweep_factors=())
-    ref = master_mj.simulate(MASTER, scene, fidelity=fidelity, compiled=False)
+    ref = master_mj.simulate(MASTER, scene, fidelity=fidelity, compute=PYTHON)
     fast = master_mj.simulate(MASTER, scene, fidelity=fidelity)
     return ref, fast
 
@@ -156,10 +164,10 @@ def test_master_raw_records_equal_with_delay_and_torque_limit():
     plant = master_mj.MasterPlant(MASTER, scene, res, period=T, fidelity=Fidelity.DRAFT)
     kw = dict(ticks=600, frequency=1.0, quantize=True, delay_ticks=3)
     base = master_mj.controller_for(MASTER, scene, res, plant.x0, plant.q0, T)
-    lim = 0.5 * float(np.abs(plant.run(base, **kw, compiled=False)["torque"]).max())  # the limit sits inside the run
+    lim = 0.5 * float(np.abs(plant.run(base, **kw, compute=PYTHON)["torque"]).max())  # the limit sits inside the run
     cfg = dataclasses.replace(base.cfg, torque_limit=lim, saturation=True)
     ctl, ctl_fast = MasterController(cfg), MasterController(cfg)
-    ref = plant.run(ctl, **kw, compiled=False)
+    ref = plant.run(ctl, **kw, compute=PYTHON)
     fast = plant.run(ctl_fast, **kw)
     assert plant.loop_engine == "compiled"
     assert np.any(np.abs(ref["torque"]) == lim)  # saturation and delay exercised
@@ -354,7 +362,7 @@ def test_master_compensation_compiled_within_the_references_rounding(name, durat
     assert (fast.loop_engine, ref.loop_engine) == ("compiled", "python"), fast.loop_reason
     _ulp_reference(monkeypatch)
     scene = dataclasses.replace(load_scene(name), duration=duration, sweep_factors=())
-    moved = master_mj.simulate(MASTER, scene, fidelity=Fidelity.DRAFT, compiled=False)
+    moved = master_mj.simulate(MASTER, scene, fidelity=Fidelity.DRAFT, compute=PYTHON)
     assert fast.status == ref.status and fast.message == ref.message and fast.stable == ref.stable
     assert fast.warnings == ref.warnings and fast.health_ok == ref.health_ok
     assert fast.traces.stop_tick[0] == ref.traces.stop_tick[0] == moved.traces.stop_tick[0]
@@ -401,11 +409,11 @@ def test_master_compensation_controller_state_continues(monkeypatch):
     cfg = a.cfg
     assert cfg.velocity_alpha == 0.0 and cfg.env.value == "spring"
     kw = dict(ticks=600, frequency=1.0, quantize=False)
-    ra = plant.run(a, **kw, compiled=False)
+    ra = plant.run(a, **kw, compute=PYTHON)
     plant.run(b, **kw)
     assert plant.loop_engine == "compiled"
     _ulp_reference(monkeypatch)
-    rc = plant.run(c, **kw, compiled=False)
+    rc = plant.run(c, **kw, compute=PYTHON)
     assert a._samples == b._samples == c._samples == 600
     dp = ENVELOPE_FACTOR * float(np.abs(rc["position"] - ra["position"]).max())
     assert dp > 0.0
@@ -420,14 +428,15 @@ def test_master_compensation_controller_state_continues(monkeypatch):
 def test_warm_up_loads_the_kernels_the_plants_use():
     """warm_up compiles/loads the same specialisations a run uses (one signature per kernel after both devices' runs,
     a compensation scene included)."""
-    assert mc.warm_up() is None
+    assert prrr_mj.warm_up() is None
     k = mc.kernels()
+    from hapticopt.analysis.prrr._mujoco_kernel import prrr_chunk  # loaded by warm_up
     scene = dataclasses.replace(load_scene("stiffness-25"), duration=0.02)
     prrr_mj.simulate(PRRR, scene, fidelity=Fidelity.DRAFT)
     master_mj.simulate(MASTER, dataclasses.replace(load_scene("master-wall"), duration=0.02), fidelity=Fidelity.DRAFT)
     master_mj.simulate(MASTER, dataclasses.replace(load_scene("master-protocol-x"), duration=0.01),
                        fidelity=Fidelity.DRAFT)  # the compensation's basis identification too
-    assert len(k.prrr_chunk.signatures) == 1 and len(k.master_chunk.signatures) == 1
+    assert len(prrr_chunk.signatures) == 1 and len(k.master_chunk.signatures) == 1
     assert len(k.mass_basis.signatures) == 1 and len(k.mass_basis_residual.signatures) == 1
 
 
@@ -436,7 +445,7 @@ def test_prrr_reset_restores_the_start_pose_exactly():
     scene = dataclasses.replace(load_scene("stiffness-25-links"), duration=0.05)
     plant, st = _prrr_plant(scene, Fidelity.DRAFT)
     first = {k: getattr(plant.data, k).copy() for k in ("qpos", "qvel", "qacc", "xpos", "efc_pos", "qfrc_applied")}
-    plant.run(NumpyController(st.cfg, st.gains), st)
+    plant.run(ScalarController(st.cfg, st.gains), st)
     plant.reset()
     for k, v in first.items():
         np.testing.assert_array_equal(getattr(plant.data, k), v, err_msg=k)
@@ -448,7 +457,7 @@ def test_master_unstable_run_stops_at_the_same_tick():
     w = load_scene("master-wall")
     scene = dataclasses.replace(w, environment=dataclasses.replace(w.environment, wall_stiffness=1e7), duration=0.3,
                                 effects=w.effects - {Effect.SATURATION})
-    ref = master_mj.simulate(MASTER, scene, fidelity=Fidelity.DRAFT, compiled=False)
+    ref = master_mj.simulate(MASTER, scene, fidelity=Fidelity.DRAFT, compute=PYTHON)
     fast = master_mj.simulate(MASTER, scene, fidelity=Fidelity.DRAFT)
     assert fast.loop_engine == "compiled" and ref.traces.stop_tick[0] >= 0 and not ref.stable
     assert any("BADQACC" in x for x in fast.warnings)

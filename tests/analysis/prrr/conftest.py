@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -13,6 +14,8 @@ import pytest
 
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidDesign
+
+sys.path.insert(0, str(Path(__file__).parent))  # prrr_stepped_loop: the plain reference loops of the tests here
 
 PROBLEM = Path(__file__).resolve().parents[3] / "optim" / "problems" / "prrr-workspace.toml"
 

@@ -11,7 +11,7 @@ import pytest
 from hapticopt.analysis import verify
 from hapticopt.analysis.prrr import closed_loop as cl
 from hapticopt.analysis.prrr import firmware, stability
-from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
+from prrr_stepped_loop import LumpedPlant, run_with_plant
 from hapticopt.analysis.loop.scene import Effect, load_scene, scene_from_dict
 
 
@@ -64,7 +64,7 @@ def test_fused_runner_matches_plain_reference_loop(prrr_paper):
     sc = dataclasses.replace(load_scene("virtual-box"), duration=0.3)
     st = cl.setup(prrr_paper, sc)
     fast = cl.Simulator(st).run()
-    ref = cl.run_with_plant(LumpedPlant(st.model, st.period, st.substeps), firmware.FirmwareController(st.cfg, st.gains), st)
+    ref = run_with_plant(LumpedPlant(st.model, st.period, st.substeps), firmware.FirmwareController(st.cfg, st.gains), st)
     np.testing.assert_allclose(fast.position, ref.position, atol=1e-9)
     np.testing.assert_allclose(fast.hand_force, ref.hand_force, atol=1e-5)
 

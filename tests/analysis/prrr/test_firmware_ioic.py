@@ -12,21 +12,21 @@ from hapticopt.analysis.control import ioic_online
 from hapticopt.analysis.loop.scene import EnvKind, load_scene
 from hapticopt.analysis.prrr import closed_loop
 from hapticopt.analysis.prrr.firmware_ioic import PrrrIoicConfig, PrrrIoicController
-from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+from hapticopt.analysis.prrr.firmware_numpy import ScalarController
 from hapticopt.design.io import load_preset
 
 DESIGN = load_preset("prrr-paper")
 
 
 def test_render_with_a_still_reference_is_the_spring_law():
-    """F = K_t(p_r − p) + B_t(0 − ṗ) (+ weight) through the SEA loop equals NumpyController rendering a
+    """F = K_t(p_r − p) + B_t(0 − ṗ) (+ weight) through the SEA loop equals ScalarController rendering a
     spring K_t, damper B_t anchored at p_r (seed 002 firmware), tick by tick on random counts."""
     st = closed_loop.setup(DESIGN, load_scene("stiffness-25"))
     kt, bt = 7e3, 30.0
     p_r = np.array([1e-3, -2e-3, 0.5e-3])
     cfg = dataclasses.replace(st.cfg, env=EnvKind.SPRING, friction_compensation=False)
     gains = st.gains._replace(stiffness=jnp.full(3, kt), damping=jnp.full(3, bt), anchor=jnp.asarray(p_r))
-    ref = NumpyController(cfg, gains)
+    ref = ScalarController(cfg, gains)
     sc = load_scene("prrr-ioic")
     ioic_cfg = PrrrIoicConfig(base=cfg, gains=gains, outer=ioic_online.outer_config(sc, cfg.period), axis=0,
                               x_start=(0.0, 0.0, 0.0), motion=sc.motion, mass=DESIGN.end_effector.mass,

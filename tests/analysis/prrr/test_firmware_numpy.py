@@ -1,18 +1,18 @@
-"""The numpy fast path of the firmware law (analysis/prrr/firmware_numpy.py) against the reference
-:func:`hapticopt.analysis.prrr.firmware.step` (jax): same commands and force references tick by tick."""
+"""The scalar firmware law (analysis/prrr/firmware_numpy.py, the MuJoCo loops' one definition) against the jax law
+:func:`hapticopt.analysis.prrr.firmware.step` (the lumped plant's): same commands and force references tick by tick."""
 
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
-from hapticopt.analysis.control.upsampling import Predictor, Variant
-from hapticopt.analysis.prrr import closed_loop, firmware
-from hapticopt.analysis.prrr.firmware_numpy import NumpyController
+from hapticopt.analysis.prrr import closed_loop, firmware, firmware_numpy
+from hapticopt.analysis.prrr.firmware_numpy import ScalarController, controller
 from hapticopt.analysis.loop.scene import BoxMode, EnvKind, FirmwareMode, load_scene, scene_names
 from hapticopt.design.io import load_preset
 
@@ -32,19 +32,11 @@ def _variants():
     cfg = st.cfg
     out += [
         ("integral", dataclasses.replace(cfg, integral=True), g),
-        ("interpolation", dataclasses.replace(cfg, interpolation=4), g),
         ("box-outside", dataclasses.replace(cfg, env=EnvKind.BOX, box_mode=BoxMode.OUTSIDE), g),
         ("box-inside", dataclasses.replace(cfg, env=EnvKind.BOX, box_mode=BoxMode.INSIDE), g),
         ("force", dataclasses.replace(cfg, env=EnvKind.FORCE), g),
         ("free-comp", dataclasses.replace(cfg, env=EnvKind.FREE, friction_compensation=True,
                                           gravity_compensation=True, velocity_alpha=0.5), g),
-        # seed 000's online position predictor: fit per axis, render and force loop at the predicted positions
-        ("online", dataclasses.replace(cfg, interpolation=4, predictor=Predictor.ONLINE, ar_order=2, ar_window=8), g),
-        ("online-integral-box", dataclasses.replace(cfg, interpolation=3, predictor=Predictor.ONLINE, ar_order=3,
-                                                    ar_window=10, integral=True, env=EnvKind.BOX,
-                                                    velocity_alpha=0.5), g),
-        ("online-force", dataclasses.replace(cfg, interpolation=2, predictor=Predictor.ONLINE, env=EnvKind.FORCE,
-                                             interpolation_variant=Variant.AS_PRINTED), g),
     ]
     return out
 
@@ -52,7 +44,7 @@ def _variants():
 @pytest.mark.parametrize("name,cfg,gains", _variants(), ids=lambda x: x if isinstance(x, str) else "")
 def test_numpy_law_equals_reference(name, cfg, gains):
     ref = firmware.FirmwareController(cfg, gains)
-    fast = NumpyController(cfg, gains)
+    fast = ScalarController(cfg, gains)
     rng = np.random.default_rng(11)
     # a random walk of counts that crosses the box walls (10 mm = 8000 counts of 1.25 µm)
     s = np.cumsum(np.round(rng.normal(0, 400, (120, 3))), axis=0)
@@ -82,14 +74,42 @@ def test_the_jax_ar_fit_is_the_shared_fit_per_axis():
     np.testing.assert_allclose(coef[2], (2.0 * np.exp(-3.0 * T) * np.cos(70.0 * T), -np.exp(-6.0 * T)), rtol=1e-6)
 
 
-def test_online_variants_fit_on_the_random_walk():
-    # the equality test above exercises real fits, not only the fallback
-    cfg, g = next((c, g) for n, c, g in _variants() if n == "online")
-    fast = NumpyController(cfg, g)
-    rng = np.random.default_rng(11)
-    s = np.cumsum(np.round(rng.normal(0, 400, (60, 3))), axis=0)
-    fast.reset(s[0])
-    for a in s:
-        fast.step(a, np.zeros(3))
-    from hapticopt.analysis.control.upsampling import ARStatus
-    assert fast.fit_counts.get(ARStatus.FITTED, 0) > 100  # of 180 axis-ticks; the first few are at rest
+def test_interpolation_is_the_jax_laws():
+    cfg = dataclasses.replace(closed_loop.setup(DESIGN, load_scene("stiffness-25")).cfg, interpolation=4)
+    gains = closed_loop.setup(DESIGN, load_scene("stiffness-25")).gains
+    assert isinstance(controller(cfg, gains), firmware.FirmwareController)
+    with pytest.raises(ValueError, match="interpolation 1"):
+        ScalarController(cfg, gains)
+
+
+def test_the_scalar_law_is_written_once():
+    """The MuJoCo loops' law is firmware_numpy.tick alone: the compiled loop calls it (no inlined copy: no
+    tanh/sin of its own) and the removed second paths do not come back."""
+    root = Path(firmware_numpy.__file__).resolve().parents[1]  # analysis/
+    kernel = (root / "prrr" / "_mujoco_kernel.py").read_text()
+    assert "_law(" in kernel and "tanh" not in kernel and "math.sin" not in kernel
+    for path in root.rglob("*.py"):
+        text = path.read_text()
+        for name in ("step_generic", "_step_scalar", "NumpyController"):
+            assert name not in text, f"{name} in {path}"
+
+
+def test_the_compiled_law_is_the_python_law_bit_for_bit():
+    """numba.njit(tick), as the compiled MuJoCo loop runs it, gives the Python call's bits on every variant
+    (the MuJoCo scenes reach only some branches: box outside and the force reference are checked here)."""
+    import numba
+
+    law = numba.njit(firmware_numpy.tick)
+    rng = np.random.default_rng(3)
+    for name, cfg, gains in _variants():
+        py = ScalarController(cfg, gains)
+        args = [np.array(a, dtype=np.int64 if i == 1 else np.float64) for i, a in enumerate(py.args)]
+        s = np.cumsum(np.round(rng.normal(0, 400, (80, 3))), axis=0)
+        dfl = np.round(rng.normal(0, 300, (80, 3)))
+        py.reset(s[0])
+        st, out = np.array(py.state), np.empty(3)
+        for k, (a, b) in enumerate(zip(s, dfl)):
+            want = py.step(a.tolist(), b.tolist())[0]
+            law(*args, st, k, a, b, out)
+            assert out.tobytes() == want.tobytes() and st.tobytes() == np.array(py.state).tobytes(), name
+

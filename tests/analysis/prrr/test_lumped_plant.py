@@ -7,8 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
+from prrr_stepped_loop import LumpedPlant
+
 from hapticopt.analysis.prrr.lumped_plant import (
-    LumpedPlant,
     PlantMode,
     build_model,
     discretise,

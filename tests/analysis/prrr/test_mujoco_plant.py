@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -10,17 +11,13 @@ import pytest
 from hapticopt.analysis import verify
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.prrr import closed_loop, firmware
-from hapticopt.analysis.prrr.lumped_plant import LumpedPlant
-from hapticopt.analysis.prrr.mujoco_plant import (
-    ROTATION_TOL,
-    VIOLATION_TOL,
-    choose_backend,
-    simulate,
-    stiffness_limit,
-)
+from prrr_stepped_loop import LumpedPlant, run_with_plant
+from hapticopt.analysis.prrr.mujoco_plant import ROTATION_TOL, VIOLATION_TOL, MujocoPlant, model_options, simulate
 from hapticopt.analysis.prrr.mujoco_model import LinkMasses, Platform, SolverSettings
-from hapticopt.analysis.loop.plant import Plant
-from hapticopt.analysis.loop.scene import Backend, Effect, FirmwareMode, load_scene, scene_names
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.loop.plant import Observation, Plant, Sensors
+from hapticopt.analysis.loop.scene import Backend, Effect, FirmwareMode, load_scene, resolve, scene_names
+from hapticopt.analysis.prrr.firmware_numpy import ScalarController, controller
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.io import load_preset
@@ -28,12 +25,121 @@ from hapticopt.design.io import load_preset
 DESIGN = load_preset("prrr-paper")
 
 
+#: index of mjWARN_BADQACC in MjData.warning (mujoco 4: mjtWarning; checked below)
+BADQACC = 5
+
+
+class SteppedPlant(MujocoPlant):
+    """The MuJoCo plant as a :class:`hapticopt.analysis.loop.plant.Plant`, stepped tick by tick from
+    :func:`run_with_plant`: the plain reference the fused :meth:`MujocoPlant.run` is held to."""
+
+    def sensors(self) -> Sensors:
+        q = self.data.qpos
+        slider = self.mj.sliders(q) - self.mj.c_e
+        if self.ideal:
+            defl = self.u / self.spring  # the spring carries exactly the commanded force
+        else:
+            defl = self.mj.deflection(q)
+        return Sensors(slider=slider, deflection=defl)
+
+    def advance(self, commands: np.ndarray) -> None:
+        mj, m, d = self._mujoco, self.model, self.data
+        commands = np.atleast_2d(commands)
+        h = self.per_sample * m.opt.timestep
+        for row in commands:
+            self.u = row
+            d.ctrl[:] = self.gain * row
+            if self._hand is not None:
+                self._set_reference(self.t + 0.5 * h)
+            mj.mj_step(m, d, nstep=self.per_sample)
+            self.t += h
+        self._check()
+
+    def observe(self) -> Observation:
+        d = self.data
+        if self.bad_qacc:
+            nan = np.full(3, np.nan)
+            return Observation(position=nan, velocity=nan, hand_force=nan, actuator_force=nan, energy=math.nan)
+        p = d.qpos[self._ee_pos].copy()
+        v = d.qvel[self._ee_dof].copy()
+        if self._hand is not None:
+            h = self._hand
+            ref, dref = self.reference(self.t)
+            qh, vh = d.qpos[self.mj.hand_qpos], d.qvel[self.mj.hand_dof]
+            hand = h.stiffness * (ref - qh) + h.damping * (dref - vh) - h.mass * d.qacc[self.mj.hand_dof]
+        else:
+            hand = np.zeros(3)
+        if self.ideal:
+            f = self.u.copy()
+        elif self.rigid:  # force the transmission delivers to the output: ηF − ξḊ − M_m D̈
+            dof = self._slider_dof
+            xi = self.design.actuator.viscous if self.options.viscous_friction else 0.0
+            f = self.gain * self.u - xi * d.qvel[dof] - self.design.actuator.motor_mass * d.qacc[dof]
+        else:
+            f = self.spring * self.mj.deflection(d.qpos)
+        defl = self.mj.deflection(d.qpos)
+        energy = float(d.energy[1]) + 0.5 * self.spring * float(defl @ defl) if self._energy else math.nan
+        return Observation(position=p, velocity=v, hand_force=hand, actuator_force=self.JinvT @ f, energy=energy)
+
+    def _check(self) -> None:
+        """Update the worst constraint health (state at the start of the last substep)."""
+        d = self.data
+        if d.warning[BADQACC].number > 0:
+            self.bad_qacc = True
+        n = self._eq_rows
+        viol = float(np.abs(d.efc_pos[:n]).max()) if n and d.nefc >= n else 0.0
+        xpos, ee = d.xpos, int(self.mj.ee_body)
+        rot = 0.0
+        if self._free:  # rotation angle from the quaternion's scalar part (resolution ≈ 1e-8 rad)
+            rot = 2.0 * math.acos(min(1.0, abs(float(d.xquat[ee, 0]))))
+        dz = xpos[np.asarray(self.mj.carriage_body), 2] - np.asarray(self.mj.carriage_home_z)
+        closure = float(np.linalg.norm(xpos[ee] - self._J @ dz))
+        w = self._worst
+        if viol > w[0]:
+            w[0] = viol
+        if rot > w[1]:
+            w[1] = rot
+        if closure > w[2]:
+            w[2] = closure
+
+
+
+def stiffness_limit(design, scene, *, backend, axis=0, bracket, iterations=7, fidelity=Fidelity.STANDARD):
+    """Largest stable virtual stiffness K_v along ``axis`` [N/m] by bisection (geometric mean) on the lumped or
+    the MuJoCo plant (links lumped, translational platform): the same loop and stability classification for
+    both. Returns the bracket (stable, unstable) after ``iterations`` halvings of its log-width."""
+    st = closed_loop.setup(design, dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS}),
+                           fidelity=fidelity)
+    if backend == Backend.LUMPED:
+        plant = LumpedPlant(st.model, st.period, st.substeps)
+    else:
+        res = resolve(scene, force=Backend.MULTIBODY)
+        options = model_options(scene, res, fidelity=fidelity, platform=Platform.TRANSLATIONAL,
+                                link_masses=LinkMasses.LUMPED)
+        plant = MujocoPlant(design, scene, options, period=st.period)
+        plant.enable_energy()
+        st = dataclasses.replace(st, resolution=res, substeps=plant.substeps)
+    lo, hi = bracket
+    for _ in range(iterations):
+        mid = math.sqrt(lo * hi)
+        stiff = np.array(st.gains.stiffness, dtype=float)
+        stiff[axis] = mid
+        s = dataclasses.replace(st, gains=st.gains._replace(stiffness=stiff))
+        ctl = controller(s.cfg, s.gains)
+        tr = plant.run(ctl, s) if isinstance(plant, MujocoPlant) else run_with_plant(plant, ctl, s)
+        if closed_loop.classify(tr, st)[0][0]:
+            lo = mid
+        else:
+            hi = mid
+    return lo, hi
+
+
 def lumped_traces(scene):
     """The lumped plant through the same Python loop as the multibody plant."""
     st = closed_loop.setup(DESIGN, scene)
     plant = LumpedPlant(st.model, st.period, st.substeps)
     assert isinstance(plant, Plant)
-    tr = closed_loop.run_with_plant(plant, firmware.FirmwareController(st.cfg, st.gains), st)
+    tr = run_with_plant(plant, firmware.FirmwareController(st.cfg, st.gains), st)
     return tr, st
 
 
@@ -43,15 +149,15 @@ def rms_difference(a, b, start):
 
 def test_backend_choice_and_forcing():
     base = load_scene("stiffness-25")
-    c = choose_backend(base)
+    c = resolve(base)
     assert c.backend == Backend.LUMPED and "exact" in c.reason
     linked = dataclasses.replace(base, effects=base.effects | {Effect.LINK_DYNAMICS})
-    c = choose_backend(linked)
+    c = resolve(linked)
     assert c.backend == Backend.MULTIBODY and "link_dynamics" in c.reason
-    forced = choose_backend(base, force=Backend.MULTIBODY)
+    forced = resolve(base, force=Backend.MULTIBODY)
     assert forced.backend == Backend.MULTIBODY and "forced" in forced.reason
     with pytest.raises(InvalidInput, match="link_dynamics"):
-        choose_backend(linked, force=Backend.LUMPED)
+        resolve(linked, force=Backend.LUMPED)
 
 
 def test_stiffness_25_agrees_with_lumped_plant():
@@ -125,21 +231,18 @@ def test_every_bundled_scene_keeps_the_chains_closed(name):
 @pytest.mark.parametrize("name", ["stiffness-25-links", "virtual-box", "z-width"])
 def test_fused_loop_equals_reference_loop(name):
     """MujocoPlant.run (records raw state, checks every 100 ticks vectorised) against the plain
-    reference loop closed_loop.run_with_plant on the same plant: same traces (≤ 1e-9), same stop."""
-    from hapticopt.analysis.prrr.firmware_numpy import NumpyController
-    from hapticopt.analysis.fidelity import Fidelity
-    from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant, model_options
+    reference loop run_with_plant on the same plant: same traces (≤ 1e-9), same stop."""
 
     scene = dataclasses.replace(load_scene(name), duration=0.25)
-    ch = choose_backend(scene, force=Backend.MULTIBODY)
+    ch = resolve(scene, force=Backend.MULTIBODY)
     st = closed_loop.setup(DESIGN, dataclasses.replace(scene, effects=scene.effects - {Effect.LINK_DYNAMICS}),
                            fidelity=Fidelity.DRAFT)
-    plant = MujocoPlant(DESIGN, scene, model_options(scene, ch.resolution, fidelity=Fidelity.DRAFT,
+    plant = SteppedPlant(DESIGN, scene, model_options(scene, ch, fidelity=Fidelity.DRAFT,
                                                      platform=Platform.FREE), period=st.period)
     plant.enable_energy()
-    ref = closed_loop.run_with_plant(plant, NumpyController(st.cfg, st.gains), st)
+    ref = run_with_plant(plant, ScalarController(st.cfg, st.gains), st)
     h_ref = plant.health
-    fast = plant.run(NumpyController(st.cfg, st.gains), st)
+    fast = plant.run(ScalarController(st.cfg, st.gains), st)
     for k in ("position", "velocity", "hand_force", "actuator_force", "force_reference"):
         np.testing.assert_allclose(getattr(fast, k), getattr(ref, k), rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.energy, ref.energy, rtol=1e-9, atol=1e-12)
@@ -151,24 +254,20 @@ def test_fused_loop_equals_reference_loop(name):
 
 def test_fused_loop_stops_where_the_reference_stops():
     """An unstable wall: the window check finds the same first bad tick as the per-tick check."""
-    from hapticopt.analysis.prrr.firmware_numpy import NumpyController
-    from hapticopt.analysis.fidelity import Fidelity
-    from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant, model_options
 
     import mujoco
 
-    from hapticopt.analysis.prrr import mujoco_plant
 
-    assert mujoco_plant._BADQACC == int(mujoco.mjtWarning.mjWARN_BADQACC)
+    assert BADQACC == int(mujoco.mjtWarning.mjWARN_BADQACC)
     box = load_scene("virtual-box")  # wall 1000× beyond the limit, no saturation: MuJoCo's BADQACC reset
     scene = dataclasses.replace(box, environment=dataclasses.replace(box.environment, wall_stiffness=1000 * 28e3),
                                 duration=0.2, effects=box.effects - {Effect.SATURATION})
-    ch = choose_backend(scene, force=Backend.MULTIBODY)
+    ch = resolve(scene, force=Backend.MULTIBODY)
     st = closed_loop.setup(DESIGN, scene, fidelity=Fidelity.DRAFT)
-    plant = MujocoPlant(DESIGN, scene, model_options(scene, ch.resolution, fidelity=Fidelity.DRAFT), period=st.period)
+    plant = SteppedPlant(DESIGN, scene, model_options(scene, ch, fidelity=Fidelity.DRAFT), period=st.period)
     plant.enable_energy()
-    ref = closed_loop.run_with_plant(plant, NumpyController(st.cfg, st.gains), st)
-    fast = plant.run(NumpyController(st.cfg, st.gains), st)
+    ref = run_with_plant(plant, ScalarController(st.cfg, st.gains), st)
+    fast = plant.run(ScalarController(st.cfg, st.gains), st)
     assert ref.stop_tick[0] >= 0 and fast.stop_tick[0] == ref.stop_tick[0]
     assert plant.bad_qacc and any("BADQACC" in w for w in plant.warnings())
 
