@@ -124,15 +124,6 @@ def analytic(design: Any, *, specs: dict[str, _parts.PartSpec]) -> MassPropertie
     return MassProperties(design=design.name, method=Method.ANALYTIC, parts=out)
 
 
-def analytic_masses(specs: dict[str, _parts.PartSpec]) -> dict[str, float]:
-    """The part masses [kg] of :func:`analytic` alone (name -> mass, in ``specs``' order): the same
-    grouping of the parts and the same volumes (:func:`hapticopt.design.parts.volume_many`), so the same
-    bits (tested), without the centroids and inertia tensors."""
-    unique, groups = _distinct_primitives(specs)
-    volume = _parts.volume_many(groups).tolist()
-    return {name: spec.density * volume[unique[id(spec.primitives)]] for name, spec in specs.items()}
-
-
 def from_cad(design: Any, *, solids: dict[str, Any], specs: dict[str, _parts.PartSpec]) -> MassProperties:
     """Mass properties from OpenCASCADE's volume integrals of the part solids (in part frames)."""
     out: dict[str, PartMass] = {}

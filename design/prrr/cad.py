@@ -36,7 +36,6 @@ from hapticopt.design.prrr.kinematics import inverse_kinematics, leg_chain, leg_
 from hapticopt.design.prrr.layout import LEGS, MIN_FEATURE
 from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
 
-__all__ = ["LEGS", "MIN_FEATURE"]  # re-exported: the layout's constants, read through this module
 EZ = np.array([0.0, 0.0, 1.0])
 
 
@@ -99,8 +98,7 @@ class Bracket:
                    arm_length=float(b.arm_length[k]), root_centre=b.root_centre[k], root_axes=b.root_axes[k],
                    root_size=tuple(b.root_size[k].tolist()), contact_centre=b.contact[k],
                    contact_axes=np.stack([b.e_l[k], b.n_p[k]], axis=1), contact_size=tuple(b.contact_size[k].tolist()),
-                   wedge=Primitive(kind=Kind.WEDGE, role=Role.OVERLAP, o=b.wedge_o[k], R=b.wedge_R[k],
-                                   dims=tuple(b.wedge_dims[k].tolist())),
+                   wedge=_parts.wedge(b.wedge_o[k], b.wedge_R[k], *b.wedge_dims[k].tolist()),
                    face=_layout.FACES[int(b.face[k])])
 
 

@@ -1,13 +1,15 @@
 """The 3-PRRR part layout, batch-first: derived dimensions, the R1 bracket, the buildability rules
-and the primitive table of every part, for m designs at once (one row each, SI).
+and the primitive table of every part, for many designs at once.
 
-This is the one formulation of the layout. :mod:`hapticopt.design.prrr.cad` reads row 0 of a batch
-of one (:func:`cad.layout`, :func:`cad.carriage_bracket`, :func:`cad.part_specs`: the CAD solids, the
-mass properties, the interference models, the MJCF geoms); the batched draft evaluator reads
-:func:`part_tables_many` and the frame model :func:`brackets_many`. Every formula runs on ``(m,)``
-columns; a rule is a boolean column, and the first rule a design fails gives its
+This is the one formulation of the layout. Every formula runs on columns with a leading design axis
+``(m,)`` (vectors ``(m, 3)``); a design given alone runs the same formulas on numpy scalars (the
+batch of one without its axis, where numpy's per-call cost is lowest). :mod:`hapticopt.design.prrr.cad`
+reads a design alone (:func:`cad.layout`, :func:`cad.carriage_bracket`, :func:`cad.part_specs`: the
+CAD solids, the mass properties, the interference models, the MJCF geoms); the batched draft
+evaluator reads :func:`part_tables_many` and the frame model :func:`brackets_many`. A rule is a
+boolean column, and the first rule a design fails gives its
 :class:`~hapticopt.design.errors.InvalidDesign` message (:meth:`Layouts.error`), the same for a
-design alone or in a batch.
+design alone or in a batch; the tables are the same bit for bit (tested).
 
 Parts, frames and axial layering: see :mod:`hapticopt.design.prrr.cad`. Carriage-frame quantities:
 x = u' (radial, towards rail i at γ_i + θ_1p), y = t', z = e_z, origin on the z axis at the slider
@@ -68,6 +70,14 @@ def _dot(a, b):
 
 def _cross(a, b):
     return a[..., _NEXT] * b[..., _PREV] - a[..., _PREV] * b[..., _NEXT]
+
+
+def _where(cond, a, b):
+    """``np.where`` per design: ``cond`` (…,) picks ``a`` or ``b`` (…, k…) row by row (one design alone: a
+    Python branch, its cheapest form)."""
+    if np.ndim(cond) == 0:
+        return a if cond else b
+    return np.where(cond.reshape(cond.shape + (1,) * (max(np.ndim(a), np.ndim(b)) - cond.ndim)), a, b)
 
 
 def _cols(x, y, z):
@@ -180,12 +190,12 @@ def _face(names, N, f, h, h_lo, h_hi, Ac, wc, c, forced=None) -> SimpleNamespace
     parallel = nrm < 1e-9
     e_l = e_l / nrm[..., None]
     hAc = _dot(h, Ac)
-    e_l = np.where(((0.5 * (h_lo + h_hi) - hAc) * _dot(e_l, h) < 0.0)[..., None], -e_l, e_l)  # towards the face
+    e_l = _where((0.5 * (h_lo + h_hi) - hAc) * _dot(e_l, h) < 0.0, -e_l, e_l)  # towards the face
     # the clevis plane's section normal to e_l: e_f towards the face, e_c the side of the layer that
     # meets the face first; N = −ν e_f − μ e_c (ν² + μ² = 1, ν > 0, μ ≥ 0)
     e_f = _cross(wc, e_l)
-    e_f = np.where((_dot(e_f, N) > 0.0)[..., None], -e_f, e_f)
-    e_c = np.where((_dot(wc, N) <= 0.0)[..., None], wc, -wc)
+    e_f = _where(_dot(e_f, N) > 0.0, -e_f, e_f)
+    e_c = _where(_dot(wc, N) <= 0.0, wc, -wc)
     nu, mu = -_dot(e_f, N), -_dot(e_c, N)
     n0 = _dot(N, Ac) - f  # the clevis centre's height above the face plane
     depth = n0 - nu * W / 2 - mu * T / 2  # the arm's clearance from the face plane
@@ -195,20 +205,20 @@ def _face(names, N, f, h, h_lo, h_hi, Ac, wc, c, forced=None) -> SimpleNamespace
     a1 = (n0 - mu * T / 2) / nu
     d_in = np.minimum(mu * T, wall)
     a_end = a1 + d_in / nu
-    L_b = np.where(mu * T <= wall, T / nu, d_in / (mu * nu))
+    L_b = _where(mu * T <= wall, T / nu, d_in / (mu * nu))
     efh, ech = _dot(e_f, h), _dot(e_c, h)
     q = (a1 * efh + T / 2 * ech, (a1 + mu * L_b) * efh + (T / 2 - nu * L_b) * ech,
          a_end * efh + T / 2 * ech)  # patch ends and deep corner along h
     qmin, qmax = np.minimum(np.minimum(q[0], q[1]), q[2]), np.maximum(np.maximum(q[0], q[1]), q[2])
     a = _dot(e_l, h)
-    lo_e = np.where(a > 0.0, (h_lo - hAc - qmin) / a, (h_hi - hAc - qmax) / a)
-    hi_e = np.where(a > 0.0, (h_hi - hAc - qmax) / a, (h_lo - hAc - qmin) / a)
+    lo_e = _where(a > 0.0, (h_lo - hAc - qmin) / a, (h_hi - hAc - qmax) / a)
+    hi_e = _where(a > 0.0, (h_hi - hAc - qmax) / a, (h_lo - hAc - qmin) / a)
     l0, l1 = np.maximum(lo_e, R + g), hi_e
     cut, short = depth < 0.0, l1 - l0 < W / 2
     if forced is not None:
         forced = forced & ~parallel
         idealised = forced & (cut | short)
-        l0, l1 = np.where(idealised, R + g, l0), np.where(idealised, R + g + np.maximum(l1 - l0, h_hi - h_lo), l1)
+        l0, l1 = _where(idealised, R + g, l0), _where(idealised, R + g + np.maximum(l1 - l0, h_hi - h_lo), l1)
     else:
         forced = np.zeros_like(parallel)
     lm = 0.5 * (l0 + l1)
@@ -239,7 +249,7 @@ def _face(names, N, f, h, h_lo, h_hi, Ac, wc, c, forced=None) -> SimpleNamespace
         contact=contact, n_p=n_p, contact_size=_vec(l1 - l0, L_b, 0.0)[..., :2],
         wedge_o=Ac + lm[..., None] * e_l + a_end[..., None] * e_f + (T / 2)[..., None] * e_c,
         wedge_R=_cols(-e_f, -e_c, _cross(e_f, e_c)),  # parts.frame(−e_f, e_f × e_c), e_f ⟂ e_c
-        wedge_dims=_vec(a_end - a1, np.where(mu * T > 1e-12, d_in / mu, T), l1 - l0))
+        wedge_dims=_vec(a_end - a1, _where(mu * T > 1e-12, d_in / mu, T), l1 - l0))
 
 
 #: the bracket's fields (:class:`hapticopt.design.prrr.cad.Bracket`'s, row by row; ``contact`` its
@@ -255,7 +265,7 @@ def _bracket(c: dict[str, np.ndarray], hy, x_in, x_out, wc, Ac, *, checked: bool
     ``message(k)``: why no face carries row k. ``checked=False``: the side face's bracket whatever
     its rules say (the frame model's idealised carriage for designs the CAD refuses)."""
     zero = np.zeros(np.shape(hy))
-    sy = np.where(Ac[..., 1] > 0.0, 1.0, -1.0)
+    sy = _where(Ac[..., 1] > 0.0, 1.0, -1.0)
     back = Ac[..., 0] >= c["r_p"]
     side = _face(np.full(np.shape(hy), "side"), _vec(zero, sy, zero), hy, np.array([1.0, 0.0, 0.0]), x_in, x_out, Ac,
                  wc, c, forced=None if checked else zero == 0.0)
@@ -358,7 +368,7 @@ def _layouts(c: dict[str, np.ndarray]) -> Layouts:
     need(gap >= R + g, lambda k: f"{where(k)}: the R1 clevis at {_mm(np.hypot(Ac[k][0], Ac[k][1]))} mm from the z "
          f"axis lies {'inside' if gap[k] == 0 else f'{_mm(gap[k])} mm from'} the carriage block around the rail "
          f"(allowed ≥ boss radius + clearance = {_mm(R[k] + g[k])} mm): move the rail (r_p, θ_1p)")
-    side = np.where(Ac[..., 1] > 0, -1.0, 1.0)  # SEA housing on the side away from the clevis
+    side = _where(Ac[..., 1] > 0, -1.0, 1.0)  # SEA housing on the side away from the clevis
     b = _bracket(c, hy, x_in, x_out, wc, Ac)
     need(b.ok, b.message)
     # the block spans the bonded patch and the clevis plane's height at its nearest point to the clevis
