@@ -10,6 +10,7 @@ the footprint is the workspace evaluator's ``footprint_diameter_mm``.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -58,11 +59,9 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, shar
     """
     Fidelity(fidelity)
     t0 = time.perf_counter()
-    nan = float("nan")
     blocked = assembly.check(design, with_parts=True)
     if blocked:
-        return DeviceSize(mass=nan, sea_mass=nan, link_mass=nan, frame_mass=nan, height=nan,
-                          wall_s=time.perf_counter() - t0, status=Status.NOT_ASSEMBLABLE, message=blocked)
+        return dataclasses.replace(failed(None, t0), status=Status.NOT_ASSEMBLABLE, message=blocked)
     try:
         specs = cad_prrr.part_specs(design) if shared is None else shared.part_specs(design)
     except HapticoptError as exc:

@@ -109,11 +109,8 @@ class PrrrLayout:
     z axis at the slider height D."""
 
     T: float  # link thickness (axial)
-    W: float  # link width
-    R_boss: float
     r_bore: float
     g: float
-    s_clevis: float  # clevis layer centre (axial, from Π)
     s_link2: float
     s_lug: float  # platform lug centre
     block_x: tuple[float, float]  # carriage block, carriage frame
@@ -121,14 +118,7 @@ class PrrrLayout:
     block_z: tuple[float, float]
     slot: float  # half size of the rail slot
     side: float  # +1 / −1: the side (sign of y) of the SEA housing, screw and motor; the clevis is on −side
-    clevis: np.ndarray  # R1 clevis centre Ac, carriage frame
     bracket: Bracket  # the R1 bracket (carriage frame)
-    housing_y: tuple[float, float]  # SEA spring housing, carriage frame (x and z as the block)
-    screw_xy: np.ndarray  # ball-screw axis, carriage frame
-    motor_xy: np.ndarray  # motor axis, carriage frame
-    lug_rho: float  # radial position of the lug centre (platform frame)
-    arm_length: float  # lug centre to the stem axis
-    stem_bottom: float
     ball_z: float
     z_base_top: float
     z_rail_top: float
@@ -143,12 +133,10 @@ def layout(design: PrrrDesign) -> PrrrLayout:
     err = L.error(())
     if err is not None:
         raise err
-    one = {k: float(getattr(L, k)) for k in ("T", "W", "R_boss", "r_bore", "g", "s_clevis", "s_link2", "s_lug",
-                                                 "block_y", "slot", "side", "lug_rho", "arm_length", "stem_bottom",
-                                                 "ball_z", "z_base_top", "z_rail_top", "height")}
-    pair = {k: (float(getattr(L, k)[0]), float(getattr(L, k)[1])) for k in ("block_x", "block_z", "housing_y")}
-    return PrrrLayout(**one, **pair, clevis=L.clevis, bracket=Bracket.of(L.bracket, ()), screw_xy=L.screw_xy,
-                      motor_xy=L.motor_xy, rows=L)
+    one = {k: float(getattr(L, k)) for k in ("T", "r_bore", "g", "s_link2", "s_lug", "block_y", "slot", "side", "ball_z",
+                                                 "z_base_top", "z_rail_top", "height")}
+    return PrrrLayout(**one, block_x=tuple(map(float, L.block_x)), block_z=tuple(map(float, L.block_z)),
+                      bracket=Bracket.of(L.bracket, ()), rows=L)
 
 
 def carriage_bracket(design: PrrrDesign, *, checked: bool = True) -> Bracket:
@@ -204,7 +192,8 @@ def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = N
     carriages only turn about z and slide along it, so their xy extent is the same at every pose.
     Exact for boxes (corners) and vertical cylinders."""
     specs = part_specs(design) if specs is None else specs
-    frames = _sliding_frames(design)
+    frames = {name: (R[0], o[0]) for name, (R, o) in part_frames_batch(design, np.zeros((1, 3)), np.zeros((1, 3, 2)),
+                                                                      np.zeros((1, 3))).items()}
     out = 0.0
     rows: dict[Kind, list] = {Kind.BOX: [], Kind.CYLINDER: []}  # (Rf, of, R, o, dims) of each primitive
     for name, spec in specs.items():
@@ -238,23 +227,6 @@ def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = N
             # rim of a tilted cylinder: bounded by centre radius + a (+ half its axial projection)
             found.append(np.max(np.hypot(ends[..., 0], ends[..., 1]), axis=1) + a)
     return float(np.fmax.reduce(np.concatenate([np.atleast_1d(v) for v in found])))
-
-
-def _sliding_frames(design: PrrrDesign) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """World rotation (3, 3) and origin (3,) [m] of the parts that do not turn (the base's: base, rails,
-    screws, motors; the carriages and their housings) with every slider at 0: :func:`part_frames_arrays`'
-    values for those parts at one pose (the same operations on the same numbers), without the links'."""
-    eye, zero = np.eye(3), np.zeros(3)
-    out = {"base": (eye, zero)}
-    theta_1p = np.reshape(np.asarray(design.geometry.theta_1p, dtype=float), (-1, 1))
-    for i, gamma in zip(LEGS, GAMMAS):
-        a = gamma + theta_1p  # the rail's radial direction u' at γ + θ_1p
-        ca, sa = float(np.cos(a)[0, 0]), float(np.sin(a)[0, 0])
-        carriage = (np.array([[ca, -sa, 0.0], [sa, ca, 0.0], [0.0, 0.0, 1.0]]), zero)  # columns u', t', e_z
-        out.update({f"rail_{i}": (eye, zero), f"screw_{i}": (eye, zero), f"motor_{i}": (eye, zero),
-                    f"carriage_{i}": carriage, f"housing_{i}": carriage})
-    return out
-
 
 
 def device_height(design: PrrrDesign, *, lay: PrrrLayout | None = None) -> float:
@@ -414,11 +386,6 @@ def joint_axes(design: PrrrDesign, pose: PrrrPose) -> list[JointAxis]:
 
 
 # ---------------------------------------------------------------------------- build123d
-def build_solid(spec: PartSpec):
-    """One part as a build123d solid in its own frame (mm); see :func:`hapticopt.design.parts.build_solid`."""
-    return _parts.build_solid(spec)
-
-
 def build_parts(design: PrrrDesign) -> dict[str, object]:
     """Every part as a build123d solid in its own frame (mm); identical legs are built once."""
     return _parts.build_all(part_specs(design))

@@ -127,19 +127,16 @@ class _Rules:
 
 
 #: the design values the layout reads: column name → (section, field)
-_FIELDS = dict(
-    beta=("geometry", "beta"), r_p=("geometry", "r_p"), d1=("geometry", "d1"), d2=("geometry", "d2"),
-    d3=("geometry", "d3"), d4=("geometry", "d4"), r4=("geometry", "r4"), b5=("geometry", "b5"),
-    stroke=("geometry", "stroke"), theta_1p=("geometry", "theta_1p"), c_e=("geometry", "c_e"),
-    T=("structure", "link_thickness"), W=("structure", "link_width"), g=("structure", "clearance"),
-    boss=("structure", "boss_diameter"), bore=("structure", "bore_diameter"), wall=("structure", "carriage_wall"),
-    tb=("structure", "base_thickness"), rw=("structure", "rail_width"), ch=("structure", "carriage_height"),
-    stem=("structure", "stem_diameter"), rho=("structure", "density"), base_clearance=("structure", "base_clearance"),
-    base_radius=("structure", "base_radius"), sea_envelope=("structure", "sea_envelope"),
-    handle=("end_effector", "handle_diameter"), screw_d=("sea_module", "screw_diameter"),
-    motor_d=("sea_module", "motor_diameter"), motor_length=("sea_module", "motor_length"),
-    motor_offset=("sea_module", "motor_radial_offset"), housing_mass=("sea_module", "housing_mass"),
-    screw_mass=("sea_module", "screw_mass"), motor_mass=("sea_module", "motor_mass"))
+_FIELDS = {**{k: ("geometry", k) for k in ("beta", "r_p", "d1", "d2", "d3", "d4", "r4", "b5", "stroke", "theta_1p", "c_e")},
+           **{k: ("structure", f) for k, f in dict(
+               T="link_thickness", W="link_width", g="clearance", boss="boss_diameter", bore="bore_diameter",
+               wall="carriage_wall", tb="base_thickness", rw="rail_width", ch="carriage_height", stem="stem_diameter",
+               rho="density", base_clearance="base_clearance", base_radius="base_radius",
+               sea_envelope="sea_envelope").items()}, "handle": ("end_effector", "handle_diameter"),
+           **{k: ("sea_module", f) for k, f in dict(
+               screw_d="screw_diameter", motor_d="motor_diameter", motor_length="motor_length",
+               motor_offset="motor_radial_offset", housing_mass="housing_mass", screw_mass="screw_mass",
+               motor_mass="motor_mass").items()}}
 _SECTIONS = ("geometry", "structure", "end_effector", "sea_module")
 #: the design values the R1 bracket reads
 _BRACKET_FIELDS = ("beta", "r_p", "d1", "d2", "theta_1p", "T", "W", "g", "boss", "wall", "rw", "ch")
@@ -301,11 +298,11 @@ def brackets_many(designs: list[PrrrDesign]) -> tuple[dict[str, np.ndarray], np.
     """The R1 bracket of many designs, carriage frame [m], one row per design: ``clevis`` Ac, ``axis``
     w, ``normal`` N, ``e_l``, ``arm_length``, ``root_axes`` (m, 3, 3), ``root_size`` (3 columns along
     e_l, e_f, w), ``contact`` (the patch centre), ``n_p`` and ``contact_size`` (2 columns along e_l,
-    n_p), as the fields of :class:`hapticopt.design.prrr.cad.Bracket`; and the indices ``rest`` of the
+    n_p), as the fields of :class:`hapticopt.design.prrr.cad.Bracket` (and the rest of :data:`BRACKET_KEYS`);
+    and the indices ``rest`` of the
     designs no face carries (their rows are not a bracket; ``cad.carriage_bracket`` raises for them)."""
     b = brackets(designs)
-    keys = ("clevis", "axis", "normal", "e_l", "arm_length", "root_axes", "root_size", "contact", "n_p", "contact_size")
-    return {k: np.array(getattr(b, k)) for k in keys}, np.flatnonzero(~b.ok)
+    return {k: np.array(getattr(b, k)) for k in BRACKET_KEYS}, np.flatnonzero(~b.ok)
 
 
 class Layouts(SimpleNamespace):
