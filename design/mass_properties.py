@@ -95,26 +95,16 @@ def combine(name: str, body: str, members: list[PartMass]) -> PartMass:
                     volume=float(sum(p.volume for p in members)))
 
 
-def _distinct_primitives(specs: dict[str, _parts.PartSpec]) -> tuple[dict[int, int], list]:
-    """(id of a primitive table → its index, the distinct tables in first-seen order): parts that share
-    one table are computed once."""
-    unique: dict[int, int] = {}
-    groups = []
-    for spec in specs.values():
-        if id(spec.primitives) not in unique:
-            unique[id(spec.primitives)] = len(groups)
-            groups.append(spec.primitives)
-    return unique, groups
-
-
 def analytic(design: Any, *, specs: dict[str, _parts.PartSpec]) -> MassProperties:
     """Closed-form mass properties from the part tables (no solids built).
 
     ``specs`` is the device's part table (``design.<device>.cad.part_specs``); each device's
     ``cad.mass_properties(design)`` calls this with its own.
     """
-    unique, groups = _distinct_primitives(specs)
-    props = _parts.volume_properties_many(groups)
+    unique: dict[int, int] = {}  # parts that share one primitive table are integrated once
+    for spec in specs.values():
+        unique.setdefault(id(spec.primitives), len(unique))
+    props = _parts.volume_properties_many(list({id(s.primitives): s.primitives for s in specs.values()}.values()))
     out: dict[str, PartMass] = {}
     for name, spec in specs.items():
         vp = props[unique[id(spec.primitives)]]
@@ -122,15 +112,6 @@ def analytic(design: Any, *, specs: dict[str, _parts.PartSpec]) -> MassPropertie
         out[name] = PartMass(name=name, body=spec.body, mass=rho * vp.volume, com=vp.centroid,
                              inertia=rho * vp.inertia, volume=vp.volume)
     return MassProperties(design=design.name, method=Method.ANALYTIC, parts=out)
-
-
-def analytic_masses(specs: dict[str, _parts.PartSpec]) -> dict[str, float]:
-    """The part masses [kg] of :func:`analytic` alone (name -> mass, in ``specs``' order): the same
-    grouping of the parts and the same volumes (:func:`hapticopt.design.parts.volume_many`), so the same
-    bits (tested), without the centroids and inertia tensors."""
-    unique, groups = _distinct_primitives(specs)
-    volume = _parts.volume_many(groups).tolist()
-    return {name: spec.density * volume[unique[id(spec.primitives)]] for name, spec in specs.items()}
 
 
 def from_cad(design: Any, *, solids: dict[str, Any], specs: dict[str, _parts.PartSpec]) -> MassProperties:

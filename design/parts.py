@@ -165,27 +165,21 @@ def _local_props(kind: np.ndarray, dims: np.ndarray) -> tuple[np.ndarray, np.nda
     inertia-tensor form (n, 3, 3) (diagonal except the wedge's xy product)."""
     a, b, c = dims[:, 0], dims[:, 1], dims[:, 2]
     n = len(kind)
-    v = np.zeros(n)
+    v = volumes(kind, dims)
     cen = np.zeros((n, 3))
     I = np.zeros((n, 3))
     Ixy = np.zeros(n)
     m = kind == Kind.BOX
     if m.any():
-        vb = a[m] * b[m] * c[m]
-        v[m] = vb
-        I[m] = np.stack([b[m] ** 2 + c[m] ** 2, a[m] ** 2 + c[m] ** 2, a[m] ** 2 + b[m] ** 2], axis=1) * (vb / 12.0)[:, None]
+        I[m] = np.stack([b[m] ** 2 + c[m] ** 2, a[m] ** 2 + c[m] ** 2, a[m] ** 2 + b[m] ** 2], axis=1) * (v[m] / 12.0)[:, None]
     m = kind == Kind.CYLINDER
     if m.any():
-        r, h = a[m], b[m]
-        vc = np.pi * r * r * h
-        v[m] = vc
+        r, h, vc = a[m], b[m], v[m]
         ixx = vc * (3 * r * r + h * h) / 12.0
         I[m] = np.stack([ixx, ixx, vc * r * r / 2.0], axis=1)
     m = kind == Kind.SPHERE
     if m.any():
-        vs = 4.0 / 3.0 * np.pi * a[m] ** 3
-        v[m] = vs
-        I[m] = (0.4 * vs * a[m] ** 2)[:, None] * np.ones(3)
+        I[m] = (0.4 * v[m] * a[m] ** 2)[:, None] * np.ones(3)
     m = kind == Kind.CAPSEG
     if m.any():
         R_, h, t = a[m], b[m], c[m]
@@ -200,7 +194,6 @@ def _local_props(kind: np.ndarray, dims: np.ndarray) -> tuple[np.ndarray, np.nda
         xx = np.sum(w * X**3, axis=1) / 3.0 * t
         yy = np.sum(w * y * y * X, axis=1) * t
         zz = A * t**3 / 12.0
-        v[m] = A * t
         cen[m, 0] = Sx / A
         I[m] = np.stack([yy + zz, xx + zz, xx + yy], axis=1)
     m = kind == Kind.WEDGE
@@ -209,7 +202,6 @@ def _local_props(kind: np.ndarray, dims: np.ndarray) -> tuple[np.ndarray, np.nda
         p, q, t = a[m], b[m], c[m]
         A = p * q / 2.0
         xx, yy, zz = p**3 * q / 12.0 * t, p * q**3 / 12.0 * t, A * t**3 / 12.0
-        v[m] = A * t
         cen[m, 0], cen[m, 1] = p / 3.0, q / 3.0
         I[m] = np.stack([yy + zz, xx + zz, xx + yy], axis=1)
         Ixy[m] = -(p * q) ** 2 / 24.0 * t
@@ -219,8 +211,7 @@ def _local_props(kind: np.ndarray, dims: np.ndarray) -> tuple[np.ndarray, np.nda
 
 
 def volumes(kind: np.ndarray, dims: np.ndarray) -> np.ndarray:
-    """Volume [m³] of each primitive (n,): the volume column of :func:`_local_props` alone (the same
-    expressions, so the same bits; tested), for the batched mass model, which needs no moments."""
+    """Volume [m³] of each primitive (n,) of the given kinds and dims (:class:`Kind`)."""
     a, b, c = dims[:, 0], dims[:, 1], dims[:, 2]
     v = np.zeros(len(kind))
     m = kind == Kind.BOX
@@ -242,27 +233,6 @@ def volumes(kind: np.ndarray, dims: np.ndarray) -> np.ndarray:
     return v
 
 
-def _flat_tables(groups):
-    """The primitives of several parts as one table: (the primitives, their count, each one's part index,
-    kind, sign (+1 solid, −1 overlap or hole), dims)."""
-    flat = [p for g in groups for p in g]
-    idx = np.repeat(np.arange(len(groups)), [len(g) for g in groups])
-    kind = np.array([p.kind for p in flat])
-    sign = np.where(np.array([p.role == Role.SOLID for p in flat]), 1.0, -1.0)
-    dims = np.array([p.dims for p in flat], dtype=float)
-    return flat, len(flat), idx, kind, sign, dims
-
-
-def volume_many(groups) -> np.ndarray:
-    """The volumes (n,) [m³] of :func:`volume_properties_many` alone: the same tables, the same volume
-    expressions (:func:`volumes`) and the same signed sum (one product with the same one-hot matrix),
-    so the same bits (tested), without the centroids and moments."""
-    flat, nf, idx, kind, sign, dims = _flat_tables(groups)
-    onehot = np.zeros((len(groups), nf))
-    onehot[idx, np.arange(nf)] = sign
-    return onehot @ volumes(kind, dims)
-
-
 def volume_properties(prims) -> VolumeProps:
     """Closed-form volume properties of a part (SOLID − OVERLAP − HOLE)."""
     return volume_properties_many([prims])[0]
@@ -270,7 +240,11 @@ def volume_properties(prims) -> VolumeProps:
 
 def volume_properties_many(groups) -> list[VolumeProps]:
     """:func:`volume_properties` of several parts in one vectorised pass."""
-    flat, nf, idx, kind, sign, dims = _flat_tables(groups)
+    flat = [p for g in groups for p in g]
+    nf, idx = len(flat), np.repeat(np.arange(len(groups)), [len(g) for g in groups])
+    kind = np.array([p.kind for p in flat])
+    sign = np.where(np.array([p.role == Role.SOLID for p in flat]), 1.0, -1.0)
+    dims = np.array([p.dims for p in flat], dtype=float)
     R = np.array([p.R for p in flat])
     o = np.array([p.o for p in flat])
     v, c_loc, I_loc = _local_props(kind, dims)

@@ -29,8 +29,8 @@ from hapticopt.design.errors import HapticoptError
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.prrr.params import PrrrDesign
 
-#: cached for a whole chunk of the batched draft evaluator (1024 designs, each asked ~6 times:
-#: registry, statics, stability, structure and the part evaluators); 256 thrashed at batch 1024
+#: cached: one evaluation asks it for each design several times (the registry, statics, stability,
+#: structure and the part evaluators), over a chunk of up to 1024 designs in the batched draft evaluator
 @functools.lru_cache(maxsize=4096)
 def parts(design: PrrrDesign) -> str:
     """'' when the CAD lays the design's parts out, else why not (its one-line reason)."""

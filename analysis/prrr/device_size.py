@@ -1,8 +1,7 @@
 """Size and mass of the 3-PRRR as built by the CAD (seed 002 Table 1: φ260 × 231 mm, 4.4 kg).
 
 Masses come from the analytic mass model of the part tables
-(:func:`hapticopt.design.prrr.cad.mass_properties`, tested against OpenCASCADE's integrals; its masses
-alone, :func:`hapticopt.design.mass_properties.analytic_masses`), split
+(:func:`hapticopt.design.mass_properties.analytic`, tested against OpenCASCADE's integrals), split
 into the SEA modules (motor with belt, ball screw, spring housing: ``sea_module`` of the design),
 the moving links (links 1 and 2, platform) and the frame (base plate, rails, carriages). The
 height is the base plate's bottom to the rail tops (:func:`hapticopt.design.prrr.cad.device_height`);
@@ -11,6 +10,7 @@ the footprint is the workspace evaluator's ``footprint_diameter_mm``.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -59,11 +59,9 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, shar
     """
     Fidelity(fidelity)
     t0 = time.perf_counter()
-    nan = float("nan")
     blocked = assembly.check(design, with_parts=True)
     if blocked:
-        return DeviceSize(mass=nan, sea_mass=nan, link_mass=nan, frame_mass=nan, height=nan,
-                          wall_s=time.perf_counter() - t0, status=Status.NOT_ASSEMBLABLE, message=blocked)
+        return dataclasses.replace(failed(None, t0), status=Status.NOT_ASSEMBLABLE, message=blocked)
     try:
         specs = cad_prrr.part_specs(design) if shared is None else shared.part_specs(design)
     except HapticoptError as exc:
@@ -82,10 +80,9 @@ def from_specs(design: PrrrDesign, specs: dict, t0: float, *, lay: Any = None) -
     """Mass split and height from the part tables ``specs`` (:func:`hapticopt.design.prrr.cad.part_specs`
     of ``design``, shared with the batched draft evaluator's other steps; ``lay``: their
     :func:`hapticopt.design.prrr.cad.layout` when the caller has it). The masses are the analytic mass
-    model's (:func:`hapticopt.design.mass_properties.analytic_masses`: its masses without the inertia
-    tensors, the same bits)."""
+    model's (:func:`hapticopt.design.mass_properties.analytic`)."""
     try:
-        masses = _mp.analytic_masses(specs)
+        masses = {name: p.mass for name, p in _mp.analytic(design, specs=specs).parts.items()}
         height = cad_prrr.device_height(design, lay=lay)
     except HapticoptError as exc:
         return failed(exc, t0)
@@ -98,7 +95,7 @@ def from_specs(design: PrrrDesign, specs: dict, t0: float, *, lay: Any = None) -
 
 def from_tables(tables, t0: float) -> list[DeviceSize]:
     """:func:`from_specs` of every design of one part layout at once, from the stacked part tables
-    ``tables`` (:class:`hapticopt.design.prrr.cad_arrays.PartTables`, which carry the device height):
+    ``tables`` (:class:`hapticopt.design.prrr.layout.PartTables`, which carry the device height):
     each part's mass is its density times its signed volume (SOLID − OVERLAP − HOLE, the closed forms
     of :func:`hapticopt.design.parts.volume_properties`: :func:`hapticopt.design.parts.volumes`), summed in part order as :func:`from_specs`
     sums them (tested equal to it)."""

@@ -92,7 +92,7 @@ from hapticopt.analysis.prrr import joint_limits as JL
 from hapticopt.analysis.prrr import stability, statics, structure
 from hapticopt.analysis.prrr import workspace as WS
 from hapticopt.design.errors import HapticoptError, InvalidInput
-from hapticopt.design.prrr import cad, cad_arrays
+from hapticopt.design.prrr import cad, layout as prrr_layout
 from hapticopt.design.prrr.kinematics import PrrrParams, leg_frames
 from hapticopt.design.prrr.params import PrrrDesign
 
@@ -478,7 +478,7 @@ def _part_tables(designs: list[PrrrDesign]) -> tuple[list[Any], list[Any], set[i
     ``cad_arrays.part_tables_many`` tables every design that passes the layout's rules clearly; the
     others (a rule fails, or a threshold within ``cad_arrays.NEAR``) take the per-design functions:
     ``assembly.parts`` (not-assemblable, with its message) and ``cad.part_specs``."""
-    groups, rest = cad_arrays.part_tables_many(designs)
+    groups, rest = prrr_layout.part_tables_many(designs)
     specs: list[Any] = [None] * len(designs)
     for t in groups:
         for k, i in enumerate(t.index.tolist()):

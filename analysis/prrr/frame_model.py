@@ -88,7 +88,7 @@ import numpy as np
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis import compute
 from hapticopt.design.errors import InvalidDesign
-from hapticopt.design.prrr import cad_arrays
+from hapticopt.design.prrr import layout as prrr_layout
 from hapticopt.design.prrr.cad import carriage_bracket
 from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames, params_np
 
@@ -278,7 +278,7 @@ def _brackets_many(designs, sec: Section) -> dict[str, np.ndarray]:
         each = [_bracket_fields(_bracket_of(d)) for d in designs]
         b = {k: np.array([f[k] for f in each], dtype=float) for k in each[0]}
     else:
-        b, rest = cad_arrays.brackets_many(designs)
+        b, rest = prrr_layout.brackets_many(designs)
         for i in rest:
             for k, v in _bracket_fields(_bracket_of(designs[i])).items():
                 b[k][i] = v

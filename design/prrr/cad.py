@@ -1,4 +1,4 @@
-"""Parametric CAD of the 3-PRRR (seed 002): part tables, posed frames, build123d solids.
+"""Parametric CAD of the 3-PRRR (seed 002): per-design part tables, posed frames, build123d solids.
 
 Parts (names used in STEP, STL, MJCF and interference reports):
 ``base``; per leg i = 1, 2, 3: ``rail_i`` (fixed, square bar at r_p·u'_i, u'_i at angle
@@ -14,139 +14,29 @@ carriage clevis [−3T/2−g, −T/2−g], link1 [−T/2, T/2], link2 [T/2+g, 3T
 centred at s3 = max(r4, 2T+2g). Every joint axis is the kinematic axis of
 :mod:`hapticopt.design.prrr.kinematics` (tested), so neighbouring parts never share volume.
 
-All geometry is SI here; build123d receives mm through :mod:`design.cad_units`.
+The dimensions, the buildability rules and the primitives are those of
+:mod:`hapticopt.design.prrr.layout` (one formulation over a leading design axis); the per-design
+objects here are its row for the design, a batch of one. All geometry is SI here; build123d
+receives mm through :mod:`design.cad_units`.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from hapticopt.design import mass_properties as _mp
 from hapticopt.design import parts as _parts
-from hapticopt.design.errors import InvalidDesign
-from hapticopt.design.parts import (
-    JointAxis,
-    Kind,
-    PartSpec,
-    Role,
-    bar_with_bosses,
-    box,
-    cylinder,
-    frame,
-    sphere,
-    transform,
-)
+from hapticopt.design.errors import InvalidDesign, InvalidInput
+from hapticopt.design.parts import JointAxis, Kind, PartSpec, Primitive, Role, transform
+from hapticopt.design.prrr import layout as _layout
+from hapticopt.design.prrr.kinematics import inverse_kinematics, leg_chain, leg_frames, params_of
+from hapticopt.design.prrr.layout import LEGS, MIN_FEATURE
 from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
-from hapticopt.design.prrr.kinematics import inverse_kinematics, params_of
-from hapticopt.design.errors import InvalidInput
-from hapticopt.design.prrr.kinematics import leg_chain, leg_frames
 
-#: smallest wall or feature the CAD accepts [m] (below this OCCT produces slivers)
-MIN_FEATURE = 0.5e-3
-LEGS = (1, 2, 3)
 EZ = np.array([0.0, 0.0, 1.0])
-
-
-def leg_vectors(beta: float, gamma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(u, t, v, w) of one leg, seed 002 leg construction (see hapticopt.design.prrr.kinematics)."""
-    c, s, cb, sb = math.cos(gamma), math.sin(gamma), math.cos(beta), math.sin(beta)
-    u = np.array([c, s, 0.0])
-    t = np.array([-s, c, 0.0])  # e_z × u
-    w = np.array([-cb * c, -cb * s, sb])
-    v = np.array([sb * c, sb * s, cb])
-    return u, t, v, w
-
-
-def rail_direction(design: PrrrDesign, gamma: float) -> tuple[np.ndarray, np.ndarray]:
-    """(u', t'): radial and tangential unit vectors of the rail of the leg at ``gamma``, at angle
-    γ + θ_1p about z (seed 002 θ_1p; the carriage frame's x and y axes)."""
-    a = gamma + design.geometry.theta_1p
-    return np.array([math.cos(a), math.sin(a), 0.0]), np.array([-math.sin(a), math.cos(a), 0.0])
-
-
-def _rot_z(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a × b of two 3-vectors: ``np.cross``'s products and differences (bitwise equal), without its
-    axis handling, which cost half of :func:`carriage_bracket` (measured)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-@dataclass(frozen=True, kw_only=True)
-class PrrrLayout:
-    """Derived CAD dimensions [m] (all from the design; see module docstring). Carriage-frame
-    quantities: x = u' (radial, towards rail i at γ_i + θ_1p), y = t', z = e_z, origin on the
-    z axis at the slider height D."""
-
-    T: float  # link thickness (axial)
-    W: float  # link width
-    R_boss: float
-    r_bore: float
-    g: float
-    s_clevis: float  # clevis layer centre (axial, from Π)
-    s_link2: float
-    s_lug: float  # platform lug centre
-    block_x: tuple[float, float]  # carriage block, carriage frame
-    block_y: float  # half width
-    block_z: tuple[float, float]
-    slot: float  # half size of the rail slot
-    side: float  # +1 / −1: the side (sign of y) of the SEA housing, screw and motor; the clevis is on −side
-    clevis: np.ndarray  # R1 clevis centre Ac, carriage frame
-    bracket: Bracket  # the R1 bracket (carriage frame)
-    housing_y: tuple[float, float]  # SEA spring housing, carriage frame (x and z as the block)
-    screw_xy: np.ndarray  # ball-screw axis, carriage frame
-    motor_xy: np.ndarray  # motor axis, carriage frame
-    lug_rho: float  # radial position of the lug centre (platform frame)
-    arm_length: float  # lug centre to the stem axis
-    stem_bottom: float
-    ball_z: float
-    z_base_top: float
-    z_rail_top: float
-
-
-def _need(cond: bool, message) -> None:
-    """Raise :class:`InvalidDesign` with ``message()`` unless ``cond`` (message built lazily)."""
-    if not cond:
-        raise InvalidDesign(message())
-
-
-def _mm(x: float) -> str:
-    return f"{x * 1e3:g}"
-
-
-def _box_z_extent(centre: np.ndarray, axes: np.ndarray, size) -> tuple[float, float]:
-    """z range [m] of a box (or, with two axes, a rectangle) of the given centre, axes (columns) and sizes."""
-    half = sum(0.5 * d * abs(axes[2, k]) for k, d in enumerate(size))
-    return float(centre[2] - half), float(centre[2] + half)
-
-
-def clevis_point(design: PrrrDesign) -> np.ndarray:
-    """R1 clevis centre Ac = A + s_clevis·w of leg 1 (γ = 0) at D = 0, world frame [m]."""
-    g_, s_ = design.geometry, design.structure
-    u, t, v, w = leg_vectors(g_.beta, 0.0)
-    return g_.d1 * u + g_.d2 * t - (s_.link_thickness + s_.clearance) * w
-
-
-def carried_theta_1p(design: PrrrDesign, *, side: float = 1.0) -> float:
-    """θ_1p [rad] that puts the R1 clevis directly on the carriage (seed 002's device carries R1
-    on the carriage, beside the rail): the clevis boss touches the carriage block's side face
-    (tangential distance from the rail axis = block half width + boss radius + clearance), the
-    SEA housing on the other side (``side`` = +1: housing at +t', clevis at −t'). Depends only on
-    the geometry and part sizes, not on the current θ_1p."""
-    s_ = design.structure
-    Ac = clevis_point(design)
-    rho = math.hypot(Ac[0], Ac[1])
-    hy = s_.rail_width / 2 + s_.clearance + s_.carriage_wall
-    off = hy + s_.boss_diameter / 2 + s_.clearance
-    _need(off < rho, lambda: f"geometry.r_p_mm / theta_1p_deg: the carriage ({_mm(2 * hy)} mm wide) cannot carry the "
-          f"R1 clevis at {_mm(rho)} mm from the z axis")
-    return math.atan2(Ac[1], Ac[0]) + side * math.asin(off / rho)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -180,7 +70,7 @@ class Bracket:
     contact_centre: np.ndarray  # (3,) centre of the bonded patch (the root's section in the face plane)
     contact_axes: np.ndarray  # (3, 2) columns e_l, n_p (the face plane's direction normal to e_l)
     contact_size: tuple[float, float]  # along e_l, n_p
-    wedge: _parts.Primitive  # the root's part inside the block (OVERLAP, carriage frame)
+    wedge: Primitive  # the root's part inside the block (OVERLAP, carriage frame)
     face: str  # "side" (the y face beside the rail, preferred) or "front"/"back" (the x faces)
 
     @property
@@ -199,6 +89,54 @@ class Bracket:
         arm's axis (the plane through Ac normal to e_f) [m]."""
         e_f = self.root_axes[:, 1]
         return self.contact_centre - ((self.contact_centre - self.clevis) @ e_f) * e_f
+
+    @classmethod
+    def of(cls, b, k: int) -> Bracket:
+        """Row ``k`` of the layout's bracket columns ``b`` (:func:`hapticopt.design.prrr.layout.brackets`;
+        ``k = ()`` for one design's)."""
+        return cls(clevis=b.clevis[k], axis=b.axis[k], normal=np.array(b.normal[k]), e_l=b.e_l[k],
+                   arm_length=float(b.arm_length[k]), root_centre=b.root_centre[k], root_axes=b.root_axes[k],
+                   root_size=tuple(b.root_size[k].tolist()), contact_centre=b.contact[k],
+                   contact_axes=np.stack([b.e_l[k], b.n_p[k]], axis=1), contact_size=tuple(b.contact_size[k].tolist()),
+                   wedge=_parts.wedge(b.wedge_o[k], b.wedge_R[k], *b.wedge_dims[k].tolist()),
+                   face=_layout.FACES[int(b.face[k])])
+
+
+@dataclass(frozen=True, kw_only=True)
+class PrrrLayout:
+    """Derived CAD dimensions of one design [m] (see the module docstring). Carriage-frame
+    quantities: x = u' (radial, towards rail i at γ_i + θ_1p), y = t', z = e_z, origin on the
+    z axis at the slider height D."""
+
+    T: float  # link thickness (axial)
+    r_bore: float
+    g: float
+    s_link2: float
+    s_lug: float  # platform lug centre
+    block_x: tuple[float, float]  # carriage block, carriage frame
+    block_y: float  # half width
+    block_z: tuple[float, float]
+    slot: float  # half size of the rail slot
+    side: float  # +1 / −1: the side (sign of y) of the SEA housing, screw and motor; the clevis is on −side
+    bracket: Bracket  # the R1 bracket (carriage frame)
+    ball_z: float
+    z_base_top: float
+    z_rail_top: float
+    height: float  # the device height (:func:`device_height`)
+    rows: _layout.Layouts = field(repr=False)  # the layout of the design alone, all its columns (its part tables)
+
+
+def layout(design: PrrrDesign) -> PrrrLayout:
+    """Derived dimensions, after the buildability rules; raises :class:`InvalidDesign` naming
+    the parameter when a part would be degenerate (zero-thickness wall, disconnected bracket…)."""
+    L = _layout.layouts(design)
+    err = L.error(())
+    if err is not None:
+        raise err
+    one = {k: float(getattr(L, k)) for k in ("T", "r_bore", "g", "s_link2", "s_lug", "block_y", "slot", "side", "ball_z",
+                                                 "z_base_top", "z_rail_top", "height")}
+    return PrrrLayout(**one, block_x=tuple(map(float, L.block_x)), block_z=tuple(map(float, L.block_z)),
+                      bracket=Bracket.of(L.bracket, ()), rows=L)
 
 
 def carriage_bracket(design: PrrrDesign, *, checked: bool = True) -> Bracket:
@@ -219,181 +157,28 @@ def carriage_bracket(design: PrrrDesign, *, checked: bool = True) -> Bracket:
     slider height. The bonded patch and the let-in part lie inside the block face's horizontal
     extent; the block grows in z to cover them (:func:`layout`).
     """
+    b = _layout.brackets(design, checked=checked)
+    if not b.ok:
+        raise InvalidDesign(b.message(()))
+    return Bracket.of(b, ())
+
+
+def carried_theta_1p(design: PrrrDesign, *, side: float = 1.0) -> float:
+    """θ_1p [rad] that puts the R1 clevis directly on the carriage (seed 002's device carries R1
+    on the carriage, beside the rail): the clevis boss touches the carriage block's side face
+    (tangential distance from the rail axis = block half width + boss radius + clearance), the
+    SEA housing on the other side (``side`` = +1: housing at +t', clevis at −t'). Depends only on
+    the geometry and part sizes, not on the current θ_1p."""
     g_, s_ = design.geometry, design.structure
-    T, W, g = s_.link_thickness, s_.link_width, s_.clearance
-    R = s_.boss_diameter / 2
-    hy = s_.rail_width / 2 + g + s_.carriage_wall
-    x_in, x_out = g_.r_p - hy, g_.r_p + hy
-    _, _, _, w = leg_vectors(g_.beta, 0.0)
-    Rz = _rot_z(-g_.theta_1p)
-    wc = Rz @ w
-    Ac = Rz @ np.array([g_.d1, g_.d2, 0.0]) - (T + g) * wc
-    sy = 1.0 if Ac[1] > 0.0 else -1.0  # the clevis side (layout puts the SEA housing on the other)
-    sx = 1.0 if Ac[0] >= g_.r_p else -1.0
-    # (name, N, face offset N·x, in-face horizontal axis h, its extent on the face)
-    faces = (("side", np.array([0.0, sy, 0.0]), hy, np.array([1.0, 0.0, 0.0]), (x_in, x_out)),
-             ("back" if sx > 0 else "front", np.array([sx, 0.0, 0.0]), x_out if sx > 0 else -x_in,
-              np.array([0.0, 1.0, 0.0]), (-hy, hy)))
-    tried = []
-    for k, (name, N, f, h, (h_lo, h_hi)) in enumerate(faces):
-        unchecked = not checked and k == 0
-        e_l = _cross3(N, wc)
-        if np.linalg.norm(e_l) < 1e-9:
-            tried.append(f"{name} face: the clevis plane is parallel to it")
-            continue
-        e_l /= np.linalg.norm(e_l)
-        if (0.5 * (h_lo + h_hi) - h @ Ac) * (e_l @ h) < 0.0:
-            e_l = -e_l  # towards the face
-        # the clevis plane's section normal to e_l: e_f towards the face, e_c the side of the layer
-        # that meets the face first; N = −ν e_f − μ e_c (ν² + μ² = 1, ν > 0, μ ≥ 0)
-        e_f = _cross3(wc, e_l)
-        e_f = -e_f if e_f @ N > 0.0 else e_f
-        e_c = wc if wc @ N <= 0.0 else -wc
-        nu, mu = float(-(e_f @ N)), float(-(e_c @ N))
-        n0 = float(N @ Ac - f)  # the clevis centre's height above the face plane
-        depth = n0 - nu * W / 2 - mu * T / 2  # the arm's clearance from the face plane
-        # section coordinates (a along e_f, c along e_c) about Ac: the layer's +T/2 side meets the
-        # face at a1, the plate is let in d_in deep (≤ the wall beside the rail slot) and ends at
-        # a_end; the bonded patch runs from (a1, T/2) along (μ, −ν) over width L_b
-        a1 = (n0 - mu * T / 2) / nu
-        d_in = min(mu * T, s_.carriage_wall)
-        a_end = a1 + d_in / nu
-        L_b = T / nu if mu * T <= s_.carriage_wall else d_in / (mu * nu)
-        sec = np.array([[a1, T / 2], [a1 + mu * L_b, T / 2 - nu * L_b], [a_end, T / 2]])  # patch ends, deep corner
-        q = sec[:, 0] * (e_f @ h) + sec[:, 1] * (e_c @ h)  # their offsets along h
-        a = e_l @ h
-        if a > 0.0:
-            lo_e, hi_e = (h_lo - h @ Ac - q.min()) / a, (h_hi - h @ Ac - q.max()) / a
-        else:
-            lo_e, hi_e = (h_hi - h @ Ac - q.max()) / a, (h_lo - h @ Ac - q.min()) / a
-        l0, l1 = max(lo_e, R + g), hi_e
-        forced = unchecked  # the side face, whatever the rules say
-        if forced and (depth < 0.0 or l1 - l0 < W / 2):  # an idealised root: the face's length beyond the boss
-            l0, l1 = R + g, R + g + max(l1 - l0, h_hi - h_lo)
-        elif depth < 0.0:
-            tried.append(f"{name} face: the arm would cut {_mm(-depth)} mm into the block")
-            continue
-        elif l1 - l0 < W / 2:
-            tried.append(f"{name} face: a root {_mm(max(l1 - l0, 0.0))} mm long (allowed ≥ link_width/2 = {_mm(W / 2)} mm)")
-            continue
-        lm = 0.5 * (l0 + l1)
-        n_p = mu * e_f - nu * e_c  # the face plane's direction normal to e_l (along the patch)
-        a_c, c_c = a1 + mu * L_b / 2, T / 2 - nu * L_b / 2
-        contact = Ac + lm * e_l + a_c * e_f + c_c * e_c
-        zc = _box_z_extent(contact, np.stack([e_l, n_p], axis=1), (l1 - l0, L_b))
-        if max(-zc[0], zc[1]) > 2 * s_.carriage_height + 1e-12 and not forced:
-            tried.append(f"{name} face: the root would meet the carriage up to {_mm(max(-zc[0], zc[1]))} mm off its "
-                         f"centre (allowed ≤ 2·structure.carriage_height_mm = {_mm(2 * s_.carriage_height)} mm)")
-            continue
-        plate = max(a_end + W / 2, MIN_FEATURE)  # (only an idealised root can have the face inside the arm)
-        wedge = _parts.wedge(Ac + lm * e_l + a_end * e_f + T / 2 * e_c, _parts.frame(-e_f, _cross3(e_f, e_c)),
-                             a_end - a1, d_in / mu if mu * T > 1e-12 else T, l1 - l0)
-        return Bracket(clevis=Ac, axis=wc, normal=N, e_l=e_l, arm_length=float(l0),
-                       root_centre=Ac + lm * e_l + (a_end - W / 2) / 2 * e_f,
-                       root_axes=np.stack([e_l, e_f, _cross3(e_l, e_f)], axis=1),
-                       root_size=(float(l1 - l0), float(plate), float(T)),
-                       contact_centre=contact, contact_axes=np.stack([e_l, n_p], axis=1),
-                       contact_size=(float(l1 - l0), float(L_b)), wedge=wedge, face=name)
-    raise InvalidDesign(f"geometry.r_p_mm = {_mm(g_.r_p)}, geometry.theta_1p_deg = {math.degrees(g_.theta_1p):.4g}, "
-                        f"geometry.beta_deg = {math.degrees(g_.beta):g}: no face of the carriage block can carry the R1 "
-                        f"clevis ({'; '.join(tried)}): move the rail or change beta")
-
-
-def layout(design: PrrrDesign) -> PrrrLayout:
-    """Derived dimensions, after the buildability rules; raises :class:`InvalidDesign` naming
-    the parameter when a part would be degenerate (zero-thickness wall, disconnected bracket…)."""
-    g_, s_, e_, m_ = design.geometry, design.structure, design.end_effector, design.sea_module
-    beta = g_.beta
-    T, W, g = s_.link_thickness, s_.link_width, s_.clearance
-    R, r = s_.boss_diameter / 2, s_.bore_diameter / 2
-    deg = math.degrees(beta)
-    where = f"geometry.r_p_mm = {_mm(g_.r_p)}, geometry.theta_1p_deg = {math.degrees(g_.theta_1p):.4g}"
-    # --- cross-sections and walls
-    for key, val in (("link_thickness_mm", T), ("link_width_mm", W), ("clearance_mm", g),
-                     ("carriage_wall_mm", s_.carriage_wall), ("base_thickness_mm", s_.base_thickness)):
-        _need(val >= MIN_FEATURE, lambda: f"structure.{key} = {_mm(val)} is too thin for the CAD: allowed ≥ {_mm(MIN_FEATURE)} (mm)")
-    _need(R - r >= MIN_FEATURE,
-          lambda: f"structure.bore_diameter_mm = {_mm(2 * r)} leaves a boss wall of {_mm(R - r)} mm: allowed ≤ "
-          f"structure.boss_diameter_mm − {_mm(2 * MIN_FEATURE)} = {_mm(2 * R - 2 * MIN_FEATURE)} (mm)")
-    for key, L in (("d3_mm", g_.d3), ("d4_mm", g_.d4)):
-        _need(L >= 2 * R + MIN_FEATURE,
-              lambda: f"geometry.{key} = {_mm(L)} is too short for two bosses of structure.boss_diameter_mm = {_mm(2 * R)}: "
-              f"allowed ≥ {_mm(2 * R + MIN_FEATURE)} (mm)")
-    _need(e_.handle_diameter > s_.stem_diameter + 2 * MIN_FEATURE,
-          lambda: f"end_effector.handle_diameter_mm = {_mm(e_.handle_diameter)} must exceed structure.stem_diameter_mm "
-          f"= {_mm(s_.stem_diameter)} + {_mm(2 * MIN_FEATURE)} (mm)")
-    _need(m_.screw_diameter + 2 * MIN_FEATURE <= s_.sea_envelope,
-          lambda: f"sea_module.screw_diameter_mm = {_mm(m_.screw_diameter)} does not fit the spring housing of "
-          f"structure.sea_envelope_mm = {_mm(s_.sea_envelope)}: allowed ≤ {_mm(s_.sea_envelope - 2 * MIN_FEATURE)} (mm)")
-    s_clevis, s_link2 = -(T + g), T + g
-    s_lug = max(g_.r4, 2 * T + 2 * g)
-    # --- carriage block around the rail (carriage frame: x = u', y = t', z = e_z, origin on the axis at D)
-    half_slot = s_.rail_width / 2 + g
-    hy = half_slot + s_.carriage_wall
-    x_in = g_.r_p - hy
-    x_out = g_.r_p + hy
-    _need(x_in > 0.0, lambda: f"{where}: the carriage crosses the z axis (geometry.r_p_mm must exceed rail_width/2 + "
-          f"clearance + carriage_wall = {_mm(hy)} mm)")
-    u, t, v, w = leg_vectors(beta, 0.0)
-    Rz = _rot_z(-g_.theta_1p)  # world (leg 1) → carriage frame
-    A = Rz @ np.array([g_.d1, g_.d2, 0.0])
-    wc = Rz @ w
-    Ac = A + s_clevis * wc
-    # the clevis must sit outside the block (R1 carried beside the rail, not inside the carriage)
-    qx = min(max(Ac[0], x_in), x_out)
-    qy = min(max(Ac[1], -hy), hy)
-    gap = math.hypot(Ac[0] - qx, Ac[1] - qy)
-    _need(gap >= R + g,
-          lambda: f"{where}: the R1 clevis at {_mm(math.hypot(Ac[0], Ac[1]))} mm from the z axis lies "
-          f"{'inside' if gap == 0 else f'{_mm(gap)} mm from'} the carriage block around the rail "
-          f"(allowed ≥ boss radius + clearance = {_mm(R + g)} mm): move the rail (r_p, θ_1p)")
-    side = -1.0 if Ac[1] > 0 else 1.0  # SEA housing on the side away from the clevis
-    # R1 bracket: clevis arm + root plate let into a block face, both in the clevis layer
-    # (carriage_bracket); the block grows in z to carry the whole bonded patch
-    bracket = carriage_bracket(design)
-    hz = s_.carriage_height / 2
-    zc = _box_z_extent(bracket.contact_centre, bracket.contact_axes, bracket.contact_size)
-    # the block also spans the clevis plane's height at its nearest point to the clevis ± (W/2 + T), the
-    # extent issue 15 released with: a block only as tall as the root lifts the base plate, rails and
-    # motors 17 mm for prrr-paper, and the motors then meet link2 of the next leg at the bottom of the
-    # φ140 columns (docs/cad.md, "R1 bracket")
-    ze = Ac[2] - (wc[0] * (qx - Ac[0]) + wc[1] * (qy - Ac[1])) / wc[2]
-    reach = W / 2 + T
-    _need(abs(ze) <= 4 * hz + 1e-12,
-          lambda: f"geometry.beta_deg = {deg:g}: the clevis plane meets the carriage {_mm(abs(ze))} mm off its centre "
-          f"(allowed ≤ 2·structure.carriage_height_mm = {_mm(4 * hz)} mm); raise beta or move the rail ({where})")
-    block_z = (min(-hz, ze - reach, zc[0]), max(hz, ze + reach, zc[1]))
-    # --- SEA module: spring housing beside the block, ball screw through it, motor beside the housing
-    housing_y = tuple(sorted((side * hy, side * (hy + s_.sea_envelope))))
-    screw_xy = np.array([g_.r_p, side * (hy + s_.sea_envelope / 2)])
-    Rm = m_.motor_diameter / 2
-    motor_xy = np.array([g_.r_p + m_.motor_radial_offset, side * (hy + s_.sea_envelope + g + Rm)])
-    # --- platform (frame at p): lug centres at radius rho, arms along −v to the stem axis
-    lug_rho = (g_.b5 - (s_lug - g_.r4)) * math.cos(beta)
-    arm_length = lug_rho / math.sin(beta)
-    Rs = s_.stem_diameter / 2
-    _need(lug_rho - R * math.sin(beta) - T / 2 * math.cos(beta) >= Rs + MIN_FEATURE,
-          lambda: f"geometry.b5_mm = {_mm(g_.b5)} (with beta_deg = {deg:g}): the R3 lugs at radius {_mm(lug_rho)} mm "
-          f"run into the stem of structure.stem_diameter_mm = {_mm(2 * Rs)}; raise b5 or reduce the stem/boss")
-    _need(arm_length <= 10 * (g_.b5 + g_.r4),
-          lambda: f"geometry.beta_deg = {deg:g} is too flat for the platform: arms of {_mm(arm_length)} mm (allowed ≥ "
-          f"{math.degrees(math.asin(min(1.0, lug_rho / (10 * (g_.b5 + g_.r4))))):.3g} deg)")
-    lug_z = (s_lug - g_.r4) * math.sin(beta)
-    stem_bottom = lug_z - lug_rho * math.cos(beta) / math.sin(beta) - T
-    lug_top = lug_z + T / 2 * math.sin(beta) + R * math.cos(beta)
-    ball_z = lug_top + e_.handle_diameter / 2 + 2e-3
-    # --- base and rails from the carriage's lowest/highest point over the stroke
-    c_e, half = g_.c_e, g_.stroke / 2
-    root_z = _box_z_extent(bracket.root_centre, bracket.root_axes, bracket.root_size)
-    carriage_lo = min(block_z[0], root_z[0], Ac[2] - T / 2 * math.sin(beta) - R * math.cos(beta))
-    carriage_hi = max(block_z[1], root_z[1], Ac[2] + T / 2 * math.sin(beta) + R * math.cos(beta))
-    z_base_top = c_e - half + carriage_lo - s_.base_clearance
-    z_rail_top = c_e + half + carriage_hi + s_.base_clearance
-    return PrrrLayout(T=T, W=W, R_boss=R, r_bore=r, g=g, s_clevis=s_clevis, s_link2=s_link2, s_lug=s_lug,
-                      block_x=(x_in, x_out), block_y=hy, block_z=block_z, slot=half_slot, side=side, clevis=Ac,
-                      bracket=bracket, housing_y=housing_y, screw_xy=screw_xy, motor_xy=motor_xy,
-                      lug_rho=lug_rho, arm_length=arm_length,
-                      stem_bottom=stem_bottom, ball_z=ball_z, z_base_top=z_base_top, z_rail_top=z_rail_top)
+    # the clevis centre Ac = A − (T + g)·w of leg 1 (γ = 0, w = (−cos β, 0, sin β)) at D = 0, world frame
+    Ac = (g_.d1 + (s_.link_thickness + s_.clearance) * math.cos(g_.beta), g_.d2)
+    rho = math.hypot(Ac[0], Ac[1])
+    hy = s_.rail_width / 2 + s_.clearance + s_.carriage_wall
+    off = hy + s_.boss_diameter / 2 + s_.clearance
+    if not off < rho:
+        raise InvalidDesign(f"geometry.r_p_mm / theta_1p_deg: the carriage ({2 * hy * 1e3:g} mm wide) cannot carry "
+                            f"the R1 clevis at {rho * 1e3:g} mm from the z axis")
+    return math.atan2(Ac[1], Ac[0]) + side * math.asin(off / rho)
 
 
 #: the eight corners of a unit box about its centre (±½ each axis)
@@ -407,7 +192,8 @@ def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = N
     carriages only turn about z and slide along it, so their xy extent is the same at every pose.
     Exact for boxes (corners) and vertical cylinders."""
     specs = part_specs(design) if specs is None else specs
-    frames = _sliding_frames(design)
+    frames = {name: (R[0], o[0]) for name, (R, o) in part_frames_batch(design, np.zeros((1, 3)), np.zeros((1, 3, 2)),
+                                                                      np.zeros((1, 3))).items()}
     out = 0.0
     rows: dict[Kind, list] = {Kind.BOX: [], Kind.CYLINDER: []}  # (Rf, of, R, o, dims) of each primitive
     for name, spec in specs.items():
@@ -443,156 +229,34 @@ def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = N
     return float(np.fmax.reduce(np.concatenate([np.atleast_1d(v) for v in found])))
 
 
-def _sliding_frames(design: PrrrDesign) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """World rotation (3, 3) and origin (3,) [m] of the parts that do not turn (the base's: base, rails,
-    screws, motors; the carriages and their housings) with every slider at 0: :func:`part_frames_arrays`'
-    values for those parts at one pose (the same operations on the same numbers), without the links'."""
-    eye, zero = np.eye(3), np.zeros(3)
-    out = {"base": (eye, zero)}
-    theta_1p = np.reshape(np.asarray(design.geometry.theta_1p, dtype=float), (-1, 1))
-    for i, gamma in zip(LEGS, GAMMAS):
-        a = gamma + theta_1p  # rail_direction(design, gamma)
-        ca, sa = float(np.cos(a)[0, 0]), float(np.sin(a)[0, 0])
-        carriage = (np.array([[ca, -sa, 0.0], [sa, ca, 0.0], [0.0, 0.0, 1.0]]), zero)  # columns u', t', e_z
-        out.update({f"rail_{i}": (eye, zero), f"screw_{i}": (eye, zero), f"motor_{i}": (eye, zero),
-                    f"carriage_{i}": carriage, f"housing_{i}": carriage})
-    return out
-
-
 def device_height(design: PrrrDesign, *, lay: PrrrLayout | None = None) -> float:
     """Height of the device [m]: base plate bottom to the rail tops or the motor tops, whichever is
     higher (seed 002 Table 1: 231 mm); ``lay``: :func:`layout` of ``design`` when the caller has it."""
-    L = layout(design) if lay is None else lay
-    top = max(L.z_rail_top, L.z_base_top + design.sea_module.motor_length)
-    return top - L.z_base_top + design.structure.base_thickness
-
-
-# ---------------------------------------------------------------------------- part tables
-def _carriage(design: PrrrDesign, L: PrrrLayout) -> list:
-    g_ = design.geometry
-    I = np.eye(3)
-    (x0, x1), hy, (z0, z1) = L.block_x, L.block_y, L.block_z
-    prims = [
-        box(((x0 + x1) / 2, 0.0, (z0 + z1) / 2), I, x1 - x0, 2 * hy, z1 - z0),
-        box((g_.r_p, 0.0, (z0 + z1) / 2), I, 2 * L.slot, 2 * L.slot, z1 - z0, role=Role.HOLE),
-    ]
-    b = L.bracket
-    wc = _rot_z(-g_.theta_1p) @ leg_vectors(g_.beta, 0.0)[3]
-    # clevis arm (link section, clevis layer) from the clevis centre to the root's near end face, and
-    # the root plate let into the block face: arm and root meet face to face; the root's part inside
-    # the block (a wedge) is counted once (OVERLAP)
-    arm = bar_with_bosses(frame(b.e_l, wc), b.clevis, 0.0, b.arm_length, width=L.W, thickness=L.T, z=0.0,
-                          bosses=(0.0,), boss_radius=L.R_boss, bore_radius=L.r_bore)
-    root = box(b.root_centre, b.root_axes, *b.root_size)
-    return prims + arm + [root, b.wedge]
-
-
-def _housing(design: PrrrDesign, L: PrrrLayout) -> list:
-    """SEA spring housing (springs, nut, deflection encoder): a box beside the carriage block."""
-    (x0, x1), (y0, y1), (z0, z1) = L.block_x, L.housing_y, L.block_z
-    return [box(((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2), np.eye(3), x1 - x0, y1 - y0, z1 - z0)]
-
-
-def _fixed_cylinder(design: PrrrDesign, gamma: float, xy: np.ndarray, radius: float, z0: float, z1: float) -> list:
-    """A vertical cylinder at carriage-frame ``xy`` of the leg at ``gamma``, world frame, z0…z1."""
-    up, tp = rail_direction(design, gamma)
-    c = xy[0] * up + xy[1] * tp + (z0 + z1) / 2 * EZ
-    return [cylinder(c, EZ, radius, z1 - z0)]
-
-
-def _density(mass: float, prims: list) -> float:
-    vol = sum(p.dims[0] * p.dims[1] * p.dims[2] if p.kind == Kind.BOX else math.pi * p.dims[0] ** 2 * p.dims[1]
-              for p in prims if p.role == Role.SOLID)
-    return mass / vol
-
-
-def _ray_box_entry(o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
-    with np.errstate(divide="ignore"):
-        t1, t2 = (lo - o) / d, (hi - o) / d
-    return float(np.max(np.minimum(t1, t2)))
-
-
-def _link1(design: PrrrDesign, L: PrrrLayout) -> list:
-    d3 = design.geometry.d3
-    return bar_with_bosses(np.eye(3), np.zeros(3), 0.0, d3, width=L.W, thickness=L.T, z=0.0, bosses=(0.0, d3),
-                           boss_radius=L.R_boss, bore_radius=L.r_bore)
-
-
-def _link2(design: PrrrDesign, L: PrrrLayout) -> list:
-    d4 = design.geometry.d4
-    prims = bar_with_bosses(np.eye(3), np.zeros(3), 0.0, d4, width=L.W, thickness=L.T, z=L.s_link2,
-                            bosses=(0.0, d4), boss_radius=L.R_boss, bore_radius=L.r_bore)
-    top = L.s_link2 + L.T / 2
-    riser = L.s_lug - L.T / 2 - L.g - top  # R3 boss raised to meet the platform lug
-    if riser > MIN_FEATURE:
-        c = np.array([d4, 0.0, top + riser / 2])
-        prims += [cylinder(c, EZ, L.R_boss, riser), cylinder(c, EZ, L.r_bore, riser, role=Role.HOLE)]
-    return prims
-
-
-def _platform(design: PrrrDesign, L: PrrrLayout) -> list:
-    g_, s_ = design.geometry, design.structure
-    prims = []
-    Rs = s_.stem_diameter / 2
-    for gamma in GAMMAS:
-        u, t, v, w = leg_vectors(g_.beta, gamma)
-        c = g_.b5 * math.cos(g_.beta) * u + (L.s_lug - g_.r4) * w
-        Ra = frame(-v, w)
-        # arm from the lug axis to the stem axis, width = stem diameter, analytic up to the stem surface
-        prims += bar_with_bosses(Ra, c, 0.0, L.arm_length, width=2 * Rs, thickness=L.T, z=0.0, bosses=(0.0,),
-                                 boss_radius=L.R_boss, bore_radius=L.r_bore)
-        s_in = (L.lug_rho - Rs) / math.sin(g_.beta)
-        prims.append(box(c + (s_in + L.arm_length) / 2 * Ra[:, 0], Ra, L.arm_length - s_in, 2 * Rs, L.T,
-                         role=Role.OVERLAP))
-    rb = design.end_effector.handle_diameter / 2
-    cap = math.sqrt(rb * rb - Rs * Rs)
-    h = L.ball_z - L.stem_bottom
-    prims.append(cylinder((0.0, 0.0, L.stem_bottom + h / 2), EZ, Rs, h))
-    prims.append(cylinder((0.0, 0.0, L.ball_z - cap / 2), EZ, Rs, cap, role=Role.OVERLAP))
-    prims.append(sphere((0.0, 0.0, L.ball_z), rb))
-    return prims
-
-
-def _rail(design: PrrrDesign, L: PrrrLayout, gamma: float) -> list:
-    rw = design.structure.rail_width
-    u, _ = rail_direction(design, gamma)
-    h = L.z_rail_top - L.z_base_top
-    c = design.geometry.r_p * u + (L.z_base_top + h / 2) * EZ
-    return [box(c, frame(u, EZ), rw, rw, h)]
-
-
-def _base(design: PrrrDesign, L: PrrrLayout) -> list:
-    tb = design.structure.base_thickness
-    return [cylinder((0.0, 0.0, L.z_base_top - tb / 2), EZ, design.structure.base_radius, tb)]
+    return (layout(design) if lay is None else lay).height
 
 
 def part_specs(design: PrrrDesign, *, lay: PrrrLayout | None = None) -> dict[str, PartSpec]:
-    """Every part in its own frame (see :func:`part_frames`), SI; ``lay``: :func:`layout` of ``design``
-    when the caller has it."""
-    L = layout(design) if lay is None else lay
-    rho = design.structure.density
-    out: dict[str, PartSpec] = {"base": PartSpec(name="base", body="base", density=rho,
-                                                 primitives=tuple(_base(design, L)))}
-    m_ = design.sea_module
-    carriage, link1, link2, housing = (tuple(f(design, L)) for f in (_carriage, _link1, _link2, _housing))
-    rho_housing = _density(m_.housing_mass, list(housing))
-    for i, gamma in zip(LEGS, GAMMAS):
-        out[f"rail_{i}"] = PartSpec(name=f"rail_{i}", body="base", density=rho,
-                                    primitives=tuple(_rail(design, L, gamma)))
-        screw = _fixed_cylinder(design, gamma, L.screw_xy, m_.screw_diameter / 2, L.z_base_top, L.z_rail_top)
-        motor = _fixed_cylinder(design, gamma, L.motor_xy, m_.motor_diameter / 2, L.z_base_top,
-                                L.z_base_top + m_.motor_length)
-        out[f"screw_{i}"] = PartSpec(name=f"screw_{i}", body="base", density=_density(m_.screw_mass, screw),
-                                     primitives=tuple(screw))
-        out[f"motor_{i}"] = PartSpec(name=f"motor_{i}", body="base", density=_density(m_.motor_mass, motor),
-                                     primitives=tuple(motor))
-    for i in LEGS:
-        out[f"carriage_{i}"] = PartSpec(name=f"carriage_{i}", body=f"carriage_{i}", density=rho, primitives=carriage)
-        out[f"housing_{i}"] = PartSpec(name=f"housing_{i}", body=f"carriage_{i}", density=rho_housing,
-                                       primitives=housing)
-        out[f"link1_{i}"] = PartSpec(name=f"link1_{i}", body=f"link1_{i}", density=rho, primitives=link1)
-        out[f"link2_{i}"] = PartSpec(name=f"link2_{i}", body=f"link2_{i}", density=rho, primitives=link2)
-    out["platform"] = PartSpec(name="platform", body="platform", density=rho, primitives=tuple(_platform(design, L)))
+    """Every part in its own frame (see :func:`part_frames`), SI: the layout's primitive tables
+    (:mod:`hapticopt.design.prrr.layout`) of ``design``; the parts of the three legs that are the
+    same in each leg's frame share one primitive tuple (built and integrated once). ``lay``:
+    :func:`layout` of ``design`` when the caller has it."""
+    L = (layout(design) if lay is None else lay).rows
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        tab = _layout._tables(L)
+        o, R, dims = tab.values()
+    dims = dims.tolist()
+    riser = bool(L.riser > MIN_FEATURE)
+    prims: dict[int, list] = {}
+    for j, (p, kind, role, *_, riser_only) in enumerate(tab.prims):
+        if riser or not riser_only:
+            prims.setdefault(p, []).append(Primitive(kind=kind, role=role, o=o[j], R=R[j], dims=tuple(dims[j])))
+    shared: dict[int, tuple] = {}
+    out = {}
+    for k, (name, body, density, same) in enumerate(tab.parts):
+        src = k if same is None else same
+        if src not in shared:
+            shared[src] = tuple(prims.get(src, ()))
+        out[name] = PartSpec(name=name, body=body, density=float(density), primitives=shared[src])
     return out
 
 
@@ -674,7 +338,7 @@ def part_frames_arrays(beta, d1, d2, d3, theta_1p, sliders: np.ndarray, theta: n
     out = {"base": (eye, zero)}
     for k, (i, gamma) in enumerate(zip(LEGS, GAMMAS)):
         c, s = math.cos(gamma), math.sin(gamma)
-        # leg_vectors(beta, gamma), one row per pose
+        # the leg's vectors (hapticopt.design.prrr.layout.leg_vectors), one row per pose
         u = np.broadcast_to(np.array([c, s, 0.0]), (n, 3))
         t = np.broadcast_to(np.array([-s, c, 0.0]), (n, 3))
         w = np.broadcast_to(np.concatenate([-cb * c, -cb * s, sb], axis=1), (n, 3))
@@ -685,7 +349,7 @@ def part_frames_arrays(beta, d1, d2, d3, theta_1p, sliders: np.ndarray, theta: n
         e12 = np.cos(th1 + th2)[:, None] * v + np.sin(th1 + th2)[:, None] * t
         A = D[:, None] * EZ + d1 * u + d2 * t
         B = A + d3 * e1
-        a = gamma + theta_1p  # rail_direction(design, gamma)
+        a = gamma + theta_1p  # the rail's radial direction u' at γ + θ_1p
         up = np.broadcast_to(np.concatenate([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1), (n, 3))
         tp = np.broadcast_to(np.concatenate([-np.sin(a), np.cos(a), np.zeros_like(a)], axis=1), (n, 3))
         out[f"rail_{i}"] = (eye, zero)
@@ -708,9 +372,10 @@ def joint_axes(design: PrrrDesign, pose: PrrrPose) -> list[JointAxis]:
     out = []
     for k, i in enumerate(LEGS):
         w = W[k]
+        a = GAMMAS[k] + design.geometry.theta_1p  # the rail's radial direction u' at γ + θ_1p
         out.append(JointAxis(name=f"slider_{i}", parent="base", child=f"carriage_{i}", kind="slide",
                              point=np.array([0.0, 0.0, pose.sliders[k]])
-                             + design.geometry.r_p * rail_direction(design, GAMMAS[k])[0], direction=EZ.copy()))
+                             + design.geometry.r_p * np.array([math.cos(a), math.sin(a), 0.0]), direction=EZ.copy()))
         out.append(JointAxis(name=f"r1_{i}", parent=f"carriage_{i}", child=f"link1_{i}", kind="hinge",
                              point=np.asarray(pts.a[k]), direction=w))
         out.append(JointAxis(name=f"r2_{i}", parent=f"link1_{i}", child=f"link2_{i}", kind="hinge",
@@ -721,11 +386,6 @@ def joint_axes(design: PrrrDesign, pose: PrrrPose) -> list[JointAxis]:
 
 
 # ---------------------------------------------------------------------------- build123d
-def build_solid(spec: PartSpec):
-    """One part as a build123d solid in its own frame (mm); see :func:`hapticopt.design.parts.build_solid`."""
-    return _parts.build_solid(spec)
-
-
 def build_parts(design: PrrrDesign) -> dict[str, object]:
     """Every part as a build123d solid in its own frame (mm); identical legs are built once."""
     return _parts.build_all(part_specs(design))

@@ -88,35 +88,3 @@ def test_json_has_parts_and_bodies():
     assert set(data["parts"]) == set(cad_prrr.part_specs(d))
     assert data["bodies"]["base"]["mass_kg"] == pytest.approx(
         sum(p["mass_kg"] for p in data["parts"].values() if p["body"] == "base"))
-
-
-def test_volumes_equal_the_local_properties_bitwise():
-    """parts.volumes (the batched mass model's volume column) is parts._local_props's volume, bit for
-    bit, for every primitive kind of the prrr-paper part tables and random sizes of each kind."""
-    specs = cad_prrr.part_specs(io.load_preset("prrr-paper"))
-    prims = [p for s in specs.values() for p in s.primitives]
-    kind = np.array([p.kind for p in prims])
-    dims = np.array([p.dims for p in prims], dtype=float)
-    rng = np.random.default_rng(3)
-    k2 = np.repeat(np.array([int(k) for k in parts.Kind]), 20)
-    d2 = rng.uniform(1e-3, 0.1, size=(len(k2), 3))
-    d2[k2 == parts.Kind.CAPSEG, 1] = d2[k2 == parts.Kind.CAPSEG, 0] * rng.uniform(0.1, 1.2, 20)  # h ≤ R and h > R
-    for k, d in ((kind, dims), (k2, d2)):
-        assert parts.volumes(k, d).tobytes() == parts._local_props(k, d)[0].tobytes()
-    assert set(kind.tolist()) == {int(k) for k in parts.Kind}  # every kind occurs in the part tables
-
-
-def test_analytic_masses_are_the_analytic_models_bitwise():
-    """mass_properties.analytic_masses (the device size evaluator's masses) equals the masses of
-    mass_properties.analytic bit for bit, and parts.volume_many the volumes of
-    parts.volume_properties_many, on the prrr-paper part tables and a slimmer variant."""
-    for d in (io.load_preset("prrr-paper"),
-              io.apply_overrides(io.load_preset("prrr-paper"), ["geometry.beta_deg=35.26", "structure.link_width_mm=14",
-                                                                "structure.boss_diameter_mm=18"])):
-        specs = cad_prrr.part_specs(d)
-        want = {name: p.mass for name, p in mp.analytic(d, specs=specs).parts.items()}
-        got = mp.analytic_masses(specs)
-        assert list(got) == list(want)
-        assert all(type(got[k]) is type(want[k]) and float(got[k]).hex() == float(want[k]).hex() for k in want)
-        groups = [s.primitives for s in specs.values()]
-        assert parts.volume_many(groups).tolist() == [v.volume for v in parts.volume_properties_many(groups)]

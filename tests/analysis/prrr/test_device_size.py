@@ -14,7 +14,7 @@ import numpy as np
 
 from hapticopt.analysis.prrr import device_size as DS
 from hapticopt.design import io
-from hapticopt.design.prrr import cad, cad_arrays
+from hapticopt.design.prrr import cad, layout
 
 #: agreement of the array form: the same closed forms, summed in another order (a few ulp)
 REL = 1e-12
@@ -23,7 +23,7 @@ REL = 1e-12
 def test_from_tables_equals_from_specs(problem_sample):
     designs = problem_sample(40, seed=32) + [io.load_preset("prrr-paper")]
     designs.append(dataclasses.replace(designs[-1], geometry=dataclasses.replace(designs[-1].geometry, r4=0.030)))
-    groups, _ = cad_arrays.part_tables_many(designs)
+    groups, _ = layout.part_tables_many(designs)
     assert len(groups) == 2  # with and without the riser of link2
     checked = 0
     for t in groups:

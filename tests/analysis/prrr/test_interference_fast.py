@@ -312,14 +312,14 @@ def test_default_loads_the_kernel_only_once_it_pays(monkeypatch):
 
 def test_models_from_tables_equal_prepare(problem_sample):
     """The primitive tables of a part layout's designs built at once (``models_from_tables`` on
-    ``cad_arrays.part_tables_many``) equal :func:`prepare` design by design: part names, pairs and
+    ``layout.part_tables_many``) equal :func:`prepare` design by design: part names, pairs and
     primitive kinds exactly, axes, centres and half sizes to 1e-12 relative (the array part tables'
-    agreement with ``cad.part_specs``, tests/design/prrr/test_cad_arrays.py)."""
-    from hapticopt.design.prrr import cad_arrays
+    agreement with ``cad.part_specs``, tests/design/prrr/test_layout.py)."""
+    from hapticopt.design.prrr import layout as cad_layout
 
     designs = problem_sample(40, seed=31) + [io.load_preset("prrr-paper")]
     designs.append(dataclasses.replace(designs[-1], geometry=dataclasses.replace(designs[-1].geometry, r4=0.030)))
-    groups, _ = cad_arrays.part_tables_many(designs)
+    groups, _ = cad_layout.part_tables_many(designs)
     assert len(groups) == 2 and sum(len(t.index) for t in groups) >= 10  # both layouts (r4 = 30 mm: the riser)
     for t in groups:
         for i, fast in zip(t.index, F.models_from_tables([designs[i] for i in t.index], t)):

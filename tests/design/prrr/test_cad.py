@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from hapticopt.design.prrr import cad as cad_prrr
-from hapticopt.design import io
+from hapticopt.design import io, parts
 from hapticopt.design.errors import InvalidDesign, InvalidInput
 
 
@@ -179,7 +179,7 @@ def test_r1_bracket_stays_in_the_clevis_layer_and_is_let_into_the_block(paper, s
     # volume bookkeeping: the OpenCASCADE solid's volume is the closed-form sum of its pieces:
     # block − rail slot + root plate − its wedge inside the block (½ · legs · length) + arm bar + boss
     # disc − its cap inside the bar − bore
-    solid = solids["carriage_1"] if override is None else cad_prrr.build_solid(cad_prrr.part_specs(design)["carriage_1"])
+    solid = solids["carriage_1"] if override is None else parts.build_solid(cad_prrr.part_specs(design)["carriage_1"])
     block = (x1 - x0) * 2 * hy * (z1 - z0) - (2 * lay.slot) ** 2 * (z1 - z0)
     plate = float(np.prod(b.root_size)) - 0.5 * float(np.prod(wp.dims))
     arm_v = (b.arm_length * W + math.pi * R * R - _cap_area(R, W / 2) - math.pi * r * r) * T
@@ -194,22 +194,6 @@ def test_bracket_face_falls_back_and_refuses_with_one_line(paper):
     with pytest.raises(InvalidDesign, match="beta_deg = 5: no face of the carriage block") as err:
         cad_prrr.carriage_bracket(io.apply_overrides(paper, ["geometry.beta_deg=5"]))
     assert "\n" not in str(err.value) and "side face" in str(err.value) and "front face" in str(err.value)
-
-
-def test_sliding_frames_are_part_frames_at_sliders_zero_bitwise(paper):
-    """The envelope's frames of the parts that do not turn (``_sliding_frames``) are
-    :func:`cad.part_frames_batch`'s at sliders 0 bit for bit (the reference path they replace in
-    :func:`cad.envelope_radius`), for the paper and for a turned carriage (θ1p ≠ 0)."""
-    import dataclasses
-
-    turned = dataclasses.replace(paper, geometry=dataclasses.replace(paper.geometry, theta_1p=0.3))
-    for design in (paper, turned):
-        want = cad_prrr.part_frames_batch(design, np.zeros((1, 3)), np.zeros((1, 3, 2)), np.zeros((1, 3)))
-        got = cad_prrr._sliding_frames(design)
-        assert set(got) == {n for n in want if not n.startswith(("link", "platform"))}
-        for name, (R, o) in got.items():
-            assert R.tobytes() == np.ascontiguousarray(want[name][0][0]).tobytes(), name
-            assert o.tobytes() == np.ascontiguousarray(want[name][1][0]).tobytes(), name
 
 
 def test_envelope_radius_equals_the_per_primitive_loop_bitwise(paper):

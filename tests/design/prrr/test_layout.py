@@ -1,10 +1,11 @@
-"""The array form of the 3-PRRR part tables equals the per-design functions.
+"""The 3-PRRR part layout (:mod:`hapticopt.design.prrr.layout`): a batch of designs and each design
+alone give the same tables, bit for bit, and the same refusals with the same messages.
 
-Reference: :func:`hapticopt.design.prrr.cad.part_specs` (primitive by primitive: kind, role, part,
-centre, axes, sizes; part densities) and :func:`hapticopt.design.prrr.cad.device_height`, design by
-design. Designs: prrr-paper, hard cases (the R3 riser of link2, the bracket on the block's x face, a
-rule at its threshold, a branch point exactly at zero, designs each rule refuses) and a seeded sample
-over wide bounds (both bracket faces, both part layouts, refused designs among them).
+Reference: :func:`hapticopt.design.prrr.cad.part_specs`, :func:`cad.device_height` and
+:func:`cad.carriage_bracket` of each design alone (the layout's formulas without the design axis).
+Designs: prrr-paper, hard cases (the R3 riser of link2, a rule at its threshold, a branch point
+exactly at zero, designs each rule refuses) and a seeded sample over wide bounds (both bracket faces,
+both part layouts, refused designs among them).
 """
 
 from __future__ import annotations
@@ -18,14 +19,9 @@ import pytest
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.parts import Role
-from hapticopt.design.prrr import cad, cad_arrays
+from hapticopt.design.prrr import cad, layout
 
 BASE = io.load_preset("prrr-paper")
-#: relative agreement with the per-design tables (the formulas are the same; numpy's vectorised
-#: sin/cos and 3-vector products may differ from the scalar ones in the last bits)
-REL = 1e-12
-#: length scale of the device [m]: differences are taken relative to max(|value|, SCALE)
-SCALE = 0.1
 
 
 def _geometry(design, **kw):
@@ -66,9 +62,11 @@ def _hard() -> list:
 
 
 def _assert_tables_equal(designs) -> tuple[list, np.ndarray]:
-    groups, rest = cad_arrays.part_tables_many(designs)
+    """Every design once in a group or in ``rest``; a tabled design's rows equal its tables alone bit for
+    bit; a design in ``rest`` is refused alone with the message its batch row gives."""
+    groups, rest = layout.part_tables_many(designs)
     seen = np.concatenate([t.index for t in groups] + [rest])
-    assert sorted(seen.tolist()) == list(range(len(designs)))  # each design once
+    assert sorted(seen.tolist()) == list(range(len(designs)))
     for t in groups:
         for row, i in enumerate(t.index):
             specs = cad.part_specs(designs[i])
@@ -81,10 +79,14 @@ def _assert_tables_equal(designs) -> tuple[list, np.ndarray]:
             for got, want in ((t.o[row], np.array([p.o for _, p in flat])),
                               (t.R[row], np.array([p.R for _, p in flat])),
                               (t.dims[row], np.array([p.dims for _, p in flat]))):
-                assert np.all(np.abs(got - want) <= REL * np.maximum(np.abs(want), SCALE)), designs[i].geometry
-            dens = np.array([s.density for s in specs.values()])
-            np.testing.assert_allclose(t.density[row], dens, rtol=REL, atol=0)
-            np.testing.assert_allclose(t.height[row], cad.device_height(designs[i]), rtol=REL, atol=0)
+                assert got.tobytes() == want.tobytes(), designs[i].geometry
+            assert t.density[row].tolist() == [s.density for s in specs.values()]
+            assert float(t.height[row]) == cad.device_height(designs[i])
+    L = layout.layouts(designs)
+    for i in rest.tolist():
+        with pytest.raises(InvalidDesign) as err:
+            cad.part_specs(designs[i])
+        assert str(err.value) == str(L.error(i))
     return groups, rest
 
 
@@ -92,15 +94,10 @@ def test_tables_equal_part_specs_on_the_hard_cases():
     designs = _hard()
     groups, rest = _assert_tables_equal(designs)
     tabled = {int(i) for t in groups for i in t.index}
-    assert {0, 1, 2} <= tabled  # prrr-paper, the riser, a wall at the threshold (an exact rule: no band)
+    # prrr-paper, the riser, a wall at the threshold, θ_1p = 0 (w·N = 0 on the side face: a branch point)
+    assert tabled == {0, 1, 2, 7}
     assert {len(t.kind) for t in groups} == {97, 103}  # without and with the riser (two primitives per link2)
-    for i in rest.tolist():
-        if i == 7:  # θ_1p = 0: a branch point at zero, left to the per-design path, which builds it
-            cad.part_specs(designs[i])
-        else:
-            with pytest.raises(InvalidDesign):
-                cad.part_specs(designs[i])
-    assert set(rest.tolist()) == {3, 4, 5, 6, 7, 8}
+    assert set(rest.tolist()) == {3, 4, 5, 6, 8}
 
 
 def test_tables_equal_part_specs_on_a_wide_sample():
@@ -110,58 +107,65 @@ def test_tables_equal_part_specs_on_a_wide_sample():
     assert "side" in faces and faces & {"front", "back"}  # both kinds of block face are covered
     assert len(groups) == 2  # both part layouts
     assert sum(len(t.index) for t in groups) >= 60
-    for i in rest.tolist():  # every design left out is one the per-design rules refuse
-        with pytest.raises(InvalidDesign):
-            cad.part_specs(designs[i])
+    assert len(rest) >= 60  # refusals are covered too
 
 
-def test_refused_designs_raise_the_per_design_message():
-    """A design the arrays leave out gets its message from the per-design function (the rule's
-    own wording), not from the arrays."""
+def test_refused_design_names_the_rule():
     d = _structure(BASE, clearance=0.4e-3)
-    groups, rest = cad_arrays.part_tables_many([BASE, d])
+    groups, rest = layout.part_tables_many([BASE, d])
     assert rest.tolist() == [1]
     with pytest.raises(InvalidDesign, match="structure.clearance_mm = 0.4 is too thin"):
         cad.part_specs(d)
+    assert str(layout.layouts([BASE, d]).error(1)).startswith("structure.clearance_mm = 0.4 is too thin")
 
 
 def test_empty_batch():
-    groups, rest = cad_arrays.part_tables_many([])
+    groups, rest = layout.part_tables_many([])
     assert groups == [] and len(rest) == 0
 
 
 def test_roles_and_solid_counts_follow_the_part_builders():
-    (t,) = cad_arrays.part_tables_many([BASE])[0]
+    (t,) = layout.part_tables_many([BASE])[0]
     solid = [r == Role.SOLID for r in t.role]
     # closed count: base 1, rails/screws/motors 9, carriage 4 SOLID (block, arm, boss, root) ×3,
     # housing 1 ×3, link1 3 (bar, 2 bosses) ×3, link2 3 ×3, platform 3 arms × 2 + stem + ball = 8
     assert sum(solid) == 1 + 9 + 12 + 3 + 9 + 9 + 8
 
 
+def test_legs_share_one_primitive_tuple():
+    """The parts that are the same in each leg's frame share one tuple (built and integrated once)."""
+    specs = cad.part_specs(BASE)
+    for name in ("carriage", "housing", "link1", "link2"):
+        assert specs[f"{name}_1"].primitives is specs[f"{name}_2"].primitives is specs[f"{name}_3"].primitives
+    assert specs["rail_1"].primitives is not specs["rail_2"].primitives
+
+
 def _assert_brackets_equal(designs) -> np.ndarray:
-    """:func:`cad_arrays.brackets_many` row by row against :func:`cad.carriage_bracket` (checked), on
-    every design it does not leave in ``rest``; returns ``rest``."""
-    b, rest = cad_arrays.brackets_many(designs)
+    """:func:`layout.brackets_many` row by row against :func:`cad.carriage_bracket` (checked), bit for
+    bit; ``rest`` holds exactly the designs it refuses (same message as the batch row's)."""
+    b, rest = layout.brackets_many(designs)
+    many = layout.brackets(designs)
     for i, d in enumerate(designs):
         if i in rest:
+            with pytest.raises(InvalidDesign, match="no face of the carriage block") as err:
+                cad.carriage_bracket(d)
+            assert str(err.value) == many.message(i)
             continue
         one = cad.carriage_bracket(d)
         want = dict(clevis=one.clevis, axis=one.axis, normal=one.normal, e_l=one.e_l, arm_length=one.arm_length,
                     root_axes=one.root_axes, root_size=np.array(one.root_size), contact=one.contact_centre,
                     n_p=one.contact_axes[:, 1], contact_size=np.array(one.contact_size))
-        assert set(want) == set(b)
+        assert set(want) <= set(b)
         for k, v in want.items():
-            assert np.all(np.abs(b[k][i] - v) <= REL * np.maximum(np.abs(v), SCALE)), (k, d.geometry)
+            assert np.asarray(b[k][i]).tobytes() == np.asarray(v, dtype=float).tobytes(), (k, d.geometry)
     return rest
 
 
 def test_brackets_equal_carriage_bracket_on_the_hard_cases():
     designs = _hard()
     rest = _assert_brackets_equal(designs)
-    # θ_1p = 0: w·N = 0 on the side face, a branch point left to the per-design function (which builds
-    # it); the walls, bosses, links and stem of 3–6 are layout rules, not the bracket's: tabled here
-    assert 7 in rest.tolist()
-    assert {0, 1, 2, 3, 4, 5, 6} <= set(range(len(designs))) - set(rest.tolist())
+    # the walls, bosses, links and stem of 3–6 are layout rules, not the bracket's; θ_1p = 0 (7) is carried
+    assert len(rest) == 0
 
 
 def test_brackets_equal_carriage_bracket_on_a_wide_sample():
@@ -170,14 +174,13 @@ def test_brackets_equal_carriage_bracket_on_a_wide_sample():
     tabled = [i for i in range(len(designs)) if i not in rest]
     faces = {cad.carriage_bracket(designs[i]).face for i in tabled}
     assert "side" in faces and faces & {"front", "back"}  # both kinds of block face are covered
-    assert len(tabled) >= 60
-    for i in rest.tolist():  # every design left out is one no face carries (none near a threshold here)
-        with pytest.raises(InvalidDesign, match="no face of the carriage block"):
-            cad.carriage_bracket(designs[i])
+    assert len(tabled) >= 60 and len(rest) >= 1
 
 
-def test_bracket_no_face_carries_is_left_to_the_per_design_function():
+def test_unchecked_bracket_is_the_side_face_where_no_face_carries_it():
     d = _geometry(BASE, beta=math.radians(5.0))  # the R1 axis nearly vertical: no face carries it
     with pytest.raises(InvalidDesign, match="no face of the carriage block can carry the R1"):
         cad.carriage_bracket(d)
-    assert cad_arrays.brackets_many([BASE, d])[1].tolist() == [1]
+    assert layout.brackets_many([BASE, d])[1].tolist() == [1]
+    b = cad.carriage_bracket(d, checked=False)
+    assert b.face == "side" and b.arm_length == BASE.structure.boss_diameter / 2 + BASE.structure.clearance
