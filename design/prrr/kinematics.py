@@ -143,7 +143,8 @@ class IkSolution(NamedTuple):
 
 
 def inverse_kinematics(params: PrrrParams, p: jax.Array, xp=jnp) -> IkSolution:
-    """Geometric IK of end-effector positions ``p`` (..., 3) [m] for one design.
+    """Geometric IK of end-effector positions ``p`` (..., 3) [m]: of one design (``params`` scalars) or
+    batch-first, one design per point (each entry of ``params`` broadcasting with ``p``'s leading shape ``...``).
 
     Slider positions follow from closing each leg along its joint axis w (the in-plane links
     have no w component): w·(Q − A) = r4. Joint angles from the planar two-link problem in
@@ -151,12 +152,13 @@ def inverse_kinematics(params: PrrrParams, p: jax.Array, xp=jnp) -> IkSolution:
     nothing here returns NaN. ``xp``: array module (``numpy`` for jit-free single calls).
     """
     p = xp.asarray(p)
-    f = leg_frames(params.beta, xp=xp)
-    r5 = r5_of(params, xp=xp)
+    params = PrrrParams(*(xp.asarray(x)[..., None] for x in params))  # (..., 1): against the legs axis
+    f = leg_frames(params.beta[..., None], xp=xp)
+    r5 = r5_of(params, xp=xp)[..., None]
     pe = p[..., None, :]  # (..., 1, 3) against legs (3, 3)
     # R3 axis point Q and R1 offset (without the slider height) per leg
-    q = pe - params.b5 * f.w + r5 * _EZ
-    a0 = params.d1 * f.u + params.d2 * f.t
+    q = pe - params.b5[..., None] * f.w + r5 * _EZ
+    a0 = params.d1[..., None] * f.u + params.d2[..., None] * f.t
     rel = q - a0
     sliders = (xp.sum(rel * f.w, axis=-1) - params.r4) / xp.sin(params.beta)  # w·e_z = sin β
     rel = rel - sliders[..., None] * _EZ
