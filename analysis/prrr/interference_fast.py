@@ -464,8 +464,7 @@ def overlap_share(res: FastResult, *, scale: float = OVERLAP_SCALE) -> np.ndarra
 
 
 def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int,
-                           scale: float = OVERLAP_SCALE, wp: Any = None, model_of=None, checker_of=None
-                           ) -> tuple[float, float]:
+                           scale: float = OVERLAP_SCALE, wp: Any = None, check=None) -> tuple[float, float]:
     """(removed fraction, overlap fraction) of the sampled workspace volume, from one check of
     the poses (polar-cell weights w_i of :func:`hapticopt.analysis.prrr.workspace.workspace_sample_weights`):
 
@@ -475,17 +474,13 @@ def interference_fractions(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int
       least ``scale`` deep; docs/workspace_interference.md).
 
     Both 0 for an empty sample (the primitive tables are not needed then). ``wp``: the design's
-    default workspace parameters, ``model_of(design)``: its primitive tables (default :func:`prepare`),
-    ``checker_of(design)``: its :func:`point_checker` in :data:`ELBOW_BRANCH` (used before ``model_of``),
-    when the caller has them (the registry call's shared steps)."""
+    default workspace parameters, ``check``: its :func:`point_checker` in :data:`ELBOW_BRANCH`, where
+    the caller has them (made here when omitted)."""
 
     pts, w = workspace_sample_weights(design, n_phi=n_phi, n_r=n_r, n_z=n_z, wp=wp)
     if len(pts) == 0 or not w.sum() > 0:
         return 0.0, 0.0
-    if checker_of is not None:
-        res = checker_of(design)(pts)
-    else:
-        res = check_points((prepare if model_of is None else model_of)(design), pts, branch=ELBOW_BRANCH)
+    res = (point_checker(prepare(design), branch=ELBOW_BRANCH) if check is None else check)(pts)
     return fractions_of(w, res.collides, overlap_share(res, scale=scale))
 
 
@@ -494,9 +489,3 @@ def fractions_of(w: np.ndarray, collides: np.ndarray, share: np.ndarray) -> tupl
     (see :func:`interference_fractions`)."""
     total = w.sum()
     return float(w[collides].sum() / total), float(w @ share / total)
-
-
-def removed_fraction(design: PrrrDesign, *, n_phi: int, n_r: int, n_z: int) -> float:
-    """Share of the sampled workspace volume whose poses collide (the polar-cell weights of
-    :func:`hapticopt.analysis.prrr.workspace.workspace_sample_weights`; 0 for an empty sample)."""
-    return interference_fractions(design, n_phi=n_phi, n_r=n_r, n_z=n_z)[0]

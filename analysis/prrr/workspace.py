@@ -443,8 +443,7 @@ def _closure_params(design: PrrrDesign) -> WorkspaceParams:
 
 
 #: closure verdicts kept (design → message; oldest dropped first): a whole chunk of the batched draft
-#: evaluator (1024 designs, each asked ~6 times: registry, statics, stability, structure and the part
-#: evaluators); 256 thrashed at batch 1024
+#: evaluator, whose designs are each asked several times (registry, statics, stability, structure, parts)
 CLOSURE_CACHE = 4096
 #: uncached designs from which :func:`closure_many` takes the jitted pass (fewer: numpy one by one, no compile)
 CLOSURE_BATCH_AFTER = 16
@@ -477,8 +476,7 @@ def closure_many(designs: list[PrrrDesign]) -> list[str]:
     one jitted pass (:func:`closure_batch`), remembered for the later :func:`closure` calls. Its
     emptiness is the numpy core's by the same rule: the threshold ``EMPTY_VOLUME_REL`` lies four decades
     above float64 rounding (tested equal to :func:`closure` on designs that close, do not close, and
-    have almost no workspace). A single closure in numpy took ≈ 0.4–0.6 ms, more than the rest of a
-    batched draft evaluation of a design."""
+    have almost no workspace)."""
     known = [_closures.get(d) for d in designs]
     todo = list(dict.fromkeys(d for d, m in zip(designs, known) if m is None))
     if len(todo) >= CLOSURE_BATCH_AFTER:
@@ -677,8 +675,7 @@ def batch_arrays(wp: WorkspaceParams, *, fidelity: Fidelity = Fidelity.STANDARD)
     return [{k: v[i] for k, v in out.items()} for i in range(n)]
 
 
-#: sampling of the interference checks (3·n_phi·n_r·n_z = 216 poses; manifold3d ~20 ms each at
-#: fine, hapticopt.analysis.prrr.interference_fast ~30 ms for all of them at every level)
+#: sampling of the interference checks (3·n_phi·n_r·n_z = 216 poses at most)
 INTERFERENCE_SAMPLING = dict(n_phi=6, n_r=4, n_z=3)
 
 
@@ -742,9 +739,7 @@ def workspace_sample_weights_many(designs: list[PrrrDesign], wps: list[Workspace
     a = x[..., None] * np.cos(_GAMMA) + y[..., None] * np.sin(_GAMMA)
     beta, stroke = cols[0], cols[7]
     cot = np.array([1.0 / np.tan(b) for b in beta])[:, None, None]  # sample_points: np.tan of the float
-    # the largest and smallest of the three legs' a by pairwise maximum and minimum: the same floats as
-    # ``a.max(axis=-1)`` (a reduction over an axis of 3 ran a length-3 inner loop per point: half the
-    # function's time)
+    # the largest and smallest of the three legs' a by pairwise maximum and minimum (``a.max(axis=-1)``'s floats)
     z0 = -stroke[:, None, None] / 2.0 + cot * _max3(a)
     z1 = stroke[:, None, None] / 2.0 + cot * _min3(a)
     ok = m3 & (z1 > z0)

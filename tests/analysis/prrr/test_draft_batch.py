@@ -319,25 +319,6 @@ def test_shares_cut_where_the_owner_changes():
     assert len(draft_batch._shares(sel, np.arange(10), 4)) == 4
 
 
-def test_dispatched_core_equals_the_core():
-    """``finish_core`` of a dispatched core (``start_core``: jax's asynchronous dispatch, the caller works
-    meanwhile) gives what ``run_core`` gives."""
-    designs = _sample()[:4]
-    specs, tables, _ = draft_batch._part_tables(designs)
-    models = {}
-    for t in tables:
-        models.update(zip(t.index.tolist(), interference_fast.models_from_tables([designs[i] for i in t.index], t)))
-    wps = draft_batch._workspace_params(designs, specs, draft_batch.envelopes(designs, models, specs))
-    inp = draft_batch.stack_inputs(designs, wps)
-    pending = draft_batch.start_core(inp, len(designs))
-    got, ref = draft_batch.finish_core(pending), draft_batch.run_core(inp, len(designs))
-    assert set(got) == set(ref)
-    leaves = jax.tree_util.tree_leaves_with_path
-    assert [p for p, _ in leaves(got)] == [p for p, _ in leaves(ref)]
-    for (path, a), (_, b) in zip(leaves(got), leaves(ref), strict=True):
-        assert np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True), path
-
-
 def test_designs_with_array_part_tables_are_laid_out(problem_sample):
     """The batch takes ``assembly.parts`` as '' for the designs ``cad_arrays`` tabled (its free-workspace
     verdicts skip the CAD layout for them): the CAD lays every one of them out."""
