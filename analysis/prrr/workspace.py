@@ -716,10 +716,9 @@ def _blas() -> ThreadpoolController:
 
 def workspace_sample_weights_many(designs: list[PrrrDesign], wps: list[WorkspaceParams], *, n_phi: int, n_r: int,
                                   n_z: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """:func:`workspace_sample_weights` of many designs (their default :func:`workspace_params`
-    ``wps``) in one numpy pass over the rays of every design: the same elementwise operations on
-    longer arrays (``_ray_intervals`` on per-ray columns), so each design's points and weights equal
-    the per-design function's (tested bit for bit on the points and the weights)."""
+    """:func:`workspace_sample_weights` of many designs (their default :func:`workspace_params` ``wps``) in
+    one numpy pass over the rays of every design: the same elementwise operations on longer arrays, so each
+    design's points and weights equal the per-design function's bit for bit (tested)."""
     n = len(designs)
     if n == 0:
         return []
