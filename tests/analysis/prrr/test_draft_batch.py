@@ -268,10 +268,11 @@ def test_checker_equals_the_numpy_reference_bitwise(both, collision_reference):
 def test_checker_on_two_threads_equals_one_thread_bitwise(both):
     """The checker on two threads (``Compute(threads=2)``: each thread a share of the designs,
     ``draft_batch._shares``) gives bit for bit what one thread gives, owners in design order and shuffled
-    (a shuffled share cuts designs' runs of poses: the kernel sets each run up again); the poses three
-    times over, so that the check holds two threads' worth (``POSES_PER_THREAD`` each)."""
+    (a shuffled share cuts designs' runs of poses: the kernel sets each run up again); the poses repeated
+    so that the check holds two threads' worth (``POSES_PER_THREAD`` each)."""
     _, models, owner, pts = _checker_and_poses(both[0])
-    owner, pts = np.repeat(owner, 3), np.repeat(pts, 3, axis=0)
+    reps = -(-2 * draft_batch.POSES_PER_THREAD // len(owner))
+    owner, pts = np.repeat(owner, reps), np.repeat(pts, reps, axis=0)
     assert draft_batch._kernel_threads(len(owner), Compute(threads=2)) == 2
     assert draft_batch._kernel_threads(len(owner), Compute(threads=1)) == 1
     for order in (np.arange(len(owner)), np.random.default_rng(5).permutation(len(owner))):
