@@ -26,7 +26,7 @@ def warm() -> list[tuple[str, str | None, float]]:
     reason = interference_fast.availability()
     if reason is None:
         model = interference_fast.prepare(io.load_preset("prrr-paper"))
-        interference_fast.check_points(model, np.array([[0.0, 0.0, 0.0]]), compiled=True)
+        interference_fast.check_points(model, np.array([[0.0, 0.0, 0.0]]))
     out.append(("collision check", reason, time.perf_counter() - t0))
     t0 = time.perf_counter()
     out.append(("MuJoCo closed loops", prrr_mujoco.warm_up(), time.perf_counter() - t0))

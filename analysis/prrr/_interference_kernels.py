@@ -1,29 +1,18 @@
-"""numba kernels of :func:`hapticopt.analysis.prrr.interference_fast.check_posed` and
-:func:`~hapticopt.analysis.prrr.interference_fast.check_joints` (imported only through
+"""numba kernel of :func:`hapticopt.analysis.prrr.interference_fast.check_joints` (imported through
 :func:`hapticopt.analysis.prrr.interference_fast.availability`, so numba loads on first use).
 
-:func:`check_poses` (part frames given): one loop over the poses of a chunk and, per pose, over the
-tested part pairs and their primitive pairs: the part boxes, the posed primitives (computed once per pose,
-only for primitives of part pairs whose boxes meet), the primitives' world boxes, and the separating axes
-of :func:`~hapticopt.analysis.prrr.interference_fast._depth`. Every quantity is the numpy reference's, term
-by term and in its order (the reference's 3-vector products are fixed-order sums, ``_mm``; numba does not
-contract to fused multiply-adds without ``fastmath``), so the depths are bitwise equal. The one
-difference in the work done: the reference computes every axis of a pair and clips the smallest overlap
-at 0; here a pair stops at the first axis whose overlap is ≤ 0 (its clipped depth is 0 either way).
-
-:func:`check_joint_poses` (the batched draft evaluator's and the single path's check): the same test,
-the part frames built in the kernel from the joint values (``cad.part_frames_arrays``' products), and
-work that does not change with the pose done once per run of a design's poses: the rotations, boxes and
-primitives of the parts whose rotation is the design's (base, rails, screws, motors, carriages, housings,
-platform); the x and y tests of pairs of parts that only slide along z, and their separating axes with no
-z component (decided for every pose at once); the boxes of every part over a block of up to
-:data:`RUN_BLOCK` poses of the run (each pose's frames and boxes built once and kept for the block), so
-that only the pairs with a moving part whose block boxes meet are tested per pose; for such a pair whose
-part boxes meet, each side's primitives tested by centre and bounding widths against the other part's
-box before any primitive is posed or any primitive pair tested. Depths bit for bit those of
-:func:`check_poses` on ``part_frames_arrays``' frames; a column map writes either every pair's depth or
-each pose's deepest. The entry kernels are compiled ``nogil`` and allocate their scratch themselves:
-calls on disjoint outputs may run in parallel threads.
+:func:`check_joint_poses`: one loop over the poses of a call and, per pose, over the tested part pairs and
+their primitive pairs. The part frames are built here from the joint values (the products of
+``cad.part_frames_arrays``, term by term); work that does not change with the pose is done once per run of a
+design's poses: the rotations, boxes and primitives of the parts whose rotation is the design's (base,
+rails, screws, motors, carriages, housings, platform); the x and y tests of pairs of parts that only slide
+along z, and their separating axes with no z component; the boxes of every part over a block of up to
+:data:`RUN_BLOCK` poses, so that only pairs with a moving part whose block boxes meet are tested per pose.
+Each pair's separating axes follow the numpy reference (``tests/analysis/prrr/interference_reference.py``)
+term by term and in its order (fixed-order 3-vector sums; numba does not contract to fused multiply-adds
+without ``fastmath``), so the depths are bitwise equal to it; a pair stops at the first axis whose overlap
+is ≤ 0 (its clipped depth is 0 either way). Compiled ``nogil``, allocating its own scratch: calls on
+disjoint outputs may run in parallel threads.
 """
 
 from __future__ import annotations
@@ -180,75 +169,8 @@ def _extent(k, Rw, h, i):
     return h[0]
 
 
-@njit(cache=True)
-def _pose_primitive(p, q, part, Rp, tp, Rprim, oprim, half, kind, Rw, cw, lo, hi):
-    """World rotation, centre and world box of primitive p at pose q (the reference's
-    ``_posed_primitives`` and world boxes)."""
-    Rf = Rp[q, part]
-    Rl = Rprim[p]
-    ol = oprim[p]
-    h = half[p]
-    for i in range(3):
-        for k in range(3):
-            Rw[p, i, k] = Rf[i, 0] * Rl[0, k] + Rf[i, 1] * Rl[1, k] + Rf[i, 2] * Rl[2, k]
-    for i in range(3):
-        cw[p, i] = (Rf[i, 0] * ol[0] + Rf[i, 1] * ol[1] + Rf[i, 2] * ol[2]) + tp[q, part, i]
-        e = _extent(kind[p], Rw[p], h, i)
-        lo[p, i] = cw[p, i] - e
-        hi[p, i] = cw[p, i] + e
 
 
-@njit(cache=True, nogil=True)
-def check_poses(Rp, tp, owner, reachable, pc_all, ph_all, pp_a, pp_b, start, count, pair_a, pair_b,
-                prim_part, kind, Rprim_all, oprim_all, half_all, sgn, rim, depth):
-    """Depths (c, part pairs) of the poses of one chunk, written into ``depth`` (zeros on entry).
-
-    Rp (c, parts, 3, 3), tp (c, parts, 3): part frames; owner (c,) design of each pose; pc_all,
-    ph_all (m, parts, 3): part boxes in the part frame; pp_a, pp_b, start, count: the part pairs'
-    parts and primitive-pair blocks; pair_a, pair_b: primitive pairs; Rprim_all, oprim_all, half_all
-    (m, P, ..): primitives; sgn, rim (S, 3): surface sample tables."""
-    c, n_parts = Rp.shape[0], Rp.shape[1]
-    P = kind.shape[0]
-    wc = np.empty((n_parts, 3))
-    wh = np.empty((n_parts, 3))
-    stamp = np.full(P, -1, dtype=np.int64)
-    Rw = np.empty((P, 3, 3))
-    cw = np.empty((P, 3))
-    lo = np.empty((P, 3))
-    hi = np.empty((P, 3))
-    d = np.empty(3)
-    sa = np.empty((sgn.shape[0], 3))
-    sb = np.empty((sgn.shape[0], 3))
-    for q in range(c):
-        if not reachable[q]:
-            continue
-        m = owner[q]
-        pc, ph = pc_all[m], ph_all[m]
-        for j in range(n_parts):
-            R = Rp[q, j]
-            for i in range(3):
-                wc[j, i] = (R[i, 0] * pc[j, 0] + R[i, 1] * pc[j, 1] + R[i, 2] * pc[j, 2]) + tp[q, j, i]
-                wh[j, i] = abs(R[i, 0]) * ph[j, 0] + abs(R[i, 1]) * ph[j, 1] + abs(R[i, 2]) * ph[j, 2]
-        Rprim, oprim, half = Rprim_all[m], oprim_all[m], half_all[m]
-        for jj in range(pp_a.shape[0]):
-            a, b = pp_a[jj], pp_b[jj]
-            if not _boxes_meet(wc, wh, a, b):
-                continue
-            for k in range(start[jj], start[jj] + count[jj]):
-                pa, pb = pair_a[k], pair_b[k]
-                if stamp[pa] != q:
-                    _pose_primitive(pa, q, prim_part[pa], Rp, tp, Rprim, oprim, half, kind, Rw, cw, lo, hi)
-                    stamp[pa] = q
-                if stamp[pb] != q:
-                    _pose_primitive(pb, q, prim_part[pb], Rp, tp, Rprim, oprim, half, kind, Rw, cw, lo, hi)
-                    stamp[pb] = q
-                if not (lo[pa, 0] <= hi[pb, 0] and lo[pa, 1] <= hi[pb, 1] and lo[pa, 2] <= hi[pb, 2]
-                        and lo[pb, 0] <= hi[pa, 0] and lo[pb, 1] <= hi[pa, 1] and lo[pb, 2] <= hi[pa, 2]):
-                    continue
-                dep = _depth_call(kind[pa], Rw[pa], half[pa], cw[pa], kind[pb], Rw[pb], half[pb], cw[pb],
-                                  d, sgn, rim, sa, sb)
-                if dep > depth[q, jj]:
-                    depth[q, jj] = dep
 
 
 # ---------------------------------------------------------------------------- poses from joint values
@@ -268,7 +190,7 @@ RUN_BLOCK = 32
 @njit(cache=True, inline="always")
 def _rotate_primitive(p, Rf, Rl, ol, h, k, Rw, ro, ext):
     """World rotation Rw[p], rotated centre ro[p] (add the part origin for the world centre) and world
-    half extents ext[p] of primitive p in a part of rotation Rf (:func:`_pose_primitive`'s products)."""
+    half extents ext[p] of primitive p in a part of rotation Rf (the reference's ``_posed_primitives`` products)."""
     for i in range(3):
         for kk in range(3):
             Rw[p, i, kk] = Rf[i, 0] * Rl[0, kk] + Rf[i, 1] * Rl[1, kk] + Rf[i, 2] * Rl[2, kk]
@@ -319,7 +241,7 @@ def _pose_frames(q, m, u, rule, leg, D, c1, s1, c12, s12, pts, W, V, U, T, d1, d
             Rq[u, j, 0, 1] = w1 * x2 - w2 * x1  # np.cross(w, x)'s terms
             Rq[u, j, 1, 1] = w2 * x0 - w0 * x2
             Rq[u, j, 2, 1] = w0 * x1 - w1 * x0
-            # the link's world box (check_poses' products in their order)
+            # the link's world box (the reference's products in their order)
             for i in range(3):
                 R0, R1, R2 = Rq[u, j, i, 0], Rq[u, j, i, 1], Rq[u, j, i, 2]
                 wc[u, j, i] = (R0 * pc_all[m, j, 0] + R1 * pc_all[m, j, 1] + R2 * pc_all[m, j, 2]) + tq[u, j, i]
@@ -374,10 +296,10 @@ def _rotate_only(p, Rf, Rl, h, k, Rw, ext):
 def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rslide, W, V, U, T, d1, d2, d3,
                       pc_all, ph_all, pp_a, pp_b, start, count, pair_a, pair_b, prim_part, kind, Rprim_all,
                       oprim_all, half_all, sgn, rim, col, depth):
-    """:func:`check_poses` with the part frames built here from the joint values (the products of
+    """Depths of the poses of a call, the part frames built here from the joint values (the products of
     :func:`hapticopt.design.prrr.cad.part_frames_arrays`, term by term): the depth of part pair jj at
     pose q goes to ``depth[q, col[jj]]`` (the largest where pairs share a column, 0 where none meets:
-    ``col = arange`` gives :func:`check_poses`' ``depth`` bit for bit, ``col = zeros`` the deepest
+    ``col = arange`` gives every pair's depth (the reference's bit for bit), ``col = zeros`` the deepest
     overlap of each pose in one column); ``depth`` zeros on entry.
 
     rule, leg (parts,): each part's frame rule (_FIXED … _PLATFORM) and leg index; per pose: D (n, 3)
@@ -386,7 +308,7 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
     joint axis w and v, d1, d2, d3 (m,) [m]; U, T (3 legs, 3) the legs' u and t. The frames of the
     fixed and sliding parts (rotation constant per design) and their primitives' rotations, rotated
     centres and extents are computed once per run of poses of one design; per pose only the origin is
-    added, as in :func:`check_poses`. The moving parts' frames and every part's box are computed once
+    added, as in the reference. The moving parts' frames and every part's box are computed once
     per pose, for a block of up to :data:`RUN_BLOCK` reachable poses of the run at a time (kept for the
     pair tests). Allocates all its scratch (no shared state: calls on disjoint outputs may run in
     parallel threads; it releases the GIL)."""
@@ -639,81 +561,7 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
         q = e
 
 
-# ---------------------------------------------------------------------------- pose inverse kinematics
-@njit(cache=True, nogil=True)
-def pose_ik_planar(owner, pts, cb, sb, tb, d1, d2, d3, d4, r4, b5, stroke, U, T, sliders, rho_v, rho_t, c2, y, x,
-                   reachable):
-    """The arithmetic part of :func:`hapticopt.design.prrr.kinematics.inverse_kinematics` (its numpy
-    form, term by term and in its order: the same products and sums, so bit for bit) at poses ``pts``
-    (n, 3) [m] of designs ``owner`` (n,); the transcendentals of the angles stay numpy's (the caller's).
-
-    Per design (m,): cos β, sin β, tan β (numpy's), d1 … b5, stroke [m]; U, T (3 legs, 3): the legs' u and
-    t (``leg_frames``'). Written per pose and leg (n, 3): slider positions [m], the in-plane R1→R3 vector
-    (rho_v, rho_t) [m], the elbow cosine c2 clipped to [−1, 1], and ψ's arctan2 arguments y = d4·sin,
-    x = d3 + d4·c2 [m]; per pose: reachable (every leg reaches, every slider in its stroke)."""
-    w = np.empty((3, 3))
-    v = np.empty((3, 3))
-    a0 = np.empty((3, 3))
-    last = -1
-    r5 = c_e = half = 0.0
-    for q in range(pts.shape[0]):
-        m = owner[q]
-        if m != last:  # leg_frames, r5_of, slider_offset of design m
-            last = m
-            for k in range(3):
-                for i in range(3):
-                    ez = 1.0 if i == 2 else 0.0
-                    w[k, i] = -cb[m] * U[k, i] + sb[m] * ez
-                    v[k, i] = sb[m] * U[k, i] + cb[m] * ez
-                    a0[k, i] = d1[m] * U[k, i] + d2[m] * T[k, i]
-            r5 = b5[m] * sb[m]
-            c_e = (-(b5[m] + r4[m]) / sb[m] + r5) + d1[m] / tb[m]
-            half = stroke[m] / 2.0
-        dd3, dd4 = d3[m], d4[m]
-        ok = True
-        for k in range(3):
-            rel0 = ((pts[q, 0] - b5[m] * w[k, 0]) + r5 * 0.0) - a0[k, 0]
-            rel1 = ((pts[q, 1] - b5[m] * w[k, 1]) + r5 * 0.0) - a0[k, 1]
-            rel2 = ((pts[q, 2] - b5[m] * w[k, 2]) + r5 * 1.0) - a0[k, 2]
-            s = ((rel0 * w[k, 0] + rel1 * w[k, 1]) + rel2 * w[k, 2] - r4[m]) / sb[m]
-            rel0 = rel0 - s * 0.0
-            rel1 = rel1 - s * 0.0
-            rel2 = rel2 - s * 1.0
-            rv = (rel0 * v[k, 0] + rel1 * v[k, 1]) + rel2 * v[k, 2]
-            rt = (rel0 * T[k, 0] + rel1 * T[k, 1]) + rel2 * T[k, 2]
-            c = ((rv * rv + rt * rt - dd3 * dd3) - dd4 * dd4) / ((2.0 * dd3) * dd4)
-            ok = ok and abs(c) <= 1.0 + 1e-12 and abs(s - c_e) <= half * (1.0 + 1e-12)
-            c = min(max(c, -1.0), 1.0)
-            sliders[q, k], rho_v[q, k], rho_t[q, k], c2[q, k] = s, rv, rt, c
-            y[q, k] = dd4 * math.sqrt(1.0 - c * c)
-            x[q, k] = dd3 + dd4 * c
-        reachable[q] = ok
 
 
-@njit(cache=True, nogil=True)
-def elbow_cos_sin(elbow, phi, psi, branch, trig, th1, th12, c1, s1, c12, s12):
-    """Per pose and leg (n, 3): θ₁ and θ₁ + θ₂ [rad] of IK branch ``branch`` (0: θ₁ = φ − ψ, θ₂ = elbow;
-    1: θ₁ = φ + ψ, θ₂ = −elbow; θ₁ wrapped to [−π, π) as ``np.mod(θ₁ + π, 2π) − π``: the float % is
-    numpy's mod, fmod with the sign of the divisor) and, where ``trig``, their cos and sin (libm's, as
-    numba calls it; :func:`hapticopt.analysis.prrr.interference_fast.numba_trig_is_numpys` says whether they
-    are numpy's bit for bit on this machine, else the caller takes numpy's of th1, th12)."""
-    two_pi = 2.0 * np.pi
-    for q in range(elbow.shape[0]):
-        for k in range(3):
-            if branch == 0:
-                t1, t2 = phi[q, k] - psi[q, k], elbow[q, k]
-            else:
-                t1, t2 = phi[q, k] + psi[q, k], -elbow[q, k]
-            t1 = (t1 + np.pi) % two_pi - np.pi
-            t12 = t1 + t2
-            th1[q, k], th12[q, k] = t1, t12
-            if trig:
-                c1[q, k], s1[q, k] = math.cos(t1), math.sin(t1)
-                c12[q, k], s12[q, k] = math.cos(t12), math.sin(t12)
 
 
-@njit(cache=True, nogil=True)
-def cos_sin(x, c, s):
-    """cos and sin of every entry of x (flat arrays; libm's, as numba calls it)."""
-    for i in range(x.shape[0]):
-        c[i], s[i] = math.cos(x[i]), math.sin(x[i])

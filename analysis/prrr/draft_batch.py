@@ -1,75 +1,38 @@
-"""Batched draft evaluation of the 3-PRRR's registry evaluators.
+"""Batched draft evaluation of the 3-PRRR's registry evaluators: many designs at draft fidelity in one
+pass, with the results and statuses of the evaluators one by one (tested to 1e-9 relative,
+``tests/analysis/prrr/test_draft_batch.py``).
 
-Many designs at draft fidelity in one pass, with the same results and statuses as the
-evaluators one by one (tested to 1e-9 relative, ``tests/analysis/prrr/test_draft_batch.py``, on
-hand-picked hard cases and on a seeded sample within the bundled problem's bounds).
-The verdicts are the evaluators' own rules (``statics.from_arrays``, ``structure.from_arrays``,
-``workspace._result``, ``free_workspace.finish``, ``joint_limits.from_angles``,
-``device_size.from_specs``, ``stability.evaluate``), several in the array forms each evaluator
-provides for a whole chunk (``statics.from_arrays_many``, ``structure.ok_many``,
-``workspace.result_rows``, ``joint_limits.from_ranges_many``, ``stability.evaluate_many``, each tested
-equal to its per-design function); this module only computes the arrays they read, for a whole batch
-at a time. A ``*_many`` pass that raises falls back to the per-design function for each design.
+The verdicts are the evaluators' own rules, several in the array forms each evaluator provides for a
+whole chunk (``statics.from_arrays_many``, ``structure.ok_many``, ``workspace.result_rows``,
+``joint_limits.from_ranges_many``, ``stability.evaluate_many``, ``free_workspace.free_radius_many``,
+``interference_fast.deepest_joints``); this module computes the arrays they read, for a whole batch at a
+time. A ``*_many`` pass that raises falls back to the per-design function for each design.
 
-* **jax, one jitted vmap** (:func:`core_fn`) of the groups the wanted evaluators read
-  (:func:`groups_for`): statics (``statics_arrays``), the reach-and-stroke workspace
-  (``workspace_core`` at the draft sampling; its reach radius, emptiness and footprint also bound
-  the collision-free cylinder: they do not depend on the radial sampling), the frame model's legs'
-  stiffness terms (``frame_leg_terms``, default options, home pose: element parameters, springs and
-  maps; the elements' stiffness, the assembly and the solves follow the jitted call in a numba kernel over designs,
-  ``frame_model.condense_terms_many``), or, in a batch padded to ``frame_model.KERNEL_AFTER_DESIGNS`` or
-  more (``frame_model.legs_kernel_ready``, a rule by the padded size: no retrace), the core leaves the frame group out and :func:`finish_core` computes it with
-  ``frame_model.condense_home_many``, the legs' points in numpy and their terms, assembly and solves in numba)
-  and the joint ranges over the required cylinder
-  (``joint_limits.cylinder_ranges_of``: the IK of the grid's in-plane points, the angles reduced to
-  what the verdict reads inside the jitted call). Inputs are stacked with numpy (the frame's by
-  ``frame_model.frame_params_many``, arrays over the batch); the batch is padded to
-  the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a new batch
-  size within a bucket costs no trace or compile (:data:`TRACES` counts traces); compiled code
-  persists on disk (``hapticopt.design.jax_config``). The stability evaluator takes its stiffness
-  limits from the statics row (where that row's verdict is ok).
-* **numpy over all designs at once**: the interference poses (``workspace_sample_weights_many``:
-  every design's sample points and weights in one pass, bit for bit the per-design function's; then
-  one separating-axis pass over every pose of every design, ``interference_fast.deepest_joints``
-  (compiled: the kernel builds the part frames from the pose IK's joint values, the cos / sin of the
-  joint angles compiled too, and keeps each pose's deepest overlap) or ``interference_fast.check_joints``) and the collision-free radius (``free_workspace.free_radius_many``: the coarse
-  column grid of every design in one pass, then each bisection in one pass). The column structure
-  (moving parts translate together in z, fixed parts are prisms) is what makes one pose per
-  column enough there. Pose IK is the numpy IK's (the single path's) values bit for bit: a numba kernel
-  over poses for the arithmetic (``_interference_kernels.pose_ik_planar``) and numpy's arccos /
-  arctan2, or numpy over every pose at once for small batches or without numba. The check prunes primitive
-  pairs per pose (part boxes, primitive boxes, separating axes one at a time), which a fixed-shape
-  jax program cannot do; on a CPU the pruned numpy pass was already the faster of the two, and its
-  compiled kernel is faster still (measured: docs/workspace_interference.md).
-* **two things at once**: the jax core is dispatched (:func:`start_core`: jax's asynchronous dispatch, XLA's
-  own thread) before the interference check and collected after it (:func:`finish_core`), so the collision
-  kernel and the core run on two cores; the compiled check's calls are split into shares of whole designs
-  (:func:`_shares`) on ``Compute.thread_count()`` threads (the kernels release the GIL; a run's pool workers
-  use one). Results are the same bits on one thread or several (tested); measured in docs/performance.md
-  ("The batched draft evaluator at 2,000 designs/s").
-* **numpy, one table per part layout**: the CAD part tables (``cad_arrays.part_tables_many``: the
-  layout and its buildability rules on (n,) columns, tested equal to ``cad.part_specs``), the
-  interference model's primitive tables from them (``interference_fast.models_from_tables``), the
-  envelope (:func:`envelopes`) and workspace parameters (``workspace.workspace_params_many``), the
-  analytic mass model and height (``device_size.from_tables``). A design that fails a layout rule, or
-  lies within ``cad_arrays.NEAR`` of a rule's threshold or branch point, takes the per-design
-  functions (``assembly.parts``, ``cad.part_specs``, ``device_size.from_specs``): same exception,
-  same message.
-* **per design (Python)**: the result records of the verdicts (the numbers they read come from the
-  array passes above; the force-loop bandwidth of ``stability`` is a closed form over every design at once).
+* **jax, one jitted vmap** (:func:`core_fn`) of the groups the wanted evaluators read (:func:`groups_for`):
+  statics, the reach-and-stroke workspace, the frame model's legs' stiffness terms (assembled and solved
+  after the call, ``frame_model``), the joint ranges over the required cylinder. The batch is padded to
+  the next power of two (at most :data:`MAX_CHUNK`), so a new size within a bucket costs no trace
+  (:data:`TRACES` counts traces).
+* **numpy, one table per part layout**: the CAD part tables (``layout.part_tables_many``), the
+  collision check's primitive tables, the envelope (:func:`envelopes`), the workspace parameters and the
+  device size. A design that fails a layout rule gets that rule's exception and message (the layout's
+  first failed rule, as for one design).
+* **the collision check** of every interference and free-workspace pose of every design: the one IK
+  (``kinematics.inverse_kinematics``, numpy, batch-first over all poses) and the numba kernel, on
+  ``compute.thread_count()`` threads, each a share of whole designs (:func:`_shares`), while XLA computes
+  the core (:func:`start_core` dispatches it, :func:`finish_core` collects it). Results are the same bits
+  at any thread count (tested).
 
 A design whose chain does not close takes the single path (``registry.evaluate_batch``); one whose
-parts the CAD cannot lay out is batched for the kinematic evaluators, and the part evaluators
-give their own early ``not-assemblable``. A step that raises for one design is returned as that
-exception (the registry turns it into ``failed`` with its one failure policy); the other designs
-and steps still run.
+parts the CAD cannot lay out is batched for the kinematic evaluators, and the part evaluators give their
+own early ``not-assemblable``. A step that raises for one design is returned as that exception (the
+registry turns it into ``failed``); the other designs and steps still run.
 """
 
 from __future__ import annotations
 
 import collections
 import functools
-import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, NamedTuple
@@ -93,7 +56,7 @@ from hapticopt.analysis.prrr import stability, statics, structure
 from hapticopt.analysis.prrr import workspace as WS
 from hapticopt.design.errors import HapticoptError, InvalidInput
 from hapticopt.design.prrr import cad, layout as prrr_layout
-from hapticopt.design.prrr.kinematics import PrrrParams, leg_frames
+from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
 from hapticopt.design.prrr.params import PrrrDesign
 
 #: registry evaluators computed by the batch (``stability`` from the statics rows: see the docstring)
@@ -158,9 +121,6 @@ def core_fn(groups: tuple[str, ...] = tuple(CORE_GROUPS)):
 
 
 _KIN_FIELDS = ("beta", "d1", "d2", "d3", "d4", "r4", "b5", "stroke")
-#: the legs' u and t (3 legs, 3) of the numpy IK (``leg_frames``; they do not depend on β)
-_LEGS = leg_frames(0.0, xp=np)
-_EZ = np.array([0.0, 0.0, 1.0])
 
 
 def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams] | None,
@@ -216,30 +176,16 @@ def finish_core(pending: PendingCore) -> dict:
     return out
 
 
-def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> dict:
-    """The core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK);
-    numpy rows [:n] (:func:`start_core` then :func:`finish_core`)."""
-    return finish_core(start_core(inp, n, groups))
-
-
-def _elbow_branch(elbow: np.ndarray, phi: np.ndarray, psi: np.ndarray) -> np.ndarray:
-    """Joint angles (n, 3 legs, 3) [rad] of the elbow branch ``WS.ELBOW_BRANCH`` from the elbow angle and
-    the in-plane angles φ, ψ (n, 3) (``kinematics.inverse_kinematics``' ``branch``)."""
-    th1, th2 = (phi - psi, elbow) if WS.ELBOW_BRANCH == 0 else (phi + psi, -elbow)
-    th1 = np.mod(th1 + np.pi, 2.0 * np.pi) - np.pi  # wrap to [−π, π)
-    return np.stack([th1, th2, -(th1 + th2)], axis=-1)
-
-
 class _Checker:
     """Collision checks of poses of many designs (owner index per pose), grouped by part layout."""
 
-    def __init__(self, designs: list[PrrrDesign], models: dict[int, FAST.FastModel], threads: int = 1) -> None:
-        self.threads = threads  # kernel threads of a check (the caller's Compute.thread_count())
-        self.idx = np.array(sorted(models), dtype=int)
+    def __init__(self, designs: list[PrrrDesign], models: dict[int, FAST.FastModel], compute: Compute = DEFAULT
+                 ) -> None:
+        self.compute = compute
         geo = [d.geometry for d in designs]
         self.geo = {f: np.array([float(getattr(g, f)) for g in geo]) for f in _KIN_FIELDS + ("theta_1p",)}
         groups: dict[tuple, list[int]] = {}
-        for i in self.idx:
+        for i in sorted(models):
             groups.setdefault(FAST.layout_key(models[i]), []).append(int(i))
         self.groups = []
         for members in groups.values():
@@ -247,137 +193,44 @@ class _Checker:
             local[members] = np.arange(len(members))
             geometry = FAST.LegGeometry(*(self.geo[f][members] for f in FAST.LegGeometry._fields))
             batch = FAST.stack_models([models[i] for i in members])
-            self.groups.append((local, batch, geometry, FAST.joint_tables(batch, geometry)))
-
-    def pose_ik(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Sliders (n, 3) [m], elbow-branch joint angles (n, 3, 3) [rad] and reachability (n,) of poses
-        ``pts`` (n, 3) [m] of designs ``owner``: the numpy IK's values bit for bit
-        (``kinematics.inverse_kinematics``, the single path's), from the numba kernel
-        ``_interference_kernels.pose_ik_planar`` (the arithmetic) and numpy's arccos / arctan2 on its
-        outputs, or from :meth:`pose_ik_numpy` where the kernel is not loaded and the poses are fewer
-        than ``interference_fast.KERNEL_AFTER_POSES`` (a small batch does not load numba for this) or
-        where numba cannot load."""
-        n = len(pts)
-        kernels = "hapticopt.analysis.prrr._interference_kernels"
-        if (n < FAST.KERNEL_AFTER_POSES and kernels not in sys.modules) or FAST.availability() is not None:
-            return self.pose_ik_numpy(owner, pts)
-        sliders, elbow, phi, psi, ok = self._planar_ik(owner, pts)
-        return sliders, _elbow_branch(elbow, phi, psi), ok
-
-    def _planar_ik(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Sliders (n, 3) [m], the elbow angle and in-plane angles φ, ψ (n, 3) [rad] and reachability (n,):
-        ``pose_ik_planar``'s arithmetic and numpy's arccos / arctan2 (needs the kernels loaded)."""
-        from hapticopt.analysis.prrr import _interference_kernels as K  # loaded by availability()
-
-        n = len(pts)
-        g = self.geo
-        beta = g["beta"]
-        sliders, rho_v, rho_t, c2, y, x = (np.empty((n, 3)) for _ in range(6))
-        ok = np.empty(n, dtype=np.bool_)
-        K.pose_ik_planar(np.ascontiguousarray(owner, dtype=np.int64), np.ascontiguousarray(pts, dtype=np.float64),
-                         np.cos(beta), np.sin(beta), np.tan(beta), *(g[f] for f in _KIN_FIELDS[1:]), _LEGS.u,
-                         _LEGS.t, sliders, rho_v, rho_t, c2, y, x, ok)
-        return sliders, np.arccos(c2), np.arctan2(rho_t, rho_v), np.arctan2(y, x), ok
-
-    def pose_ik_numpy(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`pose_ik` in numpy over every pose at once: ``inverse_kinematics``' operations
-        element by element, each design's parameters gathered per pose (bit for bit the same values)."""
-        g, o = self.geo, np.asarray(owner, dtype=int)
-        beta = g["beta"]
-        cb, sb = np.cos(beta), np.sin(beta)
-        u, t = _LEGS.u, _LEGS.t
-        d1, d2, d3, d4, r4, b5 = (g[f] for f in ("d1", "d2", "d3", "d4", "r4", "b5"))
-        w = (-cb[:, None, None] * u + sb[:, None, None] * _EZ)[o]  # leg_frames' w, v per pose (n, 3, 3)
-        v = (sb[:, None, None] * u + cb[:, None, None] * _EZ)[o]
-        a0 = (d1[:, None, None] * u + d2[:, None, None] * t)[o]
-        r5 = b5 * sb
-        c_e = -(b5 + r4) / sb + r5 + d1 / np.tan(beta)
-        half = g["stroke"] / 2.0
-        rel = np.asarray(pts, dtype=float)[:, None, :] - b5[o, None, None] * w + r5[o, None, None] * _EZ - a0
-        sliders = (np.sum(rel * w, axis=-1) - r4[o, None]) / sb[o, None]
-        rel = rel - sliders[..., None] * _EZ
-        rho_v = np.sum(rel * v, axis=-1)
-        rho_t = np.sum(rel * t, axis=-1)
-        D3, D4 = d3[o, None], d4[o, None]
-        c2 = (rho_v**2 + rho_t**2 - D3**2 - D4**2) / (2.0 * D3 * D4)
-        reach_ok = np.abs(c2) <= 1.0 + 1e-12
-        c2 = np.clip(c2, -1.0, 1.0)
-        psi = np.arctan2(D4 * np.sqrt(1.0 - c2**2), D3 + D4 * c2)
-        stroke_ok = np.abs(sliders - c_e[o, None]) <= half[o, None] * (1.0 + 1e-12)
-        return (sliders, _elbow_branch(np.arccos(c2), np.arctan2(rho_t, rho_v), psi),
-                np.all(reach_ok & stroke_ok, axis=-1))
+            self.groups.append((local, FAST.joint_tables(batch, geometry)))
 
     def __call__(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``.
-
-        Where the compiled check runs (``interference_fast``'s rule: from ``KERNEL_AFTER_POSES`` checked
-        poses on, numba loadable) and every layout group has joint tables: the pose IK's arithmetic and
-        the joint angles' cos / sin compiled (``interference_fast.joint_cos_sin``), numpy's arccos /
-        arctan2, and ``interference_fast.deepest_joints`` per group (no joint-angle or per-pair depth
-        arrays; a group holding every pose is passed without copies). Otherwise :meth:`pose_ik` and
-        ``interference_fast.check_joints``. The same values bit for bit either way (tested)."""
+        """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``: the
+        one IK over every pose (each pose with its design's parameters), then
+        ``interference_fast.deepest_joints`` per layout group, in shares of whole designs on
+        :func:`_kernel_threads` threads of the checker's ``compute``."""
         n = len(pts)
-        collides, reachable, depth = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n)
+        collides, depth = np.zeros(n, bool), np.zeros(n)
         if n == 0:
-            return collides, reachable, depth
-        if (FAST._POSES_CHECKED[0] + n < FAST.KERNEL_AFTER_POSES or FAST.availability() is not None
-                or any(tables is None for *_, tables in self.groups)):
-            return self._call_arrays(owner, pts, collides, reachable, depth)
-        FAST._POSES_CHECKED[0] += n
-        sliders, elbow, phi, psi, ok = self._planar_ik(owner, pts)
-        trig = FAST.joint_cos_sin(elbow, phi, psi, WS.ELBOW_BRANCH)
+            return collides, np.zeros(n, bool), depth
+        ik = inverse_kinematics(PrrrParams(*(self.geo[f][owner] for f in _KIN_FIELDS)), pts, xp=np)
+        sliders, theta, ok = ik.sliders, ik.theta[:, WS.ELBOW_BRANCH], ik.reachable
         jobs = []
-        for local, batch, geometry, tables in self.groups:
+        for local, tables in self.groups:
             lo = local[owner]
             sel = np.flatnonzero(lo >= 0)
-            k = _kernel_threads(len(sel), self.threads)
-            if len(sel) == n and k == 1:  # one group holds every pose, one thread
-                hit, deepest = FAST.deepest_joints(lo, pts, sliders, trig, ok, tables)
-                return hit, ok, deepest
-            jobs += [(part, lo, tables) for part in _shares(sel, owner, k)]
+            jobs += [(part, lo, tables) for part in _shares(sel, owner, _kernel_threads(len(sel), self.compute))]
 
         def run(job) -> None:
             part, lo, tables = job
             if part[-1] - part[0] + 1 == len(part):  # a contiguous share: views, no copies
                 part = slice(int(part[0]), int(part[-1]) + 1)
-            hit, deepest = FAST.deepest_joints(lo[part], pts[part], sliders[part], tuple(x[part] for x in trig),
-                                               ok[part], tables)
-            collides[part], reachable[part], depth[part] = hit, ok[part], deepest
+            collides[part], depth[part] = FAST.deepest_joints(lo[part], pts[part], sliders[part], theta[part],
+                                                              ok[part], tables)
 
         _run_threaded(run, jobs)
-        return collides, reachable, depth
-
-    def _call_arrays(self, owner, pts, collides, reachable, depth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`__call__` through :meth:`pose_ik`'s joint angles and ``interference_fast.check_joints``
-        (its rule: numpy, or the kernel where it runs)."""
-        sliders, theta, ok = self.pose_ik(owner, pts)
-        jobs = []
-        for local, batch, geometry, tables in self.groups:
-            sel = np.flatnonzero(local[owner] >= 0)
-            jobs += [(part, local, batch, geometry, tables) for part in _shares(sel, owner, _kernel_threads(len(sel), self.threads))]
-
-        def run(job) -> None:
-            part, local, batch, geometry, tables = job
-            res = FAST.check_joints(batch, local[owner[part]], pts[part], sliders[part], theta[part], ok[part],
-                                    geometry, tables=tables)
-            collides[part] = res.collides
-            reachable[part] = res.reachable
-            depth[part] = res.depth.max(axis=1) if res.depth.shape[1] else 0.0
-
-        _run_threaded(run, jobs)
-        return collides, reachable, depth
+        return collides, ok, depth
 
 
 #: fewest poses per thread of a check (below, one thread: the hand-off costs more than it saves)
 POSES_PER_THREAD = 2048
 
 
-def _kernel_threads(n: int, threads: int) -> int:
-    """Threads for a check of ``n`` poses: ``threads``, fewer for a small check, one where the
-    collision kernel does not run (numpy path)."""
-    if n < 2 * POSES_PER_THREAD or threads == 1 or FAST.availability() is not None:
-        return 1
-    return max(1, min(threads, n // POSES_PER_THREAD))
+def _kernel_threads(n: int, compute: Compute) -> int:
+    """Threads for a check of ``n`` poses: ``compute.thread_count()``, fewer for a small check (at least
+    :data:`POSES_PER_THREAD` poses each)."""
+    return max(1, min(compute.thread_count(), n // POSES_PER_THREAD))
 
 
 def _shares(sel: np.ndarray, owner: np.ndarray, k: int) -> list[np.ndarray]:
@@ -395,24 +248,20 @@ def _shares(sel: np.ndarray, owner: np.ndarray, k: int) -> list[np.ndarray]:
     return [sel[a:b] for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
 
 
-@functools.cache
-def _pool(workers: int) -> ThreadPoolExecutor:
-    """``workers`` kernel threads beside the calling one (one pool per size asked for)."""
-    return ThreadPoolExecutor(max_workers=workers, thread_name_prefix="hapticopt-kernel")
-
-
 def _run_threaded(fn, jobs: list) -> None:
-    """``fn(job)`` for every job: on the calling thread and the pool's threads at once where there are
-    several jobs (the collision kernel releases the GIL), the first error raised again here."""
+    """``fn(job)`` for every job: the first on the calling thread, the others on a pool made for this call
+    (the kernel releases the GIL), the first error raised again here. A pool made, used and shut down costs
+    ≈ 0.26 ms (one worker, median of 200, at load 20 on 2 cores), against at least
+    :data:`POSES_PER_THREAD` poses of kernel work per share (milliseconds)."""
     if len(jobs) <= 1:
         for job in jobs:
             fn(job)
         return
-    pool = _pool(len(jobs) - 1)
-    futures = [pool.submit(fn, job) for job in jobs[1:]]
-    fn(jobs[0])
-    for f in futures:
-        f.result()
+    with ThreadPoolExecutor(max_workers=len(jobs) - 1, thread_name_prefix="hapticopt-kernel") as pool:
+        futures = [pool.submit(fn, job) for job in jobs[1:]]
+        fn(jobs[0])
+        for f in futures:
+            f.result()
 
 
 _CORNERS = np.array([[i, j, k] for i in (-1.0, 1.0) for j in (-1.0, 1.0) for k in (-1.0, 1.0)])
@@ -463,7 +312,7 @@ class _Blocked(Exception):
 
 
 class _Rows(NamedTuple):
-    """Stands for the part tables of a design tabled by ``cad_arrays.part_tables_many``: row ``row``
+    """Stands for the part tables of a design tabled by ``layout.part_tables_many``: row ``row``
     of ``tables``."""
 
     tables: Any
@@ -475,9 +324,8 @@ def _part_tables(designs: list[PrrrDesign]) -> tuple[list[Any], list[Any], set[i
     ``cad.part_specs`` dict, or the exception it raised, or :class:`_Blocked` —, the array tables by
     part layout with rows re-indexed to ``designs``, the designs whose parts cannot be laid out).
 
-    ``cad_arrays.part_tables_many`` tables every design that passes the layout's rules clearly; the
-    others (a rule fails, or a threshold within ``cad_arrays.NEAR``) take the per-design functions:
-    ``assembly.parts`` (not-assemblable, with its message) and ``cad.part_specs``."""
+    ``layout.part_tables_many`` tables every design that passes the layout's rules; the others are
+    refused by ``assembly.parts`` (not-assemblable, with its message)."""
     groups, rest = prrr_layout.part_tables_many(designs)
     specs: list[Any] = [None] * len(designs)
     for t in groups:
@@ -525,14 +373,16 @@ def _guard(fn, *args, **kw) -> Any:
 def evaluate_many(designs: list[PrrrDesign], *, only: tuple[str, ...] | None = None, compute: Compute = DEFAULT
                   ) -> list[tuple[dict[str, Any], dict[str, float]]]:
     """Draft results of ``designs``: per design (evaluator name → result or the exception raised,
-    evaluator name → seconds, the batch's wall time of that step divided by the batch size)."""
+    evaluator name → seconds, the batch's wall time of that step divided by the batch size). ``compute``:
+    the collision check's threads (``compute.thread_count()``)."""
     out: list[tuple[dict[str, Any], dict[str, float]]] = []
     for c in range(0, len(designs), MAX_CHUNK):
         out.extend(_chunk(list(designs[c:c + MAX_CHUNK]), only, compute))
     return out
 
 
-def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None, compute: Compute = DEFAULT) -> list[tuple[dict[str, Any], dict[str, float]]]:
+def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None, compute: Compute
+           ) -> list[tuple[dict[str, Any], dict[str, float]]]:
     n = len(designs)
     want = [name for name in BATCHED + ("stability",) if only is None or name in only]
     res: list[dict[str, Any]] = [{} for _ in designs]
@@ -570,7 +420,7 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None, compute: Com
     for i, err in model_errors.items():
         check_specs[i] = err
     if "interference" in want or "free_workspace" in want:
-        check = _Checker(designs, models, compute.thread_count())
+        check = _Checker(designs, models, compute)
     if "interference" in want:
         for i in no_parts:
             res[i]["interference"] = _guard(IF.evaluate, designs[i], fidelity=draft)
@@ -751,7 +601,7 @@ def _interference(designs, specs, wps, check, res, t0) -> None:
 
 def _blocked_tabled(design: PrrrDesign, spec: Any) -> str | None:
     """``assembly.check(design, with_parts=True)`` of a design with array part tables (:class:`_Rows`):
-    its parts are laid out (``cad_arrays`` tables only designs that pass ``cad.layout``'s rules clearly),
+    its parts are laid out (``layout`` tables only designs that pass its rules),
     so its chain closure alone (cached), without the CAD layout (≈ 0.16 ms a design not seen before);
     None for the others (the evaluator asks ``assembly.check`` itself)."""
     return assembly.closure(design) if isinstance(spec, _Rows) else None

@@ -269,7 +269,7 @@ def frame_params_many(designs) -> FrameParams:
 
 def _brackets_many(designs, sec: Section) -> dict[str, np.ndarray]:
     """:func:`bracket_frame` of many designs (leading batch axis): the brackets over the batch
-    (:func:`hapticopt.design.prrr.cad_arrays.brackets_many`, the array form of
+    (:func:`hapticopt.design.prrr.layout.brackets_many`, the array form of
     :func:`hapticopt.design.prrr.cad.carriage_bracket`, from :data:`BRACKET_ARRAYS_FROM` designs on; its
     ``rest``, the designs no face carries or near a rule's threshold or branch point, and the designs of a
     smaller batch by the per-design function, as :func:`bracket_frame`), the bonds' :func:`bond_stiffness`
@@ -317,7 +317,7 @@ def _bracket_of(design):
 
 
 def _bracket_fields(b) -> dict:
-    """The fields of :func:`hapticopt.design.prrr.cad_arrays.brackets_many` of one :class:`cad.Bracket`."""
+    """The fields of :func:`hapticopt.design.prrr.layout.brackets_many` of one :class:`cad.Bracket`."""
     return dict(clevis=b.clevis, axis=b.axis, normal=b.normal, e_l=b.e_l, arm_length=b.arm_length,
                 root_axes=b.root_axes, root_size=b.root_size, contact=b.contact_centre, n_p=b.contact_axes[:, 1],
                 contact_size=b.contact_size)

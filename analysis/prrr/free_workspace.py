@@ -130,28 +130,21 @@ class FreeWorkspace:
         }
 
 
-def column_poses(design: PrrrDesign, phi: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Check poses (…, 3) [m] of the columns at angles ``phi`` and radii ``r`` (broadcast):
-    z = −H(r)/2 = −L/2 + r cot β, the lowest point of the smallest cylinder containing the column."""
-    g = design.geometry
-    return column_poses_of(g.stroke, g.beta, phi, r)
-
-
 def column_poses_of(stroke, beta, phi, r) -> np.ndarray:
-    """:func:`column_poses` from the stroke [m] and β [rad] (scalars, or arrays broadcast with
-    ``phi`` and ``r``: one design per column in the batched draft evaluator)."""
+    """Check poses (…, 3) [m] of the columns at angles ``phi`` and radii ``r`` of designs of stroke [m] and
+    β [rad] (scalars, or arrays broadcast with ``phi`` and ``r``: one design per column in the batched draft
+    evaluator): z = −H(r)/2 = −L/2 + r cot β, the lowest point of the smallest cylinder containing the column."""
     phi, r = np.broadcast_arrays(np.asarray(phi, dtype=float), np.asarray(r, dtype=float))
     z = -np.asarray(stroke) / 2.0 + r / np.tan(beta)
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
 
 
-def _collides_fn(design: PrrrDesign, checker: str, model_of=None, checker_of=None):
+def _collides_fn(design: PrrrDesign, checker: str, check=None):
+    """``collides(points)`` (bool per point: parts collide or the point is unreachable) by ``checker``;
+    ``check``: the design's fast point checker in the elbow branch where the caller has one."""
     if checker == Checker.FAST:
-        if checker_of is not None:
-            check = checker_of(design)
-        else:
-            check = interference_fast.point_checker((interference_fast.prepare if model_of is None else model_of)(design),
-                                                    branch=ELBOW_BRANCH)
+        if check is None:
+            check = interference_fast.point_checker(interference_fast.prepare(design), branch=ELBOW_BRANCH)
 
         def collides(pts: np.ndarray) -> np.ndarray:
             res = check(pts)
@@ -165,16 +158,14 @@ def _collides_fn(design: PrrrDesign, checker: str, model_of=None, checker_of=Non
 
 
 def free_radius(design: PrrrDesign, r_max: float, *, n_phi: int, n_r: int, n_bisect: int,
-                checker: str = Checker.FAST, model_of=None, checker_of=None) -> tuple[float, int, int]:
+                checker: str = Checker.FAST, check=None) -> tuple[float, int, int]:
     """(R_free [m], poses checked, poses colliding): largest radius ≤ ``r_max`` whose columns are
-    collision-free on every ray (see the module docstring); ``model_of(design)``: the fast checker's
-    primitive tables (default :func:`hapticopt.analysis.prrr.interference_fast.prepare`; the registry
-    call's shared ones); ``checker_of(design)``: its fast
-    :func:`~hapticopt.analysis.prrr.interference_fast.point_checker` in the elbow branch (the shared one,
-    used before ``model_of``). The fast checker's per-design steps are taken once for every pass."""
-    collides = _collides_fn(design, checker, model_of, checker_of)
+    collision-free on every ray (see the module docstring): :func:`free_radius_many` of the one design.
+    ``check``: the design's :func:`~hapticopt.analysis.prrr.interference_fast.point_checker` in the elbow
+    branch (made here when omitted; fast checker only)."""
     if r_max <= 0.0:
         return 0.0, 0, 0
+    collides = _collides_fn(design, checker, check)
     g = design.geometry
     r_free, n_checked, n_hit = free_radius_many(
         lambda owner, phi, r: collides(column_poses_of(g.stroke, g.beta, phi, r)),
@@ -234,8 +225,8 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
              required_height: float = DEFAULT_REQUIRED_HEIGHT, shared: Any = None,
              compute: Compute = DEFAULT) -> FreeWorkspace:  # compute: TODO(merge) the collide branch routes by it
     """Collision-free workspace metrics of ``design`` (see the module docstring); ``shared``: the
-    registry call's :class:`hapticopt.analysis.prrr.shared.DesignSteps` of ``design`` (the envelope
-    and the fast checker's primitive tables)."""
+    registry call's :class:`hapticopt.analysis.prrr.shared.DesignSteps` of ``design`` (the envelope, the
+    reach core and the fast point checker, each taken once per call)."""
     fidelity = Fidelity(fidelity)
     smp = SAMPLING[fidelity]
     t0 = time.perf_counter()
@@ -248,9 +239,9 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
         return finish(design, core, None, fidelity=fidelity, t0=t0, required_diameter=required_diameter,
                       required_height=required_height)
     try:
+        check = shared.point_checker(design) if shared is not None and smp.checker == Checker.FAST else None
         found = free_radius(design, r_max, n_phi=smp.n_phi, n_r=smp.n_r, n_bisect=smp.n_bisect, checker=smp.checker,
-                            model_of=None if shared is None else shared.fast_model,
-                            checker_of=None if shared is None else shared.point_checker)
+                            check=check)
     except HapticoptError as exc:  # the CAD cannot lay this design's parts out
         found = exc
     return finish(design, core, found, fidelity=fidelity, t0=t0, required_diameter=required_diameter,

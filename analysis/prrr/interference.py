@@ -76,7 +76,7 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, shar
         else:
             removed, overlap = interference_fast.interference_fractions(
                 design, **INTERFERENCE_SAMPLING, wp=workspace_params(design, envelope=shared.envelope(design)),
-                model_of=shared.fast_model, checker_of=shared.point_checker)
+                check=shared.point_checker(design))
     except HapticoptError as exc:  # the parts are laid out but a pose's parts cannot be placed
         return failed(exc, t0)
     return from_fractions(removed, overlap, t0)

@@ -58,25 +58,6 @@ class PrrrJointLimits:
         return out
 
 
-def cylinder_grid(design: PrrrDesign, radius: float, *, n_phi: int = 24, n_r: int = 6, n_z: int = 3) -> np.ndarray:
-    """Points (m, 3) [m] of the vertical cylinder of ``radius`` about z (height L − 2R cot β,
-    centred on the home pose), polar grid incl. the rim and the axis."""
-    g = design.geometry
-    return cylinder_grid_of(g.stroke, g.beta, radius, n_phi=n_phi, n_r=n_r, n_z=n_z, xp=np)
-
-
-def cylinder_grid_of(stroke, beta, radius: float, *, n_phi: int = 24, n_r: int = 6, n_z: int = 3, xp=np):
-    """:func:`cylinder_grid` from the stroke [m] and β [rad] (``xp``: numpy, or ``jax.numpy`` under
-    the batched draft evaluator's vmap): the in-plane points (:func:`_plane`) at each of the
-    :func:`_levels` (point index (φ, r, z) row-major), then the axis at each level."""
-    x, y = _grid_xy(float(radius), n_phi, n_r, n_z)
-    z = _levels(stroke, beta, radius, n_z, xp)
-    Z = xp.broadcast_to(z, x.shape)
-    pts = xp.stack([xp.asarray(x), xp.asarray(y), Z], axis=-1).reshape(-1, 3)
-    zero = xp.zeros(n_z)
-    return xp.concatenate([pts, xp.stack([zero, zero, z], axis=1)])
-
-
 @functools.lru_cache(maxsize=16)
 def _plane(radius: float, n_phi: int, n_r: int) -> tuple[np.ndarray, np.ndarray]:
     """x, y (n_phi, n_r) [m] of the cylinder grid's points off the axis (polar grid incl. the rim); they
@@ -90,18 +71,6 @@ def _plane(radius: float, n_phi: int, n_r: int) -> tuple[np.ndarray, np.ndarray]
     return x, y
 
 
-@functools.lru_cache(maxsize=16)
-def _grid_xy(radius: float, n_phi: int, n_r: int, n_z: int) -> tuple[np.ndarray, np.ndarray]:
-    """x and y (n_phi, n_r, n_z) [m] of :func:`cylinder_grid_of`'s points off the axis: :func:`_plane`
-    at every level, made once for each radius and counts (read-only; the grid took ≈ 40 % of a
-    one-design joint-limit evaluation without the IK)."""
-    X, Y = _plane(radius, n_phi, n_r)
-    x, y = np.repeat(X[..., None], n_z, axis=-1), np.repeat(Y[..., None], n_z, axis=-1)
-    x.setflags(write=False)
-    y.setflags(write=False)
-    return x, y
-
-
 def _levels(stroke, beta, radius: float, n_z: int, xp):
     """The grid's heights (n_z,) [m]: the cylinder of height L − 2R cot β about the home pose, shrunk
     by 1e-9 so that its rim stays inside the stroke."""
@@ -110,7 +79,7 @@ def _levels(stroke, beta, radius: float, n_z: int, xp):
 
 
 class JointRanges(NamedTuple):
-    """What :func:`from_angles` reads of the angles over the cylinder grid: per joint the (min, max)
+    """What the verdict reads of the angles over the cylinder grid: per joint the (min, max)
     over the reachable points and every leg (lo, hi (3,) [rad]; ±inf where none is reachable), their
     largest |θ2| [rad] (−inf where none) and the number of points out of reach or stroke."""
 
@@ -122,13 +91,14 @@ class JointRanges(NamedTuple):
 
 def cylinder_ranges_of(params: PrrrParams, radius: float, *, n_phi: int = 24, n_r: int = 6, n_z: int = 3,
                        xp=np) -> JointRanges:
-    """:class:`JointRanges` of the :func:`cylinder_grid_of` points without the IK of every point: the
-    in-plane angles do not depend on the height (the slider takes it up: w·e_z = sin β, so the
-    slider moves with z one for one and the in-plane vector is unchanged), so the IK runs once per
-    in-plane point at z = 0, and the grid's heights z_k enter only the stroke test, slider s0 + z_k.
-    Equal to the IK of every grid point up to rounding (tested to 1e-12 relative with equal counts, on
-    designs in and out of reach; the grid's rim keeps 1e-9 of the stroke, decades above rounding).
-    A third of the angle work of the full grid: the batched draft evaluator's joint group."""
+    """:class:`JointRanges` over the cylinder grid of ``radius`` about z (height L − 2R cot β about the
+    home pose: ``n_phi`` × ``n_r`` polar points incl. the rim, and the axis, at ``n_z`` heights) without the
+    IK of every point: the in-plane angles do not depend on the height (the slider takes it up: w·e_z =
+    sin β, so the slider moves with z one for one and the in-plane vector is unchanged), so the IK runs
+    once per in-plane point at z = 0, and the grid's heights z_k enter only the stroke test, slider
+    s0 + z_k. Equal to the IK of every grid point up to rounding (tested to 1e-12 relative with equal
+    counts, on designs in and out of reach; the grid's rim keeps 1e-9 of the stroke, decades above
+    rounding). ``xp``: numpy (one design) or jax.numpy (the batched draft evaluator's vmap)."""
     X, Y = _plane(float(radius), n_phi, n_r)
     xy = np.concatenate([np.stack([X.ravel(), Y.ravel()], axis=-1), np.zeros((1, 2))])  # (P, 2), the axis last
     ik = inverse_kinematics(params, xp.asarray(np.concatenate([xy, np.zeros((len(xy), 1))], axis=1)), xp=xp)
@@ -145,7 +115,7 @@ def cylinder_ranges_of(params: PrrrParams, radius: float, *, n_phi: int = 24, n_
 
 
 def grid_size(*, n_phi: int = 24, n_r: int = 6, n_z: int = 3) -> int:
-    """Number of points of the cylinder grid (:func:`cylinder_grid_of`)."""
+    """Number of points of the cylinder grid (:func:`cylinder_ranges_of`)."""
     return (n_phi * n_r + 1) * n_z
 
 
@@ -167,37 +137,16 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     if blocked:
         return PrrrJointLimits(elbow_limit=nan, used={}, stops=None, margin=nan, wall_s=time.perf_counter() - t0,
                                status=Status.NOT_ASSEMBLABLE, message=blocked)
-    pts = cylinder_grid(design, required_diameter / 2.0)
-    # plain floats: numpy throughout (jax scalars would send every operation to XLA one by one)
-    ik = inverse_kinematics(params_np(design), pts, xp=np)
-    th = np.asarray(ik.theta)[:, ELBOW_BRANCH]  # (m, 3 legs, 3)
-    return from_angles(design, th, np.asarray(ik.reachable), fidelity=fidelity, t0=t0,
-                       required_diameter=required_diameter)
-
-
-def from_angles(design: PrrrDesign, th: np.ndarray, ok: np.ndarray, *, fidelity: Fidelity, t0: float,
-                required_diameter: float = FW.DEFAULT_REQUIRED_DIAMETER) -> PrrrJointLimits:
-    """The result from the joint angles ``th`` (m, 3 legs, 3) [rad] of the CAD's elbow branch at the
-    :func:`cylinder_grid` points and whether each is reachable (numpy, or a row of the batched
-    draft evaluator): the one place of the verdict."""
-    n_out = int((~ok).sum())
-    if n_out == len(ok):
-        return _verdict(design, len(ok), n_out, None, math.nan, fidelity=fidelity, t0=t0,
-                        required_diameter=required_diameter)
-    # the reachable points' angles joint-major, (3 joints, points · legs) contiguous: each joint's range
-    # and the largest |θ2| as reductions along rows (min and max: exact, so the same values as over the
-    # (points, legs) axes of ``th[ok]``, in a third of the time)
-    by_joint = np.ascontiguousarray(np.moveaxis(np.asarray(th, dtype=float), 2, 0)[:, ok]).reshape(3, -1)
-    lo, hi = by_joint.min(axis=1), by_joint.max(axis=1)
-    return _verdict(design, len(ok), n_out, (lo, hi), float(np.abs(by_joint[1]).max()), fidelity=fidelity, t0=t0,
-                    required_diameter=required_diameter)
+    ranges = cylinder_ranges_of(params_np(design), required_diameter / 2.0, xp=np)
+    return from_ranges_many([design], JointRanges(*(np.asarray(x)[None] for x in ranges)), n_points=grid_size(),
+                            fidelity=fidelity, t0=t0, required_diameter=required_diameter)[0]
 
 
 def from_ranges_many(designs: list[PrrrDesign], ranges: JointRanges, *, n_points: int, fidelity: Fidelity,
                      t0: float, required_diameter: float = FW.DEFAULT_REQUIRED_DIAMETER) -> list[PrrrJointLimits]:
-    """:func:`from_angles` of every design from its stacked :class:`JointRanges` (leading axis: the
-    designs; the batched draft evaluator's, :func:`cylinder_ranges_of`) over a grid of ``n_points``:
-    the verdict of each design by the same rule."""
+    """The result of every design from its stacked :class:`JointRanges` (leading axis: the designs;
+    :func:`cylinder_ranges_of`'s, numpy for one design or jax under the batched draft evaluator's vmap)
+    over a grid of ``n_points``: the one place of the verdict."""
     lo, hi = np.asarray(ranges.lo, dtype=float).tolist(), np.asarray(ranges.hi, dtype=float).tolist()
     top, n_out = np.asarray(ranges.top, dtype=float).tolist(), np.asarray(ranges.n_out).tolist()
     return [_verdict(d, n_points, n_out[i], (lo[i], hi[i]) if n_out[i] < n_points else None, top[i],

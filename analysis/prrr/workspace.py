@@ -678,8 +678,7 @@ def batch_arrays(wp: WorkspaceParams, *, fidelity: Fidelity = Fidelity.STANDARD)
     return [{k: v[i] for k, v in out.items()} for i in range(n)]
 
 
-#: sampling of the interference checks (3·n_phi·n_r·n_z = 216 poses; manifold3d ~20 ms each at
-#: fine, hapticopt.analysis.prrr.interference_fast ~30 ms for all of them at every level)
+#: sampling of the interference checks (3·n_phi·n_r·n_z = 216 poses at most)
 INTERFERENCE_SAMPLING = dict(n_phi=6, n_r=4, n_z=3)
 
 
@@ -720,10 +719,9 @@ def _blas() -> ThreadpoolController:
 
 def workspace_sample_weights_many(designs: list[PrrrDesign], wps: list[WorkspaceParams], *, n_phi: int, n_r: int,
                                   n_z: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """:func:`workspace_sample_weights` of many designs (their default :func:`workspace_params`
-    ``wps``) in one numpy pass over the rays of every design: the same elementwise operations on
-    longer arrays (``_ray_intervals`` on per-ray columns), so each design's points and weights equal
-    the per-design function's (tested bit for bit on the points and the weights)."""
+    """:func:`workspace_sample_weights` of many designs (their default :func:`workspace_params` ``wps``) in
+    one numpy pass over the rays of every design: the same elementwise operations on longer arrays, so each
+    design's points and weights equal the per-design function's bit for bit (tested)."""
     n = len(designs)
     if n == 0:
         return []
@@ -743,9 +741,7 @@ def workspace_sample_weights_many(designs: list[PrrrDesign], wps: list[Workspace
     a = x[..., None] * np.cos(_GAMMA) + y[..., None] * np.sin(_GAMMA)
     beta, stroke = cols[0], cols[7]
     cot = np.array([1.0 / np.tan(b) for b in beta])[:, None, None]  # sample_points: np.tan of the float
-    # the largest and smallest of the three legs' a by pairwise maximum and minimum: the same floats as
-    # ``a.max(axis=-1)`` (a reduction over an axis of 3 ran a length-3 inner loop per point: half the
-    # function's time)
+    # the largest and smallest of the three legs' a by pairwise maximum and minimum (``a.max(axis=-1)``'s floats)
     z0 = -stroke[:, None, None] / 2.0 + cot * _max3(a)
     z1 = stroke[:, None, None] / 2.0 + cot * _min3(a)
     ok = m3 & (z1 > z0)

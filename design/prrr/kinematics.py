@@ -143,7 +143,8 @@ class IkSolution(NamedTuple):
 
 
 def inverse_kinematics(params: PrrrParams, p: jax.Array, xp=jnp) -> IkSolution:
-    """Geometric IK of end-effector positions ``p`` (..., 3) [m] for one design.
+    """Geometric IK of end-effector positions ``p`` (..., 3) [m]: of one design (``params`` scalars) or
+    batch-first, one design per point (each entry of ``params`` broadcasting with ``p``'s leading shape ``...``).
 
     Slider positions follow from closing each leg along its joint axis w (the in-plane links
     have no w component): w·(Q − A) = r4. Joint angles from the planar two-link problem in
@@ -151,17 +152,21 @@ def inverse_kinematics(params: PrrrParams, p: jax.Array, xp=jnp) -> IkSolution:
     nothing here returns NaN. ``xp``: array module (``numpy`` for jit-free single calls).
     """
     p = xp.asarray(p)
-    f = leg_frames(params.beta, xp=xp)
-    r5 = r5_of(params, xp=xp)
-    pe = p[..., None, :]  # (..., 1, 3) against legs (3, 3)
-    # R3 axis point Q and R1 offset (without the slider height) per leg
-    q = pe - params.b5 * f.w + r5 * _EZ
-    a0 = params.d1 * f.u + params.d2 * f.t
-    rel = q - a0
-    sliders = (xp.sum(rel * f.w, axis=-1) - params.r4) / xp.sin(params.beta)  # w·e_z = sin β
-    rel = rel - sliders[..., None] * _EZ
-    rho_v = xp.sum(rel * f.v, axis=-1)
-    rho_t = xp.sum(rel * f.t, axis=-1)
+    params = PrrrParams(*(xp.asarray(x)[..., None] for x in params))  # (..., 1): against the legs axis
+    u, t, _ = _IN_PLANE_NP if xp is np else _in_plane(xp)
+    ux, uy, tx, ty = u[:, 0], u[:, 1], t[:, 0], t[:, 1]  # (3 legs,); u and t have no z
+    cb, sb = xp.cos(params.beta), xp.sin(params.beta)
+    # per leg, component by component ((..., 3 legs) each): w = −cos β u + sin β e_z, v = sin β u + cos β e_z
+    # (leg_frames), the R3 axis point Q = p − b5 w + r5 e_z less the R1 offset d1 u + d2 t
+    wx, wy = -cb * ux, -cb * uy
+    px, py, pz = p[..., 0, None], p[..., 1, None], p[..., 2, None]
+    relx = (px - params.b5 * wx) - (params.d1 * ux + params.d2 * tx)
+    rely = (py - params.b5 * wy) - (params.d1 * uy + params.d2 * ty)
+    relz = (pz - params.b5 * sb) + r5_of(params, xp=xp)
+    sliders = (((relx * wx + rely * wy) + relz * sb) - params.r4) / sb  # w·(Q − A) = r4; w·e_z = sin β
+    relz = relz - sliders
+    rho_v = (relx * (sb * ux) + rely * (sb * uy)) + relz * cb
+    rho_t = relx * tx + rely * ty
     rho2 = rho_v**2 + rho_t**2
     d3, d4 = params.d3, params.d4
     c2 = (rho2 - d3**2 - d4**2) / (2.0 * d3 * d4)

@@ -51,3 +51,16 @@ def problem_sample() -> Callable:
     """``problem_sample(n, seed, accept=None)``: designs within the bundled prrr-workspace problem's
     bounds (colliding, not-assemblable and empty ones among them unless ``accept`` filters)."""
     return _problem_sample
+
+
+@pytest.fixture(scope="session")
+def collision_reference():
+    """The numpy reference of the collision kernel (``interference_reference.py`` beside this file: it
+    proves ``_interference_kernels`` right and is not part of the package)."""
+    import importlib.util
+
+    path = Path(__file__).with_name("interference_reference.py")
+    spec = importlib.util.spec_from_file_location("interference_reference", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

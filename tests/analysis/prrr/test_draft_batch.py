@@ -12,19 +12,18 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import math
-import sys
 
-import jax
 import numpy as np
 import pytest
 
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr import assembly, draft_batch, interference_fast, statics
 from hapticopt.analysis.registry import evaluate_all, evaluate_batch
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.prrr import cad
-from hapticopt.design.prrr.kinematics import inverse_kinematics
+from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics
 
 BASE = io.load_preset("prrr-paper")
 REL = 1e-9
@@ -187,44 +186,25 @@ def test_only_restricts_the_batch(only, problem_sample):
         assert set(b.statuses) == set(only)
 
 
-def test_pose_ik_is_the_numpy_ik_bitwise(problem_sample):
-    """The checker's pose IK, both routes (the numba kernel ``_interference_kernels.pose_ik_planar`` with
-    numpy's arccos / arctan2, and numpy over every pose), against the numpy IK of each design
-    (``kinematics.inverse_kinematics``, xp=np, the single path's) on 7,000 seeded poses of 11 designs,
-    owners in runs and interleaved: sliders, joint angles and reachability bit for bit."""
-    assert interference_fast.availability() is None
+def test_batch_first_ik_is_each_designs_ik_bitwise(problem_sample):
+    """The checker's IK (``kinematics.inverse_kinematics`` batch-first: each pose with its design's
+    parameters, ``draft_batch._Checker``) against the IK of each design alone (the single path's), on 7,000
+    seeded poses of 11 designs, owners in runs and interleaved: sliders, joint angles, reachability and
+    reach margin bit for bit."""
     designs = problem_sample(11, seed=7)
     check = draft_batch._Checker(designs, {})
     rng = np.random.default_rng(5)
     n = 7000
     owner = np.concatenate([np.sort(rng.integers(0, len(designs), n // 2)), rng.integers(0, len(designs), n // 2)])
     pts = rng.uniform(-0.06, 0.06, (n, 3))
-    many = check.pose_ik_numpy(owner, pts)
-    assert interference_fast.KERNEL_AFTER_POSES <= 3 * n
-    kernel = check.pose_ik(np.tile(owner, 3), np.tile(pts, (3, 1)))  # enough poses for the kernel
-    assert "hapticopt.analysis.prrr._interference_kernels" in sys.modules
-    assert 0.2 < many[2].mean() < 1.0  # both verdicts occur
+    many = inverse_kinematics(PrrrParams(*(check.geo[f][owner] for f in draft_batch._KIN_FIELDS)), pts, xp=np)
+    assert 0.2 < many.reachable.mean() < 1.0  # both verdicts occur
     for m in range(len(designs)):
         sel = owner == m
         ik = inverse_kinematics(statics.params_np(designs[m]), pts[sel], xp=np)
-        ref = (ik.sliders, ik.theta[:, draft_batch.WS.ELBOW_BRANCH], ik.reachable)
-        for got in many, [x[:n] for x in kernel], [x[2 * n:] for x in kernel]:
-            for a, b in zip(ref, got, strict=True):
-                assert np.array_equal(np.asarray(a).view(np.uint8), b[sel].view(np.uint8))
-
-
-def test_batch_of_one_does_not_load_the_kernels():
-    """A batch of one design (≈ 220 interference poses, below ``KERNEL_AFTER_POSES``) takes the numpy
-    pose IK and the numpy check: numba and the kernels' module stay unloaded (loading them costs
-    ≈ 0.55 s, docs/workspace_interference.md). A fresh interpreter, the same import path."""
-    import subprocess
-
-    code = ("import sys; from hapticopt.analysis.fidelity import Fidelity; "
-            "from hapticopt.analysis.registry import evaluate_batch; from hapticopt.design import io; "
-            "evaluate_batch([io.load_preset('prrr-paper')], fidelity=Fidelity.DRAFT); "
-            "print('hapticopt.analysis.prrr._interference_kernels' in sys.modules, 'numba' in sys.modules)")
-    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
-    assert out.stdout.split() == ["False", "False"]
+        for name in ("sliders", "theta", "reachable", "reach_margin"):
+            a, b = np.asarray(getattr(ik, name)), getattr(many, name)[sel]
+            assert np.array_equal(a.view(np.uint8), b.view(np.uint8)), name
 
 
 def test_new_batch_size_in_a_bucket_does_not_retrace():
@@ -245,9 +225,9 @@ def test_other_fidelities_fall_back_to_the_single_path():
     assert _close(ev.metrics()["jacobian_condition"], evaluate_all(BASE, only=("statics",)).metrics()["jacobian_condition"])
 
 
-def _checker_and_poses(designs):
-    """The batch's checker of the designs whose parts lay out, and their interference poses (owner, points),
-    in design order."""
+def _checker_and_poses(designs, compute=DEFAULT):
+    """The batch's checker of the designs whose parts lay out, their models and their interference poses
+    (owner, points), in design order."""
     from hapticopt.analysis.prrr import workspace as WS
 
     models = {}
@@ -261,46 +241,69 @@ def _checker_and_poses(designs):
     for i in models:
         p, _ = WS.workspace_sample_weights(designs[i], **WS.INTERFERENCE_SAMPLING)
         owner.append(np.full(len(p), i)), pts.append(p)
-    return draft_batch._Checker(designs, models), np.concatenate(owner), np.concatenate(pts)
+    return draft_batch._Checker(designs, models, compute), models, np.concatenate(owner), np.concatenate(pts)
 
 
-def test_checker_kernel_equals_its_numpy_path_bitwise(both, monkeypatch):
-    """The batch's collision checker (pose IK, then ``interference_fast.check_joints``, which builds the
-    part frames in the compiled kernel) gives bit for bit the depths, flags and reachability of its numpy
-    path (``cad.part_frames_arrays`` + the numpy ``check_posed``) on the interference poses of the
-    sample's designs with part tables, owners in design order and shuffled."""
-
-    check, owner, pts = _checker_and_poses(both[0])
+def test_checker_equals_the_numpy_reference_bitwise(both, collision_reference):
+    """The batch's collision checker (the one IK over every pose, then the kernel per layout group) gives
+    bit for bit the flags, reachability and deepest overlaps of the numpy reference
+    (``interference_reference``: the CAD's part frames of each design's own IK, then ``check_posed``) on
+    the interference poses of the sample's designs with part tables, owners in design order and shuffled."""
+    R = collision_reference
+    check, models, owner, pts = _checker_and_poses(both[0])
+    hit, reach, deep = np.zeros(len(owner), bool), np.zeros(len(owner), bool), np.zeros(len(owner))
+    for i, m in models.items():
+        sel = owner == i
+        frames, ok = R.part_frames_batch(m.design, pts[sel], branch=draft_batch.WS.ELBOW_BRANCH)
+        ref = R.check_posed(interference_fast.stack_models([m]), np.zeros(sel.sum(), dtype=int), pts[sel], frames, ok)
+        hit[sel], reach[sel], deep[sel] = ref.collides, ok, ref.depth.max(axis=1)
     for order in (np.arange(len(owner)), np.random.default_rng(11).permutation(len(owner))):
-        monkeypatch.setattr(interference_fast, "_POSES_CHECKED", [interference_fast.KERNEL_AFTER_POSES])
-        fast = check(owner[order], pts[order])
-        monkeypatch.setattr(interference_fast, "availability", lambda: "switched off by the test")
-        slow = check(owner[order], pts[order])
-        monkeypatch.undo()
-        assert np.array_equal(fast[0], slow[0]) and np.array_equal(fast[1], slow[1])
-        assert np.array_equal(fast[2].view(np.int64), slow[2].view(np.int64))
-        assert fast[0].any() and not fast[0].all() and (fast[2] > 0).any()
+        got = check(owner[order], pts[order])
+        assert np.array_equal(got[0], hit[order]) and np.array_equal(got[1], reach[order])
+        assert np.array_equal(got[2].view(np.int64), deep[order].view(np.int64))
+    assert hit.any() and not hit.all() and (deep > 0).any()
 
 
-def test_checker_on_two_threads_equals_one_thread_bitwise(both, monkeypatch):
-    """The checker's kernel on two threads (each a share of the designs, ``draft_batch._shares``) gives
-    bit for bit what one thread gives, owners in design order and shuffled (a shuffled share cuts
-    designs' runs of poses: the kernel sets each run up again)."""
-    check, owner, pts = _checker_and_poses(both[0])
-    monkeypatch.setattr(draft_batch, "POSES_PER_THREAD", 64)
-    for route in ("deepest_joints", "check_joints"):  # the compiled route, and through the joint angles
-        if route == "check_joints":
-            monkeypatch.setattr(check, "groups", [(*g[:3], None) for g in check.groups])
-        for order in (np.arange(len(owner)), np.random.default_rng(5).permutation(len(owner))):
-            got = {}
-            for k in (1, 2):
-                check.threads = k
-                monkeypatch.setattr(interference_fast, "_POSES_CHECKED", [interference_fast.KERNEL_AFTER_POSES])
-                assert draft_batch._kernel_threads(len(owner), k) == k
-                got[k] = check(owner[order], pts[order])
-            for a, b in zip(got[1], got[2], strict=True):
-                assert np.array_equal(np.asarray(a).view(np.uint8), np.asarray(b).view(np.uint8))
-            assert got[2][0].any() and not got[2][0].all()
+def test_checker_on_two_threads_equals_one_thread_bitwise(both):
+    """The checker on two threads (``Compute(threads=2)``: each thread a share of the designs,
+    ``draft_batch._shares``) gives bit for bit what one thread gives, owners in design order and shuffled
+    (a shuffled share cuts designs' runs of poses: the kernel sets each run up again); the poses repeated
+    so that the check holds two threads' worth (``POSES_PER_THREAD`` each)."""
+    _, models, owner, pts = _checker_and_poses(both[0])
+    reps = -(-2 * draft_batch.POSES_PER_THREAD // len(owner))
+    owner, pts = np.repeat(owner, reps), np.repeat(pts, reps, axis=0)
+    assert draft_batch._kernel_threads(len(owner), Compute(threads=2)) == 2
+    assert draft_batch._kernel_threads(len(owner), Compute(threads=1)) == 1
+    for order in (np.arange(len(owner)), np.random.default_rng(5).permutation(len(owner))):
+        got = {k: draft_batch._Checker(both[0], models, Compute(threads=k))(owner[order], pts[order]) for k in (1, 2)}
+        for a, b in zip(got[1], got[2], strict=True):
+            assert np.array_equal(np.asarray(a).view(np.uint8), np.asarray(b).view(np.uint8))
+        assert got[2][0].any() and not got[2][0].all()
+
+
+def test_same_results_with_every_backend_and_thread_count(problem_sample):
+    """``evaluate_many`` with ``Compute(backend=numpy | numba | auto)`` at 1 and 2 threads: the same
+    statuses, messages and metrics bit for bit (NaN where NaN), on 40 designs within the problem bounds
+    (enough interference poses for two threads' shares)."""
+    designs = problem_sample(40, seed=2911)
+    runs = {(b, t): draft_batch.evaluate_many(designs, compute=Compute(backend=b, threads=t))
+            for b in ("numpy", "numba", "auto") for t in (1, 2)}
+    ref = runs[("auto", 1)]
+    for key, got in runs.items():
+        for (r0, _), (r1, _) in zip(ref, got, strict=True):
+            assert list(r0) == list(r1), key
+            for name in r0:
+                a, b = r0[name], r1[name]
+                assert type(a) is type(b), (key, name)
+                if isinstance(a, Exception):
+                    assert str(a) == str(b), (key, name)
+                    continue
+                assert (a.status, a.message) == (b.status, b.message), (key, name)
+                ma, mb = a.metrics(), b.metrics()
+                assert list(ma) == list(mb)
+                assert all(np.array_equal(np.float64(ma[k]).view(np.int64), np.float64(mb[k]).view(np.int64))
+                           for k in ma), (key, name)
+    assert any(str(r["interference"].status) == "collides" for r, _ in ref)
 
 
 def test_shares_cut_where_the_owner_changes():
@@ -315,27 +318,8 @@ def test_shares_cut_where_the_owner_changes():
     assert len(draft_batch._shares(sel, np.arange(10), 4)) == 4
 
 
-def test_dispatched_core_equals_the_core():
-    """``finish_core`` of a dispatched core (``start_core``: jax's asynchronous dispatch, the caller works
-    meanwhile) gives what ``run_core`` gives."""
-    designs = _sample()[:4]
-    specs, tables, _ = draft_batch._part_tables(designs)
-    models = {}
-    for t in tables:
-        models.update(zip(t.index.tolist(), interference_fast.models_from_tables([designs[i] for i in t.index], t)))
-    wps = draft_batch._workspace_params(designs, specs, draft_batch.envelopes(designs, models, specs))
-    inp = draft_batch.stack_inputs(designs, wps)
-    pending = draft_batch.start_core(inp, len(designs))
-    got, ref = draft_batch.finish_core(pending), draft_batch.run_core(inp, len(designs))
-    assert set(got) == set(ref)
-    leaves = jax.tree_util.tree_leaves_with_path
-    assert [p for p, _ in leaves(got)] == [p for p, _ in leaves(ref)]
-    for (path, a), (_, b) in zip(leaves(got), leaves(ref), strict=True):
-        assert np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True), path
-
-
 def test_designs_with_array_part_tables_are_laid_out(problem_sample):
-    """The batch takes ``assembly.parts`` as '' for the designs ``cad_arrays`` tabled (its free-workspace
+    """The batch takes ``assembly.parts`` as '' for the designs ``layout`` tabled (its free-workspace
     verdicts skip the CAD layout for them): the CAD lays every one of them out."""
     designs = problem_sample(40, seed=2203) + _sample()
     specs, _, _ = draft_batch._part_tables(designs)

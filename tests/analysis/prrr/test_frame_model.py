@@ -316,7 +316,7 @@ def test_frame_params_many_equals_stacked_frame_params_of(paper):
     # reference: frame_params_of per design (numpy), stacked. The batch covers the side face, the
     # front-face fallback (θ_1p = 0 on a 60 mm rail) and a bracket no face can carry (β = 5°: the
     # unchecked side face), as in tests/design/prrr/test_cad.py. Bitwise equal but for the bracket's
-    # fields: the brackets come from the array form (cad_arrays.brackets_many: numpy's vectorised
+    # fields: the brackets come from the array form (layout.brackets_many: numpy's vectorised
     # sin/cos, 3-vector products and power may differ from the scalar ones in the last bits; measured
     # ≤ 3e-15 of each field's largest entry on 500 designs), 1e-12 of each design's largest entry here
     import jax

@@ -46,9 +46,9 @@ def test_pairs_are_the_references(paper):
     assert {frozenset(p) for p in fast.part_pairs} == expected
 
 
-def test_frames_are_the_cads(paper):
+def test_frames_are_the_cads(paper, collision_reference):
     pts = _points(paper, n_phi=2, n_r=2, n_z=2)
-    frames, reach = F.part_frames_batch(paper, pts)
+    frames, reach = collision_reference.part_frames_batch(paper, pts)
     assert reach.all()
     for k, p in enumerate(pts):
         ref = cad_prrr.part_frames(paper, cad_prrr.solve_pose(paper, p))
@@ -87,22 +87,22 @@ def test_known_colliding_and_free_poses(paper):
     assert res.collides[0] and set(ref.pairs) <= set(res.pairs_at(0)) and ref.pairs
 
 
-def test_box_box_depth_is_exact():
+def test_box_box_depth_is_exact(collision_reference):
     """Two unit-free boxes overlapping by 2 mm along x (closed form: depth = 2 mm), and rotated
     45° about z so that the corner enters by 1 mm (closed form: a√2/2 + b/2 − gap)."""
     eye = np.eye(3)[None]
     half = np.array([[0.01, 0.01, 0.01]])
     k = np.array([0])
-    dep = F._depth(k, eye, half, np.zeros((1, 3)), k, eye, half, np.array([[0.018, 0.0, 0.0]]))
+    dep = collision_reference._depth(k, eye, half, np.zeros((1, 3)), k, eye, half, np.array([[0.018, 0.0, 0.0]]))
     assert dep[0] == pytest.approx(0.002, abs=1e-12)
     c, s = math.cos(math.pi / 4), math.sin(math.pi / 4)
     Rz = np.array([[[c, -s, 0], [s, c, 0], [0, 0, 1]]])
     gap = 0.01 * math.sqrt(2) + 0.01 - 0.001
-    dep = F._depth(k, Rz, half, np.zeros((1, 3)), k, eye, half, np.array([[gap, 0.0, 0.0]]))
+    dep = collision_reference._depth(k, Rz, half, np.zeros((1, 3)), k, eye, half, np.array([[gap, 0.0, 0.0]]))
     assert dep[0] == pytest.approx(0.001, abs=1e-12)
 
 
-def test_cylinder_rim_near_box_corner_is_separated():
+def test_cylinder_rim_near_box_corner_is_separated(collision_reference):
     """A disc (r 12 mm, 10 mm thick) beside a box corner, 1 mm apart along the diagonal: the
     frame axes alone do not separate them, the sampled closest-point axes do."""
     half_box = np.array([[0.01, 0.01, 0.005]])
@@ -110,9 +110,9 @@ def test_cylinder_rim_near_box_corner_is_separated():
     corner = np.array([0.01, 0.01, 0.0])
     centre = corner + (0.012 + 0.001) * np.array([1.0, 1.0, 0.0]) / math.sqrt(2)
     eye = np.eye(3)[None]
-    dep = F._depth(np.array([0]), eye, half_box, np.zeros((1, 3)), np.array([1]), eye, half_cyl, centre[None])
+    dep = collision_reference._depth(np.array([0]), eye, half_box, np.zeros((1, 3)), np.array([1]), eye, half_cyl, centre[None])
     assert dep[0] < 0.0
-    dep = F._depth(np.array([0]), eye, half_box, np.zeros((1, 3)), np.array([1]), eye, half_cyl,
+    dep = collision_reference._depth(np.array([0]), eye, half_box, np.zeros((1, 3)), np.array([1]), eye, half_cyl,
                    (corner + 0.011 * np.array([1.0, 1.0, 0.0]) / math.sqrt(2))[None])
     assert dep[0] > 0.0  # 1 mm inside
 
@@ -120,14 +120,14 @@ def test_cylinder_rim_near_box_corner_is_separated():
 def test_degenerate_designs_stay_finite(paper):
     # (almost) zero stroke, 1 nm (0 is outside the design's range): a workspace of ~1e-27 m³
     flat = dataclasses.replace(paper, geometry=dataclasses.replace(paper.geometry, stroke=1e-9))
-    frac = F.removed_fraction(flat, n_phi=2, n_r=2, n_z=2)
+    frac = F.interference_fractions(flat, n_phi=2, n_r=2, n_z=2)[0]
     assert math.isfinite(frac) and 0.0 <= frac <= 1.0
     # links just long enough for their bosses (the CAD's lower bound): finite verdicts
     short = io.apply_overrides(paper, ["geometry.d3_mm=25", "geometry.d4_mm=25", "geometry.d2_mm=45"])
     # R1 moves with d2: put the rail where the carriage carries it (design.prrr.cad.carried_theta_1p)
     th = math.degrees(cad_prrr.carried_theta_1p(short)) + 0.1
     short = io.apply_overrides(short, [f"geometry.theta_1p_deg={th!r}"])
-    frac = F.removed_fraction(short, n_phi=2, n_r=2, n_z=2)
+    frac = F.interference_fractions(short, n_phi=2, n_r=2, n_z=2)[0]
     assert math.isfinite(frac) and 0.0 <= frac <= 1.0
     # unreachable points are never reported as colliding
     res = F.check_points(F.prepare(paper), np.array([[0.5, 0.0, 0.0], [0.0, 0.0, 0.0]]))
@@ -147,7 +147,7 @@ def test_interference_evaluator_reports_the_fast_fraction_and_workspace_stays_ch
     r = prrr_interference.evaluate(paper, fidelity="draft")
     assert r.status == Status.OK
     assert r.metrics()["interference_removed_fraction"] == pytest.approx(
-        F.removed_fraction(paper, **W.INTERFERENCE_SAMPLING), rel=1e-12)
+        F.interference_fractions(paper, **W.INTERFERENCE_SAMPLING)[0], rel=1e-12)
     # prrr-paper (issue 15 layout): none of the 216 reach-and-stroke samples collides (regression
     # snapshot of this evaluator; before issue 15: 0.46848); the layout before loses a share
     assert r.removed_fraction == 0.0
@@ -182,7 +182,7 @@ def test_overlap_fraction_equals_removed_fraction_when_depths_are_saturated(pape
     assert np.all((dmax == 0.0) | (dmax >= F.OVERLAP_SCALE)) and (dmax > 0).any() and (dmax == 0).any()
     removed, overlap = F.interference_fractions(paper, **W.INTERFERENCE_SAMPLING)
     assert overlap == pytest.approx(removed, rel=1e-12)
-    assert removed == F.removed_fraction(paper, **W.INTERFERENCE_SAMPLING)
+    assert removed > 0.0 and (removed, overlap) == F.interference_fractions(paper, **W.INTERFERENCE_SAMPLING)
 
 
 # the prrr-workspace optimum of the step-constrained run (commit 12e33d8, docs/optimisation.md)
@@ -218,7 +218,7 @@ def test_overlap_fraction_is_continuous_across_a_jump_of_the_removed_fraction(pa
     assert abs(fb[1] - fa[1]) < 1e-7
 
 
-# --- the numba kernel of check_posed against its numpy reference -------------------------------
+# --- the numba kernel against its numpy reference (tests/analysis/prrr/interference_reference.py) -------
 
 
 def _bits(x: np.ndarray) -> np.ndarray:
@@ -235,79 +235,37 @@ def _largest_layout_group(models) -> list[int]:
     return members
 
 
-def test_compiled_kernel_equals_the_numpy_reference_bitwise(problem_sample):
-    """Depths of the numba kernel and of the numpy reference, bit for bit (signed zeros included), on
-    the workspace samples of 16 seeded designs within the problem bounds, one design at a time and all
-    designs of one layout stacked in one call (as the batched draft evaluator does); the sample holds
-    colliding poses, shallow (0 < depth ≤ DEPTH_TOL) overlaps and box–cylinder pairs' sampled axes."""
-    assert F.availability() is None  # numba is a dependency: the kernel is the default here
+def test_check_points_equals_the_numpy_reference_bitwise(problem_sample, collision_reference):
+    """check_points (the one IK, then the kernel) and the numpy reference on the CAD's part frames of the
+    same IK (``interference_reference.part_frames_batch`` + ``check_posed``): depths bit for bit (signed
+    zeros included), on the workspace samples of 16 seeded designs within the problem bounds, one design at
+    a time; the sample holds colliding poses, shallow (0 < depth ≤ DEPTH_TOL) overlaps, box–cylinder pairs'
+    sampled axes and an unreachable point per design."""
+    R = collision_reference
+    assert F.availability() is None  # numba is a dependency
     designs = problem_sample(16, seed=4242, accept=F.prepare)  # the CAD lays them out
-    models = [F.prepare(d) for d in designs]
-    posed = []
     n_colliding = n_shallow = n_free = 0
-    for d, m in zip(designs, models):
+    for d in designs:
+        m = F.prepare(d)
         pts, _ = W.workspace_sample_weights(d, **W.INTERFERENCE_SAMPLING)
         pts = np.concatenate([pts, [[0.5, 0.0, 0.0]]])  # and one unreachable point
-        frames, ok = F.part_frames_batch(d, pts, branch=W.ELBOW_BRANCH)
-        batch = F.stack_models([m])
-        owner = np.zeros(len(pts), dtype=int)
-        ref = F.check_posed(batch, owner, pts, frames, ok, compiled=False)
-        fast = F.check_posed(batch, owner, pts, frames, ok, compiled=True)
+        frames, ok = R.part_frames_batch(d, pts, branch=W.ELBOW_BRANCH)
+        ref = R.check_posed(F.stack_models([m]), np.zeros(len(pts), dtype=int), pts, frames, ok)
+        fast = F.check_points(m, pts, branch=W.ELBOW_BRANCH)
         assert np.array_equal(_bits(fast.depth), _bits(ref.depth)), d.geometry
-        assert np.array_equal(fast.collides, ref.collides)
-        assert np.array_equal(_bits(F.check_posed(batch, owner, pts, frames, ok).depth), _bits(ref.depth))
+        assert np.array_equal(fast.collides, ref.collides) and np.array_equal(fast.reachable, ok)
         n_colliding += int(ref.collides.sum())
         n_shallow += int(np.count_nonzero((ref.depth > 0) & (ref.depth <= F.DEPTH_TOL)))
-        posed.append((m, pts, frames, ok))
         n_free += int(not ref.collides.any())
     assert n_colliding > 100 and n_shallow > 0 and n_free > 0  # depths of all kinds, not only zeros
-    # every design of the largest layout group in one call: owner indexes the stacked primitive tables
-    members = _largest_layout_group(models)
-    batch = F.stack_models([models[i] for i in members])
-    owner = np.concatenate([np.full(len(posed[i][1]), k) for k, i in enumerate(members)])
-    pts = np.concatenate([posed[i][1] for i in members])
-    ok = np.concatenate([posed[i][3] for i in members])
-    frames = {name: tuple(np.concatenate([posed[i][2][name][t] for i in members]) for t in (0, 1))
-              for name in batch.part_names}
-    ref = F.check_posed(batch, owner, pts, frames, ok, compiled=False)
-    fast = F.check_posed(batch, owner, pts, frames, ok, compiled=True)
-    assert np.array_equal(_bits(fast.depth), _bits(ref.depth)) and ref.collides.any()
 
 
-def test_numpy_reference_runs_when_the_kernel_cannot(monkeypatch):
-    """Without the kernel (numba missing, no writable cache folder) check_posed says why when the kernel
-    is required and otherwise runs the numpy reference."""
-    paper = io.load_preset("prrr-paper")
-    d = io.apply_overrides(paper, LEGACY)
-    pts = _points(d, n_phi=2, n_r=2, n_z=2)
-    frames, ok = F.part_frames_batch(d, pts, branch=W.ELBOW_BRANCH)
-    batch, owner = F.stack_models([F.prepare(d)]), np.zeros(len(pts), dtype=int)
-    want = F.check_posed(batch, owner, pts, frames, ok, compiled=False)
-    assert want.collides.any()
+def test_the_check_says_why_when_the_kernel_cannot_load(monkeypatch):
+    """Without the kernel (numba missing, no writable cache folder) the check raises with the reason."""
+    d = io.apply_overrides(io.load_preset("prrr-paper"), LEGACY)
     monkeypatch.setattr(F, "availability", lambda: "numba not importable (test)")
     with pytest.raises(RuntimeError, match="numba not importable"):
-        F.check_posed(batch, owner, pts, frames, ok, compiled=True)
-    got = F.check_posed(batch, owner, pts, frames, ok)
-    assert np.array_equal(_bits(got.depth), _bits(want.depth))
-
-
-def test_default_loads_the_kernel_only_once_it_pays(monkeypatch):
-    """The default runs the numpy reference until the process has checked KERNEL_AFTER_POSES poses
-    (loading the kernel costs more than a few hundred poses of numpy), then the kernel — same depths."""
-    d = io.apply_overrides(io.load_preset("prrr-paper"), LEGACY)
-    pts = _points(d, n_phi=2, n_r=2, n_z=2)
-    frames, ok = F.part_frames_batch(d, pts, branch=W.ELBOW_BRANCH)
-    batch, owner = F.stack_models([F.prepare(d)]), np.zeros(len(pts), dtype=int)
-    want = F.check_posed(batch, owner, pts, frames, ok, compiled=False)
-    calls = []
-    real = F._check_compiled
-    monkeypatch.setattr(F, "_check_compiled", lambda *a: (calls.append(1), real(*a)))
-    monkeypatch.setattr(F, "_POSES_CHECKED", [0])
-    got = F.check_posed(batch, owner, pts, frames, ok)  # a few poses in a fresh process: numpy
-    assert calls == [] and np.array_equal(_bits(got.depth), _bits(want.depth))
-    F._POSES_CHECKED[0] = F.KERNEL_AFTER_POSES - len(pts)  # this call reaches the threshold
-    got = F.check_posed(batch, owner, pts, frames, ok)
-    assert calls == [1] and np.array_equal(_bits(got.depth), _bits(want.depth))
+        F.check_points(F.prepare(d), _points(d, n_phi=2, n_r=2, n_z=2))
 
 
 def test_models_from_tables_equal_prepare(problem_sample):
@@ -337,7 +295,7 @@ def test_models_from_tables_equal_prepare(problem_sample):
 
 def _joint_poses(design, pts):
     """Sliders, elbow-branch joint angles and reachability of ``pts`` by the numpy IK (the branch and
-    IK of :func:`F.part_frames_batch`)."""
+    IK of the reference's ``part_frames_batch``)."""
     from hapticopt.design.prrr.kinematics import inverse_kinematics
 
     ik = inverse_kinematics(cad_prrr.params_of(design), pts, xp=np)
@@ -371,28 +329,26 @@ def _joint_problem(problem_sample) -> tuple:
     return batch, owner, pts, sliders, theta, ok, _geometry([designs[i] for i in members])
 
 
-def test_joint_kernel_equals_the_numpy_reference_on_the_cads_frames_bitwise(problem_sample):
+def test_joint_kernel_equals_the_numpy_reference_on_the_cads_frames_bitwise(problem_sample, collision_reference):
     """check_joints' kernel builds the part frames itself from the joint values: its depths equal, bit for
     bit, the numpy reference's on cad.part_frames_arrays' frames of the same joint values, for every
     design of the largest layout group of 16 seeded designs within the problem bounds in one call
     (the last two designs' poses shuffled together, so a design's fixed parts are set up again and again), with colliding, shallow
-    and free poses and an unreachable point; its numpy path is that reference itself."""
+    and free poses and an unreachable point."""
     batch, owner, pts, sliders, theta, ok, geo = _joint_problem(problem_sample)
     frames = cad_prrr.part_frames_arrays(geo.beta[owner], geo.d1[owner], geo.d2[owner], geo.d3[owner],
                                          geo.theta_1p[owner], sliders, theta, pts)
-    ref = F.check_posed(batch, owner, pts, frames, ok, compiled=False)
-    fast = F.check_joints(batch, owner, pts, sliders, theta, ok, geo, compiled=True)
+    ref = collision_reference.check_posed(batch, owner, pts, frames, ok)
+    fast = F.check_joints(batch, owner, pts, sliders, theta, ok, geo)
     assert np.array_equal(_bits(fast.depth), _bits(ref.depth))
     assert np.array_equal(fast.collides, ref.collides) and np.array_equal(fast.reachable, ok)
     assert ref.collides.sum() > 100 and np.any((ref.depth > 0) & (ref.depth <= F.DEPTH_TOL))
     assert not ref.collides.all() and not ok.all()
-    slow = F.check_joints(batch, owner, pts, sliders, theta, ok, geo, compiled=False)
-    assert np.array_equal(_bits(slow.depth), _bits(ref.depth))
 
 
 def test_frame_rules_cover_the_cads_parts_and_nothing_else(paper):
     """Every part of cad.part_frames_arrays has a frame rule (its frame is built in the kernel); a part
-    it does not know has none, and check_joints then builds numpy frames."""
+    it does not know has none, and joint_tables refuses it."""
     specs = cad_prrr.part_specs(paper)
     rule, leg = F._frame_rules(tuple(specs))
     frames = cad_prrr.part_frames_arrays(paper.geometry.beta, 0.0, 0.0, 0.0, 0.0, np.zeros((1, 3)),
@@ -402,6 +358,9 @@ def test_frame_rules_cover_the_cads_parts_and_nothing_else(paper):
     assert int(leg[list(specs).index("carriage_3")]) == 2
     assert F._frame_rules(("base", "gizmo_1")) is None and F._frame_rules(("rail_4",)) is None
     assert F._frame_rules(("rail",)) is None and F._frame_rules(("platform_1",)) is None
+    batch = F.stack_models([F.prepare(paper)])
+    with pytest.raises(ValueError, match="no frame rule"):
+        F.joint_tables(batch._replace(part_names=("gizmo_1",) + batch.part_names[1:]), _geometry([paper]))
 
 
 def test_part_boxes_are_each_parts_primitive_extents_bitwise(problem_sample):
@@ -453,45 +412,19 @@ def test_part_boxes_are_each_parts_primitive_extents_bitwise(problem_sample):
 
 
 def test_deepest_joints_are_check_joints_deepest_bitwise(problem_sample):
-    """deepest_joints (the kernel keeping each pose's deepest overlap only, the cos / sin given: numpy's
-    of check_joints' theta) gives check_joints' collides and depth.max(axis=1) bit for bit."""
-    assert F.availability() is None
+    """deepest_joints (the kernel keeping each pose's deepest overlap only) gives check_joints' collides and
+    depth.max(axis=1) bit for bit."""
     batch, owner, pts, sliders, theta, ok, geo = _joint_problem(problem_sample)
     tables = F.joint_tables(batch, geo)
-    ref = F.check_joints(batch, owner, pts, sliders, theta, ok, geo, tables=tables, compiled=True)
-    th1, th12 = theta[:, :, 0], theta[:, :, 0] + theta[:, :, 1]
-    hit, deepest = F.deepest_joints(owner, pts, sliders, (np.cos(th1), np.sin(th1), np.cos(th12), np.sin(th12)),
-                                    ok, tables)
+    ref = F.check_joints(batch, owner, pts, sliders, theta, ok, geo, tables=tables)
+    hit, deepest = F.deepest_joints(owner, pts, sliders, theta, ok, tables)
     assert np.array_equal(hit, ref.collides)
     assert np.array_equal(_bits(deepest), _bits(ref.depth.max(axis=1)))
     assert ref.collides.any() and not ref.collides.all()
 
 
-@pytest.mark.parametrize("branch", [0, 1])
-@pytest.mark.parametrize("compiled_trig", [True, False])
-def test_joint_cos_sin_is_numpys_of_the_branch_angles_bitwise(branch, compiled_trig, monkeypatch):
-    """joint_cos_sin's cos / sin of θ₁ and θ₁ + θ₂ equal numpy's cos / sin of the angles the IK branch
-    gives (kinematics.inverse_kinematics: θ₁ = φ ∓ ψ wrapped by np.mod to [−π, π), θ₂ = ±elbow), bit for
-    bit, on 30,000 seeded angles and the wrap's edges (φ ∓ ψ = ±π, ±3π), with the compiled cos / sin and
-    with numpy's (the route where numba_trig_is_numpys is False)."""
-    assert F.availability() is None
-    monkeypatch.setattr(F, "numba_trig_is_numpys", lambda: compiled_trig)
-    rng = np.random.default_rng(515)
-    elbow = rng.uniform(0.0, np.pi, (10_000, 3))
-    phi = rng.uniform(-np.pi, np.pi, (10_000, 3))
-    psi = rng.uniform(0.0, np.pi, (10_000, 3))
-    edge = np.array([[np.pi, 0.0, 0.0], [-np.pi, 0.0, 0.0], [np.pi, -2.0 * np.pi, 2.0 * np.pi], [0.0, -0.0, 1.0]])
-    elbow, phi, psi = (np.concatenate([x, e]) for x, e in zip((elbow, phi, psi), (np.abs(edge), edge, edge[:, ::-1])))
-    th1, th2 = (phi - psi, elbow) if branch == 0 else (phi + psi, -elbow)
-    th1 = np.mod(th1 + np.pi, 2.0 * np.pi) - np.pi
-    want = (np.cos(th1), np.sin(th1), np.cos(th1 + th2), np.sin(th1 + th2))
-    got = F.joint_cos_sin(elbow, phi, psi, branch)
-    for g, w in zip(got, want, strict=True):
-        assert np.array_equal(_bits(g), _bits(w))
-
-
 def test_joint_kernels_release_the_gil_and_run_in_two_threads_bitwise(problem_sample):
-    """The kernels are compiled nogil and allocate their scratch themselves: two threads checking the two
+    """The kernel is compiled nogil and allocates its scratch itself: two threads checking the two
     halves of the poses at once (the split inside a design's run of poses) give bit for bit one call's
     results."""
     from concurrent.futures import ThreadPoolExecutor
@@ -499,19 +432,16 @@ def test_joint_kernels_release_the_gil_and_run_in_two_threads_bitwise(problem_sa
     from hapticopt.analysis.prrr import _interference_kernels as K
 
     assert F.availability() is None
-    for kernel in (K.check_joint_poses, K.check_poses, K.pose_ik_planar, K.elbow_cos_sin, K.cos_sin):
-        assert kernel.targetoptions.get("nogil") is True, kernel
+    assert K.check_joint_poses.targetoptions.get("nogil") is True
     batch, owner, pts, sliders, theta, ok, geo = _joint_problem(problem_sample)
     tables = F.joint_tables(batch, geo)
-    th1, th12 = theta[:, :, 0], theta[:, :, 0] + theta[:, :, 1]
-    trig = (np.cos(th1), np.sin(th1), np.cos(th12), np.sin(th12))
-    one = F.deepest_joints(owner, pts, sliders, trig, ok, tables)
+    one = F.deepest_joints(owner, pts, sliders, theta, ok, tables)
     h = len(owner) // 2 + 7
     assert owner[h - 1] == owner[h]  # the split falls inside a run
     halves = [slice(0, h), slice(h, None)]
     with ThreadPoolExecutor(2) as pool:
         for _ in range(3):
-            parts = list(pool.map(lambda s: F.deepest_joints(owner[s], pts[s], sliders[s], tuple(x[s] for x in trig),
-                                                               ok[s], tables), halves))
+            parts = list(pool.map(lambda s: F.deepest_joints(owner[s], pts[s], sliders[s], theta[s], ok[s], tables),
+                                  halves))
             assert np.array_equal(np.concatenate([p[0] for p in parts]), one[0])
             assert np.array_equal(_bits(np.concatenate([p[1] for p in parts])), _bits(one[1]))

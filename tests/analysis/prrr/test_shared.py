@@ -141,29 +141,26 @@ def test_reach_core_hands_out_the_core_computed_first():
     assert fresh.reach_core(BASE, wp, n_phi=48, n_r=2)["volume"] == W.workspace_core(wp, n_phi=48, n_r=2)["volume"]
 
 
-@pytest.mark.parametrize("compiled", [False, True, None])
-def test_point_checker_equals_check_points_bitwise_and_makes_the_joint_tables_once(monkeypatch, compiled):
+def test_point_checker_equals_check_points_bitwise_and_makes_the_joint_tables_once(monkeypatch):
     # reference: interference_fast.check_points of each pass (the per-design steps taken at every call)
     from hapticopt.analysis.prrr import interference_fast as F  # noqa: PLC0415
     from hapticopt.analysis.prrr import workspace as W  # noqa: PLC0415
 
-    if compiled is None:  # the default: the kernel from KERNEL_AFTER_POSES on (here from the first pass)
-        monkeypatch.setattr(F, "_POSES_CHECKED", [F.KERNEL_AFTER_POSES])
     made = []
     real = F.joint_tables
     for d in _problem_sample(3, seed=11, accept=F.prepare):
         model = F.prepare(d)
         pts, _ = W.workspace_sample_weights(d, **W.INTERFERENCE_SAMPLING)
         passes = [pts[:40], pts[40:41], pts[41:]]  # as the free workspace's grid, then bisection passes
-        refs = [F.check_points(model, p, branch=W.ELBOW_BRANCH, compiled=compiled) for p in passes]
+        refs = [F.check_points(model, p, branch=W.ELBOW_BRANCH) for p in passes]
         monkeypatch.setattr(F, "joint_tables", lambda *a: made.append(1) or real(*a))
-        check = F.point_checker(model, branch=W.ELBOW_BRANCH, compiled=compiled)
+        check = F.point_checker(model, branch=W.ELBOW_BRANCH)
         made.clear()
         for p, ref in zip(passes, refs):
             got = check(p)
             assert np.array_equal(got.depth.view(np.int64), ref.depth.view(np.int64))
             assert np.array_equal(got.collides, ref.collides) and np.array_equal(got.reachable, ref.reachable)
-        assert len(made) == (0 if compiled is False else 1)
+        assert len(made) == 1
         monkeypatch.setattr(F, "joint_tables", real)
 
 
