@@ -33,7 +33,7 @@ import numpy as np
 from hapticopt.analysis import registry
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.errors import InvalidDesign
-from hapticopt.design.schema import specs
+from hapticopt.design.schema import specs  # noqa: F401  (re-exported for the tests)
 from hapticopt.design.units import from_si, to_si
 from hapticopt.optim.problem import Variable, design_at
 
