@@ -58,6 +58,7 @@ def sensitivity(
     set_: Annotated[Optional[list[str]], typer.Option("--set", help="Override a TOML key, e.g. --set geometry.beta_deg=50 (repeatable).")] = None,
     metrics: Annotated[Optional[list[str]], typer.Option("--metrics", help="Metric names to differentiate (repeatable; default: every numeric metric).")] = None,
     keys: Annotated[Optional[list[str]], typer.Option("--key", help="Continuous design keys, e.g. geometry.beta_deg (repeatable; default: all).")] = None,
+    evaluators: Annotated[Optional[list[str]], typer.Option("--evaluator", help="Run only these registry evaluators (repeatable; default: all).")] = None,
     fidelity: Annotated[str, typer.Option("--fidelity", help="draft (the batched path), standard or fine.")] = "draft",
     top: Annotated[int, typer.Option("--top", help="Rows of the ranked table (the JSON has all).")] = 25,
     as_json: Annotated[bool, typer.Option("--json", help="Print strict JSON {design, fidelity, sensitivities}.")] = False,
@@ -70,10 +71,17 @@ def sensitivity(
     if top < 1:
         raise InvalidInput(f"--top = {top} must be at least 1")
     design = load_design_arg(file, preset, set_)
+    if evaluators:
+        from hapticopt.analysis.registry import EVALUATORS
+
+        known = [e.name for e in EVALUATORS[design.device]]
+        unknown = [e for e in evaluators if e not in known]
+        if unknown:
+            raise InvalidInput(f"--evaluator {', '.join(unknown)}: allowed for a {design.device} design: {', '.join(known)}")
     if plots is not None:
         writable_dir(plots, "--plots")
     rows = sens.sensitivities(design, fidelity=level, metrics=list(metrics) if metrics else None,
-                              keys=list(keys) if keys else None)
+                              keys=list(keys) if keys else None, only=tuple(evaluators) if evaluators else None)
     written = []
     if plots is not None:
         check_name(design.name, "design name")
