@@ -243,21 +243,34 @@ class MonteCarlo:
     errors_sigma: np.ndarray  # spec.sigma
     stopped: str  # "fixed" or "converged" or "limit"
 
+    def fields(self) -> dict[str, np.ndarray]:
+        """The numeric per-device results over the devices whose IK closed at every pose."""
+        ok = self.results.converged
+        return {name: v[ok] for name, v in self.results._asdict().items() if name != "converged"}
+
+    @property
+    def converged(self) -> int:
+        """Devices whose IK closed at every pose (the others reach no solution at some pose)."""
+        return int(np.sum(self.results.converged))
+
     def percentiles(self, qs=(1, 5, 50, 95, 99)) -> dict[str, dict[str, float]]:
-        return {name: {f"p{q}": float(np.percentile(v, q)) for q in qs}
-                for name, v in self.results._asdict().items()}
+        return {name: {f"p{q}": float(np.percentile(v, q)) if len(v) else math.nan for q in qs}
+                for name, v in self.fields().items()}
 
     def stats(self) -> dict[str, dict[str, float]]:
-        n = self.samples
         out = {}
-        for name, v in self.results._asdict().items():
+        for name, v in self.fields().items():
+            n = len(v)
+            if n < 2:
+                out[name] = dict.fromkeys(("mean", "std", "std_se", "mean_se", "min", "max"), math.nan)
+                continue
             s = float(np.std(v, ddof=1))
             out[name] = {"mean": float(np.mean(v)), "std": s, "std_se": s / math.sqrt(2.0 * (n - 1)),
                          "mean_se": s / math.sqrt(n), "min": float(np.min(v)), "max": float(np.max(v))}
         return out
 
     def yield_of(self, requirements) -> dict[str, Any]:
-        ok = np.ones(self.samples, dtype=bool)
+        ok = self.results.converged.copy()  # a device that does not reach a pose fails every requirement
         for name, op, value in requirements:
             v = getattr(self.results, name)
             ok &= (v <= value) if op == "<=" else (v >= value)
@@ -284,7 +297,8 @@ def monte_carlo(design: PrrrDesign, spec: Spec, *, samples: int | None = None, s
         n += size
         if samples is None and n >= MIN_SAMPLES:
             v = np.concatenate([getattr(p, track) for p in parts])
-            s = float(np.std(v, ddof=1))
+            v = v[np.isfinite(v)]
+            s = float(np.std(v, ddof=1)) if len(v) > 1 else 0.0
             if s == 0.0 or s / math.sqrt(2.0 * (n - 1)) <= TARGET_RSE * s:
                 stopped = "converged"
                 break

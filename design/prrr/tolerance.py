@@ -143,10 +143,15 @@ def build(design: PrrrDesign, errors, xp=np) -> Device:
     return Device(a=a, a0=a0, w1=w1, w2=w2, w3=w3, wp=wp, l1=l1, l2=l2, c=c, gram=gram)
 
 
-def _rot(k, th, x, xp=np):
-    """Rodrigues: ``x`` turned by ``th`` about the unit axis ``k`` (broadcast, vectors on the last axis)."""
-    c, s = xp.cos(th)[..., None], xp.sin(th)[..., None]
+def _rot(k, cs, x, xp=np):
+    """Rodrigues: ``x`` turned about the unit axis ``k`` by the angle whose (cos, sin) is ``cs`` (each with a
+    trailing axis of 1; broadcast, vectors on the last axis)."""
+    c, s = cs
     return x * c + _cross(k, x, xp) * s + k * _dot(k, x, xp)[..., None] * (1.0 - c)
+
+
+def _cs(th, xp=np):
+    return xp.cos(th)[..., None], xp.sin(th)[..., None]
 
 
 def _expand(dev: Device, ndim_extra: int) -> Device:
@@ -175,12 +180,12 @@ class _Chain(NamedTuple):
 
 
 def _chain(dev: Device, sliders, theta, xp=np) -> _Chain:
-    th1, th2 = theta[..., 0], theta[..., 1]
-    w2r = _rot(dev.w1, th1, dev.w2, xp)
-    arm = _rot(dev.w1, th1, dev.l1 + _rot(dev.w2, th2, dev.l2, xp), xp)  # Q − A
+    r1, r2 = _cs(theta[..., 0], xp), _cs(theta[..., 1], xp)
+    w2r = _rot(dev.w1, r1, dev.w2, xp)
+    b_to_q = _rot(dev.w1, r1, _rot(dev.w2, r2, dev.l2, xp), xp)  # Q − B
+    arm = _rot(dev.w1, r1, dev.l1, xp) + b_to_q  # Q − A
     q = dev.a0 + sliders[..., None] * dev.a + arm
-    b_to_q = arm - _rot(dev.w1, th1, dev.l1, xp)  # Q − B
-    n = _rot(dev.w1, th1, _rot(dev.w2, th2, dev.w3, xp), xp)
+    n = _rot(dev.w1, r1, _rot(dev.w2, r2, dev.w3, xp), xp)
     dq = xp.stack([xp.broadcast_to(dev.a, q.shape), _cross(dev.w1, arm, xp), _cross(w2r, b_to_q, xp)], axis=-1)
     dhth = -xp.stack([_cross(dev.wp, _cross(dev.w1, n, xp), xp), _cross(dev.wp, _cross(w2r, n, xp), xp)], axis=-1)
     return _Chain(q=q, n=n, dq=dq, dhth=dhth)
@@ -257,17 +262,18 @@ def _nominal_start(design: PrrrDesign, p, branch: int):
     return np.asarray(ik.sliders), np.asarray(ik.theta)[..., branch, :, :2]
 
 
-def _ik_newton(dev: Device, st: State, steps: int, xp=np) -> tuple[State, _Factor]:
-    """``steps`` Newton steps of IK; the factor of the last one (J is taken there: the last step
-    moves the state by round-off)."""
-    fac = None
+def _ik_newton(dev: Device, st: State, steps: int, xp=np) -> tuple[State, _Chain, _Factor, np.ndarray]:
+    """``steps`` Newton steps of IK: the final state, and the chain, factor and largest residual of the
+    last iterate (the last step moves a converged state by round-off: a last residual r leaves ~r² after
+    it, so J, the R3 axes and the convergence test are taken there)."""
     for _ in range(steps):
         ch = _chain(dev, st.sliders, st.theta, xp)
         f, h = _residual(dev, st, ch, xp)
         fac = _factor(dev, ch, xp)
         d_sl, d_th, d_phi = _apply(fac, f, h, xp)
         st = State(p=st.p, sliders=st.sliders + d_sl, theta=st.theta + d_th, phi=st.phi + d_phi)
-    return st, fac
+    resid = xp.maximum(xp.max(xp.abs(f), axis=(-2, -1)), xp.max(xp.abs(h), axis=-1))
+    return st, ch, fac, resid
 
 
 def _jacobian_from(fac: _Factor, xp=np):
@@ -334,11 +340,11 @@ def jacobian(dev: Device, st: State) -> np.ndarray:
     return _jacobian_from(_factor(d, _chain(d, st.sliders, st.theta)))
 
 
-def pose_grid(diameter: float = 0.140, height: float = 0.089, *, rings: int = 4, per_ring: int = 12,
+def pose_grid(diameter: float = 0.140, height: float = 0.089, *, rings: int = 3, per_ring: int = 11,
               levels: int = 3) -> np.ndarray:
     """Poses ``(P, 3)`` [m] over a vertical cylinder about z centred on the home pose: the axis and
     ``rings`` rings of ``per_ring`` points (the outermost on the rim) at ``levels`` heights
-    (bottom, …, top). Default 3 × (1 + 4 × 12) = 147 poses over seed 002's φ140 × 89 mm."""
+    (bottom, …, top). Default 3 × (1 + 3 × 11) = 102 poses over seed 002's φ140 × 89 mm."""
     pts = []
     for z in np.linspace(-height / 2.0, height / 2.0, levels):
         pts.append([0.0, 0.0, z])
@@ -358,11 +364,16 @@ class Offnominal(NamedTuple):
     rotation: np.ndarray  # max_p |φ(p)| [rad], the platform's parasitic rotation
     misfit: np.ndarray  # max_p, legs |n_i − R wp_i| [rad], the angle the R3 joints' clearance takes
     margin_loss: np.ndarray  # smallest reach/stroke margin over the grid, nominal minus as built [m] (> 0: lost)
+    margin: np.ndarray  # that smallest margin as built [m] (< 0: a pose of the grid is out of reach or stroke)
+    converged: np.ndarray  # bool: IK closed (:data:`LAST_STEP_TOL`) at every pose; the other fields are NaN if not
 
 
 #: what :class:`Offnominal` reports, with units for printing
 OFFNOMINAL_UNITS: dict[str, str] = {"constancy": "", "cond_home": "", "cond_home_frobenius": "", "cond_spread": "",
-                                    "rotation": "rad", "misfit": "rad", "margin_loss": "m"}
+                                    "rotation": "rad", "misfit": "rad", "margin_loss": "m", "margin": "m", "converged": ""}
+#: largest closure residual [m, rad] before the last Newton step of a converged IK (quadratic convergence leaves
+#: ~1e-12 after it; a pose out of reach has no solution and Newton does not close)
+LAST_STEP_TOL = 1e-6
 
 
 def _cond2(j, xp=np):
@@ -388,9 +399,8 @@ def _metrics(design: PrrrDesign, errors, poses: np.ndarray, branch: int, xp=np) 
     home = home_index(poses)
     dev = build(design, errors, xp)
     d, st = _start(design, dev, poses, branch, xp)
-    st, _ = _ik_newton(d, st, NEWTON_STEPS, xp)
-    ch = _chain(d, st.sliders, st.theta, xp)
-    j = _jacobian_from(_factor(d, ch, xp), xp)
+    st, ch, fac, resid = _ik_newton(d, st, NEWTON_STEPS, xp)
+    j = _jacobian_from(fac, xp)
     dev_norm = xp.sqrt(xp.sum((j - j_nom) ** 2, axis=(-2, -1))) / float(np.linalg.norm(j_nom))
     cond = _cond2(j, xp)
     bore = d.wp + _cross(st.phi[..., None, :], d.wp, xp)
@@ -402,15 +412,20 @@ def _metrics(design: PrrrDesign, errors, poses: np.ndarray, branch: int, xp=np) 
     reach = xp.minimum(rho - xp.abs(d3 - d4), d3 + d4 - rho)
     stroke = g.stroke / 2.0 - xp.abs(st.sliders - g.c_e)
     margin = xp.min(xp.min(xp.minimum(reach, stroke), axis=-1), axis=-1)
-    return (xp.max(dev_norm, axis=-1), cond[..., home], _cond_f(j[..., home, :, :], xp),
-            xp.max(xp.abs(cond - cond_nom), axis=-1) / cond_nom,
-            xp.max(xp.sqrt(_dot(st.phi, st.phi, xp)), axis=-1),
-            xp.max(xp.max(xp.sqrt(_dot(ch.n - bore, ch.n - bore, xp)), axis=-1), axis=-1), margin)
+    converged = xp.all(resid <= LAST_STEP_TOL, axis=-1)  # NaN residuals fail too
+    nan = xp.where(converged, 1.0, xp.nan)
+    return (xp.max(dev_norm, axis=-1) * nan, cond[..., home] * nan, _cond_f(j[..., home, :, :], xp) * nan,
+            xp.max(xp.abs(cond - cond_nom), axis=-1) / cond_nom * nan,
+            xp.max(xp.sqrt(_dot(st.phi, st.phi, xp)), axis=-1) * nan,
+            xp.max(xp.max(xp.sqrt(_dot(ch.n - bore, ch.n - bore, xp)), axis=-1), axis=-1) * nan, margin * nan,
+            converged)
 
 
 def offnominal(design: PrrrDesign, errors, poses=None, *, branch: int = BRANCH, chunk: int = 128) -> Offnominal:
     """What ``errors`` ``(N, 3, N_ERRORS)`` do to ``design`` over ``poses`` (:func:`pose_grid` by
-    default): Jacobian constancy, cond(J), parasitic rotation, misfit, workspace margin loss.
+    default): Jacobian constancy, cond(J), parasitic rotation, misfit, workspace margin loss. A device
+    whose IK does not close at some pose (a pose out of its reach) has ``converged`` False and NaN
+    elsewhere.
     Devices in chunks of ``chunk`` (the arrays of a chunk stay in cache). The kernels take ``xp``
     (numpy here; ``jax.numpy`` traces them for derivatives)."""
     errors = np.asarray(errors, dtype=float)
@@ -419,5 +434,4 @@ def offnominal(design: PrrrDesign, errors, poses=None, *, branch: int = BRANCH, 
     parts = [_metrics(design, errors[c0:c0 + chunk], poses, branch) for c0 in range(0, n, chunk)]
     cols = [np.concatenate(c) for c in zip(*parts)]
     nominal = _metrics(design, np.zeros((1, 3, N_ERRORS)), poses, branch)
-    cols[-1] = float(nominal[-1][0]) - cols[-1]
-    return Offnominal(*cols)
+    return Offnominal(*cols[:-2], float(nominal[-2][0]) - cols[-2], *cols[-2:])

@@ -36,16 +36,17 @@ def report(design, spec, *, samples: int | None, seed: int, requirements) -> dic
     stack = tol.linear_stack(design, spec)
     stats = mc.stats()
     rng = np.random.default_rng(seed)
-    lin = tol.linearised_constancy(design, stack, tol.draw(spec, rng, mc.samples))
+    lin = tol.linearised_constancy(design, stack, tol.draw(spec, rng, mc.samples))[mc.results.converged]
     return _clean({
-        "design": design.name, "spec": spec.as_dict(), "samples": mc.samples, "seed": seed, "stopped": mc.stopped,
+        "design": design.name, "spec": spec.as_dict(), "samples": mc.samples, "converged": mc.converged,
+        "seed": seed, "stopped": mc.stopped,
         "units": {"constancy": "1", "cond_home": "1", "cond_home_frobenius": "1", "cond_spread": "1",
                   "rotation": "rad", "misfit": "rad", "margin_loss": "m", "margin": "m"},
-        "nominal": stack.nominal, "monte_carlo": stats, "percentiles": mc.percentiles(),
+        "nominal": {k: v for k, v in stack.nominal.items() if k != "converged"}, "monte_carlo": stats, "percentiles": mc.percentiles(),
         "yield": mc.yield_of(requirements),
         "linear_stack": {"rss_std": stack.rss_std, "worst_case": stack.worst_case,
                          "constancy_rss": stack.constancy_rss, "constancy_worst_case": stack.constancy_worst,
-                         "constancy_linearised_std": float(np.std(lin, ddof=1)),
+                         "constancy_linearised_std": float(np.std(lin, ddof=1)) if len(lin) > 1 else None,
                          "variance_shares": {**stack.shares, "constancy": stack.constancy_shares}},
     })
 
@@ -86,7 +87,7 @@ def tolerance(
         rows.append((name, unit, *(render.number(v * f) if v is not None else "-" for v in
                                    (out["nominal"][name], st["mean"], st["std"], pc["p5"], pc["p50"], pc["p95"], pc["p99"]))))
     console.print(render.table(f"{design.name} under {the_spec.name}: Monte Carlo of {out['samples']} devices "
-                               f"(seed {seed}, {out['stopped']})",
+                               f"(seed {seed}, {out['stopped']}; {out['converged']} reach every pose)",
                                ("output", "unit", "nominal", "mean", "std", "p5", "p50", "p95", "p99"), rows))
     ls = out["linear_stack"]
     console.print(f"linear stack: std cond₂(J) {render.number(ls['rss_std']['cond_home'])} (MC "
