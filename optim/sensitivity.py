@@ -32,7 +32,8 @@ import numpy as np
 
 from hapticopt.analysis import registry
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.design.errors import InvalidDesign
+from hapticopt.analysis.registry import metric_unit
+from hapticopt.design.errors import InvalidDesign, InvalidInput
 from hapticopt.design.schema import specs  # noqa: F401  (re-exported for the tests)
 from hapticopt.design.units import from_si, to_si
 from hapticopt.optim.problem import Variable, design_at
@@ -208,14 +209,12 @@ def sensitivities(design: Any, *, fidelity: Fidelity = Fidelity.DRAFT, metrics: 
         known = {k.key for k in all_keys}
         unknown = [k for k in keys if k not in known]
         if unknown:
-            from hapticopt.design.errors import InvalidInput
             raise InvalidInput(f"not a continuous key of a {design.device} design: {', '.join(unknown)}")
         all_keys = [k for k in all_keys if k.key in keys]
     base = _evaluate([design], fidelity, only)[0]
     if metrics is not None:
         unknown = sorted(set(metrics) - {base_name(m) for m in base})
         if unknown:
-            from hapticopt.design.errors import InvalidInput
             raise InvalidInput(f"no numeric metric named {', '.join(unknown)} at {fidelity} fidelity")
         base = {m: v for m, v in base.items() if base_name(m) in metrics}
     jax_vals, jax_grads = ({}, {})
@@ -246,7 +245,6 @@ def sensitivities(design: Any, *, fidelity: Fidelity = Fidelity.DRAFT, metrics: 
     with np.errstate(invalid="ignore"):
         est = (plus - minus) / (2.0 * h[..., None])  # (keys, steps, metrics)
     out: list[Sensitivity] = []
-    from hapticopt.analysis.registry import metric_unit
     for m, value in base.items():
         for ki, key in enumerate(all_keys):
             if m in jax_grads:

@@ -21,7 +21,7 @@ from hapticopt.optim import tolerance as tol
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "tolerance.md"
-#: the constancy deviation a constant-Jacobian device may keep (issue 34's example: cond(J) variation ≤ 1 %)
+#: the constancy deviation a constant-Jacobian device may keep (cond(J) variation ≤ 1 %)
 TARGET = 0.01
 
 
@@ -114,7 +114,7 @@ def main(argv: list[str]) -> int:
         lines.append("| " + " | ".join([r[0]] + [f(x) for x in r[1:]]) + " |")
     lines += [
         "",
-        "Agreement of the Monte Carlo with the linear stack (the acceptance of issue 34): the std of cond_F(J) "
+        "Agreement of the Monte Carlo with the linear stack: the std of cond_F(J) "
         "(smooth) agrees within the Monte Carlo's own standard error "
         f"(√(1/(2n)) = {100 / np.sqrt(2 * args.samples):.1f} %). cond₂(J) is not differentiable at prrr-paper: "
         "β = 60° gives J two equal largest singular values (√2, √2), so a perturbation splits them and "
@@ -144,7 +144,7 @@ def main(argv: list[str]) -> int:
         f"{f(rows[1][12])} mm (p50) to {f(rows[1][13])} mm (p99) of reach/stroke margin: a stroke longer by the "
         "p99 loss keeps the cylinder for 99 % of devices.",
         "",
-        "Tolerance allocation with NLopt and a cost-vs-tolerance curve per process (issue 34 item 4) is not done; "
+        "Tolerance allocation with NLopt and a cost-vs-tolerance curve per process is not done; "
         "the uniform angular scale above is its one-parameter form.",
         "",
     ]

@@ -9,9 +9,11 @@ from typing import Annotated, Optional
 
 import typer
 
+from hapticopt.analysis.registry import EVALUATORS
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.paths import check_name, inside, writable_dir
 from hapticopt.optim.cli import render
+from hapticopt.optim import sensitivity as sens
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors, parse_fidelity
 
 
@@ -65,15 +67,11 @@ def sensitivity(
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write a tornado plot PNG to this directory.")] = None,
 ) -> None:
     """∂metric/∂key of a design's metrics w.r.t. its continuous keys (metric and key units), ranked by elasticity: jax through the closed forms, central differences with a measured step elsewhere."""
-    from hapticopt.optim import sensitivity as sens
-
     level = parse_fidelity(fidelity)
     if top < 1:
         raise InvalidInput(f"--top = {top} must be at least 1")
     design = load_design_arg(file, preset, set_)
     if evaluators:
-        from hapticopt.analysis.registry import EVALUATORS
-
         known = [e.name for e in EVALUATORS[design.device]]
         unknown = [e for e in evaluators if e not in known]
         if unknown:

@@ -7,6 +7,7 @@ import math
 from typing import Annotated, Optional
 from pathlib import Path
 
+import numpy as np
 import typer
 
 from hapticopt.design.errors import InvalidInput
@@ -28,9 +29,7 @@ def _clean(x):
 def report(design, spec, *, samples: int | None, seed: int, requirements) -> dict:
     """The tolerance report of ``design`` under ``spec`` (JSON-ready): MC statistics and percentiles,
     yield, the linear stack (RSS, worst case, variance shares) and their agreement."""
-    import numpy as np
-
-    from hapticopt.optim import tolerance as tol
+    from hapticopt.optim import tolerance as tol  # jax (design/prrr/kinematics.py): loaded only here
 
     mc = tol.monte_carlo(design, spec, samples=samples, seed=seed)
     stack = tol.linear_stack(design, spec)
