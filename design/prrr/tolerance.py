@@ -376,12 +376,14 @@ OFFNOMINAL_UNITS: dict[str, str] = {"constancy": "", "cond_home": "", "cond_home
 LAST_STEP_TOL = 1e-6
 
 
-def _cond2(j, xp=np):
+def cond2(j, xp=np):
+    """cond₂ of (..., 3, 3) matrices (σ_max/σ_min)."""
     s = xp.linalg.svd(j, compute_uv=False)
     return s[..., 0] / s[..., -1]
 
 
-def _cond_f(j, xp=np):
+def cond_frobenius(j, xp=np):
+    """‖J‖_F ‖J⁻¹‖_F / 3 of (..., 3, 3) matrices (1 where cond₂ = 1; smooth)."""
     return xp.sqrt(xp.sum(j**2, axis=(-2, -1)) * xp.sum(_inv3(j, xp) ** 2, axis=(-2, -1))) / 3.0
 
 
@@ -395,14 +397,14 @@ def _metrics(design: PrrrDesign, errors, poses: np.ndarray, branch: int, xp=np) 
     g = design.geometry
     par = kin.params_np(design)
     j_nom = np.asarray(kin.jacobian(par.beta, xp=np))
-    cond_nom = float(_cond2(j_nom))
+    cond_nom = float(cond2(j_nom))
     home = home_index(poses)
     dev = build(design, errors, xp)
     d, st = _start(design, dev, poses, branch, xp)
     st, ch, fac, resid = _ik_newton(d, st, NEWTON_STEPS, xp)
     j = _jacobian_from(fac, xp)
     dev_norm = xp.sqrt(xp.sum((j - j_nom) ** 2, axis=(-2, -1))) / float(np.linalg.norm(j_nom))
-    cond = _cond2(j, xp)
+    cond = cond2(j, xp)
     bore = d.wp + _cross(st.phi[..., None, :], d.wp, xp)
     # margin: elbow reach from the solved θ2 with the as-built lengths (|ρ|² = d3² + d4² + 2 d3 d4 cos θ2),
     # stroke L/2 − |D − c_e| against the nominal stops
@@ -414,7 +416,7 @@ def _metrics(design: PrrrDesign, errors, poses: np.ndarray, branch: int, xp=np) 
     margin = xp.min(xp.min(xp.minimum(reach, stroke), axis=-1), axis=-1)
     converged = xp.all(resid <= LAST_STEP_TOL, axis=-1)  # NaN residuals fail too
     nan = xp.where(converged, 1.0, xp.nan)
-    return (xp.max(dev_norm, axis=-1) * nan, cond[..., home] * nan, _cond_f(j[..., home, :, :], xp) * nan,
+    return (xp.max(dev_norm, axis=-1) * nan, cond[..., home] * nan, cond_frobenius(j[..., home, :, :], xp) * nan,
             xp.max(xp.abs(cond - cond_nom), axis=-1) / cond_nom * nan,
             xp.max(xp.sqrt(_dot(st.phi, st.phi, xp)), axis=-1) * nan,
             xp.max(xp.max(xp.sqrt(_dot(ch.n - bore, ch.n - bore, xp)), axis=-1), axis=-1) * nan, margin * nan,
