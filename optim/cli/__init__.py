@@ -16,7 +16,9 @@ from hapticopt.optim.cli import export as cli_export
 from hapticopt.optim.cli import metrics as cli_metrics
 from hapticopt.optim.cli import optimise as cli_optimise
 from hapticopt.optim.cli import runs as cli_runs
+from hapticopt.optim.cli import sensitivity as cli_sensitivity
 from hapticopt.optim.cli import sweep as cli_sweep
+from hapticopt.optim.cli import tolerance as cli_tolerance
 from hapticopt.optim.cli import verify as cli_verify
 
 app = typer.Typer(
@@ -50,7 +52,8 @@ for _name, _command in (("evaluate", cli_evaluate.evaluate), ("presets", cli_eva
                          ("export", cli_export.export), ("optimise", cli_optimise.optimise),
                          ("problems", cli_optimise.problems), ("verify", cli_verify.verify), ("runs", cli_runs.runs),
                          ("show", cli_runs.show), ("sweep", cli_sweep.sweep), ("compare", cli_compare.compare),
-                         ("design-map", cli_verify.design_map), ("metrics", cli_metrics.metrics)):
+                         ("design-map", cli_verify.design_map), ("metrics", cli_metrics.metrics),
+                         ("sensitivity", cli_sensitivity.sensitivity), ("tolerance", cli_tolerance.tolerance)):
     app.command(_name, epilog=common.EXIT_CODES_HELP)(_command)
 
 
