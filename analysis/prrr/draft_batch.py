@@ -16,14 +16,12 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   (``workspace_core`` at the draft sampling; its reach radius, emptiness and footprint also bound
   the collision-free cylinder: they do not depend on the radial sampling), the frame model's legs'
   stiffness terms (``frame_leg_terms``, default options, home pose: element parameters, springs and
-  maps; the elements' stiffness, the assembly and the solves follow the jitted call in a numba kernel over designs,
-  ``frame_model.condense_terms_many``), or, in a batch padded to ``frame_model.KERNEL_AFTER_DESIGNS`` or
-  more (``frame_model.legs_kernel_ready``, a rule by the padded size: no retrace), the core leaves the frame group out and :func:`finish_core` computes it with
-  ``frame_model.condense_home_many``, the legs' points in numpy and their terms, assembly and solves in numba)
+  maps; the elements' stiffness, the assembly and the solves follow the jitted call over designs,
+  ``frame_batch.condense_terms_many``, numpy or its numba kernel as the ``Compute`` says)
   and the joint ranges over the required cylinder
   (``joint_limits.cylinder_ranges_of``: the IK of the grid's in-plane points, the angles reduced to
   what the verdict reads inside the jitted call). Inputs are stacked with numpy (the frame's by
-  ``frame_model.frame_params_many``, arrays over the batch); the batch is padded to
+  ``frame_batch.frame_params_many``, arrays over the batch); the batch is padded to
   the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a new batch
   size within a bucket costs no trace or compile (:data:`TRACES` counts traces); compiled code
   persists on disk (``hapticopt.design.jax_config``). The stability evaluator takes its stiffness
@@ -80,10 +78,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from hapticopt.analysis import compiled
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.analysis.prrr import assembly
 from hapticopt.analysis.prrr import device_size as DS
+from hapticopt.analysis.prrr import frame_batch as FB
 from hapticopt.analysis.prrr import frame_model as fm
 from hapticopt.analysis.prrr import free_workspace as FW
 from hapticopt.analysis.prrr import interference as IF
@@ -144,7 +144,7 @@ def _core(inp: CoreInputs, groups: tuple[str, ...]) -> dict:
     if "workspace" in groups:
         out["workspace"] = WS.workspace_core(inp.wp, n_phi=_SMP.n_phi, n_r=_SMP.n_r, xp=jnp)
     if "frame" in groups:
-        G, Ks, P, ik = fm.frame_leg_terms(inp.fp, jnp.zeros(3), fm.FrameOptions())  # assembled, solved in run_core
+        G, Ks, P, ik = fm.frame_leg_terms(inp.fp, jnp.zeros(3), fm.FrameOptions())  # assembled, solved in finish_core
         out["frame"] = {"G": G, "Ks": Ks, "P": P, "reachable": ik.reachable, "reach_margin": ik.reach_margin}
     if "joint" in groups:  # only the reductions the verdict reads leave XLA
         out["joint"] = JL.cylinder_ranges_of(inp.kin, _REQUIRED_RADIUS, xp=jnp)
@@ -169,7 +169,7 @@ def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams] | None
     inputs only where ``groups`` read them (None otherwise: an empty pytree node)."""
     geo = [d.geometry for d in designs]
     kin = PrrrParams(*(np.array([float(getattr(g, f)) for g in geo]) for f in _KIN_FIELDS))
-    fp = fm.frame_params_many(designs) if "frame" in groups else None
+    fp = FB.frame_params_many(designs) if "frame" in groups else None
     wp = None
     if "workspace" in groups:
         wp = WS.WorkspaceParams(*(np.array([float(w[k]) for w in wps]) for k in range(len(wps[0]))))
@@ -184,42 +184,36 @@ class PendingCore(NamedTuple):
 
     out: dict  # jax arrays (padded batch)
     n: int
-    frame: fm.FrameParams | None = None  # the frame group's inputs where the numba kernel computes it (not XLA)
 
 
 def start_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> PendingCore:
     """Dispatch the core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK),
     without waiting for it (jax's asynchronous dispatch: the compiled program runs on XLA's threads, which
-    do not hold the GIL, so the numba collision kernels run meanwhile). The frame group is left out of XLA
-    where ``frame_model.legs_kernel_ready`` for the padded size: :func:`finish_core` computes it in numba from
-    its inputs."""
-    frame = None
-    if "frame" in groups and fm.legs_kernel_ready(bucket(n)):
-        frame, groups, inp = inp.fp, tuple(g for g in groups if g != "frame"), inp._replace(fp=None)
+    do not hold the GIL, so the numba collision kernels run meanwhile)."""
     if not groups:
-        return PendingCore({}, n, frame)
+        return PendingCore({}, n)
     size = bucket(n)
     pad = jax.tree.map(lambda x: np.concatenate([x, np.repeat(x[-1:], size - n, axis=0)]) if size > n else x, inp)
-    return PendingCore(core_fn(groups)(pad), n, frame)
+    return PendingCore(core_fn(groups)(pad), n)
 
 
-def finish_core(pending: PendingCore) -> dict:
-    """The numpy rows [:n] of a dispatched core (waits for it), the frame group assembled and solved."""
+def finish_core(pending: PendingCore, *, compute: Compute = DEFAULT) -> dict:
+    """The numpy rows [:n] of a dispatched core (waits for it), the frame group assembled and solved
+    (``frame_batch.condense_terms_many`` with ``compute``)."""
     n = pending.n
     out = jax.tree.map(lambda x: np.asarray(x)[:n], pending.out)
-    if pending.frame is not None:  # the legs built, assembled and solved in numba (no XLA frame group)
-        out["frame"] = fm.condense_home_many(pending.frame, fm.LOAD_HEIGHT)
-    elif "frame" in out:  # the legs' assembly and solves outside XLA (numba kernel over designs)
+    if "frame" in out:  # the legs' assembly and solves outside XLA
         fr = out["frame"]
         terms = fr.pop("G"), fr.pop("Ks"), fr.pop("P")
-        out["frame"] = {**fm.condense_terms_many(*terms, fm.FrameOptions(), fm.LOAD_HEIGHT), **fr}
+        out["frame"] = {**FB.condense_terms_many(*terms, fm.FrameOptions(), fm.LOAD_HEIGHT, compute=compute), **fr}
     return out
 
 
-def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> dict:
+def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS), *,
+             compute: Compute = DEFAULT) -> dict:
     """The core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK);
     numpy rows [:n] (:func:`start_core` then :func:`finish_core`)."""
-    return finish_core(start_core(inp, n, groups))
+    return finish_core(start_core(inp, n, groups), compute=compute)
 
 
 def _elbow_branch(elbow: np.ndarray, phi: np.ndarray, psi: np.ndarray) -> np.ndarray:
