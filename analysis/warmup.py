@@ -18,7 +18,7 @@ import numpy as np
 
 from hapticopt.analysis.loop import mujoco_compiled
 from hapticopt.analysis.compute import Compute
-from hapticopt.analysis.prrr import frame_batch, frame_model, interference_fast
+from hapticopt.analysis.prrr import frame_condense, frame_model, interference_fast
 from hapticopt.design import io
 
 
@@ -35,12 +35,12 @@ def warm() -> list[tuple[str, str | None, float]]:
     t0 = time.perf_counter()
     out.append(("MuJoCo closed loops", mujoco_compiled.warm_up(), time.perf_counter() - t0))
     t0 = time.perf_counter()
-    reason = frame_batch.kernel_availability()
+    reason = frame_condense.kernel_availability()
     if reason is None:  # the batched draft evaluator's frame assembly and condensation (one design's legs)
         options = frame_model.FrameOptions()
         fp = frame_model.frame_params_of(io.load_preset("prrr-paper"), xp=np)
         G, Ks, P, _ = frame_model.frame_leg_terms(fp, np.zeros(3), options, xp=np)
-        frame_batch.condense_terms_many(G[None], Ks[None], P[None], options, frame_model.LOAD_HEIGHT,
+        frame_condense.condense_terms_many(G[None], Ks[None], P[None], options, frame_model.LOAD_HEIGHT,
                                         compute=Compute(backend="numba"))
     out.append(("frame condensation", reason, time.perf_counter() - t0))
     return out

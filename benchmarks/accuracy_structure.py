@@ -17,6 +17,7 @@ import dataclasses
 import time
 
 import jax.numpy as jnp
+import numpy as np
 
 from hapticopt.analysis.fem import solid as fea
 from hapticopt.analysis.prrr import fea_frame
@@ -35,7 +36,9 @@ def cantilever(levels: list[int]) -> None:
     ref = frame_beam.closed_form_tip_deflection(1.0, L, E, float(pr.i_z), float(pr.shear_coefficient),
                                         float(pr.shear_modulus), B * T)
     t0 = time.perf_counter()
-    c = float(frame_beam.cantilever_compliance(L, sec, direction=(1.0, 0.0, 0.0), zref=(0.0, 0.0, 1.0))[1, 1])
+    K = frame_beam.beam_global_stiffness(np.zeros(3), np.array([L, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]),
+                                         fm.Section(*(np.asarray(x) for x in (B, T, E, NU))), xp=np)
+    c = float(np.linalg.inv(K[6:, 6:])[1, 1])  # the clamped element's tip compliance
     print("| model | size mm | DOFs | CG its | wall s | compliance µm/N | vs closed form |")
     print("|---|---|---|---|---|---|---|")
     print(f"| frame (1 Timoshenko element) | – | 12 | – | {time.perf_counter() - t0:.3f} | {c * 1e6:.6f} | "

@@ -9,7 +9,7 @@ import jax
 import numpy as np
 import pytest
 
-from hapticopt.analysis.prrr import frame_batch
+from hapticopt.analysis.prrr import frame_params
 from hapticopt.analysis.prrr import frame_model as fm
 from hapticopt.design import io
 
@@ -47,7 +47,7 @@ def test_frame_batched_per_design(benchmark, paper):
     rng = np.random.default_rng(0)
     betas = np.deg2rad(rng.uniform(45.0, 70.0, N_BATCH))
     designs = [dataclasses.replace(paper, geometry=dataclasses.replace(paper.geometry, beta=b)) for b in betas]
-    fp = frame_batch.stack_frame_params(designs)
+    fp = frame_params.stack_frame_params(designs)
     fm.solve_frame_batch(fp)
     out = benchmark(lambda: jax.block_until_ready(fm.solve_frame_batch(fp)))
     benchmark.extra_info["designs_per_call"] = N_BATCH

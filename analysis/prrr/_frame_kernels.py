@@ -1,7 +1,7 @@
-"""numba kernel of the frame's batched condensation (:func:`.frame_batch.condense_terms_many`): legs given
+"""numba kernel of the frame's batched condensation (:func:`.frame_condense.condense_terms_many`): legs given
 as their unassembled terms (:func:`.frame_model.frame_leg_terms`), each element's stiffness built from its
 parameters, each leg's K = Σ Gᵀ K G over the maps' nonzero entries, then the static condensation onto the
-end-effector node. Imported only by ``frame_batch``, so numba loads on first use.
+end-effector node. Imported only by ``frame_condense``, so numba loads on first use.
 
 Per leg, the same quantities as the numpy route (:func:`.frame_model.condense_legs`): the Jacobi scaling
 d of K_ii, K_PP − K_Pi K_ii⁻¹ K_iP, and Hager's two-step estimate of ‖K_ii,s⁻¹‖₁. The difference is the

@@ -17,11 +17,11 @@ at a time. A ``*_many`` pass that raises falls back to the per-design function f
   the collision-free cylinder: they do not depend on the radial sampling), the frame model's legs'
   stiffness terms (``frame_leg_terms``, default options, home pose: element parameters, springs and
   maps; the elements' stiffness, the assembly and the solves follow the jitted call over designs,
-  ``frame_batch.condense_terms_many``, numpy or its numba kernel as the ``Compute`` says)
+  ``frame_condense.condense_terms_many``, numpy or its numba kernel as the ``Compute`` says)
   and the joint ranges over the required cylinder
   (``joint_limits.cylinder_ranges_of``: the IK of the grid's in-plane points, the angles reduced to
   what the verdict reads inside the jitted call). Inputs are stacked with numpy (the frame's by
-  ``frame_batch.frame_params_many``, arrays over the batch); the batch is padded to
+  ``frame_params.frame_params_many``, arrays over the batch); the batch is padded to
   the next power of two (at most :data:`MAX_CHUNK`; larger batches go in chunks), so a new batch
   size within a bucket costs no trace or compile (:data:`TRACES` counts traces); compiled code
   persists on disk (``hapticopt.design.jax_config``). The stability evaluator takes its stiffness
@@ -83,8 +83,9 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.analysis.prrr import assembly
 from hapticopt.analysis.prrr import device_size as DS
-from hapticopt.analysis.prrr import frame_batch as FB
+from hapticopt.analysis.prrr import frame_condense
 from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.analysis.prrr import frame_params
 from hapticopt.analysis.prrr import free_workspace as FW
 from hapticopt.analysis.prrr import interference as IF
 from hapticopt.analysis.prrr import interference_fast as FAST
@@ -169,7 +170,7 @@ def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams] | None
     inputs only where ``groups`` read them (None otherwise: an empty pytree node)."""
     geo = [d.geometry for d in designs]
     kin = PrrrParams(*(np.array([float(getattr(g, f)) for g in geo]) for f in _KIN_FIELDS))
-    fp = FB.frame_params_many(designs) if "frame" in groups else None
+    fp = frame_params.frame_params_many(designs) if "frame" in groups else None
     wp = None
     if "workspace" in groups:
         wp = WS.WorkspaceParams(*(np.array([float(w[k]) for w in wps]) for k in range(len(wps[0]))))
@@ -199,13 +200,13 @@ def start_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GRO
 
 def finish_core(pending: PendingCore, *, compute: Compute = DEFAULT) -> dict:
     """The numpy rows [:n] of a dispatched core (waits for it), the frame group assembled and solved
-    (``frame_batch.condense_terms_many`` with ``compute``)."""
+    (``frame_condense.condense_terms_many`` with ``compute``)."""
     n = pending.n
     out = jax.tree.map(lambda x: np.asarray(x)[:n], pending.out)
     if "frame" in out:  # the legs' assembly and solves outside XLA
         fr = out["frame"]
         terms = fr.pop("G"), fr.pop("Ks"), fr.pop("P")
-        out["frame"] = {**FB.condense_terms_many(*terms, fm.FrameOptions(), fm.LOAD_HEIGHT, compute=compute), **fr}
+        out["frame"] = {**frame_condense.condense_terms_many(*terms, fm.FrameOptions(), fm.LOAD_HEIGHT, compute=compute), **fr}
     return out
 
 

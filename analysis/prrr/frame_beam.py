@@ -25,9 +25,9 @@ class Section(NamedTuple):
     poisson_ratio: jax.Array  # ν [-]
 
 
-
-def bond_stiffness(area: float, moments: tuple[float, float], polar: float, axes, E: float, nu: float) -> np.ndarray:
-    """6×6 stiffness [SI] of two elastic half-spaces bonded over a flat patch, in the axes given.
+def bond_stiffness(area, moments, polar, axes, E, nu) -> np.ndarray:
+    """(n, 6, 6) stiffness [SI] of two elastic half-spaces bonded over a flat patch, in the axes given,
+    for n patches (numpy): every scalar (n,), every axis (n, 3).
 
     ``axes`` = (normal n, e_1, e_2) (unit, orthogonal), ``moments`` = (I_1, I_2) the patch's
     second moments about e_1 and e_2 through its centroid, ``polar`` = J = I_1 + I_2, ``area`` = A.
@@ -37,21 +37,6 @@ def bond_stiffness(area: float, moments: tuple[float, float], polar: float, axes
     a⁴ = 4I_k/π; torsion K_t = 16Ga³/3 with a⁴ = 2J/π — the two sides in series (halved).
     A circular patch gives exactly ``neck_stiffness(d, 0)`` (tested).
     """
-    G = E / (2.0 * (1.0 + nu))
-    (i1, i2), j = moments, polar
-    a_t = np.sqrt(area / np.pi)
-    a1, a2 = (4.0 * i1 / np.pi) ** 0.25, (4.0 * i2 / np.pi) ** 0.25
-    a_j = (2.0 * j / np.pi) ** 0.25
-    k_r1, k_r2 = (4.0 * E * a**3 / (3.0 * (1.0 - nu**2)) for a in (a1, a2))
-    n, e1, e2 = (np.asarray(x, dtype=float) for x in axes)
-    kt = 8.0 * G * a_t / (2.0 - nu) * (np.eye(3) - np.outer(n, n)) + 2.0 * E * a_t / (1.0 - nu**2) * np.outer(n, n)
-    kr = k_r1 * np.outer(e1, e1) + k_r2 * np.outer(e2, e2) + 16.0 * G * a_j**3 / 3.0 * np.outer(n, n)
-    return 0.5 * np.block([[kt, np.zeros((3, 3))], [np.zeros((3, 3)), kr]])
-
-
-
-def _bond_stiffness_many(area, moments, polar, axes, E, nu) -> np.ndarray:
-    """:func:`bond_stiffness` over a batch: every scalar (n,), every axis (n, 3); (n, 6, 6)."""
     G = E / (2.0 * (1.0 + nu))
     (i1, i2), j = moments, polar
     a_t = np.sqrt(area / np.pi)
@@ -72,7 +57,6 @@ def _bond_stiffness_many(area, moments, polar, axes, E, nu) -> np.ndarray:
     out = np.zeros((len(area), 6, 6))
     out[:, :3, :3], out[:, 3:, 3:] = 0.5 * kt, 0.5 * kr
     return out
-
 
 
 class SectionProperties(NamedTuple):
@@ -254,26 +238,6 @@ def rigid_map(r: jax.Array, xp=jnp) -> jax.Array:
     return xp.asarray(_EYE6) + (r @ xp.asarray(_RIGID.reshape(36, 3).T)).reshape(r.shape[:-1] + (6, 6))
 
 
-def cantilever_compliance(length, section: Section, *, direction, zref, n_elements: int = 1) -> np.ndarray:
-    """6×6 tip compliance [SI] of a clamped prismatic beam along ``direction`` (n equal elements).
-
-    A plain reference assembly (numpy path of the element) used to check it against closed forms.
-    """
-    section = Section(*(np.asarray(x, dtype=float) for x in section))
-    direction = np.asarray(direction, dtype=float)
-    direction = direction / np.linalg.norm(direction)
-    n = n_elements
-    K = np.zeros((6 * (n + 1), 6 * (n + 1)))
-    for e in range(n):
-        x1 = direction * length * e / n
-        x2 = direction * length * (e + 1) / n
-        K[6 * e:6 * e + 12, 6 * e:6 * e + 12] += beam_global_stiffness(x1, x2, np.asarray(zref, dtype=float),
-                                                                       section, xp=np)
-    Kf = K[6:, 6:]
-    return np.linalg.inv(Kf)[-6:, -6:]
-
-
-
 def element_stiffness(P, xp=jnp):
     """12 × 12 global stiffness of elements given by their parameters ``P`` (..., 18) = x1, x2, zref (3
     each) [m], end zones a1, a2 [m], section (area, i_y, i_z, torsion, κ, G) and E [SI] (the rows of
@@ -281,7 +245,6 @@ def element_stiffness(P, xp=jnp):
     props = SectionProperties(*(P[..., 11 + f] for f in range(6)))
     sec = Section(None, None, P[..., 17], None)
     return beam_global_stiffness(P[..., 0:3], P[..., 3:6], P[..., 6:9], sec, P[..., 9], P[..., 10], xp, props=props)
-
 
 
 def closed_form_tip_deflection(load: float, length: float, E: float, inertia: float, kappa: float,

@@ -4,7 +4,7 @@ One core, :func:`frame_arrays`, written against an array module ``xp``: :func:`s
 with numpy for one design (no compilation: the CLI path), :func:`solve_frame_jax` and
 :func:`solve_frame_batch` with ``jax.numpy`` under jit/vmap (batches, gradients). The batched draft
 evaluator jits only the legs' unassembled terms (:func:`frame_leg_terms`) and assembles and condenses
-them outside XLA (:mod:`.frame_batch`). Beam elements, sections and joint springs: :mod:`.frame_beam`.
+them outside XLA (:mod:`.frame_condense`). Beam elements, sections and joint springs: :mod:`.frame_beam`.
 
 Each link is a 12-DOF Timoshenko beam (axial, torsion, two bending planes with shear) of the
 rectangular cross-section in ``design.structure``; the three revolute joints of every leg
@@ -20,7 +20,7 @@ Structure of one leg i (points in the seed-digest leg construction; S is the rai
                the carriage as the CAD builds it (``design.prrr.cad.carriage_bracket``): block rigid
                on its rail slot, the bracket's root plate let into a block face (C), root beam C → J,
                the clevis arm bonded on the root's end face (E) and running E → Ac in the clevis
-               layer; both bonds two half-spaces (:func:`bond_stiffness`), see :func:`bracket_frame`
+               layer; both bonds two half-spaces (:func:`.frame_beam.bond_stiffness`), see :mod:`.frame_params`
     A   R1     hinge about w_i
     A → B      link d3                                   beam
     B   R2     hinge about w_i
@@ -69,7 +69,6 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -78,11 +77,10 @@ import numpy as np
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.prrr.frame_beam import (Section, SectionProperties, _blockdiag2, _cross, _neck_matrix,
-                                                _skew, beam_global_stiffness, bond_stiffness, circle_properties,
-                                                neck_stiffness, rigid_map, section_properties)
-from hapticopt.design.errors import InvalidDesign
-from hapticopt.design.prrr.cad import carriage_bracket
-from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames, params_np
+                                                _skew, beam_global_stiffness, circle_properties, neck_stiffness,
+                                                rigid_map, section_properties)
+from hapticopt.analysis.prrr.frame_params import FrameParams, frame_params_of
+from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames
 
 #: Above this 1-norm condition number (Jacobi-scaled K) a result is reported as ill-conditioned.
 COND_LIMIT = 1e12
@@ -128,87 +126,6 @@ class FrameOptions:
     pin_model: PinModel = PinModel.NECK  # with pins: constriction springs at the gap, or free pin beams
 
 
-class FrameParams(NamedTuple):
-    """Everything the frame model reads from a design [SI] (a jax pytree, batchable)."""
-
-    kin: PrrrParams
-    r_p: jax.Array  # rail radius [m]
-    theta_1p: jax.Array  # rail angle from u_i about z [rad] (seed 002 θ_1p)
-    section: Section
-    spring: jax.Array  # SEA spring k [N/m] (used with ``FrameOptions(sea=True)``)
-    joint_zone: jax.Array  # radius of the rigid joint zone (the joint boss) [m]
-    pin_diameter: jax.Array  # pin (bore) diameter [m] (``FrameOptions(pins=True)``)
-    layer: jax.Array  # layer pitch along the joint axis, link thickness + clearance [m]
-    lug_offset: jax.Array  # platform lug layer above the kinematic R3 point along w, s_lug − r4 [m]
-    stem_radius: jax.Array  # platform stem radius; the platform arms are stem_diameter wide [m]
-    bracket_points: jax.Array  # (3, 3) C, J, E of the R1 bracket, carriage frame (x = u', y = t', z) [m] (bracket_frame)
-    root_zref: jax.Array  # (3,) thickness direction (±w) of the bracket's root beam, carriage frame
-    root_section: jax.Array  # (2,) root beam width (along the arm e_l) and thickness (along w) [m]
-    bracket_bonds: jax.Array  # (2, 6, 6) root-on-block and arm-on-root bond stiffness, carriage frame, [u; θ] [SI]
-
-
-def frame_params_of(design, xp=jnp) -> FrameParams:
-    """Frame-model parameters of one :class:`hapticopt.design.prrr.params.PrrrDesign` (``xp=np``: numpy arrays)."""
-    s = design.structure
-    g = design.geometry
-    kin = PrrrParams(*(xp.asarray(x) for x in params_np(design)))
-    sec = Section(*(xp.asarray(float(x)) for x in (s.link_width, s.link_thickness, s.youngs_modulus, s.poisson_ratio)))
-    layer = float(s.link_thickness) + float(s.clearance)  # hapticopt.design.prrr.cad.layout: s_link2 = T + g
-    s_lug = max(float(g.r4), 2.0 * layer)  # hapticopt.design.prrr.cad.layout: s_lug = max(r4, 2T + 2g)
-    return FrameParams(kin=kin, r_p=xp.asarray(float(g.r_p)), theta_1p=xp.asarray(float(g.theta_1p)), section=sec,
-                       spring=xp.asarray(float(design.actuator.spring)),
-                       joint_zone=xp.asarray(0.5 * float(s.boss_diameter)),
-                       pin_diameter=xp.asarray(float(s.bore_diameter)), layer=xp.asarray(layer),
-                       lug_offset=xp.asarray(s_lug - float(g.r4)),
-                       stem_radius=xp.asarray(0.5 * float(s.stem_diameter)),
-                       **{k: xp.asarray(v) for k, v in bracket_frame(design).items()})
-
-
-def bracket_frame(design) -> dict[str, np.ndarray]:
-    """The carriage's R1 bracket as the frame carries it, carriage frame [SI] (numpy).
-
-    From :func:`hapticopt.design.prrr.cad.carriage_bracket` (the CAD's one formula; unchecked, so a
-    design whose bracket the CAD refuses still gets a frame, as its links do): the block is
-    rigid (clamped on its rail slot); the root plate (clevis layer) is let into a block face and
-    bonded over its section in the face plane (centre C, a rectangle contact_size[0] along e_l ×
-    contact_size[1] along n_p); the root is a beam of its own section (width along e_l, thickness
-    T along w) from C along the plate (−e_f) to J, the point of that line level with the clevis arm
-    (J → E rigid inside the root); the clevis arm (link section) is bonded over its whole W × T end
-    section at E on the root's end face and runs E → Ac in the clevis layer. Each bond is
-    :func:`bond_stiffness` of its patch (two half-spaces, as the pin necks).
-
-    Returns ``bracket_points`` (3, 3) = C, J, E; ``root_zref`` (3,) = the root's thickness direction
-    (±w); ``root_section`` (2,) = (width along e_l, thickness T); ``bracket_bonds`` (2, 6, 6) = root
-    on block, arm on root.
-    """
-    s_ = design.structure
-    b = _bracket_of(design)
-    e_l, _, e_n = b.root_axes.T
-    lr, _, tr = b.root_size
-    N, n_p = b.normal, b.contact_axes[:, 1]
-    lc, wc_ = b.contact_size
-    E_, nu = float(s_.youngs_modulus), float(s_.poisson_ratio)
-    k_root = bond_stiffness(lc * wc_, (lc * wc_**3 / 12.0, wc_ * lc**3 / 12.0), lc * wc_ * (lc**2 + wc_**2) / 12.0,
-                            (N, e_l, n_p), E_, nu)  # I about e_l: distances along n_p
-    W, T = float(s_.link_width), float(s_.link_thickness)
-    w = b.axis
-    e_m = np.cross(w, e_l)
-    k_arm = bond_stiffness(W * T, (W * T**3 / 12.0, T * W**3 / 12.0), W * T * (W**2 + T**2) / 12.0,
-                           (e_l, e_m, w), E_, nu)  # I about e_m: distances along w
-    return {"bracket_points": np.stack([b.contact_centre, b.root_joint, b.arm_end]), "root_zref": e_n,
-            "root_section": np.array([lr, tr]), "bracket_bonds": np.stack([k_root, k_arm])}
-
-
-def _bracket_of(design):
-    """:func:`bracket_frame`'s bracket: :func:`hapticopt.design.prrr.cad.carriage_bracket`, unchecked where
-    the CAD refuses it."""
-    try:
-        return carriage_bracket(design)
-    except InvalidDesign:
-        return carriage_bracket(design, checked=False)
-
-
-# ----------------------------------------------------------------------------- the 3-PRRR frame
 def _leg_layout(options: FrameOptions) -> tuple[int, dict[str, int]]:
     """Static DOF layout of one leg: [P (6) | internal DOFs]; first index of each block (−1: absent).
 
@@ -270,7 +187,7 @@ def _leg_stiffness(w, S, A, B, Q, bracket, p, r4, d4, section: Section, spring, 
     (:func:`_supports` reads their maps' nonzero columns).
 
     ``bracket`` = (points (3, 3) C, J, E; root thickness direction (3,); bonds (2, 6, 6)), world
-    axes: the carriage's R1 bracket (:func:`bracket_frame`), used with pins (the plane frame keeps
+    axes: the carriage's R1 bracket (:mod:`.frame_params`), used with pins (the plane frame keeps
     a carriage arm of the link section from the rail point S).
     """
     if options.pins:
@@ -659,7 +576,7 @@ def frame_legs(fp: FrameParams, p: jax.Array, options: FrameOptions, branch: jax
 
 def frame_leg_terms(fp: FrameParams, p: jax.Array, options: FrameOptions, xp=jnp):
     """:func:`frame_legs`' stiffness as its terms, unassembled (the batched draft evaluator's jitted step;
-    :func:`.frame_batch.condense_terms_many` builds the elements, assembles and solves outside XLA): per leg the maps
+    :func:`.frame_condense.condense_terms_many` builds the elements, assembles and solves outside XLA): per leg the maps
     G (3, T, 12, M) on the columns :func:`term_columns` ``(options)``, the springs' stiffness K_s
     (3, S, 12, 12) and the elements' parameters (3, E, 18) (:func:`.frame_beam.element_stiffness`), each leg's
     K = sym(Σ_t G_tᵀ K_t G_t) with the elements' terms first; and the inverse kinematics of ``p``. The
@@ -794,6 +711,6 @@ def solve_frame_batch(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float 
 
 __all__ = [
     "COND_LIMIT", "LOAD_HEIGHT", "SINGULAR_COND", "FrameOptions", "FrameParams", "Joints", "Offsets", "PinModel",
-    "Section", "bracket_frame", "compliance_outputs", "condense_legs", "frame_arrays", "frame_leg_terms",
+    "Section", "compliance_outputs", "condense_legs", "frame_arrays", "frame_leg_terms",
     "frame_legs", "frame_params_of", "solve_frame", "solve_frame_batch", "solve_frame_jax", "term_columns",
 ]

@@ -324,14 +324,14 @@ def test_designs_with_array_part_tables_are_laid_out(problem_sample):
 
 
 def test_frame_group_is_the_same_by_every_backend():
-    """``finish_core``'s frame group (``frame_batch.condense_terms_many``) with ``Compute(backend=...)``
+    """``finish_core``'s frame group (``frame_condense.condense_terms_many``) with ``Compute(backend=...)``
     numpy (LAPACK's LU), numba (Cholesky along the legs' chain) and auto (by the call's size: numba from
     ``KERNEL_FROM_DESIGNS`` designs): the same keys, the IK's equal, the values to 1e-10 where the verdict
     can be ok; rows at or above COND_LIMIT (here β = 1e-12°: 1.5e18, and β near 90°: NaN) are rounding
     either way: not ok by every backend (the batch solves them again by the single path)."""
     pytest.importorskip("numba")
     from hapticopt.analysis.compute import Compute
-    from hapticopt.analysis.prrr import frame_batch
+    from hapticopt.analysis.prrr import frame_condense
     from hapticopt.analysis.prrr import frame_model as fm
 
     designs = _sample()
@@ -341,7 +341,7 @@ def test_frame_group_is_the_same_by_every_backend():
     ref = out["numpy"]
     fine = ref["condition"] < fm.COND_LIMIT
     assert 0 < fine.sum() < len(designs)
-    same = "numba" if len(designs) >= frame_batch.KERNEL_FROM_DESIGNS else "numpy"
+    same = "numba" if len(designs) >= frame_condense.KERNEL_FROM_DESIGNS else "numpy"
     for k in ref:
         np.testing.assert_array_equal(out["auto"][k], out[same][k], err_msg=k)
     got = out["numba"]

@@ -1,14 +1,14 @@
 """The numba kernel of the legs' assembly and condensation against the numpy route.
 
 Reference: :func:`hapticopt.analysis.prrr.frame_model.condense_legs` with ``xp=numpy`` (LAPACK's
-partial-pivoting LU per leg) on the legs that ``frame_batch.assemble_terms`` assembles; the kernel
+partial-pivoting LU per leg) on the legs that ``frame_condense.assemble_terms`` assembles; the kernel
 factorises by Cholesky over the envelope, so the two agree to rounding, not bitwise.
 """
 
 import numpy as np
 import pytest
 
-from hapticopt.analysis.prrr import frame_batch as FB
+from hapticopt.analysis.prrr import frame_condense as FC
 from hapticopt.analysis.prrr import frame_beam as FBEAM
 from hapticopt.analysis.prrr import frame_model as fm
 
@@ -25,7 +25,7 @@ def _paper_legs(options):
     G, Ks, P = (np.ascontiguousarray(x) for x in (G, Ks, P))
     cols = fm.term_columns(options)
     n = fm._leg_layout(options)[0]
-    return G, Ks, P, cols, n, FB.assemble_terms(G, np.concatenate([FBEAM.element_stiffness(P, np), Ks], axis=1), cols, n)
+    return G, Ks, P, cols, n, FC.assemble_terms(G, np.concatenate([FBEAM.element_stiffness(P, np), Ks], axis=1), cols, n)
 
 
 def test_assembling_kernel_equals_numpy_assembly():

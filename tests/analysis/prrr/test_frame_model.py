@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 
 from hapticopt.analysis.compute import Compute
-from hapticopt.analysis.prrr import frame_batch as FB
+from hapticopt.analysis.prrr import frame_condense as FC
 from hapticopt.analysis.prrr import frame_beam as FBEAM
 from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.analysis.prrr import frame_params as FP
+from hapticopt.design.errors import InvalidDesign
 from hapticopt.design import io
 
 E, NU = 68.9e9, 0.33  # aluminium 6061 (design/prrr/params.py defaults)
@@ -19,6 +21,23 @@ def _section(b=0.02, t=0.01):
     return fm.Section(np.asarray(b), np.asarray(t), np.asarray(E), np.asarray(NU))
 
 
+def _cantilever_compliance(length, section, *, direction, zref, n_elements: int = 1) -> np.ndarray:
+    """6×6 tip compliance [SI] of a clamped prismatic beam along ``direction`` (n equal elements): a
+    plain assembly of the element (numpy) to check it against closed forms."""
+    section = fm.Section(*(np.asarray(x, dtype=float) for x in section))
+    direction = np.asarray(direction, dtype=float)
+    direction = direction / np.linalg.norm(direction)
+    n = n_elements
+    K = np.zeros((6 * (n + 1), 6 * (n + 1)))
+    for e in range(n):
+        x1 = direction * length * e / n
+        x2 = direction * length * (e + 1) / n
+        K[6 * e:6 * e + 12, 6 * e:6 * e + 12] += FBEAM.beam_global_stiffness(x1, x2, np.asarray(zref, dtype=float),
+                                                                             section, xp=np)
+    Kf = K[6:, 6:]
+    return np.linalg.inv(Kf)[-6:, -6:]
+
+
 @pytest.mark.parametrize("n_elements", [1, 4])
 @pytest.mark.parametrize("direction", [(1.0, 0.0, 0.0), (0.3, -0.5, 0.8)])
 def test_cantilever_equals_timoshenko_closed_form(n_elements, direction):
@@ -27,7 +46,7 @@ def test_cantilever_equals_timoshenko_closed_form(n_elements, direction):
     sec = _section(b, t)
     pr = fm.section_properties(sec, np)
     zref = np.cross(direction, (0.0, 1.0, 0.0))  # any vector not along the beam
-    C = np.asarray(FBEAM.cantilever_compliance(L, sec, direction=direction, zref=zref, n_elements=n_elements))
+    C = np.asarray(_cantilever_compliance(L, sec, direction=direction, zref=zref, n_elements=n_elements))
     R, _ = FBEAM.beam_axes(np.zeros(3), np.asarray(direction) * L, np.asarray(zref, dtype=float), np)
     R = np.asarray(R)
     T = np.kron(np.eye(2), R)
@@ -50,7 +69,7 @@ def test_shear_term_matters_for_a_stubby_beam():
     L, b, t = 0.03, 0.02, 0.01
     sec = _section(b, t)
     pr = fm.section_properties(sec, np)
-    C = np.asarray(FBEAM.cantilever_compliance(L, sec, direction=(1.0, 0.0, 0.0), zref=(0.0, 0.0, 1.0)))
+    C = np.asarray(_cantilever_compliance(L, sec, direction=(1.0, 0.0, 0.0), zref=(0.0, 0.0, 1.0)))
     bending_only = L**3 / (3 * E * float(pr.i_z))
     assert C[1, 1] / bending_only - 1.0 > 0.05
 
@@ -137,7 +156,7 @@ def test_numpy_path_equals_jax_path(paper, options):
 def test_batch_equals_single(paper):
     # the jax batch (vmap of the jit path) against the numpy single-design path
     designs = [paper, dataclasses.replace(paper, geometry=dataclasses.replace(paper.geometry, beta=np.deg2rad(45)))]
-    batch = fm.solve_frame_batch(FB.stack_frame_params(designs))
+    batch = fm.solve_frame_batch(FP.stack_frame_params(designs))
     for i, d in enumerate(designs):
         single = fm.solve_frame(fm.frame_params_of(d))
         np.testing.assert_allclose(batch["stiffness_load"][i], single["stiffness_load"], rtol=1e-9)
@@ -249,8 +268,9 @@ def test_bond_of_a_disc_is_the_zero_gap_neck():
     a, E, nu = 4e-3, 68.9e9, 0.33
     n = np.array([0.0, 0.6, 0.8])
     e1 = np.array([1.0, 0.0, 0.0])
-    K = FBEAM.bond_stiffness(np.pi * a**2, (np.pi * a**4 / 4, np.pi * a**4 / 4), np.pi * a**4 / 2,
-                          (n, e1, np.cross(n, e1)), E, nu)
+    one = np.ones(1)
+    K = FBEAM.bond_stiffness(np.pi * a**2 * one, (np.pi * a**4 / 4 * one, np.pi * a**4 / 4 * one), np.pi * a**4 / 2 * one,
+                             (n[None], e1[None], np.cross(n, e1)[None]), E, nu)[0]
     k = fm.neck_stiffness(np.asarray(2 * a), np.asarray(0.0), np.asarray(E), np.asarray(nu), xp=np)
     np.testing.assert_allclose(K, FBEAM._neck_matrix(n, k, xp=np), rtol=1e-12, atol=1e-9 * np.abs(K).max())
 
@@ -262,7 +282,7 @@ def test_bracket_frame_is_the_cads_bracket(paper):
     from hapticopt.design.prrr import cad
 
     b = cad.carriage_bracket(paper)
-    br = fm.bracket_frame(paper)
+    br = FP.frame_params_of(paper, xp=np)._asdict()
     C, J, E = br["bracket_points"]
     lay = cad.layout(paper)
     e_l, e_f, e_n = b.root_axes.T
@@ -316,7 +336,8 @@ def test_sparse_assembly_equals_the_dense_sum(options):
 
 
 def test_frame_params_many_equals_stacked_frame_params_of(paper):
-    # reference: frame_params_of per design (numpy), stacked. The batch covers the side face, the
+    # reference: frame_params_of per design (numpy; a batch of one: the per-design bracket,
+    # cad.carriage_bracket), stacked. The batch covers the side face, the
     # front-face fallback (θ_1p = 0 on a 60 mm rail) and a bracket no face can carry (β = 5°: the
     # unchecked side face), as in tests/design/prrr/test_cad.py. Bitwise equal but for the bracket's
     # fields: the brackets come from the array form (cad_arrays.brackets_many: numpy's vectorised
@@ -334,11 +355,11 @@ def test_frame_params_many_equals_stacked_frame_params_of(paper):
                                                      "geometry.stroke_mm=0.1", "geometry.r_p_mm=100")]
     designs = [paper, wide, refused, io.apply_overrides(paper, ["geometry.d3_mm=90", "geometry.r_p_mm=110"]), *hard]
     assert cad.carriage_bracket(wide).face == "front"
-    with pytest.raises(fm.InvalidDesign):
+    with pytest.raises(InvalidDesign):
         cad.carriage_bracket(refused)
-    assert len(designs) >= FB.BRACKET_ARRAYS_FROM > 3  # the brackets' array form here, per design for 3
+    assert len(designs) >= FP.BRACKET_ARRAYS_FROM > 3  # the brackets' array form here, per design for 3
     for batch in (designs, designs[:3]):
-        many = FB.frame_params_many(batch)
+        many = FP.frame_params_many(batch)
         each = jax.tree.map(lambda *xs: np.stack(xs), *[fm.frame_params_of(d, xp=np) for d in batch])
         for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(many), jax.tree.leaves(each), strict=True):
             assert a.shape == b.shape, jax.tree_util.keystr(path)
@@ -367,7 +388,7 @@ def test_condense_many_equals_single_path(paper):
     designs = _variants(paper)
     K = np.stack([np.asarray(fm.frame_legs(fm.frame_params_of(d, xp=np), np.zeros(3), fm.FrameOptions(), xp=np)[0])
                   for d in designs])
-    out = FB.condense_many(K, fm.LOAD_HEIGHT)
+    out = FC.condense_many(K, fm.LOAD_HEIGHT)
     for i, d in enumerate(designs):
         single = fm.solve_frame(fm.frame_params_of(d))
         for key in out:
@@ -385,11 +406,11 @@ def test_condense_many_defers_a_cancelled_condensation(paper):
     removed = K[:, :6, 6:] @ rec
     scale = np.max(np.abs(np.diagonal(removed, axis1=1, axis2=2)))
     rows = []
-    for ratio in (FB.CANCELLATION_LIMIT * 1e-4, FB.CANCELLATION_LIMIT * 1e4):
+    for ratio in (FC.CANCELLATION_LIMIT * 1e-4, FC.CANCELLATION_LIMIT * 1e4):
         Kc = K.copy()
         Kc[:, :6, :6] = 0.5 * (removed + np.swapaxes(removed, 1, 2)) + scale / ratio * np.eye(6)
         rows.append(Kc)
-    out = FB.condense_many(np.stack(rows), fm.LOAD_HEIGHT)
+    out = FC.condense_many(np.stack(rows), fm.LOAD_HEIGHT)
     assert all(np.all(np.isfinite(v[0])) for v in out.values())
     assert all(np.all(np.isnan(v[1])) for v in out.values())
 
@@ -401,7 +422,7 @@ def test_leg_terms_assemble_to_frame_legs(paper, options):
     fp = fm.frame_params_of(paper, xp=np)
     K = np.asarray(fm.frame_legs(fp, np.zeros(3), options, xp=np)[0])
     G, Ks, P, _ = fm.frame_leg_terms(fp, np.zeros(3), options, xp=np)
-    A = FB.assemble_terms(G, np.concatenate([FBEAM.element_stiffness(P, np), Ks], axis=1), fm.term_columns(options),
+    A = FC.assemble_terms(G, np.concatenate([FBEAM.element_stiffness(P, np), Ks], axis=1), fm.term_columns(options),
                           K.shape[-1])
     np.testing.assert_allclose(A, K, rtol=0, atol=1e-14 * np.abs(K).max())
 
@@ -410,7 +431,7 @@ def _terms(designs, options):
     import jax
     import jax.numpy as jnp
 
-    return jax.jit(jax.vmap(lambda f: fm.frame_leg_terms(f, jnp.zeros(3), options)[:3]))(FB.stack_frame_params(designs))
+    return jax.jit(jax.vmap(lambda f: fm.frame_leg_terms(f, jnp.zeros(3), options)[:3]))(FP.stack_frame_params(designs))
 
 
 @pytest.mark.parametrize("backend", ["numpy", "numba", "auto"])
@@ -419,7 +440,7 @@ def test_condense_terms_many_equals_single_path(paper, backend):
     # then assembly and condensation outside XLA) by each Compute backend
     designs = _variants(paper)
     options = fm.FrameOptions()
-    out = FB.condense_terms_many(*_terms(designs, options), options, fm.LOAD_HEIGHT, compute=Compute(backend=backend))
+    out = FC.condense_terms_many(*_terms(designs, options), options, fm.LOAD_HEIGHT, compute=Compute(backend=backend))
     for i, d in enumerate(designs):
         single = fm.solve_frame(fm.frame_params_of(d))
         for key in out:
@@ -427,7 +448,7 @@ def test_condense_terms_many_equals_single_path(paper, backend):
                                        atol=1e-9 * np.abs(single[key]).max(), err_msg=key)
 
 
-@pytest.mark.parametrize("n", [1, FB.KERNEL_FROM_DESIGNS])
+@pytest.mark.parametrize("n", [1, FC.KERNEL_FROM_DESIGNS])
 def test_condense_terms_many_same_results_by_every_backend(paper, n):
     # numpy (LAPACK's LU) and the numba kernel (Cholesky over the envelope) differ by the rounding of two
     # eliminations (condition ~1e4: ≤ 1e-10 relative); "auto" is one of them, by the call's size only
@@ -435,9 +456,9 @@ def test_condense_terms_many_same_results_by_every_backend(paper, n):
     designs = (_variants(paper) * n)[:n]
     options = fm.FrameOptions()
     terms = _terms(designs, options)
-    out = {b: FB.condense_terms_many(*terms, options, fm.LOAD_HEIGHT, compute=Compute(backend=b))
+    out = {b: FC.condense_terms_many(*terms, options, fm.LOAD_HEIGHT, compute=Compute(backend=b))
            for b in ("numpy", "numba", "auto")}
-    same = "numba" if n >= FB.KERNEL_FROM_DESIGNS else "numpy"
+    same = "numba" if n >= FC.KERNEL_FROM_DESIGNS else "numpy"
     for key in out["numpy"]:
         np.testing.assert_allclose(out["numba"][key], out["numpy"][key], rtol=1e-10,
                                    atol=1e-10 * np.abs(out["numpy"][key]).max(), err_msg=key)

@@ -1,113 +1,36 @@
-"""The frame model over a batch of designs outside jit (numpy arrays, leading design axis n).
+"""The frame model's legs assembled and condensed over a batch of designs outside jit (numpy arrays,
+leading design axis n).
 
-Inputs: :func:`frame_params_many` stacks :func:`.frame_model.frame_params_of` of many designs as arrays
-over the batch (the brackets in their array form). Outputs: the batched draft evaluator jits only the
-legs' unassembled terms (:func:`.frame_model.frame_leg_terms`); :func:`condense_terms_many` builds each
-element, assembles each leg and condenses it onto the end-effector node, by one of two routes the
-caller's :class:`~hapticopt.analysis.compute.Compute` chooses: numpy (:func:`.frame_beam.element_stiffness`,
-:func:`assemble_terms`, :func:`.frame_model.condense_legs`: LAPACK's LU per leg) or the numba kernel
-(:mod:`._frame_kernels`: Cholesky along each leg's chain of DOFs). Both equal the single path
-(:func:`.frame_model.solve_frame`) to 1e-9 and each other to 1e-10 (tested).
+The batched draft evaluator jits only the legs' unassembled terms (:func:`.frame_model.frame_leg_terms`);
+:func:`condense_terms_many` builds each element, assembles each leg and condenses it onto the
+end-effector node, by one of two routes the caller's :class:`~hapticopt.analysis.compute.Compute`
+chooses: numpy (:func:`.frame_beam.element_stiffness`, :func:`assemble_terms`,
+:func:`.frame_model.condense_legs`: LAPACK's LU per leg) or the numba kernel (:mod:`._frame_kernels`:
+Cholesky along each leg's chain of DOFs). Both equal the single path (:func:`.frame_model.solve_frame`)
+to 1e-9 and each other to 1e-10 (tested).
 """
 
 from __future__ import annotations
 
 import functools
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from hapticopt.analysis import compute as compute_
 from hapticopt.analysis.compute import DEFAULT, Compute
-from hapticopt.analysis.prrr.frame_beam import _PATTERNS, Section, _bond_stiffness_many, _cross, element_stiffness
-from hapticopt.analysis.prrr.frame_model import (FrameOptions, FrameParams, _bracket_of, _leg_layout,
-                                                 compliance_outputs, condense_legs, term_columns)
-from hapticopt.design.prrr import cad_arrays
-from hapticopt.design.prrr.kinematics import PrrrParams
+from hapticopt.analysis.prrr.frame_beam import _PATTERNS, element_stiffness
+from hapticopt.analysis.prrr.frame_model import (FrameOptions, _leg_layout, compliance_outputs, condense_legs,
+                                                 term_columns)
 
 #: At or above this cancellation on the condensed stiffness's diagonal (Σ_legs |K_PP,aa| + |(K_Pi K_ii⁻¹ K_iP)_aa|
 #: over |K_P,aa|, largest over a) :func:`condense_terms_many` returns NaN (digits left ≈ 16 − log10 of it).
 #: At the home pose every design the single path solves stays below 10^6; β = 89.999999° (singular) is 10^16.7.
 CANCELLATION_LIMIT = 1e8
-#: :func:`frame_params_many` takes the brackets in their array form from this many designs on (per design
-#: below, where the arrays' fixed cost is larger than the per-design formula's).
-BRACKET_ARRAYS_FROM = 8
 #: ``Compute(backend="auto")`` runs :func:`condense_terms_many`'s numba kernel for calls of this many designs
 #: or more: the kernel is 5–20× faster per call at any size once loaded, but loading it (numba's import and
 #: the cached kernel, ≈ 0.3 s) costs more than a call of a few designs by numpy (≈ 0.5 ms per design), so a
 #: small call (one design from the CLI, a handful in a test) runs numpy and never loads numba.
 KERNEL_FROM_DESIGNS = 8
-
-
-def frame_params_many(designs) -> FrameParams:
-    """:func:`frame_params_of` (``xp=np``) of many designs stacked along a leading batch axis (numpy):
-    the scalar fields, the carriage's brackets (:func:`_brackets_many`: the array form of
-    :func:`hapticopt.design.prrr.cad.carriage_bracket`, per design only where that form leaves a design
-    out) and their bond stiffnesses as arrays over the batch. Equal to stacking :func:`frame_params_of`
-    (tested: the scalar fields bitwise, the bracket's fields to 1e-12 of their largest entry)."""
-    g = [d.geometry for d in designs]
-    s = [d.structure for d in designs]
-
-    def col(objs, name):
-        return np.array([float(getattr(o, name)) for o in objs])
-
-    kin = PrrrParams(*(col(g, f) for f in ("beta", "d1", "d2", "d3", "d4", "r4", "b5", "stroke")))
-    sec = Section(*(col(s, f) for f in ("link_width", "link_thickness", "youngs_modulus", "poisson_ratio")))
-    layer = sec.thickness + col(s, "clearance")  # hapticopt.design.prrr.cad.layout: s_link2 = T + g
-    s_lug = np.maximum(kin.r4, 2.0 * layer)  # hapticopt.design.prrr.cad.layout: s_lug = max(r4, 2T + 2g)
-    br = _brackets_many(designs, sec)
-    return FrameParams(kin=kin, r_p=col(g, "r_p"), theta_1p=col(g, "theta_1p"), section=sec,
-                       spring=np.array([float(d.actuator.spring) for d in designs]),
-                       joint_zone=0.5 * col(s, "boss_diameter"), pin_diameter=col(s, "bore_diameter"), layer=layer,
-                       lug_offset=s_lug - kin.r4, stem_radius=0.5 * col(s, "stem_diameter"), **br)
-
-
-def _brackets_many(designs, sec: Section) -> dict[str, np.ndarray]:
-    """:func:`bracket_frame` of many designs (leading batch axis): the brackets over the batch
-    (:func:`hapticopt.design.prrr.cad_arrays.brackets_many`, the array form of
-    :func:`hapticopt.design.prrr.cad.carriage_bracket`, from :data:`BRACKET_ARRAYS_FROM` designs on; its
-    ``rest``, the designs no face carries or near a rule's threshold or branch point, and the designs of a
-    smaller batch by the per-design function, as :func:`bracket_frame`), the bonds' :func:`bond_stiffness`
-    over the batch (:func:`_bond_stiffness_many`)."""
-    if len(designs) < BRACKET_ARRAYS_FROM:
-        each = [_bracket_fields(_bracket_of(d)) for d in designs]
-        b = {k: np.array([f[k] for f in each], dtype=float) for k in each[0]}
-    else:
-        b, rest = cad_arrays.brackets_many(designs)
-        for i in rest:
-            for k, v in _bracket_fields(_bracket_of(designs[i])).items():
-                b[k][i] = v
-    Ac, e_l, e_f, arm_length = b["clevis"], b["root_axes"][:, :, 0], b["root_axes"][:, :, 1], b["arm_length"]
-    contact = b["contact"]
-    # cad.Bracket.root_joint and .arm_end over the batch
-    root_joint = contact - np.sum((contact - Ac) * e_f, axis=-1)[:, None] * e_f
-    pts = np.stack([contact, root_joint, Ac + arm_length[:, None] * e_l], axis=1)
-    zref, size = b["root_axes"][:, :, 2], b["root_size"][:, [0, 2]]
-    N, n_p, w = b["normal"], b["n_p"], b["axis"]
-    lc, wc = b["contact_size"][:, 0], b["contact_size"][:, 1]
-    E_, nu = sec.youngs_modulus, sec.poisson_ratio
-    k_root = _bond_stiffness_many(lc * wc, (lc * wc**3 / 12.0, wc * lc**3 / 12.0), lc * wc * (lc**2 + wc**2) / 12.0,
-                                  (N, e_l, n_p), E_, nu)
-    W, T = sec.width, sec.thickness
-    e_m = _cross(w, e_l, np)
-    k_arm = _bond_stiffness_many(W * T, (W * T**3 / 12.0, T * W**3 / 12.0), W * T * (W**2 + T**2) / 12.0,
-                                 (e_l, e_m, w), E_, nu)
-    return {"bracket_points": pts, "root_zref": np.ascontiguousarray(zref), "root_section": np.ascontiguousarray(size),
-            "bracket_bonds": np.stack([k_root, k_arm], axis=1)}
-
-
-def _bracket_fields(b) -> dict:
-    """The fields of :func:`hapticopt.design.prrr.cad_arrays.brackets_many` of one :class:`cad.Bracket`."""
-    return dict(clevis=b.clevis, axis=b.axis, normal=b.normal, e_l=b.e_l, arm_length=b.arm_length,
-                root_axes=b.root_axes, root_size=b.root_size, contact=b.contact_centre, n_p=b.contact_axes[:, 1],
-                contact_size=b.contact_size)
-
-
-def stack_frame_params(designs) -> FrameParams:
-    """Parameters of many designs stacked along a leading batch axis (jax arrays of
-    :func:`frame_params_many`)."""
-    return jax.tree.map(jnp.asarray, frame_params_many(designs))
 
 
 @functools.cache
