@@ -16,6 +16,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
+
+
 class Section(NamedTuple):
     """Rectangular cross-section and isotropic material [SI]; scalars or a batch (n,)."""
 

@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.prrr.frame_beam import Section, _cross, bond_stiffness
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.prrr import cad_arrays
