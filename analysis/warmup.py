@@ -14,7 +14,9 @@ import time
 
 import numpy as np
 
-from hapticopt.analysis.prrr import frame_model, interference_fast, mujoco_plant as prrr_mujoco
+from hapticopt.analysis.prrr import mujoco_plant as prrr_mujoco
+from hapticopt.analysis.compute import Compute
+from hapticopt.analysis.prrr import frame_condense, frame_model, interference_fast
 from hapticopt.design import io
 
 
@@ -31,15 +33,13 @@ def warm() -> list[tuple[str, str | None, float]]:
     t0 = time.perf_counter()
     out.append(("MuJoCo closed loops", prrr_mujoco.warm_up(), time.perf_counter() - t0))
     t0 = time.perf_counter()
-    reason = frame_model.kernel_availability()
+    reason = frame_condense.kernel_availability()
     if reason is None:  # the batched draft evaluator's frame assembly and condensation (one design's legs)
         options = frame_model.FrameOptions()
         fp = frame_model.frame_params_of(io.load_preset("prrr-paper"), xp=np)
         G, Ks, P, _ = frame_model.frame_leg_terms(fp, np.zeros(3), options, xp=np)
-        frame_model.condense_terms_many(G[None], Ks[None], P[None], options, frame_model.LOAD_HEIGHT, compiled=True)
-        # the batch's frame group from the legs' points (large batches)
-        frame_model.condense_home_many(frame_model.frame_params_many([io.load_preset("prrr-paper")]),
-                                       frame_model.LOAD_HEIGHT)
+        frame_condense.condense_terms_many(G[None], Ks[None], P[None], options, frame_model.LOAD_HEIGHT,
+                                           compute=Compute(backend="numba"))
     out.append(("frame condensation", reason, time.perf_counter() - t0))
     return out
 

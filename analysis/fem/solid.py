@@ -14,7 +14,6 @@ Pipeline (pitfalls: named physical groups, quadratic tetrahedra, measure direct 
 The generic pieces live here: meshing helpers, P2 assembly with clamped surfaces, rigid-body
 modes, the linear solve, a rigid load region, the cantilever check (:func:`cantilever_fea`, compared with
 Timoshenko's closed form) and Richardson extrapolation. Device solids build on them:
-:mod:`hapticopt.analysis.prrr.fea_frame` (the frame-equivalent solid) and
 :mod:`hapticopt.analysis.prrr.fea_cad` (the CAD solid with pins and hinges).
 """
 

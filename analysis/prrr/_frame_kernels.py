@@ -1,37 +1,19 @@
-"""numba kernels of :func:`hapticopt.analysis.prrr.frame_model.condense_legs` over many legs, from the
-legs' stiffness (:func:`condense_legs_kernel`) or from their unassembled terms
-(:func:`assemble_condense_kernel`: the elements' stiffness from their parameters, Σ Gᵀ K G over the
-maps' nonzero entries, then the same condensation) or from the legs' points at the home pose
-(:func:`home_legs_condense_kernel`: the terms themselves built per leg, the draft frame's elements,
-springs and maps as ``frame_model.frame_leg_terms`` builds them, then :func:`assemble_condense_kernel`'s
-assembly and condensation; the batched draft evaluator's route, no terms over the batch). Imported only
-through :func:`hapticopt.analysis.prrr.frame_model.condense_many` / ``condense_terms_many`` /
-``condense_home_many``, so numba loads on first use.
+"""numba kernel of the frame's batched condensation (:func:`.frame_condense.condense_terms_many`): legs given
+as their unassembled terms (:func:`.frame_model.frame_leg_terms`), each element's stiffness built from its
+parameters, each leg's K = Σ Gᵀ K G over the maps' nonzero entries, then the static condensation onto the
+end-effector node. Imported only by ``frame_condense``, so numba loads on first use.
 
-Per leg, the same quantities as the numpy/jax reference: the Jacobi scaling d of K_ii, the scaled
-matrix's solves with K_iP (six right-hand sides) and the probe (1/n)·1, K_PP − K_Pi K_ii⁻¹ K_iP, and
-Hager's two-step estimate of ‖K_ii,s⁻¹‖₁ (two more solves). The difference is the factorisation: a
-Cholesky factorisation of the scaled matrix (symmetric positive definite for every design whose
-verdict is ok) that visits only the nonzero entries of each column. A leg's internal DOFs form a
-chain (carriage bracket → link d3 → link d4 → platform arm, 6-DOF nodes and three hinge angles), so
-a column holds ≈ 12–19 nonzeros below its diagonal with the fill-in, not 57: the elimination along
-the chain costs ≈ Σ nnz² instead of the dense LU's n³/3 and each solve ≈ 2 Σ nnz instead of n².
-A pivot ≤ 0 (a matrix that is not positive definite: singular or worse) makes every output of that
-leg NaN, which the batch's verdict reads as not ok and solves again by the single path.
-Results differ from the reference's partial-pivoting LU by the rounding of a different elimination
-(relative ≈ condition × 1e-16; tested to 1e-9 against it).
-
-:func:`assemble_condense_kernel` reads the pattern from the terms' columns instead (the topology's, the
-same for every leg: :func:`_structure` once per call): a leg's K is nonzero only where one term couples
-two DOFs, and along the chain each row of K_ii starts a few DOFs left of the diagonal, so the factor
-lives in that envelope (no fill outside it; none at all in the legs' topologies measured). The factor's
-updates and the solves' steps then run over contiguous ranges (each column also kept as a row, so both
-operands of an update are contiguous), the solves multiply by the diagonal's reciprocals and take the
-backward step by rows (no serial sum), and the condensation is K_PP − Yᵀ Y with Y = L⁻¹ d K_iP: a forward
-solve from the first row coupled to P (the rows of the chain's far end), no backward solve and no
-recovery. The factor and the condition estimate's solves visit each entry in the order the nonzero scan
-does (entries it skips are products with zeros), so the factorisation is the same; the condensation's
-rounding is that of the other product (tested to 1e-10 of LAPACK's LU on five topologies).
+Per leg, the same quantities as the numpy route (:func:`.frame_model.condense_legs`): the Jacobi scaling
+d of K_ii, K_PP − K_Pi K_ii⁻¹ K_iP, and Hager's two-step estimate of ‖K_ii,s⁻¹‖₁. The difference is the
+factorisation: Cholesky of the scaled matrix (symmetric positive definite for every design whose verdict
+is ok) over its envelope. A leg's internal DOFs form a chain (carriage bracket → link d3 → link d4 →
+platform arm, 6-DOF nodes and three hinge angles), so each row of K_ii starts a few DOFs left of the
+diagonal and the factor lives in that envelope (:func:`_structure`, read from the terms' columns: no
+fill outside it); the elimination costs ≈ Σ nnz² instead of the dense LU's n³/3. The condensation is
+K_PP − Yᵀ Y with Y = L⁻¹ d K_iP (a forward solve only). A pivot ≤ 0 (not positive definite: singular or
+worse) makes every output of that leg NaN, which the batch's verdict reads as not ok and solves again by
+the single path. Results differ from the numpy route's partial-pivoting LU by the rounding of a different
+elimination (relative ≈ condition × 1e-16; tested to 1e-10).
 """
 
 from __future__ import annotations
@@ -43,158 +25,8 @@ from numba import njit
 
 
 @njit(cache=True)
-def _solve_into(L, nz, cnt, x):
-    """x ← (L Lᵀ)⁻¹ x in place: L lower-triangular (its nonzero rows below the diagonal of column k
-    are nz[k, :cnt[k]])."""
-    m = x.shape[0]
-    for k in range(m):  # forward: L y = x, column by column (a zero entry updates nothing: the
-        xk = x[k] / L[k, k]  # right-hand sides K_iP and e_j are zero on most of the chain)
-        x[k] = xk
-        if xk != 0.0:
-            for t in range(cnt[k]):
-                i = nz[k, t]
-                x[i] -= L[i, k] * xk
-    for k in range(m - 1, -1, -1):  # backward: Lᵀ z = y
-        s = x[k]
-        for t in range(cnt[k]):
-            i = nz[k, t]
-            s -= L[i, k] * x[i]
-        x[k] = s / L[k, k]
-
-
-@njit(cache=True)
-def _solve_many_into(L, nz, cnt, X):
-    """X ← (L Lᵀ)⁻¹ X in place for the columns of X (m, r): :func:`_solve_into` per column, the same
-    operations in the same order, with each index read once for all columns."""
-    m, r = X.shape
-    for k in range(m):
-        lkk = L[k, k]
-        for c in range(r):
-            X[k, c] = X[k, c] / lkk
-        for t in range(cnt[k]):
-            i = nz[k, t]
-            lik = L[i, k]
-            for c in range(r):
-                X[i, c] -= lik * X[k, c]
-    for k in range(m - 1, -1, -1):
-        for t in range(cnt[k]):
-            i = nz[k, t]
-            lik = L[i, k]
-            for c in range(r):
-                X[k, c] -= lik * X[i, c]
-        lkk = L[k, k]
-        for c in range(r):
-            X[k, c] = X[k, c] / lkk
-
-
-@njit(cache=True)
-def _condense_leg(Kl, A, d, nz, cnt, sol, x, recovery, contrib, gross):
-    """One leg (``Kl`` (n, n)): writes ``recovery`` (n−6, 6), ``contrib`` (6, 6), ``gross`` (6,); returns
-    the condition estimate (NaN, and NaN outputs, where the scaled K_ii is not positive definite).
-    ``A``, ``d``, ``nz``, ``cnt``, ``sol``, ``x``: scratch of the internal size."""
-    n = Kl.shape[0]
-    m = n - 6
-    for i in range(m):
-        d[i] = 1.0 / math.sqrt(abs(Kl[6 + i, 6 + i]))
-    # the scaled lower triangle (all the factorisation reads) and ‖K_ii,s‖₁: K is symmetric, so column
-    # j's sum is row j's; each off-diagonal entry counts in the sums of its row and of its column
-    for j in range(m):
-        x[j] = 0.0
-    for i in range(m):
-        di = d[i]
-        for j in range(i + 1):
-            v = Kl[6 + i, 6 + j]
-            if v != 0.0:
-                a = di * v * d[j]
-                A[i, j] = a
-                x[i] += abs(a)
-                if j != i:
-                    x[j] += abs(a)
-            else:
-                A[i, j] = 0.0
-    norm1 = 0.0
-    for j in range(m):
-        norm1 = max(norm1, x[j])
-    # Cholesky on the lower triangle, right-looking, over each column's nonzero rows
-    for k in range(m):
-        akk = A[k, k]
-        if not akk > 0.0:
-            contrib[:, :] = np.nan
-            recovery[:, :] = np.nan
-            gross[:] = np.nan
-            return np.nan
-        lkk = math.sqrt(akk)
-        A[k, k] = lkk
-        c = 0
-        for i in range(k + 1, m):
-            if A[i, k] != 0.0:
-                A[i, k] /= lkk
-                nz[k, c] = i
-                c += 1
-        cnt[k] = c
-        for t in range(c):
-            i = nz[k, t]
-            lik = A[i, k]
-            for u in range(t + 1):  # nz[k] ascending: j ≤ i, the lower triangle
-                j = nz[k, u]
-                A[i, j] -= lik * A[j, k]
-    for i in range(m):  # right-hand sides: d K_iP, then the probe (1/m)·1
-        for r in range(6):
-            sol[i, r] = d[i] * Kl[r, 6 + i]
-        sol[i, 6] = 1.0 / m
-    _solve_many_into(A, nz, cnt, sol)
-    for i in range(m):
-        for r in range(6):
-            recovery[i, r] = d[i] * sol[i, r]
-    for a in range(6):  # K_PP − K_Pi K_ii⁻¹ K_iP over the nonzeros of K_Pi (in the order of i)
-        for b in range(6):
-            contrib[a, b] = 0.0
-        for i in range(m):
-            kai = Kl[a, 6 + i]
-            if kai != 0.0:
-                for b in range(6):
-                    contrib[a, b] += kai * recovery[i, b]
-        gross[a] = abs(Kl[a, a]) + abs(contrib[a, a])
-        for b in range(6):
-            contrib[a, b] = Kl[a, b] - contrib[a, b]
-    # Hager's estimate of ‖A⁻¹‖₁ (frame_model._inverse_norm1): y = A⁻¹ (1/m)·1, ξ = sign(y), z = A⁻¹ ξ,
-    # j = argmax |z|, y2 = A⁻¹ e_j; max(‖y‖₁, ‖y2‖₁)
-    s1 = 0.0
-    for i in range(m):
-        s1 += abs(sol[i, 6])
-        x[i] = 1.0 if sol[i, 6] >= 0.0 else -1.0
-    _solve_into(A, nz, cnt, x)
-    jmax, zmax = 0, -1.0
-    for i in range(m):
-        if abs(x[i]) > zmax:  # first of equal maxima, as argmax
-            jmax, zmax = i, abs(x[i])
-    for i in range(m):
-        x[i] = 0.0
-    x[jmax] = 1.0
-    _solve_into(A, nz, cnt, x)
-    s2 = 0.0
-    for i in range(m):
-        s2 += abs(x[i])
-    return norm1 * max(s1, s2)
-
-
-@njit(cache=True)
-def condense_legs_kernel(K, contrib, cond, recovery, gross):
-    """``K`` (L, n, n) legs' stiffness on [P (6) | internal]; writes each leg's K_PP − K_Pi K_ii⁻¹ K_iP
-    into ``contrib`` (L, 6, 6), its scaled internal matrix's condition estimate into ``cond`` (L,),
-    K_ii⁻¹ K_iP into ``recovery`` (L, n−6, 6) and the magnitudes |K_PP,aa| + |(K_Pi K_ii⁻¹ K_iP)_aa| of
-    the diagonal's two terms into ``gross`` (L, 6) (the size of the cancellation)."""
-    m = K.shape[1] - 6
-    A, d, x = np.empty((m, m)), np.empty(m), np.empty(m)
-    nz, cnt = np.empty((m, m), dtype=np.int64), np.empty(m, dtype=np.int64)
-    sol = np.empty((m, 7))
-    for leg in range(K.shape[0]):
-        cond[leg] = _condense_leg(K[leg], A, d, nz, cnt, sol, x, recovery[leg], contrib[leg], gross[leg])
-
-
-@njit(cache=True)
 def _nonzeros(patterns):
-    """The nonzero entries of the (10, 12, 12) Timoshenko patterns (``frame_model._PATTERNS``), row by row:
+    """The nonzero entries of the (10, 12, 12) Timoshenko patterns (``frame_beam._PATTERNS``), row by row:
     ``idx`` (nk, 3) = (a, b, pattern c), ``val`` (nk,) (each (a, b) in one pattern: the patterns are
     disjoint)."""
     nk = 0
@@ -218,7 +50,7 @@ def _nonzeros(patterns):
 @njit(cache=True)
 def _element_stiffness(p, kidx, kval, coef, T, kT, Ke):
     """``Ke`` ← the 12 × 12 global stiffness of the element with parameters ``p`` (18,)
-    (``frame_model.element_stiffness``: ``beam_global_stiffness`` term by term): Tᵀ k T, k placed from the
+    (``frame_beam.element_stiffness``: ``beam_global_stiffness`` term by term): Tᵀ k T, k placed from the
     patterns' nonzeros (``kidx``, ``kval``: :func:`_nonzeros`), the products over the nonzeros of k and
     over the blocks of T = blockdiag(R M1, R M2) (M the end zones' rigid maps: [[R, R S], [0, R]] per node).
     ``coef`` (10,): scratch (the patterns' coefficients); ``T``, ``kT``: 12 × 12 scratch."""
@@ -330,13 +162,13 @@ def _solve_env(L, Lt, inv, fcol, last, x):
 
 @njit(cache=True)
 def _condense_leg_env(Kl, A, Lt, d, inv, fcol, last, first, Y, x, contrib, gross):
-    """:func:`_condense_leg` of a leg ``Kl`` (n, n) assembled on the envelope of :func:`_structure` (its
+    """The condensation of one leg ``Kl`` (n, n) assembled on the envelope of :func:`_structure` (its
     entries off that envelope are zero; the lower and upper triangles not yet symmetrised: each entry
-    read is ½(K_ij + K_ji)), without the recovery: the scaled lower triangle and ‖K_ii,s‖₁ row by row and
-    the right-looking Cholesky factorisation (each entry's updates in the order of :func:`_condense_leg`;
-    those it skips are products with zeros), over the envelope's contiguous rows and columns; then
-    K_PP − Yᵀ Y with Y = L⁻¹ d K_iP (a forward solve from row ``first``: the rows above are zero; no
-    backward solve), and the probe's and Hager's solves as :func:`_condense_leg` (:func:`_solve_env`).
+    read is ½(K_ij + K_ji)): the scaled lower triangle and ‖K_ii,s‖₁ row by row and the right-looking
+    Cholesky factorisation over the envelope's contiguous rows and columns; then K_PP − Yᵀ Y with
+    Y = L⁻¹ d K_iP (a forward solve from row ``first``: the rows above are zero), the probe's and Hager's
+    solves (:func:`_solve_env`). Writes ``contrib`` (6, 6) and ``gross`` (6,), the magnitudes
+    |K_PP,aa| + |(K_Pi K_ii⁻¹ K_iP)_aa| (the size of the cancellation).
     ``A``, ``Lt`` (m, m), ``d``, ``inv``, ``x`` (m,), ``Y`` (m, 6): scratch. Returns the condition
     estimate (NaN, and NaN outputs, where the scaled K_ii is not positive definite)."""
     n = Kl.shape[0]
@@ -404,7 +236,7 @@ def _condense_leg_env(Kl, A, Lt, d, inv, fcol, last, first, Y, x, contrib, gross
             v = 0.5 * (Kl[a, b] + Kl[b, a]) - contrib[a, b]
             contrib[a, b] = v
             contrib[b, a] = v
-    # the probe y = K_ii,s⁻¹ (1/m)·1 and Hager's estimate of ‖K_ii,s⁻¹‖₁ (as _condense_leg)
+    # the probe y = K_ii,s⁻¹ (1/m)·1 and Hager's estimate of ‖K_ii,s⁻¹‖₁ (frame_model._inverse_norm1)
     for i in range(m):
         x[i] = 1.0 / m
     _solve_env(A, Lt, inv, fcol, last, x)
@@ -432,9 +264,11 @@ def assemble_condense_kernel(G, Ks, P, patterns, cols, n, contrib, cond, gross):
     """Legs given as terms (``frame_model.frame_leg_terms``): maps ``G`` (L, T, 12, M) on ``cols`` (T, M),
     springs' stiffness ``Ks`` (L, S, 12, 12), elements' parameters ``P`` (L, E, 18) (terms: the E
     elements, then the S springs); ``patterns`` the (10, 12, 12) Timoshenko patterns
-    (``frame_model._PATTERNS``). Each leg's K = sym(Σ_t G_tᵀ K_t G_t) (n × n; the products over the
-    nonzero entries of G_t), then :func:`condense_legs_kernel`'s outputs but the recovery, over the
-    envelope that ``cols`` gives (:func:`_structure`, once per call: :func:`_condense_leg_env`)."""
+    (``frame_beam._PATTERNS``). Each leg's K = sym(Σ_t G_tᵀ K_t G_t) (n × n; the products over the
+    nonzero entries of G_t), then :func:`_condense_leg_env` over the envelope that ``cols`` gives
+    (:func:`_structure`, once per call): each leg's K_PP − K_Pi K_ii⁻¹ K_iP into ``contrib`` (L, 6, 6), its
+    scaled internal matrix's condition estimate into ``cond`` (L,), the cancellation's size into ``gross``
+    (L, 6)."""
     m = n - 6
     fcol, last, first = _structure(cols, n)
     kidx, kval = _nonzeros(patterns)
@@ -489,194 +323,3 @@ def _assemble_leg(Kl, G, Ks, P, cols, width, kidx, kval, coef, T12, kT, Ke, KG, 
             r, ca, gra = gr[q], cols[t, gb[q]], gv[q]
             for b in range(mt):
                 Kl[ca, cols[t, b]] += gra * KG[r, b]
-
-
-@njit(cache=True)
-def _sel(out, i):
-    """out (6, n) ← the selector of the six DOFs from ``i`` (``frame_model._free``)."""
-    out[:, :] = 0.0
-    for k in range(6):
-        out[k, i + k] = 1.0
-
-
-@njit(cache=True)
-def _hinge_into(out, src, i, w):
-    """out ← ``src`` with the hinge rotation DOF ``i`` about ``w`` added to its rotation rows
-    (``frame_model._hinge``)."""
-    out[:, :] = src
-    for j in range(3):
-        out[3 + j, i] += w[j]
-
-
-@njit(cache=True)
-def _rigid_into(out, r, src):
-    """out ← rigid_map(r) @ src (``frame_model.rigid_map``: [[I, S], [0, I]], S_ij = Σ_k ε_ijk r_k), over
-    the columns of ``src`` (6, n)."""
-    s01, s02, s10, s12, s20, s21 = r[2], -r[1], -r[2], r[0], r[1], -r[0]
-    for c in range(src.shape[1]):
-        u0, u1, u2 = src[3, c], src[4, c], src[5, c]
-        out[0, c] = src[0, c] + s01 * u1 + s02 * u2
-        out[1, c] = src[1, c] + s10 * u0 + s12 * u2
-        out[2, c] = src[2, c] + s20 * u0 + s21 * u1
-        out[3, c], out[4, c], out[5, c] = u0, u1, u2
-
-
-@njit(cache=True)
-def _put_element(Gt, cols, width, G1, G2):
-    """Gt (12, M) ← [G1; G2] on the term's columns ``cols`` (M,) (its first ``width`` distinct; the
-    padding zero), as ``frame_model._leg_terms``."""
-    for b in range(Gt.shape[1]):
-        if b < width:
-            c = cols[b]
-            for r in range(6):
-                Gt[r, b] = G1[r, c]
-                Gt[6 + r, b] = G2[r, c]
-        else:
-            for r in range(12):
-                Gt[r, b] = 0.0
-
-
-@njit(cache=True)
-def _put_spring(Gt, cols, width, Da, Db):
-    """Gt (12, M) ← [Da − Db; 0] on the term's columns (a joint spring's relative motion, 6 rows)."""
-    for b in range(Gt.shape[1]):
-        for r in range(12):
-            Gt[r, b] = 0.0
-        if b < width:
-            c = cols[b]
-            for r in range(6):
-                Gt[r, b] = Da[r, c] - Db[r, c]
-
-
-@njit(cache=True)
-def _neck_into(Gt, cols, width, G1, G2, x1, x2, R1, R2):
-    """Gt ← a pin's neck spring between layers x1 (map ``G1``) and x2 (``G2``): rigid_map(mid − x2) G2 −
-    rigid_map(mid − x1) G1 at the gap's mid-plane (``frame_model._leg_stiffness_pins``' pin_joint);
-    ``R1``, ``R2`` (6, n) scratch."""
-    mid = 0.5 * (x1 + x2)
-    _rigid_into(R1, mid - x2, G2)
-    _rigid_into(R2, mid - x1, G1)
-    _put_spring(Gt, cols, width, R1, R2)
-
-
-@njit(cache=True)
-def _put_params(Pe, x1, x2, z, a1, a2, sc, props, E):
-    """One element's parameters (``frame_model.element_stiffness``' rows): x1, x2, zref, a1, a2, section
-    properties ``sc[props:props + 6]``, E."""
-    for k in range(3):
-        Pe[k], Pe[3 + k], Pe[6 + k] = x1[k], x2[k], z[k]
-    Pe[9], Pe[10] = a1, a2
-    for k in range(6):
-        Pe[11 + k] = sc[props + k]
-    Pe[17] = E
-
-
-@njit(cache=True, nogil=True)
-def home_legs_condense_kernel(geo, Kb, sc, lay, patterns, cols, n, contrib, cond, gross):
-    """The legs of the draft frame (``frame_model.FrameOptions()``: pins with neck springs, the CAD's
-    carriage bracket, released joints, no SEA spring) from their points, built, assembled and condensed
-    here: :func:`assemble_condense_kernel` of the terms that ``frame_model.frame_leg_terms`` computes
-    (``frame_model._leg_stiffness_pins``' elements, springs and maps, term by term in its order), with
-    the maps built on each leg's DOFs (selectors, hinge columns, rigid maps) and taken on the terms'
-    columns in place (no (T, 12, M) array over the batch).
-
-    Per leg (L legs): ``geo`` (L, 9, 3) = w, S, A, B, Q, the bracket's C, J, E, the root's thickness
-    direction (world axes [m]); ``Kb`` (L, 2, 6, 6) the bracket's bonds in world axes; ``sc`` (L, 28) =
-    joint zone a, layer pitch λ, lug offset, stem radius, r4 [m], E [Pa], the neck's (axial, lateral,
-    rocking, torsion) stiffness, then the section properties (area, i_y, i_z, torsion, κ, G) of the link,
-    the bracket's root and the platform arm; ``lay`` (12,) the leg's DOF indices of Rb, Rj, Ae, A, Ap,
-    phi1, B, B2, phi2, Qp, Q2, phi3 (``frame_model._leg_layout``). Outputs as
-    :func:`assemble_condense_kernel`. Runs without the GIL (threads over designs may share it out; run
-    before ``finish_core`` waits for XLA's groups it measured 0.97×, 1.553 vs 1.599 ms per design for the
-    whole batch of 1024 at load 4.2–4.5, so it runs after)."""
-    m = n - 6
-    fcol, last, first = _structure(cols, n)
-    kidx, kval = _nonzeros(patterns)
-    Kl, A_, Lt, d, inv, x = np.empty((n, n)), np.empty((m, m)), np.empty((m, m)), np.empty(m), np.empty(m), np.empty(m)
-    Y = np.empty((m, 6))
-    T, M = cols.shape
-    NE, NS = 5, 5
-    KG = np.empty((12, M))
-    gr, gb, gv = np.empty(12 * M, dtype=np.int64), np.empty(12 * M, dtype=np.int64), np.empty(12 * M)
-    width = np.empty(T, dtype=np.int64)
-    for t in range(T):
-        width[t] = 1
-        for b in range(1, M):
-            if cols[t, b] != cols[t, 0]:
-                width[t] += 1
-    coef, T12, kT, Ke = np.empty(10), np.empty((12, 12)), np.empty((12, 12)), np.empty((12, 12))
-    G = np.empty((T, 12, M))
-    Ks = np.zeros((NS, 12, 12))
-    P = np.empty((NE, 18))
-    nm = np.empty((18, 6, n))  # the node maps, a zero map and two scratch maps
-    Rb, Rj, Ae, Ai, Ap, phi1, Bi, B2i, phi2, Qp, Q2i, phi3 = (lay[0], lay[1], lay[2], lay[3], lay[4], lay[5],
-                                                             lay[6], lay[7], lay[8], lay[9], lay[10], lay[11])
-    for leg in range(geo.shape[0]):
-        g, s = geo[leg], sc[leg]
-        w, S, A, B, Q, C, Jr, Eb, zr = g[0], g[1], g[2], g[3], g[4], g[5], g[6], g[7], g[8]
-        a, lam, s_q, stem, r4, E = s[0], s[1], s[2], s[3], s[4], s[5]
-        sb = w[2]
-        Ac = A - lam * w
-        B2 = B + lam * w
-        Bp2 = Q - r4 * w + lam * w
-        Ql = Q + s_q * w
-        Q2 = Ql - lam * w
-        v = np.array([-(w[2] * w[0]), -(w[2] * w[1]), w[0] * w[0] + w[1] * w[1]])  # w × (e_z × w)
-        v = v / math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-        Pa = Ql - (math.sqrt(Ql[0] * Ql[0] + Ql[1] * Ql[1]) / sb) * v  # p = 0
-        G_Rb, G_Rj, G_E, G_Ac, G_Ql, G_P = nm[0], nm[1], nm[2], nm[3], nm[4], nm[5]
-        G_Pa, G_Ap, G_Aph, G_Bc, G_B2, G_B2h = nm[6], nm[7], nm[8], nm[9], nm[10], nm[11]
-        G_Q2, G_Q2h, G_Bp, Z, R1, R2 = nm[12], nm[13], nm[14], nm[15], nm[16], nm[17]
-        _sel(G_Rb, Rb)
-        _sel(G_Rj, Rj)
-        _sel(G_E, Ae)
-        _sel(G_Ac, Ai)
-        _sel(G_Ql, Qp)
-        _sel(G_P, 0)
-        _rigid_into(G_Pa, Pa, G_P)
-        _sel(G_Ap, Ap)
-        _hinge_into(G_Aph, G_Ap, phi1, w)
-        _sel(G_Bc, Bi)
-        _sel(G_B2, B2i)
-        _hinge_into(G_B2h, G_B2, phi2, w)
-        _sel(G_Q2, Q2i)
-        _hinge_into(G_Q2h, G_Q2, phi3, w)
-        _rigid_into(G_Bp, Bp2 - Q2, G_Q2h)
-        Z[:, :] = 0.0
-        # elements (frame_model._leg_stiffness_pins' order): root C → J, clevis arm E → Ac, platform arm
-        # Ql → Pa, link d3 A → B, link d4 B2 → Bp2
-        _put_element(G[0], cols[0], width[0], G_Rb, G_Rj)
-        _put_params(P[0], C, Jr, zr, 0.0, 0.0, s, 16, E)
-        _put_element(G[1], cols[1], width[1], G_E, G_Ac)
-        _put_params(P[1], Eb, Ac, w, 0.0, a, s, 10, E)
-        _put_element(G[2], cols[2], width[2], G_Ql, G_Pa)
-        _put_params(P[2], Ql, Pa, w, a, 1.0 * stem / sb, s, 22, E)
-        _put_element(G[3], cols[3], width[3], G_Aph, G_Bc)
-        _put_params(P[3], A, B, w, a, a, s, 10, E)
-        _put_element(G[4], cols[4], width[4], G_B2h, G_Bp)
-        _put_params(P[4], B2, Bp2, w, a, a, s, 10, E)
-        # springs: the root bonded on the (clamped) block at C, the arm on the root's end face at E, the
-        # R1, R2, R3 pins' necks at their gaps' mid-planes
-        _rigid_into(R1, C - S, Z)
-        _put_spring(G[5], cols[5], width[5], G_Rb, R1)
-        _rigid_into(R1, Eb - Jr, G_Rj)
-        _put_spring(G[6], cols[6], width[6], G_E, R1)
-        _neck_into(G[7], cols[7], width[7], G_Ac, G_Ap, Ac, A, R1, R2)
-        _neck_into(G[8], cols[8], width[8], G_Bc, G_B2, B, B2, R1, R2)
-        _neck_into(G[9], cols[9], width[9], G_Ql, G_Q2, Ql, Q2, R1, R2)
-        for i in range(6):
-            for j in range(6):
-                Ks[0, i, j] = Kb[leg, 0, i, j]
-                Ks[1, i, j] = Kb[leg, 1, i, j]
-        k0, k1, k2, k3 = s[6], s[7], s[8], s[9]
-        for i in range(3):
-            for j in range(3):
-                ww = w[i] * w[j]
-                e = 1.0 if i == j else 0.0
-                kt = k1 * (e - ww) + k0 * ww
-                kr = k2 * (e - ww) + k3 * ww
-                for q in range(2, 5):
-                    Ks[q, i, j] = kt
-                    Ks[q, 3 + i, 3 + j] = kr
-        _assemble_leg(Kl, G, Ks, P, cols, width, kidx, kval, coef, T12, kT, Ke, KG, gr, gb, gv)
-        cond[leg] = _condense_leg_env(Kl, A_, Lt, d, inv, fcol, last, first, Y, x, contrib[leg], gross[leg])

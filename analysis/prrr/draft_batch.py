@@ -10,7 +10,8 @@ time. A ``*_many`` pass that raises falls back to the per-design function for ea
 
 * **jax, one jitted vmap** (:func:`core_fn`) of the groups the wanted evaluators read (:func:`groups_for`):
   statics, the reach-and-stroke workspace, the frame model's legs' stiffness terms (assembled and solved
-  after the call, ``frame_model``), the joint ranges over the required cylinder. The batch is padded to
+  after the call by ``frame_condense.condense_terms_many``, numpy or its numba kernel as the ``Compute``
+  says), the joint ranges over the required cylinder. The batch is padded to
   the next power of two (at most :data:`MAX_CHUNK`), so a new size within a bucket costs no trace
   (:data:`TRACES` counts traces).
 * **numpy, one table per part layout**: the CAD part tables (``layout.part_tables_many``), the
@@ -47,7 +48,9 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.analysis.prrr import assembly
 from hapticopt.analysis.prrr import device_size as DS
+from hapticopt.analysis.prrr import frame_condense
 from hapticopt.analysis.prrr import frame_model as fm
+from hapticopt.analysis.prrr import frame_params
 from hapticopt.analysis.prrr import free_workspace as FW
 from hapticopt.analysis.prrr import interference as IF
 from hapticopt.analysis.prrr import interference_fast as FAST
@@ -107,7 +110,7 @@ def _core(inp: CoreInputs, groups: tuple[str, ...]) -> dict:
     if "workspace" in groups:
         out["workspace"] = WS.workspace_core(inp.wp, n_phi=_SMP.n_phi, n_r=_SMP.n_r, xp=jnp)
     if "frame" in groups:
-        G, Ks, P, ik = fm.frame_leg_terms(inp.fp, jnp.zeros(3), fm.FrameOptions())  # assembled, solved in run_core
+        G, Ks, P, ik = fm.frame_leg_terms(inp.fp, jnp.zeros(3), fm.FrameOptions())  # assembled, solved in finish_core
         out["frame"] = {"G": G, "Ks": Ks, "P": P, "reachable": ik.reachable, "reach_margin": ik.reach_margin}
     if "joint" in groups:  # only the reductions the verdict reads leave XLA
         out["joint"] = JL.cylinder_ranges_of(inp.kin, _REQUIRED_RADIUS, xp=jnp)
@@ -129,7 +132,7 @@ def stack_inputs(designs: list[PrrrDesign], wps: list[WS.WorkspaceParams] | None
     inputs only where ``groups`` read them (None otherwise: an empty pytree node)."""
     geo = [d.geometry for d in designs]
     kin = PrrrParams(*(np.array([float(getattr(g, f)) for g in geo]) for f in _KIN_FIELDS))
-    fp = fm.frame_params_many(designs) if "frame" in groups else None
+    fp = frame_params.frame_params_many(designs) if "frame" in groups else None
     wp = None
     if "workspace" in groups:
         wp = WS.WorkspaceParams(*(np.array([float(w[k]) for w in wps]) for k in range(len(wps[0]))))
@@ -144,36 +147,36 @@ class PendingCore(NamedTuple):
 
     out: dict  # jax arrays (padded batch)
     n: int
-    frame: fm.FrameParams | None = None  # the frame group's inputs where the numba kernel computes it (not XLA)
 
 
 def start_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS)) -> PendingCore:
     """Dispatch the core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK),
     without waiting for it (jax's asynchronous dispatch: the compiled program runs on XLA's threads, which
-    do not hold the GIL, so the numba collision kernels run meanwhile). The frame group is left out of XLA
-    where ``frame_model.legs_kernel_ready`` for the padded size: :func:`finish_core` computes it in numba from
-    its inputs."""
-    frame = None
-    if "frame" in groups and fm.legs_kernel_ready(bucket(n)):
-        frame, groups, inp = inp.fp, tuple(g for g in groups if g != "frame"), inp._replace(fp=None)
+    do not hold the GIL, so the numba collision kernels run meanwhile)."""
     if not groups:
-        return PendingCore({}, n, frame)
+        return PendingCore({}, n)
     size = bucket(n)
     pad = jax.tree.map(lambda x: np.concatenate([x, np.repeat(x[-1:], size - n, axis=0)]) if size > n else x, inp)
-    return PendingCore(core_fn(groups)(pad), n, frame)
+    return PendingCore(core_fn(groups)(pad), n)
 
 
-def finish_core(pending: PendingCore) -> dict:
-    """The numpy rows [:n] of a dispatched core (waits for it), the frame group assembled and solved."""
+def finish_core(pending: PendingCore, *, compute: Compute = DEFAULT) -> dict:
+    """The numpy rows [:n] of a dispatched core (waits for it), the frame group assembled and solved
+    (``frame_condense.condense_terms_many`` with ``compute``)."""
     n = pending.n
     out = jax.tree.map(lambda x: np.asarray(x)[:n], pending.out)
-    if pending.frame is not None:  # the legs built, assembled and solved in numba (no XLA frame group)
-        out["frame"] = fm.condense_home_many(pending.frame, fm.LOAD_HEIGHT)
-    elif "frame" in out:  # the legs' assembly and solves outside XLA (numba kernel over designs)
+    if "frame" in out:  # the legs' assembly and solves outside XLA
         fr = out["frame"]
         terms = fr.pop("G"), fr.pop("Ks"), fr.pop("P")
-        out["frame"] = {**fm.condense_terms_many(*terms, fm.FrameOptions(), fm.LOAD_HEIGHT), **fr}
+        out["frame"] = {**frame_condense.condense_terms_many(*terms, fm.FrameOptions(), fm.LOAD_HEIGHT, compute=compute), **fr}
     return out
+
+
+def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS), *,
+             compute: Compute = DEFAULT) -> dict:
+    """The core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK);
+    numpy rows [:n] (:func:`start_core` then :func:`finish_core`)."""
+    return finish_core(start_core(inp, n, groups), compute=compute)
 
 
 class _Checker:
@@ -428,7 +431,7 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None, compute: Com
         _interference(designs, check_specs, wps, check, res, t2)
         tim["interference"] = (time.perf_counter() - t2) / n
     t_wait = time.perf_counter()
-    arrays = finish_core(pending)
+    arrays = finish_core(pending, compute=compute)
     t_core += time.perf_counter() - t_wait
 
     def row(group: str, i: int) -> dict:

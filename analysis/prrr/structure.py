@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from hapticopt.analysis.prrr import frame_params
 from hapticopt.analysis.prrr import frame_model as fm
 from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
@@ -218,7 +219,7 @@ def stiffness_batch(designs: list[PrrrDesign], *, p=(0.0, 0.0, 0.0), load_height
     ``elastic_centre`` (n,) [m], ``stiffness_elastic_centre`` (n, 3), ``condition`` (n,),
     ``reachable`` (n,) bool, ``ok`` (n,) bool (reachable, finite and well-conditioned).
     """
-    out = fm.solve_frame_batch(fm.stack_frame_params(designs), p=p, load_height=load_height, options=options)
+    out = fm.solve_frame_batch(frame_params.stack_frame_params(designs), p=p, load_height=load_height, options=options)
     finite = np.all(np.isfinite(out["stiffness_load"]), axis=-1) & np.isfinite(out["condition"])
     out["ok"] = out["reachable"] & finite & (out["condition"] <= fm.COND_LIMIT)
     return out

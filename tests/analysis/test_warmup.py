@@ -2,7 +2,7 @@
 
 from hapticopt.analysis import warmup
 from hapticopt.analysis.loop import mujoco_compiled
-from hapticopt.analysis.prrr import frame_model, interference_fast
+from hapticopt.analysis.prrr import frame_condense, interference_fast
 
 
 def test_warm_reports_each_kernel_and_its_state(capsys):
@@ -11,7 +11,7 @@ def test_warm_reports_each_kernel_and_its_state(capsys):
     # each row's state is the kernel's own availability (None: compiled and ready here)
     assert rows[0][1] == interference_fast.availability()
     assert rows[1][1] == mujoco_compiled.availability()
-    assert rows[2][1] == frame_model.kernel_availability()
+    assert rows[2][1] == frame_condense.kernel_availability()
     assert all(seconds >= 0.0 for _, _, seconds in rows)
     warmup.main()
     lines = capsys.readouterr().out.splitlines()

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from hapticopt.analysis.fem import solid as fea
+from hapticopt.analysis.prrr import frame_beam
 from hapticopt.analysis.prrr import frame_model as fm
 
 L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33  # aluminium bar, L/b = 10
@@ -19,7 +20,7 @@ L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33  # aluminium bar, L/b = 10
 def closed_form():
     # Timoshenko: δ/P = L³/(3EI) + L/(κGA), κ = Cowper's rectangle value
     pr = fm.section_properties(fm.Section(jnp.asarray(B), jnp.asarray(T), jnp.asarray(E), jnp.asarray(NU)))
-    return fm.closed_form_tip_deflection(1.0, L, E, float(pr.i_z), float(pr.shear_coefficient),
+    return frame_beam.closed_form_tip_deflection(1.0, L, E, float(pr.i_z), float(pr.shear_coefficient),
                                          float(pr.shear_modulus), B * T)
 
 
@@ -101,7 +102,7 @@ def test_rigid_region_constraint_is_exact_and_matches_timoshenko(closed_form):
     np.testing.assert_allclose(u[in_region], Rm[in_region] @ sol.master[:, 0], rtol=0, atol=1e-12 * np.abs(u).max())
     pr = fm.section_properties(fm.Section(*(np.asarray(x) for x in (B, T, E, NU))), np)
     Lf = L - slab
-    expect = fm.closed_form_tip_deflection(1.0, Lf, E, float(pr.i_z), float(pr.shear_coefficient),
+    expect = frame_beam.closed_form_tip_deflection(1.0, Lf, E, float(pr.i_z), float(pr.shear_coefficient),
                                            float(pr.shear_modulus), B * T) + Lf**2 / (2 * E * float(pr.i_z)) * slab / 2
     assert sol.master[1, 0] == pytest.approx(expect, rel=0.015)
     assert sol.master[1, 0] < expect * 1.001  # the FE solution is stiffer than the limit

@@ -10,7 +10,6 @@ cylinder missed: ``infeasible``; parts the CAD cannot lay out: ``failed``), β n
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import math
 
 import numpy as np
@@ -75,23 +74,6 @@ def test_batch_equals_single_path(both):
     _assert_equal(designs, single, batched)
 
 
-def test_batch_with_the_compiled_frame_kernel_equals_single_path(both, monkeypatch):
-    # the frame group's numba kernel (the legs built from their points, assembled and condensed by Cholesky;
-    # no frame group in XLA) runs in batches padded to frame_model.KERNEL_AFTER_DESIGNS or more, the XLA terms
-    # and numpy below; forced here, and seen to run
-    pytest.importorskip("numba")
-    from hapticopt.analysis.prrr import _frame_kernels
-    from hapticopt.analysis.prrr import frame_model as fm
-
-    calls = []
-    kernel = _frame_kernels.home_legs_condense_kernel
-    monkeypatch.setattr(fm, "KERNEL_AFTER_DESIGNS", 0)
-    monkeypatch.setattr(_frame_kernels, "home_legs_condense_kernel", lambda *a: calls.append(1) or kernel(*a))
-    designs, single, _ = both
-    _assert_equal(designs, single, evaluate_batch(designs, fidelity=Fidelity.DRAFT))
-    assert calls
-
-
 def _assert_equal(designs, single, batched) -> None:
     for d, s, b in zip(designs, single, batched, strict=True):
         assert b.statuses == s.statuses, d.geometry
@@ -102,7 +84,7 @@ def _assert_equal(designs, single, batched) -> None:
         assert not bad, (d.geometry, {k: (ms[k], mb[k]) for k in bad})
 
 
-def test_batch_equals_single_path_within_the_problem_bounds(problem_sample, monkeypatch):
+def test_batch_equals_single_path_within_the_problem_bounds(problem_sample):
     """40 seeded designs within the bounds of the bundled workspace problem (and one whose chain
     does not close): equal statuses,
     messages and metrics, and the sample holds colliding designs, not-met cylinders, designs whose
@@ -112,11 +94,6 @@ def test_batch_equals_single_path_within_the_problem_bounds(problem_sample, monk
     designs = problem_sample(40, seed=2203) + [_geometry(BASE, d2=0.300)]
     single = [evaluate_all(d, fidelity=Fidelity.DRAFT) for d in designs]
     _assert_equal(designs, single, evaluate_batch(designs, fidelity=Fidelity.DRAFT))
-    if importlib.util.find_spec("numba") is not None:  # and with the frame group in numba (no XLA frame terms)
-        from hapticopt.analysis.prrr import frame_model as fm
-
-        monkeypatch.setattr(fm, "KERNEL_AFTER_DESIGNS", 0)
-        _assert_equal(designs, single, evaluate_batch(designs, fidelity=Fidelity.DRAFT))
     seen = {(name, str(st)) for ev in single for name, st in ev.statuses.items()}
     for case in [("interference", "collides"), ("interference", "ok"), ("free_workspace", "not-met"),
                  ("device_size", "not-assemblable"), ("device_size", "ok")]:
@@ -327,50 +304,31 @@ def test_designs_with_array_part_tables_are_laid_out(problem_sample):
     assert len(tabled) > 10 and all(assembly.parts(d) == "" for d in tabled)
 
 
-def test_frame_group_leaves_xla_once_its_kernel_pays(monkeypatch):
-    """In a batch padded to ``frame_model.KERNEL_AFTER_DESIGNS`` or more (forced here) the jitted core has no
-    frame group and ``finish_core`` computes it in numba (``frame_model.condense_home_many``): the same keys
-    as the XLA route's and its values to 1e-10 where that route's verdict can be ok (the same assembly and
-    factorisation; the maps and points built in numba instead of XLA), the IK's reachability equal."""
+def test_frame_group_is_the_same_by_every_backend():
+    """``finish_core``'s frame group (``frame_condense.condense_terms_many``) with ``Compute(backend=...)``
+    numpy (LAPACK's LU), numba (Cholesky along the legs' chain) and auto (by the call's size: numba from
+    ``KERNEL_FROM_DESIGNS`` designs): the same keys, the IK's equal, the values to 1e-10 where the verdict
+    can be ok; rows at or above COND_LIMIT (here β = 1e-12°: 1.5e18, and β near 90°: NaN) are rounding
+    either way: not ok by every backend (the batch solves them again by the single path)."""
     pytest.importorskip("numba")
+    from hapticopt.analysis.compute import Compute
+    from hapticopt.analysis.prrr import frame_condense
     from hapticopt.analysis.prrr import frame_model as fm
 
-    designs = _sample()[:4]
+    designs = _sample()
     inp = draft_batch.stack_inputs(designs, None, ("frame",))
-    monkeypatch.setattr(fm, "KERNEL_AFTER_DESIGNS", 10**12)
-    xla = draft_batch.start_core(inp, len(designs), ("frame",))
-    assert xla.frame is None and "frame" in xla.out
-    ref = draft_batch.finish_core(xla)["frame"]
-    monkeypatch.setattr(fm, "KERNEL_AFTER_DESIGNS", 0)
-    pending = draft_batch.start_core(inp, len(designs), ("frame",))
-    assert pending.frame is not None and pending.out == {}
-    got = draft_batch.finish_core(pending)["frame"]
-    assert list(got) == list(ref)
-    np.testing.assert_array_equal(got["reachable"], ref["reachable"])
-    # rows whose condition the XLA route puts at or above COND_LIMIT (here β = 1e-12°: 1.5e18, and β near 90°:
-    # NaN) are rounding either way: not ok in both (NaN or ill-conditioned), and the batch solves them again
-    # by the single path; the others to 1e-10
+    out = {b: draft_batch.run_core(inp, len(designs), ("frame",), compute=Compute(backend=b))["frame"]
+           for b in ("numpy", "numba", "auto")}
+    ref = out["numpy"]
     fine = ref["condition"] < fm.COND_LIMIT
     assert 0 < fine.sum() < len(designs)
+    same = "numba" if len(designs) >= frame_condense.KERNEL_FROM_DESIGNS else "numpy"
+    for k in ref:
+        np.testing.assert_array_equal(out["auto"][k], out[same][k], err_msg=k)
+    got = out["numba"]
+    assert list(got) == list(ref)
+    np.testing.assert_array_equal(got["reachable"], ref["reachable"])
     assert np.all(~(got["condition"][~fine] < fm.COND_LIMIT))
     for k in ref:
         r = ref[k][fine]
         np.testing.assert_allclose(got[k][fine], r, rtol=1e-10, atol=1e-10 * np.abs(r).max(), err_msg=k)
-
-
-def test_designs_seen_by_the_process_do_not_change_the_compiled_core(monkeypatch):
-    """The frame group's route is chosen by the padded batch size (``frame_model.legs_kernel_ready``), not by
-    the designs the process has condensed: a bucket compiles one core, before and after a process passes
-    ``frame_model.KERNEL_AFTER_DESIGNS`` designs (measured before: a batch of 64 traced again once the
-    process had seen 1,000 designs, ``benchmarks/bench_batched_draft.py``)."""
-    from hapticopt.analysis.prrr import frame_model as fm
-
-    designs = _sample()[:4]
-    evaluate_batch(designs, fidelity=Fidelity.DRAFT)
-    traces = dict(draft_batch.TRACES)
-    for seen in (0, fm.KERNEL_AFTER_DESIGNS, 10 * fm.KERNEL_AFTER_DESIGNS):
-        monkeypatch.setattr(fm, "_DESIGNS_CONDENSED", [seen])
-        evaluate_batch(designs, fidelity=Fidelity.DRAFT)
-    assert dict(draft_batch.TRACES) == traces
-    assert not fm.legs_kernel_ready(draft_batch.bucket(len(designs)))
-    assert fm.legs_kernel_ready(draft_batch.MAX_CHUNK) == (fm.kernel_availability() is None)

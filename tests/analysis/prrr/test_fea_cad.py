@@ -65,7 +65,7 @@ LEGACY_CARRIAGE = ["geometry.theta_1p_deg=0", "geometry.r_p_mm=100", "structure.
 
 def test_frame_matches_cad_fea_within_15_percent_for_the_issue_15_carriage():
     # prrr-paper's issue-15 carriage with the R1 bracket in the clevis layer, its root plate let into the
-    # block face (docs/cad.md "R1 bracket"), the frame carrying R1 on it (frame_model.bracket_frame).
+    # block face (docs/cad.md "R1 bracket"), the frame carrying R1 on it (frame_params._brackets_many).
     # Measured (docs/structure.md "R1 bracket"): CAD FEA levels 0–4: 540.1, 530.7, 513.7, 509.6, 510.0 N/mm
     # in x (level 3 → 4: +0.1 %); level 2 here: 513.7, 514.5, 736.5 N/mm, frame 566.9, 566.9, 776.0 N/mm:
     # +10.4 %, +10.2 %, +5.4 % (+11.2, +11.2, +6.4 % at level 4). The bounding-box root before: +12.2,
