@@ -28,7 +28,7 @@ test: $(STAMP)
 
 # ruff with the rule set of pyproject.toml's [tool.ruff] (mistakes, not style); .ci/run runs it first.
 lint: $(STAMP)
-	$(BIN)/ruff check design analysis optim tests benchmarks
+	$(BIN)/ruff check design analysis optim tests benchmarks scripts
 
 # Verdicts near singularities and thresholds (pytest -m hardcase) under two OpenBLAS kernels:
 # a verdict that flips with the BLAS kernel is a rounding-level threshold (issue 14).

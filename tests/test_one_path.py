@@ -27,8 +27,8 @@ SYS_MODULES_ALLOWED = {
 
 #: what other branches of issue 29 remove, still in this branch's tree: the lead empties these sets as
 #: they merge (each test below fails while an entry here is no longer needed)
-PENDING_SYS_MODULES = {"analysis/prrr/draft_batch.py"}  # the collide branch: the IK route's numba probe
-PENDING_COUNTERS = {"_POSES_CHECKED", "_DESIGNS_CONDENSED"}  # the collide and frame branches
+PENDING_SYS_MODULES: set[str] = set()
+PENDING_COUNTERS: set[str] = set()
 
 #: names of the removed copies and route switches -> what replaced them
 REMOVED = {
@@ -47,9 +47,7 @@ REMOVED = {
 
 #: names still in this branch's tree that the collide, frame and firmware branches remove; the lead takes
 #: each out of this set as those branches merge (a strict xfail fails once the name is gone)
-STILL_PRESENT = {"pose_ik_numpy", "pose_ik_planar", "home_legs_many", "home_legs_condense_kernel",
-                 "_POSES_CHECKED", "_DESIGNS_CONDENSED", "KERNEL_AFTER_POSES",
-                 "KERNEL_AFTER_DESIGNS"}
+STILL_PRESENT: set[str] = set()
 
 
 @cache

@@ -42,7 +42,6 @@ import functools
 import os
 from dataclasses import dataclass
 
-import numpy as np
 
 from hapticopt.analysis.compute import unavailable
 from hapticopt.analysis.loop.scene import Backend, load_scene, resolve

@@ -218,7 +218,7 @@ def envelope_radius(design: PrrrDesign, *, specs: dict[str, PartSpec] | None = N
         Rf, of, Rp, op, dims = (np.array(col, dtype=float) for col in zip(*prims))
         R = Rf @ Rp
         o = (Rf @ op[..., None])[..., 0] + of
-        a, b, c = dims[:, 0], dims[:, 1], dims[:, 2]
+        a, b = dims[:, 0], dims[:, 1]
         if kind == Kind.BOX:
             pts = o[:, None, :] + (_HALF_CORNERS * dims[:, None, :]) @ np.swapaxes(R, -1, -2)
             found.append(np.max(np.hypot(pts[..., 0], pts[..., 1]), axis=1))

@@ -17,7 +17,6 @@ from hapticopt.analysis.registry import EVALUATORS, evaluate_all, write_plots
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.design import io
-from hapticopt.design.errors import InvalidInput
 from hapticopt.design.paths import writable_dir
 from hapticopt.optim.cli.sweep import run_sweep
 

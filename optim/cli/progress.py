@@ -11,7 +11,6 @@ the final state once, without ANSI codes).
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from typing import Any
 
 from rich.console import Console

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -63,10 +65,7 @@ def test_same_results_inline_process_pool_and_dask_loopback():
     assert pooled.n_evaluated == inline.n_evaluated == dasked.n_evaluated
 
 
-def _run_python(code: str) -> "subprocess.CompletedProcess[str]":
-    import subprocess
-    import sys
-
+def _run_python(code: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
 
 
