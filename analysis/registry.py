@@ -95,7 +95,7 @@ _STD_FINE = ("standard", "fine")
 #: (``hapticopt metrics`` and docs/metrics.md are generated from them).
 EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
     "prrr": (
-        EvaluatorEntry(name="statics", module=_A + "prrr.statics", shared=True,
+        EvaluatorEntry(name="statics", module=_A + "prrr.structure.statics", shared=True,
                        fidelity="closed forms (constant Jacobian): the same at every level",
                        metrics=(
             _m("jacobian_condition", "2-norm condition number of the constant Jacobian J (1 = isotropic; seed 002 eq 2)"),
@@ -105,7 +105,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("stiffness_limit_N_per_mm", "largest renderable stiffness per axis x, y, z from the SEA springs, diag J⁻ᵀ(kI)J⁻¹ (seed 002 eq 14–15)"),
             _m("effective_mass_kg", "3×3 equivalent mass matrix of the moving parts at the end-effector (seed 002 eq 7)"),
         )),
-        EvaluatorEntry(name="structural_stiffness", module=_A + "prrr.structure", takes_compute=True,
+        EvaluatorEntry(name="structural_stiffness", module=_A + "prrr.structure.stiffness", takes_compute=True,
                        plot=_A + "prrr.plots:structure_plots",
                        fidelity="draft/standard: Timoshenko frame model; fine: also the solid FEA of the CAD (tens of seconds)",
                        slow_at=_FINE,
@@ -122,7 +122,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("structural_fea_max_von_mises_MPa_per_N", "largest von Mises stress of the FEA per newton of lateral (x) load", *_FINE),
             _m("structural_fea_max_von_mises_at_mm", "where that stress occurs (x, y, z)", *_FINE),
         )),
-        EvaluatorEntry(name="workspace", module=_A + "prrr.workspace", plot=_A + "prrr.plots:workspace_plots",
+        EvaluatorEntry(name="workspace", module=_A + "prrr.geometry.workspace", plot=_A + "prrr.plots:workspace_plots",
                        shared=True,
                        fidelity="angular quadrature and radial sampling grow with the level; fine adds the Jacobian "
                                 "constancy check and the manifold3d interference reference",
@@ -139,13 +139,13 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("workspace_interference_removed_fraction", "share of the sampled workspace volume lost to part collisions (manifold3d meshes)", *_FINE),
             _m("workspace_free_volume_mm3", "workspace volume after removing the colliding share", *_FINE),
         )),
-        EvaluatorEntry(name="interference", module=_A + "prrr.interference", shared=True, takes_compute=True,
+        EvaluatorEntry(name="interference", module=_A + "prrr.collision.interference", shared=True, takes_compute=True,
                        fidelity="the same convex-primitive model at every level (conservative against manifold3d)",
                        metrics=(
             _m("interference_removed_fraction", "share of the sampled workspace volume whose poses make two parts collide (0 … 1)"),
             _m("interference_overlap_fraction", "continuous companion: poses weighted by their deepest overlap up to 1 mm (0 … 1)"),
         )),
-        EvaluatorEntry(name="free_workspace", module=_A + "prrr.free_workspace", shared=True, takes_compute=True,
+        EvaluatorEntry(name="free_workspace", module=_A + "prrr.collision.free_workspace", shared=True, takes_compute=True,
                        fidelity="draft/standard: sampling with the fast separating-axis checker; fine: manifold3d meshes (the reference)",
                        metrics=(
             _m("workspace_free_radius_mm", "radius about z within which every column is reached and collision-free"),
@@ -154,7 +154,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("workspace_free_height_at_diameter_mm", "height of the collision-free cylinder of the required diameter (0: not free)"),
             _m("workspace_free_footprint_ratio", "collision-free cylinder diameter over footprint diameter (seed 002's design goal)"),
         )),
-        EvaluatorEntry(name="device_size", module=_A + "prrr.device_size", shared=True,
+        EvaluatorEntry(name="device_size", module=_A + "prrr.geometry.device_size", shared=True,
                        fidelity="analytic mass model of the part tables: the same at every level",
                        metrics=(
             _m("device_mass_kg", "mass of every part (seed 002 Table 1: 4.4 kg)"),
@@ -163,7 +163,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("device_mass_frame_kg", "mass of the base plate, rails and carriages"),
             _m("device_height_mm", "height from the base plate's bottom to the rail tops (seed 002 Table 1: 231 mm)"),
         )),
-        EvaluatorEntry(name="joint_limits", module=_A + "prrr.joint_limits",
+        EvaluatorEntry(name="joint_limits", module=_A + "prrr.geometry.joint_limits",
                        fidelity="fine also turns each joint until its parts meet (manifold3d stops)",
                        metrics=(
             _m("joint_elbow_limit_deg", "largest elbow angle |θ2| kept a joint-boss radius from the folded singularity"),
@@ -172,7 +172,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("joint_range_r2_deg", "range [min, max] joint R2 (elbow) sweeps over the collision-free cylinder"),
             _m("joint_range_r3_deg", "range [min, max] joint R3 sweeps over the collision-free cylinder"),
         )),
-        EvaluatorEntry(name="stability", module=_A + "prrr.stability", shared=True,
+        EvaluatorEntry(name="stability", module=_A + "prrr.loop.stability", shared=True,
                        fidelity="closed forms: the same at every level",
                        metrics=(
             _m("force_loop_bandwidth_Hz", "−3 dB bandwidth of the SEA force loop with the output locked (seed 002 eq 8; 38.5 Hz at K_p = 45)"),
@@ -281,7 +281,7 @@ class BatchEntry:
 #: device -> its batch evaluator (none for a device not named here)
 BATCHED: dict[str, BatchEntry] = {
     "prrr": BatchEntry(fidelity=Fidelity.DRAFT, evaluate_many=_A + "prrr.draft_batch:evaluate_many",
-                       single_path=_A + "prrr.assembly:closure_many", chunk=1024),
+                       single_path=_A + "prrr.geometry.assembly:closure_many", chunk=1024),
 }
 
 

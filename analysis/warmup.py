@@ -14,9 +14,10 @@ import time
 
 import numpy as np
 
-from hapticopt.analysis.prrr import mujoco_plant as prrr_mujoco
+from hapticopt.analysis.prrr.loop import mujoco_plant as prrr_mujoco
 from hapticopt.analysis.compute import Compute
-from hapticopt.analysis.prrr import frame_condense, frame_model, interference_fast
+from hapticopt.analysis.prrr.structure import frame_condense, frame_model
+from hapticopt.analysis.prrr.collision import interference_fast
 from hapticopt.design import io
 
 

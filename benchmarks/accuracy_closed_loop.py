@@ -14,11 +14,11 @@ import time
 
 import numpy as np
 
-from hapticopt.analysis.prrr import closed_loop as cl
-from hapticopt.analysis.prrr import stability as sb
+from hapticopt.analysis.prrr.loop import closed_loop as cl
+from hapticopt.analysis.prrr.loop import stability as sb
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop.scene import Effect, load_scene
-from hapticopt.analysis.prrr.zwidth import StabilityProbe
+from hapticopt.analysis.prrr.loop.zwidth import StabilityProbe
 from hapticopt.design import io
 
 
@@ -64,7 +64,7 @@ def main() -> None:
     on = dataclasses.replace(base, effects=base.effects - {Effect.QUANTIZATION, Effect.SATURATION}, duration=2.0)
     for kp in (2.0, 5.0, 10.0, 45.0, 100.0, 500.0):
         eig = sb.continuous_stiffness_limit(d, kp=kp, axis=0)
-        from hapticopt.analysis.prrr.zwidth import bisect_boundary
+        from hapticopt.analysis.prrr.loop.zwidth import bisect_boundary
         s_off = bisect_boundary(StabilityProbe(d, off, kp=kp), np.zeros(1), 0.5 * eig, 2 * eig, iters=10)[0]
         s_on = bisect_boundary(StabilityProbe(d, on, kp=kp), np.zeros(1), 1e2, 1e6, iters=14)[0]
         print(f"| {kp:g} | {eig * 1e-3:.3f} | {s_off * 1e-3:.3f} | {s_on * 1e-3:.3f} |")

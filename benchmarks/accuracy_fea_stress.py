@@ -3,7 +3,7 @@
 Run: ``.venv/bin/python benchmarks/accuracy_fea_stress.py [--prrr LEVEL ...]`` (prints Markdown).
 Cantilever (200 × 20 × 10 mm, unit tip shear along y, as tests/analysis/fem/test_solid.py): element
 stress against σ_xx = −P (L − x) y / I; ``--prrr``: the CAD solid of prrr-paper with bonded
-pins (hapticopt.analysis.prrr.fea_cad) at the given mesh levels, 1 N along x at Δz = 58 mm. Stress-step
+pins (hapticopt.analysis.prrr.structure.fea_cad) at the given mesh levels, 1 N along x at Δz = 58 mm. Stress-step
 times are the median of 5 calls on the machine it runs on.
 """
 
@@ -48,7 +48,7 @@ def cantilever(size: float) -> str:
 
 
 def prrr(level: int) -> str:
-    from hapticopt.analysis.prrr import fea_cad
+    from hapticopt.analysis.prrr.structure import fea_cad
     from hapticopt.design import io
 
     d = io.load_preset("prrr-paper")

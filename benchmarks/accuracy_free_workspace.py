@@ -1,4 +1,4 @@
-"""Accuracy vs time of the collision-free cylinder (analysis/prrr/free_workspace.py).
+"""Accuracy vs time of the collision-free cylinder (analysis/prrr/collision/free_workspace.py).
 
 Reference: manifold3d (analysis/interference.py) on a dense column grid, ≥ 5000 poses (40 rays
 over one third of the circle × 128 radii up to the reach-and-stroke limit, each column checked at
@@ -19,8 +19,8 @@ import time
 
 
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.prrr import free_workspace as FW
-from hapticopt.analysis.prrr.workspace import workspace_core, workspace_params
+from hapticopt.analysis.prrr.collision import free_workspace as FW
+from hapticopt.analysis.prrr.geometry.workspace import workspace_core, workspace_params
 from hapticopt.design import io
 
 DESIGNS = {

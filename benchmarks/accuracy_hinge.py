@@ -17,7 +17,7 @@ import numpy as np
 
 
 def frame_rows(d) -> list[tuple[str, np.ndarray]]:
-    from hapticopt.analysis.prrr import frame_model as fm
+    from hapticopt.analysis.prrr.structure import frame_model as fm
     from hapticopt.design.prrr.cad import DEFAULT_BRANCH
 
     fp = fm.frame_params_of(d)
@@ -35,7 +35,7 @@ def frame_rows(d) -> list[tuple[str, np.ndarray]]:
 
 def main() -> None:
     from hapticopt.analysis.fem import solid as fea
-    from hapticopt.analysis.prrr import fea_cad
+    from hapticopt.analysis.prrr.structure import fea_cad
     from hapticopt.design import io
 
     ap = argparse.ArgumentParser()

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from hapticopt.analysis import interference as itf
-from hapticopt.analysis.prrr import interference_fast as F
-from hapticopt.analysis.prrr import workspace as W
+from hapticopt.analysis.prrr.collision import interference_fast as F
+from hapticopt.analysis.prrr.geometry import workspace as W
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design import io
 from timing import median_wall  # benchmarks/timing.py (scripts run from benchmarks/)

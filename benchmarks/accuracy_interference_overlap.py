@@ -16,8 +16,8 @@ import argparse
 
 import numpy as np
 
-from hapticopt.analysis.prrr import interference_fast as F
-from hapticopt.analysis.prrr import workspace as W
+from hapticopt.analysis.prrr.collision import interference_fast as F
+from hapticopt.analysis.prrr.geometry import workspace as W
 from hapticopt.design import io
 
 # the prrr-workspace optimum with the step constraint (cad_out/prrr-workspace/optimum.toml of the

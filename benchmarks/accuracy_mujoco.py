@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
-from hapticopt.analysis.prrr.mujoco_model import (
+from hapticopt.analysis.prrr.loop.mujoco_model import (
     Integrator,
     LinkMasses,
     ModelOptions,

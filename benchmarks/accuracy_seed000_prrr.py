@@ -25,7 +25,7 @@ import numpy as np
 from hapticopt.analysis.control.upsampling import Predictor, Variant
 from hapticopt.analysis.loop.operator import Operator
 from hapticopt.analysis.loop.scene import StabilityCriterion, load_scene
-from hapticopt.analysis.prrr import multirate as mr, zwidth
+from hapticopt.analysis.prrr.loop import multirate as mr, zwidth
 from hapticopt.design import io
 from threadpoolctl import threadpool_limits
 
@@ -128,7 +128,7 @@ def operator_table(plot: str | None) -> None:
 
 def gain_margin_table() -> None:
     from hapticopt.analysis.loop.scene import resolve
-    from hapticopt.analysis.prrr.lumped_plant import build_model, discretise
+    from hapticopt.analysis.prrr.loop.lumped_plant import build_model, discretise
 
     print("### Gain margin of the force loop on the deflection feedback (K_v = 5 N/mm, linear loop)\n")
     print("| l2/l1 | variant | g at ρ(𝓛) = 1 (scan 1 … 4, step 0.025) |")

@@ -14,8 +14,8 @@ import numpy as np
 from hapticopt.analysis import verify
 from hapticopt.analysis.loop import paper
 from hapticopt.analysis.loop.scene import Effect, FrictionLocation, load_scene
-from hapticopt.analysis.prrr import design_map as dm
-from hapticopt.analysis.prrr import stability
+from hapticopt.analysis.prrr.loop import design_map as dm
+from hapticopt.analysis.prrr.loop import stability
 from hapticopt.design import io
 
 D = io.load_preset("prrr-paper")

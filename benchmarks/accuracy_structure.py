@@ -19,10 +19,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from hapticopt.analysis.fem import solid as fea
-from hapticopt.analysis.prrr import fea_cad
-from hapticopt.analysis.prrr import frame_beam
-from hapticopt.analysis.prrr import frame_model as fm
-from hapticopt.analysis.prrr.structure import structural_stiffness
+from hapticopt.analysis.prrr.structure import fea_cad
+from hapticopt.analysis.prrr.structure import frame_beam
+from hapticopt.analysis.prrr.structure import frame_model as fm
+from hapticopt.analysis.prrr.structure.stiffness import structural_stiffness
 from hapticopt.design import io
 
 L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33
@@ -55,7 +55,7 @@ def cantilever(levels: list[int]) -> None:
 
 
 def cad(levels: list[int], rigid: str = "stem") -> None:
-    """CAD solid with bonded pins (hapticopt.analysis.prrr.fea_cad): levels, Richardson per axis, frame comparison."""
+    """CAD solid with bonded pins (hapticopt.analysis.prrr.structure.fea_cad): levels, Richardson per axis, frame comparison."""
     import numpy as np
 
 

@@ -11,7 +11,7 @@ import functools
 import numpy as np
 
 from hapticopt.analysis.master import workspace as M
-from hapticopt.analysis.prrr import workspace as W
+from hapticopt.analysis.prrr.geometry import workspace as W
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design import io
 from timing import median_wall  # benchmarks/timing.py (scripts run from benchmarks/)

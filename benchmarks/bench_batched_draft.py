@@ -20,7 +20,7 @@ import pytest
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr import draft_batch
-from hapticopt.analysis.prrr import free_workspace as FW
+from hapticopt.analysis.prrr.collision import free_workspace as FW
 from hapticopt.analysis.registry import evaluate_all, evaluate_batch
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidDesign

@@ -10,9 +10,9 @@ import dataclasses
 
 import pytest
 
-from hapticopt.analysis.prrr import closed_loop as cl
+from hapticopt.analysis.prrr.loop import closed_loop as cl
 from hapticopt.analysis.loop.scene import Effect, load_scene
-from hapticopt.analysis.prrr.zwidth import zwidth_map
+from hapticopt.analysis.prrr.loop.zwidth import zwidth_map
 from hapticopt.design import io
 from hapticopt.analysis import verify
 

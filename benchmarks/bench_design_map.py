@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from hapticopt.analysis.loop.scene import load_scene
-from hapticopt.analysis.prrr.design_map import design_map
+from hapticopt.analysis.prrr.loop.design_map import design_map
 from hapticopt.design import io
 
 PERIODS = np.geomspace(0.05e-3, 2e-3, 10)  # [s] the default of `hapticopt design-map`

@@ -3,7 +3,7 @@
 The system is the one ``hapticopt evaluate --fidelity fine`` solves: the 3-PRRR CAD solid with
 bonded pins (prrr-paper, home pose) at ``fea_cad.DEFAULT_LEVEL``, reduced by the rigid-region
 constraint, three load cases (unit forces x, y, z at the load point). It is captured once from
-:func:`hapticopt.analysis.prrr.fea_cad.cad_fea` and every solver runs on the same matrix. The
+:func:`hapticopt.analysis.prrr.structure.fea_cad.cad_fea` and every solver runs on the same matrix. The
 compliance C = Fᵀ X (3 × 3) of every solver must equal the direct solve's to 1e-6 relative.
 
 * ``auto``: :func:`hapticopt.analysis.fem.linsolve.solve_spd` as the FEA calls it (direct at this size:
@@ -27,7 +27,7 @@ import scipy.sparse as sp
 from hapticopt.analysis.fem import linsolve
 from hapticopt.analysis.fem import solid as fea
 from hapticopt.analysis.fem.linsolve import Method
-from hapticopt.analysis.prrr import fea_cad
+from hapticopt.analysis.prrr.structure import fea_cad
 from hapticopt.analysis.status import Status
 from hapticopt.design import io
 

@@ -25,10 +25,10 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.compute import Compute
 from hapticopt.analysis.loop.scene import Backend, Effect, load_scene, resolve
 from hapticopt.analysis.master import mujoco_plant as mm
-from hapticopt.analysis.prrr import closed_loop
-from hapticopt.analysis.prrr.firmware_numpy import ScalarController
-from hapticopt.analysis.prrr.mujoco_model import Platform, build, set_pose
-from hapticopt.analysis.prrr.mujoco_plant import MujocoPlant, model_options, simulate
+from hapticopt.analysis.prrr.loop import closed_loop
+from hapticopt.analysis.prrr.loop.firmware_law import ScalarController
+from hapticopt.analysis.prrr.loop.mujoco_model import Platform, build, set_pose
+from hapticopt.analysis.prrr.loop.mujoco_plant import MujocoPlant, model_options, simulate
 from hapticopt.design import io
 
 DESIGN = io.load_preset("prrr-paper")

@@ -20,8 +20,7 @@ from hapticopt.analysis.registry import EVALUATORS
 from hapticopt.analysis import verify
 from hapticopt.analysis.loop.scene import load_scene
 from hapticopt.analysis.handle.firmware import HandleFirmware, HandleFirmwareConfig, WallKind, WallLaw
-from hapticopt.analysis.prrr import multirate as mr
-
+from hapticopt.analysis.prrr.loop import multirate as mr
 H = hm.HANDLE_PAPER
 
 

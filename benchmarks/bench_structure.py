@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.prrr import structure
+from hapticopt.analysis.prrr.structure import stiffness as structure
 from hapticopt.analysis.registry import evaluate_batch
 from hapticopt.design import io
 

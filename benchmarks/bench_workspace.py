@@ -15,7 +15,8 @@ import time
 import numpy as np
 
 from hapticopt.analysis.master import workspace as master_workspace
-from hapticopt.analysis.prrr import workspace as prrr_workspace, statics as prrr_statics
+from hapticopt.analysis.prrr.geometry import workspace as prrr_workspace
+from hapticopt.analysis.prrr.structure import statics as prrr_statics
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.registry import evaluate_all
 from hapticopt.design import io

@@ -11,7 +11,7 @@ Gradients. An evaluator module may provide a differentiable twin of its metrics:
 where ``values`` maps TOML keys (``"geometry.beta_deg"``, edge units) to jax scalars that
 override the design's fields, and the result holds metrics with the same names and
 engineering units as ``Result.metrics()``. :data:`JAX_ADAPTERS` supplies the twin for
-evaluators that do not define one (``hapticopt.analysis.prrr.statics``). A metric without a jax twin
+evaluators that do not define one (``hapticopt.analysis.prrr.structure.statics``). A metric without a jax twin
 gets central finite differences (2n extra evaluations; reported as ``gradient_source = "fd"``).
 """
 
@@ -196,10 +196,10 @@ def _si(design: Any, values: Mapping[str, Any], key: str) -> Any:
 
 
 def _prrr_statics_jax(design: Any, values: Mapping[str, Any]) -> dict[str, Any]:
-    """Differentiable twin of :func:`hapticopt.analysis.prrr.statics.evaluate` (same names and units)."""
+    """Differentiable twin of :func:`hapticopt.analysis.prrr.structure.statics.evaluate` (same names and units)."""
     # jax-based modules, imported where used: a process that never asks for a gradient pays no jax import
     from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
-    from hapticopt.analysis.prrr.statics import statics_arrays
+    from hapticopt.analysis.prrr.structure.statics import statics_arrays
     from hapticopt.design.prrr.kinematics import PrrrParams
 
     g = "geometry."
@@ -219,7 +219,7 @@ def _prrr_statics_jax(design: Any, values: Mapping[str, Any]) -> dict[str, Any]:
 
 #: evaluator module -> jax twin, for evaluators that do not define ``jax_metrics`` themselves
 JAX_ADAPTERS: dict[str, Callable[[Any, Mapping[str, Any]], Mapping[str, Any]]] = {
-    "hapticopt.analysis.prrr.statics": _prrr_statics_jax,
+    "hapticopt.analysis.prrr.structure.statics": _prrr_statics_jax,
 }
 
 

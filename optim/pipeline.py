@@ -136,7 +136,7 @@ def warm_verification(compiled_loops: bool = False) -> None:
 
     jnp.zeros(1).block_until_ready()
     if compiled_loops:
-        from hapticopt.analysis.prrr import mujoco_plant as prrr_mujoco  # jax, numba
+        from hapticopt.analysis.prrr.loop import mujoco_plant as prrr_mujoco  # jax, numba
 
         prrr_mujoco.warm_up()  # unavailable: the plants run their Python loops and say why
 

@@ -7,7 +7,7 @@ metric gives one scalar per entry, ``max_force_N[0]``) against every continuous 
 (∂metric/∂key · key/metric, dimensionless: the ranking).
 
 * **jax** where the evaluator is a differentiable closed form: the 3-PRRR statics (seed 002 eq 2, 4, 7,
-  14–15) through :func:`hapticopt.analysis.prrr.statics.statics_arrays`, differentiated forward-mode
+  14–15) through :func:`hapticopt.analysis.prrr.structure.statics.statics_arrays`, differentiated forward-mode
   with respect to the key values (their unit conversion included).
 * **central finite differences** for every other metric. The step is chosen by measurement: each key is
   moved by the relative steps :data:`STEPS` (of |value|, of the key's range where the value is 0), all
@@ -138,7 +138,7 @@ def jax_statics(design: Any, keys: list[Key]) -> tuple[dict[str, float], dict[st
     import jax
     import jax.numpy as jnp
 
-    from hapticopt.analysis.prrr.statics import statics_arrays
+    from hapticopt.analysis.prrr.structure.statics import statics_arrays
     from hapticopt.design.prrr.kinematics import PrrrParams
 
     index = {(k.section, k.field): i for i, k in enumerate(keys)}

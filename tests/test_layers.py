@@ -41,7 +41,7 @@ LAZY: dict[str, str] = {
     "manifold3d": "mesh booleans, only the fine interference check needs it",
     "mujoco": "multibody plant, only verify and the multibody scenes need it",
     "numba": "the compiled MuJoCo loops (analysis/loop/_mujoco_kernels.py) and interference check "
-             "(analysis/prrr/_interference_kernels.py); ~0.5 s to import, only a MuJoCo run or a fast interference check needs it",
+             "(analysis/prrr/collision/_interference_kernels.py); ~0.5 s to import, only a MuJoCo run or a fast interference check needs it",
     "llvmlite": "under numba: loads libmujoco for the compiled loops' linker",
     "pyvista": "VTK rendering, only --render and --plots need it",
     "vtk": "under pyvista",

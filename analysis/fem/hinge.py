@@ -1,6 +1,6 @@
 """Hinge release in the solid FEA: frictionless bilateral cylindrical interfaces at the pins.
 
-The bonded CAD FEA (:mod:`hapticopt.analysis.prrr.fea_cad`) fuses every pin into both parts of its joint (gmsh
+The bonded CAD FEA (:mod:`hapticopt.analysis.prrr.structure.fea_cad`) fuses every pin into both parts of its joint (gmsh
 ``fragment`` makes the bore surfaces conformal). Here the revolute joints are **released**, the
 solid counterpart of ``FrameOptions(joints=Joints.RELEASED)``:
 

@@ -14,7 +14,7 @@ Pipeline (pitfalls: named physical groups, quadratic tetrahedra, measure direct 
 The generic pieces live here: meshing helpers, P2 assembly with clamped surfaces, rigid-body
 modes, the linear solve, a rigid load region, the cantilever check (:func:`cantilever_fea`, compared with
 Timoshenko's closed form) and Richardson extrapolation. Device solids build on them:
-:mod:`hapticopt.analysis.prrr.fea_cad` (the CAD solid with pins and hinges).
+:mod:`hapticopt.analysis.prrr.structure.fea_cad` (the CAD solid with pins and hinges).
 """
 
 from __future__ import annotations

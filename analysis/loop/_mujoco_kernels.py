@@ -1,7 +1,7 @@
 """numba kernels of :mod:`hapticopt.analysis.loop.mujoco_compiled` (imported only through it, after
 ``libmujoco`` is loaded for the linker): the native access to MuJoCo (``mj_step`` by name, mjData fields at
 byte offsets), the firmware delay line, and the master's tick loop :func:`master_chunk` (the 3-PRRR's is
-:mod:`hapticopt.analysis.prrr._mujoco_kernel`). A kernel runs ticks [start, end) of one plant's loop and
+:mod:`hapticopt.analysis.prrr.loop._mujoco_kernel`). A kernel runs ticks [start, end) of one plant's loop and
 mirrors the Python loop and controller it replaces operation by operation (same order, no fused
 multiply-add: numba does not contract without ``fastmath``), so the records are bit-identical — except the
 master's dynamics compensation (:func:`_compensation_basis`: the same torque in closed form, from M̂ in a trig basis

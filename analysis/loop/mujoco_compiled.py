@@ -1,10 +1,10 @@
 """The closed loops of the MuJoCo plants compiled: firmware law and ``mj_step`` in one native loop.
 
-The plants' Python loops (``hapticopt.analysis.prrr.mujoco_plant.MujocoPlant.run``,
+The plants' Python loops (``hapticopt.analysis.prrr.loop.mujoco_plant.MujocoPlant.run``,
 ``hapticopt.analysis.master.mujoco_plant.MasterPlant.run``) call ``mj_step(model, data, nstep=k)``
 once per firmware tick with the command held; the Python firmware and the per-tick bookkeeping
 between the calls cost more than the physics. Here the same tick loop runs in numba
-(``@njit(cache=True)``; the 3-PRRR's in :mod:`hapticopt.analysis.prrr._mujoco_kernel`): the encoder read, the
+(``@njit(cache=True)``; the 3-PRRR's in :mod:`hapticopt.analysis.prrr.loop._mujoco_kernel`): the encoder read, the
 firmware law (the 3-PRRR's is the Python loop's own function compiled; the master's term by term and in the
 order of its Python controller: the traces are bit-identical; the master's dynamics compensation, whose reference
 differences M̂ numerically, in closed form — M̂ in a 13-function trig basis of (θ2, θ3) identified once per plant and model —
@@ -154,7 +154,7 @@ def availability() -> str | None:
 
 def kernels():
     """The master's compiled kernels module (imported on first use: numba loads only when a plant runs); the
-    3-PRRR's is :mod:`hapticopt.analysis.prrr._mujoco_kernel` (load it after :func:`availability` says None)."""
+    3-PRRR's is :mod:`hapticopt.analysis.prrr.loop._mujoco_kernel` (load it after :func:`availability` says None)."""
     reason = availability()
     if reason is not None:
         raise RuntimeError(reason)
@@ -166,7 +166,7 @@ def kernels():
 def warm_up() -> str | None:
     """Load (or compile) the master's kernels now by running them for zero ticks; returns why the compiled loops
     are unavailable (None: ready). For a worker to call at start (with the 3-PRRR's:
-    :func:`hapticopt.analysis.prrr.mujoco_plant.warm_up`)."""
+    :func:`hapticopt.analysis.prrr.loop.mujoco_plant.warm_up`)."""
     reason = availability()
     if reason is not None:
         return reason

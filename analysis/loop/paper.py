@@ -13,7 +13,7 @@ Seed 002 reports each experiment as one number; the definitions (from its text, 
   (Fig 10 plots its x and y components). We read it as the RMS of the error vector's magnitude in
   the plane, √(mean(e_x² + e_y²)). → :func:`plane_error_rms`.
 * **Fig 15** (rendered stiffness): |K_rendered − K| / K in % (the fit is
-  :func:`hapticopt.analysis.prrr.closed_loop.metrics_from_traces`').
+  :func:`hapticopt.analysis.prrr.loop.closed_loop.metrics_from_traces`').
 
 Every function is pure numpy on traces of shape (N, 3) over the settled window.
 """

@@ -3,11 +3,11 @@
 A scene names the duration, the controller settings, the virtual environment, the operator
 (a mass-spring-damper hand, seed 000 eq 1, driven by a reference motion) or an initial
 perturbation, and the **effects** switched on. An effect that is off is absent from the plant
-and from the controller (it is not evaluated at all, see ``tests/analysis/prrr/test_closed_loop.py``).
+and from the controller (it is not evaluated at all, see ``tests/analysis/prrr/loop/test_closed_loop.py``).
 
 :func:`resolve` turns a scene into the effect set actually simulated and the backend that
-can simulate it, with the reason: the lumped plant (``hapticopt.analysis.prrr.lumped_plant``) when the effects
-allow it, the multibody MuJoCo plant (``hapticopt.analysis.prrr.mujoco_plant``, ``hapticopt.analysis.master.mujoco_plant``) for
+can simulate it, with the reason: the lumped plant (``hapticopt.analysis.prrr.loop.lumped_plant``) when the effects
+allow it, the multibody MuJoCo plant (``hapticopt.analysis.prrr.loop.mujoco_plant``, ``hapticopt.analysis.master.mujoco_plant``) for
 ``link_dynamics`` (with or without gravity on the links) and for the surgical master at all.
 A scene (``backend = "lumped" | "multibody"``) or the caller may force a backend; forcing the
 lumped plant onto a scene it cannot simulate is refused with a one-line error, never silently run.
@@ -649,7 +649,7 @@ def load_scene(name_or_path: str | Path) -> Scene:
 
 # --------------------------------------------------------------------------------------- resolving
 class Backend(StrEnum):
-    LUMPED = "lumped"  # hapticopt.analysis.prrr.lumped_plant: two-mass SEA per leg + constant M_e (eq 6, 7)
+    LUMPED = "lumped"  # hapticopt.analysis.prrr.loop.lumped_plant: two-mass SEA per leg + constant M_e (eq 6, 7)
     MULTIBODY = "multibody"  # MuJoCo plant (issue 8)
 
 

@@ -1,6 +1,6 @@
 """Firmware of the surgical master (seed 003): joint-torque impedance control τ = Jᵀ F at 1 kHz.
 
-The counterpart of :mod:`hapticopt.analysis.prrr.firmware` / :mod:`hapticopt.analysis.prrr.firmware_numpy` for device B, with
+The counterpart of :mod:`hapticopt.analysis.prrr.loop.firmware` / :mod:`hapticopt.analysis.prrr.loop.firmware_law` for device B, with
 the same ``reset(counts)`` / ``step(counts) -> commands`` idea. It sees only the three joint
 encoder counts (θ1, θ2, θ3, counted from the calibration pose ``q0`` it was homed at, at
 ``encoder_counts_per_rev``); from them it computes the handle position p(q) and the Jacobian

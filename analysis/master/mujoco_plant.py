@@ -5,7 +5,7 @@ parallelogram coupler closed by an equality ``connect``, forearm, handle, counte
 motors) with the scene's effects applied after compiling: gravity on/off, joint viscous friction
 (``viscous_friction``), Coulomb friction (``coulomb_friction``, MuJoCo ``frictionloss``), rotor
 inertia (``motor_dynamics``, joint armature), the motor torque limit (``saturation``). The
-solver settings are the 3-PRRR plant's per fidelity (:data:`hapticopt.analysis.prrr.mujoco_model.SOLVER_BY_FIDELITY`:
+solver settings are the 3-PRRR plant's per fidelity (:data:`hapticopt.analysis.prrr.loop.mujoco_model.SOLVER_BY_FIDELITY`:
 integrator, timestep, solref = 2·dt, solimp 0.9999) — the parallelogram closure is held to the
 same tolerance (≤ 0.01 mm, reported with every run and flagged when exceeded).
 
@@ -608,7 +608,7 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
     wall = time.perf_counter() - t0
     # unstable: the run stopped (non-finite, runaway, MuJoCo reset), or the torques sat on the limit
     # for more than half of a 0.1 s window (a saturated limit cycle, e.g. a chattering stiff wall) —
-    # the rules of hapticopt.analysis.prrr.closed_loop.classify
+    # the rules of hapticopt.analysis.prrr.loop.closed_loop.classify
     times = []
     for r in runs:
         if r["stop"][0] >= 0:

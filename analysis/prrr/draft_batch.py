@@ -46,17 +46,18 @@ import numpy as np
 from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
-from hapticopt.analysis.prrr import assembly
-from hapticopt.analysis.prrr import device_size as DS
-from hapticopt.analysis.prrr import frame_condense
-from hapticopt.analysis.prrr import frame_model as fm
-from hapticopt.analysis.prrr import frame_params
-from hapticopt.analysis.prrr import free_workspace as FW
-from hapticopt.analysis.prrr import interference as IF
-from hapticopt.analysis.prrr import interference_fast as FAST
-from hapticopt.analysis.prrr import joint_limits as JL
-from hapticopt.analysis.prrr import stability, statics, structure
-from hapticopt.analysis.prrr import workspace as WS
+from hapticopt.analysis.prrr.geometry import assembly
+from hapticopt.analysis.prrr.geometry import device_size as DS
+from hapticopt.analysis.prrr.structure import frame_condense
+from hapticopt.analysis.prrr.structure import frame_model as fm
+from hapticopt.analysis.prrr.structure import frame_params
+from hapticopt.analysis.prrr.collision import free_workspace as FW
+from hapticopt.analysis.prrr.collision import interference as IF
+from hapticopt.analysis.prrr.collision import interference_fast as FAST
+from hapticopt.analysis.prrr.geometry import joint_limits as JL
+from hapticopt.analysis.prrr.loop import stability
+from hapticopt.analysis.prrr.structure import statics, stiffness as structure
+from hapticopt.analysis.prrr.geometry import workspace as WS
 from hapticopt.design.errors import HapticoptError, InvalidInput
 from hapticopt.design.prrr import cad, layout as prrr_layout
 from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics

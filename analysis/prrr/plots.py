@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticopt.analysis.prrr import frame_model as fm
-from hapticopt.analysis.prrr import workspace as W
-from hapticopt.analysis.prrr.structure import fea_element_stress
+from hapticopt.analysis.prrr.structure import frame_model as fm
+from hapticopt.analysis.prrr.geometry import workspace as W
+from hapticopt.analysis.prrr.structure.stiffness import fea_element_stress
 from hapticopt.design.atomic import atomic_path
 from hapticopt.design.prrr.params import PrrrDesign
 
@@ -155,7 +155,7 @@ def structure_plots(design: PrrrDesign, result, out_dir: Path) -> list[Path]:
 
 
 def design_map_plots(dmap, out_dir: Path) -> list[Path]:
-    """The firmware design map (:class:`hapticopt.analysis.prrr.design_map.DesignMap`): three panels over
+    """The firmware design map (:class:`hapticopt.analysis.prrr.loop.design_map.DesignMap`): three panels over
     (T, K_p) — the free-space residual, the K limit on the scene's axis and the force-loop bandwidth —
     with the simulated unstable points crossed out and the paper's K_p = 45 marked."""
     import matplotlib

@@ -52,9 +52,9 @@ class DesignSteps:
         return value
 
     def statics(self, design: PrrrDesign) -> Any:
-        """:func:`hapticopt.analysis.prrr.statics.evaluate` of ``design`` (closed forms, the same at every
+        """:func:`hapticopt.analysis.prrr.structure.statics.evaluate` of ``design`` (closed forms, the same at every
         fidelity): the statics evaluator's result and the stability evaluator's stiffness limits."""
-        from hapticopt.analysis.prrr import statics  # noqa: PLC0415
+        from hapticopt.analysis.prrr.structure import statics  # noqa: PLC0415
 
         return self._step(design, "statics", lambda: statics.evaluate(design))
 
@@ -69,9 +69,9 @@ class DesignSteps:
         return self._step(design, "part_specs", lambda: cad_prrr.part_specs(design, lay=self.layout(design)))
 
     def envelope(self, design: PrrrDesign) -> float:
-        """:func:`hapticopt.analysis.prrr.workspace.base_envelope` of ``design`` [m], from the shared
+        """:func:`hapticopt.analysis.prrr.geometry.workspace.base_envelope` of ``design`` [m], from the shared
         part tables where the CAD lays the parts out."""
-        from hapticopt.analysis.prrr import workspace  # noqa: PLC0415  (workspace imports this module's users)
+        from hapticopt.analysis.prrr.geometry import workspace  # noqa: PLC0415  (workspace imports this module's users)
 
         def envelope() -> float:
             try:
@@ -83,25 +83,25 @@ class DesignSteps:
         return self._step(design, "envelope", envelope)
 
     def fast_model(self, design: PrrrDesign) -> Any:
-        """:func:`hapticopt.analysis.prrr.interference_fast.prepare` of ``design`` from the shared
+        """:func:`hapticopt.analysis.prrr.collision.interference_fast.prepare` of ``design`` from the shared
         part tables (raises as it does)."""
-        from hapticopt.analysis.prrr import interference_fast  # noqa: PLC0415
+        from hapticopt.analysis.prrr.collision import interference_fast  # noqa: PLC0415
 
         return self._step(design, "fast_model",
                           lambda: interference_fast.prepare(design, specs=self.part_specs(design)))
 
     def point_checker(self, design: PrrrDesign) -> Any:
-        """:func:`hapticopt.analysis.prrr.interference_fast.point_checker` of the shared primitive tables
+        """:func:`hapticopt.analysis.prrr.collision.interference_fast.point_checker` of the shared primitive tables
         in the elbow branch (``workspace.ELBOW_BRANCH``, the branch the free workspace and interference
         evaluators check; raises as :meth:`fast_model` does): their per-design steps once for the call."""
-        from hapticopt.analysis.prrr import interference_fast  # noqa: PLC0415
+        from hapticopt.analysis.prrr.collision import interference_fast  # noqa: PLC0415
 
         return self._step(design, "point_checker", lambda: interference_fast.point_checker(
             self.fast_model(design), branch=interference_fast.ELBOW_BRANCH))
 
     def workspace_core(self, design: PrrrDesign, wp: Any, *, n_phi: int, n_r: int) -> dict:
-        """:func:`hapticopt.analysis.prrr.workspace.workspace_core` of ``wp`` (numpy) at ``n_phi``, ``n_r``."""
-        from hapticopt.analysis.prrr import workspace  # noqa: PLC0415
+        """:func:`hapticopt.analysis.prrr.geometry.workspace.workspace_core` of ``wp`` (numpy) at ``n_phi``, ``n_r``."""
+        from hapticopt.analysis.prrr.geometry import workspace  # noqa: PLC0415
 
         key = ("workspace_core", tuple(float(v) for v in wp), n_phi)
         cores = self._step(design, key, dict)  # n_r -> core, for this wp and n_phi

@@ -23,7 +23,7 @@ Options (:class:`MjcfOptions`) select what the model contains:
 * ``hand``: an operator hand body (mass, spring, damper per axis) welded to the handle;
 * friction, damping, gravity, the solver settings.
 
-The multibody plant (:mod:`hapticopt.analysis.prrr.mujoco_model`) and ``hapticopt export``
+The multibody plant (:mod:`hapticopt.analysis.prrr.loop.mujoco_model`) and ``hapticopt export``
 (:func:`export_options`) both call :func:`prrr_mjcf`.
 """
 

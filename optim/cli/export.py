@@ -95,7 +95,7 @@ def _check_many(design, n: int) -> str:
 
         pts = np.atleast_2d(cad_master.home_point(design))
     else:
-        from hapticopt.analysis.prrr.workspace import sample_points, workspace_params
+        from hapticopt.analysis.prrr.geometry.workspace import sample_points, workspace_params
 
         k = max(1, round((n / 3) ** (1 / 3)))  # 3·k_phi·k_r·k_z ≈ n
         pts = sample_points(workspace_params(design), n_phi=k, n_r=k, n_z=max(1, round(n / (3 * k * k))))

@@ -72,9 +72,7 @@ def verify(
 ) -> None:
     """Simulate the design in closed loop with the firmware controller in a scene (exit 3 unless the verdict is ok)."""
     from hapticopt.analysis import verify as closed_loop_verify  # heavy (plants, jax): when the command runs
-    from hapticopt.analysis.prrr import zwidth
-
-
+    from hapticopt.analysis.prrr.loop import zwidth
     level = parse_fidelity(fidelity)
     route = parse_compute(compute, threads)  # noqa: F841  TODO(merge, issue 29): simulate(..., compute=route)
     if backend not in ("auto", "lumped", "multibody"):
@@ -195,7 +193,7 @@ def design_map(
     plots: Annotated[Optional[Path], typer.Option("--plots", help="Write the design-map figure to this directory.")] = None,
 ) -> None:
     """Map the firmware over (controller period T, force-loop gain K_p): free-space residual, K limit, bandwidth."""
-    from hapticopt.analysis.prrr import design_map as firmware_map  # heavy (jax): when the command runs
+    from hapticopt.analysis.prrr.loop import design_map as firmware_map  # heavy (jax): when the command runs
 
     level = parse_fidelity(fidelity)
     if not (math.isfinite(duration_s) and 0.6 <= duration_s <= 60.0):

@@ -2,9 +2,8 @@
 
 from hapticopt.analysis import warmup
 from hapticopt.analysis.loop import mujoco_compiled
-from hapticopt.analysis.prrr import frame_condense, interference_fast
-
-
+from hapticopt.analysis.prrr.structure import frame_condense
+from hapticopt.analysis.prrr.collision import interference_fast
 def test_warm_reports_each_kernel_and_its_state(capsys):
     rows = warmup.warm()
     assert [name for name, _, _ in rows] == ["collision check", "MuJoCo closed loops", "frame condensation"]

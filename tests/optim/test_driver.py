@@ -27,7 +27,7 @@ from hapticopt.optim.problem import MetricRef, problem_from_dict
 
 #: seed 002 / seed digest: cond(J) = 1 at the isotropic angle β* = atan(1/√2) = 35.264°
 BETA_ISO_DEG = math.degrees(math.atan(1.0 / math.sqrt(2.0)))
-STATICS = "hapticopt.analysis.prrr.statics"
+STATICS = "hapticopt.analysis.prrr.structure.statics"
 MODULES = {m: STATICS for m in ("jacobian_condition", "jacobian_condition_frobenius", "max_force_N",
                                 "max_pure_force_N", "stiffness_limit_N_per_mm", "effective_mass_kg")}
 

@@ -14,7 +14,7 @@ from hapticopt.analysis.compute import Compute
 from hapticopt.optim.executor import InlineExecutor, make_executor, worker_compute, worker_count
 from hapticopt.optim.problem import load_problem
 
-ONLY = ("statics",)  # the problem's metrics all come from hapticopt.analysis.prrr.statics
+ONLY = ("statics",)  # the problem's metrics all come from hapticopt.analysis.prrr.structure.statics
 PROBLEM = Path(__file__).parent / "data" / "resume-problem.toml"
 
 

@@ -21,7 +21,7 @@ from hapticopt.optim.problem import load_problem
 from hapticopt.optim.recorder import FILENAME, Recorder, point_key
 
 DATA = Path(__file__).parent / "data"
-ONLY = ("statics",)  # the problem's metrics all come from hapticopt.analysis.prrr.statics
+ONLY = ("statics",)  # the problem's metrics all come from hapticopt.analysis.prrr.structure.statics
 PROBLEM = DATA / "resume-problem.toml"
 
 

@@ -21,7 +21,7 @@ from hapticopt.optim.recorder import FILENAME, Recorder
 from hapticopt.optim.runs import RunReader, find_runs, problem_info
 
 DATA = Path(__file__).parent / "data"
-ONLY = ("statics",)  # the problem's metrics all come from hapticopt.analysis.prrr.statics
+ONLY = ("statics",)  # the problem's metrics all come from hapticopt.analysis.prrr.structure.statics
 PROBLEM = DATA / "resume-problem.toml"
 
 

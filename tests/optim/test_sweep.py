@@ -142,7 +142,7 @@ def test_batched_draft_sweep_of_every_evaluator_equals_the_per_point_sweep():
 
 
 def test_batched_statics_sweep_says_not_assemblable_as_the_evaluator_does():
-    # d2 = 300 mm cannot close the chain (tests/analysis/prrr/test_assembly.py derives why)
+    # d2 = 300 mm cannot close the chain (tests/analysis/prrr/geometry/test_assembly.py derives why)
     s = _sweep("geometry.d2_mm=80:300:3")
     per_point = run_sweep(s, executor=InlineExecutor())
     batched = run_sweep(s, executor=InlineExecutor(), batch=True)

@@ -11,8 +11,7 @@ import pytest
 from scipy.sparse.linalg import eigsh, lsqr
 
 from hapticopt.analysis.fem import solid as fea, hinge as fea_cad_hinge
-from hapticopt.analysis.prrr import fea_cad
-
+from hapticopt.analysis.prrr.structure import fea_cad
 E, NU = 2.0e11, 0.3
 R_BORE = 4e-3  # bore / pin radius [m]
 T, GAP = 5e-3, 0.5e-3  # plate thickness, axial clearance [m]
@@ -131,7 +130,7 @@ def test_tied_locations_are_vertex_and_edge_midpoint_pairs(unit_model):
 def test_released_cad_fea_is_softer_than_bonded_and_finite():
     # size 30 mm (coarser than level 0) and CG to 1e-5 (compliance error ~1e-10): a smoke test of
     # the whole pipeline; the measured levels are in docs/structure_hinge.md
-    from hapticopt.analysis.prrr import fea_cad
+    from hapticopt.analysis.prrr.structure import fea_cad
     from hapticopt.analysis.status import Status
     from hapticopt.design import io
 

@@ -10,9 +10,8 @@ import numpy as np
 import pytest
 
 from hapticopt.analysis.fem import solid as fea
-from hapticopt.analysis.prrr import frame_beam
-from hapticopt.analysis.prrr import frame_model as fm
-
+from hapticopt.analysis.prrr.structure import frame_beam
+from hapticopt.analysis.prrr.structure import frame_model as fm
 L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33  # aluminium bar, L/b = 10
 
 

@@ -135,9 +135,9 @@ def test_plot_structure_writes_the_stress_picture(cantilever, tmp_path):
     # the place of the CAD solid's, which takes minutes to mesh and solve on 2 cores)
     if not _offscreen_rendering():
         pytest.skip("pyvista off-screen rendering unavailable")
-    from hapticopt.analysis.prrr import fea_cad
-    from hapticopt.analysis.prrr import frame_model as fm
-    from hapticopt.analysis.prrr import structure as ss
+    from hapticopt.analysis.prrr.structure import fea_cad
+    from hapticopt.analysis.prrr.structure import frame_model as fm
+    from hapticopt.analysis.prrr.structure import stiffness as ss
     from hapticopt.design.io import load_preset
 
     mesh, _, uv, ue, st = cantilever

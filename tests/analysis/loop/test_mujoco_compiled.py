@@ -20,11 +20,11 @@ from hapticopt.analysis.compute import Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop import mujoco_compiled as mc
 from hapticopt.analysis.loop.scene import Backend, Effect, load_scene, resolve
-from hapticopt.analysis.prrr import closed_loop
-from hapticopt.analysis.prrr import mujoco_plant as prrr_mj
-from hapticopt.analysis.prrr import firmware_numpy
-from hapticopt.analysis.prrr.firmware_numpy import ScalarController
-from hapticopt.analysis.prrr.mujoco_model import Platform
+from hapticopt.analysis.prrr.loop import closed_loop
+from hapticopt.analysis.prrr.loop import mujoco_plant as prrr_mj
+from hapticopt.analysis.prrr.loop import firmware_law as firmware_numpy
+from hapticopt.analysis.prrr.loop.firmware_law import ScalarController
+from hapticopt.analysis.prrr.loop.mujoco_model import Platform
 from hapticopt.analysis.master import mujoco_plant as master_mj
 from hapticopt.analysis.master.firmware import MasterController
 from hapticopt.design.io import load_preset
@@ -430,7 +430,7 @@ def test_warm_up_loads_the_kernels_the_plants_use():
     a compensation scene included)."""
     assert prrr_mj.warm_up() is None
     k = mc.kernels()
-    from hapticopt.analysis.prrr._mujoco_kernel import prrr_chunk  # loaded by warm_up
+    from hapticopt.analysis.prrr.loop._mujoco_kernel import prrr_chunk  # loaded by warm_up
     scene = dataclasses.replace(load_scene("stiffness-25"), duration=0.02)
     prrr_mj.simulate(PRRR, scene, fidelity=Fidelity.DRAFT)
     master_mj.simulate(MASTER, dataclasses.replace(load_scene("master-wall"), duration=0.02), fidelity=Fidelity.DRAFT)

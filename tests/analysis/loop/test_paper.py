@@ -11,8 +11,7 @@ import pytest
 from hapticopt.analysis.loop import paper
 from hapticopt.analysis.loop.scene import PaperQuantity, load_scene
 from hapticopt.analysis.loop.traces import Traces
-from hapticopt.analysis.prrr import closed_loop as cl
-
+from hapticopt.analysis.prrr.loop import closed_loop as cl
 T, N = 1e-3, 3000  # 3 s at 1 kHz: whole periods of 1, 2 and 3 Hz
 t = np.arange(N) * T
 

@@ -192,7 +192,7 @@ def test_ioic_tables_only_in_ioic_mode():
 
 
 def test_impedance_simulators_refuse_ioic_scenes():
-    from hapticopt.analysis.prrr import closed_loop
+    from hapticopt.analysis.prrr.loop import closed_loop
     from hapticopt.design.io import load_preset
 
     with pytest.raises(InvalidInput, match=r"controller.mode = 'ioic' is not run by the 3-PRRR's impedance firmware"):
@@ -262,7 +262,7 @@ def test_predictor_keys_are_checked(ctl, match):
 
 def test_the_3prrr_online_predictor_window_is_checked():
     # the 3-PRRR's defaults are AR(2) over 16 positions; an order whose 2·p exceeds the window is one line
-    from hapticopt.analysis.prrr import firmware
+    from hapticopt.analysis.prrr.loop import firmware
     sc = scene_from_dict({"name": "t", "controller": {"predictor": "online", "interpolation": 4}})
     cfg, _ = firmware.build(io.load_preset("prrr-paper"), sc, resolve(sc))
     assert cfg.online and (cfg.ar_order, cfg.ar_window) == (2, 16)

@@ -13,7 +13,7 @@ from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax a
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.master.firmware import MasterController, MasterFirmwareConfig, forward
 from hapticopt.analysis.master.mujoco_plant import simulate, start_pose
-from hapticopt.analysis.prrr.mujoco_model import Integrator, SolverSettings
+from hapticopt.analysis.prrr.loop.mujoco_model import Integrator, SolverSettings
 from hapticopt.analysis.loop.scene import Backend, EnvKind, load_scene
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput

@@ -1,6 +1,6 @@
-"""The numpy reference of the fast collision check (:mod:`hapticopt.analysis.prrr.interference_fast`):
+"""The numpy reference of the fast collision check (:mod:`hapticopt.analysis.prrr.collision.interference_fast`):
 the separating-axis test written as numpy passes over chunks of poses, from part frames given per pose.
-It exists to prove the shipped numba kernel (:mod:`hapticopt.analysis.prrr._interference_kernels`) right,
+It exists to prove the shipped numba kernel (:mod:`hapticopt.analysis.prrr.collision._interference_kernels`) right,
 bit for bit (as MuJoCo keeps ``py_rollout`` in ``rollout_test.py``); the package does not run it.
 
 Stages per chunk: world-axis-aligned boxes of every part over every tested part pair; the world rotation,
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hapticopt.analysis.prrr.interference_fast import (DEPTH_TOL, FastResult, PrimitiveBatch, _BOX, _CYL,
+from hapticopt.analysis.prrr.collision.interference_fast import (DEPTH_TOL, FastResult, PrimitiveBatch, _BOX, _CYL,
                                                        _half_width, _part_boxes, _sample_tables, _world_extent)
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.prrr.kinematics import inverse_kinematics, params_np

@@ -10,15 +10,15 @@ import numpy as np
 from hapticopt.analysis.loop.plant import Observation, Plant, Sensors
 from hapticopt.analysis.loop.scene import StabilityCriterion
 from hapticopt.analysis.loop.traces import Traces
-from hapticopt.analysis.prrr import firmware
-from hapticopt.analysis.prrr.closed_loop import Setup
-from hapticopt.analysis.prrr.lumped_plant import (FRICTION_ITERS, LumpedModel, discretise, observables, sensor_values,
+from hapticopt.analysis.prrr.loop import firmware
+from hapticopt.analysis.prrr.loop.closed_loop import Setup
+from hapticopt.analysis.prrr.loop.lumped_plant import (FRICTION_ITERS, LumpedModel, discretise, observables, sensor_values,
                                                   solve_friction)
 
 
 class LumpedPlant:
     """The :class:`hapticopt.analysis.loop.plant.Plant` on the lumped model (plain numpy, one device): the plain
-    reference of the fused, compiled update in ``hapticopt.analysis.prrr.closed_loop``."""
+    reference of the fused, compiled update in ``hapticopt.analysis.prrr.loop.closed_loop``."""
 
     backend = "lumped"
 

@@ -17,7 +17,10 @@ import pytest
 
 from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
-from hapticopt.analysis.prrr import assembly, draft_batch, interference_fast, statics
+from hapticopt.analysis.prrr.geometry import assembly
+from hapticopt.analysis.prrr import draft_batch
+from hapticopt.analysis.prrr.collision import interference_fast
+from hapticopt.analysis.prrr.structure import statics
 from hapticopt.analysis.registry import evaluate_all, evaluate_batch
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidDesign
@@ -205,8 +208,7 @@ def test_other_fidelities_fall_back_to_the_single_path():
 def _checker_and_poses(designs, compute=DEFAULT):
     """The batch's checker of the designs whose parts lay out, their models and their interference poses
     (owner, points), in design order."""
-    from hapticopt.analysis.prrr import workspace as WS
-
+    from hapticopt.analysis.prrr.geometry import workspace as WS
     models = {}
     for i, d in enumerate(designs):
         try:
@@ -312,9 +314,8 @@ def test_frame_group_is_the_same_by_every_backend():
     either way: not ok by every backend (the batch solves them again by the single path)."""
     pytest.importorskip("numba")
     from hapticopt.analysis.compute import Compute
-    from hapticopt.analysis.prrr import frame_condense
-    from hapticopt.analysis.prrr import frame_model as fm
-
+    from hapticopt.analysis.prrr.structure import frame_condense
+    from hapticopt.analysis.prrr.structure import frame_model as fm
     designs = _sample()
     inp = draft_batch.stack_inputs(designs, None, ("frame",))
     out = {b: draft_batch.run_core(inp, len(designs), ("frame",), compute=Compute(backend=b))["frame"]

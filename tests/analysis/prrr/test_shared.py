@@ -82,8 +82,7 @@ def test_the_layout_runs_once_per_call(monkeypatch):
 def test_a_refused_layout_skips_the_envelopes_second_try(monkeypatch):
     """Where the CAD cannot lay the parts out, the shared envelope is ``workspace.fallback_envelope``
     without asking for the part tables again (``base_envelope`` would, and fall back to the same)."""
-    from hapticopt.analysis.prrr import workspace
-
+    from hapticopt.analysis.prrr.geometry import workspace
     refused = io.apply_overrides(BASE, ["geometry.theta_1p_deg=70"])  # the parts cannot be laid out
     calls = []
     real = shared_mod.cad_prrr.part_specs
@@ -120,8 +119,7 @@ def test_steps_of_another_design_raise():
 def test_reach_entries_do_not_depend_on_the_radial_sampling():
     # what DesignSteps.reach_core relies on: the free workspace evaluator's core (n_r = 2) and the
     # draft workspace evaluator's (n_r = 8) agree bit for bit on the entries the former reads
-    from hapticopt.analysis.prrr import workspace as W
-
+    from hapticopt.analysis.prrr.geometry import workspace as W
     for d in _designs():
         wp = W.workspace_params(d)
         a, b = W.workspace_core(wp, n_phi=48, n_r=2), W.workspace_core(wp, n_phi=48, n_r=8)
@@ -130,8 +128,7 @@ def test_reach_entries_do_not_depend_on_the_radial_sampling():
 
 
 def test_reach_core_hands_out_the_core_computed_first():
-    from hapticopt.analysis.prrr import workspace as W
-
+    from hapticopt.analysis.prrr.geometry import workspace as W
     steps = shared_mod.DesignSteps(BASE)
     wp = W.workspace_params(BASE)
     first = steps.workspace_core(BASE, wp, n_phi=48, n_r=8)
@@ -143,8 +140,8 @@ def test_reach_core_hands_out_the_core_computed_first():
 
 def test_point_checker_equals_check_points_bitwise_and_makes_the_joint_tables_once(monkeypatch):
     # reference: interference_fast.check_points of each pass (the per-design steps taken at every call)
-    from hapticopt.analysis.prrr import interference_fast as F  # noqa: PLC0415
-    from hapticopt.analysis.prrr import workspace as W  # noqa: PLC0415
+    from hapticopt.analysis.prrr.collision import interference_fast as F  # noqa: PLC0415
+    from hapticopt.analysis.prrr.geometry import workspace as W  # noqa: PLC0415
 
     made = []
     real = F.joint_tables
@@ -166,7 +163,8 @@ def test_point_checker_equals_check_points_bitwise_and_makes_the_joint_tables_on
 
 def test_statics_runs_once_per_call_for_statics_and_stability(monkeypatch):
     # reference: the statics evaluator and stability.stiffness_limits each evaluate the statics alone
-    from hapticopt.analysis.prrr import stability, statics  # noqa: PLC0415
+    from hapticopt.analysis.prrr.loop import stability  # noqa: PLC0415
+    from hapticopt.analysis.prrr.structure import statics
 
     calls = []
     real = statics.statics_arrays

@@ -107,8 +107,7 @@ def test_contacts_where_parts_meet(paper):
     # rails on u_i (θ_1p = 0): at this pose link 2 of leg 1 meets its carriage 1.1 mm deep
     # (analysis.prrr.interference_fast on the same part tables)
     d = io.apply_overrides(paper, ["geometry.theta_1p_deg=0"])
-    from hapticopt.analysis.prrr import interference_fast as F
-
+    from hapticopt.analysis.prrr.collision import interference_fast as F
     p = np.array([0.069, 0.0, -0.044])
     assert F.check_points(F.prepare(d), p[None], branch=mjcf.BRANCH).collides[0]
     model = mujoco.MjModel.from_xml_string(mjcf.prrr_mjcf(d, mjcf.export_options(), pose=p))
@@ -121,8 +120,7 @@ def test_contacts_where_parts_meet(paper):
 
 def test_plant_options_give_the_plant_model(paper):
     # the multibody plant's XML is this generator's (analysis/prrr/mujoco_model.build_xml)
-    from hapticopt.analysis.prrr import mujoco_model as mm
-
+    from hapticopt.analysis.prrr.loop import mujoco_model as mm
     opts = mm.ModelOptions(link_masses=mm.LinkMasses.REAL, gravity=True)
     assert mm.build_xml(paper, opts) == mjcf.prrr_mjcf(paper, mm.mjcf_options(opts))
     model = mujoco.MjModel.from_xml_string(mm.build_xml(paper, mm.ModelOptions()))

@@ -26,7 +26,7 @@ def test_evaluate_preset_json_has_reference_metrics():
     out = json.loads(res.stdout)
     assert set(out) >= {"design", "metrics", "timings_s"}
     m = out["metrics"]
-    # seed 002 Table 1 and eq 15 (see tests/analysis/prrr/test_statics.py for the sources)
+    # seed 002 Table 1 and eq 15 (see tests/analysis/prrr/structure/test_statics.py for the sources)
     assert m["max_force_N"] == pytest.approx([1378, 1194, 3581], rel=2e-3)
     assert m["stiffness_limit_N_per_mm"] == pytest.approx([28.14, 28.14, 168.8], rel=2e-3)
     assert m["jacobian_condition"] == pytest.approx(6**0.5, rel=1e-12)
@@ -43,7 +43,7 @@ def test_set_changes_design():
 
 
 def test_a_design_that_cannot_be_assembled_exits_3_and_says_so():
-    # issue 21: prrr-paper with d2 = 300 mm exited 0 with "statics: ok" (tests/analysis/prrr/test_assembly.py
+    # issue 21: prrr-paper with d2 = 300 mm exited 0 with "statics: ok" (tests/analysis/prrr/geometry/test_assembly.py
     # derives why no pose closes the chain)
     res = invoke("evaluate", "--preset", "prrr-paper", "--set", "geometry.d2_mm=300", "--fidelity", "draft", "--json")
     assert res.exit_code == 3, res.output

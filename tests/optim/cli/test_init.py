@@ -42,4 +42,4 @@ def test_subcommand_help_loads_no_heavy_package(command):
 
 def test_the_probe_sees_a_heavy_import():
     """The check can fail: an evaluator module that uses jax shows up."""
-    assert "jax" in loaded_after("import hapticopt.analysis.prrr.statics")
+    assert "jax" in loaded_after("import hapticopt.analysis.prrr.structure.statics")

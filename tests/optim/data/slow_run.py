@@ -14,7 +14,7 @@ from hapticopt.optim.evaluation import evaluate_point
 from hapticopt.optim.problem import load_problem
 from hapticopt.optim.recorder import Recorder
 
-ONLY = ("statics",)  # the problem's metrics all come from hapticopt.analysis.prrr.statics
+ONLY = ("statics",)  # the problem's metrics all come from hapticopt.analysis.prrr.structure.statics
 PROBLEM = Path(__file__).with_name("resume-problem.toml")
 DELAY = 0.0
 
