@@ -1,6 +1,8 @@
 """Atomic file writes: a temp file in the target directory, fsync, then rename.
 
-A failure at any point leaves the target untouched and no partial file behind.
+A failure at any point leaves the target untouched and no partial file behind. No write follows a
+link: folders are made and checked by :func:`hapticopt.design.paths.make_dirs`, a target (or a folder
+above it, below the output root) that is a symbolic link is refused before anything is written.
 """
 
 from __future__ import annotations
@@ -13,6 +15,8 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
+from hapticopt.design import paths
+
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 
@@ -24,7 +28,8 @@ def atomic_path(target: str | os.PathLike[str]) -> Iterator[Path]:
     For writers that insist on a file name (OCCT's STEP writer, VTK screenshots).
     """
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    paths.make_dirs(target.parent)
+    paths.no_links(target)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp" + target.suffix, dir=target.parent)
     os.close(fd)
     tmp_path = Path(tmp)
@@ -104,7 +109,7 @@ def file_set(root: str | os.PathLike[str]) -> Iterator[Path]:
     """
     root = Path(root)
     created = [a for a in [root, *root.parents] if not a.exists()]
-    root.mkdir(parents=True, exist_ok=True)
+    paths.make_dirs(root)
     stage = Path(tempfile.mkdtemp(prefix=".set.", suffix=".tmp", dir=root))
     try:
         try:
@@ -119,7 +124,8 @@ def file_set(root: str | os.PathLike[str]) -> Iterator[Path]:
             raise
         files = sorted(p for p in stage.rglob("*") if p.is_file())
         for f in files:  # folders first, so a missing folder cannot stop the renames half-way
-            (root / f.relative_to(stage)).parent.mkdir(parents=True, exist_ok=True)
+            paths.make_dirs((root / f.relative_to(stage)).parent, root)
+            paths.no_links(root / f.relative_to(stage), root)
         for f in files:
             os.replace(f, root / f.relative_to(stage))
         _fsync_dir(root)

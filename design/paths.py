@@ -7,19 +7,34 @@ character, at most :data:`NAME_MAX` characters. Independently, every writer asks
 :func:`inside` for its target, which resolves it (symlinks included) and refuses a path that is
 not inside the output folder: a name that slipped past the first check still cannot write
 anywhere else.
+
+No write follows a link planted inside the output folder (issue 37): :func:`make_dirs` creates
+folders one component at a time and ``lstat``-checks each, :func:`no_links` checks every component
+of a target below the output root, :func:`open_nofollow` opens with ``O_NOFOLLOW``. The root is
+the ``root`` argument, else the one a command set with :func:`output_root`; without either, the
+target and its folder are checked. The root itself may be a link (the user's choice of ``--out``).
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import os
+import stat
 import tempfile
 import unicodedata
+from collections.abc import Iterator
 from pathlib import Path
 
-from hapticopt.design.errors import InvalidInput, short
+from hapticopt.design.errors import InputFileError, InvalidInput, short
 
 #: longest allowed name, in characters (file names stay far below the usual 255-byte limit)
 NAME_MAX = 64
+#: longest allowed name in UTF-8 bytes (a file name holds 255 bytes; ``<name>_workspace.png`` adds 14)
+NAME_MAX_BYTES = 200
+
+#: the output folder of the running command (:func:`output_root`); None outside one
+_ROOT: contextvars.ContextVar[Path | None] = contextvars.ContextVar("hapticopt_output_root", default=None)
 
 
 def name_problem(value: object) -> str | None:
@@ -39,6 +54,8 @@ def name_problem(value: object) -> str | None:
             return f"must not contain the control character U+{ord(ch):04X}"
     if len(value) > NAME_MAX:
         return f"is {len(value)} characters long"
+    if len(value.encode("utf-8", "surrogatepass")) > NAME_MAX_BYTES:
+        return f"is {len(value.encode('utf-8', 'surrogatepass'))} bytes long in UTF-8 (at most {NAME_MAX_BYTES})"
     return None
 
 
@@ -91,3 +108,90 @@ def writable_dir(path: str | os.PathLike[str], what: str = "--out") -> Path:
             except OSError:
                 pass
     return p
+
+
+# ------------------------------------------------------------------------- no write follows a link
+@contextlib.contextmanager
+def output_root(root: str | os.PathLike[str]) -> Iterator[Path]:
+    """While the body runs, :func:`no_links` and :func:`make_dirs` check every component below ``root``."""
+    token = _ROOT.set(Path(os.path.abspath(root)))
+    try:
+        yield Path(root)
+    finally:
+        _ROOT.reset(token)
+
+
+def _below(target: Path, root: str | os.PathLike[str] | None) -> list[Path]:
+    """The paths to check for ``target``: each component below the root, else the target's folder and itself."""
+    t = Path(os.path.abspath(target))
+    r = Path(os.path.abspath(root)) if root is not None else _ROOT.get()
+    if r is not None and (t == r or r in t.parents):
+        parts = t.relative_to(r).parts
+        return [r.joinpath(*parts[: i + 1]) for i in range(len(parts))]
+    return [t.parent, t] if t.parent != t else [t]
+
+
+def _refuse(path: Path) -> InputFileError:
+    try:
+        to = f" (to {short(os.readlink(path))})"
+    except OSError:
+        to = ""
+    return InputFileError(f"{short(str(path))} is a symbolic link{to} inside the output folder: refused, nothing "
+                          "written there (remove the link or choose another --out)")
+
+
+def no_links(target: str | os.PathLike[str], root: str | os.PathLike[str] | None = None) -> Path:
+    """``target`` if no component of it below the output root is a symbolic link (missing ones are
+    fine: they will be created); else raise :class:`InputFileError` naming the link."""
+    for p in _below(Path(target), root):
+        try:
+            st = os.lstat(p)
+        except FileNotFoundError:
+            break
+        except OSError:
+            continue
+        if stat.S_ISLNK(st.st_mode):
+            raise _refuse(p)
+    return Path(target)
+
+
+def make_dirs(path: str | os.PathLike[str], root: str | os.PathLike[str] | None = None) -> Path:
+    """Create folder ``path`` one component at a time (the root and above as ``mkdir -p``), each
+    ``lstat``-checked: a symbolic link (or a file) among the components below the root is refused."""
+    checked = _below(Path(path), root)
+    if not checked:  # the root itself
+        Path(path).mkdir(parents=True, exist_ok=True)
+        return Path(path)
+    first = checked[0]
+    if not os.path.lexists(first.parent):
+        first.parent.mkdir(parents=True, exist_ok=True)
+    for p in checked:
+        try:
+            os.mkdir(p)
+        except FileExistsError:
+            pass
+        st = os.lstat(p)
+        if stat.S_ISLNK(st.st_mode):
+            raise _refuse(p)
+        if not stat.S_ISDIR(st.st_mode):
+            raise InputFileError(f"{short(str(p))} is a file, not a folder: cannot write below it")
+    return Path(path)
+
+
+def open_nofollow(path: str | os.PathLike[str], flags: int, mode: int = 0o644,
+                  root: str | os.PathLike[str] | None = None) -> int:
+    """``os.open(path, flags | O_NOFOLLOW)`` after :func:`no_links` on its folders: a link at ``path``
+    or above it (below the root) is refused with one line; a hard link to a file elsewhere too."""
+    no_links(path, root)
+    try:
+        fd = os.open(path, flags | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0), mode)
+    except OSError as exc:
+        if os.path.islink(path):
+            raise _refuse(Path(path)) from None
+        raise exc
+    st = os.fstat(fd)
+    if stat.S_ISREG(st.st_mode) and st.st_nlink > 1:
+        os.close(fd)
+        raise InputFileError(f"{short(str(path))} has {st.st_nlink} hard links (one may be outside the output folder): "
+                             "refused, nothing written there")
+    return fd
