@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import errno
 import os
 import stat
 import tempfile
@@ -174,7 +175,7 @@ def make_dirs(path: str | os.PathLike[str], root: str | os.PathLike[str] | None 
         if stat.S_ISLNK(st.st_mode):
             raise _refuse(p)
         if not stat.S_ISDIR(st.st_mode):
-            raise InputFileError(f"{short(str(p))} is a file, not a folder: cannot write below it")
+            raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(p))
     return Path(path)
 
 
