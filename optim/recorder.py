@@ -120,11 +120,12 @@ CHECKED_FIELDS = ("key", "x", "outcome", "message", "vals", "gradients", "gradie
                   "timings")
 
 
-def inspect_record(path: str | Path, what: str = "--resume") -> None:
+def inspect_record(path: str | Path, what: str = "--resume", *, resume: bool = True) -> None:
     """Refuse (one line, :class:`InputFileError`; the file is only read) a database that is not a
-    hapticopt run record or whose rows do not match their checksums."""
+    hapticopt run record or whose rows do not match their checksums. ``resume=False`` (a reader, which
+    may read a record being created) does not require the fingerprint yet."""
     def refuse(why: str) -> InputFileError:
-        return InputFileError(f"{what}: {path} {why}: refused, not modified (choose another --out)")
+        return InputFileError(f"{what}: {path} {why}: refused, not modified" + (" (choose another --out)" if resume else ""))
 
     try:
         db = connect_readonly(path)
@@ -136,10 +137,10 @@ def inspect_record(path: str | Path, what: str = "--resume") -> None:
         if foreign:
             raise refuse(f"holds {', '.join(foreign[:3])}: not a hapticopt run record")
         tables = {n for t, n in objects if t == "table"}
-        if not {"meta", "evaluations"} <= tables:
+        if not ({"meta", "evaluations"} if resume else {"evaluations"}) <= tables:
             raise refuse("is not a hapticopt run record (no meta and evaluations tables)")
-        meta = dict(db.execute("SELECT key, value FROM meta").fetchall())
-        if "fingerprint" not in meta or meta.get("application", APPLICATION) != APPLICATION:
+        meta = dict(db.execute("SELECT key, value FROM meta").fetchall()) if "meta" in tables else {}
+        if ("fingerprint" not in meta and resume) or meta.get("application", APPLICATION) != APPLICATION:
             raise refuse("is not a hapticopt run record (its meta table names no hapticopt run)")
         try:
             schema = int(meta.get("schema", "1"))
