@@ -10,6 +10,7 @@ in 64 bits (the TOML specification's range; a 400-digit integer is refused here,
 
 from __future__ import annotations
 
+import os
 import tomllib
 from typing import Any
 
@@ -21,6 +22,26 @@ MAX_BYTES = 1_000_000
 MAX_DEPTH = 16
 #: TOML integers are 64-bit signed (toml.io, "Integer")
 INT_MIN, INT_MAX = -(2**63), 2**63 - 1
+
+
+def read_text(path: str | os.PathLike[str], *, source: str) -> str:
+    """The UTF-8 text of input file ``path``, its size checked (``fstat``) before anything is read and
+    at most :data:`MAX_BYTES` + 1 bytes read (a file that grows meanwhile is still bounded); raises
+    :class:`InputFileError` with one line."""
+    try:
+        with open(path, "rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            if size > MAX_BYTES:
+                raise InputFileError(f"{source} is {size} bytes long: allowed at most {MAX_BYTES} bytes")
+            data = fh.read(MAX_BYTES + 1)
+    except OSError as exc:
+        raise InputFileError(f"{source} cannot be read: {exc.strerror or exc}") from None
+    if len(data) > MAX_BYTES:
+        raise InputFileError(f"{source} is more than {MAX_BYTES} bytes long: allowed at most {MAX_BYTES} bytes")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputFileError(f"{source} is not UTF-8 text: {exc.reason} at byte {exc.start}") from None
 
 
 def loads(text: str, *, source: str) -> dict[str, Any]:

@@ -50,6 +50,8 @@ EXIT_CODES_HELP = (
     "     are still written. Other commands never exit 3.\n"
     "  4  internal error (a bug; hapticopt --debug shows the traceback)"
 )
+#: most processes of the local pool (``--workers``)
+MAX_WORKERS = 256
 #: longest error line printed [characters]; values inside are already shortened with reprlib
 MAX_LINE = 1000
 
@@ -158,10 +160,27 @@ def cache_file(cache: Path | None, no_cache: bool, default_dir: Path | None) -> 
     if no_cache:
         return None
     if cache is None:
-        return None if default_dir is None else Path(default_dir) / CACHE_FILENAME
+        return None if default_dir is None else check_cache(Path(default_dir) / CACHE_FILENAME)
     if cache.is_dir():
         raise InvalidInput(f"--cache = {str(cache)!r} is a directory: give a file, e.g. {Path(cache) / CACHE_FILENAME}")
-    return cache
+    return check_cache(cache)
+
+
+def check_cache(path: Path) -> Path:
+    """Refuse a cache file that is a link, a foreign database or holds an edited entry (one line, exit 2;
+    the file only read), before any work; a file of another format or not a database stays a warning."""
+    import sqlite3
+
+    from hapticopt.optim.cache import inspect
+    from hapticopt.optim.sqlite_checks import check_db_paths
+
+    check_db_paths(path)
+    if path.is_file() and path.stat().st_size > 0:
+        try:
+            inspect(path)
+        except sqlite3.DatabaseError:
+            pass  # not a database: EvaluationCache ignores it with a warning
+    return path
 
 
 def parse_fidelity(text: str) -> Fidelity:

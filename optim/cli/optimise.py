@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, not_met, one_line_errors
+from hapticopt.optim.cli.common import CACHE_HELP, MAX_WORKERS, NO_CACHE_HELP, cache_file, not_met, one_line_errors
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.problem import INT_RANGES, load_problem
 from hapticopt.optim.cli import render
@@ -16,9 +16,6 @@ from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.optim.problem import problem_names
 from hapticopt.optim.recorder import check_run_dir
 
-
-#: most processes of the local pool
-MAX_WORKERS = 256
 
 
 @one_line_errors
