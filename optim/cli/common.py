@@ -11,7 +11,9 @@ COMMAND`` adds the traceback). Exit codes (:data:`EXIT_CODES_HELP`, every comman
   an evaluator status other than ``ok``, ``optimise`` whose final point (or Pareto choice) is
   infeasible at the final fidelity, ``verify`` with a verdict other than ``ok``; every output is
   still written;
-* 4 — an internal error (a bug: the line names the exception and where it was raised).
+* 4 — an internal error (a bug: the line names the exception and where it was raised);
+* 5 — ``optimise`` finished and wrote its record, optimum and report, but a stage after the
+  optimisation failed (export, a plot): :func:`stage_failed` prints one line naming the stage and why.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ EXIT_OK = 0
 EXIT_BAD_INPUT = 2
 EXIT_NOT_MET = 3
 EXIT_INTERNAL = 4
+EXIT_STAGE_FAILED = 5
 
 #: the exit codes, as every command's ``--help`` epilog states them (``\b``: click keeps the lines)
 EXIT_CODES_HELP = (
@@ -46,9 +49,12 @@ EXIT_CODES_HELP = (
     "  3  done, but the result breaks a requirement or constraint\n"
     "     (evaluate: a status other than ok; optimise: an infeasible final\n"
     "     point, written as best_infeasible.toml, or Pareto choice, written as\n"
-    "     chosen_infeasible.toml; verify: a verdict other than ok); outputs\n"
-    "     are still written. Other commands never exit 3.\n"
-    "  4  internal error (a bug; hapticopt --debug shows the traceback)"
+    "     chosen_infeasible.toml, or a verification scene that did not pass;\n"
+    "     verify: a verdict other than ok); outputs are still written.\n"
+    "     Other commands never exit 3.\n"
+    "  4  internal error (a bug; hapticopt --debug shows the traceback)\n"
+    "  5  optimise: a stage after the optimisation failed (export, a plot);\n"
+    "     the record, the optimum and the report are written"
 )
 #: most processes of the local pool (``--workers``)
 MAX_WORKERS = 256
@@ -72,6 +78,11 @@ def not_met(what: str) -> None:
     (stdout, e.g. ``--json``, stays as printed) and exit code 3."""
     typer.echo(f"not met: {_one_line(what)}", err=True)
     raise typer.Exit(code=EXIT_NOT_MET)
+
+
+def stage_failed(what: str) -> None:
+    """A stage after the optimisation failed: one ``error:`` line on stderr and exit code 5."""
+    fail(what, EXIT_STAGE_FAILED)
 
 
 def statuses_not_ok(statuses: dict[str, str]) -> str:
