@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from pathlib import Path
@@ -64,9 +65,11 @@ def export(
     design = load_design_arg(file, preset, set_)
     p = parse_pose_mm(pose) if pose is not None else None
 
-    out_dir = writable_dir(out if out is not None else Path("cad_out") / design.name)
+    target = out if out is not None else Path("cad_out") / design.name
+    existed = target.is_dir()  # an existing folder may hold another export: one writer at a time
+    out_dir = writable_dir(target)
     err = render.console(stderr=True)
-    with paths.output_root(out_dir), run_lock(out_dir), make_progress(err, transient=True, disable=as_json or not err.is_terminal) as bar:
+    with paths.output_root(out_dir), run_lock(out_dir) if existed else contextlib.nullcontext(), make_progress(err, transient=True, disable=as_json or not err.is_terminal) as bar:
         line = StageLine(bar, "export")
         result = run_export(design, out_dir, p=p, render=render_png, on_step=line.step)
         where = "the home pose" if p is None else f"the pose ({pose}) mm"
