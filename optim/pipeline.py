@@ -37,8 +37,7 @@ from hapticopt.optim.reaper import children_die_with_this_process
 from hapticopt.optim.recorder import Recorder, check_run_dir, run_lock
 from hapticopt.optim.runs import problem_info
 from hapticopt.design.atomic import file_set, remove_stale_temp_files
-from hapticopt.design import paths
-from hapticopt.design.paths import writable_dir
+from hapticopt.design.paths import make_dirs, output_root, writable_dir
 from hapticopt.optim.executor import InlineExecutor, check_scheduler, make_executor
 from hapticopt.optim import side as side_process
 from hapticopt.optim.side import side_executor
@@ -217,7 +216,7 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     check_scheduler(scheduler)
     out = writable_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with paths.output_root(out), run_lock(out), children_die_with_this_process(), \
+    with output_root(out), run_lock(out), children_die_with_this_process(), \
             verification_worker(problem.scenes if verify else ()) as verify_worker, side_executor(scheduler) as side:
         remove_stale_temp_files(out)
         if verify and problem.scenes:
@@ -379,7 +378,7 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
             rec.record_stage(final_key, _baseline_payload(baseline))
         # computed (the plots need the evaluators' result objects), stored for compare and later runs: the
         # slow evaluators in the side process with their pictures, then the export there; the others here
-        paths.make_dirs(out / "plots", out)
+        make_dirs(out / "plots", out)
         there = slow if beside else ()
         here = tuple(e.name for e in EVALUATORS[problem.device] if e.name not in there)
         pending_final = side.submit(side_process.evaluate, optimum_design, fid, there, out / "plots") if there else None
@@ -499,7 +498,7 @@ def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = 
     check_scheduler(scheduler)
     out = writable_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with paths.output_root(out), run_lock(out), children_die_with_this_process():
+    with output_root(out), run_lock(out), children_die_with_this_process():
         remove_stale_temp_files(out)
         with (EvaluationCache(cache) if cache is not None else contextlib.nullcontext()) as ecache:
             return _run_front_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
