@@ -64,8 +64,8 @@ def check_name(value: object, where: str, *, error: type[Exception] = InvalidInp
     """``value`` if it is a safe name, else raise ``error`` naming ``where`` and what is allowed."""
     why = name_problem(value)
     if why is not None:
-        raise error(f"{where} = {short(value)} {why}: allowed 1–{NAME_MAX} characters without /, \\, '..', "
-                    "a leading '.' or control characters")
+        raise error(f"{where} = {short(value)} {why}: allowed 1–{NAME_MAX} characters ({NAME_MAX_BYTES} bytes in "
+                    "UTF-8) without /, \\, '..', a leading '.' or control characters")
     return value  # type: ignore[return-value]
 
 

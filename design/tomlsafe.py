@@ -11,6 +11,7 @@ in 64 bits (the TOML specification's range; a 400-digit integer is refused here,
 from __future__ import annotations
 
 import os
+import re
 import tomllib
 from typing import Any
 
@@ -55,9 +56,32 @@ def loads(text: str, *, source: str) -> dict[str, Any]:
     except RecursionError:
         raise InputFileError(f"{source} nests arrays or tables too deeply: allowed depth {MAX_DEPTH}") from None
     except ValueError as exc:  # e.g. "Exceeds the limit (4300 digits) for integer string conversion"
+        key = _key_of_long_number(text)
+        if key is not None:
+            raise InputFileError(f"{source}: {key} = an integer of more than 4300 digits is outside the 64-bit range "
+                                 f"TOML allows: allowed {INT_MIN} ≤ value ≤ {INT_MAX}") from None
         raise InputFileError(f"{source} has a value TOML cannot hold: {str(exc)[:120]}") from None
     _check(data, source, "", 0)
     return data
+
+
+_LONG_NUMBER = re.compile(r"\d[\d_]{4299,}")
+
+
+def _key_of_long_number(text: str) -> str | None:
+    """``section.key`` of the first line holding a number too long for Python to convert (tomllib names
+    neither line nor key), or None."""
+    section = ""
+    for line in text.splitlines():
+        s = line.strip()
+        if s.startswith("[") and "=" not in s.split("]")[0]:
+            section = s.strip("[]").strip()
+            continue
+        if "=" in s and _LONG_NUMBER.search(s.split("=", 1)[1]):
+            key = s.split("=", 1)[0].strip()
+            key = key if len(key) <= 40 else key[:37] + "..."
+            return f"{section}.{key}" if section else key
+    return None
 
 
 def _check(value: Any, source: str, where: str, depth: int) -> None:

@@ -127,6 +127,8 @@ class Sweep:
             raise InvalidInput(f"the sweep has {self.n_points} points: allowed at most {MAX_POINTS}")
         if self.only is not None:
             names = [e.name for e in EVALUATORS[self.base.device]]
+            if not self.only:  # issue 37: `--only ""` reported every point ok while evaluating nothing
+                raise InvalidInput(f"--only names no evaluator: allowed one or more of {', '.join(names)}")
             for name in self.only:
                 if name not in names:
                     raise InvalidInput(f"--only {short(name)} is not an evaluator of a {self.base.device} design: "

@@ -102,3 +102,12 @@ def test_cli_problem_name_escape_exits_2_and_writes_nothing(tmp_path, monkeypatc
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "p.toml: name = " in lines[0]
     assert _tree(tmp_path) == before
+
+
+def test_names_are_limited_in_bytes_too():
+    """Issue 37: a 64-emoji name (256 bytes in UTF-8) passed the character limit and failed late."""
+    from hapticopt.design.paths import NAME_MAX_BYTES
+
+    with pytest.raises(InvalidInput, match=f"is 256 bytes long in UTF-8 \\(at most {NAME_MAX_BYTES}\\)"):
+        check_name("\U0001F600" * 64, "name")
+    assert check_name("Ω" * NAME_MAX, "name")  # 128 bytes

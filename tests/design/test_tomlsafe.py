@@ -37,3 +37,11 @@ def test_text_that_is_not_utf8_is_one_line(tmp_path):
     path.write_bytes(b"name = '\xff'\n")
     with pytest.raises(InputFileError, match="is not UTF-8 text"):
         tomlsafe.read_text(path, source="design file d.toml")
+
+
+@pytest.mark.parametrize("text, key", [("[geometry]\nbeta_deg = 1" + "0" * 5000 + "\n", "geometry.beta_deg"),
+                                       ("name = 'x'\nlist = [1, " + "9" * 5000 + "]\n", "list")])
+def test_a_5000_digit_integer_names_its_key(text, key):
+    """Issue 37: the error named the file, not the key (tomllib refuses to convert > 4300 digits)."""
+    with pytest.raises(InputFileError, match=rf"d.toml: {key} = an integer of more than 4300 digits"):
+        tomlsafe.loads(text, source="d.toml")

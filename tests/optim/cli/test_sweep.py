@@ -116,3 +116,11 @@ def test_a_second_concurrent_sweep_resume_is_refused_in_one_line(tmp_path):
     assert f"--out {out} is in use by another hapticopt run (pid {holder.pid})" in line
     with RunReader(out) as r:
         assert len(r) == 2 and r.n_repeated == 0
+
+
+def test_an_empty_only_is_refused(tmp_path):
+    """Issue 37: ``--only ""`` reported every point ok while evaluating nothing."""
+    res = runner.invoke(app, ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=30:70:2", "--only", "",
+                              "--out", str(tmp_path / "o"), "--quiet"])
+    assert res.exit_code == 2 and "--only names no evaluator: allowed one or more of statics" in res.stderr
+    assert not (tmp_path / "o").exists()
