@@ -37,7 +37,7 @@ from hapticopt.optim.reaper import children_die_with_this_process
 from hapticopt.optim.recorder import Recorder, check_run_dir, run_lock
 from hapticopt.optim.runs import problem_info
 from hapticopt.design.atomic import file_set, remove_stale_temp_files
-from hapticopt.design.paths import make_dirs, output_root, writable_dir
+from hapticopt.design.paths import make_dirs, no_links, output_root, writable_dir
 from hapticopt.optim.executor import InlineExecutor, check_scheduler, make_executor
 from hapticopt.optim import side as side_process
 from hapticopt.optim.side import side_executor
@@ -219,6 +219,9 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     with output_root(out), run_lock(out), children_die_with_this_process(), \
             verification_worker(problem.scenes if verify else ()) as verify_worker, side_executor(scheduler) as side:
         remove_stale_temp_files(out)
+        for name in (OPTIMUM_FILE, INFEASIBLE_FILE, "plots", "parts", "result.json", "report.md", "report.html",
+                     "convergence.svg"):  # a link planted where the run writes: refused before any work
+            no_links(out / name, out)
         if verify and problem.scenes:
             verify_worker.start()  # now: its imports overlap with the optimisation, not the verify stage
         return _run_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,

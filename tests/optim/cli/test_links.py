@@ -57,7 +57,7 @@ def _plant(run: Path, name: str, kind: str, outside: Path) -> None:
     elif link.exists() or link.is_symlink():
         link.unlink()
     link.parent.mkdir(parents=True, exist_ok=True)
-    is_dir = "." not in Path(name).name  # plots
+    is_dir = "." not in Path(name).name  # plots, parts
     target = outside / ("ghost" if kind == "dangling" else "victim_dir" if is_dir else "victim")
     link.symlink_to(target, target_is_directory=is_dir)
 
@@ -94,7 +94,7 @@ def test_a_new_sweep_refuses_a_link_at_its_first_writes(tmp_path, name, kind):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-@pytest.mark.parametrize("name", FIRST_WRITES)
+@pytest.mark.parametrize("name", FIRST_WRITES + ["plots", "parts", "report.md", "result.json", "optimum.toml"])
 def test_optimise_refuses_a_link_at_its_first_writes(tmp_path, name, kind):
     run = tmp_path / "run"
     run.mkdir()
