@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextvars
 import functools
+import sqlite3
 import sys
 import traceback
 from collections.abc import Callable
@@ -31,7 +32,8 @@ import typer
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.errors import HapticoptError, InvalidInput, short
 from hapticopt.design import io
-from hapticopt.optim.cache import FILENAME as CACHE_FILENAME
+from hapticopt.optim.cache import FILENAME as CACHE_FILENAME, inspect
+from hapticopt.optim.sqlite_checks import check_db_paths
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -180,11 +182,6 @@ def cache_file(cache: Path | None, no_cache: bool, default_dir: Path | None) -> 
 def check_cache(path: Path) -> Path:
     """Refuse a cache file that is a link, a foreign database or holds an edited entry (one line, exit 2;
     the file only read), before any work; a file of another format or not a database stays a warning."""
-    import sqlite3
-
-    from hapticopt.optim.cache import inspect
-    from hapticopt.optim.sqlite_checks import check_db_paths
-
     check_db_paths(path)
     if path.is_file() and path.stat().st_size > 0:
         try:
