@@ -11,8 +11,8 @@ anywhere else.
 No write follows a link planted inside the output folder (issue 37): :func:`make_dirs` creates
 folders one component at a time and ``lstat``-checks each, :func:`no_links` checks every component
 of a target below the output root, :func:`open_nofollow` opens with ``O_NOFOLLOW``. The root is
-the ``root`` argument, else the one a command set with :func:`output_root`; without either, the
-target and its folder are checked. The root itself may be a link (the user's choice of ``--out``).
+the ``root`` argument, else the one a command set with :func:`output_root`; without either, only
+the target itself is checked. The root itself may be a link (the user's choice of ``--out``).
 """
 
 from __future__ import annotations
@@ -122,14 +122,16 @@ def output_root(root: str | os.PathLike[str]) -> Iterator[Path]:
         _ROOT.reset(token)
 
 
-def _below(target: Path, root: str | os.PathLike[str] | None) -> list[Path]:
-    """The paths to check for ``target``: each component below the root, else the target's folder and itself."""
+def _below(target: Path, root: str | os.PathLike[str] | None) -> list[Path] | None:
+    """Each component of ``target`` below the output root ([] for the root itself), or None when
+    ``target`` is under no root (then only the target itself is checked: the folders above are the
+    user's choice, as ``--out`` itself is)."""
     t = Path(os.path.abspath(target))
     r = Path(os.path.abspath(root)) if root is not None else _ROOT.get()
     if r is not None and (t == r or r in t.parents):
         parts = t.relative_to(r).parts
         return [r.joinpath(*parts[: i + 1]) for i in range(len(parts))]
-    return [t.parent, t] if t.parent != t else [t]
+    return None
 
 
 def _refuse(path: Path) -> InputFileError:
@@ -137,14 +139,16 @@ def _refuse(path: Path) -> InputFileError:
         to = f" (to {short(os.readlink(path))})"
     except OSError:
         to = ""
-    return InputFileError(f"{short(str(path))} is a symbolic link{to} inside the output folder: refused, nothing "
+    name = str(path) if len(str(path)) <= 300 else short(str(path))  # the whole path: the user must find it
+    return InputFileError(f"{name} is a symbolic link{to} inside the output folder: refused, nothing "
                           "written there (remove the link or choose another --out)")
 
 
 def no_links(target: str | os.PathLike[str], root: str | os.PathLike[str] | None = None) -> Path:
     """``target`` if no component of it below the output root is a symbolic link (missing ones are
     fine: they will be created); else raise :class:`InputFileError` naming the link."""
-    for p in _below(Path(target), root):
+    checked = _below(Path(target), root)
+    for p in [Path(os.path.abspath(target))] if checked is None else checked:
         try:
             st = os.lstat(p)
         except FileNotFoundError:
@@ -160,7 +164,7 @@ def make_dirs(path: str | os.PathLike[str], root: str | os.PathLike[str] | None 
     """Create folder ``path`` one component at a time (the root and above as ``mkdir -p``), each
     ``lstat``-checked: a symbolic link (or a file) among the components below the root is refused."""
     checked = _below(Path(path), root)
-    if not checked:  # the root itself
+    if not checked:  # the root itself, or a folder under no root (the user's choice, e.g. --plots DIR)
         Path(path).mkdir(parents=True, exist_ok=True)
         return Path(path)
     first = checked[0]
