@@ -1,6 +1,8 @@
 """Atomic file writes: a temp file in the target directory, fsync, then rename.
 
-A failure at any point leaves the target untouched and no partial file behind.
+A failure at any point leaves the target untouched and no partial file behind. No write follows a
+link: folders are made and checked by :func:`hapticopt.design.paths.make_dirs`, a target (or a folder
+above it, below the output root) that is a symbolic link is refused before anything is written.
 """
 
 from __future__ import annotations
@@ -13,6 +15,8 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
+from hapticopt.design import paths
+
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 
@@ -24,7 +28,8 @@ def atomic_path(target: str | os.PathLike[str]) -> Iterator[Path]:
     For writers that insist on a file name (OCCT's STEP writer, VTK screenshots).
     """
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    paths.make_dirs(target.parent)
+    paths.no_links(target)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp" + target.suffix, dir=target.parent)
     os.close(fd)
     tmp_path = Path(tmp)
@@ -99,12 +104,14 @@ def file_set(root: str | os.PathLike[str]) -> Iterator[Path]:
     Everything that can fail for lack of space or permission (creating and writing the files)
     happens in the staging folder; a fault there removes it and leaves ``root`` as it was — the
     previous set intact, none of the new one. Moving in is renames only (same filesystem: no data
-    written). A staging folder left by a killed process is removed by
-    :func:`remove_stale_temp_files`.
+    written), after a :data:`COMPLETE` marker is written in the staging folder: a process killed while
+    moving leaves a complete set that :func:`remove_stale_temp_files` moves in (rolls forward) on the
+    next run, so a kill never leaves half of the new set beside half of the old. A staging folder
+    without the marker (killed while writing) is removed.
     """
     root = Path(root)
     created = [a for a in [root, *root.parents] if not a.exists()]
-    root.mkdir(parents=True, exist_ok=True)
+    paths.make_dirs(root)
     stage = Path(tempfile.mkdtemp(prefix=".set.", suffix=".tmp", dir=root))
     try:
         try:
@@ -117,14 +124,48 @@ def file_set(root: str | os.PathLike[str]) -> Iterator[Path]:
                 except OSError:
                     pass
             raise
-        files = sorted(p for p in stage.rglob("*") if p.is_file())
-        for f in files:  # folders first, so a missing folder cannot stop the renames half-way
-            (root / f.relative_to(stage)).parent.mkdir(parents=True, exist_ok=True)
-        for f in files:
-            os.replace(f, root / f.relative_to(stage))
-        _fsync_dir(root)
+        _move_in(stage, root)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+
+
+#: the marker of a staging folder whose set is complete (moved in even if the mover was killed)
+COMPLETE = ".complete"
+
+
+def _move_in(stage: Path, root: Path) -> None:
+    """Mark ``stage`` complete, then rename each of its files to the same path under ``root``."""
+    files = sorted(p for p in stage.rglob("*") if p.is_file() and p.name != COMPLETE)
+    for f in files:  # folders first, so a missing folder cannot stop the renames half-way
+        paths.make_dirs((root / f.relative_to(stage)).parent, root)
+        paths.no_links(root / f.relative_to(stage), root)
+    for f in files:
+        _fsync_file(f)
+    marker = os.open(stage / COMPLETE, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+    os.fsync(marker)
+    os.close(marker)
+    _fsync_dir(stage)
+    for f in files:
+        os.replace(f, root / f.relative_to(stage))
+    _fsync_dir(root)
+
+
+def _move_in_rest(stage: Path, root: Path) -> None:
+    """Finish moving in a complete set whose mover was killed (the files it had not moved yet)."""
+    for f in sorted(p for p in stage.rglob("*") if p.is_file() and not p.is_symlink() and p.name != COMPLETE):
+        target = root / f.relative_to(stage)
+        paths.make_dirs(target.parent, root)
+        paths.no_links(target, root)
+        os.replace(f, target)
+    _fsync_dir(root)
+
+
+def _fsync_file(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def _fsync_dir(folder: Path) -> None:
@@ -156,6 +197,8 @@ def remove_stale_temp_files(root: str | os.PathLike[str], *, depth: int = 2) -> 
             continue
         for entry in entries:
             if entry.is_dir(follow_symlinks=False) and _STAGE_RE.match(entry.name):
+                if os.path.lexists(os.path.join(entry.path, COMPLETE)):  # killed while moving in: finish it
+                    _move_in_rest(Path(entry.path), folder)
                 shutil.rmtree(entry.path, ignore_errors=True)
                 removed.append(Path(entry.path))
             elif entry.is_dir(follow_symlinks=False):

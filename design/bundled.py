@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
+from hapticopt.design import tomlsafe
 from hapticopt.design.errors import InputFileError, UnknownName, short
 
 #: longest accepted file path [characters] (Linux PATH_MAX)
@@ -52,8 +53,5 @@ def read(package: str, kind: str, name_or_path: str | Path, *, allow_path: bool 
                                  f"({', '.join(bundled)})")
         raise UnknownName(f"{kind} {short(arg)} does not exist: allowed {kind}s are {', '.join(bundled)} "
                           "or a path to a .toml file")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputFileError(f"{kind} file {short(arg)} cannot be read: {exc}") from None
+    text = tomlsafe.read_text(path, source=f"{kind} file {short(arg)}")
     return TomlText(text=text, source=path.name, base_dir=path.parent)

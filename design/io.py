@@ -81,10 +81,7 @@ def load_design(path: str | Path) -> Design:
         raise InputFileError(f"design file {short(str(path))} cannot be read: {exc}") from None
     if not is_file:
         raise InputFileError(f"design file {short(str(path))} does not exist: give a path to a .toml design or --preset NAME")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputFileError(f"design file {short(str(path))} cannot be read: {exc}") from None
+    text = tomlsafe.read_text(path, source=f"design file {short(str(path))}")
     data = tomlsafe.loads(text, source=f"design file {short(str(path))}")
     return design_from_dict(data, source=path.name)
 

@@ -28,6 +28,14 @@ before it and nothing half-written. ``synchronous=NORMAL``: a power loss may dro
 format, unreadable, on a read-only disk) is ignored with one warning line on stderr: the cache is
 an optimisation and never stops a run.
 
+Trust (issue 37). Each entry carries the SHA-256 of its key and payload (``checksum``); ``meta``
+names the application and the format. Before a file is used it is opened read-only and checked
+(:func:`inspect`): a foreign SQLite database (no cache ``meta``, views or triggers) or an entry
+whose content does not match its checksum (edited by hand) is refused with one line
+(:class:`~hapticopt.design.errors.InputFileError`, exit 2) and left unmodified; a link at the file or
+its SQLite side files is refused the same way. An entry read later that fails its checksum is a miss
+with a warning.
+
 Provenance: a value served from the cache says so (:attr:`CachedEvaluation.provenance`: the file,
 the key, when and by what it was written); the pipeline puts it in the stage message, the record
 and the report.
@@ -59,12 +67,17 @@ from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.registry import EVALUATORS, evaluate_all
 from hapticopt.analysis.status import Status
+from hapticopt.design import paths
+from hapticopt.design.errors import InputFileError
+from hapticopt.optim.sqlite_checks import check_db_paths, connect_readonly, row_checksum
 from hapticopt.optim.versions import package_versions
 
 #: default file name, in the run directory beside ``evaluations.sqlite``
 FILENAME = "evaluation-cache.sqlite"
-#: layout of the file and of the key; a file of another format is ignored (with a warning)
-FORMAT = 1
+#: layout of the file and of the key; a file of another format is ignored (with a warning). 2: checksums
+FORMAT = 2
+#: ``meta.application`` of a cache file
+APPLICATION = "hapticopt evaluation cache"
 #: third-party distributions whose version enters the code version (the numbers depend on them)
 NUMERIC_LIBRARIES = ("numpy", "scipy", "jax", "jaxlib", "manifold3d", "gmsh", "scikit-fem", "pyamg", "mujoco",
                      "build123d", "cadquery-ocp-novtk")
@@ -82,7 +95,8 @@ CREATE TABLE IF NOT EXISTS evaluations (
     code_version TEXT NOT NULL,
     payload TEXT NOT NULL,
     written_by TEXT NOT NULL,
-    created REAL NOT NULL
+    created REAL NOT NULL,
+    checksum TEXT NOT NULL
 );
 """
 
@@ -152,6 +166,39 @@ def warn_stderr(message: str) -> None:
     print(f"warning: {message}", file=sys.stderr, flush=True)
 
 
+def inspect(path: str | Path) -> str:
+    """Check an existing cache file read-only; '' when it is a cache of this format, else why it is of
+    another format (ignored with a warning). A foreign database or an edited entry raises
+    :class:`InputFileError` (the file is not modified). A file that is not a database raises
+    :class:`sqlite3.DatabaseError` (ignored with a warning by :class:`EvaluationCache`)."""
+    def refuse(why: str) -> InputFileError:
+        return InputFileError(f"evaluation cache {path} {why}: refused, not modified (remove it, or give "
+                              "--cache with another file or --no-cache)")
+
+    db = connect_readonly(path)
+    try:
+        objects = db.execute("SELECT type, name FROM sqlite_master").fetchall()
+        foreign = sorted(f"{t} {n}" for t, n in objects if t in ("view", "trigger"))
+        if foreign:
+            raise refuse(f"holds {', '.join(foreign[:3])}: not an evaluation cache")
+        tables = {n for t, n in objects if t == "table"}
+        if not tables:
+            return ""  # an empty database: it becomes a cache
+        meta = dict(db.execute("SELECT key, value FROM meta").fetchall()) if "meta" in tables else {}
+        if "format" not in meta or "evaluations" not in tables:
+            raise refuse(f"is another SQLite database (tables {', '.join(sorted(tables)[:4])}): not an evaluation cache")
+        if meta["format"] != str(FORMAT):
+            return f"it has cache format {meta['format'][:20]}, this version reads {FORMAT}"
+        if meta.get("application") != APPLICATION:
+            raise refuse("names no hapticopt evaluation cache in its meta table")
+        for key, payload, checksum in db.execute("SELECT key, payload, checksum FROM evaluations"):
+            if row_checksum(key, payload) != checksum:
+                raise refuse(f"has entry {str(key)[:12]} whose content does not match its checksum (edited)")
+        return ""
+    finally:
+        db.close()
+
+
 @dataclass(frozen=True, kw_only=True)
 class CacheHit:
     payload: dict[str, Any]
@@ -173,17 +220,23 @@ class EvaluationCache:
         self._db: sqlite3.Connection | None = None
         self.disabled = ""  # why the cache is off ('' while it works)
         self.hits = self.misses = self.stored = 0
+        check_db_paths(self.path)  # a link: refused (InputFileError), not a warning
         try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
+            paths.make_dirs(self.path.parent)
+            if self.path.is_file() and self.path.stat().st_size > 0:
+                other = inspect(self.path)
+                if other:
+                    self._disable(other)
+                    return
             db = sqlite3.connect(self.path, timeout=30.0, isolation_level=None, check_same_thread=False)
             self._db = db
             db.execute("PRAGMA journal_mode=WAL")  # the first read: a file that is not a database fails here
             db.execute("PRAGMA synchronous=NORMAL")
             db.executescript(_SCHEMA)
             db.execute("INSERT OR IGNORE INTO meta(key, value) VALUES ('format', ?)", (str(FORMAT),))
-            row = db.execute("SELECT value FROM meta WHERE key = 'format'").fetchone()
-            if row is None or row[0] != str(FORMAT):
-                self._disable(f"it has cache format {row[0] if row else '?'}, this version reads {FORMAT}")
+            db.execute("INSERT OR IGNORE INTO meta(key, value) VALUES ('application', ?)", (APPLICATION,))
+        except InputFileError:
+            raise
         except (sqlite3.Error, OSError) as exc:
             self._disable(str(exc) or type(exc).__name__)
 
@@ -210,7 +263,7 @@ class EvaluationCache:
             if self._db is None:
                 return None
             try:
-                row = self._db.execute("SELECT payload, created, written_by FROM evaluations WHERE key = ?",
+                row = self._db.execute("SELECT payload, created, written_by, checksum FROM evaluations WHERE key = ?",
                                        (key,)).fetchone()
             except sqlite3.Error as exc:
                 self._disable(str(exc))
@@ -219,6 +272,8 @@ class EvaluationCache:
             self.misses += 1
             return None
         try:
+            if row_checksum(key, row[0]) != row[3]:
+                raise ValueError("its content does not match its checksum (edited)")
             payload = json.loads(row[0])
             if not isinstance(payload, dict) or any(k not in payload for k in PAYLOAD_KEYS):
                 raise ValueError(f"missing {[k for k in PAYLOAD_KEYS if k not in payload]}")
@@ -240,9 +295,9 @@ class EvaluationCache:
                 self._db.execute("BEGIN IMMEDIATE")
                 self._db.execute(
                     "INSERT OR IGNORE INTO evaluations(key, device, design, fidelity, only, code_version, payload,"
-                    " written_by, created) VALUES (?,?,?,?,?,?,?,?,?)",
+                    " written_by, created, checksum) VALUES (?,?,?,?,?,?,?,?,?,?)",
                     (key, device, design, fidelity, None if only is None else ",".join(sorted(only)), code_version(),
-                     text, written_by, time.time()))
+                     text, written_by, time.time(), row_checksum(key, text)))
                 self._db.execute("COMMIT")
                 self.stored += 1
             except sqlite3.Error as exc:

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import html
 import math
-import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,7 +23,7 @@ from typing import Any
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.optim import cache as evaluation_cache
 from hapticopt.optim.cache import EvaluationCache
-from hapticopt.design import io
+from hapticopt.design import io, tomlsafe
 from hapticopt.design.atomic import write_text
 from hapticopt.design.errors import InvalidInput, UnknownName
 from hapticopt.design.schema import specs
@@ -77,7 +76,8 @@ def resolve(arg: str) -> Named:
             with RunReader(path) as reader:
                 final = reader.design("final")
             if final is not None:
-                design = io.design_from_dict(tomllib.loads(final.design_toml), source=f"{arg} (recorded final design)")
+                design = io.design_from_dict(tomlsafe.loads(final.design_toml, source=f"{arg} (recorded final design)"),
+                                             source=f"{arg} (recorded final design)")
                 return Named(label=arg, source=f"run {arg} (recorded final design)", design=design)
             raise InvalidInput(f"design {short(arg)}: the run has no optimum.toml and no recorded final design "
                                "(is it still running, or a sweep?)")

@@ -38,7 +38,7 @@ from hapticopt.optim.reaper import children_die_with_this_process
 from hapticopt.optim.recorder import Recorder, check_run_dir, run_lock
 from hapticopt.optim.runs import problem_info
 from hapticopt.design.atomic import file_set, remove_stale_temp_files
-from hapticopt.design.paths import writable_dir
+from hapticopt.design.paths import make_dirs, no_links, output_root, writable_dir
 from hapticopt.optim.executor import InlineExecutor, check_scheduler, make_executor, worker_compute
 from hapticopt.optim import side as side_process
 from hapticopt.optim.side import side_executor
@@ -221,9 +221,12 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     check_scheduler(scheduler)
     out = writable_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with run_lock(out), children_die_with_this_process(), \
+    with output_root(out), run_lock(out), children_die_with_this_process(), \
             verification_worker(problem.scenes if verify else ()) as verify_worker, side_executor(scheduler) as side:
         remove_stale_temp_files(out)
+        for name in (OPTIMUM_FILE, INFEASIBLE_FILE, "plots", "parts", "result.json", "report.md", "report.html",
+                     "convergence.svg"):  # a link planted where the run writes: refused before any work
+            no_links(out / name, out)
         if verify and problem.scenes:
             verify_worker.start()  # now: its imports overlap with the optimisation, not the verify stage
         return _run_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
@@ -386,7 +389,7 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
             rec.record_stage(final_key, _baseline_payload(baseline))
         # computed (the plots need the evaluators' result objects), stored for compare and later runs: the
         # slow evaluators in the side process with their pictures, then the export there; the others here
-        (out / "plots").mkdir(exist_ok=True)
+        make_dirs(out / "plots", out)
         there = slow if beside else ()
         here = tuple(e.name for e in EVALUATORS[problem.device] if e.name not in there)
         pending_final = side.submit(side_process.evaluate, optimum_design, fid, there, out / "plots",
@@ -509,7 +512,7 @@ def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = 
     check_scheduler(scheduler)
     out = writable_dir(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    with run_lock(out), children_die_with_this_process():
+    with output_root(out), run_lock(out), children_die_with_this_process():
         remove_stale_temp_files(out)
         with (EvaluationCache(cache) if cache is not None else contextlib.nullcontext()) as ecache:
             return _run_front_locked(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,

@@ -16,12 +16,22 @@ problem text, variables with units and bounds, objectives and constraints with s
 bounds, software versions, status), ``designs`` (baseline and final-fidelity rows) and
 ``session_counts`` (per session: budget, evaluated, replayed, repeated). Read it with
 :class:`hapticopt.optim.runs.RunReader`, which never writes.
+
+A record is checked before it is trusted (issue 37): ``meta`` names the application and the schema
+version (:data:`APPLICATION`, :data:`SCHEMA`) beside the run's fingerprint (the problem/design
+hash); every evaluation and stage row carries the SHA-256 of its content (:func:`row_checksum`).
+``--resume`` first opens the file read-only (:func:`inspect_record`): a foreign database (no
+hapticopt ``meta``, views or triggers, a newer schema) or a row whose checksum does not match is
+refused in one line and left unmodified. Rows of records older than the checksums carry none.
+Every path the record opens (the file, ``-wal``, ``-shm``, ``-journal``, the lock) is checked for
+links first (:mod:`hapticopt.design.paths`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import json
 import os
 import sqlite3
@@ -32,10 +42,16 @@ from pathlib import Path
 from typing import Any
 
 from hapticopt.analysis.status import upgrade
-from hapticopt.design.errors import InvalidInput
+from hapticopt.design import paths
+from hapticopt.design.errors import InputFileError, InvalidInput
 from hapticopt.optim.evaluation import Outcome, PointResult
+from hapticopt.optim.sqlite_checks import check_db_paths, connect_readonly, row_checksum
 
 FILENAME = "evaluations.sqlite"
+#: ``meta.application`` of a hapticopt run record
+APPLICATION = "hapticopt run record"
+#: ``meta.schema``: 2 = rows carry checksums (records without ``schema`` are version 1)
+SCHEMA = 2
 
 
 #: FULL: a commit is on disk (WAL fsynced) before :meth:`Recorder.record` returns, so an evaluation
@@ -48,7 +64,8 @@ class RecorderError(OSError):
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
-CREATE TABLE IF NOT EXISTS stages (name TEXT PRIMARY KEY, payload TEXT NOT NULL, created REAL NOT NULL);
+CREATE TABLE IF NOT EXISTS stages (name TEXT PRIMARY KEY, payload TEXT NOT NULL, created REAL NOT NULL,
+                                   checksum TEXT);
 CREATE TABLE IF NOT EXISTS sessions (id INTEGER PRIMARY KEY, started REAL NOT NULL, resumed INTEGER NOT NULL);
 CREATE TABLE IF NOT EXISTS evaluations (
     id INTEGER PRIMARY KEY,
@@ -66,7 +83,8 @@ CREATE TABLE IF NOT EXISTS evaluations (
     metrics TEXT NOT NULL,
     statuses TEXT NOT NULL,
     timings TEXT NOT NULL,
-    created REAL NOT NULL
+    created REAL NOT NULL,
+    checksum TEXT
 );
 CREATE TABLE IF NOT EXISTS run_info (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS designs (
@@ -97,6 +115,61 @@ def point_key(x: Sequence[float], fidelity: str, gradient: bool) -> str:
     return ",".join(float(v).hex() for v in x) + f"|{fidelity}|{'g' if gradient else '-'}"
 
 
+#: the evaluation fields a checksum covers, in order
+CHECKED_FIELDS = ("key", "x", "outcome", "message", "vals", "gradients", "gradient_source", "metrics", "statuses",
+                  "timings")
+
+
+def inspect_record(path: str | Path, what: str = "--resume", *, resume: bool = True) -> None:
+    """Refuse (one line, :class:`InputFileError`; the file is only read) a database that is not a
+    hapticopt run record or whose rows do not match their checksums. ``resume=False`` (a reader, which
+    may read a record being created) does not require the fingerprint yet."""
+    def refuse(why: str) -> InputFileError:
+        return InputFileError(f"{what}: {path} {why}: refused, not modified" + (" (choose another --out)" if resume else ""))
+
+    try:
+        db = connect_readonly(path)
+    except sqlite3.Error as exc:
+        raise refuse(f"cannot be read as a run record ({exc})") from None
+    try:
+        objects = db.execute("SELECT type, name FROM sqlite_master").fetchall()
+        foreign = sorted(f"{t} {n}" for t, n in objects if t in ("view", "trigger"))
+        if foreign:
+            raise refuse(f"holds {', '.join(foreign[:3])}: not a hapticopt run record")
+        tables = {n for t, n in objects if t == "table"}
+        if not ({"meta", "evaluations"} if resume else {"evaluations"}) <= tables:
+            raise refuse("is not a hapticopt run record (no meta and evaluations tables)")
+        meta = dict(db.execute("SELECT key, value FROM meta").fetchall()) if "meta" in tables else {}
+        if ("fingerprint" not in meta and resume) or meta.get("application", APPLICATION) != APPLICATION:
+            raise refuse("is not a hapticopt run record (its meta table names no hapticopt run)")
+        try:
+            schema = int(meta.get("schema", "1"))
+        except ValueError:
+            schema = -1
+        if not 1 <= schema <= SCHEMA:
+            raise refuse(f"has record schema {short_text(meta.get('schema'))}: this version reads 1 to {SCHEMA}")
+        cols = {r[1] for r in db.execute("PRAGMA table_info(evaluations)")}
+        if "checksum" in cols:
+            for row in db.execute(f"SELECT id, {', '.join(CHECKED_FIELDS)}, checksum FROM evaluations "
+                                  "WHERE checksum IS NOT NULL"):
+                if row_checksum(*row[1:-1]) != row[-1]:
+                    raise refuse(f"has evaluation {row[0]} whose content does not match its checksum (edited)")
+        if "stages" in tables and "checksum" in {r[1] for r in db.execute("PRAGMA table_info(stages)")}:
+            for name, payload, checksum in db.execute("SELECT name, payload, checksum FROM stages "
+                                                      "WHERE checksum IS NOT NULL"):
+                if row_checksum(name, payload) != checksum:
+                    raise refuse(f"has stage {short_text(name)} whose content does not match its checksum (edited)")
+    except sqlite3.Error as exc:
+        raise refuse(f"cannot be read as a run record ({exc})") from None
+    finally:
+        db.close()
+
+
+def short_text(value: object) -> str:
+    text = str(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def check_run_dir(run_dir: str | Path, *, resume: bool, force: bool) -> None:
     """Refuse to start a new run over a recorded one unless ``force`` (one line, nothing touched)."""
     path = Path(run_dir) / FILENAME
@@ -115,7 +188,10 @@ class Recorder:
                  search_fingerprint: str | None = None) -> None:
         self.path = Path(run_dir) / FILENAME
         check_run_dir(run_dir, resume=resume, force=force)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        paths.make_dirs(self.path.parent)
+        check_db_paths(self.path)
+        if resume and self.path.is_file():
+            inspect_record(self.path)
         if not resume:
             for suffix in ("", "-wal", "-shm"):
                 Path(str(self.path) + suffix).unlink(missing_ok=True)
@@ -132,6 +208,11 @@ class Recorder:
         self._db.execute("PRAGMA journal_mode=WAL")
         self._db.execute(f"PRAGMA synchronous={SYNCHRONOUS}")
         self._db.executescript(_SCHEMA)
+        for table in ("evaluations", "stages"):  # a record older than the checksums gains the column
+            if "checksum" not in {r[1] for r in self._db.execute(f"PRAGMA table_info({table})")}:
+                self._db.execute(f"ALTER TABLE {table} ADD COLUMN checksum TEXT")
+        self._db.execute("INSERT OR IGNORE INTO meta(key, value) VALUES ('application', ?)", (APPLICATION,))
+        self._db.execute("INSERT OR REPLACE INTO meta(key, value) VALUES ('schema', ?)", (str(SCHEMA),))
         row = self._db.execute("SELECT value FROM meta WHERE key='fingerprint'").fetchone()
         srow = self._db.execute("SELECT value FROM meta WHERE key='search_fingerprint'").fetchone()
         if row is None:
@@ -170,9 +251,10 @@ class Recorder:
     def record_stage(self, name: str, payload: dict[str, Any]) -> None:
         """Record a stage's result (JSON values), on disk once this returns."""
         with self._lock:
+            text = json.dumps(payload)
             try:
-                self._db.execute("INSERT OR REPLACE INTO stages(name, payload, created) VALUES (?, ?, ?)",
-                                 (name, json.dumps(payload), time.time()))
+                self._db.execute("INSERT OR REPLACE INTO stages(name, payload, created, checksum) VALUES (?, ?, ?, ?)",
+                                 (name, text, time.time(), row_checksum(name, text)))
             except sqlite3.Error as exc:
                 raise RecorderError(f"cannot record stage {name} in {self.path}: {exc}") from exc
 
@@ -192,13 +274,14 @@ class Recorder:
                None if result.gradients is None else json.dumps([list(r) for r in result.gradients]),
                result.gradient_source, json.dumps(result.metrics), json.dumps(result.statuses),
                json.dumps(result.timings_s), time.time())
+        row = (*row, row_checksum(*row[:1], *row[5:14]))
         with self._lock:
             try:
                 self._db.execute("BEGIN IMMEDIATE")
                 cur = self._db.execute(
                     "INSERT OR IGNORE INTO evaluations(key, session, start, stage, fidelity, x, outcome, message, vals,"
-                    " gradients, gradient_source, metrics, statuses, timings, created)"
-                    " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)", row)
+                    " gradients, gradient_source, metrics, statuses, timings, created, checksum)"
+                    " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)", row)
                 if cur.rowcount == 0:
                     self.n_repeated += 1
                 self._db.execute("COMMIT")
@@ -224,12 +307,18 @@ class Recorder:
     # ------------------------------------------------------------ the self-describing record
     def _write(self, sql: str, params: Sequence[Any] | Sequence[Sequence[Any]], *, many: bool = False) -> None:
         with self._lock:
-            self._db.execute("BEGIN IMMEDIATE")
             try:
+                self._db.execute("BEGIN IMMEDIATE")
                 (self._db.executemany if many else self._db.execute)(sql, params)
                 self._db.execute("COMMIT")
-            except BaseException:
-                self._db.execute("ROLLBACK")
+            except BaseException as exc:
+                if self._db.in_transaction:  # SQLite may have rolled back already (SQLITE_FULL)
+                    try:
+                        self._db.execute("ROLLBACK")
+                    except sqlite3.Error:
+                        pass
+                if isinstance(exc, sqlite3.Error):
+                    raise RecorderError(f"cannot write the run record {self.path}: {exc}") from exc
                 raise
 
     def describe(self, info: dict[str, Any]) -> None:
@@ -274,12 +363,15 @@ LOCKFILE = ".hapticopt.lock"
 def run_lock(run_dir: str | Path) -> Iterator[Path]:
     """Hold the run directory for this process (``flock`` on ``DIR/.hapticopt.lock``).
 
-    A second run or ``--resume`` of the same directory while one is alive gets one line
+    Every command that writes a run directory takes it (optimise, sweep, ``compare --report``,
+    export). The lock file is opened with ``O_NOFOLLOW``: a link planted there is refused, its target
+    untouched. A second run or ``--resume`` of the same directory while one is alive gets one line
     (:class:`InvalidInput`, exit 2) instead of repeating evaluations. The kernel drops the lock
     when the holder dies, however it dies, so a killed run never blocks its resume.
     """
     path = Path(run_dir) / LOCKFILE
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    paths.make_dirs(run_dir)
+    fd = paths.open_nofollow(path, os.O_RDWR | os.O_CREAT, 0o644)
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)

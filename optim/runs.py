@@ -10,6 +10,12 @@ The reader opens the database with ``mode=ro``: it never writes, never checkpoin
 deletes, so it may read a run while another process is writing it (SQLite WAL readers see the
 last committed evaluation). A record made before the self-describing tables existed is read
 too: its variables and objectives are then unknown (``None``) and no best point is picked.
+
+A record is checked before it is read (:func:`hapticopt.optim.recorder.inspect_record`: no views or
+triggers, rows matching their checksums), every query runs under a time limit
+(:data:`~hapticopt.optim.sqlite_checks.READ_LIMIT_S`), and any fault reading it — SQLite, a JSON
+field that does not parse, a value of the wrong type — is one :class:`InvalidInput` line naming the
+file, never an internal error.
 """
 
 from __future__ import annotations
@@ -28,7 +34,8 @@ from hapticopt.design import io
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.units import pretty
 from hapticopt.optim.problem import Constraint, MetricRef, Op, Problem
-from hapticopt.optim.recorder import FILENAME
+from hapticopt.optim.recorder import FILENAME, inspect_record
+from hapticopt.optim.sqlite_checks import connect_readonly, restart_clock
 from hapticopt.optim.versions import package_versions
 
 #: packages whose versions a record states
@@ -116,19 +123,24 @@ class RunReader:
             raise InvalidInput(f"RUN = {str(run)!r} is not a run: no {FILENAME} there")
         self.path = path
         self.run_dir = path.parent
+        self._run = str(run)
         try:
-            self._db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True, timeout=30.0,
-                                       check_same_thread=False)
+            self._db = connect_readonly(path)
             self._tables = {r[0] for r in self._db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
         except sqlite3.DatabaseError as exc:
             raise InvalidInput(f"RUN = {str(run)!r}: {path} is not a readable run record ({exc})") from None
         if "evaluations" not in self._tables:
             self._db.close()
             raise InvalidInput(f"RUN = {str(run)!r}: {path} has no evaluations table: not a hapticopt run record")
-        self.info: dict[str, Any] = {}
-        if "run_info" in self._tables:
-            self.info = {k: json.loads(v) for k, v in self._db.execute("SELECT key, value FROM run_info")}
-        self.meta = dict(self._db.execute("SELECT key, value FROM meta").fetchall()) if "meta" in self._tables else {}
+        try:
+            inspect_record(path, what=f"RUN = {str(run)!r}", resume=False)
+            self.info = {}
+            if "run_info" in self._tables:
+                self.info = {k: _json(v, f"run_info {k}") for k, v in self._rows("SELECT key, value FROM run_info")}
+            self.meta = dict(self._rows("SELECT key, value FROM meta")) if "meta" in self._tables else {}
+        except BaseException:
+            self._db.close()
+            raise
 
     # ----------------------------------------------------------------------- description
     @property
@@ -157,12 +169,19 @@ class RunReader:
 
     # ----------------------------------------------------------------------- rows
     def _rows(self, sql: str, params: Sequence[Any] = ()) -> list[tuple[Any, ...]]:
-        return self._db.execute(sql, params).fetchall()
+        restart_clock(self._db)
+        try:
+            return self._db.execute(sql, params).fetchall()
+        except sqlite3.Error as exc:
+            why = "a query ran past its time limit" if "interrupted" in str(exc) else str(exc)
+            raise InvalidInput(f"RUN = {self._run!r}: {self.path} is not a readable run record ({why})") from None
 
     def cases(self) -> list[Case]:
         """Every recorded evaluation, in the order they were recorded."""
-        return [Case(id=i, session=s, start=st, stage=stg, fidelity=fid, x=tuple(json.loads(x)), outcome=o,
-                     message=msg, metrics=json.loads(m), statuses=upgrade(json.loads(sts)), timings_s=json.loads(t))
+        return [Case(id=i, session=s, start=st, stage=stg, fidelity=fid, x=_floats(x, f"evaluation {i} x"), outcome=o,
+                     message=msg, metrics=_json(m, f"evaluation {i} metrics", dict),
+                     statuses=upgrade(_json(sts, f"evaluation {i} statuses", dict)),
+                     timings_s=_json(t, f"evaluation {i} timings", dict))
                 for i, s, st, stg, fid, x, o, msg, m, sts, t in self._rows(
                     "SELECT id, session, start, stage, fidelity, x, outcome, message, metrics, statuses, timings "
                     "FROM evaluations ORDER BY id")]
@@ -173,8 +192,9 @@ class RunReader:
     def designs(self) -> list[RecordedDesign]:
         if "designs" not in self._tables:
             return []
-        return [RecordedDesign(session=s, role=r, fidelity=f, x=tuple(json.loads(x)), design_toml=d,
-                               metrics=json.loads(m), statuses=upgrade(json.loads(st)))
+        return [RecordedDesign(session=s, role=r, fidelity=f, x=_floats(x, f"design {r} x"), design_toml=d,
+                               metrics=_json(m, f"design {r} metrics", dict),
+                               statuses=upgrade(_json(st, f"design {r} statuses", dict)))
                 for s, r, f, x, d, m, st in self._rows(
                     "SELECT session, role, fidelity, x, design, metrics, statuses FROM designs ORDER BY id")]
 
@@ -187,9 +207,8 @@ class RunReader:
         """Each session: when it started, whether it resumed, and its counts where recorded."""
         counts: dict[int, dict[str, Any]] = {}
         if "session_counts" in self._tables:
-            cur = self._db.execute("SELECT * FROM session_counts")
-            cols = [c[0] for c in cur.description]
-            counts = {r[0]: dict(zip(cols, r)) for r in cur.fetchall()}
+            cols = ["session", "max_evals", "evaluated", "replayed", "repeated", "status", "finished"]
+            counts = {r[0]: dict(zip(cols, r)) for r in self._rows(f"SELECT {', '.join(cols)} FROM session_counts")}
         n_rows = dict(self._rows("SELECT session, COUNT(*) FROM evaluations GROUP BY session"))
         return [{"session": s, "started": t, "resumed": bool(r), "recorded": int(n_rows.get(s, 0)),
                  **{k: v for k, v in counts.get(s, {}).items() if k != "session"}}
@@ -201,9 +220,13 @@ class RunReader:
 
     # ----------------------------------------------------------------------- values
     def _refs(self) -> tuple[list[tuple[MetricRef, str]], list[Constraint]]:
-        objs = [(MetricRef.parse(o["metric"], "objective"), str(o["sense"])) for o in (self.objectives or [])]
-        cons = [Constraint(metric=MetricRef.parse(c["metric"], "constraint"), op=Op(c["op"]), value=float(c["value"]))
-                for c in self.constraints]
+        try:
+            objs = [(MetricRef.parse(o["metric"], "objective"), str(o["sense"])) for o in (self.objectives or [])]
+            cons = [Constraint(metric=MetricRef.parse(c["metric"], "constraint"), op=Op(c["op"]),
+                               value=float(c["value"])) for c in self.constraints]
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise InvalidInput(f"RUN = {self._run!r}: {self.path}: its objectives or constraints are not readable "
+                               f"({type(exc).__name__}: {str(exc)[:60]})") from None
         return objs, cons
 
     def objective_values(self, case: Case | RecordedDesign) -> tuple[float, ...]:
@@ -274,6 +297,23 @@ class RunReader:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _json(text: Any, what: str, kind: type | None = None) -> Any:
+    try:
+        value = json.loads(text)
+    except (TypeError, ValueError, RecursionError):
+        raise InvalidInput(f"the run record's {what} is not valid JSON: {str(text)[:40]!r}") from None
+    if kind is not None and not isinstance(value, kind):
+        raise InvalidInput(f"the run record's {what} is a {type(value).__name__}, not a {kind.__name__}")
+    return value
+
+
+def _floats(text: Any, what: str) -> tuple[float, ...]:
+    value = _json(text, what, list)
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        raise InvalidInput(f"the run record's {what} holds a value that is not a number")
+    return tuple(float(v) for v in value)
 
 
 def find_runs(root: str | Path, *, depth: int = 3) -> Iterator[Path]:

@@ -35,6 +35,7 @@ from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.registry import EVALUATORS
 from hapticopt.design import io
+from hapticopt.design import paths
 from hapticopt.design.atomic import atomic_path, write_text
 from hapticopt.design.errors import InvalidDesign, InvalidInput
 from hapticopt.design.units import TO_SI, pretty
@@ -92,8 +93,9 @@ def parse_axis(text: str, base: Any) -> Axis:
         n = int(n_s)
     except ValueError:
         raise InvalidInput(f"sweep axis {key}: n = {short(n_s)} must be a whole number of points ≥ 2") from None
-    if n < 2:
-        raise InvalidInput(f"sweep axis {key}: n = {n} must be ≥ 2 (points, both ends included)")
+    if not 2 <= n <= MAX_POINTS:  # before any value of the axis is made
+        raise InvalidInput(f"sweep axis {key}: n = {n} is out of range: allowed 2 ≤ n ≤ {MAX_POINTS} "
+                           "(points, both ends included)")
     if not lo < hi:
         raise InvalidInput(f"sweep axis {key}: lo = {lo:g} must be below hi = {hi:g} ({pretty(spec.unit)})")
     for value, name in ((lo, "lo"), (hi, "hi")):
@@ -103,7 +105,7 @@ def parse_axis(text: str, base: Any) -> Axis:
             raise InvalidInput(str(exc)) from None
     axis = Axis(variable=Variable(key=key, section=section, field=fname, unit=spec.unit, lower=lo, upper=hi,
                                   start=lo), n=n)
-    if spec.integer and any(v != int(v) for v in axis.values):
+    if spec.integer and not (lo == int(lo) and ((hi - lo) / (n - 1)) == int((hi - lo) / (n - 1))):
         raise InvalidInput(f"sweep axis {key} takes whole numbers: {lo:g}:{hi:g}:{n} gives fractions "
                            f"(choose n so that (hi − lo)/(n − 1) is whole)")
     return axis
@@ -128,6 +130,8 @@ class Sweep:
             raise InvalidInput(f"the sweep has {self.n_points} points: allowed at most {MAX_POINTS}")
         if self.only is not None:
             names = [e.name for e in EVALUATORS[self.base.device]]
+            if not self.only:  # issue 37: `--only ""` reported every point ok while evaluating nothing
+                raise InvalidInput(f"--only names no evaluator: allowed one or more of {', '.join(names)}")
             for name in self.only:
                 if name not in names:
                     raise InvalidInput(f"--only {short(name)} is not an evaluator of a {self.base.device} design: "
@@ -332,9 +336,10 @@ def write_outputs(result: SweepResult, out_dir: Path, *, plots: bool = True) -> 
     """``sweep.csv`` and one plot per scalar metric column (PNG, units on both axes)."""
     out_dir = Path(out_dir)
     written = [out_dir / "sweep.csv"]
-    write_text(written[0], csv_text(result))
-    if plots:
-        written += write_plots(result, out_dir / "plots")
+    with paths.output_root(out_dir):  # no write follows a link planted below out_dir
+        write_text(written[0], csv_text(result))
+        if plots:
+            written += write_plots(result, out_dir / "plots")
     return written
 
 
@@ -353,7 +358,7 @@ def write_plots(result: SweepResult, plot_dir: Path) -> list[Path]:
     n_ax = len(axes)
     cols = header[n_ax + 1:]
     data = np.array([[float(v) for v in r[n_ax + 1:]] for r in rows], dtype=float).reshape(len(rows), len(cols))
-    plot_dir.mkdir(parents=True, exist_ok=True)
+    paths.make_dirs(plot_dir)
     written = []
     title = f"{result.sweep.base.name} ({result.sweep.fidelity} fidelity)"
     for j, col in enumerate(cols):

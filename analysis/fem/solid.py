@@ -20,6 +20,8 @@ Timoshenko's closed form) and Richardson extrapolation. Device solids build on t
 from __future__ import annotations
 
 import math
+import signal
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -47,11 +49,17 @@ class TetMesh:
 
 # ----------------------------------------------------------------------------- gmsh
 def gmsh_start(name: str):
+    """A fresh gmsh model ``name``. ``gmsh.initialize()`` resets SIGPIPE to its default action (Python
+    ignores it: a write to a broken pipe then raises instead of ending the process with exit 141 and no
+    message, docs pitfalls): the handler is restored at once."""
     import gmsh
 
     if gmsh.isInitialized():
         gmsh.finalize()
+    previous = signal.getsignal(signal.SIGPIPE) if hasattr(signal, "SIGPIPE") else None
     gmsh.initialize(["-noenv"], readConfigFiles=False)
+    if previous is not None and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGPIPE, previous)
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.option.setNumber("General.NumThreads", 1)
     gmsh.model.add(name)

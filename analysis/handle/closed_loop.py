@@ -32,6 +32,7 @@ import numpy as np
 
 from hapticopt.analysis.control import upsampling as up
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.loop.traces import SATURATION_WINDOW_S
 from hapticopt.analysis.handle.firmware import HandleFirmware, HandleFirmwareConfig, WallKind, WallLaw
 from hapticopt.analysis.handle.model import NO_OPERATOR, Handle, discrete_plant, from_design
 from hapticopt.analysis.loop.scene import BoxMode, Effect, EnvKind, Resolution, Scene, resolve
@@ -223,8 +224,15 @@ def simulate(design: HandleDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
         half = x.size // 2
         g = up.growth_rate(t[half:], x[half:] - st.equilibrium_m, skip_fraction=0.0)
         sigma = g.rate_per_s if g.status == "ok" else math.nan
+    run_s = x.size * st.firmware.period_s
+    inconclusive = stop < 0 and run_s < SATURATION_WINDOW_S * (1.0 - 1e-9)
     if stop >= 0:
         stable, msg = False, f"unstable: runaway at t = {t[-1]:.4g} s; the run stopped cleanly"
+    elif inconclusive:
+        # as the 3-PRRR's and the master's loops: a run shorter than the detector's window proves nothing
+        # (issue 37: short runs against a stiff wall were called ok)
+        stable, msg = False, (f"the run lasted {run_s:.3g} s, shorter than the {SATURATION_WINDOW_S:g} s the "
+                              "instability detector needs: no verdict")
     elif not math.isfinite(sigma):
         stable, msg = False, "no equilibrium to judge the response about (no hand spring, no wall)"
     elif late:
@@ -243,7 +251,7 @@ def simulate(design: HandleDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
     energy = 0.5 * st.handle.mass_kg * v[:, None] ** 2
     tr = Traces(period=st.firmware.period_s, energy=energy, saturated=np.zeros((n, 1), dtype=bool),
                 stop_tick=np.array([stop]), position=pos, hand_force=hand, velocity=vel)
-    status = Status.OK if stable else Status.UNSTABLE
+    status = Status.OK if stable else Status.INCONCLUSIVE if inconclusive else Status.UNSTABLE
     return HandleLoopResult(stable=stable, growth_rate_per_s=sigma, unstable_at=float(t[-1]) if stop >= 0 else None,
                             max_penetration=pen, contact_losses=losses, lost_contact_late=late, setup=st,
                             wall_time=time.perf_counter() - t_start, status=status, message=msg,

@@ -634,6 +634,13 @@ def simulate(design: MasterDesign, scene: Scene, *, fidelity: Fidelity = Fidelit
         status = Status.FAILED
     last = runs[0]
     N = last["position"].shape[0]
+    run_s = min(r["position"].shape[0] for r in runs) * T
+    if status == Status.OK and run_s < SATURATION_WINDOW_S * (1.0 - 1e-9):
+        # the saturation detector decides on SATURATION_WINDOW_S windows (as the 3-PRRR's closed loop):
+        # a shorter run proves nothing (issue 37: 5–50 ms against a 1e9 N/mm wall were called ok)
+        status, stable = Status.INCONCLUSIVE, False
+        problems.append(f"the run lasted {run_s:.3g} s, shorter than the {SATURATION_WINDOW_S:g} s the instability "
+                        "detector needs: no verdict")
     traces = Traces(period=T, energy=np.zeros((N, 1)), saturated=np.zeros((N, 1), dtype=bool),
                     stop_tick=last["stop"], position=last["position"][:, None], hand_force=last["hand_force"][:, None],
                     actuator_force=last["force_reference"][:, None], force_reference=last["force_reference"][:, None],

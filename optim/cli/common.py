@@ -11,13 +11,16 @@ COMMAND`` adds the traceback). Exit codes (:data:`EXIT_CODES_HELP`, every comman
   an evaluator status other than ``ok``, ``optimise`` whose final point (or Pareto choice) is
   infeasible at the final fidelity, ``verify`` with a verdict other than ``ok``; every output is
   still written;
-* 4 — an internal error (a bug: the line names the exception and where it was raised).
+* 4 — an internal error (a bug: the line names the exception and where it was raised);
+* 5 — ``optimise`` finished and wrote its record, optimum and report, but a stage after the
+  optimisation failed (export, a plot): :func:`stage_failed` prints one line naming the stage and why.
 """
 
 from __future__ import annotations
 
 import contextvars
 import functools
+import sqlite3
 import sys
 import traceback
 from collections.abc import Callable
@@ -30,7 +33,8 @@ from hapticopt.analysis.compute import MAX_THREADS, Backend, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design.errors import HapticoptError, InvalidInput, short
 from hapticopt.design import io
-from hapticopt.optim.cache import FILENAME as CACHE_FILENAME
+from hapticopt.optim.cache import FILENAME as CACHE_FILENAME, inspect
+from hapticopt.optim.sqlite_checks import check_db_paths
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -38,6 +42,7 @@ EXIT_OK = 0
 EXIT_BAD_INPUT = 2
 EXIT_NOT_MET = 3
 EXIT_INTERNAL = 4
+EXIT_STAGE_FAILED = 5
 
 #: the exit codes, as every command's ``--help`` epilog states them (``\b``: click keeps the lines)
 EXIT_CODES_HELP = (
@@ -47,10 +52,15 @@ EXIT_CODES_HELP = (
     "  3  done, but the result breaks a requirement or constraint\n"
     "     (evaluate: a status other than ok; optimise: an infeasible final\n"
     "     point, written as best_infeasible.toml, or Pareto choice, written as\n"
-    "     chosen_infeasible.toml; verify: a verdict other than ok); outputs\n"
-    "     are still written. Other commands never exit 3.\n"
-    "  4  internal error (a bug; hapticopt --debug shows the traceback)"
+    "     chosen_infeasible.toml, or a verification scene that did not pass;\n"
+    "     verify: a verdict other than ok); outputs are still written.\n"
+    "     Other commands never exit 3.\n"
+    "  4  internal error (a bug; hapticopt --debug shows the traceback)\n"
+    "  5  optimise: a stage after the optimisation failed (export, a plot);\n"
+    "     the record, the optimum and the report are written"
 )
+#: most processes of the local pool (``--workers``)
+MAX_WORKERS = 256
 #: longest error line printed [characters]; values inside are already shortened with reprlib
 MAX_LINE = 1000
 
@@ -71,6 +81,11 @@ def not_met(what: str) -> None:
     (stdout, e.g. ``--json``, stays as printed) and exit code 3."""
     typer.echo(f"not met: {_one_line(what)}", err=True)
     raise typer.Exit(code=EXIT_NOT_MET)
+
+
+def stage_failed(what: str) -> None:
+    """A stage after the optimisation failed: one ``error:`` line on stderr and exit code 5."""
+    fail(what, EXIT_STAGE_FAILED)
 
 
 def statuses_not_ok(statuses: dict[str, str]) -> str:
@@ -155,10 +170,22 @@ def cache_file(cache: Path | None, no_cache: bool, default_dir: Path | None) -> 
     if no_cache:
         return None
     if cache is None:
-        return None if default_dir is None else Path(default_dir) / CACHE_FILENAME
+        return None if default_dir is None else check_cache(Path(default_dir) / CACHE_FILENAME)
     if cache.is_dir():
         raise InvalidInput(f"--cache = {str(cache)!r} is a directory: give a file, e.g. {Path(cache) / CACHE_FILENAME}")
-    return cache
+    return check_cache(cache)
+
+
+def check_cache(path: Path) -> Path:
+    """Refuse a cache file that is a link, a foreign database or holds an edited entry (one line, exit 2;
+    the file only read), before any work; a file of another format or not a database stays a warning."""
+    check_db_paths(path)
+    if path.is_file() and path.stat().st_size > 0:
+        try:
+            inspect(path)
+        except sqlite3.DatabaseError:
+            pass  # not a database: EvaluationCache ignores it with a warning
+    return path
 
 
 def parse_fidelity(text: str) -> Fidelity:

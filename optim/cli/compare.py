@@ -12,7 +12,9 @@ from rich.console import Console
 from rich.table import Table
 
 from hapticopt.design.errors import InvalidInput
+from hapticopt.design.paths import output_root, writable_dir
 from hapticopt.optim.cache import EvaluationCache
+from hapticopt.optim.recorder import run_lock
 from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, one_line_errors, parse_fidelity
 
 
@@ -45,7 +47,11 @@ def compare(
     cache_path = cache_file(cache, no_cache, run_dirs[0] if run_dirs else None)
     with EvaluationCache(cache_path) if cache_path is not None else contextlib.nullcontext() as ecache:
         result = cmp.compare(named, fidelity=level, cache=ecache)
-    written = cmp.write_report(result, report, renders=renders) if report is not None else []
+    written: list[Path] = []
+    if report is not None:  # one writer of the report's folder at a time; no write follows a link there
+        folder = writable_dir(report.parent if str(report.parent) else Path("."), "--report")
+        with output_root(folder), run_lock(folder):
+            written = cmp.write_report(result, report, renders=renders)
     if as_json:
         typer.echo(json.dumps(cmp.as_json(result), indent=2))
         return

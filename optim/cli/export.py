@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from pathlib import Path
@@ -15,8 +16,14 @@ from hapticopt.optim.cli.progress import StageLine, make_progress
 import math
 import numpy as np
 from hapticopt.design.errors import InvalidInput
+from hapticopt.design import paths
 from hapticopt.design.paths import writable_dir
+from hapticopt.optim.recorder import run_lock
 from hapticopt.analysis.status import Status
+
+
+#: most workspace poses ``--poses`` checks (each a manifold3d boolean of every part pair)
+MAX_POSES = 1000
 
 
 def parse_pose_mm(text: str):
@@ -44,7 +51,7 @@ def export(
     render_png: Annotated[bool, typer.Option("--render", help="Also write <name>.png (pyvista, off-screen).")] = False,
     poses: Annotated[int, typer.Option("--poses", help="Check interference (manifold3d) at N workspace poses "
                                        "instead of only the exported pose (3-PRRR: the reach-and-stroke "
-                                       "workspace samples).", min=0)] = 0,
+                                       "workspace samples; 0 to 1000).")] = 0,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, device, out_dir, files, total_mass_kg, "
                                                          "interference, timings_s}.")] = False,
 ) -> None:
@@ -53,12 +60,16 @@ def export(
     from hapticopt.analysis import interference  # heavy (CAD, jax): imported when the command runs
     from hapticopt.design.export import export as run_export
 
+    if not 0 <= poses <= MAX_POSES:
+        raise InvalidInput(f"--poses = {poses} is out of range: allowed 0 ≤ --poses ≤ {MAX_POSES} (poses)")
     design = load_design_arg(file, preset, set_)
     p = parse_pose_mm(pose) if pose is not None else None
 
-    out_dir = writable_dir(out if out is not None else Path("cad_out") / design.name)
+    target = out if out is not None else Path("cad_out") / design.name
+    existed = target.is_dir()  # an existing folder may hold another export: one writer at a time
+    out_dir = writable_dir(target)
     err = render.console(stderr=True)
-    with make_progress(err, transient=True, disable=as_json or not err.is_terminal) as bar:
+    with paths.output_root(out_dir), run_lock(out_dir) if existed else contextlib.nullcontext(), make_progress(err, transient=True, disable=as_json or not err.is_terminal) as bar:
         line = StageLine(bar, "export")
         result = run_export(design, out_dir, p=p, render=render_png, on_step=line.step)
         where = "the home pose" if p is None else f"the pose ({pose}) mm"

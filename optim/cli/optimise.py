@@ -9,7 +9,8 @@ from typing import Annotated, Optional
 import typer
 
 from hapticopt.optim.cli.common import (
-    CACHE_HELP, NO_CACHE_HELP, ComputeOption, ThreadsOption, cache_file, not_met, one_line_errors, parse_compute,
+    CACHE_HELP, MAX_WORKERS, NO_CACHE_HELP, ComputeOption, ThreadsOption, cache_file, not_met, one_line_errors,
+    parse_compute, stage_failed,
 )
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.problem import INT_RANGES, load_problem
@@ -18,9 +19,6 @@ from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.optim.problem import problem_names
 from hapticopt.optim.recorder import check_run_dir
 
-
-#: most processes of the local pool
-MAX_WORKERS = 256
 
 
 @one_line_errors
@@ -42,7 +40,7 @@ def optimise(
     compute: ComputeOption = "auto",
     threads: ThreadsOption = None,
 ) -> None:
-    """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front). Exit 3 when the final point breaks a constraint (written as best_infeasible.toml)."""
+    """Optimise a design problem, re-evaluate the optimum at fine fidelity, export, verify, report (two objectives: a Pareto front). Exit 3 when the final point breaks a constraint (written as best_infeasible.toml) or a verification scene does not pass; exit 5 when the export or a plot failed."""
 
     route = parse_compute(compute, threads)
     prob = load_problem(problem)
@@ -145,11 +143,17 @@ def optimise(
             if s.status in ("skipped", "failed"):
                 typer.echo(f"  {s.name}: {s.status} — {s.message}")
         typer.echo(f"report: {out_dir / 'report.html'}")
+    failed = [s for s in result.stages if s.status == "failed"]
+    if failed:  # exit 5: an output the run promised is missing
+        stage_failed("; ".join(f"{s.name} failed: {s.message}" for s in failed) + f" (the rest of the run is in {out_dir})")
+    broken_lines = [f"verify {v.scene}: FAIL {v.message}" for v in result.verdicts if not v.passed]
     if not result.feasible_final:
         broken = [t for t, _, ok in result.constraints_final if not ok]
         bad = [f"{k} ({s})" for k, s in result.optimum.statuses.items() if not status_holds(s)]
-        not_met(f"the final point is infeasible at {prob.fidelity_final} fidelity: "
-                + ", ".join(broken + bad) + f" (written as {out_dir / 'best_infeasible.toml'}, not optimum.toml)")
+        broken_lines.insert(0, f"the final point is infeasible at {prob.fidelity_final} fidelity: "
+                            + ", ".join(broken + bad) + f" (written as {out_dir / 'best_infeasible.toml'}, not optimum.toml)")
+    if broken_lines:
+        not_met("; ".join(broken_lines))
 
 
 @one_line_errors

@@ -9,6 +9,7 @@ import csv
 import io as _io
 import json
 import math
+import sqlite3
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -16,7 +17,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from hapticopt.design.errors import InvalidInput
+from hapticopt.design.errors import HapticoptError, InvalidInput
 from hapticopt.optim.cli.common import one_line_errors
 from hapticopt.optim.runs import RunReader, as_dict, find_runs
 
@@ -41,8 +42,11 @@ def runs(
         raise InvalidInput(f"DIR = {str(directory)!r} is not a folder")
     summaries = []
     for run_dir in find_runs(directory):
-        with RunReader(run_dir) as reader:
-            summaries.append(reader.summary())
+        try:
+            with RunReader(run_dir) as reader:
+                summaries.append(reader.summary())
+        except (HapticoptError, sqlite3.Error, OSError, ValueError, KeyError, TypeError) as exc:
+            typer.echo(f"warning: skipped {run_dir}: {' '.join(str(exc).split())[:300]}", err=True)
     if as_json:
         typer.echo(json.dumps([as_dict(s) for s in summaries], indent=2))
         return

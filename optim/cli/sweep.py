@@ -14,12 +14,13 @@ from hapticopt.design.atomic import write_text
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import (
-    CACHE_HELP, NO_CACHE_HELP, ComputeOption, ThreadsOption, cache_file, load_design_arg, one_line_errors,
-    parse_compute, parse_fidelity,
+    CACHE_HELP, MAX_WORKERS, NO_CACHE_HELP, ComputeOption, ThreadsOption, cache_file, load_design_arg,
+    one_line_errors, parse_compute, parse_fidelity,
 )
 from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.optim.executor import make_executor
-from hapticopt.optim.recorder import Recorder, check_run_dir
+from hapticopt.optim.recorder import Recorder, check_run_dir, run_lock
+from hapticopt.design import paths
 from hapticopt.design.paths import check_name, inside
 
 SWEEPS = {"master": ("counterweight",)}
@@ -90,8 +91,8 @@ def sweep(
         file = Path(axes_text.pop(0))
     if not axes_text:
         raise InvalidInput("give one or two axes KEY=lo:hi:n after the design, e.g. geometry.beta_deg=30:70:41")
-    if workers is not None and workers < 1:
-        raise InvalidInput(f"--workers = {workers} must be ≥ 1")
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+        raise InvalidInput(f"--workers = {workers} is out of range: allowed 1 ≤ --workers ≤ {MAX_WORKERS}")
     design = load_design_arg(file, preset, set_)
     axes = tuple(sw.parse_axis(t, design) for t in axes_text)
     only_t = tuple(s.strip() for s in only.split(",") if s.strip()) if only is not None else None
@@ -104,6 +105,32 @@ def sweep(
     check_run_dir(out_dir, resume=resume, force=force)  # nothing written before this
     cache_path = cache_file(cache, no_cache, out_dir)
     console = render.console(stderr=True, quiet=quiet)
+    with paths.output_root(out_dir), run_lock(out_dir):  # one sweep per run directory at a time
+        written, result = _run_locked(spec, out_dir, resume=resume, force=force, quiet=quiet, scheduler=scheduler,
+                                      workers=workers, batch=batch, cache_path=cache_path, plots=plots,
+                                      console=console, level=level, route=route)
+    n_fail = spec.n_points - result.n_ok
+    if as_json:
+        typer.echo(json.dumps({"design": design.name, "axes": [{"key": a.key, "n": a.n} for a in axes],
+                               "fidelity": str(level), "points": spec.n_points, "ok": result.n_ok,
+                               "evaluated": result.n_evaluated, "replayed": result.n_replayed,
+                               "out_dir": str(out_dir), "files": [str(p) for p in written]}, indent=2))
+        return
+    typer.echo(f"sweep of {design.name} over {' × '.join(f'{a.key} ({a.n})' for a in axes)} at {level} fidelity: "
+               f"{spec.n_points} points, {result.n_ok} ok, {n_fail} not ok; {result.n_evaluated} evaluated, "
+               f"{result.n_replayed} replayed" + (f" ({result.n_cached} from the evaluation cache {cache_path})"
+                                                   if result.n_cached else ""))
+    n_plots = len(written) - 1
+    typer.echo(f"table: {written[0]}" + (f"; {n_plots} plots in {out_dir / 'plots'}" if n_plots else ""))
+
+
+def _run_locked(spec: Any, out_dir: Path, *, resume: bool, force: bool, quiet: bool, scheduler: str,
+                workers: int | None, batch: bool, cache_path: Path | None, plots: bool, console: Any,
+                level: Any, route: Any) -> tuple[list[Path], Any]:
+    """The sweep, recorded, and its outputs; the caller holds the run lock of ``out_dir``."""
+    from hapticopt.optim import sweep as sw
+
+    axes = spec.axes
     with Recorder(out_dir, fingerprint=spec.fingerprint(), resume=resume, force=force,
                   search_fingerprint=spec.fingerprint()) as rec:
         rec.describe({**spec.info(), "status": "running"})
@@ -120,17 +147,4 @@ def sweep(
                 raise
         rec.end_session(status="finished", n_evaluated=result.n_evaluated, n_replayed=result.n_replayed,
                         max_evals=spec.n_points)
-    written = sw.write_outputs(result, out_dir, plots=plots)
-    n_fail = spec.n_points - result.n_ok
-    if as_json:
-        typer.echo(json.dumps({"design": design.name, "axes": [{"key": a.key, "n": a.n} for a in axes],
-                               "fidelity": str(level), "points": spec.n_points, "ok": result.n_ok,
-                               "evaluated": result.n_evaluated, "replayed": result.n_replayed,
-                               "out_dir": str(out_dir), "files": [str(p) for p in written]}, indent=2))
-        return
-    typer.echo(f"sweep of {design.name} over {' × '.join(f'{a.key} ({a.n})' for a in axes)} at {level} fidelity: "
-               f"{spec.n_points} points, {result.n_ok} ok, {n_fail} not ok; {result.n_evaluated} evaluated, "
-               f"{result.n_replayed} replayed" + (f" ({result.n_cached} from the evaluation cache {cache_path})"
-                                                   if result.n_cached else ""))
-    n_plots = len(written) - 1
-    typer.echo(f"table: {written[0]}" + (f"; {n_plots} plots in {out_dir / 'plots'}" if n_plots else ""))
+    return sw.write_outputs(result, out_dir, plots=plots), result

@@ -144,12 +144,24 @@ def _exit_on_verdict(result: Any, scene: str) -> None:
         not_met(f"verify {scene}: {result.status}" + (f" — {result.message}" if result.message else ""))
 
 
+#: most controller ticks one verification simulates (bounds its memory and time; the bundled scenes use ≤ 30,000)
+MAX_TICKS = 1_000_000
+#: the controller period's range [s], as the design map's (analysis.prrr.design_map.PERIOD_RANGE)
+PERIOD_RANGE = (1e-6, 0.1)
+
+
 def _override_controller(sc: Any, period_ms: float | None, force_gain: float | None) -> Any:
     """The scene with --period-ms / --force-gain applied (same ranges as the scene TOML keys)."""
     c = sc.controller
     if period_ms is not None:
-        if not (math.isfinite(period_ms) and 0.0 < period_ms <= 100.0):
-            raise InvalidInput(f"--period-ms = {period_ms:g} is out of range: allowed 0 < period_ms ≤ 100 ms")
+        lo, hi = (v * 1e3 for v in PERIOD_RANGE)
+        if not (math.isfinite(period_ms) and lo <= period_ms <= hi):
+            raise InvalidInput(f"--period-ms = {period_ms:g} is out of range: allowed {lo:g} ≤ period_ms ≤ {hi:g} ms")
+        ticks = sc.duration / (period_ms * 1e-3)
+        if ticks > MAX_TICKS:
+            raise InvalidInput(f"--period-ms = {period_ms:g} gives {ticks:.3g} controller ticks over the scene's "
+                               f"{sc.duration:g} s: allowed at most {MAX_TICKS:g} (period_ms ≥ "
+                               f"{sc.duration / MAX_TICKS * 1e3:g} ms for this scene)")
         c = dataclasses.replace(c, period=period_ms * 1e-3)
     if force_gain is not None:
         if not (math.isfinite(force_gain) and 0.0 <= force_gain <= 1e9):

@@ -48,3 +48,39 @@ def test_stale_staging_folders_are_removed(tmp_path):
     atomic.write_text(stage / "x.txt", "partial")
     assert atomic.remove_stale_temp_files(tmp_path) == [stage]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_set_killed_while_moving_in_is_completed_by_the_next_cleanup(tmp_path):
+    """Issue 37: moving the report set into place was not atomic against a kill. A staging folder with the
+    completion marker is moved in (rolled forward); one without it (killed while writing) is removed."""
+    from hapticopt.design.atomic import COMPLETE, remove_stale_temp_files
+
+    (tmp_path / "report.md").write_text("old")
+    (tmp_path / "result.json").write_text("old")
+    done = tmp_path / ".set.abc123.tmp"
+    done.mkdir()
+    (done / "result.json").write_text("new")  # report.md was already moved in when the kill came
+    (done / COMPLETE).write_text("")
+    (tmp_path / "report.md").write_text("new")
+    partial = tmp_path / ".set.def456.tmp"
+    partial.mkdir()
+    (partial / "report.md").write_text("half")
+    remove_stale_temp_files(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["report.md", "result.json"]
+    assert (tmp_path / "report.md").read_text() == "new" and (tmp_path / "result.json").read_text() == "new"
+
+
+def test_a_link_below_the_root_of_a_file_set_is_refused(tmp_path):
+    from hapticopt.design.atomic import file_set
+    from hapticopt.design.errors import InputFileError
+
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    root = tmp_path / "root"
+    root.mkdir()
+    (root / "parts").symlink_to(outside, target_is_directory=True)
+    with pytest.raises(InputFileError, match="symbolic link"):
+        with file_set(root) as stage:
+            (stage / "parts").mkdir()
+            (stage / "parts" / "a.stl").write_text("x")
+    assert list(outside.iterdir()) == [] and sorted(p.name for p in root.iterdir()) == ["parts"]

@@ -102,3 +102,35 @@ def test_cli_problem_name_escape_exits_2_and_writes_nothing(tmp_path, monkeypatc
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "p.toml: name = " in lines[0]
     assert _tree(tmp_path) == before
+
+
+def test_names_are_limited_in_bytes_too():
+    """Issue 37: a 64-emoji name (256 bytes in UTF-8) passed the character limit and failed late."""
+    from hapticopt.design.paths import NAME_MAX_BYTES
+
+    with pytest.raises(InvalidInput, match=f"is 256 bytes long in UTF-8 \\(at most {NAME_MAX_BYTES}\\)"):
+        check_name("\U0001F600" * 64, "name")
+    assert check_name("Ω" * NAME_MAX, "name")  # 128 bytes
+
+
+def test_the_output_root_may_be_a_link_but_nothing_below_it(tmp_path):
+    """Issue 37: ``--out`` itself is the user's choice (it may be a link); a link below it is refused."""
+    from hapticopt.design.atomic import write_text
+    from hapticopt.design.errors import InputFileError
+    from hapticopt.design.paths import make_dirs, no_links, output_root
+
+    real = tmp_path / "real"
+    real.mkdir()
+    out = tmp_path / "out"
+    out.symlink_to(real, target_is_directory=True)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    with output_root(out):
+        make_dirs(out / "plots" / "deep")
+        write_text(out / "plots" / "a.txt", "x")
+        (out / "plots" / "link").symlink_to(elsewhere, target_is_directory=True)
+        for target in (out / "plots" / "link" / "b.txt", out / "plots" / "link"):
+            with pytest.raises(InputFileError, match="plots/link is a symbolic link"):
+                write_text(target, "y") if target.name == "b.txt" else make_dirs(target / "sub")
+    assert (real / "plots" / "a.txt").read_text() == "x" and list(elsewhere.iterdir()) == []
+    assert no_links(out / "plots" / "a.txt", out) == out / "plots" / "a.txt"

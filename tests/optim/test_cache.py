@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import dataclasses
 import json
 import math
@@ -14,6 +15,8 @@ import subprocess
 import sys
 
 import pytest
+
+from hapticopt.design.errors import InputFileError
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design import io
@@ -181,16 +184,59 @@ def test_a_corrupt_file_is_ignored_with_one_warning(tmp_path, handle, capsys):
     assert path.read_bytes() == b"this is not a database" * 100  # the user's file is left as it was
 
 
-def test_a_damaged_entry_is_a_miss_with_a_warning(tmp_path, handle, capsys):
+def _digest(path):
+    """The database file's bytes (a read-only reader of a WAL database may create the empty -wal/-shm index)."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.mark.parametrize("edit", ["UPDATE evaluations SET payload = '{\"metrics\": {'",
+                                  "UPDATE evaluations SET payload = replace(payload, '\"statuses\"', '\"statuses\" ')"])
+def test_an_edited_entry_is_refused_and_the_file_left_unmodified(tmp_path, handle, edit):
+    """Issue 37: a hand-edited entry was served silently; now its checksum refuses the file (exit 2)."""
     path = tmp_path / "c.sqlite"
     with EvaluationCache(path) as cache:
         C.evaluate(handle, Fidelity.DRAFT, cache=cache)
     with contextlib.closing(sqlite3.connect(path)) as db, db:
-        db.execute("UPDATE evaluations SET payload = '{\"metrics\": {'")
+        db.execute(edit)
+    before = _digest(path)
+    with pytest.raises(InputFileError, match="does not match its checksum"):
+        EvaluationCache(path)
+    assert _digest(path) == before
+
+
+def test_an_entry_edited_after_opening_is_a_miss_with_a_warning(tmp_path, handle, capsys):
+    path = tmp_path / "c.sqlite"
     with EvaluationCache(path) as cache:
+        C.evaluate(handle, Fidelity.DRAFT, cache=cache)
+        with contextlib.closing(sqlite3.connect(path)) as db, db:
+            db.execute("UPDATE evaluations SET payload = replace(payload, '\"statuses\"', '\"statuses\" ')")
         ev = C.evaluate(handle, Fidelity.DRAFT, cache=cache)
     assert ev.provenance == ""
-    assert "is unreadable" in capsys.readouterr().err
+    assert "checksum" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("sql", ["CREATE TABLE other (a)", "CREATE VIEW v AS SELECT 1",
+                                 "CREATE TABLE meta (key TEXT, value TEXT); CREATE TABLE evaluations (key)"])
+def test_a_foreign_database_is_refused_and_left_unmodified(tmp_path, sql):
+    path = tmp_path / "c.sqlite"
+    with contextlib.closing(sqlite3.connect(path)) as db:
+        db.executescript(sql)
+    before = _digest(path)
+    with pytest.raises(InputFileError, match="refused, not modified"):
+        EvaluationCache(path)
+    assert _digest(path) == before
+
+
+def test_a_link_at_the_cache_or_its_side_files_is_refused(tmp_path):
+    target = tmp_path / "elsewhere"
+    target.write_text("keep")
+    for name in ("c.sqlite", "c.sqlite-wal", "c.sqlite-shm"):
+        d = tmp_path / name.replace(".", "_")
+        d.mkdir()
+        (d / name).symlink_to(target)
+        with pytest.raises(InputFileError, match="symbolic link"):
+            EvaluationCache(d / "c.sqlite")
+    assert target.read_text() == "keep"
 
 
 def test_a_file_that_cannot_be_opened_is_ignored(tmp_path, handle, capsys):

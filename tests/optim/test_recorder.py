@@ -213,3 +213,55 @@ def test_stale_temp_files_are_removed(tmp_path):
     (tmp_path / ".hapticopt.lock").write_text("1")
     assert sorted(map(str, remove_stale_temp_files(tmp_path))) == sorted(stale)
     assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == [".hapticopt.lock", "keep.json"]
+
+
+# ------------------------------------------------------------------ records checked before they are trusted
+def _sha(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.mark.parametrize("sql", [
+    "CREATE TABLE evaluations (id INTEGER PRIMARY KEY, x TEXT); CREATE TABLE other (a)",  # no hapticopt meta
+    "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT); INSERT INTO meta VALUES ('fingerprint', 'f1');"
+    "CREATE TABLE evaluations (id INTEGER PRIMARY KEY); CREATE VIEW v AS SELECT 1",  # a view: not ours
+    "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT); INSERT INTO meta VALUES ('fingerprint', 'f1');"
+    "INSERT INTO meta VALUES ('schema', '99'); CREATE TABLE evaluations (id INTEGER PRIMARY KEY)",  # newer schema
+])
+def test_resume_refuses_a_foreign_database_and_leaves_it_unmodified(tmp_path, sql):
+    """Issue 37: ``--resume`` adopted a foreign SQLite file and added its tables to it."""
+    from hapticopt.design.errors import InputFileError
+
+    path = tmp_path / FILENAME
+    with sqlite3.connect(path) as db:
+        db.executescript(sql)
+    before = _sha(path)
+    with pytest.raises(InputFileError, match="refused, not modified"):
+        Recorder(tmp_path, fingerprint="f1", resume=True)
+    assert _sha(path) == before
+
+
+@pytest.mark.parametrize("edit", ["UPDATE evaluations SET vals = '[9.0]'",
+                                  "UPDATE stages SET payload = '{\"objective\": 1.0}'"])
+def test_resume_refuses_an_edited_row(tmp_path, edit):
+    from hapticopt.design.errors import InputFileError
+
+    with Recorder(tmp_path, fingerprint="f1", resume=False) as rec:
+        rec.record("k1", _point(1.0), start=0, stage="search", fidelity="draft")
+        rec.record_stage("baseline|draft", {"objective": 2.449})
+    with sqlite3.connect(tmp_path / FILENAME) as db:
+        db.execute(edit)
+    before = _sha(tmp_path / FILENAME)
+    with pytest.raises(InputFileError, match="does not match its checksum"):
+        Recorder(tmp_path, fingerprint="f1", resume=True)
+    assert _sha(tmp_path / FILENAME) == before
+
+
+def test_a_record_states_its_schema_and_application(tmp_path):
+    from hapticopt.optim.recorder import APPLICATION, SCHEMA
+
+    Recorder(tmp_path, fingerprint="f1", resume=False).close()
+    with sqlite3.connect(tmp_path / FILENAME) as db:
+        meta = dict(db.execute("SELECT key, value FROM meta"))
+    assert meta["application"] == APPLICATION and meta["schema"] == str(SCHEMA) and meta["fingerprint"] == "f1"

@@ -4,6 +4,8 @@ Small meshes only; the finer levels and the 3-PRRR solid are in benchmarks/accur
 """
 
 import math
+import os
+import signal
 
 import jax.numpy as jnp
 import numpy as np
@@ -130,3 +132,22 @@ def test_elasticity_stiffness_needs_a_vector_p2_basis():
 
     with pytest.raises(TypeError, match="ElementVector"):
         fea.elasticity_stiffness(Basis(MeshTet(), ElementTetP2()), 1.0, 1.0)
+
+
+def _sigpipe_ignored_by_the_kernel() -> bool:
+    """Bit 13 (SIGPIPE) of ``SigIgn`` in /proc/self/status: what the kernel does, not only Python's record."""
+    with open("/proc/self/status") as fh:
+        mask = next(int(line.split()[1], 16) for line in fh if line.startswith("SigIgn:"))
+    return bool(mask >> (signal.SIGPIPE - 1) & 1)
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGPIPE") or not os.path.exists("/proc/self/status"), reason="Linux only")
+def test_meshing_leaves_sigpipe_ignored():
+    """Issue 37: gmsh.initialize() reset SIGPIPE to its default; a later write to a broken pipe (a killed pool
+    worker) ended the process with exit 141. The mesher restores the handler the process had."""
+    before = signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+    try:
+        fea.cantilever_mesh(length=0.05, width=B, thickness=T, size=0.02)  # gmsh_start + the meshing call
+        assert signal.getsignal(signal.SIGPIPE) == signal.SIG_IGN and _sigpipe_ignored_by_the_kernel()
+    finally:
+        signal.signal(signal.SIGPIPE, before)

@@ -124,3 +124,12 @@ def test_bundled_ball_scene_runs_the_online_predictor():
     m = r.metrics()
     assert r.stable and m["predictor"] == "online" and m["ar_updates"] == r.setup.ticks
     assert m["ar_fitted_fraction"] > 0.99  # only the updates at rest before the first contact fall back
+
+
+@pytest.mark.parametrize("duration_s", [0.005, 0.05])
+def test_a_handle_run_shorter_than_the_detector_window_is_inconclusive_not_ok(duration_s):
+    """Issue 37: as the 3-PRRR (and now the master), a run under SATURATION_WINDOW_S (0.1 s) has no verdict."""
+    r = cl.simulate(D, wall_scene(10.0, duration_s=duration_s))  # stable at 3 s (test_bundled_scenes_run_stable)
+    assert r.status == Status.INCONCLUSIVE and not r.stable, (r.status, r.message)
+    assert "shorter than the 0.1 s" in r.message
+    assert cl.simulate(D, wall_scene(1e6, duration_s=duration_s)).status == Status.UNSTABLE  # a runaway is seen at once

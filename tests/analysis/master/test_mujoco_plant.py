@@ -132,3 +132,14 @@ def test_master_dispatch_and_refusals():
         verify.simulate(MASTER, wall, backend=Backend.LUMPED)
     with pytest.raises(InvalidInput, match="is a prrr"):
         simulate(load_preset("prrr-paper"), wall)
+
+
+@pytest.mark.parametrize("duration_s", [0.005, 0.05])
+def test_a_master_run_shorter_than_the_detector_window_is_inconclusive_not_ok(duration_s):
+    """Issue 37: 5–50 ms against a 1e9 N/mm wall were called ok; the same wall is unstable at 0.2 s. A run
+    shorter than SATURATION_WINDOW_S (0.1 s, the 3-PRRR's rule) has no verdict."""
+    sc = load_scene("master-wall")
+    env = dataclasses.replace(sc.environment, wall_stiffness=1e12)  # 1e9 N/mm
+    r = simulate(MASTER, dataclasses.replace(sc, environment=env, duration=duration_s), fidelity=Fidelity.DRAFT)
+    assert r.status == Status.INCONCLUSIVE and not r.stable, (r.status, r.message)
+    assert "shorter than the 0.1 s the instability detector needs" in r.message

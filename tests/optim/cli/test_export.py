@@ -34,3 +34,13 @@ def test_rail_too_close_is_one_line_exit_2(tmp_path):
     assert res.exit_code == 2
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and "r_p_mm = 10" in lines[0] and "theta_1p_deg" in lines[0]
+
+
+def test_poses_are_bounded_in_one_line(tmp_path):
+    """Issue 37: --poses had no upper bound (each pose is a boolean of every part pair)."""
+    for n in ("1001", "-1"):
+        res = runner.invoke(app, ["export", "--preset", "prrr-paper", "--poses", n, "--out", str(tmp_path / "e")])
+        assert res.exit_code == 2, res.output
+        (line,) = res.stderr.strip().splitlines()
+        assert f"--poses = {n} is out of range: allowed 0 ≤ --poses ≤ 1000 (poses)" in line
+    assert not (tmp_path / "e").exists()

@@ -167,3 +167,18 @@ def test_an_infeasible_final_point_is_best_infeasible_and_exits_3(tmp_path):
     result = json.loads((out / "result.json").read_text())
     assert not result["feasible_at_final_fidelity"] and result["files"]["best_infeasible"] == "best_infeasible.toml"
     assert "optimum" not in result["files"]
+
+
+def test_a_failed_export_exits_5_with_one_line(tmp_path, monkeypatch):
+    """Issue 37, item 5: a failed export (full disk, a path refused) exited 0 with a stdout line only."""
+    from hapticopt.optim import side
+
+    monkeypatch.setattr(side, "export", lambda design, out_dir, on_step=None: (
+        "failed", "No space left on device: parts/base.stl", (), 0.0))
+    out = tmp_path / "run"
+    res = invoke("optimise", str(DATA / "beta-isotropic.toml"), "--out", str(out), "--scheduler", "inline",
+                 "--no-verify", "--quiet", "--max-evals", "6")
+    assert res.exit_code == 5, res.output
+    (line,) = res.stderr.strip().splitlines()
+    assert line.startswith("error: export failed: No space left on device: parts/base.stl")
+    assert (out / "report.html").is_file() and (out / "optimum.toml").is_file()  # the rest of the run is written

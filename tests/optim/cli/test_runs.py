@@ -74,3 +74,46 @@ def test_bad_input_one_line_exit_2(args, match):
     assert res.exit_code == 2
     (line,) = res.stderr.strip().splitlines()
     assert match in line
+
+
+def test_runs_skips_a_bad_record_with_a_warning_and_lists_the_rest(runs_dir, tmp_path):
+    """Issue 37: one bad record under DIR made ``runs`` list nothing (exit 4)."""
+    import shutil
+    import sqlite3
+
+    root, _ = runs_dir
+    copy = tmp_path / "runs"
+    shutil.copytree(root, copy)
+    bad = copy / "bad"
+    bad.mkdir()
+    (bad / FILENAME).write_bytes(b"not a database" * 100)
+    edited = copy / "edited"
+    shutil.copytree(copy / "opt", edited)
+    with sqlite3.connect(edited / FILENAME) as db:
+        db.execute("UPDATE evaluations SET vals = '[1.0]' WHERE id = 1")
+    res = runner.invoke(app, ["runs", str(copy), "--json"])
+    assert res.exit_code == 0, res.output
+    assert sorted(Path(r["path"]).name for r in json.loads(res.stdout)) == ["opt", "sw"]
+    warnings = res.stderr.strip().splitlines()
+    assert len(warnings) == 2 and all(w.startswith("warning: skipped ") for w in warnings)
+    assert any("checksum" in w for w in warnings)
+
+
+def test_show_on_a_recursive_view_returns_within_5_s(runs_dir, tmp_path):
+    """Issue 37: a recursive SQLite view made ``show`` hang (> 120 s)."""
+    import shutil
+    import sqlite3
+    import time
+
+    root, _ = runs_dir
+    run = tmp_path / "run"
+    shutil.copytree(root / "opt", run)
+    with sqlite3.connect(run / FILENAME) as db:
+        db.executescript("DROP TABLE sessions; CREATE VIEW sessions AS WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL "
+                         "SELECT x + 1 FROM c) SELECT x AS id, 0.0 AS started, 0 AS resumed FROM c;")
+    t0 = time.monotonic()
+    res = runner.invoke(app, ["show", str(run)])
+    assert time.monotonic() - t0 < 5.0
+    assert res.exit_code == 2, res.output
+    (line,) = res.stderr.strip().splitlines()
+    assert "view sessions" in line and "refused" in line

@@ -34,7 +34,10 @@ def test_sweep_writes_table_plots_and_record(tmp_path):
 @pytest.mark.parametrize("axis, match", [
     ("geometry.nope_mm=1:2:3", "is not a numeric key of the design"),
     ("geometry.beta_deg=70:30:3", "lo = 70 must be below hi = 30 (deg)"),
-    ("geometry.beta_deg=30:70:1", "n = 1 must be ≥ 2"),
+    ("geometry.beta_deg=30:70:1", "n = 1 is out of range: allowed 2 ≤ n ≤ 200000 (points"),
+    # issue 37: an integer key's grid was built (2.6 GB) before the point limit was checked
+    ("geometry.beta_deg=30:70:300000001", "n = 300000001 is out of range: allowed 2 ≤ n ≤ 200000"),
+    ("geometry.beta_deg=30:70:1" + "0" * 5000, "must be a whole number of points"),
     ("name=1:2:3", "is not a numeric design key"),
 ])
 def test_bad_sweep_one_line_exit_2_no_files(tmp_path, axis, match):
@@ -58,3 +61,66 @@ def test_a_second_sweep_serves_points_from_the_evaluation_cache(tmp_path):
     assert (tmp_path / "a" / "sweep.csv").read_text() == (tmp_path / "b" / "sweep.csv").read_text()
     with RunReader(tmp_path / "b") as r:
         assert [c.stage for c in r.cases()] == ["sweep (evaluation cache)"] * 3
+
+
+def test_an_integer_key_is_bounded_before_its_values_exist(tmp_path, monkeypatch):
+    """Issue 37: an integer key's axis built all its values (2.6 GB) to check they are whole."""
+    from hapticopt.optim import sweep as sw
+
+    monkeypatch.setattr(sw.Axis, "values", property(lambda self: pytest.fail("the axis values were built")))
+    for axis, match in (("firmware.upsampling=1:64:300000001", "n = 300000001 is out of range"),
+                        ("firmware.upsampling=1:64:5", "takes whole numbers: 1:64:5 gives fractions")):
+        res = runner.invoke(app, ["sweep", "--preset", "handle-paper", axis, "--out", str(tmp_path / "o"), "--quiet"])
+        assert res.exit_code == 2 and match in res.stderr, res.output
+
+
+def test_two_axes_are_refused_by_their_product_before_the_grid_exists(tmp_path, monkeypatch):
+    """Issue 37: 200,000-point limit checked from the axes' sizes, never by building the grid."""
+    from hapticopt.optim import sweep as sw
+
+    monkeypatch.setattr(sw.Sweep, "points", lambda self: pytest.fail("the grid was built"))
+    res = runner.invoke(app, ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=30:70:1000",
+                              "actuator.spring_N_per_mm=40:60:1000", "--out", str(tmp_path / "o"), "--quiet"])
+    assert res.exit_code == 2 and "the sweep has 1000000 points: allowed at most 200000" in res.stderr
+
+
+@pytest.mark.parametrize("workers", ["0", "257", "100000"])
+def test_sweep_workers_are_bounded(tmp_path, workers):
+    res = runner.invoke(app, ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=30:70:2", "--workers", workers,
+                              "--out", str(tmp_path / "o"), "--quiet"])
+    assert res.exit_code == 2 and f"--workers = {workers} is out of range: allowed 1 ≤ --workers ≤ 256" in res.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_second_concurrent_sweep_resume_is_refused_in_one_line(tmp_path):
+    """Issue 37, item 4: two ``sweep --resume`` of one directory both ran and repeated every point."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "s"
+    args = ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=50:70:2", "--only", "statics", "--scheduler",
+            "inline", "--quiet", "--no-plots", "--out", str(out)]
+    assert runner.invoke(app, args).exit_code == 0
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from hapticopt.optim.recorder import run_lock\n"
+                               "with run_lock(sys.argv[1]):\n    print('held', flush=True); time.sleep(60)", str(out)],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        res = runner.invoke(app, args + ["--resume"])
+    finally:
+        holder.kill()
+        holder.wait()
+        holder.stdout.close()
+    assert res.exit_code == 2, res.output
+    (line,) = res.stderr.strip().splitlines()
+    assert f"--out {out} is in use by another hapticopt run (pid {holder.pid})" in line
+    with RunReader(out) as r:
+        assert len(r) == 2 and r.n_repeated == 0
+
+
+def test_an_empty_only_is_refused(tmp_path):
+    """Issue 37: ``--only ""`` reported every point ok while evaluating nothing."""
+    res = runner.invoke(app, ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=30:70:2", "--only", "",
+                              "--out", str(tmp_path / "o"), "--quiet"])
+    assert res.exit_code == 2 and "--only names no evaluator: allowed one or more of statics" in res.stderr
+    assert not (tmp_path / "o").exists()

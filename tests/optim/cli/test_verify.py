@@ -135,7 +135,11 @@ def test_design_map_json_and_plot(tmp_path):
     (["design-map", "--preset", "prrr-paper", "--periods-ms", "0"], "period_ms = 0 is out of range"),
     (["design-map", "--preset", "prrr-paper", "--scene", "free-space"], "has no [report] quantity"),
     (["design-map", "--preset", "master-paper"], "the design map is the 3-PRRR's"),
-    (["verify", "--preset", "prrr-paper", "--period-ms", "0"], "--period-ms = 0 is out of range: allowed 0 < period_ms ≤ 100 ms"),
+    (["verify", "--preset", "prrr-paper", "--period-ms", "0"], "--period-ms = 0 is out of range: allowed 0.001 ≤ period_ms ≤ 100 ms"),
+    # issue 37: 1e-300 passed validation and grew ~35 MB/s to a segfault; the design map's range (1 µs) and a tick bound
+    (["verify", "--preset", "prrr-paper", "--period-ms", "1e-300"], "--period-ms = 1e-300 is out of range: allowed 0.001 ≤"),
+    (["verify", "--preset", "prrr-paper", "--period-ms", "0.001"],
+     "--period-ms = 0.001 gives 3e+06 controller ticks over the scene's 3 s: allowed at most 1e+06 (period_ms ≥ 0.003 ms"),
     (["verify", "--preset", "prrr-paper", "--force-gain", "-1"], "--force-gain = -1 is out of range"),
 ])
 def test_design_map_and_overrides_errors_are_one_line(args, match):
