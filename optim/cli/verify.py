@@ -146,7 +146,7 @@ def _exit_on_verdict(result: Any, scene: str) -> None:
 
 #: most controller ticks one verification simulates (bounds its memory and time; the bundled scenes use ≤ 30,000)
 MAX_TICKS = 1_000_000
-#: the controller period's range [s], as the design map's (analysis.prrr.design_map.PERIOD_RANGE)
+#: the controller period's range [s], as the design map's (analysis.prrr.loop.design_map.PERIOD_RANGE)
 PERIOD_RANGE = (1e-6, 0.1)
 
 
