@@ -2,7 +2,7 @@
 
 Run: PYTHONPATH=<shim> python -m pytest -q benchmarks/bench_seed001.py --benchmark-enable
 (figures in docs/seed001.md, 2-core machine). The jitted two-link scan is compiled outside the
-timing (one untimed call); its compile time is reported by benchmarks/accuracy_seed001.py.
+timing (one untimed call); its compile time is reported by scripts/accuracy/accuracy_seed001.py.
 """
 
 from __future__ import annotations

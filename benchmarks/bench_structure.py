@@ -1,7 +1,7 @@
 """Structural stiffness speed: the evaluator on one design (target ≤ 5 ms) and in a batch of 256 through the
 registry's batched draft path (target ≤ 1 ms per design).
 
-Run with ``make bench``. FEA timings come from benchmarks/accuracy_structure.py (minutes).
+Run with ``make bench``. FEA timings come from scripts/accuracy/accuracy_structure.py (minutes).
 """
 
 import dataclasses

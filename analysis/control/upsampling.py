@@ -62,7 +62,7 @@ class Variant(enum.Enum):
 
 
 #: the firmware default: the variant that does not lower the stable stiffness (measured on the
-#: handle, docs/seed000.md and benchmarks/accuracy_seed000.py; as printed lowers it by 52–67 %)
+#: handle, docs/seed000.md and scripts/accuracy/accuracy_seed000.py; as printed lowers it by 52–67 %)
 DEFAULT_VARIANT = Variant.AS_INTENDED
 
 

@@ -30,7 +30,7 @@ Free radius R_free: on each of ``n_phi`` rays over one third of the circle (the 
 first colliding radius is refined by ``n_bisect`` bisections. R_free is the smallest free radius
 over the rays (0 when the axis itself collides). Rays sample the angle: a collision between rays
 can be missed (measured against a dense reference in ``docs/workspace_interference.md``,
-``benchmarks/accuracy_free_workspace.py``).
+``scripts/accuracy/accuracy_free_workspace.py``).
 
 Metrics (engineering units at the edge):
 

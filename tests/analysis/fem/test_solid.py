@@ -1,6 +1,6 @@
 """Solid FEA (gmsh + scikit-fem P2 + pyamg CG) against Timoshenko's cantilever closed form.
 
-Small meshes only; the finer levels and the 3-PRRR solid are in benchmarks/accuracy_structure.py.
+Small meshes only; the finer levels and the 3-PRRR solid are in scripts/accuracy/accuracy_structure.py.
 """
 
 import math

@@ -126,7 +126,7 @@ def test_stiffer_operator_stabilises():
 
 def test_pade_vs_exact_table():
     # Padé 2/(2+sT) matches the ZOH's T/2 lag to first order in ωT (ωT ≈ 0.07 at the boundary):
-    # the limits differ by < 1 % over 0.5–5 ms; the table is the docs' (benchmarks/accuracy_seed000.py)
+    # the limits differ by < 1 % over 0.5–5 ms; the table is the docs' (scripts/accuracy/accuracy_seed000.py)
     tab = hs.pade_vs_exact(H, [0.5e-3, 1e-3, 2e-3, 5e-3])
     assert np.all(np.abs(tab.relative_difference) < 0.01)
     assert np.all(np.isfinite(tab.exact_N_per_mm))

@@ -61,7 +61,7 @@ def test_frames_are_the_cads(paper, collision_reference):
 @pytest.mark.parametrize("overrides", [LEGACY, OLD_OPTIMUM], ids=["legacy-paper", "old-optimum"])
 def test_agrees_with_manifold3d_on_a_pose_set(paper, overrides):
     """Verdicts on 24 workspace poses. Bound: the measured agreement on the 216 fine poses,
-    1.000 (prrr-paper) and 0.917 (old optimum), benchmarks/accuracy_interference_fast.py; every
+    1.000 (prrr-paper) and 0.917 (old optimum), scripts/accuracy/accuracy_interference_fast.py; every
     disagreement is a fast-only collision (conservative), so no reference collision is missed."""
     d = io.apply_overrides(paper, overrides)
     pts = _points(d, n_phi=2, n_r=2, n_z=2)
@@ -193,7 +193,7 @@ STEP_OPTIMUM = LEGACY + ["geometry.beta_deg=57.035581000819", "geometry.d2_mm=77
 
 def test_overlap_fraction_is_continuous_across_a_jump_of_the_removed_fraction(paper):
     """β between 56.175° and 56.195° (at that optimum) crosses a jump of the removed fraction
-    (benchmarks/accuracy_interference_overlap.py: 0.0191 at β ≈ 56.1847°). Bisected to ~1e-8°,
+    (scripts/accuracy/accuracy_interference_overlap.py: 0.0191 at β ≈ 56.1847°). Bisected to ~1e-8°,
     the step still jumps by ≥ 0.01 while the companion changes by < 1e-7 (measured 2e-9)."""
     base = io.apply_overrides(paper, STEP_OPTIMUM)
 

@@ -29,7 +29,7 @@ def runs():
 
 def test_learned_gain_and_the_friction_floor(runs):
     """The optimum of eq 6 is eq 30's K*. On the 3-PRRR the learned gain is 5.8 % off it (regression
-    snapshot, benchmarks/accuracy_seed001_devices.py): the sliders' 3 N Coulomb friction against the
+    snapshot, scripts/accuracy/accuracy_seed001_devices.py): the sliders' 3 N Coulomb friction against the
     operator's ≈ 0.05 N and the SEA loop's 0.5 mm tracking error against the exploration's 15 µm
     (docs/seed001.md). The bound here is 10 %; K1 and K2 (stiffness and damping per mass) within 10 %."""
     r = runs[IoicStrategy.IOIC]

@@ -2,7 +2,7 @@
 violation, platform rotation, closure error (and the force error it makes at 25 N/mm), energy drift
 of the undamped oscillator, and wall time.
 
-Run: ``.venv/bin/python benchmarks/accuracy_mujoco.py`` (≈ 1 min on the 2-core machine).
+Run: ``.venv/bin/python scripts/accuracy/accuracy_mujoco.py`` (≈ 1 min on the 2-core machine).
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from hapticopt.analysis.prrr.loop.mujoco_model import (
 )
 from hapticopt.design import io
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "analysis"))
-from test_mujoco_prrr import oscillator_energy  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests" / "analysis" / "prrr" / "loop"))
+from test_mujoco_model import oscillator_energy  # noqa: E402
 
 DESIGN = io.load_preset("prrr-paper")
 DEFAULT_IMP = (0.9, 0.95, 0.001, 0.5, 2.0)

@@ -1,10 +1,13 @@
 """Regenerate the accuracy-vs-time tables of docs/workspace.md (issue 4).
 
-Run: ``.venv/bin/python benchmarks/accuracy_workspace.py`` (prints Markdown). Times are the
+Run: ``.venv/bin/python scripts/accuracy/accuracy_workspace.py`` (prints Markdown). Times are the
 median of warm calls (jit compiled beforehand) on the machine it runs on.
 """
 
 from __future__ import annotations
+
+import sys
+from pathlib import Path
 
 import functools
 
@@ -14,7 +17,8 @@ from hapticopt.analysis.master import workspace as M
 from hapticopt.analysis.prrr.geometry import workspace as W
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.design import io
-from timing import median_wall  # benchmarks/timing.py (scripts run from benchmarks/)
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+from timing import median_wall  # noqa: E402  (benchmarks/timing.py)
 
 
 def prrr_tables() -> list[str]:

@@ -1,6 +1,6 @@
 """Accuracy of the analytic mass model against the CAD, and the CAD timings, for docs/cad.md.
 
-Run: .venv/bin/python benchmarks/accuracy_cad.py
+Run: .venv/bin/python scripts/accuracy/accuracy_cad.py
 Prints a markdown table per design: per-part mass and inertia error of :func:`mass_properties.analytic`
 against :func:`mass_properties.from_cad` (OpenCASCADE volume integrals), and the time per call of
 each (CPU time, this machine).

@@ -1,6 +1,6 @@
 """Accuracy vs time for seed 001 (regenerates the tables in docs/seed001.md).
 
-Run: PYTHONPATH=<shim> python benchmarks/accuracy_seed001.py
+Run: PYTHONPATH=<shim> python scripts/accuracy/accuracy_seed001.py
 1. Learned-K error ‖K − K*‖/‖K*‖ vs data length and number of sampling intervals (1 ms RK4),
    with iterations, rcond of the data matrix and the median wall time of data phase + PI.
 2. Learned-K error vs the RK4 step of the data phase (0.5 s, 50 intervals).

@@ -1,6 +1,6 @@
 """Accuracy vs time of the lumped closed loop (regenerates the tables in docs/closed_loop.md).
 
-Run: .venv/bin/python benchmarks/accuracy_closed_loop.py
+Run: .venv/bin/python scripts/accuracy/accuracy_closed_loop.py
 1. Coulomb-friction substeps: free-space residual force and stiffness-25 rendered stiffness vs a
    40-substep reference, with the median run time of a 3 s scene.
 2. Sampling off (continuous-time limit): rendered stiffness vs controller oversampling.

@@ -6,7 +6,7 @@ its lowest height, −H(r)/2), the free radius = the smallest first-colliding ra
 (minus nothing: the grid step, 0.56 mm, bounds its own error). Each fidelity level's free
 diameter is compared with it, with the median wall time of 3 runs (1 for fine).
 
-Usage: ``python benchmarks/accuracy_free_workspace.py [--designs paper legacy optimum]``; prints
+Usage: ``python scripts/accuracy/accuracy_free_workspace.py [--designs paper legacy optimum]``; prints
 a markdown table.
 """
 

@@ -1,8 +1,8 @@
 """Released-joint CAD FEA (hapticopt.analysis.fem.hinge) vs the released frame model, prrr-paper at home.
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/accuracy_hinge.py --levels 0 1 2
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/accuracy_hinge.py --levels 0 1 2 3 4   # + the k∞ + c h^p fit (~7 min)
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/accuracy_hinge.py --levels 2 --side swapped
+    OMP_NUM_THREADS=1 .venv/bin/python scripts/accuracy/accuracy_hinge.py --levels 0 1 2
+    OMP_NUM_THREADS=1 .venv/bin/python scripts/accuracy/accuracy_hinge.py --levels 0 1 2 3 4   # + the k∞ + c h^p fit (~7 min)
+    OMP_NUM_THREADS=1 .venv/bin/python scripts/accuracy/accuracy_hinge.py --levels 2 --side swapped
 
 Prints the markdown level table of docs/structure_hinge.md (unknowns, CG iterations, wall time,
 k per axis), Richardson extrapolation over the last three levels, and frame/FEA ratios.

@@ -3,7 +3,7 @@ every bundled scene at standard fidelity (FREE platform for the 3-PRRR) with its
 the master-transparency sweep vs the frequency-domain bandwidth, and stiffness-25 (lumped plant)
 vs stiffness-25-links (multibody, real links + gravity): what link dynamics buys.
 
-Run: ``.venv/bin/python benchmarks/accuracy_mujoco_scenes.py`` (≈ 1–2 min on the 2-core machine).
+Run: ``.venv/bin/python scripts/accuracy/accuracy_mujoco_scenes.py`` (≈ 1–2 min on the 2-core machine).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ def main() -> None:
     for name in scene_names():
         sc = load_scene(name)
         if sc.controller.mode != FirmwareMode.IMPEDANCE and sc.device != "master":
-            continue  # the 3-PRRR's IOIC mode runs on the lumped plant only (benchmarks/accuracy_seed001_devices.py)
+            continue  # the 3-PRRR's IOIC mode runs on the lumped plant only (scripts/accuracy/accuracy_seed001_devices.py)
         design = master if sc.device == "master" else prrr
         for fid in (Fidelity.DRAFT, Fidelity.STANDARD):
             r = verify.simulate(design, sc, fidelity=fid, backend=Backend.MULTIBODY)

@@ -1,6 +1,6 @@
 """Seed 000 accuracy tables (regenerates the tables of docs/seed000.md). Markdown on stdout.
 
-Run: PYTHONPATH=<shim> .venv/bin/python benchmarks/accuracy_seed000.py
+Run: PYTHONPATH=<shim> .venv/bin/python scripts/accuracy/accuracy_seed000.py
 1. Padé hold 2/(2+sT) vs exact ZOH: K_e limit per T (B_e = 0 and the paper's 30 g/s).
 2. Upsampling variants on the handle (T = 1 ms): K_e limit by the lifted analysis and by
    simulation, per l2/l1, with median wall times of 5 runs; online AR fit (simulation only).

@@ -1,6 +1,6 @@
 """Seed 000 on the 3-PRRR (issue 17): upsampling variants and the operator effect. Markdown on stdout.
 
-Run: PYTHONPATH=<shim> .venv/bin/python benchmarks/accuracy_seed000_prrr.py [--plot docs/img/prrr_operator_effect.png]
+Run: PYTHONPATH=<shim> .venv/bin/python scripts/accuracy/accuracy_seed000_prrr.py [--plot docs/img/prrr_operator_effect.png]
 1. Upsampling on the 3-PRRR's SEA loop (prrr-paper, K_p = 45, T = 1 ms, x axis, B_v = 0): K_v limit
    by the exact lifted analysis (analysis/prrr/multirate) and by the compiled closed-loop simulation
    (analysis/prrr/zwidth.StabilityProbe, decay criterion, 1 s runs, geometric bisection 12 steps),

@@ -1,7 +1,7 @@
 """Continuity of ``interference_overlap_fraction`` against the step ``interference_removed_fraction``.
 
 Regenerates the continuity table of docs/workspace_interference.md. Run:
-``.venv/bin/python benchmarks/accuracy_interference_overlap.py`` (prints Markdown; ~1–2 min on the
+``.venv/bin/python scripts/accuracy/accuracy_interference_overlap.py`` (prints Markdown; ~1–2 min on the
 2-core machine). Sweeps one design variable at a time finely around a design (default: the
 prrr-workspace optimum of the step-constrained run, commit 12e33d8, docs/optimisation.md) and, at
 every interval where the step metric jumps (> 0.002), and at the ``--flag`` intervals where the companion

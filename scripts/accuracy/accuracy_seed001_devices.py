@@ -1,6 +1,6 @@
 """Seed 001's controllers in our devices (regenerates the device tables of docs/seed001.md).
 
-Run: PYTHONPATH=<shim> python benchmarks/accuracy_seed001_devices.py
+Run: PYTHONPATH=<shim> python scripts/accuracy/accuracy_seed001_devices.py
 1. FIC / OIC / IOIC (seed 001 Figs 4–6) on the master (IOIC + NTSMTC, MuJoCo, scene master-ioic)
    and on the 3-PRRR (IOIC over the SEA force loops, lumped plant, scene prrr-ioic): learned gain
    against the Riccati optimum of eq 6, the impedance, RMS impedance error e_p = x − x_d and

@@ -1,7 +1,7 @@
 """Seed 002's experiments, paper vs hapticopt, under the assumptions that close (or cannot close) each
 gap; prints the markdown tables of docs/seed002_experiments.md.
 
-Run: ``PYTHONPATH=… python benchmarks/accuracy_seed002.py`` (≈ 2–4 min on the shared 2-core machine).
+Run: ``PYTHONPATH=… python scripts/accuracy/accuracy_seed002.py`` (≈ 2–4 min on the shared 2-core machine).
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """Accuracy vs wall time of the structural-stiffness models (table for docs/structure.md).
 
-    .venv/bin/python benchmarks/accuracy_structure.py            # cantilever levels 0..3
-    .venv/bin/python benchmarks/accuracy_structure.py --levels --cad -1 0 1   # CAD solid, bonded pins
-    .venv/bin/python benchmarks/accuracy_structure.py --levels --beta          # β sweep of the frame model
-    .venv/bin/python benchmarks/accuracy_structure.py --levels --variants 2    # frame vs CAD FEA, design variants
+    .venv/bin/python scripts/accuracy/accuracy_structure.py            # cantilever levels 0..3
+    .venv/bin/python scripts/accuracy/accuracy_structure.py --levels --cad -1 0 1   # CAD solid, bonded pins
+    .venv/bin/python scripts/accuracy/accuracy_structure.py --levels --beta          # β sweep of the frame model
+    .venv/bin/python scripts/accuracy/accuracy_structure.py --levels --variants 2    # frame vs CAD FEA, design variants
 
 Cantilever: FEA levels against Timoshenko's closed form and their Richardson extrapolation.
 3-PRRR: the frame model against the CAD solid's FEA (bonded pins).

@@ -1,6 +1,6 @@
 """Regenerate the agreement and timing tables of docs/workspace_interference.md.
 
-Run: ``.venv/bin/python benchmarks/accuracy_interference_fast.py`` (prints Markdown; ~1 min:
+Run: ``.venv/bin/python scripts/accuracy/accuracy_interference_fast.py`` (prints Markdown; ~1 min:
 the manifold3d reference costs ~20 ms a pose). Designs: prrr-paper, the prrr-workspace optimum
 found without the interference constraint (beta 59.06°, d2 = d3 = d4 ≈ 75.82 mm, stroke
 184.84 mm, r_p 99.56 mm), the optimum of the constrained problem when
@@ -10,6 +10,8 @@ Times: median of 7 warm calls on the machine it runs on.
 """
 
 from __future__ import annotations
+
+import sys
 
 import time
 from pathlib import Path
@@ -21,7 +23,8 @@ from hapticopt.analysis.prrr.collision import interference_fast as F
 from hapticopt.analysis.prrr.geometry import workspace as W
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design import io
-from timing import median_wall  # benchmarks/timing.py (scripts run from benchmarks/)
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+from timing import median_wall  # noqa: E402  (benchmarks/timing.py)
 
 OLD_OPTIMUM = ["geometry.beta_deg=59.0563", "geometry.d2_mm=75.8151", "geometry.d3_mm=75.8225",
                "geometry.d4_mm=75.8223", "geometry.stroke_mm=184.838", "geometry.r_p_mm=99.5627"]

@@ -1,6 +1,6 @@
 """Regenerate the tables of docs/structure_stress.md (von Mises stress of the solid FEA).
 
-Run: ``.venv/bin/python benchmarks/accuracy_fea_stress.py [--prrr LEVEL ...]`` (prints Markdown).
+Run: ``.venv/bin/python scripts/accuracy/accuracy_fea_stress.py [--prrr LEVEL ...]`` (prints Markdown).
 Cantilever (200 × 20 × 10 mm, unit tip shear along y, as tests/analysis/fem/test_solid.py): element
 stress against σ_xx = −P (L − x) y / I; ``--prrr``: the CAD solid of prrr-paper with bonded
 pins (hapticopt.analysis.prrr.structure.fea_cad) at the given mesh levels, 1 N along x at Δz = 58 mm. Stress-step
@@ -9,6 +9,9 @@ times are the median of 5 calls on the machine it runs on.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import argparse
 import time
 
@@ -16,7 +19,8 @@ import numpy as np
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 from hapticopt.analysis.fem import solid as fea, stress as fea_stress
-from timing import median_wall  # benchmarks/timing.py (scripts run from benchmarks/)
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+from timing import median_wall  # noqa: E402  (benchmarks/timing.py)
 
 L, B, T, E, NU = 0.2, 0.02, 0.01, 68.9e9, 0.33
 I_Z, C = T * B**3 / 12.0, B / 2.0

@@ -1,6 +1,6 @@
 """Regenerate the accuracy-vs-time tables of docs/master.md (issue 5).
 
-Run: ``.venv/bin/python benchmarks/accuracy_master.py`` (prints Markdown). Times: median wall
+Run: ``.venv/bin/python scripts/accuracy/accuracy_master.py`` (prints Markdown). Times: median wall
 time and CPU time (process_time) per call of warm calls on the machine it runs on.
 """
 
