@@ -12,10 +12,6 @@
   mM s⁴ + ξM s³ + (cM + mk) s² + ξk s + ηK_p k K with c = k(1 + ηK_p) (zero virtual damping)
   gives the closed form K < k_a (1 + 1/(ηK_p)) → k_a as K_p → ∞ (k_a = k/2, k/2, 3k at β = π/3:
   Fig 13a / eq 15 of seed 002). Both the eigenvalue bisection and the closed form are here.
-* The exact discrete-time boundary of a sampled virtual wall: mass m with physical damping b,
-  zero-order hold at T, virtual spring K and damper B on a (filtered) backward-difference
-  velocity; the roots of the closed loop's characteristic polynomial (eigenvalues of its
-  transition matrix) leave the unit circle at the boundary.
 """
 
 from __future__ import annotations
@@ -50,7 +46,7 @@ def force_loop_tf(design: PrrrDesign, kp: float) -> tuple[np.ndarray, np.ndarray
 
 def force_loop_bandwidth(design: PrrrDesign, kp: float) -> float:
     """−3 dB bandwidth of eq (8) relative to its DC gain [Hz]."""
-    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
+    from scipy.optimize import brentq  # lazy: a heavy import (tests/test_layers.py LAZY)
     num, den = force_loop_tf(design, kp)
     mag = lambda w: abs(np.polyval(num, 1j * w) / np.polyval(den, 1j * w))  # noqa: E731
     target = mag(0.0) / math.sqrt(2.0)
@@ -156,51 +152,6 @@ def continuous_stiffness_limit(design: PrrrDesign, *, kp: float, axis: int, damp
         return max_real_flexible_eigenvalue(continuous_closed_loop(design, stiffness=Kv, damping=Bv, kp=kp)) < 0.0
 
     return _bisect_boundary(stable, 0.0, float(stiffness_limits(design)[axis]), rtol=rtol, cap=1e15)
-
-
-# ------------------------------------------------------------------------- sampled virtual wall
-def sampled_wall_matrix(*, mass: float, damping: float, stiffness: float, virtual_damping: float, T: float,
-                        alpha: float = 0.0) -> np.ndarray:
-    """Transition matrix of the sampled wall, state [x, ẋ, x_prev, v_prev].
-
-    Plant m ẍ + b ẋ = u, exact zero-order hold at T; u_k = −K x_k − B v_k with
-    v_k = α v_{k−1} + (1 − α)(x_k − x_{k−1})/T (α = 0: Colgate's backward difference).
-    """
-    Ac = np.array([[0.0, 1.0], [0.0, -damping / mass]])
-    aug = np.zeros((3, 3))
-    aug[:2, :2] = Ac
-    aug[1, 2] = 1.0 / mass
-    E = scipy.linalg.expm(aug * T)
-    Ad, Bd = E[:2, :2], E[:2, 2]
-    # v_k and u_k as rows over [x, ẋ, x_prev, v_prev]
-    v_row = np.array([(1 - alpha) / T, 0.0, -(1 - alpha) / T, alpha])
-    u_row = -stiffness * np.array([1.0, 0.0, 0.0, 0.0]) - virtual_damping * v_row
-    Phi = np.zeros((4, 4))
-    Phi[:2, :2] = Ad
-    Phi[:2] += np.outer(Bd, u_row)
-    Phi[2, 0] = 1.0
-    Phi[3] = v_row
-    return Phi
-
-
-def sampled_wall_poles(**kw) -> np.ndarray:
-    """Closed-loop poles in z (roots of the characteristic polynomial det(zI − Φ))."""
-    return np.roots(np.poly(sampled_wall_matrix(**kw)))
-
-
-def sampled_wall_boundary(*, mass: float, damping: float, virtual_damping: float, T: float, alpha: float = 0.0,
-                          rtol: float = 1e-10) -> float:
-    """Largest stable K of the sampled wall [N/m] (spectral radius < 1), by bisection."""
-
-    def stable(K: float) -> bool:
-        Phi = sampled_wall_matrix(mass=mass, damping=damping, stiffness=K, virtual_damping=virtual_damping,
-                                  T=T, alpha=alpha)
-        return float(np.max(np.abs(np.linalg.eigvals(Phi)))) < 1.0
-
-    hi = max(2.0 * damping / T, 1.0)
-    if not stable(1e-12 * hi):
-        return 0.0
-    return _bisect_boundary(stable, 0.0, hi, rtol=rtol)
 
 
 # ------------------------------------------------------------------------------------- evaluator
@@ -350,7 +301,7 @@ def sampled_force_loop_bandwidth(design: PrrrDesign, *, T: float, kp: float) -> 
     """(stable, −3 dB bandwidth [Hz] below the DC gain) of the sampled force loop; the bandwidth is
     NaN when the loop is unstable, and the Nyquist frequency 1/(2T) when the gain never drops 3 dB
     below it."""
-    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
+    from scipy.optimize import brentq  # lazy: a heavy import (tests/test_layers.py LAZY)
     Phi, Gam, C = sampled_force_loop(design, T=T, kp=kp)
     if spectral_radius(Phi) >= 1.0:
         return False, math.nan

@@ -83,11 +83,11 @@ def test_seed000_eq19():
     assert not hurwitz_cubic(*seed000_cubic(inertia=I, damping=Bm, ratio=r * R, T=1e-3, stiffness=1.01 * lim))
 
 
-def test_sampled_wall_boundary_is_unit_circle_crossing():
+def test_sampled_wall_boundary_is_unit_circle_crossing(sampled_wall):
     m, b, T = 1.0, 2.0, 1e-3
-    K = sb.sampled_wall_boundary(mass=m, damping=b, virtual_damping=0.0, T=T)
+    K = sampled_wall.sampled_wall_boundary(mass=m, damping=b, virtual_damping=0.0, T=T)
     assert K == pytest.approx(2 * b / T, rel=0.01)  # Colgate: b > KT/2 nearly tight for light damping
-    r = lambda k: np.max(np.abs(sb.sampled_wall_poles(mass=m, damping=b, stiffness=k,  # noqa: E731
+    r = lambda k: np.max(np.abs(sampled_wall.sampled_wall_poles(mass=m, damping=b, stiffness=k,  # noqa: E731
                                                       virtual_damping=0.0, T=T)))
     assert r(0.999 * K) < 1.0 < r(1.001 * K)
 
@@ -105,9 +105,9 @@ def _one_dof(prrr_paper):
 
 
 @pytest.mark.parametrize("B", [0.0, 60.0])
-def test_one_dof_sampled_boundary_within_2pct(prrr_paper, B):
+def test_one_dof_sampled_boundary_within_2pct(prrr_paper, B, sampled_wall):
     d, sc, m, b = _one_dof(prrr_paper)
-    K_exact = sb.sampled_wall_boundary(mass=m, damping=b, virtual_damping=B, T=1e-3)
+    K_exact = sampled_wall.sampled_wall_boundary(mass=m, damping=b, virtual_damping=B, T=1e-3)
     probe = StabilityProbe(d, sc)
     Ks = K_exact * np.linspace(0.9, 1.1, 21)  # 1 % grid
     ok = probe(Ks, np.full(len(Ks), B))
