@@ -96,14 +96,6 @@ def cubic(handle: Handle) -> np.ndarray:
     ])
 
 
-def hurwitz_margin(a: np.ndarray) -> float:
-    """(a1 a2 − a0 a3)/(a1 a2) of a cubic a0 s³ + a1 s² + a2 s + a3 with a0 > 0; −1 if a1, a2 or a3 ≤ 0."""
-    a0, a1, a2, a3 = (float(v) for v in a)
-    if a1 <= 0.0 or a2 <= 0.0 or a3 <= 0.0:
-        return -1.0
-    return (a1 * a2 - a0 * a3) / (a1 * a2)
-
-
 def eq18_stiffness_limit(handle: Handle) -> float:
     """K_e at which a1 a2 = a0 a3 (eq 18; with the operator the same root of eq 21) [N/m]."""
     a0, a1, a2, _ = cubic(handle)

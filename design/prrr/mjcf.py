@@ -394,21 +394,3 @@ def pose_qpos(design: PrrrDesign, p, *, options: MjcfOptions = MjcfOptions()) ->
     if options.hand is not None:
         q += list(np.asarray(p, dtype=float))
     return np.asarray(q)
-
-
-def closure_errors(model, data) -> dict[str, float]:
-    """Distance [m] between the two sides of every connect constraint (anchors recomputed from
-    body poses)."""
-    import mujoco
-
-    out = {}
-    for k in range(model.neq):
-        if model.eq_type[k] != mujoco.mjtEq.mjEQ_CONNECT:
-            continue
-        b1, b2 = model.eq_obj1id[k], model.eq_obj2id[k]
-        a1 = model.eq_data[k, 0:3]
-        a2 = model.eq_data[k, 3:6]
-        p1 = data.xpos[b1] + data.xmat[b1].reshape(3, 3) @ a1
-        p2 = data.xpos[b2] + data.xmat[b2].reshape(3, 3) @ a2
-        out[mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, k)] = float(np.linalg.norm(p1 - p2))
-    return out

@@ -326,13 +326,6 @@ def _pose_dev(dev: Device, st: State) -> Device:
     return _expand(dev, st.p.ndim - 1 - (dev.a.ndim - 2))
 
 
-def residual_norm(dev: Device, st: State) -> np.ndarray:
-    """Largest |closure residual| of each state [m, or rad for the compliance rows] (…,)."""
-    d = _pose_dev(dev, st)
-    f, h = _residual(d, st, _chain(d, st.sliders, st.theta))
-    return np.maximum(np.max(np.abs(f), axis=(-2, -1)), np.max(np.abs(h), axis=-1))
-
-
 def jacobian(dev: Device, st: State) -> np.ndarray:
     """J = dp/dD (…, 3, 3) at the assembled states ``st`` (implicit function theorem on the 12 closure
     equations: J⁻¹ = dD/dp from the IK system, then inverted)."""

@@ -168,13 +168,6 @@ def axis_margin(design: PrrrDesign, settings: LoopSettings, stiffness_N_per_m: f
         return -float(np.log(np.max(np.abs(np.linalg.eigvals(Mb))))) / settings.period_s
 
 
-def axis_poles(design: PrrrDesign, settings: LoopSettings, stiffness_N_per_m: float, *, axis: int = 0) -> np.ndarray:
-    """Closed-loop poles of the axis as continuous-equivalent s = ln(z)/T [1/s] (slow-rate z)."""
-    z = np.linalg.eigvals(axis_block(design, lifted_matrix(design, settings, stiffness_N_per_m, axis=axis), axis))
-    z = z[np.abs(z) > 1e-12]
-    return np.log(z.astype(complex)) / settings.period_s
-
-
 @dataclass(frozen=True)
 class AxisLimit:
     value_N_per_m: float  #: NaN unless status == "ok"
