@@ -45,9 +45,9 @@ from hapticopt.design.prrr.kinematics import inverse_kinematics, leg_chain, leg_
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.design.units import GRAVITY
 
-#: mass of a link [kg] when link masses are lumped into the end-effector (0.15 % of M each; at
-#: 1e-4 kg the links' fast constraint modes dissipate 3 % of the energy in 10 periods, measured
-#: in docs/multibody.md; 1e-3 kg: 0.3 %)
+#: mass of a link [kg] when link masses are lumped into the end-effector (0.15 % of M each): light
+#: enough to leave M as it is, heavy enough that the links' fast constraint modes dissipate little
+#: energy (docs/multibody.md)
 LUMPED_LINK_MASS = 1e-3
 #: output slider (carriage) mass [kg] of the lumped and real models; the paper's two-mass model
 #: has none, MuJoCo needs > 0

@@ -91,7 +91,7 @@ def _cross(a, b, xp=np):
 
 
 def _dot(a, b, xp=np):
-    """a·b over the last axis (size 3; written out: a short-axis reduction costs ~5× more)."""
+    """a·b over the last axis (size 3; written out: cheaper than a short-axis reduction)."""
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 

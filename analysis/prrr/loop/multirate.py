@@ -178,7 +178,7 @@ class AxisLimit:
 
 def stiffness_limit(design: PrrrDesign, settings: LoopSettings, *, axis: int = 0, rtol: float = 1e-9) -> AxisLimit:
     """First K_v (scan ×1.25 from 10 N/m) where the axis' spectral radius reaches 1 [N/m]."""
-    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
+    from scipy.optimize import brentq  # lazy: a heavy import (tests/test_layers.py LAZY)
     sc = linear_scene(settings)
     model = build_model(design, sc, resolve(sc))
     plant = (model, discretise(model, settings.period_s / settings.upsampling))

@@ -678,7 +678,7 @@ def _call(fp, p, load_height, options: FrameOptions, batched: bool, full: bool):
 
 def solve_frame(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float = LOAD_HEIGHT,
                 options: FrameOptions = FrameOptions()) -> dict[str, np.ndarray]:
-    """Frame model of one design, numpy path (no compilation, ~1 ms); numpy arrays [SI].
+    """Frame model of one design, numpy path (no compilation); numpy arrays [SI].
 
     The same :func:`frame_arrays` as the jax path (:func:`solve_frame_jax`, tested equal to
     1e-12); a numerically singular matrix falls back to the jax path, which returns inf/NaN
