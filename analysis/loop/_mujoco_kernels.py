@@ -250,16 +250,6 @@ def _compensation(c1, s1, c2, s2, c3, s3, qd, qdd, kin, bfr, bw, bm, bcom, bI, r
     out[2] = t2 + rotor[2] * qdd[2]
 
 
-@njit(cache=True)
-def compensation_bodies(q, qd, qdd, kin, bfr, bw, bm, bcom, bI, rotor):
-    """:func:`_compensation` (body by body) with its own scratch (for tests: one call)."""
-    sc = comp_scratch()
-    out = np.empty(3)
-    _compensation(math.cos(q[0]), math.sin(q[0]), math.cos(q[1]), math.sin(q[1]), math.cos(q[2]), math.sin(q[2]),
-                  qd, qdd, kin, bfr, bw, bm, bcom, bI, rotor, sc, out)
-    return out
-
-
 # M̂ in a trig basis: the loop's per-tick compensation. The arm turns rigidly about the vertical axis (M̂ does not depend
 # on θ1), and every entry of M̂ is a polynomial of degree ≤ 2 in (cos θ2, sin θ2, cos θ3, sin θ3): a body on a link frame
 # has its CoM and its body-axes angular velocity per unit q̇ linear in them (in turret axes; the frames turn by θ2 or θ3
