@@ -173,13 +173,6 @@ def finish_core(pending: PendingCore, *, compute: Compute = DEFAULT) -> dict:
     return out
 
 
-def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS), *,
-             compute: Compute = DEFAULT) -> dict:
-    """The core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK);
-    numpy rows [:n] (:func:`start_core` then :func:`finish_core`)."""
-    return finish_core(start_core(inp, n, groups), compute=compute)
-
-
 class _Checker:
     """Collision checks of poses of many designs (owner index per pose), grouped by part layout."""
 
