@@ -100,10 +100,6 @@ class FastResult:
     depth: np.ndarray  # (n, n_part_pairs) [m]
     part_pairs: tuple[tuple[str, str], ...]
 
-    def pairs_at(self, k: int) -> list[tuple[str, str]]:
-        """Colliding part pairs at pose ``k``."""
-        return [self.part_pairs[j] for j in np.flatnonzero(self.depth[k] > DEPTH_TOL)]
-
 def _skip_rule(names: tuple[str, ...], bodies: tuple[str, ...]) -> set[frozenset]:
     skip = set(cad_prrr.neighbours())
     for i, a in enumerate(names):

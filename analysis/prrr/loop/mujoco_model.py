@@ -114,12 +114,6 @@ class PrrrMj:
         """Output slider positions D_e [m] (absolute, home = c_e)."""
         return qpos[self.slider_qpos] + self.c_e
 
-    def deflection(self, qpos: np.ndarray) -> np.ndarray:
-        """SEA spring deflection x = D − D_e [m] (zeros without SEA compliance)."""
-        if self.motor_qpos is None:
-            return np.zeros(3)
-        return qpos[self.motor_qpos] - qpos[self.slider_qpos]
-
 
 home_pose = mjcf.home_pose
 
