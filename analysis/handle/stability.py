@@ -137,12 +137,6 @@ def loop_delta(handle: Handle, *, delay_samples: int = 0, _plant=None) -> np.nda
     return E
 
 
-def loop_matrix(handle: Handle, *, delay_samples: int = 0, _plant=None) -> np.ndarray:
-    """Transition matrix M of the exact sampled loop (see ``loop_delta``)."""
-    E = loop_delta(handle, delay_samples=delay_samples, _plant=_plant)
-    return E + np.eye(E.shape[0])
-
-
 def _delta_margin(E: np.ndarray, T: float, rate: float) -> np.ndarray:
     """−max ln|1 + e|/T over the eigenvalues e of E = M − I, divided by ``rate`` (batched)."""
     e = np.linalg.eigvals(E)

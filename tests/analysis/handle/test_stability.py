@@ -60,7 +60,7 @@ def simulate_wall(handle: hm.Handle, *, hold: hm.Hold, duration_s: float, x0_m: 
                                         t_eval=t, rtol=1e-10, atol=1e-18 * max(1.0, abs(x0_m)))
         x = sol.y[0]
     else:
-        M = hs.loop_matrix(handle)
+        M = hs.loop_delta(handle) + np.eye(3)  # the sampled loop's transition matrix
         z = np.array([x0_m, 0.0, x0_m])  # resting at x0 (x_{−1} = x0)
         x = np.empty(n + 1)
         for k in range(n + 1):
@@ -192,7 +192,7 @@ def test_one_sample_delay_gives_a_third():
     b = H.damping_N_s_per_m
     assert lim.value_N_per_m * H.transmission == pytest.approx(2 * b / (3 * H.period_s), rel=0.01)
     with pytest.raises(ValueError, match=r"delay_samples = 2: allowed 0 or 1 \[samples\]"):
-        hs.loop_matrix(H, delay_samples=2)
+        hs.loop_delta(H, delay_samples=2)
 
 
 def test_zwidth_map():
