@@ -8,26 +8,11 @@ import numpy as np
 import pytest
 
 from hapticopt.analysis.prrr.structure import frame_model as fm
-from hapticopt.analysis.prrr.structure import frame_params
 from hapticopt.analysis.prrr.structure import stiffness as ss
 from hapticopt.analysis.registry import evaluate_all
 from hapticopt.analysis.status import Status
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidInput
-
-
-def stiffness_batch(designs: list, *, p=(0.0, 0.0, 0.0), load_height: float = fm.LOAD_HEIGHT,
-                    options: fm.FrameOptions = fm.FrameOptions()) -> dict[str, np.ndarray]:
-    """Frame model of many designs in one vectorised call.
-
-    Returns arrays with a leading axis n [SI]: ``stiffness_load`` (n, 3) [N/m],
-    ``elastic_centre`` (n,) [m], ``stiffness_elastic_centre`` (n, 3), ``condition`` (n,),
-    ``reachable`` (n,) bool, ``ok`` (n,) bool (reachable, finite and well-conditioned).
-    """
-    out = fm.solve_frame_batch(frame_params.stack_frame_params(designs), p=p, load_height=load_height, options=options)
-    finite = np.all(np.isfinite(out["stiffness_load"]), axis=-1) & np.isfinite(out["condition"])
-    out["ok"] = out["reachable"] & finite & (out["condition"] <= fm.COND_LIMIT)
-    return out
 
 
 @pytest.fixture(scope="module")
@@ -122,14 +107,6 @@ def test_smaller_beta_raises_stiffness_at_the_elastic_centre_over_the_whole_rang
     assert np.all(np.diff(h_ec) > 0)  # the elastic centre rises with β
     k58 = np.array([r.stiffness_load[0] for r in results])
     assert k58[0] < k58[1]  # the non-monotone part at Δz = 58 mm (30° below 40°)
-
-
-def test_stiffness_batch_flags_and_matches_single(paper):
-    # the vectorised frame model: same batch size (2) as test_frame_model's batch test
-    designs = [paper, _with(paper, "structure", link_width=0.5, link_thickness=1e-7)]
-    out = stiffness_batch(designs)
-    assert out["ok"].tolist() == [True, False]  # the second one is ill-conditioned
-    np.testing.assert_allclose(out["stiffness_load"][0], ss.structural_stiffness(paper).stiffness_load, rtol=1e-9)
 
 
 def test_very_slender_links_give_a_finite_answer(paper):
