@@ -8,7 +8,7 @@ few bounding-box tests plus one exact boolean per candidate pair.
 
 Usage::
 
-    model = prepare(design)                   # once per design (≈ 0.1 s)
+    model = prepare(design)                   # once per design
     res = check_pose(model, p)                # p (3,) [m]; res.collisions, res.overlap_mm3
     many = check_poses(model, points)         # points (n, 3) [m]
     limits = joint_limits(model)              # per joint: collision-free angle range [rad]

@@ -1,8 +1,8 @@
 """Compile the numba kernels into numba's on-disk cache once, at setup (``make setup``; the Makefile's
 install step runs ``python -m hapticopt.analysis.warmup``).
 
-A kernel's first call in a fresh install compiles it (tens of seconds for the collision check's kernel on
-a 2-core machine); every later process loads the compiled code from the cache (≈ 0.6 s with numba's import). Done here, a user's first ``make run`` and the
+A kernel's first call in a fresh install compiles it (tens of seconds for the collision check's kernel);
+every later process loads the compiled code from the cache. Done here, a user's first ``make run`` and the
 first test run do not pay the compile. Running it again only loads the cache. A kernel that cannot
 run here (numba missing, no writable cache folder) is reported with its reason; the numpy / Python
 reference paths then run, so this never fails the install.

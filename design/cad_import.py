@@ -1,8 +1,8 @@
 """build123d without scikit-learn until it is needed.
 
 ``import build123d`` imports ``build123d.brep_from_stl`` (primitive detection on STL meshes), which
-imports scikit-learn's ``DBSCAN`` and with it ``scipy.stats``: 0.55 s of the ≈ 1.9 s build123d import
-on a quiet machine (docs/performance.md), in every process that builds CAD (``hapticopt export`` and the
+imports scikit-learn's ``DBSCAN`` and with it ``scipy.stats``: a large share of the build123d import
+(docs/performance.md), in every process that builds CAD (``hapticopt export`` and the
 pipeline's side process). Nothing here detects primitives. :func:`build123d` imports build123d with a
 stand-in for that one module in ``sys.modules``: ``build123d.detect_primitives`` and every other name of
 the module still work, and the first use imports the real module.

@@ -128,17 +128,6 @@ def non_dominated(points: Sequence[FrontPoint], senses: Sequence[Sense]) -> list
     return sorted(out, key=lambda p: p.objectives[0])
 
 
-def hypervolume_2d(points: Sequence[Sequence[float]], ref: Sequence[float]) -> float:
-    """Area dominated by ``points`` and bounded by ``ref`` (both objectives maximised)."""
-    pts = sorted((p for p in points if p[0] > ref[0] and p[1] > ref[1]), key=lambda p: -p[0])
-    area, top = 0.0, ref[1]
-    for f1, f2 in pts:
-        if f2 > top:
-            area += (f1 - ref[0]) * (f2 - top)
-            top = f2
-    return area
-
-
 def choose(front: Sequence[FrontPoint], senses: Sequence[Sense], how: Choice,
            weights: Sequence[float] = ()) -> FrontPoint | None:
     """The chosen design of a front. Objectives are normalised over the front to [0, 1], 1 = best.

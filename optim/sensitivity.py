@@ -272,12 +272,3 @@ def sensitivities(design: Any, *, fidelity: Fidelity = Fidelity.DRAFT, metrics: 
                                    method=method, step=step, uncertainty=unc, status=status))
     out.sort(key=lambda s: -abs(s.elasticity) if s.elasticity is not None and math.isfinite(s.elasticity) else math.inf)
     return out
-
-
-def fd_of(design: Any, metric: str, key: str, *, fidelity: Fidelity = Fidelity.DRAFT,
-          steps: tuple[float, ...] = STEPS, only: tuple[str, ...] | None = None) -> Sensitivity:
-    """The finite-difference sensitivity of one scalar ``metric`` to one ``key`` (the jax route off):
-    what the jax values are checked against."""
-    rows = sensitivities(design, fidelity=fidelity, metrics=[base_name(metric)], keys=[key], steps=steps,
-                         use_jax=False, only=only)
-    return next(r for r in rows if r.metric == metric)

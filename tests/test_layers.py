@@ -50,7 +50,6 @@ LAZY: dict[str, str] = {
     "distributed": "cluster executor, only --scheduler tcp:// needs it",
     "jax": "jit-compiled paths; the numpy paths of a short CLI call do not pay jax's import",
     "scipy.optimize": "root finding in a few evaluators; +0.4 s to import",
-    "scipy.integrate": "one ODE check of the handle's stability; it imports scipy.optimize",
     "nlopt": "only the optimiser needs it",
     "threadpoolctl": "BLAS thread control around the FEA solve",
     "sksparse": "optional CHOLMOD backend of the FEA's direct solve (scikit-sparse; SuperLU without it)",

@@ -61,8 +61,8 @@ class Variant(enum.Enum):
     AS_INTENDED = "as_intended"
 
 
-#: the firmware default: the variant that does not lower the stable stiffness (measured on the
-#: handle, docs/seed000.md and scripts/accuracy/accuracy_seed000.py; as printed lowers it by 52–67 %)
+#: the firmware default: the variant that does not lower the stable stiffness (the handle's table in
+#: docs/seed000.md, from scripts/accuracy/accuracy_seed000.py; the variant as printed lowers it)
 DEFAULT_VARIANT = Variant.AS_INTENDED
 
 
@@ -301,7 +301,7 @@ def lifted_stiffness_limit(plant: Plant, fw: Firmware, *, reference_N_per_m: flo
     The bracket's ends are classified by the sign of ``lifted_margin`` (a decay rate, 1/s); the
     root is then found to ``rtol`` by Brent's method, so no verdict rests on a rounding-level value
     unless the bracket itself does (reported in ``stable_below``/``unstable_at``)."""
-    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
+    from scipy.optimize import brentq  # lazy: a heavy import (tests/test_layers.py LAZY)
     if not (np.isfinite(reference_N_per_m) and reference_N_per_m > 0.0):
         raise ValueError(f"reference_N_per_m = {reference_N_per_m!r}: allowed finite > 0 [N/m]")
     fast = _zoh(plant.A, plant.b, fw.period_s / fw.upsampling)

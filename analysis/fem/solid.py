@@ -231,7 +231,7 @@ def solve_elasticity(mesh: TetMesh, *, youngs_modulus: float, poisson_ratio: flo
 
     ``loads(basis) -> (n_dofs, n_cases)`` builds the load vectors on the quadratic basis.
     Quadrature of order 2 (exact for the stiffness of straight-sided P2 tetrahedra: ∇u·∇v is
-    quadratic; ~3× faster assembly than skfem's default order 4). The condensed system is solved
+    quadratic; skfem's default order 4 only adds quadrature points). The condensed system is solved
     by :func:`hapticopt.analysis.fem.linsolve.solve_spd` (one factorisation, or one AMG hierarchy,
     for every load case; ``method`` AUTO chooses by size); ``tol`` is CG's relative residual
     when AMG-CG runs (the compliance error is ~tol², negligible). A singular system (missing
@@ -270,8 +270,8 @@ def solve_system(A, B: np.ndarray, rhs: np.ndarray, *, blocked: bool, tol: float
 
     A singular system comes back as a value (status singular, NaN solutions: the stiffness the
     callers compute from it is NaN, their status not ok). A solve that failed to converge or to
-    reach its residual raises ``RuntimeError`` with the solver's message, as CG's non-convergence
-    did before: the evaluators turn it into a ``failed`` status with that message.
+    reach its residual raises ``RuntimeError`` with the solver's message: the evaluators turn it into
+    a ``failed`` status with that message.
     """
     lin = linsolve.solve_spd(A, rhs, near_nullspace=B, blocked=blocked, tol=tol, method=method)
     if lin.status is Status.FAILED:

@@ -48,7 +48,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hapticopt.analysis.control.upsampling import GrowthEstimate, growth_rate
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
 from hapticopt.design.handle.params import HandleDesign
@@ -97,14 +96,6 @@ def cubic(handle: Handle) -> np.ndarray:
     ])
 
 
-def hurwitz_margin(a: np.ndarray) -> float:
-    """(a1 a2 − a0 a3)/(a1 a2) of a cubic a0 s³ + a1 s² + a2 s + a3 with a0 > 0; −1 if a1, a2 or a3 ≤ 0."""
-    a0, a1, a2, a3 = (float(v) for v in a)
-    if a1 <= 0.0 or a2 <= 0.0 or a3 <= 0.0:
-        return -1.0
-    return (a1 * a2 - a0 * a3) / (a1 * a2)
-
-
 def eq18_stiffness_limit(handle: Handle) -> float:
     """K_e at which a1 a2 = a0 a3 (eq 18; with the operator the same root of eq 21) [N/m]."""
     a0, a1, a2, _ = cubic(handle)
@@ -144,12 +135,6 @@ def loop_delta(handle: Handle, *, delay_samples: int = 0, _plant=None) -> np.nda
     E[2, 0], E[2, 2] = 1.0, -1.0
     E[3, 0], E[3, 2], E[3, 3] = kx, kp, -1.0
     return E
-
-
-def loop_matrix(handle: Handle, *, delay_samples: int = 0, _plant=None) -> np.ndarray:
-    """Transition matrix M of the exact sampled loop (see ``loop_delta``)."""
-    E = loop_delta(handle, delay_samples=delay_samples, _plant=_plant)
-    return E + np.eye(E.shape[0])
 
 
 def _delta_margin(E: np.ndarray, T: float, rate: float) -> np.ndarray:
@@ -194,7 +179,7 @@ def stiffness_limit(handle: Handle, *, hold: Hold = Hold.EXACT, delay_samples: i
     (K_ref = 2b/(T r/R), Colgate's bound at the shaft); the first unstable point and the last
     stable one bracket the root of the margin, found by Brent's method.
     """
-    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
+    from scipy.optimize import brentq  # lazy: a heavy import (tests/test_layers.py LAZY)
     rate = handle.damping_N_s_per_m / handle.mass_kg
     if hold is Hold.PADE:
         h0 = dataclasses.replace(handle, wall_stiffness_N_per_m=0.0)
@@ -319,48 +304,6 @@ def zwidth_map(handle: Handle, wall_damping_N_s_per_m, wall_stiffness_N_per_m, *
         bnd.append(lim.value_N_per_m)
         st.append(lim.status)
     return ZWidthMap(B, K, M, np.array(bnd), tuple(st))
-
-
-# ------------------------------------------------------------------------------ simulation
-@dataclass(frozen=True)
-class WallSimulation:
-    """Response of the handle to an initial penetration x0 against its wall."""
-
-    t_s: np.ndarray
-    x_m: np.ndarray
-    growth: GrowthEstimate
-
-
-def simulate_wall(handle: Handle, *, hold: Hold, duration_s: float, x0_m: float = 1e-3) -> WallSimulation:
-    """Time response from x = x0, ẋ = 0 (the paper's figs 6–8 use steps; the decay is the same).
-
-    ``Hold.PADE`` integrates the paper's continuous loop with an adaptive Runge–Kutta (DOP853)
-    — independent of the eigenvalue analysis; ``Hold.EXACT`` steps the sampled loop (ZOH, no delay).
-    """
-    import scipy.integrate  # lazy: it imports scipy.optimize
-    if not (np.isfinite(duration_s) and duration_s > 20 * handle.period_s):
-        raise ValueError(f"duration_s = {duration_s!r}: must exceed 20 periods T = {handle.period_s} [s]")
-    T = handle.period_s
-    n = round(duration_s / T)
-    t = np.arange(n + 1) * T
-    if hold is Hold.PADE:
-        A = pade_closed_loop(handle).A
-        f0 = handle.wall_stiffness_N_per_m * x0_m
-        sol = scipy.integrate.solve_ivp(lambda _t, y: A @ y, (0.0, t[-1]), [x0_m, 0.0, f0], method="DOP853",
-                                        t_eval=t, rtol=1e-10, atol=1e-18 * max(1.0, abs(x0_m)))
-        x = sol.y[0]
-    else:
-        M = loop_matrix(handle)
-        z = np.array([x0_m, 0.0, x0_m])  # resting at x0 (x_{−1} = x0)
-        x = np.empty(n + 1)
-        for k in range(n + 1):
-            x[k] = z[0]
-            if not np.isfinite(z[0]) or abs(z[0]) > 1e30 * abs(x0_m):
-                x = x[:k]
-                break
-            z = M @ z
-        t = t[: x.size]
-    return WallSimulation(t, x, growth_rate(t, x))
 
 
 # ------------------------------------------------------------------------------ evaluator

@@ -192,11 +192,10 @@ def _compensation(c1, s1, c2, s2, c3, s3, qd, qdd, kin, bfr, bw, bm, bcom, bI, r
     ω_b = J_ω q̂̇), with the velocity-product accelerations a_b = D²c_b and α_b = vee of the skew part of Rᵀ D²R (D²
     along q̂̇: :func:`_frames_dd`). The frames' derivatives are exact (the reference's complex step gives them to
     rounding); the difference to the reference is its central difference's truncation O(h²) and rounding (ε|M̂|/h):
-    both below the reference's own sensitivity to its rounding (measured, docs/performance.md §2).
+    both below the reference's own sensitivity to its rounding (docs/performance.md §2).
 
     The loop does not call this per tick: it identifies M̂'s basis coefficients from it once per plant and model
-    (:func:`mass_basis`) and evaluates :func:`_compensation_basis` (measured ≈ 150 ns a call against ≈ 820 ns here,
-    the trig calls excluded)."""
+    (:func:`mass_basis`) and evaluates :func:`_compensation_basis`, a few times cheaper than this body sum."""
     O, dO, R, dR, O2, R2, Jv, Jw = sc
     _frames(c1, s1, c2, s2, c3, s3, kin[0], kin[1], kin[2], kin[3], O, dO, R, dR)
     _frames_dd(c1, s1, c2, s2, c3, s3, qd, kin[0], kin[1], kin[2], O2, R2)
@@ -249,16 +248,6 @@ def _compensation(c1, s1, c2, s2, c3, s3, qd, qdd, kin, bfr, bw, bm, bcom, bI, r
     out[0] = t0 + rotor[0] * qdd[0]
     out[1] = t1 + rotor[1] * qdd[1]
     out[2] = t2 + rotor[2] * qdd[2]
-
-
-@njit(cache=True)
-def compensation_bodies(q, qd, qdd, kin, bfr, bw, bm, bcom, bI, rotor):
-    """:func:`_compensation` (body by body) with its own scratch (for tests: one call)."""
-    sc = comp_scratch()
-    out = np.empty(3)
-    _compensation(math.cos(q[0]), math.sin(q[0]), math.cos(q[1]), math.sin(q[1]), math.cos(q[2]), math.sin(q[2]),
-                  qd, qdd, kin, bfr, bw, bm, bcom, bI, rotor, sc, out)
-    return out
 
 
 # M̂ in a trig basis: the loop's per-tick compensation. The arm turns rigidly about the vertical axis (M̂ does not depend

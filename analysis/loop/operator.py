@@ -92,12 +92,6 @@ def _require_eq2(op: Operator) -> None:
         raise InvalidInput(f"operator.kind = {op.kind.value!r}: seed 001 eq 2 needs kind = \"force_eq2\"")
 
 
-def force_rate(op: Operator, e_p: float, f: float) -> float:
-    """ḟ [N/s] of eq 2 for the error e_p [m] and the force f [N] (kind ``force_eq2``)."""
-    _require_eq2(op)
-    return (op.force_gain * e_p - op.force_decay * f) / op.force_time_constant
-
-
 def force_step(op: Operator, f: float, e_p: float, h: float) -> float:
     """f after h [s] of eq 2 with e_p [m] held: the exact first-order step
     f(h) = f e^{−h K_f/K_r} + (K_c/K_f) e_p (1 − e^{−h K_f/K_r})."""

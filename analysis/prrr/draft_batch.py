@@ -173,13 +173,6 @@ def finish_core(pending: PendingCore, *, compute: Compute = DEFAULT) -> dict:
     return out
 
 
-def run_core(inp: CoreInputs, n: int, groups: tuple[str, ...] = tuple(CORE_GROUPS), *,
-             compute: Compute = DEFAULT) -> dict:
-    """The core of ``groups`` on ``n`` stacked designs, padded to :func:`bucket` (n ≤ MAX_CHUNK);
-    numpy rows [:n] (:func:`start_core` then :func:`finish_core`)."""
-    return finish_core(start_core(inp, n, groups), compute=compute)
-
-
 class _Checker:
     """Collision checks of poses of many designs (owner index per pose), grouped by part layout."""
 
@@ -254,9 +247,8 @@ def _shares(sel: np.ndarray, owner: np.ndarray, k: int) -> list[np.ndarray]:
 
 def _run_threaded(fn, jobs: list) -> None:
     """``fn(job)`` for every job: the first on the calling thread, the others on a pool made for this call
-    (the kernel releases the GIL), the first error raised again here. A pool made, used and shut down costs
-    ≈ 0.26 ms (one worker, median of 200, at load 20 on 2 cores), against at least
-    :data:`POSES_PER_THREAD` poses of kernel work per share (milliseconds)."""
+    (the kernel releases the GIL), the first error raised again here. Making, using and shutting down a pool
+    costs little against the :data:`POSES_PER_THREAD` or more poses of kernel work of each share."""
     if len(jobs) <= 1:
         for job in jobs:
             fn(job)
@@ -538,8 +530,8 @@ def _limits(design: PrrrDesign, arrays: dict, i: int, found: dict) -> np.ndarray
 def _structure(design: PrrrDesign, out: dict) -> Any:
     """The frame result from the batch's row; a design whose verdict is not ok is solved again by
     the single numpy path: near a singular stiffness matrix the numbers are rounding garbage that
-    differs between LAPACK and XLA, and so could the verdict read from them (measured: β = 89.999999°
-    gave ``singular`` in numpy and ``not-positive-definite`` in jax). Rare, and it keeps the statuses equal."""
+    differs between LAPACK and XLA, and so could the verdict read from them (at β = 89.999999° numpy says
+    ``singular``, jax ``not-positive-definite``). Rare, and it keeps the statuses equal."""
     try:
         result = structure.from_arrays(design, out, p=np.zeros(3), load_height=fm.LOAD_HEIGHT,
                                        options=fm.FrameOptions())
@@ -606,7 +598,7 @@ def _interference(designs, specs, wps, check, res, t0) -> None:
 def _blocked_tabled(design: PrrrDesign, spec: Any) -> str | None:
     """``assembly.check(design, with_parts=True)`` of a design with array part tables (:class:`_Rows`):
     its parts are laid out (``layout`` tables only designs that pass its rules),
-    so its chain closure alone (cached), without the CAD layout (≈ 0.16 ms a design not seen before);
+    so its chain closure alone (cached), without the CAD layout;
     None for the others (the evaluator asks ``assembly.check`` itself)."""
     return assembly.closure(design) if isinstance(spec, _Rows) else None
 

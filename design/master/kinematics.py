@@ -127,16 +127,6 @@ def jacobian(params: MasterParams, q: jax.Array) -> jax.Array:
     return jnp.stack([col1, col2, col3], axis=-1)
 
 
-def planar_jacobian(params: MasterParams, q: jax.Array) -> jax.Array:
-    """In-plane Jacobian ∂(ρ, z)/∂(θ2, θ3) (…, 2, 2) [m/rad]; det = −L4·L5·cos(θ2 − θ3)."""
-    q = jnp.asarray(q)
-    t2, t3 = q[..., 1], q[..., 2]
-    L5, L4 = params.upper_arm, params.forearm
-    row_rho = jnp.stack([-L5 * jnp.sin(t2), L4 * jnp.cos(t3)], axis=-1)
-    row_z = jnp.stack([L5 * jnp.cos(t2), L4 * jnp.sin(t3)], axis=-1)
-    return jnp.stack([row_rho, row_z], axis=-2)
-
-
 class IkSolution(NamedTuple):
     """Inverse kinematics of handle positions p (…, 3)."""
 

@@ -74,11 +74,6 @@ class Bracket:
     face: str  # "side" (the y face beside the rail, preferred) or "front"/"back" (the x faces)
 
     @property
-    def contact_area(self) -> float:
-        """Bonded area of the root on the block face [m²]."""
-        return self.contact_size[0] * self.contact_size[1]
-
-    @property
     def arm_end(self) -> np.ndarray:
         """Centre of the arm's end section, on the root's near end face [m]."""
         return self.clevis + self.arm_length * self.e_l

@@ -184,7 +184,7 @@ def inverse_kinematics(params: PrrrParams, p: jax.Array, xp=jnp) -> IkSolution:
         return th1, th2, -(th1 + th2)
 
     branches = (branch(phi - psi, elbow), branch(phi + psi, -elbow))
-    if xp is np:  # the same numbers written into one array (numpy's stack costs ≈ 5 µs a call)
+    if xp is np:  # the same numbers written into one array (cheaper than numpy's stack)
         theta = np.empty(phi.shape[:-1] + (2, 3, 3))
         for k, joints in enumerate(branches):
             for j, angle in enumerate(joints):

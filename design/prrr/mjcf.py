@@ -45,9 +45,9 @@ from hapticopt.design.prrr.kinematics import inverse_kinematics, leg_chain, leg_
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.design.units import GRAVITY
 
-#: mass of a link [kg] when link masses are lumped into the end-effector (0.15 % of M each; at
-#: 1e-4 kg the links' fast constraint modes dissipate 3 % of the energy in 10 periods, measured
-#: in docs/multibody.md; 1e-3 kg: 0.3 %)
+#: mass of a link [kg] when link masses are lumped into the end-effector (0.15 % of M each): light
+#: enough to leave M as it is, heavy enough that the links' fast constraint modes dissipate little
+#: energy (docs/multibody.md)
 LUMPED_LINK_MASS = 1e-3
 #: output slider (carriage) mass [kg] of the lumped and real models; the paper's two-mass model
 #: has none, MuJoCo needs > 0
@@ -394,21 +394,3 @@ def pose_qpos(design: PrrrDesign, p, *, options: MjcfOptions = MjcfOptions()) ->
     if options.hand is not None:
         q += list(np.asarray(p, dtype=float))
     return np.asarray(q)
-
-
-def closure_errors(model, data) -> dict[str, float]:
-    """Distance [m] between the two sides of every connect constraint (anchors recomputed from
-    body poses)."""
-    import mujoco
-
-    out = {}
-    for k in range(model.neq):
-        if model.eq_type[k] != mujoco.mjtEq.mjEQ_CONNECT:
-            continue
-        b1, b2 = model.eq_obj1id[k], model.eq_obj2id[k]
-        a1 = model.eq_data[k, 0:3]
-        a2 = model.eq_data[k, 3:6]
-        p1 = data.xpos[b1] + data.xmat[b1].reshape(3, 3) @ a1
-        p2 = data.xpos[b2] + data.xmat[b2].reshape(3, 3) @ a2
-        out[mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, k)] = float(np.linalg.norm(p1 - p2))
-    return out

@@ -91,7 +91,7 @@ def _cross(a, b, xp=np):
 
 
 def _dot(a, b, xp=np):
-    """a·b over the last axis (size 3; written out: a short-axis reduction costs ~5× more)."""
+    """a·b over the last axis (size 3; written out: cheaper than a short-axis reduction)."""
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
@@ -324,13 +324,6 @@ def forward_kinematics(design: PrrrDesign, dev: Device, sliders, *, branch: int 
 
 def _pose_dev(dev: Device, st: State) -> Device:
     return _expand(dev, st.p.ndim - 1 - (dev.a.ndim - 2))
-
-
-def residual_norm(dev: Device, st: State) -> np.ndarray:
-    """Largest |closure residual| of each state [m, or rad for the compliance rows] (…,)."""
-    d = _pose_dev(dev, st)
-    f, h = _residual(d, st, _chain(d, st.sliders, st.theta))
-    return np.maximum(np.max(np.abs(f), axis=(-2, -1)), np.max(np.abs(h), axis=-1))
 
 
 def jacobian(dev: Device, st: State) -> np.ndarray:

@@ -5,15 +5,27 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import pytest
 
 from hapticopt.design.errors import InvalidInput
-from hapticopt.optim.pareto import FrontPoint, choose, hypervolume_2d, non_dominated, run_front
+from hapticopt.optim.pareto import FrontPoint, choose, non_dominated, run_front
 from hapticopt.optim.problem import Choice, Sense, load_problem, problem_from_text
 from hapticopt.optim.recorder import Recorder
 from hapticopt.optim.runs import RunReader
+
+
+def hypervolume_2d(points: Sequence[Sequence[float]], ref: Sequence[float]) -> float:
+    """Area dominated by ``points`` and bounded by ``ref`` (both objectives maximised)."""
+    pts = sorted((p for p in points if p[0] > ref[0] and p[1] > ref[1]), key=lambda p: -p[0])
+    area, top = 0.0, ref[1]
+    for f1, f2 in pts:
+        if f2 > top:
+            area += (f1 - ref[0]) * (f2 - top)
+            top = f2
+    return area
 
 DATA = Path(__file__).parent / "data"
 ONLY = ("statics", "workspace")  # stiffness_limit_N_per_mm from statics, the height from workspace
@@ -115,6 +127,8 @@ OBJ2 = '[[objectives]]\nmetric = "workspace_height_at_diameter_mm"\nsense = "max
     (HEAD + OBJ + OBJ2 + '[pareto]\nchoose = "middle"\n', "allowed knee, weights"),
     (HEAD + '[objective]\nmetric = "jacobian_condition"\n[pareto]\npoints = 5\n', "\\[pareto\\] needs two"),
 ])
+
+
 def test_bad_pareto_problems(text, match):
     with pytest.raises(InvalidInput, match=match):
         problem_from_text(text, source="p.toml", base_dir=None)

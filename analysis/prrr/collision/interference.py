@@ -6,7 +6,7 @@ evaluation does not pay for it (issue 4's ≤ 20 ms draft budget).
 
 Metric ``interference_removed_fraction``: the share of the sampled workspace volume whose poses
 make two parts collide, from :mod:`hapticopt.analysis.prrr.collision.interference_fast` (convex primitives of the CAD part
-tables, separating axes; ~30 ms for the 216 poses of
+tables, separating axes) over the poses of
 :data:`hapticopt.analysis.prrr.geometry.workspace.INTERFERENCE_SAMPLING`). The same model at every fidelity: it never
 misses a collision the manifold3d reference (:mod:`analysis.interference`) finds, so a bound on it
 is conservative (docs/workspace_interference.md). At fine fidelity the ``workspace`` evaluator

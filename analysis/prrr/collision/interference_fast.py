@@ -1,7 +1,7 @@
 """Fast 3-PRRR link interference: convex primitives and separating axes, one numba kernel over poses.
 
 The reference is :mod:`analysis.interference` (manifold3d meshes of the CAD parts, one exact
-boolean per candidate pair, ~20 ms a pose). This module tests the same part pairs, built from
+boolean per candidate pair, far slower). This module tests the same part pairs, built from
 the same part tables (:func:`hapticopt.design.prrr.cad.part_specs`), without meshes:
 
 * **Shapes.** Every SOLID primitive of a part table is used as it is — box, cylinder, sphere —
@@ -26,10 +26,8 @@ the same part tables (:func:`hapticopt.design.prrr.cad.part_specs`), without mes
   one IK, :func:`hapticopt.design.prrr.kinematics.inverse_kinematics`) and the numba kernel
   (:mod:`._interference_kernels`) builds the part frames, prunes by part and primitive boxes and tests
   the axes per pose. Its numpy reference, which proves it right bit for bit, lives in the tests
-  (``tests/analysis/prrr/interference_reference.py``): the kernel pays from one pose, so the package has
-  no numpy route and every ``Compute`` backend runs it (measured in one warm process, ``check_points`` on
-  prrr-paper's interference sample, medians of 30 calls at 1, 3, 10, 30, 100 and 216 poses: numpy 12–84 ms,
-  the kernel 0.2–1.6 ms, 30–60×; loading numba and the cached kernel costs ≈ 0.6 s once per process).
+  (``tests/analysis/prrr/interference_reference.py``): the kernel pays from one pose (docs/performance.md),
+  so the package has no numpy route and every ``Compute`` backend runs it.
 
 Usage::
 
@@ -101,10 +99,6 @@ class FastResult:
     collides: np.ndarray  # (n,) bool (False where unreachable)
     depth: np.ndarray  # (n, n_part_pairs) [m]
     part_pairs: tuple[tuple[str, str], ...]
-
-    def pairs_at(self, k: int) -> list[tuple[str, str]]:
-        """Colliding part pairs at pose ``k``."""
-        return [self.part_pairs[j] for j in np.flatnonzero(self.depth[k] > DEPTH_TOL)]
 
 def _skip_rule(names: tuple[str, ...], bodies: tuple[str, ...]) -> set[frozenset]:
     skip = set(cad_prrr.neighbours())

@@ -22,8 +22,7 @@ So the workspace is {(x, y) reached by every leg} × z-interval(x, y), and
   reach region is a union of r-intervals with closed-form ends (roots of one quadratic per
   leg and annulus edge) and h is linear in r, so the radial integral is exact; the angle is
   integrated by the midpoint rule over one third of the circle (the region has 3-fold
-  symmetry). The angular integrand has kinks, so the error falls as O(n_φ⁻²) (measured: see
-  ``docs/workspace.md``).
+  symmetry). The angular integrand has kinks, so the error falls as O(n_φ⁻²) (docs/workspace.md).
 * **largest inscribed cylinder**: a vertical cylinder of radius R centred on the z axis has
   height H(R) = L − 2R cot β (a disc of radius R spreads max_i a_i − min_i a_i by 2R) as long
   as the disc lies in the reach region, i.e. R ≤ R_reach, the distance from the z axis to the
@@ -337,9 +336,8 @@ def workspace_core(wp: WorkspaceParams, *, n_phi: int, n_r: int, xp=np) -> dict:
     rt = r[..., None] * sa - wp.d2
     c2 = xp.clip((rv**2 + rt**2 - wp.d3**2 - wp.d4**2) / (2.0 * wp.d3 * wp.d4), -1.0, 1.0)  # cos θ2
     s2 = (1.0 - 2.0 * ELBOW_BRANCH) * xp.sqrt(1.0 - c2**2)  # sin θ2 on the elbow branch
-    # θ1 = atan2(rt, rv) − atan2(d4 sin θ2, d3 + d4 cos θ2), taken through its cosine and sine (the
-    # angle-difference formulas; no inverse trigonometry: XLA's float64 arctan2/arccos were most of
-    # this group's batched cost); a zero vector has the angle 0, as arctan2(0, 0)
+    # θ1 = atan2(rt, rv) − atan2(d4 sin θ2, d3 + d4 cos θ2) through its cosine and sine (no inverse
+    # trigonometry, costly in batched XLA float64); a zero vector has the angle 0, as arctan2(0, 0)
     ca1, sa1 = _direction(rv, rt, xp)
     cg, sg = _direction(wp.d3 + wp.d4 * c2, wp.d4 * s2, xp)
     c1, s1 = ca1 * cg + sa1 * sg, sa1 * cg - ca1 * sg  # cos θ1, sin θ1
@@ -353,8 +351,7 @@ def workspace_core(wp: WorkspaceParams, *, n_phi: int, n_r: int, xp=np) -> dict:
     link_extent = xp.maximum(link_extent, xp.sqrt(wp.d1**2 + wp.d2**2)) + wp.boss_radius
     footprint = 2.0 * wp.rail_envelope
 
-    # tangent roots leave rounding-sized slivers (~1e-23 m³, ~1e-20 of L ρ_max²): below
-    # EMPTY_VOLUME_REL · L ρ_max² (eight decades above them, four above float64 rounding) counts as empty
+    # tangent roots leave rounding-sized slivers: below EMPTY_VOLUME_REL · L ρ_max² counts as empty
     empty = ~(volume > EMPTY_VOLUME_REL * L * wp.rho_max**2)
     return {
         "volume": xp.maximum(volume, 0.0),
@@ -444,8 +441,7 @@ def _closure_params(design: PrrrDesign) -> WorkspaceParams:
 
 
 #: closure verdicts kept (design → message; oldest dropped first): a whole chunk of the batched draft
-#: evaluator (1024 designs, each asked ~6 times: registry, statics, stability, structure and the part
-#: evaluators). A memo of a pure function: it never changes which route computes a verdict.
+#: evaluator, whose designs are asked several times. A memo of a pure function: it never changes the route.
 CLOSURE_CACHE = 4096
 #: distinct designs of one :func:`closure_many` call from which it takes the jitted pass (fewer: numpy one
 #: by one, no compile)

@@ -565,7 +565,7 @@ def batch_gains(gains: firmware.Gains, **fields: Any) -> firmware.Gains:
 
 @functools.lru_cache(maxsize=1)
 def _blas() -> ThreadpoolController:
-    return ThreadpoolController()  # once: it enumerates the loaded BLAS libraries (≈ 0.2 ms)
+    return ThreadpoolController()  # once: it enumerates the loaded BLAS libraries
 
 
 def simulate_lumped(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDARD) -> ClosedLoopResult:
@@ -573,7 +573,7 @@ def simulate_lumped(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fi
 
     The host-side work (plant matrices, the fit in the metrics) is on matrices of at most 3000 × 3: BLAS
     runs single-threaded here, since threads woken for them spin against the next calls on a loaded
-    2-core machine (measured: 15–30 ms per call, more than the 12 ms simulation; docs/performance.md).
+    machine and cost more than the simulation (docs/performance.md).
     """
     with _blas().limit(limits=1, user_api="blas"):
         st = setup(design, scene, fidelity=fidelity)

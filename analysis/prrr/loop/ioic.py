@@ -6,7 +6,7 @@ seed-000 hand body; the eq-2 operator's force −f e_axis acts on the output sli
 held over the period (as the master's), and f is advanced exactly over each period with the
 period's mean error p_axis − x_d (its time constant K_r/K_f = 0.1 s in §4.1 is 100 periods).
 Without an operator body nothing but friction damps the output: the seed-002 SEA force loop
-(K_p = 45) against a free end-effector without Coulomb friction grows (measured, docs/seed001.md),
+(K_p = 45) against a free end-effector without Coulomb friction grows (docs/seed001.md),
 so the bundled scene keeps friction on. Firmware:
 :class:`hapticopt.analysis.prrr.loop.firmware_ioic.PrrrIoicController` (counts rounded when
 ``quantization`` is on, the handle force sensor −f e_axis).

@@ -114,18 +114,6 @@ class PrrrMj:
         """Output slider positions D_e [m] (absolute, home = c_e)."""
         return qpos[self.slider_qpos] + self.c_e
 
-    def motors(self, qpos: np.ndarray) -> np.ndarray:
-        """Motor-side positions D [m] (= output sliders without a motor side)."""
-        if self.motor_qpos is None:
-            return self.sliders(qpos)
-        return qpos[self.motor_qpos] + self.c_e
-
-    def deflection(self, qpos: np.ndarray) -> np.ndarray:
-        """SEA spring deflection x = D − D_e [m] (zeros without SEA compliance)."""
-        if self.motor_qpos is None:
-            return np.zeros(3)
-        return qpos[self.motor_qpos] - qpos[self.slider_qpos]
-
 
 home_pose = mjcf.home_pose
 
@@ -209,10 +197,6 @@ def build(design: PrrrDesign, options: ModelOptions | None = None) -> PrrrMj:
     )
 
 
-
-
-def ee_position(mj: PrrrMj, data: Any) -> np.ndarray:
-    return data.xpos[mj.ee_body].copy()
 
 
 def health(mj: PrrrMj, data: Any) -> Health:

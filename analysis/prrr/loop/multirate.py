@@ -168,13 +168,6 @@ def axis_margin(design: PrrrDesign, settings: LoopSettings, stiffness_N_per_m: f
         return -float(np.log(np.max(np.abs(np.linalg.eigvals(Mb))))) / settings.period_s
 
 
-def axis_poles(design: PrrrDesign, settings: LoopSettings, stiffness_N_per_m: float, *, axis: int = 0) -> np.ndarray:
-    """Closed-loop poles of the axis as continuous-equivalent s = ln(z)/T [1/s] (slow-rate z)."""
-    z = np.linalg.eigvals(axis_block(design, lifted_matrix(design, settings, stiffness_N_per_m, axis=axis), axis))
-    z = z[np.abs(z) > 1e-12]
-    return np.log(z.astype(complex)) / settings.period_s
-
-
 @dataclass(frozen=True)
 class AxisLimit:
     value_N_per_m: float  #: NaN unless status == "ok"
@@ -185,7 +178,7 @@ class AxisLimit:
 
 def stiffness_limit(design: PrrrDesign, settings: LoopSettings, *, axis: int = 0, rtol: float = 1e-9) -> AxisLimit:
     """First K_v (scan ×1.25 from 10 N/m) where the axis' spectral radius reaches 1 [N/m]."""
-    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
+    from scipy.optimize import brentq  # lazy: a heavy import (tests/test_layers.py LAZY)
     sc = linear_scene(settings)
     model = build_model(design, sc, resolve(sc))
     plant = (model, discretise(model, settings.period_s / settings.upsampling))

@@ -12,12 +12,6 @@
   mM s⁴ + ξM s³ + (cM + mk) s² + ξk s + ηK_p k K with c = k(1 + ηK_p) (zero virtual damping)
   gives the closed form K < k_a (1 + 1/(ηK_p)) → k_a as K_p → ∞ (k_a = k/2, k/2, 3k at β = π/3:
   Fig 13a / eq 15 of seed 002). Both the eigenvalue bisection and the closed form are here.
-* Seed 000's Hurwitz conditions for any cubic a3 s³ + a2 s² + a1 s + a0 (eq 17–18, 21–22).
-* The exact discrete-time boundary of a sampled virtual wall: mass m with physical damping b,
-  zero-order hold at T, virtual spring K and damper B on a (filtered) backward-difference
-  velocity; the roots of the closed loop's characteristic polynomial (eigenvalues of its
-  transition matrix) leave the unit circle at the boundary. Colgate's passivity condition
-  b > KT/2 + |B| lies inside it.
 """
 
 from __future__ import annotations
@@ -52,7 +46,7 @@ def force_loop_tf(design: PrrrDesign, kp: float) -> tuple[np.ndarray, np.ndarray
 
 def force_loop_bandwidth(design: PrrrDesign, kp: float) -> float:
     """−3 dB bandwidth of eq (8) relative to its DC gain [Hz]."""
-    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
+    from scipy.optimize import brentq  # lazy: a heavy import (tests/test_layers.py LAZY)
     num, den = force_loop_tf(design, kp)
     mag = lambda w: abs(np.polyval(num, 1j * w) / np.polyval(den, 1j * w))  # noqa: E731
     target = mag(0.0) / math.sqrt(2.0)
@@ -119,10 +113,6 @@ def continuous_closed_loop(design: PrrrDesign, *, stiffness: np.ndarray, damping
     return A
 
 
-def max_real_eigenvalue(A: np.ndarray) -> float:
-    return float(np.max(np.linalg.eigvals(A).real))
-
-
 def max_real_flexible_eigenvalue(A: np.ndarray) -> float:
     """Largest Re λ of ``A`` once its rigid-body modes are set aside [1/s].
 
@@ -162,81 +152,6 @@ def continuous_stiffness_limit(design: PrrrDesign, *, kp: float, axis: int, damp
         return max_real_flexible_eigenvalue(continuous_closed_loop(design, stiffness=Kv, damping=Bv, kp=kp)) < 0.0
 
     return _bisect_boundary(stable, 0.0, float(stiffness_limits(design)[axis]), rtol=rtol, cap=1e15)
-
-
-# -------------------------------------------------------------------------------- seed 000 cubic
-def hurwitz_cubic(a3: float, a2: float, a1: float, a0: float) -> bool:
-    """Routh–Hurwitz for a3 s³ + a2 s² + a1 s + a0 (seed 000 eq 17): all a > 0 and a2 a1 > a3 a0."""
-    return a3 > 0 and a2 > 0 and a1 > 0 and a0 > 0 and a2 * a1 > a3 * a0
-
-
-def seed000_cubic(*, inertia: float, damping: float, ratio: float, T: float, stiffness: float,
-                  virtual_damping: float = 0.0, hand_stiffness: float = 0.0, R: float = 1.0) -> tuple[float, ...]:
-    """Coefficients of seed 000 eq (15) (operator term eq 20–22 when ``hand_stiffness`` > 0).
-
-    T I s³ + (2I + T B_m) s² + (2(B_m + rR B_e) + R k_h T) s + 2 rR K_e + 2R k_h, with
-    I = I_m + I_l, ``ratio`` = rR.
-    """
-    I, Bm = inertia, damping
-    return (T * I, 2 * I + T * Bm, 2 * (Bm + ratio * virtual_damping) + R * hand_stiffness * T,
-            2 * ratio * stiffness + 2 * R * hand_stiffness)
-
-
-def seed000_stiffness_limit(*, inertia: float, damping: float, ratio: float, T: float,
-                            virtual_damping: float = 0.0) -> float:
-    """Eq (18)–(19): K_e < (2I + T B_m)(B_m + rR B_e) / (rR T I)."""
-    I, Bm = inertia, damping
-    return (2 * I + T * Bm) * (Bm + ratio * virtual_damping) / (ratio * T * I)
-
-
-# ------------------------------------------------------------------------- sampled virtual wall
-def sampled_wall_matrix(*, mass: float, damping: float, stiffness: float, virtual_damping: float, T: float,
-                        alpha: float = 0.0) -> np.ndarray:
-    """Transition matrix of the sampled wall, state [x, ẋ, x_prev, v_prev].
-
-    Plant m ẍ + b ẋ = u, exact zero-order hold at T; u_k = −K x_k − B v_k with
-    v_k = α v_{k−1} + (1 − α)(x_k − x_{k−1})/T (α = 0: Colgate's backward difference).
-    """
-    Ac = np.array([[0.0, 1.0], [0.0, -damping / mass]])
-    aug = np.zeros((3, 3))
-    aug[:2, :2] = Ac
-    aug[1, 2] = 1.0 / mass
-    E = scipy.linalg.expm(aug * T)
-    Ad, Bd = E[:2, :2], E[:2, 2]
-    # v_k and u_k as rows over [x, ẋ, x_prev, v_prev]
-    v_row = np.array([(1 - alpha) / T, 0.0, -(1 - alpha) / T, alpha])
-    u_row = -stiffness * np.array([1.0, 0.0, 0.0, 0.0]) - virtual_damping * v_row
-    Phi = np.zeros((4, 4))
-    Phi[:2, :2] = Ad
-    Phi[:2] += np.outer(Bd, u_row)
-    Phi[2, 0] = 1.0
-    Phi[3] = v_row
-    return Phi
-
-
-def sampled_wall_poles(**kw) -> np.ndarray:
-    """Closed-loop poles in z (roots of the characteristic polynomial det(zI − Φ))."""
-    return np.roots(np.poly(sampled_wall_matrix(**kw)))
-
-
-def sampled_wall_boundary(*, mass: float, damping: float, virtual_damping: float, T: float, alpha: float = 0.0,
-                          rtol: float = 1e-10) -> float:
-    """Largest stable K of the sampled wall [N/m] (spectral radius < 1), by bisection."""
-
-    def stable(K: float) -> bool:
-        Phi = sampled_wall_matrix(mass=mass, damping=damping, stiffness=K, virtual_damping=virtual_damping,
-                                  T=T, alpha=alpha)
-        return float(np.max(np.abs(np.linalg.eigvals(Phi)))) < 1.0
-
-    hi = max(2.0 * damping / T, 1.0)
-    if not stable(1e-12 * hi):
-        return 0.0
-    return _bisect_boundary(stable, 0.0, hi, rtol=rtol)
-
-
-def colgate_passive(*, damping: float, stiffness: float, virtual_damping: float, T: float) -> bool:
-    """Colgate & Schenkel's passivity condition b > KT/2 + |B|."""
-    return damping > stiffness * T / 2.0 + abs(virtual_damping)
 
 
 # ------------------------------------------------------------------------------------- evaluator
@@ -312,18 +227,16 @@ def velocity_alpha(T: float, cutoff: float) -> float:
     return math.exp(-2.0 * math.pi * cutoff * T) if cutoff > 0 else 0.0
 
 
-def _axis_plant(design: PrrrDesign, lam: float, T: float, hand: tuple[float, float, float]
-                ) -> tuple[np.ndarray, np.ndarray]:
+def _axis_plant(design: PrrrDesign, lam: float, T: float) -> tuple[np.ndarray, np.ndarray]:
     """Exact ZOH (Ad (4, 4), Bd (4,)) of the two-mass SEA plant along one decoupled axis."""
     a = design.actuator
-    mh, bh, kh = hand
     k, Mm, xi, eta = a.spring, a.motor_mass, a.viscous, a.efficiency
-    Mo = (design.end_effector.mass + mh) * lam**2
+    Mo = design.end_effector.mass * lam**2
     Ac = np.array([
         [0.0, 0.0, 1.0, 0.0],
         [0.0, 0.0, 0.0, 1.0],
         [-k / Mm, k / Mm, -xi / Mm, 0.0],
-        [k / Mo, -(k + kh * lam**2) / Mo, 0.0, -bh * lam**2 / Mo],
+        [k / Mo, -k / Mo, 0.0, 0.0],
     ])
     aug = np.zeros((5, 5))
     aug[:4, :4], aug[2, 4] = Ac, eta / Mm
@@ -345,23 +258,6 @@ def _axis_closed(design: PrrrDesign, lam: float, Ad: np.ndarray, Bd: np.ndarray,
     return Phi
 
 
-def sampled_axis_matrix(design: PrrrDesign, *, axis: int, T: float, kp: float, stiffness: float,
-                        damping: float = 0.0, alpha: float = 0.0, hand: tuple[float, float, float] = (0.0, 0.0, 0.0)
-                        ) -> np.ndarray:
-    """Transition matrix over one period T of the sampled 3-PRRR closed loop along one Cartesian axis.
-
-    State [ζ_m, ζ_e, ζ̇_m, ζ̇_e, p_prev, v_prev]: the two-mass SEA plant of eq (6) in the decoupled
-    coordinates ζ = R D (motor and output), exact zero-order hold over T, and the firmware
-    (:mod:`hapticopt.analysis.prrr.loop.firmware`, no quantisation): p = λζ_e,
-    v̂ = α v̂_prev + (1 − α)(p − p_prev)/T, F = −K p − B v̂, u = K_p(λF − k(ζ_m − ζ_e)).
-    ``hand`` = (m_h, b_h, k_h) of an operator holding the handle at rest (seed 000 eq 1).
-    Stable ⇔ every eigenvalue inside the unit circle.
-    """
-    lam = axis_scale(design, axis)
-    Ad, Bd = _axis_plant(design, lam, T, hand)
-    return _axis_closed(design, lam, Ad, Bd, T=T, kp=kp, stiffness=stiffness, damping=damping, alpha=alpha)
-
-
 def spectral_radius(Phi: np.ndarray) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(Phi))))
 
@@ -375,7 +271,7 @@ def sampled_stiffness_limit(design: PrrrDesign, *, axis: int, T: float, kp: floa
     """
 
     lam = axis_scale(design, axis)
-    Ad, Bd = _axis_plant(design, lam, T, (0.0, 0.0, 0.0))
+    Ad, Bd = _axis_plant(design, lam, T)
 
     def stable(K: float) -> bool:
         return spectral_radius(_axis_closed(design, lam, Ad, Bd, T=T, kp=kp, stiffness=K, damping=damping,
@@ -405,7 +301,7 @@ def sampled_force_loop_bandwidth(design: PrrrDesign, *, T: float, kp: float) -> 
     """(stable, −3 dB bandwidth [Hz] below the DC gain) of the sampled force loop; the bandwidth is
     NaN when the loop is unstable, and the Nyquist frequency 1/(2T) when the gain never drops 3 dB
     below it."""
-    from scipy.optimize import brentq  # lazy: +0.4 s to import (tests/test_layers.py LAZY)
+    from scipy.optimize import brentq  # lazy: a heavy import (tests/test_layers.py LAZY)
     Phi, Gam, C = sampled_force_loop(design, T=T, kp=kp)
     if spectral_radius(Phi) >= 1.0:
         return False, math.nan

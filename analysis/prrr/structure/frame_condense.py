@@ -27,9 +27,9 @@ from hapticopt.analysis.prrr.structure.frame_model import (FrameOptions, _leg_la
 #: At the home pose every design the single path solves stays below 10^6; β = 89.999999° (singular) is 10^16.7.
 CANCELLATION_LIMIT = 1e8
 #: ``Compute(backend="auto")`` runs :func:`condense_terms_many`'s numba kernel for calls of this many designs
-#: or more: the kernel is 5–20× faster per call at any size once loaded, but loading it (numba's import and
-#: the cached kernel, ≈ 0.3 s) costs more than a call of a few designs by numpy (≈ 0.5 ms per design), so a
-#: small call (one design from the CLI, a handful in a test) runs numpy and never loads numba.
+#: or more: the kernel is faster per call once loaded, but loading it (numba's import and the cached kernel)
+#: costs more than a call of a few designs by numpy, so a small call (one design from the CLI, a handful in a
+#: test) runs numpy and never loads numba.
 KERNEL_FROM_DESIGNS = 8
 
 

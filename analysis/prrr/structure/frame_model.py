@@ -1,8 +1,8 @@
 """3-D Timoshenko frame model of the 3-PRRR's closed-loop structure (float64; numpy or jax).
 
 One core, :func:`frame_arrays`, written against an array module ``xp``: :func:`solve_frame` runs it
-with numpy for one design (no compilation: the CLI path), :func:`solve_frame_jax` and
-:func:`solve_frame_batch` with ``jax.numpy`` under jit/vmap (batches, gradients). The batched draft
+with numpy for one design (no compilation: the CLI path), :func:`solve_frame_jax` with ``jax.numpy``
+under jit (its fallback where numpy's solve raises, and gradients). The batched draft
 evaluator jits only the legs' unassembled terms (:func:`frame_leg_terms`) and assembles and condenses
 them outside XLA (:mod:`.frame_condense`). Beam elements, sections and joint springs: :mod:`.frame_beam`.
 
@@ -648,37 +648,15 @@ def compliance_outputs(KP: jax.Array, cond_legs: jax.Array, load_height, xp=jnp)
     }
 
 
-_PLOT_ONLY = ("nodes", "node_maps", "recovery")
-
-
 @functools.lru_cache(maxsize=None)
-def _compiled(joints: Joints, offsets: Offsets, sea: bool, batched: bool, full: bool, pins: bool,
-              pin_model: PinModel):
+def _compiled(joints: Joints, offsets: Offsets, sea: bool, pins: bool, pin_model: PinModel):
     options = FrameOptions(joints=joints, offsets=offsets, sea=sea, pins=pins, pin_model=pin_model)
-
-    def fn(fp, p, h, branch, zones_on):
-        out = frame_arrays(fp, p, h, options, branch=branch, zones_on=zones_on)
-        if not full:
-            out = {k: v for k, v in out.items() if k not in _PLOT_ONLY}
-        return out
-
-    if batched:
-        fn = jax.vmap(fn, in_axes=(0, None, None, None, None))
-    return jax.jit(fn)
-
-
-def _call(fp, p, load_height, options: FrameOptions, batched: bool, full: bool):
-    if options.branch not in (0, 1):
-        raise ValueError(f"FrameOptions.branch = {options.branch!r}: allowed 0 or 1")
-    fn = _compiled(Joints(options.joints), Offsets(options.offsets), bool(options.sea), batched, full,
-                   bool(options.pins), PinModel(options.pin_model))
-    return fn(fp, jnp.asarray(p, dtype=float), jnp.asarray(load_height, dtype=float),
-              jnp.asarray(options.branch), jnp.asarray(float(options.joint_zones)))
+    return jax.jit(lambda fp, p, h, branch, zones_on: frame_arrays(fp, p, h, options, branch=branch, zones_on=zones_on))
 
 
 def solve_frame(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float = LOAD_HEIGHT,
                 options: FrameOptions = FrameOptions()) -> dict[str, np.ndarray]:
-    """Frame model of one design, numpy path (no compilation, ~1 ms); numpy arrays [SI].
+    """Frame model of one design, numpy path (no compilation); numpy arrays [SI].
 
     The same :func:`frame_arrays` as the jax path (:func:`solve_frame_jax`, tested equal to
     1e-12); a numerically singular matrix falls back to the jax path, which returns inf/NaN
@@ -698,19 +676,17 @@ def solve_frame(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float = LOAD
 def solve_frame_jax(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float = LOAD_HEIGHT,
                     options: FrameOptions = FrameOptions()) -> dict[str, np.ndarray]:
     """Frame model of one design, jax path (jit-compiled once per joints/offsets/sea); numpy arrays."""
-    out = _call(fp, p, load_height, options, False, True)
-    return {k: np.asarray(v) for k, v in out.items()}
-
-
-def solve_frame_batch(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float = LOAD_HEIGHT,
-                      options: FrameOptions = FrameOptions()) -> dict[str, np.ndarray]:
-    """Frame model of a batch of designs (``fp`` with a leading axis n); arrays with leading n."""
-    out = _call(fp, p, load_height, options, True, False)
+    if options.branch not in (0, 1):
+        raise ValueError(f"FrameOptions.branch = {options.branch!r}: allowed 0 or 1")
+    fn = _compiled(Joints(options.joints), Offsets(options.offsets), bool(options.sea), bool(options.pins),
+                   PinModel(options.pin_model))
+    out = fn(fp, jnp.asarray(p, dtype=float), jnp.asarray(load_height, dtype=float), jnp.asarray(options.branch),
+             jnp.asarray(float(options.joint_zones)))
     return {k: np.asarray(v) for k, v in out.items()}
 
 
 __all__ = [
     "COND_LIMIT", "LOAD_HEIGHT", "SINGULAR_COND", "FrameOptions", "FrameParams", "Joints", "Offsets", "PinModel",
     "Section", "compliance_outputs", "condense_legs", "frame_arrays", "frame_leg_terms",
-    "frame_legs", "frame_params_of", "solve_frame", "solve_frame_batch", "solve_frame_jax", "term_columns",
+    "frame_legs", "frame_params_of", "solve_frame", "solve_frame_jax", "term_columns",
 ]

@@ -112,12 +112,6 @@ def _bracket_fields(b) -> dict:
                 contact_size=b.contact_size)
 
 
-def stack_frame_params(designs) -> FrameParams:
-    """Parameters of many designs stacked along a leading batch axis (jax arrays of
-    :func:`frame_params_many`)."""
-    return jax.tree.map(jnp.asarray, frame_params_many(designs))
-
-
 def _bracket_of(design):
     """The carriage's bracket (:func:`hapticopt.design.prrr.cad.carriage_bracket`, the CAD's one formula),
     unchecked where the CAD refuses it (such a design still gets a frame, as its links do)."""

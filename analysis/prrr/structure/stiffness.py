@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 
-from hapticopt.analysis.prrr.structure import frame_params
 from hapticopt.analysis.prrr.structure import frame_model as fm
 from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
@@ -210,17 +209,3 @@ def fea_element_stress(design: PrrrDesign, fea_result):
     return element_stress(fea_result.mesh.points, fea_result.mesh.tets, fea_result.displacement, u_edges,
                           youngs_modulus=design.structure.youngs_modulus,
                           poisson_ratio=design.structure.poisson_ratio)
-
-
-def stiffness_batch(designs: list[PrrrDesign], *, p=(0.0, 0.0, 0.0), load_height: float = fm.LOAD_HEIGHT,
-                    options: fm.FrameOptions = fm.FrameOptions()) -> dict[str, np.ndarray]:
-    """Frame model of many designs in one vectorised call (for the optimiser).
-
-    Returns arrays with a leading axis n [SI]: ``stiffness_load`` (n, 3) [N/m],
-    ``elastic_centre`` (n,) [m], ``stiffness_elastic_centre`` (n, 3), ``condition`` (n,),
-    ``reachable`` (n,) bool, ``ok`` (n,) bool (reachable, finite and well-conditioned).
-    """
-    out = fm.solve_frame_batch(frame_params.stack_frame_params(designs), p=p, load_height=load_height, options=options)
-    finite = np.all(np.isfinite(out["stiffness_load"]), axis=-1) & np.isfinite(out["condition"])
-    out["ok"] = out["reachable"] & finite & (out["condition"] <= fm.COND_LIMIT)
-    return out

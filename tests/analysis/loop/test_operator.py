@@ -8,12 +8,17 @@ import math
 import numpy as np
 import pytest
 
-from hapticopt.analysis.loop.operator import NO_HAND, Operator, OperatorKind, force_rate, force_step, hand, state_space
+from hapticopt.analysis.loop.operator import NO_HAND, Operator, OperatorKind, force_step, hand, state_space
 from hapticopt.design.errors import InvalidInput
 
 # seed 001 eq 29: A, B of eq 4 for the §4.1 gains K_r = 0.5 s, K_f = 5, K_c = 20 N/m
 A29 = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 0.0], [40.0, 0.0, -10.0]])
 B29 = np.array([[0.0], [1.0], [0.0]])
+
+
+def force_rate(op: Operator, e_p: float, f: float) -> float:
+    """ḟ [N/s] of seed 001 eq 2, K_r ḟ = K_c e_p − K_f f: the ODE :func:`force_step` solves exactly."""
+    return (op.force_gain * e_p - op.force_decay * f) / op.force_time_constant
 
 
 def test_eq2_state_space_is_eq29():
@@ -46,7 +51,7 @@ def test_default_is_the_seed000_hand():
     with pytest.raises(InvalidInput, match='needs kind = "force_eq2"'):
         state_space(op)
     with pytest.raises(InvalidInput, match='needs kind = "force_eq2"'):
-        force_rate(op, 0.0, 0.0)
+        force_step(op, 0.0, 0.0, 1e-3)
 
 
 @pytest.mark.parametrize("kwargs,match", [

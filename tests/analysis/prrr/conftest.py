@@ -57,10 +57,22 @@ def problem_sample() -> Callable:
 def collision_reference():
     """The numpy reference of the collision kernel (``interference_reference.py`` beside this file: it
     proves ``_interference_kernels`` right and is not part of the package)."""
+    return _beside("interference_reference.py")
+
+
+@pytest.fixture(scope="session")
+def sampled_wall():
+    """The exact boundary of a 1-DOF sampled virtual wall (``loop/sampled_wall_reference.py``: the
+    reference the 3-PRRR's sampled loop is checked against; not part of the package)."""
+    return _beside("loop/sampled_wall_reference.py")
+
+
+def _beside(relpath: str):
+    """The module at ``relpath`` beside this file, loaded by path (tests/ is not a package)."""
     import importlib.util
 
-    path = Path(__file__).with_name("interference_reference.py")
-    spec = importlib.util.spec_from_file_location("interference_reference", path)
+    path = Path(__file__).parent / relpath
+    spec = importlib.util.spec_from_file_location(path.stem, path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

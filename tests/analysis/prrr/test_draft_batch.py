@@ -318,8 +318,8 @@ def test_frame_group_is_the_same_by_every_backend():
     from hapticopt.analysis.prrr.structure import frame_model as fm
     designs = _sample()
     inp = draft_batch.stack_inputs(designs, None, ("frame",))
-    out = {b: draft_batch.run_core(inp, len(designs), ("frame",), compute=Compute(backend=b))["frame"]
-           for b in ("numpy", "numba", "auto")}
+    out = {b: draft_batch.finish_core(draft_batch.start_core(inp, len(designs), ("frame",)),
+                                      compute=Compute(backend=b))["frame"] for b in ("numpy", "numba", "auto")}
     ref = out["numpy"]
     fine = ref["condition"] < fm.COND_LIMIT
     assert 0 < fine.sum() < len(designs)

@@ -159,7 +159,7 @@ def test_r1_bracket_stays_in_the_clevis_layer_and_is_let_into_the_block(paper, s
     width = T / nu if mu * T <= s.carriage_wall else s.carriage_wall / (mu * nu)
     assert b.contact_size[1] == pytest.approx(width, rel=1e-12)
     assert (mu * T > s.carriage_wall) == (override is not None)
-    assert b.contact_area >= W * T  # no smaller than the arm section it carries (256 mm² for prrr-paper)
+    assert b.contact_size[0] * b.contact_size[1] >= W * T  # no smaller than the arm section it carries (256 mm² for prrr-paper)
     # the let-in part (wedge) is block material: inside the block, outside the rail slot
     wp = b.wedge
     tri = [np.zeros(3), np.array([wp.dims[0], 0, 0]), np.array([0, wp.dims[1], 0])]

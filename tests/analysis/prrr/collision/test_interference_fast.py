@@ -14,6 +14,12 @@ from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design import io
 from hapticopt.design.errors import InvalidDesign
 
+
+def pairs_at(res, k: int) -> list[tuple[str, str]]:
+    """Colliding part pairs of a check's result at pose ``k``."""
+    return [res.part_pairs[j] for j in np.flatnonzero(res.depth[k] > F.DEPTH_TOL)]
+
+
 # the optimum of prrr-workspace before the interference constraint (cad_out/prrr-workspace/
 # optimum.toml of that run, docs/workspace_interference.md): it collides more than the paper
 #: the layout before issue 15 (rails on u_i, the old part sizes); the SEA motor, screw and housing
@@ -76,15 +82,15 @@ def test_known_colliding_and_free_poses(paper):
     m = F.prepare(paper)
     # home pose: interference-free (tests/analysis/test_interference.py, manifold3d)
     res = F.check_points(m, np.zeros((1, 3)))
-    assert not res.collides[0] and res.pairs_at(0) == []
+    assert not res.collides[0] and pairs_at(res, 0) == []
     # inward elbows (branch 0) collide under the platform: link2 × link2 (same reference test)
     res = F.check_points(m, np.zeros((1, 3)), branch=0)
-    assert {("link2_1", "link2_2"), ("link2_1", "link2_3"), ("link2_2", "link2_3")} <= set(res.pairs_at(0))
+    assert {("link2_1", "link2_2"), ("link2_1", "link2_3"), ("link2_2", "link2_3")} <= set(pairs_at(res, 0))
     # rails on u_i three times as wide cross the links at home (reference test names the same pairs)
     wide = io.apply_overrides(paper, ["geometry.theta_1p_deg=0", "structure.rail_width_mm=60"])
     res = F.check_points(F.prepare(wide), np.zeros((1, 3)))
     ref = itf.check_pose(wide, (0.0, 0.0, 0.0))
-    assert res.collides[0] and set(ref.pairs) <= set(res.pairs_at(0)) and ref.pairs
+    assert res.collides[0] and set(ref.pairs) <= set(pairs_at(res, 0)) and ref.pairs
 
 
 def test_box_box_depth_is_exact(collision_reference):

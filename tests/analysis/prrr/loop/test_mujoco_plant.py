@@ -25,6 +25,13 @@ from hapticopt.design.io import load_preset
 DESIGN = load_preset("prrr-paper")
 
 
+def deflection(mj, qpos: np.ndarray) -> np.ndarray:
+    """SEA spring deflection x = D − D_e [m] of a built model's state (zeros without SEA compliance)."""
+    if mj.motor_qpos is None:
+        return np.zeros(3)
+    return qpos[mj.motor_qpos] - qpos[mj.slider_qpos]
+
+
 #: index of mjWARN_BADQACC in MjData.warning (mujoco 4: mjtWarning; checked below)
 BADQACC = 5
 
@@ -39,7 +46,7 @@ class SteppedPlant(MujocoPlant):
         if self.ideal:
             defl = self.u / self.spring  # the spring carries exactly the commanded force
         else:
-            defl = self.mj.deflection(q)
+            defl = deflection(self.mj, q)
         return Sensors(slider=slider, deflection=defl)
 
     def advance(self, commands: np.ndarray) -> None:
@@ -76,8 +83,8 @@ class SteppedPlant(MujocoPlant):
             xi = self.design.actuator.viscous if self.options.viscous_friction else 0.0
             f = self.gain * self.u - xi * d.qvel[dof] - self.design.actuator.motor_mass * d.qacc[dof]
         else:
-            f = self.spring * self.mj.deflection(d.qpos)
-        defl = self.mj.deflection(d.qpos)
+            f = self.spring * deflection(self.mj, d.qpos)
+        defl = deflection(self.mj, d.qpos)
         energy = float(d.energy[1]) + 0.5 * self.spring * float(defl @ defl) if self._energy else math.nan
         return Observation(position=p, velocity=v, hand_force=hand, actuator_force=self.JinvT @ f, energy=energy)
 

@@ -12,6 +12,15 @@ from hapticopt.analysis.control.upsampling import Variant
 from hapticopt.analysis.loop.operator import Operator, hand
 from hapticopt.analysis.loop.scene import Effect, StabilityCriterion, load_scene
 from hapticopt.analysis.prrr.loop import firmware, multirate as mr, stability as ps, zwidth
+
+
+def axis_poles(design, settings: mr.LoopSettings, stiffness_N_per_m: float, *, axis: int = 0) -> np.ndarray:
+    """Closed-loop poles of the axis as continuous-equivalent s = ln(z)/T [1/s] (slow-rate z)."""
+    z = np.linalg.eigvals(mr.axis_block(design, mr.lifted_matrix(design, settings, stiffness_N_per_m, axis=axis), axis))
+    z = z[np.abs(z) > 1e-12]
+    return np.log(z.astype(complex)) / settings.period_s
+
+
 def test_single_rate_tends_to_the_continuous_closed_form(prrr_paper):
     # seed 002 eq 15 with the force loop (Routh–Hurwitz of the per-axis quartic): k_a (1 + 1/(ηK_p))
     for kp in (45.0, 100.0):
@@ -23,13 +32,15 @@ def test_single_rate_tends_to_the_continuous_closed_form(prrr_paper):
 @pytest.mark.parametrize("op", [hand(stiffness=50e3), Operator(mass=0.3, damping=50.0, stiffness=0.0),
                                 Operator(mass=0.3, damping=50.0, stiffness=20e3),
                                 Operator(mass=0.3, damping=50.0, stiffness=100e3)])
+
+
 @pytest.mark.parametrize("kp", [45.0, 100.0])
 def test_hand_closed_form_is_the_continuous_limit(prrr_paper, op, kp):
     # the crossing derived in hand_limit_closed_form's docstring vs the lifted loop at T = 1e-7 s
     cf = mr.hand_limit_closed_form(prrr_paper, force_gain=kp, operator=op)
     lim = mr.stiffness_limit(prrr_paper, mr.LoopSettings(period_s=1e-7, force_gain=kp, operator=op))
     assert lim.value_N_per_m == pytest.approx(cf.stiffness_N_per_m, rel=1e-5)
-    poles = mr.axis_poles(prrr_paper, mr.LoopSettings(period_s=1e-7, force_gain=kp, operator=op), lim.value_N_per_m)
+    poles = axis_poles(prrr_paper, mr.LoopSettings(period_s=1e-7, force_gain=kp, operator=op), lim.value_N_per_m)
     crit = poles[np.argmax(poles.real)]
     assert abs(crit.imag) == pytest.approx(cf.crossing_rad_s, rel=1e-3)
 

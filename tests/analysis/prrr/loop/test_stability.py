@@ -12,6 +12,36 @@ from hapticopt.analysis.loop.scene import Effect, load_scene
 from hapticopt.analysis.prrr.loop.zwidth import StabilityProbe
 
 
+# seed 000's cubic (eq 15, 17–19) and Colgate's passivity condition: closed forms only these tests use
+def hurwitz_cubic(a3: float, a2: float, a1: float, a0: float) -> bool:
+    """Routh–Hurwitz for a3 s³ + a2 s² + a1 s + a0 (seed 000 eq 17): all a > 0 and a2 a1 > a3 a0."""
+    return a3 > 0 and a2 > 0 and a1 > 0 and a0 > 0 and a2 * a1 > a3 * a0
+
+
+def seed000_cubic(*, inertia: float, damping: float, ratio: float, T: float, stiffness: float,
+                  virtual_damping: float = 0.0, hand_stiffness: float = 0.0, R: float = 1.0) -> tuple[float, ...]:
+    """Coefficients of seed 000 eq (15) (operator term eq 20–22 when ``hand_stiffness`` > 0).
+
+    T I s³ + (2I + T B_m) s² + (2(B_m + rR B_e) + R k_h T) s + 2 rR K_e + 2R k_h, with
+    I = I_m + I_l, ``ratio`` = rR.
+    """
+    I, Bm = inertia, damping
+    return (T * I, 2 * I + T * Bm, 2 * (Bm + ratio * virtual_damping) + R * hand_stiffness * T,
+            2 * ratio * stiffness + 2 * R * hand_stiffness)
+
+
+def seed000_stiffness_limit(*, inertia: float, damping: float, ratio: float, T: float,
+                            virtual_damping: float = 0.0) -> float:
+    """Eq (18)–(19): K_e < (2I + T B_m)(B_m + rR B_e) / (rR T I)."""
+    I, Bm = inertia, damping
+    return (2 * I + T * Bm) * (Bm + ratio * virtual_damping) / (ratio * T * I)
+
+
+def colgate_passive(*, damping: float, stiffness: float, virtual_damping: float, T: float) -> bool:
+    """Colgate & Schenkel's passivity condition b > KT/2 + |B|."""
+    return damping > stiffness * T / 2.0 + abs(virtual_damping)
+
+
 def test_force_loop_bandwidth_eq8(prrr_paper):
     # seed digest: eq (8) with Table 4 at K_p = 45 gives 38.5 Hz (DC gain 0.976)
     assert sb.force_loop_bandwidth(prrr_paper, 45.0) == pytest.approx(38.5, abs=0.05)
@@ -44,20 +74,20 @@ def test_seed000_eq19():
     I = (34.7 + 4593.75) * 1e-7
     Bm = 11.72 * 1e-7 / 1e-3
     r, R = 6e-3, 150e-3
-    lim = sb.seed000_stiffness_limit(inertia=I, damping=Bm, ratio=r * R, T=1e-3)
+    lim = seed000_stiffness_limit(inertia=I, damping=Bm, ratio=r * R, T=1e-3)
     assert lim * 1e-3 == pytest.approx(2.61, abs=0.01)  # [N/mm]
-    with_be = sb.seed000_stiffness_limit(inertia=I, damping=Bm, ratio=r * R, T=1e-3, virtual_damping=30e-7 / (r * R))
+    with_be = seed000_stiffness_limit(inertia=I, damping=Bm, ratio=r * R, T=1e-3, virtual_damping=30e-7 / (r * R))
     assert with_be > lim  # the critical stiffness rises with virtual damping (seed 000 conclusion)
-    cubic = sb.seed000_cubic(inertia=I, damping=Bm, ratio=r * R, T=1e-3, stiffness=0.99 * lim)
-    assert sb.hurwitz_cubic(*cubic)
-    assert not sb.hurwitz_cubic(*sb.seed000_cubic(inertia=I, damping=Bm, ratio=r * R, T=1e-3, stiffness=1.01 * lim))
+    cubic = seed000_cubic(inertia=I, damping=Bm, ratio=r * R, T=1e-3, stiffness=0.99 * lim)
+    assert hurwitz_cubic(*cubic)
+    assert not hurwitz_cubic(*seed000_cubic(inertia=I, damping=Bm, ratio=r * R, T=1e-3, stiffness=1.01 * lim))
 
 
-def test_sampled_wall_boundary_is_unit_circle_crossing():
+def test_sampled_wall_boundary_is_unit_circle_crossing(sampled_wall):
     m, b, T = 1.0, 2.0, 1e-3
-    K = sb.sampled_wall_boundary(mass=m, damping=b, virtual_damping=0.0, T=T)
+    K = sampled_wall.sampled_wall_boundary(mass=m, damping=b, virtual_damping=0.0, T=T)
     assert K == pytest.approx(2 * b / T, rel=0.01)  # Colgate: b > KT/2 nearly tight for light damping
-    r = lambda k: np.max(np.abs(sb.sampled_wall_poles(mass=m, damping=b, stiffness=k,  # noqa: E731
+    r = lambda k: np.max(np.abs(sampled_wall.sampled_wall_poles(mass=m, damping=b, stiffness=k,  # noqa: E731
                                                       virtual_damping=0.0, T=T)))
     assert r(0.999 * K) < 1.0 < r(1.001 * K)
 
@@ -75,9 +105,9 @@ def _one_dof(prrr_paper):
 
 
 @pytest.mark.parametrize("B", [0.0, 60.0])
-def test_one_dof_sampled_boundary_within_2pct(prrr_paper, B):
+def test_one_dof_sampled_boundary_within_2pct(prrr_paper, B, sampled_wall):
     d, sc, m, b = _one_dof(prrr_paper)
-    K_exact = sb.sampled_wall_boundary(mass=m, damping=b, virtual_damping=B, T=1e-3)
+    K_exact = sampled_wall.sampled_wall_boundary(mass=m, damping=b, virtual_damping=B, T=1e-3)
     probe = StabilityProbe(d, sc)
     Ks = K_exact * np.linspace(0.9, 1.1, 21)  # 1 % grid
     ok = probe(Ks, np.full(len(Ks), B))
@@ -92,7 +122,7 @@ def test_colgate_passive_points_are_stable(prrr_paper):
     rng = np.random.default_rng(6)
     Ks = rng.uniform(1e3, 2 * b / 1e-3, 400)
     Bs = rng.uniform(-b, b, 400)
-    keep = np.array([sb.colgate_passive(damping=b, stiffness=k, virtual_damping=v, T=1e-3) for k, v in zip(Ks, Bs)])
+    keep = np.array([colgate_passive(damping=b, stiffness=k, virtual_damping=v, T=1e-3) for k, v in zip(Ks, Bs)])
     Ks, Bs = Ks[keep][:60], Bs[keep][:60]
     assert len(Ks) == 60
     assert StabilityProbe(d, sc)(Ks, Bs).all()

@@ -6,7 +6,6 @@ import dataclasses
 
 import numpy as np
 
-from hapticopt.analysis.prrr.loop import stability as sb
 from hapticopt.analysis.loop.scene import Effect, ZWidthSettings, load_scene
 from hapticopt.analysis.prrr.loop.zwidth import StabilityProbe, bisect_boundary, zwidth_map
 
@@ -25,7 +24,7 @@ def test_map_is_monotone_in_stiffness(prrr_paper):
     assert set(zw.metrics()) >= {"zwidth_stable", "zwidth_stiffness_N_per_mm"}
 
 
-def test_bisection_finds_sampled_wall_boundary(prrr_paper):
+def test_bisection_finds_sampled_wall_boundary(prrr_paper, sampled_wall):
     """Rigid transmission, no quantisation: boundary vs the exact z-domain one (as in test_stability)."""
     d = dataclasses.replace(prrr_paper, actuator=dataclasses.replace(prrr_paper.actuator, viscous=400.0))
     base = load_scene("z-width")
@@ -33,5 +32,5 @@ def test_bisection_finds_sampled_wall_boundary(prrr_paper):
                              effects=base.effects - {Effect.SEA_COMPLIANCE, Effect.QUANTIZATION, Effect.SATURATION})
     Bs = np.array([0.0, 100.0])
     K = bisect_boundary(StabilityProbe(d, sc), Bs, 1e4, 1e7, iters=14)
-    exact = [sb.sampled_wall_boundary(mass=0.66 + 81.736 / 2, damping=200.0, virtual_damping=b, T=1e-3) for b in Bs]
+    exact = [sampled_wall.sampled_wall_boundary(mass=0.66 + 81.736 / 2, damping=200.0, virtual_damping=b, T=1e-3) for b in Bs]
     assert np.allclose(K, exact, rtol=0.02)

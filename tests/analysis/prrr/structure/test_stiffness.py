@@ -109,14 +109,6 @@ def test_smaller_beta_raises_stiffness_at_the_elastic_centre_over_the_whole_rang
     assert k58[0] < k58[1]  # the non-monotone part at Δz = 58 mm (30° below 40°)
 
 
-def test_stiffness_batch_flags_and_matches_single(paper):
-    # the jax batch API used by the optimiser: same batch size (2) as test_frame_model's batch test
-    designs = [paper, _with(paper, "structure", link_width=0.5, link_thickness=1e-7)]
-    out = ss.stiffness_batch(designs)
-    assert out["ok"].tolist() == [True, False]  # the second one is ill-conditioned
-    np.testing.assert_allclose(out["stiffness_load"][0], ss.structural_stiffness(paper).stiffness_load, rtol=1e-9)
-
-
 def test_very_slender_links_give_a_finite_answer(paper):
     slender = _with(_with(paper, "geometry", d3=0.5, d4=0.5), "structure", link_width=2e-3, link_thickness=2e-3,
                     boss_diameter=3e-3, bore_diameter=1e-3)
@@ -189,6 +181,8 @@ def test_evaluate_reports_a_chain_that_cannot_close_as_not_assemblable(paper):
     (1e-11, Status.ILL_CONDITIONED),  # ~9e13: two decades above COND_LIMIT, one below SINGULAR_COND
     (0.0, Status.SINGULAR),  # fully stretched: ≥ 1e17 under either OpenBLAS kernel tried
 ])
+
+
 def test_stretched_leg_gets_a_named_status_not_a_number(paper, stretch, status):
     """Issue 14: a stretched leg with condition 2.5e17 reported 367 N/mm. The frame condition
     grows like 1/(distance to full stretch); the verdict comes from its bands, with NaN metrics."""
