@@ -26,7 +26,7 @@ from hapticopt.analysis.compute import Compute
 from hapticopt.analysis.loop.scene import Backend, Effect, load_scene, resolve
 from hapticopt.analysis.master import mujoco_plant as mm
 from hapticopt.analysis.prrr.loop import closed_loop
-from hapticopt.analysis.prrr.loop.firmware_law import ScalarController
+from hapticopt.analysis.prrr.loop.firmware import ScalarController
 from hapticopt.analysis.prrr.loop.mujoco_model import Platform, build, set_pose
 from hapticopt.analysis.prrr.loop.mujoco_plant import MujocoPlant, model_options, simulate
 from hapticopt.design import io

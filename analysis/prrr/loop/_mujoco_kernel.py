@@ -3,11 +3,11 @@
 :meth:`hapticopt.analysis.prrr.loop.mujoco_plant.MujocoPlant.run`, after :mod:`hapticopt.analysis.loop.mujoco_compiled`
 has loaded ``libmujoco`` for the linker).
 
-The law is :func:`hapticopt.analysis.prrr.loop.firmware_law.tick` itself, compiled here with ``numba.njit`` and inlined;
-the Python loop calls the same function, so both loops run one definition and their records are bit-identical
-(tested). numba's on-disk cache keys a function on its own bytecode and closure values, not on the functions it
-calls: :func:`prrr_chunk` is built in a closure that holds the law's source hash, so an edit of the law
-recompiles it instead of loading a stale kernel.
+The law is :func:`hapticopt.analysis.prrr.loop.firmware_law.make_law` instantiated with numba-compiled scalar
+primitives (the same Python functions the Python loop calls) and each of its functions ``njit(inline="always")``:
+both loops run one definition and their records are bit-identical (tested). numba's on-disk cache keys a function
+on its own bytecode and closure values, not on the functions it calls: :func:`prrr_chunk` is built in a closure
+that holds the law module's source hash, so an edit of the law recompiles it instead of loading a stale kernel.
 """
 
 from __future__ import annotations
@@ -19,8 +19,13 @@ import numpy as np
 from numba import njit
 
 from hapticopt.analysis.loop._mujoco_kernels import _delayed, _f64, _i32, _mj_step, _ptr
-from hapticopt.analysis.prrr.loop import firmware_law as firmware_numpy
-_law = njit(inline="always")(firmware_numpy.tick)
+from hapticopt.analysis.prrr.loop import firmware_law
+
+_inline = njit(inline="always")
+#: the law's tick, compiled (numba, inlined into the loop)
+LAW = firmware_law.make_law(firmware_law.Ops(**{k: _inline(f) for k, f in firmware_law.SCALAR_PRIMITIVES.items()}),
+                            _inline)
+_law = LAW.tick
 
 
 def _build(law_hash: str):
@@ -41,7 +46,8 @@ def _build(law_hash: str):
         it passes is clean however numpy rounds and sums the same quantities; chk_f: explode, spring, T; chk_i:
         check_every, whether the spring deflection (mo_e − slider) counts.
 
-        par … fphase, st: the law's arguments (:func:`hapticopt.analysis.prrr.loop.firmware_law.tick`); lpar: 1/res,
+        par … fphase: the law's arguments (:func:`hapticopt.analysis.prrr.loop.firmware.scalar_arguments`); st:
+        p_prev, velocity, integral, F_r (12, updated); lpar: 1/res,
         the motor gain; lflg: quantize, has_motor, has_hand, n_eq, delay; ist: tick, delay position; dbuf:
         (delay, 3) commands; off: mjData offsets (time, nefc, efc_pos)."""
         _ = law_hash  # in the closure: numba's cache key (see the module docstring)
@@ -66,7 +72,10 @@ def _build(law_hash: str):
                     dd = np.rint(dd)
                 sc[i] = y
                 dc[i] = dd
-            _law(par, flg, J, K, B, anchor, half, famp, fphase, st, ist[0], sc, dc, out)
+            p, v, ig, F, o = _law(par, flg, J, K, B, anchor, half, famp, fphase, (st[0], st[1], st[2]),
+                                  (st[3], st[4], st[5]), (st[6], st[7], st[8]), ist[0], sc, dc)
+            for j in range(3):
+                st[j], st[3 + j], st[6 + j], st[9 + j], out[j] = p[j], v[j], ig[j], F[j], o[j]
             ist[0] += 1
             _delayed(out, dbuf, ist, 1, D, cmd)
             for j in range(3):
@@ -113,7 +122,7 @@ def _build(law_hash: str):
     return prrr_chunk
 
 
-prrr_chunk = _build(hashlib.sha256(inspect.getsource(firmware_numpy.tick).encode()).hexdigest())
+prrr_chunk = _build(hashlib.sha256(inspect.getsource(firmware_law).encode()).hexdigest())
 
 
 def warm() -> None:

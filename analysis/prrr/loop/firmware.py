@@ -19,14 +19,16 @@ counts (integers when quantisation is on). Per tick:
    spring deflection held at this tick's reading, the integral chained over the predicted errors)
 7. motor-force saturation |F| ≤ F_max/η (anti-windup: the integral is clamped too)
 
-The law is a pure function :func:`step` on arrays (jax, compiled once per structure, batched
-over any leading axis and fused with the lumped plant in one compiled loop: the Z-width map runs hundreds of
-controllers in one call). Structure (which terms exist) is static in :class:`FirmwareConfig`: a term that is
-off is not traced, so it costs nothing. :class:`FirmwareController` wraps it as an object with
-``step(sensors)``. The MuJoCo loops step one controller per tick between ``mj_step`` calls, where a jax dispatch
-per tick would cost more than the physics: they run the same law written for one controller on scalars
-(:func:`hapticopt.analysis.prrr.loop.firmware_law.tick`, compiled there by numba; without interpolation),
-held equal to this one in ``tests/analysis/prrr/loop/test_firmware_law.py``.
+Steps 1–5 and 7 are written once, in :mod:`hapticopt.analysis.prrr.loop.firmware_law` (over separate x, y, z
+components, from a few primitives). Here they run on jax arrays: :func:`step` (compiled once per structure,
+batched over any leading axis and fused with the lumped plant in one compiled loop: the Z-width map runs hundreds
+of controllers in one call) adds step 6 around them. Structure (which terms exist) is static in
+:class:`FirmwareConfig`: a term that is off is not traced, so it costs nothing. :class:`FirmwareController` wraps
+:func:`step` as an object with ``step(sensors)``. The MuJoCo loops step one controller per tick between
+``mj_step`` calls, where a jax dispatch per tick would cost more than the physics: :class:`ScalarController`
+runs the same law on Python floats (interpolation 1), and the compiled MuJoCo loop runs it compiled by numba
+(:mod:`hapticopt.analysis.prrr.loop._mujoco_kernel`); ``tests/analysis/prrr/loop/test_firmware_law.py`` holds the
+three equal.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -45,6 +47,9 @@ from hapticopt.analysis.control.upsampling import (AR_RCOND_BAND, DEFAULT_VARIAN
                                                    fallback_coefficients, spline_weights)
 from hapticopt.design.prrr.kinematics import jacobian
 from hapticopt.analysis.loop.scene import BoxMode, Effect, EnvKind, Resolution, Scene
+from hapticopt.analysis.prrr.loop.firmware_law import (ENV_BOX_INSIDE, ENV_BOX_OUTSIDE, ENV_FORCE, ENV_FREE,
+                                                       ENV_SPRING, LOOP_IDEAL, LOOP_RIGID, LOOP_SEA, PYTHON, Ops,
+                                                       make_law)
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.design.units import GRAVITY
@@ -176,7 +181,8 @@ def build(design: PrrrDesign, scene: Scene, resolution: Resolution, *, period: f
 
 def init_state(cfg: FirmwareConfig, gains: Gains, slider_counts: jax.Array) -> State:
     """State at power-up: the first reading is the previous position; nothing integrated."""
-    p = (slider_counts * gains.resolution) @ gains.J.T
+    J = tuple(gains.J[..., i, j] for i in range(3) for j in range(3))
+    p = _stack(LAW.position(gains.resolution, J, _axes(slider_counts)))
     zeros = jnp.zeros_like(p)
     positions = None
     if cfg.online:  # at power-up the history is the first reading (at rest): the fit falls back until motion
@@ -197,40 +203,6 @@ def predictions(ar: tuple[float, ...], history):
     newest = [pred, history[..., 2, :], history[..., 1, :]]  # f̂_{i+1}, f_i, f_{i−1}
     pred2 = sum(a * newest[j] for j, a in enumerate(ar))
     return pred, pred2
-
-
-def _render(cfg: FirmwareConfig, gains: Gains, p, v, tick, T, *, trace: bool = True):
-    """F_r (…, 3) [N] at position p, velocity v, tick (step 3 of the module docstring)."""
-    note = _traced if trace else (lambda name: None)
-    delta = p - gains.anchor
-    if cfg.env == EnvKind.FREE:
-        F = jnp.zeros_like(p)
-    elif cfg.env == EnvKind.SPRING:
-        note("spring")
-        F = -gains.stiffness * delta - gains.damping * v
-    elif cfg.env == EnvKind.BOX:
-        note("box")
-        depth = jnp.abs(delta) - gains.half_size  # > 0: beyond the wall on that axis
-        sgn = jnp.sign(delta)
-        if cfg.box_mode == BoxMode.INSIDE:  # eq 13, inside: every axis beyond its wall pushes back
-            F = jnp.where(depth > 0.0, -gains.wall_stiffness * sgn * depth - gains.wall_damping * v, 0.0)
-        else:  # outside: all axes within → push out along the shallowest axis
-            inside = jnp.all(depth < 0.0, axis=-1, keepdims=True)
-            axis = jnp.argmax(depth, axis=-1)[..., None]
-            pick = jnp.arange(3) == axis
-            F = jnp.where(inside & pick, gains.wall_stiffness * sgn * (-depth) - gains.wall_damping * v, 0.0)
-    else:  # FORCE: prescribed force reference
-        note("force")
-        t = tick * T
-        F = gains.force_amplitude * jnp.sin(gains.force_omega[..., None] * t + gains.force_phase) + jnp.zeros_like(p)
-    if cfg.friction_compensation:
-        note("friction_compensation")
-        comp = gains.friction_comp * jnp.tanh(v / gains.friction_comp_velocity)
-        F = F + comp * jnp.array([1.0, 1.0, 0.0])
-    if cfg.gravity_compensation:
-        note("gravity_compensation")
-        F = F + gains.weight * jnp.array([0.0, 0.0, 1.0])
-    return F
 
 
 def fit_ar_axes(positions, order: int):
@@ -263,41 +235,60 @@ def online_predictions(cfg: FirmwareConfig, positions):
     return p1, p2, ok
 
 
-def _force_loop(cfg: FirmwareConfig, gains: Gains, f_ref, deflection_counts, integral, T, *, trace: bool = True):
-    """(command before interpolation, integral) from the spring-force references f_ref (step 5)."""
-    note = _traced if trace else (lambda name: None)
-    if cfg.force_loop == ForceLoop.SEA:
-        note("force_loop")
-        err = f_ref - gains.spring * (deflection_counts * gains.resolution)
-        out = gains.kp[..., None] * err
-        if cfg.integral:
-            note("integral")
-            integral = integral + gains.ki[..., None] * T * err
-            if cfg.saturation:
-                integral = jnp.clip(integral, -gains.motor_limit, gains.motor_limit)
-            out = out + integral
-    elif cfg.force_loop == ForceLoop.RIGID:
-        out = f_ref / gains.efficiency
+def _jax_ops(note) -> Ops:
+    return Ops(where=jnp.where, sign=jnp.sign, sin=jnp.sin, tanh=jnp.tanh, clip=jnp.clip, and_=jnp.logical_and,
+               not_=jnp.logical_not, note=note)
+
+
+#: the law on jax arrays (each component carries the batch axes); QUIET: the same without trace notes (the
+#: renders at predicted positions)
+LAW, QUIET = make_law(_jax_ops(_traced)), make_law(_jax_ops(lambda name: None))
+
+
+def _axes(x, n: int = 3) -> tuple:
+    """The last axis of ``x`` as n separate components."""
+    return tuple(x[..., i] for i in range(n))
+
+
+def _stack(components, like=0.0) -> jax.Array:
+    """(…, 3) from three components, broadcast to a common shape with ``like`` (the batch a constant term lacks)."""
+    return jnp.stack(jnp.broadcast_arrays(*components, like)[:3], axis=-1)
+
+
+def _flags(cfg: FirmwareConfig) -> tuple[int, ...]:
+    """The law's structure flags (:data:`hapticopt.analysis.prrr.loop.firmware_law.FLG`) of ``cfg``."""
+    if cfg.env == EnvKind.BOX:
+        env = ENV_BOX_INSIDE if cfg.box_mode == BoxMode.INSIDE else ENV_BOX_OUTSIDE
     else:
-        out = f_ref
-    return out, integral
+        env = {EnvKind.FREE: ENV_FREE, EnvKind.SPRING: ENV_SPRING, EnvKind.FORCE: ENV_FORCE}[cfg.env]
+    loop = {ForceLoop.SEA: LOOP_SEA, ForceLoop.RIGID: LOOP_RIGID, ForceLoop.IDEAL: LOOP_IDEAL}[cfg.force_loop]
+    return (env, int(cfg.friction_compensation), int(cfg.gravity_compensation), loop, int(cfg.integral),
+            int(cfg.saturation), int(cfg.velocity_alpha > 0.0))
+
+
+def _law_arguments(cfg: FirmwareConfig, gains: Gains, T, alpha) -> tuple:
+    """(par, flg, J, K, B, anchor, half, famp, fphase) of the law for the jax step: components of ``gains``."""
+    g = gains
+    par = (g.resolution, T, alpha, g.wall_stiffness, g.wall_damping, g.force_omega, g.friction_comp,
+           g.friction_comp_velocity, g.weight, g.spring, g.kp, g.ki * T, g.motor_limit, g.efficiency)
+    J = tuple(g.J[..., i, j] for i in range(3) for j in range(3))
+    vec = tuple(_axes(jnp.broadcast_to(x, jnp.shape(x)[:-1] + (3,)) if jnp.ndim(x) else jnp.broadcast_to(x, (3,)))
+                for x in (g.stiffness, g.damping, g.anchor, g.half_size, g.force_amplitude, g.force_phase))
+    return (par, _flags(cfg), J, *vec)
 
 
 def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Array, deflection_counts: jax.Array
          ) -> tuple[State, jax.Array, jax.Array]:
     """One control period. Returns (new state, commands (…, L, 3) [N], F_r (…, 3) [N])."""
     T = cfg.period if gains.period is None else gains.period
-    p = (slider_counts * gains.resolution) @ gains.J.T
-    diff = (p - state.p_prev) / T
-    alpha = None
-    if cfg.velocity_alpha > 0.0:  # structure: whether the filter exists; its pole may be an argument
-        alpha = cfg.velocity_alpha if gains.velocity_alpha is None else gains.velocity_alpha
-        v = alpha * state.velocity + (1.0 - alpha) * diff
-    else:
-        v = diff
-    F = _render(cfg, gains, p, v, state.tick, T)
-    f_ref = F @ gains.J  # Jᵀ F_r, per leg
-    out, integral = _force_loop(cfg, gains, f_ref, deflection_counts, state.integral, T)
+    alpha = cfg.velocity_alpha if gains.velocity_alpha is None else gains.velocity_alpha
+    args = _law_arguments(cfg, gains, T, alpha)
+    par, flg, J = args[:3]
+    env = args[3:]
+    dc = _axes(deflection_counts)
+    pc, vc, ic, Fc, oc = LAW.command(*args, _axes(state.p_prev), _axes(state.velocity), _axes(state.integral),
+                                     state.tick, _axes(slider_counts), dc)
+    p, v, integral, F, out = (_stack(c, pc[0]) for c in (pc, vc, ic, Fc, oc))
     history, positions = state.history, state.positions
     if cfg.interpolation > 1:
         _traced("interpolation")
@@ -308,20 +299,16 @@ def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Arr
             _traced("online_predictor")
             positions = jnp.concatenate([positions[..., 1:, :], p[..., None, :]], axis=-2)
             p1, p2, _ = online_predictions(cfg, positions)
-
-            def vel(v_prev, new, old):
-                d = (new - old) / T
-                return d if alpha is None else alpha * v_prev + (1.0 - alpha) * d
-
-            v1 = vel(v, p1, p)
-            v2 = vel(v1, p2, p1)
-            preds, ik = [], integral
+            p1, p2 = _axes(p1), _axes(p2)
+            v1 = QUIET.velocity(par, flg, p1, pc, vc)
+            v2 = QUIET.velocity(par, flg, p2, p1, v1)
+            preds, ik = [], ic
             for k, (pk, vk) in enumerate(((p1, v1), (p2, v2)), start=1):
-                Fk = _render(cfg, gains, pk, vk, state.tick + k, T, trace=False)
+                Fk = QUIET.render(par, flg, *env, pk, vk, state.tick + k)
                 # the command the force loop would give at tick i + k: the integral runs on (chained
                 # over the predicted errors), the spring deflection is this tick's measurement
-                uk, ik = _force_loop(cfg, gains, Fk @ gains.J, deflection_counts, ik, T, trace=False)
-                preds.append(uk)
+                uk, ik = QUIET.force_loop(par, flg, QUIET.legs(J, Fk), dc, ik)
+                preds.append(_stack(uk, pc[0]))
             pred, pred2 = preds
         else:
             pred, pred2 = predictions(cfg.ar, history)
@@ -330,11 +317,59 @@ def step(cfg: FirmwareConfig, gains: Gains, state: State, slider_counts: jax.Arr
         cmd = jnp.einsum("lj,...jk->...lk", W, ctrl)
     else:
         cmd = out[..., None, :]
-    if cfg.saturation:
-        _traced("saturation")
-        cmd = jnp.clip(cmd, -gains.motor_limit, gains.motor_limit)
+    cmd = LAW.saturate(par, flg, cmd)
     new = State(tick=state.tick + 1, p_prev=p, velocity=v, integral=integral, history=history, positions=positions)
     return new, cmd, F
+
+
+def scalar_arguments(cfg: FirmwareConfig, gains: Gains) -> tuple[list, ...]:
+    """(par, flg, J, K, B, anchor, half, famp, fphase) of the law on floats (Python lists) for one controller."""
+    if cfg.interpolation > 1:
+        raise ValueError("the scalar firmware law runs interpolation 1; L > 1 is the jax step's "
+                         "(hapticopt.analysis.prrr.loop.firmware.FirmwareController)")
+    g = {k: np.asarray(v, dtype=np.float64) for k, v in gains._asdict().items() if v is not None}
+    f = lambda name: float(g[name])  # noqa: E731
+    v3 = lambda name: np.broadcast_to(g[name], (3,)).tolist()  # noqa: E731
+    par = [f("resolution"), cfg.period, cfg.velocity_alpha, f("wall_stiffness"), f("wall_damping"), f("force_omega"),
+           f("friction_comp"), f("friction_comp_velocity"), f("weight"), f("spring"), f("kp"), f("ki") * cfg.period,
+           f("motor_limit"), f("efficiency")]
+    return (par, list(_flags(cfg)), g["J"].ravel().tolist(), v3("stiffness"), v3("damping"), v3("anchor"),
+            v3("half_size"), v3("force_amplitude"), v3("force_phase"))
+
+
+class ScalarController:
+    """The law on Python floats for one controller at interpolation 1 (``reset``, ``step``, ``last_force``: the
+    interface of :class:`FirmwareController` without a jax dispatch per tick). The compiled MuJoCo loop runs
+    the same law on its ``args`` and ``state`` (:mod:`hapticopt.analysis.prrr.loop._mujoco_kernel`)."""
+
+    def __init__(self, cfg: FirmwareConfig, gains: Gains) -> None:
+        self.cfg, self.gains, self.period = cfg, gains, cfg.period
+        self.args = scalar_arguments(cfg, gains)
+        self.state = [0.0] * 12  # p_prev, velocity, integral, F_r
+        self.tick = 0
+        self._ready = False
+
+    @property
+    def last_force(self) -> np.ndarray:
+        """F_r of the last tick (3,) [N]."""
+        return np.array(self.state[9:12])
+
+    def reset(self, slider_counts: Any) -> None:
+        """Power-up: the first reading is the previous position; nothing integrated."""
+        self.state = [float(x) for x in PYTHON.position(self.args[0][0], self.args[2], slider_counts)] + [0.0] * 9
+        self.tick = 0
+        self._ready = True
+
+    def step(self, slider_counts: Any, deflection_counts: Any) -> np.ndarray:
+        """Commands (1, 3) [N] for this period from the counts read at its start (lists or arrays)."""
+        if not self._ready:
+            self.reset(slider_counts)
+        s = self.state
+        p, v, ig, F, out = PYTHON.tick(*self.args, (s[0], s[1], s[2]), (s[3], s[4], s[5]), (s[6], s[7], s[8]),
+                                       self.tick, slider_counts, deflection_counts)
+        self.state = [float(x) for x in (*p, *v, *ig, *F)]
+        self.tick += 1
+        return np.array([out])
 
 
 class FirmwareController:
@@ -350,11 +385,12 @@ class FirmwareController:
         self.gains = gains
         self.period = cfg.period
         self._step = jax.jit(lambda g, s, a, b: step(cfg, g, s, a, b))
+        self._init = jax.jit(lambda g, a: init_state(cfg, g, a))  # compiled as in the fused loop (same roundings)
         self.state: State | None = None
         self.last_force: np.ndarray = np.zeros(3)
 
     def reset(self, slider_counts: np.ndarray) -> None:
-        self.state = init_state(self.cfg, self.gains, jnp.asarray(slider_counts, dtype=jnp.float64))
+        self.state = self._init(self.gains, jnp.asarray(slider_counts, dtype=jnp.float64))
 
     def step(self, slider_counts: np.ndarray, deflection_counts: np.ndarray) -> np.ndarray:
         """Commands (L, 3) [N] for this period from the counts read at its start."""
@@ -364,3 +400,8 @@ class FirmwareController:
                                         jnp.asarray(deflection_counts, dtype=jnp.float64))
         self.last_force = np.asarray(F)
         return np.asarray(cmd)
+
+
+def controller(cfg: FirmwareConfig, gains: Gains) -> ScalarController | FirmwareController:
+    """The law for a Python loop: :class:`ScalarController` at interpolation 1, else :class:`FirmwareController`."""
+    return ScalarController(cfg, gains) if cfg.interpolation == 1 else FirmwareController(cfg, gains)

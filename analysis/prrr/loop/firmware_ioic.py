@@ -14,7 +14,7 @@ Per period from the slider and spring-deflection counts and the handle force sen
 3. **Inner loop**: the slider forces f_ref = Jᵀ F rendered by the SEA force loops of
    :mod:`hapticopt.analysis.prrr.loop.firmware` (K_p (f_ref − k x) + integral), or directly without
    series springs, clipped to the motor limit — the same law as
-   :func:`hapticopt.analysis.prrr.loop.firmware_law.tick` (tested equal with the reference held still).
+   the law of :mod:`hapticopt.analysis.prrr.loop.firmware_law` (tested equal with the reference held still).
 """
 
 from __future__ import annotations

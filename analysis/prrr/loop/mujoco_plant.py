@@ -1,8 +1,8 @@
 """The multibody (MuJoCo) plant of the 3-PRRR in the closed loop.
 
 The model of :mod:`hapticopt.analysis.prrr.loop.mujoco_model` against the
-firmware controller (``hapticopt.analysis.prrr.loop.firmware_law``'s scalar law, or ``hapticopt.analysis.prrr.loop.firmware``'s
-with interpolation) at its period T; its commands are held (zero-order hold, or L samples per period with the seed 000 interpolation) over ``T / timestep``
+firmware controller (the law of ``hapticopt.analysis.prrr.loop.firmware_law`` on floats, or the jax step of
+``hapticopt.analysis.prrr.loop.firmware`` with interpolation) at its period T; its commands are held (zero-order hold, or L samples per period with the seed 000 interpolation) over ``T / timestep``
 MuJoCo substeps; the loop reads the plant's sensors and quantises them exactly as for the
 lumped plant. The operator hand is a body (mass m_h on springs k_h and dampers b_h to the
 reference motion, seed 000 eq 1) tied to the handle by a ``<connect>``; its reference is
@@ -27,8 +27,7 @@ import numpy as np
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.compute import DEFAULT, Backend as ComputeBackend, Compute
-from hapticopt.analysis.prrr.loop import firmware_law as firmware_numpy
-from hapticopt.analysis.prrr.loop.firmware_law import ScalarController
+from hapticopt.analysis.prrr.loop.firmware import ScalarController, controller as firmware_controller
 from hapticopt.analysis.loop import mujoco_compiled as mc
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, Health, SolverSettings
 from hapticopt.analysis.loop.operator import Operator
@@ -501,7 +500,7 @@ def simulate(design: PrrrDesign, scene: Scene, *, fidelity: Fidelity = Fidelity.
     plant = MujocoPlant(design, scene, options, period=st.period, interpolation=st.cfg.interpolation)
     plant.enable_energy()
     st = dataclasses.replace(st, resolution=res, substeps=plant.substeps)
-    controller = firmware_numpy.controller(st.cfg, st.gains)
+    controller = firmware_controller(st.cfg, st.gains)
     t0 = time.perf_counter()
     traces = plant.run(controller, st, compute=compute)
     wall = time.perf_counter() - t0

@@ -23,8 +23,7 @@ from hapticopt.analysis.loop import mujoco_compiled as mc
 from hapticopt.analysis.loop.scene import Backend, Effect, load_scene, resolve
 from hapticopt.analysis.prrr.loop import closed_loop
 from hapticopt.analysis.prrr.loop import mujoco_plant as prrr_mj
-from hapticopt.analysis.prrr.loop import firmware_law as firmware_numpy
-from hapticopt.analysis.prrr.loop.firmware_law import ScalarController
+from hapticopt.analysis.prrr.loop.firmware import ScalarController, controller
 from hapticopt.analysis.prrr.loop.mujoco_model import Platform
 from hapticopt.analysis.master import mujoco_plant as master_mj
 from hapticopt.analysis.master.firmware import MasterController
@@ -113,7 +112,7 @@ def test_prrr_interpolated_controller_falls_back_with_the_reason():
     scene = dataclasses.replace(load_scene("stiffness-25"), duration=0.05)
     scene = dataclasses.replace(scene, controller=dataclasses.replace(scene.controller, interpolation=4))
     plant, st = _prrr_plant(scene, Fidelity.DRAFT)
-    plant.run(firmware_numpy.controller(st.cfg, st.gains), st)
+    plant.run(controller(st.cfg, st.gains), st)
     assert plant.loop_engine == "python" and "FirmwareController has no compiled law" in plant.loop_reason
 
 

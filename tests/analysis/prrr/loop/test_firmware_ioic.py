@@ -12,7 +12,7 @@ from hapticopt.analysis.control import ioic_online
 from hapticopt.analysis.loop.scene import EnvKind, load_scene
 from hapticopt.analysis.prrr.loop import closed_loop
 from hapticopt.analysis.prrr.loop.firmware_ioic import PrrrIoicConfig, PrrrIoicController
-from hapticopt.analysis.prrr.loop.firmware_law import ScalarController
+from hapticopt.analysis.prrr.loop.firmware import ScalarController
 from hapticopt.design.io import load_preset
 
 DESIGN = load_preset("prrr-paper")

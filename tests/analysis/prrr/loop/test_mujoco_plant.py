@@ -17,7 +17,7 @@ from hapticopt.analysis.prrr.loop.mujoco_model import LinkMasses, Platform, Solv
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.loop.plant import Observation, Plant, Sensors
 from hapticopt.analysis.loop.scene import Backend, Effect, FirmwareMode, load_scene, resolve, scene_names
-from hapticopt.analysis.prrr.loop.firmware_law import ScalarController, controller
+from hapticopt.analysis.prrr.loop.firmware import ScalarController, controller
 from hapticopt.analysis.status import Status
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.io import load_preset
