@@ -18,7 +18,7 @@ COMMANDS = sorted(typer.main.get_command(app).commands)
 
 def test_the_command_list_is_the_one_documented():
     assert COMMANDS == sorted(["evaluate", "presets", "export", "optimise", "problems", "verify", "runs", "show",
-                               "sweep", "compare", "design-map", "metrics"])
+                               "sweep", "compare", "design-map", "metrics", "sensitivity", "tolerance"])
 
 
 @pytest.mark.parametrize("command", COMMANDS)
