@@ -132,6 +132,10 @@ def inspect_record(path: str | Path, what: str = "--resume", *, resume: bool = T
         raise refuse(f"cannot be read as a run record ({exc})") from None
     try:
         objects = db.execute("SELECT type, name FROM sqlite_master").fetchall()
+        if not objects and resume:
+            # no schema at all: a run killed before its first transaction committed (SQLite rolls the
+            # journal back when the recorder opens it); nothing in it to protect, the recorder creates its tables
+            return
         foreign = sorted(f"{t} {n}" for t, n in objects if t in ("view", "trigger"))
         if foreign:
             raise refuse(f"holds {', '.join(foreign[:3])}: not a hapticopt run record")

@@ -242,6 +242,18 @@ def test_resume_refuses_a_foreign_database_and_leaves_it_unmodified(tmp_path, sq
     assert _sha(path) == before
 
 
+def test_resume_takes_a_record_killed_before_its_tables_were_committed(tmp_path):
+    """A run killed while it created its record leaves a database without any table (its first
+    transaction rolled back from the journal): ``--resume`` takes it as an empty record, never refuses it
+    as foreign (tests/optim/test_pipeline.py::test_killed_at_random_moments_then_resumed kills there)."""
+    path = tmp_path / FILENAME
+    path.write_bytes(b"")  # SQLite's empty database
+    with Recorder(tmp_path, fingerprint="f1", resume=True) as rec:
+        assert rec.path == path
+    with sqlite3.connect(path) as db:
+        assert {"meta", "evaluations"} <= {n for (n,) in db.execute("SELECT name FROM sqlite_master")}
+
+
 @pytest.mark.parametrize("edit", ["UPDATE evaluations SET vals = '[9.0]'",
                                   "UPDATE stages SET payload = '{\"objective\": 1.0}'"])
 def test_resume_refuses_an_edited_row(tmp_path, edit):
