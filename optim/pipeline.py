@@ -105,8 +105,7 @@ STIFFNESS_ERROR_LIMIT_PCT = 10.0
 
 def run_scene(design: Any, scene: str, fidelity: Fidelity, compute: Compute = DEFAULT) -> Any:
     """The closed-loop verification of ``design`` in the bundled or file scene ``scene``."""
-    # TODO(merge, issue 29): pass compute=compute once the firmware branch's verify.simulate takes it
-    return closed_loop_verify.simulate(design, load_scene(scene), fidelity=fidelity)
+    return closed_loop_verify.simulate(design, load_scene(scene), fidelity=fidelity, compute=compute)
 
 
 def verdict_of(metrics: dict[str, Any]) -> tuple[bool, str]:

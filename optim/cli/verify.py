@@ -74,7 +74,7 @@ def verify(
     from hapticopt.analysis import verify as closed_loop_verify  # heavy (plants, jax): when the command runs
     from hapticopt.analysis.prrr.loop import zwidth
     level = parse_fidelity(fidelity)
-    route = parse_compute(compute, threads)  # noqa: F841  TODO(merge, issue 29): simulate(..., compute=route)
+    route = parse_compute(compute, threads)
     if backend not in ("auto", "lumped", "multibody"):
         raise InvalidInput(f"--backend = {short(backend)} is not a backend: allowed auto, lumped, multibody")
     force = None if backend == "auto" else Backend(backend)
@@ -91,7 +91,7 @@ def verify(
     with make_progress(err, transient=True, disable=as_json or not err.is_terminal) as bar:
         line = StageLine(bar, "simulate")
         line.note(f"{design.name} in {sc.name} at {level} fidelity")
-        result = closed_loop_verify.simulate(design, sc, fidelity=level, backend=force)
+        result = closed_loop_verify.simulate(design, sc, fidelity=level, backend=force, compute=route)
         metrics = result.metrics()
         metrics["resolution_reason"] = metrics.get("backend_reason", "")  # its older name, kept for --json users
         metrics["notes"] = list(result.notes)

@@ -223,7 +223,7 @@ def reach_limit(design: PrrrDesign, core: dict) -> float:
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
              required_diameter: float = DEFAULT_REQUIRED_DIAMETER,
              required_height: float = DEFAULT_REQUIRED_HEIGHT, shared: Any = None,
-             compute: Compute = DEFAULT) -> FreeWorkspace:  # compute: TODO(merge) the collide branch routes by it
+             compute: Compute = DEFAULT) -> FreeWorkspace:  # one route for one design (the registry passes it to every entry alike)
     """Collision-free workspace metrics of ``design`` (see the module docstring); ``shared``: the
     registry call's :class:`hapticopt.analysis.prrr.shared.DesignSteps` of ``design`` (the envelope, the
     reach core and the fast point checker, each taken once per call)."""

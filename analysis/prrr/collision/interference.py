@@ -54,7 +54,7 @@ class PrrrInterference:
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD, shared: Any = None,
-             compute: Compute = DEFAULT) -> PrrrInterference:  # compute: TODO(merge) the collide branch routes by it
+             compute: Compute = DEFAULT) -> PrrrInterference:  # one route for one design (the registry passes it to every entry alike)
     """Fast interference over the workspace samples (same model and samples at every fidelity).
 
     Status ``ok`` when no sampled pose makes two parts collide; ``collides`` (numbers kept: the

@@ -153,7 +153,7 @@ def _result(out: dict, p: np.ndarray, load_height: float, options: fm.FrameOptio
 
 
 def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
-             compute: Compute = DEFAULT) -> StructuralStiffness:  # compute: TODO(merge) the frame branch routes by it
+             compute: Compute = DEFAULT) -> StructuralStiffness:  # one route for one design (the registry passes it to every entry alike)
     """Structural stiffness at the home pose, load Δz = 58 mm (seed 002 Table 3).
 
     ``not-assemblable`` (metrics NaN) when the chain does not close
