@@ -210,7 +210,29 @@ class Recorder:
         self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=30.0)
         self._db.execute("PRAGMA journal_mode=WAL")
         self._db.execute(f"PRAGMA synchronous={SYNCHRONOUS}")
-        self._db.executescript(_SCHEMA)
+        # the schema, the meta rows and the session row commit together: a run killed in between leaves
+        # either no schema (resumable) or a whole record, never a meta table without its fingerprint
+        self._db.executescript("BEGIN IMMEDIATE;" + _SCHEMA)
+        try:
+            self._create(run_dir, fingerprint=fingerprint, resume=resume, search_fingerprint=search_fingerprint)
+            self._db.execute("COMMIT")
+        except BaseException:
+            if self._db.in_transaction:
+                self._db.execute("ROLLBACK")
+            raise
+        self._previous: dict[str, PointResult] = {}
+        for key, x, outcome, message, vals, grads, gsrc, metrics, statuses, timings in self._db.execute(
+                "SELECT key, x, outcome, message, vals, gradients, gradient_source, metrics, statuses, timings "
+                "FROM evaluations WHERE session < ? ORDER BY id", (self.session,)):
+            self._previous[key] = PointResult(
+                x=tuple(json.loads(x)), outcome=Outcome(outcome), message=message,
+                values=tuple(json.loads(vals)),
+                gradients=None if grads is None else tuple(tuple(r) for r in json.loads(grads)),
+                gradient_source=gsrc, metrics=json.loads(metrics), statuses=upgrade(json.loads(statuses)),
+                timings_s=json.loads(timings))
+        self.n_repeated = 0  # evaluations of a point this run had already recorded (should stay 0)
+
+    def _create(self, run_dir: str | Path, *, fingerprint: str, resume: bool, search_fingerprint: str | None) -> None:
         for table in ("evaluations", "stages"):  # a record older than the checksums gains the column
             if "checksum" not in {r[1] for r in self._db.execute(f"PRAGMA table_info({table})")}:
                 self._db.execute(f"ALTER TABLE {table} ADD COLUMN checksum TEXT")
@@ -233,17 +255,6 @@ class Recorder:
                                f"settings (fingerprint {row[0]} ≠ {fingerprint}): use the same settings or a new --out")
         cur = self._db.execute("INSERT INTO sessions(started, resumed) VALUES (?, ?)", (time.time(), int(resume)))
         self.session = int(cur.lastrowid or 0)
-        self._previous: dict[str, PointResult] = {}
-        for key, x, outcome, message, vals, grads, gsrc, metrics, statuses, timings in self._db.execute(
-                "SELECT key, x, outcome, message, vals, gradients, gradient_source, metrics, statuses, timings "
-                "FROM evaluations WHERE session < ? ORDER BY id", (self.session,)):
-            self._previous[key] = PointResult(
-                x=tuple(json.loads(x)), outcome=Outcome(outcome), message=message,
-                values=tuple(json.loads(vals)),
-                gradients=None if grads is None else tuple(tuple(r) for r in json.loads(grads)),
-                gradient_source=gsrc, metrics=json.loads(metrics), statuses=upgrade(json.loads(statuses)),
-                timings_s=json.loads(timings))
-        self.n_repeated = 0  # evaluations of a point this run had already recorded (should stay 0)
 
     def lookup_stage(self, name: str) -> dict[str, Any] | None:
         """The recorded result of a whole stage (e.g. the baseline evaluation), or None."""

@@ -254,6 +254,24 @@ def test_resume_takes_a_record_killed_before_its_tables_were_committed(tmp_path)
         assert {"meta", "evaluations"} <= {n for (n,) in db.execute("SELECT name FROM sqlite_master")}
 
 
+def test_a_record_is_created_in_one_transaction(tmp_path, monkeypatch):
+    """Schema, meta rows (application, schema, fingerprint) and the first session commit together: a
+    run stopped anywhere in between leaves no table at all, which --resume takes; never a meta table
+    without a fingerprint, which it must refuse as foreign (the fresh clone's CI killed a run there)."""
+    def stop(self, *a, **k):
+        self._db.execute("INSERT INTO meta(key, value) VALUES ('application', 'hapticopt')")
+        raise KeyboardInterrupt  # the SIGKILL's moment: schema and part of meta written, not committed
+
+    monkeypatch.setattr(Recorder, "_create", stop)
+    with pytest.raises(KeyboardInterrupt):
+        Recorder(tmp_path, fingerprint="f1", resume=False)
+    with sqlite3.connect(tmp_path / FILENAME) as db:
+        assert db.execute("SELECT name FROM sqlite_master").fetchall() == []
+    monkeypatch.undo()
+    with Recorder(tmp_path, fingerprint="f1", resume=True) as rec:
+        assert rec.session == 1
+
+
 @pytest.mark.parametrize("edit", ["UPDATE evaluations SET vals = '[9.0]'",
                                   "UPDATE stages SET payload = '{\"objective\": 1.0}'"])
 def test_resume_refuses_an_edited_row(tmp_path, edit):
