@@ -6,6 +6,7 @@ the value, and what is allowed (with its unit). The CLI turns them into exit cod
 
 from __future__ import annotations
 
+import re
 import reprlib
 
 
@@ -41,8 +42,26 @@ _REPR.maxlevel = 2
 _REPR.maxlong = 40
 
 
+#: strings that look like a credential pasted into the wrong field: well-known token prefixes (GitHub,
+#: AWS, Slack, OpenAI/Stripe-style keys, PEM blocks) or a long unbroken run mixing upper, lower and digits
+_SECRET = re.compile(r"(?<![A-Za-z0-9])(gh[pousr]_|github_pat_|AKIA[0-9A-Z]{12}|ASIA[0-9A-Z]{12}|xox[abposr]-|sk-|sk_live_|"
+                     r"rk_live_|-----BEGIN)")
+_TOKEN = re.compile(r"[A-Za-z0-9+/_=-]{24,}")
+
+
+def looks_secret(text: str) -> bool:
+    """Whether ``text`` looks like a credential (so that an error message does not echo it into a log)."""
+    if _SECRET.search(text):
+        return True
+    return any(re.search("[A-Z]", t) and re.search("[a-z]", t) and re.search("[0-9]", t)
+               for t in _TOKEN.findall(text))
+
+
 def short(value: object) -> str:
-    """``repr(value)`` shortened (:mod:`reprlib`) for a one-line message."""
+    """``repr(value)`` shortened (:mod:`reprlib`) for a one-line message; a string that looks like a
+    credential is not echoed, only its length."""
+    if isinstance(value, str) and looks_secret(value):
+        return f"<{len(value)} characters that look like a credential, not shown>"
     return _REPR.repr(value)
 
 

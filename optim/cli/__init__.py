@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from importlib.metadata import version
-from typing import Annotated
+import sys
+from typing import Annotated, Any
 
 import typer
+import typer.core
 
 from hapticopt.optim.cli import compare as cli_compare
 from hapticopt.optim.cli import common
@@ -21,7 +23,35 @@ from hapticopt.optim.cli import sweep as cli_sweep
 from hapticopt.optim.cli import tolerance as cli_tolerance
 from hapticopt.optim.cli import verify as cli_verify
 
+class _Commands(typer.core.TyperGroup):
+    """The command group, with click's usage errors (unknown option, missing argument, bad choice)
+    as one line on stderr naming the command's help, exit 2, like every other input error, instead
+    of a usage box."""
+
+    def main(self, args: Any = None, prog_name: str | None = None, complete_var: str | None = None,
+             standalone_mode: bool = True, **extra: Any) -> Any:
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        try:
+            rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except typer.TyperException as exc:  # click's errors (typer vendors click)
+            ctx = getattr(exc, "ctx", None)
+            code = getattr(exc, "exit_code", 2)
+            if type(exc).__name__ == "NoArgsIsHelpError":
+                typer.echo(ctx.get_help() if ctx is not None else exc.format_message())
+                sys.exit(code)
+            message = " ".join(exc.format_message().split()).rstrip(".")
+            where = f" (see `{ctx.command_path} --help`)" if ctx is not None and code == 2 else ""
+            typer.echo(f"error: {message[:1].lower() + message[1:]}{where}", err=True)
+            sys.exit(code)
+        except typer.Abort:
+            typer.echo("Aborted!", err=True)
+            sys.exit(1)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
 app = typer.Typer(
+    cls=_Commands,
     name="hapticopt",
     help="Design optimisation of haptic mechanisms: describe, evaluate, optimise, export, verify.",
     epilog=common.EXIT_CODES_HELP,

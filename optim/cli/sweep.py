@@ -18,7 +18,7 @@ from hapticopt.optim.cli.common import (
     one_line_errors, parse_compute, parse_fidelity,
 )
 from hapticopt.optim.cli.progress import StageLine, make_progress
-from hapticopt.optim.executor import make_executor
+from hapticopt.optim.executor import check_scheduler, make_executor
 from hapticopt.optim.recorder import Recorder, check_run_dir, run_lock
 from hapticopt.design import paths
 from hapticopt.design.paths import check_name, inside
@@ -91,6 +91,7 @@ def sweep(
         file = Path(axes_text.pop(0))
     if not axes_text:
         raise InvalidInput("give one or two axes KEY=lo:hi:n after the design, e.g. geometry.beta_deg=30:70:41")
+    check_scheduler(scheduler)  # before the run directory is made: a bad value leaves nothing behind
     if workers is not None and not 1 <= workers <= MAX_WORKERS:
         raise InvalidInput(f"--workers = {workers} is out of range: allowed 1 ≤ --workers ≤ {MAX_WORKERS}")
     design = load_design_arg(file, preset, set_)

@@ -43,3 +43,22 @@ def test_subcommand_help_loads_no_heavy_package(command):
 def test_the_probe_sees_a_heavy_import():
     """The check can fail: an evaluator module that uses jax shows up."""
     assert "jax" in loaded_after("import hapticopt.analysis.prrr.structure.statics")
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["evaluate", "--preset", "prrr-paper", "--bogus"], "no such option: --bogus (see `hapticopt evaluate --help`)"),
+    (["sweep"], "missing argument"),
+    (["bogus"], "no such command 'bogus'"),
+    (["verify", "--preset", "prrr-paper", "--period-ms", "abc"], "invalid value for '--period-ms'"),
+])
+def test_a_usage_error_is_one_line_exit_2(argv, says):
+    """Issue 37 item 9: click's usage errors (unknown option or command, missing argument, a value of
+    the wrong type) are one line on stderr naming the command's help, exit 2, not typer's usage box."""
+    from typer.testing import CliRunner
+
+    from hapticopt.optim.cli import app
+    r = CliRunner().invoke(app, argv)
+    assert r.exit_code == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and says in lines[0], r.stderr
+    assert "Usage:" not in r.output and "╭" not in r.output

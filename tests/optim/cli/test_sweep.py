@@ -39,10 +39,12 @@ def test_sweep_writes_table_plots_and_record(tmp_path):
     ("geometry.beta_deg=30:70:300000001", "n = 300000001 is out of range: allowed 2 ≤ n ≤ 200000"),
     ("geometry.beta_deg=30:70:1" + "0" * 5000, "must be a whole number of points"),
     ("name=1:2:3", "is not a numeric design key"),
+    # issue 37: the scheduler was checked after the run directory's lock and record were made
+    ("geometry.beta_deg=30:70:3 --scheduler bogus", "--scheduler = 'bogus' is not allowed"),
 ])
 def test_bad_sweep_one_line_exit_2_no_files(tmp_path, axis, match):
     out = tmp_path / "out"
-    res = runner.invoke(app, ["sweep", "--preset", "prrr-paper", axis, "--out", str(out), "--quiet"])
+    res = runner.invoke(app, ["sweep", "--preset", "prrr-paper", *axis.split(" "), "--out", str(out), "--quiet"])
     assert res.exit_code == 2
     (line,) = res.stderr.strip().splitlines()
     assert line.startswith("error: ") and match in line
