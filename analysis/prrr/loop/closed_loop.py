@@ -62,7 +62,7 @@ from hapticopt.analysis.loop.scene import (
 from hapticopt.analysis.status import Status
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.design.units import GRAVITY
-from hapticopt.analysis.loop.traces import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces
+from hapticopt.analysis.loop.traces import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces, tracking_pair
 
 #: plant substeps per controller period when Coulomb friction is on (linear parts are exact at 1)
 FRICTION_SUBSTEPS = {Fidelity.DRAFT: 1, Fidelity.STANDARD: 1, Fidelity.FINE: 10}  # docs/closed_loop.md: 1 is within 0.1 %
@@ -237,7 +237,8 @@ def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | Non
                 rk, rb = float(coef[0]), float(coef[1])
                 target = sc.environment.stiffness[ax]
                 err = abs(rk - target) / target * 100.0 if target > 0 else None
-        track = float(np.sqrt(np.mean(np.sum((tr.actuator_force[sl, b] - tr.force_reference[sl, b]) ** 2, axis=-1))))
+        F_now, F_ref = tracking_pair(tr, sl, b)  # seed 002's e(t) = F_d(t) − F(t): the same instant
+        track = float(np.sqrt(np.mean(np.sum((F_now - F_ref) ** 2, axis=-1))))
         if sc.environment.kind == EnvKind.BOX:
             env = sc.environment
             depth = np.abs(tr.position[:end, b] - np.asarray(env.anchor)) - np.asarray(env.half_size)
@@ -280,10 +281,11 @@ def report_value(report: Any, tr: Traces, sl: slice, b: int, stiffness_error: fl
     q = report.quantity
     if q == PaperQuantity.HAND_FORCE_AXIS_RMS:
         return paper.axis_rms(tr.hand_force[sl, b], report.axes[0])
-    if q == PaperQuantity.FORCE_ERROR_AXIS_RMS:
-        return paper.axis_error_rms(tr.actuator_force[sl, b], tr.force_reference[sl, b], report.axes[0])
-    if q == PaperQuantity.FORCE_ERROR_PLANE_RMS:
-        return paper.plane_error_rms(tr.actuator_force[sl, b], tr.force_reference[sl, b], report.axes)
+    if q in (PaperQuantity.FORCE_ERROR_AXIS_RMS, PaperQuantity.FORCE_ERROR_PLANE_RMS):
+        F_now, F_ref = tracking_pair(tr, sl, b)  # e(t) = F_d(t) − F(t) at one instant
+        if q == PaperQuantity.FORCE_ERROR_AXIS_RMS:
+            return paper.axis_error_rms(F_now, F_ref, report.axes[0])
+        return paper.plane_error_rms(F_now, F_ref, report.axes)
     return stiffness_error
 
 

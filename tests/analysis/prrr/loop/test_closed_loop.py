@@ -199,18 +199,29 @@ def test_r_joint_friction_leaves_z_alone_slider_friction_does_not(prrr_paper):
 @pytest.mark.parametrize("name", ["force-tracking", "force-circle-xy"])
 def test_locked_force_scenes_match_the_sampled_force_loop(prrr_paper, name):
     """Fig 8 / 9 with the output locked and quantisation off: the error is the linear sampled force
-    loop's, |1 − z·H(z)| × amplitude at z = e^{jωT} (z: the trace records the force at the end of
-    the tick whose reference it tracks); RMS ÷ √2 on one axis (Fig 8), the constant radius error (Fig 9)."""
+    loop's at the same instant (seed 002's e(t) = F_d(t) − F(t)), |1 − H(z)| × amplitude at z = e^{jωT};
+    RMS ÷ √2 on one axis (Fig 8), the constant radius error (Fig 9). H(z) is derived here from eq (6)
+    with the output locked, M_m D̈ + ξ Ḋ + k D = η u, sampled with a zero-order hold (scipy's
+    cont2discrete), closed by the firmware's P law u_k = K_p (f_r,k − k D_k), f = k D: H = K_p G/(1 + K_p G)
+    with G(z) = k·C(zI − Φ)⁻¹Γ the sampled motor-to-spring-force map."""
+    from scipy.signal import cont2discrete
+
     sc = load_scene(name)
     sc = _drop(sc, Effect.QUANTIZATION)
     r = verify.simulate(prrr_paper, sc)
-    T, f = sc.controller.period, sc.environment.force_frequency
-    Phi, Gam, C = stability.sampled_force_loop(prrr_paper, T=T, kp=sc.controller.force_gain)
+    T, f, kp = sc.controller.period, sc.environment.force_frequency, sc.controller.force_gain
+    a = prrr_paper.actuator
+    Ac = np.array([[0.0, 1.0], [-a.spring / a.motor_mass, -a.viscous / a.motor_mass]])
+    Bc = np.array([[0.0], [a.efficiency / a.motor_mass]])
+    Phi, Gam, *_ = cont2discrete((Ac, Bc, np.eye(2), np.zeros((2, 1))), T, method="zoh")
     z = np.exp(2j * np.pi * f * T)
-    H = z * (C @ np.linalg.solve(z * np.eye(2) - Phi, Gam))
+    G = a.spring * np.linalg.solve(z * np.eye(2) - Phi, Gam)[0, 0]
+    H = kp * G / (1 + kp * G)
     amp = abs(sc.environment.force_amplitude[2 if name == "force-tracking" else 0])
     expected = abs(1 - H) * amp / (np.sqrt(2) if name == "force-tracking" else 1.0)
     assert r.paper_metric == pytest.approx(expected, rel=0.01)
+    late = abs(1 - z * H) * amp / (np.sqrt(2) if name == "force-tracking" else 1.0)
+    assert r.paper_metric / late > 1.1  # the force one tick late (the old reading) is another number
 
 
 def test_period_free_simulator_matches_the_compiled_period(prrr_paper):
