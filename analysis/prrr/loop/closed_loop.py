@@ -47,6 +47,7 @@ from hapticopt.analysis.prrr.loop.lumped_plant import (
     solve_friction,
 )
 from hapticopt.analysis.loop import paper
+from hapticopt.analysis.loop.assumptions import values as assumption_values
 from hapticopt.analysis.loop.scene import (
     BoxMode,
     Effect,
@@ -177,6 +178,7 @@ class ClosedLoopResult:
     paper_metric: float | None = None  # the scene's [report] quantity computed the paper's way (N or %)
     traces: Traces | None = field(default=None, repr=False, compare=False)
     report: Any = field(default=None, repr=False, compare=False)  # the scene's PaperReport (None: no report)
+    assumptions: tuple = ()  # ({key, value, source}, …): the values the paper does not give (analysis.loop.assumptions)
 
     def metrics(self) -> dict[str, Any]:
         def mm(v: float | None, f: float) -> float | None:
@@ -206,8 +208,11 @@ class ClosedLoopResult:
         r = self.report
         if r is None:
             return {}
-        return {"paper_quantity": str(r.quantity), "paper_axes": "".join("xyz"[a] for a in r.axes),
-                "paper_metric": self.paper_metric, "paper_value": r.value, "paper_source": r.source}
+        out = {"paper_quantity": str(r.quantity), "paper_axes": "".join("xyz"[a] for a in r.axes),
+               "paper_metric": self.paper_metric, "paper_value": r.value, "paper_source": r.source}
+        if self.assumptions:
+            out["assumptions"] = [dict(a) for a in self.assumptions]
+        return out
 
 
 def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | None = None,
@@ -272,6 +277,7 @@ def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | Non
         wall_penetration=pen, backend=backend or str(st.resolution.backend), effects=tuple(st.resolution.effect_names()),
         notes=st.resolution.notes, reason=st.resolution.reason, period=st.period, substeps=st.substeps, ticks=st.ticks, wall_time=wall_time,
         status=status, message=message, traces=tr, paper_metric=ours, report=sc.report,
+        assumptions=() if sc.report is None else tuple(assumption_values(sc.report.assumptions, sc, st.design)),
     )
 
 
