@@ -317,8 +317,8 @@ def export_joint_limits(design: PrrrDesign, *, fidelity: Any = None) -> mjcf.RJo
     """The R-joint ranges of the exported MJCF (``mjcf.export_options``) from the joint-limits evaluator
     (:func:`hapticopt.analysis.prrr.geometry.joint_limits.evaluate`), as angles about the home pose [rad]:
     R2 within the folded-elbow limit |θ2| ≤ θ2_max, intersected with the parts' stops; R1 and R3 the
-    parts' stops (computed at fine fidelity only, manifold3d: ~10 s; none at lower levels); a stop range
-    of 2π or more is no limit. R3 bounds the tendon θ1 + θ2 = −Δθ3. The legs are identical (leg 1's
+    parts' stops (at fine fidelity only: manifold3d sweeps, about as costly as the export itself; none at
+    lower levels); a stop range of 2π or more is no limit. R3 bounds the tendon θ1 + θ2 = −Δθ3. The legs are identical (leg 1's
     ranges). None when the evaluator finds no assembled device (the export's own checks then name why);
     raises :class:`InvalidDesign` when the evaluator failed."""
     from hapticopt.analysis.prrr.geometry import joint_limits
