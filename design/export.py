@@ -50,11 +50,11 @@ def _cad(design: Any):
     return cads[design.device]
 
 
-def _mjcf(design: Any, p, masses) -> str:
+def _mjcf(design: Any, p, masses, joint_limits: Any = None) -> str:
     if design.device == "prrr":
-        # the drivable model (SEA motors, stroke and force limits, CAD geoms and contacts), built at
-        # home with a keyframe "pose" at p
-        return mjcf_prrr.prrr_mjcf(design, mjcf_prrr.export_options(), mass_properties=masses,
+        # the drivable model (SEA motors with ξ and η, stroke, force and R-joint limits, R-joint friction,
+        # CAD geoms and contacts), built at home with a keyframe "pose" at p
+        return mjcf_prrr.prrr_mjcf(design, mjcf_prrr.export_options(joint_limits), mass_properties=masses,
                                    pose=None if p is None else p)
     # the master's MJCF carries the mass model that evaluate and verify use (design.master.mass:
     # the design's link, counterweight and handle data), not the CAD solids'
@@ -66,8 +66,12 @@ STEPS = ("cad", "mass properties + MJCF", "STEP", "STL", "render")
 
 
 def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False,
-           on_step: Callable[[str, int, int], None] | None = None) -> ExportResult:
+           on_step: Callable[[str, int, int], None] | None = None, joint_limits: Any = None) -> ExportResult:
     """Write the export set of ``design`` posed at end-effector position ``p`` [m] into ``out_dir``.
+
+    ``joint_limits``: the 3-PRRR's R-joint ranges for its MJCF (:class:`hapticopt.design.prrr.mjcf.RJointLimits`,
+    from the joint-limits evaluator: ``hapticopt.analysis.prrr.loop.mujoco_model.export_joint_limits``; None:
+    the R joints unlimited).
 
     ``on_step(step, done, total)`` is called before each step of :data:`STEPS` (the render only
     with ``render``) and once at the end with ``('', total, total)``.
@@ -102,7 +106,7 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False,
     t = time.perf_counter()
     step("mass properties + MJCF")
     masses = mp.from_cad(design, solids=solids, specs=specs)
-    mjcf = _mjcf(design, p, masses)
+    mjcf = _mjcf(design, p, masses, joint_limits)
     timings["mass_properties+mjcf"] = time.perf_counter() - t
     # the set is written into a staging folder and moved in at the end (design.atomic.file_set):
     # a full disk or a failing writer leaves the previous export as it was

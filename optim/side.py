@@ -92,7 +92,12 @@ def export(design: Any, out_dir: Path, on_step: Callable[[str, int, int], None] 
 
     t0 = time.perf_counter()
     try:
-        result = design_export.export(design, out_dir, render=True, **({} if on_step is None else {"on_step": on_step}))
+        limits = None
+        if design.device == "prrr":  # the MJCF's R-joint ranges from the joint-limits evaluator
+            from hapticopt.analysis.prrr.loop.mujoco_model import export_joint_limits
+            limits = export_joint_limits(design)
+        result = design_export.export(design, out_dir, render=True, joint_limits=limits,
+                                      **({} if on_step is None else {"on_step": on_step}))
     except Exception as exc:  # noqa: BLE001 - a failed export is reported in the report
         return "failed", describe_failure(exc), (), time.perf_counter() - t0
     files = tuple(sorted(str(Path(p).resolve().relative_to(Path(out_dir).resolve())) for p in result.files))

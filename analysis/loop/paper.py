@@ -7,11 +7,13 @@ Seed 002 reports each experiment as one number; the definitions (from its text, 
   is the RMS of that force *along the driven axis* (F_x or F_y), not of the 3-D force.
   → :func:`axis_rms` of the hand force.
 * **Fig 8** (force tracking, leg 1, 100 N at 3 Hz): the RMS of the tracking error of F_z (and of
-  F_y, whose reference is zero). → :func:`axis_error_rms` of (F − F_r) on one axis.
+  F_y, whose reference is zero), e(t) = F_d(t) − F(t) at one instant. → :func:`axis_error_rms` of
+  (F − F_r) on one axis, the two taken at the same instant
+  (:func:`hapticopt.analysis.loop.traces.tracking_pair`).
 * **Fig 9 / 10** (force circle, 80 N at 1 Hz, x and y waves 90° apart): "the RMS of the error
   curve", the error being the difference between the reference and the actual end-effector force
   (Fig 10 plots its x and y components). We read it as the RMS of the error vector's magnitude in
-  the plane, √(mean(e_x² + e_y²)). → :func:`plane_error_rms`.
+  the plane, √(mean(e_x² + e_y²)), at one instant as for Fig 8. → :func:`plane_error_rms`.
 * **Fig 15** (rendered stiffness): |K_rendered − K| / K in % (the fit is
   :func:`hapticopt.analysis.prrr.loop.closed_loop.metrics_from_traces`').
 

@@ -29,6 +29,8 @@ from hapticopt.design import bundled, tomlsafe
 from hapticopt.design.errors import InvalidInput, short, short_key
 from hapticopt.design.paths import check_name
 from hapticopt.analysis.control.upsampling import DEFAULT_VARIANT, Predictor, Variant
+from hapticopt.analysis.loop.assumptions import Assumption
+from hapticopt.analysis.loop.assumptions import parse as parse_assumptions
 from hapticopt.analysis.loop.operator import Operator, OperatorKind
 
 
@@ -224,6 +226,8 @@ class PaperReport:
     axes: tuple[int, ...] = (0,)
     value: float | None = None  # the paper's number in the quantity's unit (N or %)
     source: str = ""  # e.g. "seed 002 Fig 14a"
+    # values the paper does not give and their sources (hapticopt.analysis.loop.assumptions)
+    assumptions: tuple[Assumption, ...] = ()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -572,10 +576,12 @@ def scene_from_dict(data: dict[str, Any], *, source: str = "scene") -> Scene:
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
                                   or not math.isfinite(value) or value < 0):
             raise InvalidInput(f"{where}: report.{value_key} = {short(value)} must be a finite number ≥ 0 {unit}")
+        listed = r._get("assumptions")
+        assumed = () if listed is None else parse_assumptions(listed, f"{where}: report.assumptions")
         r.done()
         top.used.add("report")
         report = PaperReport(quantity=quantity, axes=axes, value=None if value is None else float(value),
-                             source=source)
+                             source=source, assumptions=assumed)
     top.done()
 
     ioic_mode = controller.mode == FirmwareMode.IOIC

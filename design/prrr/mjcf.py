@@ -19,7 +19,10 @@ Options (:class:`MjcfOptions`) select what the model contains:
   every body; ``contacts``: they collide, neighbours excluded (parts joined by a joint or
   sliding on each other, :func:`hapticopt.design.prrr.cad.neighbours`);
 * ``slider_limits``: the stroke ±L/2 on the output sliders (and the motor sides);
-  ``hinge_limits``: R1/R2 ranges; ``force_limits``: actuator force ±F_max;
+  ``joint_limits``: R1/R2 hinge ranges and the R3 range as a tendon θ1 + θ2 (:class:`RJointLimits`, from
+  the joint-limits evaluator: ``analysis.prrr.loop.mujoco_model.export_joint_limits``);
+  ``force_limits``: actuator force ±F_max; ``motor_efficiency``: the motor actuators' gear is η (a motor-force
+  command F drives the screw with ηF, seed 002 eq 6; the plant applies η itself);
 * ``hand``: an operator hand body (mass, spring, damper per axis) welded to the handle;
 * friction, damping, gravity, the solver settings.
 
@@ -79,6 +82,17 @@ class HandBody:
 
 
 @dataclass(frozen=True, kw_only=True)
+class RJointLimits:
+    """R-joint ranges about the home pose [rad] (angle − home angle, the CAD's elbow branch); None: unlimited.
+    R3 of a translating platform turns by −(Δθ1 + Δθ2): its range is written on the fixed tendon
+    θ1 + θ2 (``r3_<leg>``), i.e. ``r3`` bounds −Δθ3."""
+
+    r1: tuple[float, float] | None = None
+    r2: tuple[float, float] | None = None
+    r3: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
 class Solver:
     """Solver settings written into ``<option>`` and the equality defaults."""
 
@@ -110,15 +124,21 @@ class MjcfOptions:
     geoms: bool = False  # CAD part primitives as geoms
     contacts: bool = False  # the geoms collide (neighbours excluded)
     slider_limits: bool = False  # stroke limits on the sliders
-    hinge_limits: tuple[tuple[float, float], tuple[float, float]] | None = None  # (R1, R2) ranges from home [rad]
-    force_limits: bool = False  # actuator forces within ±F_max
+    joint_limits: RJointLimits | None = None  # R-joint ranges about home [rad]
+    force_limits: bool = False  # actuator forces within ±F_max (the motor command within ±F_max/η with motor_efficiency)
+    motor_efficiency: bool = False  # the motor actuators' gear is η (seed 002 eq 6: η F drives the screw)
 
 
-def export_options() -> MjcfOptions:
-    """The exported, drivable model: CAD masses and geoms, contacts, stroke and force limits,
-    gravity acting on every body, the SEA spring, solver settings of the plant's standard level."""
+def export_options(joint_limits: RJointLimits | None = None) -> MjcfOptions:
+    """The exported, drivable model with the dynamics the plants model: CAD masses and geoms, contacts,
+    stroke and force limits, gravity acting on every body, the SEA spring, the screw's viscous friction ξ on
+    the motor joints and η as the motor actuators' gear (seed 002 eq 6), the R joints' Coulomb friction
+    (``structure.joint_friction_Nm``, where the seed-002 scenes put it; none when it is 0), the R-joint
+    ranges ``joint_limits`` (the joint-limits evaluator's), solver settings of the plant's standard level."""
     return MjcfOptions(link_masses=LinkMasses.CAD, gravity=True, gravity_compensated_sliders=False,
                        geoms=True, contacts=True, slider_limits=True, force_limits=True,
+                       viscous_friction=True, motor_efficiency=True, r_joint_friction=True,
+                       joint_limits=joint_limits,
                        solver=Solver(timestep=1e-4, integrator="implicitfast", solref=(2e-4, 1.0)))
 
 
@@ -247,16 +267,18 @@ def prrr_mjcf(design: PrrrDesign, options: MjcfOptions = MjcfOptions(), *, ee_ma
         n = i + 1
         w = W[i]
         jd = f' damping="{o.joint_damping:.9g}"' if o.joint_damping > 0 else ""
-        if o.r_joint_friction:  # Coulomb friction in the R joints (seed 002 puts it there); R3 turns by −(θ1 + θ2)
+        lim = o.joint_limits or RJointLimits()
+        rng = lambda r: "" if r is None else f' range="{r[0]:.12g} {r[1]:.12g}"'  # noqa: E731
+        rf = ""
+        if o.r_joint_friction and design.structure.joint_friction > 0:
+            # Coulomb friction in the R joints (seed 002 puts it there); R3 turns by −(θ1 + θ2)
             rf = (f' frictionloss="{design.structure.joint_friction:.9g}" solreffriction="{_v(sol.solref)}" '
                   f'solimpfriction="{_v(sol.solimp)}"')
             jd += rf
-            tendons.append(f'<fixed name="r3_{n}"{rf}><joint joint="r1_{n}" coef="1"/>'
+        if rf or lim.r3 is not None:
+            tendons.append(f'<fixed name="r3_{n}"{rf}{rng(lim.r3)}><joint joint="r1_{n}" coef="1"/>'
                            f'<joint joint="r2_{n}" coef="1"/></fixed>')
-        r1 = r2 = ""
-        if o.hinge_limits is not None:
-            (l1, h1), (l2, h2) = o.hinge_limits
-            r1, r2 = f' range="{l1:.12g} {h1:.12g}"', f' range="{l2:.12g} {h2:.12g}"'
+        r1, r2 = rng(lim.r1), rng(lim.r2)
         link2 = link_inertial(f"link2_{n}", B[i], Q[i] - g.r4 * w, B[i])
         body_link2 = (f'<body name="link2_{n}" pos="{_v(B[i] - A[i])}">'
                       f'<joint name="r2_{n}" type="hinge" axis="{_v(w)}"{jd}{r2}/>{link2}'
@@ -335,8 +357,10 @@ def prrr_mjcf(design: PrrrDesign, options: MjcfOptions = MjcfOptions(), *, ee_ma
                 f'diaginertia="1e-5 1e-5 1e-5"/></body>')
         eqs.append('<connect name="hand_grip" body1="hand" body2="ee" anchor="0 0 0"/>')
     actuated = [f"motor_{n}" if o.motor_dynamics and o.sea_compliance else f"slider_{n}" for n in (1, 2, 3)]
-    frange = f' ctrlrange="{-act.force_limit:.12g} {act.force_limit:.12g}"' if o.force_limits else ""
-    acts = "".join(f'<motor name="force_{n}" joint="{j}" gear="1"{frange}/>' for n, j in zip((1, 2, 3), actuated))
+    gear = act.efficiency if o.motor_efficiency and o.motor_dynamics else 1.0
+    cmax = act.force_limit / gear
+    frange = f' ctrlrange="{-cmax:.12g} {cmax:.12g}"' if o.force_limits else ""
+    acts = "".join(f'<motor name="force_{n}" joint="{j}" gear="{gear:.12g}"{frange}/>' for n, j in zip((1, 2, 3), actuated))
     contact = ""
     if o.contacts:
         pairs = set()

@@ -71,7 +71,11 @@ def export(
     err = render.console(stderr=True)
     with paths.output_root(out_dir), run_lock(out_dir) if existed else contextlib.nullcontext(), make_progress(err, transient=True, disable=as_json or not err.is_terminal) as bar:
         line = StageLine(bar, "export")
-        result = run_export(design, out_dir, p=p, render=render_png, on_step=line.step)
+        limits = None
+        if design.device == "prrr":  # the MJCF's R-joint ranges from the joint-limits evaluator (fine: parts' stops)
+            from hapticopt.analysis.prrr.loop.mujoco_model import export_joint_limits
+            limits = export_joint_limits(design)
+        result = run_export(design, out_dir, p=p, render=render_png, on_step=line.step, joint_limits=limits)
         where = "the home pose" if p is None else f"the pose ({pose}) mm"
         line.stage("check", 1, f"interference at {poses} workspace poses" if poses > 0 else f"interference at {where}")
         if poses > 0:

@@ -112,7 +112,7 @@ def verify(
 #: verify keys shown as lines of their own, not in the metric table (resolution_reason: backend_reason's
 #: older name, kept in --json only)
 _OWN_LINES = ("backend", "backend_reason", "resolution_reason", "effects", "notes", "paper_quantity", "paper_axes",
-              "paper_metric", "paper_value", "paper_source")
+              "paper_metric", "paper_value", "paper_source", "assumptions")
 
 
 def _print_verify(design: str, scene: str, level: Fidelity, metrics: dict[str, Any], status: str, message: str,
@@ -131,6 +131,8 @@ def _print_verify(design: str, scene: str, level: Fidelity, metrics: dict[str, A
         axes = f" along {metrics['paper_axes']}" if metrics.get("paper_axes") else ""
         console.print(f"paper: {q}{axes} = {render.metric(q, metrics.get('paper_metric'))} here, "
                       f"{render.metric(q, metrics.get('paper_value'))} in {metrics.get('paper_source', 'the paper')}")
+    for a in metrics.get("assumptions") or []:  # the values the paper does not give (analysis.loop.assumptions)
+        console.print(f"assumed: {a['key']} = {render.value(a['value'])} — {a['source']}")
     for note in metrics.get("notes") or []:
         console.print(f"note: {note}")
     console.print(f"status: {status}" + (f" — {message}" if message else ""))

@@ -66,8 +66,9 @@ def test_export_and_verify_stages_call_the_landed_modules(tmp_path, monkeypatch)
 
     calls = {}
 
-    def export(design, out_dir, *, render=False):
+    def export(design, out_dir, *, render=False, joint_limits=None):
         calls["export"] = design.name
+        calls["joint_limits"] = joint_limits
         step = Path(out_dir) / f"{design.name}.step"
         step.write_text("ISO-10303-21;")
         return design_export.ExportResult(out_dir=Path(out_dir), files=(step,), timings_s={}, total_mass_kg=0.0)
@@ -83,6 +84,8 @@ def test_export_and_verify_stages_call_the_landed_modules(tmp_path, monkeypatch)
     problem = problem.with_optimiser(max_evals=20, starts=1)
     res = run_pipeline(problem, out_dir=tmp_path, scheduler="inline", verifier=fake_verifier.run_scene)
     assert calls["export"] == "beta-isotropic-optimum"
+    # the MJCF's R-joint ranges come from the joint-limits evaluator (issue 30): at least the elbow's
+    assert calls["joint_limits"] is not None and calls["joint_limits"].r2 is not None
     stages = {s.name: s for s in res.stages}
     assert stages["export"].status == "ok" and "beta-isotropic-optimum.step" in stages["export"].files
     assert [(v.scene, v.passed) for v in res.verdicts] == [("free-space", True), ("unstable-scene", False),

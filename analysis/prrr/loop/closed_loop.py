@@ -47,6 +47,7 @@ from hapticopt.analysis.prrr.loop.lumped_plant import (
     solve_friction,
 )
 from hapticopt.analysis.loop import paper
+from hapticopt.analysis.loop.assumptions import values as assumption_values
 from hapticopt.analysis.loop.scene import (
     BoxMode,
     Effect,
@@ -62,7 +63,7 @@ from hapticopt.analysis.loop.scene import (
 from hapticopt.analysis.status import Status
 from hapticopt.design.prrr.params import PrrrDesign
 from hapticopt.design.units import GRAVITY
-from hapticopt.analysis.loop.traces import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces
+from hapticopt.analysis.loop.traces import OVERSAMPLE, SATURATION_FRACTION, SATURATION_WINDOW_S, Traces, tracking_pair
 
 #: plant substeps per controller period when Coulomb friction is on (linear parts are exact at 1)
 FRICTION_SUBSTEPS = {Fidelity.DRAFT: 1, Fidelity.STANDARD: 1, Fidelity.FINE: 10}  # docs/closed_loop.md: 1 is within 0.1 %
@@ -177,6 +178,7 @@ class ClosedLoopResult:
     paper_metric: float | None = None  # the scene's [report] quantity computed the paper's way (N or %)
     traces: Traces | None = field(default=None, repr=False, compare=False)
     report: Any = field(default=None, repr=False, compare=False)  # the scene's PaperReport (None: no report)
+    assumptions: tuple = ()  # ({key, value, source}, …): the values the paper does not give (analysis.loop.assumptions)
 
     def metrics(self) -> dict[str, Any]:
         def mm(v: float | None, f: float) -> float | None:
@@ -206,8 +208,11 @@ class ClosedLoopResult:
         r = self.report
         if r is None:
             return {}
-        return {"paper_quantity": str(r.quantity), "paper_axes": "".join("xyz"[a] for a in r.axes),
-                "paper_metric": self.paper_metric, "paper_value": r.value, "paper_source": r.source}
+        out = {"paper_quantity": str(r.quantity), "paper_axes": "".join("xyz"[a] for a in r.axes),
+               "paper_metric": self.paper_metric, "paper_value": r.value, "paper_source": r.source}
+        if self.assumptions:
+            out["assumptions"] = [dict(a) for a in self.assumptions]
+        return out
 
 
 def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | None = None,
@@ -237,7 +242,8 @@ def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | Non
                 rk, rb = float(coef[0]), float(coef[1])
                 target = sc.environment.stiffness[ax]
                 err = abs(rk - target) / target * 100.0 if target > 0 else None
-        track = float(np.sqrt(np.mean(np.sum((tr.actuator_force[sl, b] - tr.force_reference[sl, b]) ** 2, axis=-1))))
+        F_now, F_ref = tracking_pair(tr, sl, b)  # seed 002's e(t) = F_d(t) − F(t): the same instant
+        track = float(np.sqrt(np.mean(np.sum((F_now - F_ref) ** 2, axis=-1))))
         if sc.environment.kind == EnvKind.BOX:
             env = sc.environment
             depth = np.abs(tr.position[:end, b] - np.asarray(env.anchor)) - np.asarray(env.half_size)
@@ -271,6 +277,7 @@ def metrics_from_traces(tr: Traces, st: Setup, b: int = 0, *, backend: str | Non
         wall_penetration=pen, backend=backend or str(st.resolution.backend), effects=tuple(st.resolution.effect_names()),
         notes=st.resolution.notes, reason=st.resolution.reason, period=st.period, substeps=st.substeps, ticks=st.ticks, wall_time=wall_time,
         status=status, message=message, traces=tr, paper_metric=ours, report=sc.report,
+        assumptions=() if sc.report is None else tuple(assumption_values(sc.report.assumptions, sc, st.design)),
     )
 
 
@@ -280,10 +287,11 @@ def report_value(report: Any, tr: Traces, sl: slice, b: int, stiffness_error: fl
     q = report.quantity
     if q == PaperQuantity.HAND_FORCE_AXIS_RMS:
         return paper.axis_rms(tr.hand_force[sl, b], report.axes[0])
-    if q == PaperQuantity.FORCE_ERROR_AXIS_RMS:
-        return paper.axis_error_rms(tr.actuator_force[sl, b], tr.force_reference[sl, b], report.axes[0])
-    if q == PaperQuantity.FORCE_ERROR_PLANE_RMS:
-        return paper.plane_error_rms(tr.actuator_force[sl, b], tr.force_reference[sl, b], report.axes)
+    if q in (PaperQuantity.FORCE_ERROR_AXIS_RMS, PaperQuantity.FORCE_ERROR_PLANE_RMS):
+        F_now, F_ref = tracking_pair(tr, sl, b)  # e(t) = F_d(t) − F(t) at one instant
+        if q == PaperQuantity.FORCE_ERROR_AXIS_RMS:
+            return paper.axis_error_rms(F_now, F_ref, report.axes[0])
+        return paper.plane_error_rms(F_now, F_ref, report.axes)
     return stiffness_error
 
 

@@ -47,6 +47,8 @@ from hapticopt.design.prrr.kinematics import (
 )
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.prrr.params import PrrrDesign
+from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.status import Status
 from hapticopt.analysis.loop.mujoco_solver import SOLVER_BY_FIDELITY, ZERO_HEALTH, Health, Integrator, SolverSettings  # noqa: F401
 from hapticopt.analysis.loop.operator import Operator
 from hapticopt.design.prrr import mjcf
@@ -304,3 +306,42 @@ def stress_probe(design: PrrrDesign, options: ModelOptions, *, duration: float =
 def _replace(obj: Any, **kw: Any) -> Any:
 
     return dataclasses.replace(obj, **kw)
+
+
+#: a range at least this wide [rad] never acts: the joint is left unlimited (a parts' sweep that met nothing
+#: returns ±π about the reference)
+_FREE_WIDTH = 2.0 * math.pi - 1e-9
+
+
+def export_joint_limits(design: PrrrDesign, *, fidelity: Any = None) -> mjcf.RJointLimits | None:
+    """The R-joint ranges of the exported MJCF (``mjcf.export_options``) from the joint-limits evaluator
+    (:func:`hapticopt.analysis.prrr.geometry.joint_limits.evaluate`), as angles about the home pose [rad]:
+    R2 within the folded-elbow limit |θ2| ≤ θ2_max, intersected with the parts' stops; R1 and R3 the
+    parts' stops (at fine fidelity only: manifold3d sweeps, about as costly as the export itself; none at
+    lower levels); a stop range of 2π or more is no limit. R3 bounds the tendon θ1 + θ2 = −Δθ3. The legs are identical (leg 1's
+    ranges). None when the evaluator finds no assembled device (the export's own checks then name why);
+    raises :class:`InvalidDesign` when the evaluator failed."""
+    from hapticopt.analysis.prrr.geometry import joint_limits
+
+    res = joint_limits.evaluate(design, fidelity=Fidelity.FINE if fidelity is None else fidelity)
+    if res.status is Status.NOT_ASSEMBLABLE:
+        return None
+    if res.status is Status.FAILED or not math.isfinite(res.elbow_limit):
+        raise InvalidDesign(f"design {design.name!r}: no R-joint limits for the MJCF: {res.message or res.status}")
+    home = np.asarray(ik_fn(params_of(design), np.zeros(3), xp=np).theta)[BRANCH, 0]  # leg 1: θ1, θ2, θ3 [rad]
+    stops = res.stops or {}
+
+    def about_home(j: int, lo: float, hi: float) -> tuple[float, float] | None:
+        return None if hi - lo >= _FREE_WIDTH else (lo - home[j], hi - home[j])
+
+    def meet(a, b):
+        if a is None or b is None:
+            return a if b is None else b
+        return (max(a[0], b[0]), min(a[1], b[1]))
+
+    e = res.elbow_limit
+    r1 = about_home(0, *stops["r1"]) if "r1" in stops else None
+    r2 = meet((-e - home[1], e - home[1]), about_home(1, *stops["r2"]) if "r2" in stops else None)
+    d3 = about_home(2, *stops["r3"]) if "r3" in stops else None
+    r3 = None if d3 is None else (-d3[1], -d3[0])  # the tendon θ1 + θ2 is −Δθ3
+    return mjcf.RJointLimits(r1=r1, r2=r2, r3=r3)

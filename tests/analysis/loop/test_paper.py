@@ -16,8 +16,10 @@ T, N = 1e-3, 3000  # 3 s at 1 kHz: whole periods of 1, 2 and 3 Hz
 t = np.arange(N) * T
 
 
-def _sin(amp: float, f: float, phase: float = 0.0) -> np.ndarray:
-    return amp * np.sin(2 * np.pi * f * t + phase)
+def _sin(amp: float, f: float, phase: float = 0.0, *, end: bool = False) -> np.ndarray:
+    """amp·sin(2πft + phase) at the ticks' starts, or (``end``) at their ends t + T: the traces record the
+    plant's forces at the end of tick k and the reference computed at its start (analysis.loop.traces)."""
+    return amp * np.sin(2 * np.pi * f * (t + (T if end else 0.0)) + phase)
 
 
 def test_axis_rms_counts_only_the_driven_axis():
@@ -65,8 +67,8 @@ def test_free_space_scenes_report_the_driven_axis_rms(prrr_paper, name, axis):
 def test_force_tracking_reports_the_fz_error(prrr_paper):
     """Fig 8: RMS of (F_z − F_z,r); an F_y error (paper 5.68 N) is a different number."""
     ref = np.stack([_sin(-57.7, 3.0), np.zeros(N), _sin(100.0, 3.0)], axis=-1)
-    act = ref.copy()
-    act[:, 2] += _sin(5.0, 3.0, 1.0)
+    act = np.stack([_sin(-57.7, 3.0, end=True), np.zeros(N), _sin(100.0, 3.0, end=True)], axis=-1)
+    act[:, 2] += _sin(5.0, 3.0, 1.0, end=True)
     act[:, 1] += 9.0
     _, r = _report(prrr_paper, "force-tracking", np.zeros((N, 3)), np.zeros((N, 3)), act, ref)
     assert r.paper_metric == pytest.approx(5.0 / math.sqrt(2), rel=1e-9)
@@ -77,7 +79,8 @@ def test_force_circle_reports_the_plane_error(prrr_paper, name, plane):
     """Fig 9: a circle drawn 10 % small has a constant error |e| = 8 N: its RMS is 8 N."""
     ref = np.zeros((N, 3))
     ref[:, plane[0]], ref[:, plane[1]] = _sin(80.0, 1.0), _sin(80.0, 1.0, math.pi / 2)
-    act = 0.9 * ref
+    act = np.zeros((N, 3))
+    act[:, plane[0]], act[:, plane[1]] = _sin(72.0, 1.0, end=True), _sin(72.0, 1.0, math.pi / 2, end=True)
     act[:, 3 - sum(plane)] += 4.0  # the off-plane axis does not count
     _, r = _report(prrr_paper, name, np.zeros((N, 3)), np.zeros((N, 3)), act, ref)
     assert r.paper_metric == pytest.approx(8.0, rel=1e-9)

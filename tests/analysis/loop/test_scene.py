@@ -8,6 +8,7 @@ from hapticopt.analysis.loop.scene import (
     Backend,
     Effect,
     EnvKind,
+    FrictionLocation,
     load_scene,
     resolve,
     scene_from_dict,
@@ -232,6 +233,35 @@ def test_seed002_experiment_scenes_parse():
     assert load_scene("free-space").friction_location == FrictionLocation.SLIDERS  # the default is unchanged
 
 
+@pytest.mark.parametrize("name", ["free-space-x", "free-space-y", "free-space-x-2hz", "free-space-y-2hz",
+                                  "force-tracking", "force-circle-xy", "force-circle-xz", "stiffness-25"])
+def test_seed002_scenes_run_at_the_papers_gain_and_list_what_they_assume(name):
+    """Issue 30: every seed-002 scene at the paper's stated K_p = 45, and every value the paper does not
+    give (the loop rate at least; τ_c and the operator where the scene has them) listed with a source."""
+    sc = load_scene(name)
+    keys = {a.key for a in sc.report.assumptions}
+    assert sc.controller.force_gain == 45.0 and {"controller.period_ms", "controller.force_gain"} <= keys
+    if sc.friction_location == FrictionLocation.R_JOINTS:
+        assert "design.structure.joint_friction_Nm" in keys
+    if Effect.OPERATOR in resolve(sc).effects:  # a locked output has no operator
+        assert "operator.stiffness_N_per_mm" in keys
+    assert all(a.source.strip() for a in sc.report.assumptions)
+
+
+def test_assumptions_report_the_values_the_run_uses():
+    """The listed value is read from the run's scene (after an override) and from the design."""
+    import dataclasses
+
+    from hapticopt.analysis.loop import assumptions
+
+    sc = load_scene("free-space-x")
+    sc = dataclasses.replace(sc, controller=dataclasses.replace(sc.controller, period=0.5e-3))
+    d = io.apply_overrides(io.load_preset("prrr-paper"), ["structure.joint_friction_Nm=0.05"])
+    got = {a["key"]: a["value"] for a in assumptions.values(sc.report.assumptions, sc, d)}
+    assert got["controller.period_ms"] == pytest.approx(0.5) and got["design.structure.joint_friction_Nm"] == 0.05
+    assert got["operator.stiffness_N_per_mm"] == pytest.approx(20.0)
+
+
 @pytest.mark.parametrize("extra, match", [
     ({"effects": {"friction_location": "hinges"}}, "friction_location = 'hinges' is not known: allowed sliders"),
     ({"report": {"axes": "x"}}, "report.quantity is missing"),
@@ -242,6 +272,14 @@ def test_seed002_experiment_scenes_parse():
     ({"report": {"quantity": "hand_force_axis_rms", "paper_value_N": -1}}, "paper_value_N = -1 must be a finite"),
     ({"report": {"quantity": "stiffness_error_pct", "paper_value_N": 6.6}}, "report.paper_value_N is not a known key"),
     ({"environment": {"kind": "force", "force_phase_deg": [0, 400, 0]}}, "force_phase_deg = [0, 400, 0] is out of range"),
+    ({"report": {"quantity": "hand_force_axis_rms", "assumptions": {"key": "controller.period_ms"}}},
+     "report.assumptions = "),
+    ({"report": {"quantity": "hand_force_axis_rms", "assumptions": [{"key": "controller.period_ms"}]}},
+     "report.assumptions[0] = "),
+    ({"report": {"quantity": "hand_force_axis_rms", "assumptions": [{"key": "controller.period_ms", "source": " "}]}},
+     "report.assumptions[0].source = ' ' must be a non-empty string"),
+    ({"report": {"quantity": "hand_force_axis_rms", "assumptions": [{"key": "controller.rate", "source": "x"}]}},
+     "report.assumptions[0].key = 'controller.rate' is not a key an assumption can name"),
 ])
 def test_seed002_scene_validation(extra, match):
     with pytest.raises(InvalidInput, match=match.replace("[", r"\[").replace("]", r"\]")):

@@ -170,3 +170,19 @@ def test_a_verdict_other_than_ok_exits_3():
     assert res.exit_code == 3, res.output
     assert json.loads(res.stdout)["status"] == "unstable"
     assert res.stderr.startswith("not met: verify handle-wall: unstable")
+
+
+def test_verify_lists_the_values_the_paper_does_not_give():
+    """Issue 30: free-space-x at the paper's K_p = 45 beside its 0.50 N, with every assumed value (key, the
+    value this run used, its source) in the JSON and as `assumed:` lines in the text output."""
+    res = runner.invoke(app, ["verify", "--preset", "prrr-paper", "--scene", "free-space-x", "--json",
+                              "--fidelity", "draft", "--period-ms", "0.5"])
+    assert res.exit_code == 0, res.output
+    m = json.loads(res.stdout)["metrics"]
+    assert m["paper_value"] == 0.50 and m["paper_metric"] > 0
+    got = {a["key"]: a["value"] for a in m["assumptions"]}
+    assert got["controller.period_ms"] == 0.5 and got["controller.force_gain"] == 45.0  # the override shows
+    assert got["design.structure.joint_friction_Nm"] == pytest.approx(0.0384)
+    assert all(a["source"] for a in m["assumptions"])
+    text = runner.invoke(app, ["verify", "--preset", "prrr-paper", "--scene", "free-space-x", "--fidelity", "draft"])
+    assert text.exit_code == 0 and "assumed: controller.period_ms = 1" in text.output.replace("\n", " ")

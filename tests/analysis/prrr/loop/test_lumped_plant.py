@@ -30,8 +30,14 @@ def test_zoh_is_exact_composition(prrr_paper):
     assert np.linalg.matrix_power(small.Ad, 10) == pytest.approx(big.Ad, abs=1e-10)
 
 
+def _at_home():
+    """The free-space scene as a base for plant tests, started at home (the scene starts where its hand
+    circle starts, y = 4 mm)."""
+    return dataclasses.replace(load_scene("free-space"), initial_offset=(0.0, 0.0, 0.0))
+
+
 def test_equivalent_mass_eq7_and_static_spring(prrr_paper):
-    sc = dataclasses.replace(load_scene("free-space"), effects=frozenset({Effect.SEA_COMPLIANCE, Effect.MOTOR_DYNAMICS}))
+    sc = dataclasses.replace(_at_home(), effects=frozenset({Effect.SEA_COMPLIANCE, Effect.MOTOR_DYNAMICS}))
     m = _model(prrr_paper, sc)
     assert m.mode == PlantMode.FULL
     Me = m.Q[9:12, 9:12]
@@ -53,7 +59,7 @@ def test_coulomb_stick_and_slip_1d():
 
 def test_friction_holds_output_below_breakaway(prrr_paper):
     """A small constant actuator force on a resting output below friction: the output must not move."""
-    sc = dataclasses.replace(load_scene("free-space"), effects=frozenset(
+    sc = dataclasses.replace(_at_home(), effects=frozenset(
         {Effect.SEA_COMPLIANCE, Effect.MOTOR_DYNAMICS, Effect.VISCOUS_FRICTION, Effect.COULOMB_FRICTION}))
     m = _model(prrr_paper, sc)
     plant = LumpedPlant(m, 1e-3, 5)
@@ -96,7 +102,7 @@ def _ideal_plant(prrr_paper, location):
     slider force u, the Cartesian force on the output is J⁻ᵀu."""
     from hapticopt.analysis.loop.scene import FrictionLocation
 
-    sc = dataclasses.replace(load_scene("free-space"), effects=frozenset({Effect.COULOMB_FRICTION}),
+    sc = dataclasses.replace(_at_home(), effects=frozenset({Effect.COULOMB_FRICTION}),
                              friction_location=FrictionLocation(location))
     m = _model(prrr_paper, sc)
     assert m.mode == PlantMode.IDEAL

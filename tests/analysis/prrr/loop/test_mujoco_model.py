@@ -187,3 +187,29 @@ def test_r_joint_friction_in_the_multibody_model():
         assert mj.dof_frictionloss[s] == 0.0
     plain = build(DESIGN, ModelOptions()).model
     assert plain.dof_frictionloss.max() == 0.0 and mujoco.mj_name2id(plain, mujoco.mjtObj.mjOBJ_TENDON, "r3_1") < 0
+
+
+def test_export_joint_limits_are_the_joint_limit_evaluators_about_home():
+    """Issue 30: the exported MJCF's R-joint ranges are the joint-limits evaluator's, about the home pose.
+    Standard fidelity: the folded-elbow limit |θ2| ≤ θ2_max only (the parts' stops are fine-only), so R2 spans
+    [−θ2_max − θ2_home, θ2_max − θ2_home] and R1, R3 are free; they land in the model as hinge / tendon ranges."""
+    import math
+
+    from hapticopt.analysis.prrr.geometry import joint_limits
+    from hapticopt.design.prrr import mjcf
+    from hapticopt.design.prrr.kinematics import inverse_kinematics, params_of
+    from hapticopt.analysis.prrr.loop.mujoco_model import export_joint_limits
+
+    lim = export_joint_limits(DESIGN, fidelity=Fidelity.STANDARD)
+    e = joint_limits.elbow_limit(DESIGN)
+    th2 = float(np.asarray(inverse_kinematics(params_of(DESIGN), np.zeros(3), xp=np).theta)[mjcf.BRANCH, 0, 1])
+    assert lim.r1 is None and lim.r3 is None
+    assert lim.r2 == pytest.approx((-e - th2, e - th2), rel=1e-12)
+    assert lim.r2[0] < 0.0 < lim.r2[1]  # home lies inside
+    stops = mjcf.RJointLimits(r1=(-1.0, 0.5), r2=lim.r2, r3=(-0.25, math.pi / 2))
+    model = mujoco.MjModel.from_xml_string(mjcf.prrr_mjcf(DESIGN, mjcf.export_options(stops)))
+    for n in (1, 2, 3):
+        assert model.joint(f"r1_{n}").range == pytest.approx([-1.0, 0.5])
+        assert model.joint(f"r2_{n}").range == pytest.approx(list(lim.r2))
+        t = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, f"r3_{n}")
+        assert model.tendon_limited[t] and model.tendon_range[t] == pytest.approx([-0.25, math.pi / 2])
