@@ -132,10 +132,15 @@ def choose(front: Sequence[FrontPoint], senses: Sequence[Sense], how: Choice,
            weights: Sequence[float] = ()) -> FrontPoint | None:
     """The chosen design of a front. Objectives are normalised over the front to [0, 1], 1 = best.
 
-    * ``knee``: the point nearest the utopia point (1, 1). (The other common definition, farthest
-      from the line through the two anchors, picks an anchor on a front that bows towards the
-      nadir, as the 3-PRRR's stiffness/height front does; the utopia distance is defined on any front.)
-    * ``weights``: the point maximising w₁·n₁ + w₂·n₂.
+    * ``knee``: the point nearest the utopia point (1, 1) in the normalised objectives. (The other
+      common definition, farthest from the line through the two anchors, picks an anchor on a front
+      that bows towards the nadir, as the 3-PRRR's stiffness/height front does; the utopia distance
+      is defined on any front. On a straight front it is the midpoint.)
+    * ``weights``: the point maximising w₁·n₁ + w₂·n₂ (the problem's ``[pareto] choose``/``weights``
+      are how a user changes the rule).
+
+    ``front`` holds only points that keep every constraint of their problem (:func:`run_front`
+    filters them), so the chosen design never breaks one.
     """
     if not front:
         return None
@@ -149,6 +154,13 @@ def choose(front: Sequence[FrontPoint], senses: Sequence[Sense], how: Choice,
         scores = [-math.hypot(1.0 - a, 1.0 - b) for a, b in n]
     best = max(range(len(front)), key=lambda i: (scores[i], -i))
     return front[best]
+
+
+def keeps_constraints(problem: Problem, point: FrontPoint) -> bool:
+    """Whether ``point`` keeps every constraint of ``problem`` exactly (normalised violation ≤ 0, not
+    the optimiser's ``constraint_tol``), on the metrics recorded for it."""
+    return all(math.isfinite(v := c.metric.value(point.metrics)) and c.normalised(v) <= 0.0
+               for c in problem.constraints)
 
 
 def _epsilon_constraint(obj: Objective, eps: float) -> Constraint:
@@ -216,7 +228,7 @@ def run_front(problem: Problem, *, executor: Executor | None = None, recorder: R
                 candidates.append(fp)
                 if fp.feasible:
                     start = fp.x
-    front = non_dominated(candidates, [f1.sense, f2.sense])
+    front = non_dominated([p for p in candidates if keeps_constraints(problem, p)], [f1.sense, f2.sense])
     chosen = choose(front, [f1.sense, f2.sense], cfg.choose, cfg.weights)
     return FrontResult(problem_name=problem.name, runs=tuple(runs), front=tuple(front), candidates=tuple(candidates),
                        chosen=chosen, n_evaluated=n_eval, n_replayed=n_repl, wall_s=time.perf_counter() - t0)

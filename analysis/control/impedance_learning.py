@@ -23,8 +23,8 @@ Errata applied (the paper as printed → here):
 * eq 28 prints v_n = Σ_j (0.05/j) sin(100 t): all ten terms share one frequency, i.e. a single
   sinusoid of amplitude 0.05·H_10 = 0.1464 m/s². It is used as printed; over the 0.5 s data
   phase the closed-loop transient it excites (plus the initial error of the square wave)
-  makes all 9 unknowns identifiable (measured rcond ≈ 3e-4). Seeded variants randomise the
-  ten phases only.
+  makes all 9 unknowns identifiable (measured rcond ≈ 3e-4). :meth:`ExplorationNoise.multisine`
+  is a genuinely varied, seeded alternative (ten random frequencies and phases).
 """
 
 from __future__ import annotations
@@ -38,15 +38,22 @@ import scipy.linalg
 
 from hapticopt.analysis.loop.operator import Operator, state_space
 
-#: Data matrices whose column-scaled reciprocal condition number is below this are refused.
-#: Measured (docs/seed001.md): exciting data ≈ 1e-4 (printed noise, 50 intervals; ≥ 2.4e-6 for
-#: the shortest data of the table, 0.1 s / 10 intervals; ≈ 2e-3 on the devices), no noise ≈ 1e-17
-#: in the exact simulation (rank 6 of 9) but 5e-10 (master) and 4e-9 (3-PRRR) on the devices,
-#: where encoder quantization and tracking errors lift the smallest singular value without
-#: making the data informative (the gain learned from them had K3 = −9.8). The band sits at the
-#: geometric middle of the devices' no-noise case and the shortest exciting data, 1.4 decades
-#: from each.
+#: Data matrices whose column-scaled reciprocal condition number is below this are refused
+#: (``not_exciting``): the data cannot determine the nine unknowns at all. From the exploration sweep
+#: of docs/seed001.md (scripts/accuracy/accuracy_seed001_devices.py --exploration): without
+#: exploration the devices' data sit at 1.2e-9 (master) and 3.9e-9 (3-PRRR) — encoder quantization
+#: and tracking errors lift the smallest singular value without informing it (a gain learned from
+#: them had K3 = −9.8) — and the exact simulation's at 3.4e-17; the weakest exploration swept
+#: (eq 28 × 0.001) gives 1.5e-5 and 2.8e-5, the shortest exciting data of the simulation 2.4e-6.
+#: The band sits between, ≥ 1.4 decades from each. Whether exciting data were informative *enough*
+#: is not this band's verdict: the learned M, B, K against the tolerance of the optimum is
+#: (:func:`hapticopt.analysis.control.ioic_online.impedance_verdict`; the × 0.001 … × 0.1 runs pass
+#: this band and miss the tolerance by 13 % to 100×).
 RCOND_MIN = 1e-7
+
+#: Frequency band [rad/s] of the seeded multi-sine exploration: up to eq 28's 100 rad/s, down to
+#: 2π / 0.5 s (one period within §4.1's data phase).
+MULTISINE_BAND = (2 * math.pi / 0.5, 100.0)
 
 #: Allowed integrator steps of the outer-loop simulation [s].
 STEP_RANGE = (1e-5, 0.02)
@@ -121,11 +128,19 @@ class ExplorationNoise:
                    frequencies=(100.0,) * 10, phases=(0.0,) * 10)
 
     @classmethod
-    def random_phases(cls, seed: int) -> ExplorationNoise:
-        """Eq 28's amplitudes and frequency with phases φ_j ~ U[0, 2π) from ``seed``."""
+    def multisine(cls, seed: int, *, band: tuple[float, float] = MULTISINE_BAND) -> ExplorationNoise:
+        """A seeded random multi-sine: eq 28's ten amplitudes a_j = 0.05/j [m/s²], ten frequencies
+        drawn log-uniformly from ``band`` [rad/s] and ten phases from U[0, 2π), all from ``seed``
+        (numpy's default generator). Unlike eq 28 as printed (one 100 rad/s sinusoid) the ten terms
+        differ in frequency, so the data phase sees a genuinely varied input."""
+        lo, hi = band
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+            raise ValueError(f"ExplorationNoise.multisine: band = {band!r} rad/s must satisfy 0 < low < high")
         rng = np.random.default_rng(seed)
-        return dataclasses.replace(cls.printed(),
-                                   phases=tuple(float(v) for v in rng.uniform(0, 2 * np.pi, 10)))
+        freqs = np.exp(rng.uniform(math.log(lo), math.log(hi), 10))
+        phases = rng.uniform(0.0, 2 * np.pi, 10)
+        return cls(amplitudes=tuple(0.05 / j for j in range(1, 11)),
+                   frequencies=tuple(float(v) for v in freqs), phases=tuple(float(v) for v in phases))
 
     @classmethod
     def zero(cls) -> ExplorationNoise:

@@ -163,17 +163,32 @@ def _rms(v: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(v)))) if v.size else math.nan
 
 
+#: Default tolerance of the learned impedance: IOIC is ``ok`` only when each of M_d, B_d, K_d is within
+#: this relative error of the Riccati optimum M*, B*, K* (eq 33). 10 % is the force JND seed 003 uses
+#: for its 0.1 N threshold (a 10 % lighter or softer impedance is at the edge of what a hand feels).
+IMPEDANCE_TOLERANCE = 0.10
+
+
+def impedance_errors(k_used: np.ndarray, optimum: il.OptimalImpedance) -> tuple[float, float, float]:
+    """Signed relative errors (M/M* − 1, B/B* − 1, K/K* − 1) of the impedance of gain ``k_used`` (eq 5)."""
+    m, b, k = il.impedance_from_gain(k_used)
+    return m / optimum.mass - 1.0, b / optimum.damping - 1.0, k / optimum.stiffness - 1.0
+
+
 def outer_metrics(rec: OuterRecord, *, strategy: il.Strategy, learning: il.LearningResult | None,
-                  optimum: il.OptimalImpedance, after: float) -> dict[str, object]:
-    """The outer loop's metrics of a device run: learned vs model-optimal impedance, the
-    impedance error e_p = x − x_d, the tracking error x − x_r and the interaction force, over the
-    whole run and over t ≥ ``after`` [s] (after learning and the soft switch)."""
+                  optimum: il.OptimalImpedance, after: float,
+                  tolerance: float = IMPEDANCE_TOLERANCE) -> dict[str, object]:
+    """The outer loop's metrics of a device run: learned vs model-optimal impedance (M, B, K and
+    their relative errors, with the ``tolerance`` the status applies), the impedance error
+    e_p = x − x_d, the tracking error x − x_r and the interaction force, over the whole run and
+    over t ≥ ``after`` [s] (after learning and the soft switch)."""
     k_star = optimum.k[0]
     if strategy is il.Strategy.IOIC:
         k_used = learning.k[0] if learning is not None else np.full(3, np.nan)
     else:
         k_used = k_star if strategy is il.Strategy.OIC else rec.gain[0]
     m_l, b_l, k_l = il.impedance_from_gain(k_used)
+    err_m, err_b, err_k = impedance_errors(k_used, optimum)
     sel = rec.t >= after - 1e-9
     out: dict[str, object] = {
         "ioic_strategy": strategy.value,
@@ -188,6 +203,8 @@ def outer_metrics(rec: OuterRecord, *, strategy: il.Strategy, learning: il.Learn
         "impedance_mass_kg": m_l, "impedance_damping_Ns_per_m": b_l, "impedance_stiffness_N_per_m": k_l,
         "optimal_impedance_mass_kg": optimum.mass, "optimal_impedance_damping_Ns_per_m": optimum.damping,
         "optimal_impedance_stiffness_N_per_m": optimum.stiffness,
+        "impedance_mass_rel_error": err_m, "impedance_damping_rel_error": err_b,
+        "impedance_stiffness_rel_error": err_k, "impedance_tolerance": tolerance,
         "impedance_error_rms_mm": _rms(rec.x - rec.x_d) * 1e3,
         "impedance_error_rms_after_learning_mm": _rms((rec.x - rec.x_d)[sel]) * 1e3,
         "interaction_force_rms_N": _rms(rec.f),
@@ -217,7 +234,8 @@ PERFORMANCE = ("impedance_error_rms_mm", "impedance_error_rms_after_learning_mm"
                "tracking_error_peak_mm", "reference_error_rms_after_learning_mm", "joint_torque_peak_Nm",
                "joint_torque_rms_Nm", "joint_error_peak_mrad", "joint_error_peak_after_learning_mrad",
                "gain_SI", "gain_rel_error_to_optimum", "impedance_mass_kg", "impedance_damping_Ns_per_m",
-               "impedance_stiffness_N_per_m", "motor_command_peak_N", "force_tracking_rms_N", "off_axis_drift_peak_mm")
+               "impedance_stiffness_N_per_m", "impedance_mass_rel_error", "impedance_damping_rel_error",
+               "impedance_stiffness_rel_error", "motor_command_peak_N", "force_tracking_rms_N", "off_axis_drift_peak_mm")
 
 
 def outer_config(scene: Scene, period: float) -> OnlineIoicConfig:
@@ -228,7 +246,7 @@ def outer_config(scene: Scene, period: float) -> OnlineIoicConfig:
     if not s.exploration:
         noise = il.ExplorationNoise.zero()
     elif s.noise_seed >= 0:
-        noise = il.ExplorationNoise.random_phases(s.noise_seed)
+        noise = il.ExplorationNoise.multisine(s.noise_seed)
     else:
         noise = il.ExplorationNoise.printed()
     try:
@@ -254,20 +272,44 @@ def _finite_or_none(v: Any) -> Any:
     return v
 
 
-def clean_metrics(measures: dict[str, Any], *, ok: bool) -> dict[str, Any]:
-    """NaN → None (JSON null); with a non-ok status the performance metrics are null too."""
+def clean_metrics(measures: dict[str, Any], *, status: Status) -> dict[str, Any]:
+    """NaN → None (JSON null); with a status whose numbers do not hold (:attr:`Status.metrics_hold`:
+    unstable, singular, failed) the performance metrics are null too; ``not-met`` keeps them."""
     out = dict(measures)
-    if not ok:
+    if not status.metrics_hold:
         for key in PERFORMANCE:
             if key in out:
                 out[key] = None
     return {k: _finite_or_none(v) for k, v in out.items()}
 
 
+def impedance_verdict(strategy: il.Strategy, measures: dict[str, Any]) -> tuple[bool, str]:
+    """(ok, message): a learned impedance is ok only when each of M, B, K is within
+    ``measures["impedance_tolerance"]`` of the Riccati optimum; FIC and OIC are not judged (their gains
+    are given, not learned)."""
+    if strategy is not il.Strategy.IOIC:
+        return True, ""
+    tol = float(measures["impedance_tolerance"])
+    errs = [(name, measures[f"impedance_{key}_rel_error"]) for name, key in
+            (("M", "mass"), ("B", "damping"), ("K", "stiffness"))]
+    if all(e is not None and math.isfinite(e) and abs(e) <= tol for _, e in errs):
+        return True, ""
+    text = ", ".join(f"{name} {100 * e:+.1f} %" for name, e in errs)
+    return False, (f"learned impedance off the Riccati optimum (eq 33) by {text}: allowed ±{100 * tol:g} % each "
+                   f"(M {measures['impedance_mass_kg']:.4g} vs {measures['optimal_impedance_mass_kg']:.4g} kg, "
+                   f"B {measures['impedance_damping_Ns_per_m']:.4g} vs "
+                   f"{measures['optimal_impedance_damping_Ns_per_m']:.4g} N·s/m, "
+                   f"K {measures['impedance_stiffness_N_per_m']:.4g} vs "
+                   f"{measures['optimal_impedance_stiffness_N_per_m']:.4g} N/m)")
+
+
 def run_status(*, stable: bool, unstable_at: float | None, strategy: il.Strategy,
-               learning: il.LearningResult | None, problems: list[str]) -> tuple[Status, str]:
+               learning: il.LearningResult | None, problems: list[str],
+               measures: dict[str, Any] | None = None) -> tuple[Status, str]:
     """The run's status: ``unstable``; a refused learning ``singular`` (not exciting) or ``failed``;
-    ``failed`` for any other problem (plant health); ``ok`` otherwise."""
+    ``failed`` for any other problem (plant health); ``not-met`` when the learned M, B or K is
+    outside the tolerance of the optimum (``measures`` from :func:`outer_metrics`; the message names
+    the three errors); ``ok`` otherwise."""
     ok_learn, learn_msg = learning_verdict(strategy, learning)
     msgs = []
     if not stable:
@@ -282,4 +324,9 @@ def run_status(*, stable: bool, unstable_at: float | None, strategy: il.Strategy
     msgs += problems
     if problems and status == Status.OK:
         status = Status.FAILED
+    if status == Status.OK and measures is not None:
+        ok_imp, imp_msg = impedance_verdict(strategy, measures)
+        if not ok_imp:
+            status = Status.NOT_MET
+            msgs.append(imp_msg)
     return status, "; ".join(msgs)

@@ -19,7 +19,10 @@ Errata applied:
 * eq 14's first branch also applies when R_i = 0 for |e| < μ; R_i = 0 is a measure-zero set in
   floating point and taking the power law there would bring back the singular φ'. The
   quadratic branch is used whenever |e| < μ.
-* θ (the boundary-layer width of eq 26) is not given in the paper; θ = 0.05 rad/s here.
+* θ (the boundary-layer width of eq 26) is not printed. θ = 1 rad/s is the value at which §4.2's
+  two-link example reproduces the magnitude of Fig 10's joint errors (3e-3 / 6e-3 rad; the sweep
+  in docs/seed001.md: the errors grow ∝ θ, from 3.8e-5 rad at θ = 0.01 to 7.3e-3 at θ = 5, while
+  the torque's chattering falls).
 
 Functions use jax.numpy so that the jitted simulator in :mod:`.two_link` calls them; they
 accept numpy arrays as well.
@@ -38,7 +41,7 @@ from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax a
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class NTSMTCParams:
     """Seed 001 §4.2: λ1 = λ2 = diag(3, 3) [1/s], a = 5, b = 3, μ = 0.005 [rad],
-    β = diag(0.5, 1) [1/s], η = 1.5 [rad/s²]; θ [rad/s] is ours (not in the paper)."""
+    β = diag(0.5, 1) [1/s], η = 1.5 [rad/s²]; θ [rad/s] not printed: 1 rad/s reproduces Fig 10's error magnitude (docs/seed001.md)."""
 
     lambda1: tuple[float, ...] = (3.0, 3.0)
     lambda2: tuple[float, ...] = (3.0, 3.0)
@@ -47,7 +50,7 @@ class NTSMTCParams:
     mu: float = 0.005
     beta: tuple[float, ...] = (0.5, 1.0)
     eta: float = 1.5
-    theta: float = 0.05
+    theta: float = 1.0
 
     def __post_init__(self) -> None:
         if not (self.a % 2 == 1 and self.b % 2 == 1 and 0.5 < self.b / self.a < 1.0):

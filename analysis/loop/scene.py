@@ -124,7 +124,7 @@ class IoicSettings:
     intervals: int = 50  # sampling intervals of the data phase
     switch_time: float = 0.5  # T_s of eq 10 [s]
     exploration: bool = True  # exploration noise v_n of eq 28 during the data phase
-    noise_seed: int = -1  # −1: eq 28 as printed; ≥ 0: its ten phases drawn from this seed
+    noise_seed: int = -1  # −1: eq 28 as printed; ≥ 0: a seeded random multi-sine (ExplorationNoise.multisine)
     tolerance: float = 1e-8  # ε of ‖P_k − P_{k−1}‖_F
     tracking_stiffness: float = 2e3  # 3-PRRR: Cartesian spring towards x_r [N/m]
     tracking_damping: float = 40.0  # 3-PRRR: Cartesian damper towards ẋ_r [N·s/m]

@@ -13,8 +13,10 @@ Result: the outer loop's metrics (:func:`hapticopt.analysis.control.ioic_online.
 learned impedance against the Riccati optimum of eq 6 for the scene's operator model, impedance
 and tracking error, interaction force) and the joint torques and joint tracking errors of the
 inner loop. Status: ``ok`` only when the run is stable, the parallelogram stays closed and (IOIC)
-the learning returned ``ok``; a refused learning is ``singular`` (data not exciting) or
-``failed`` (not converged) with the performance metrics null.
+the learning returned ``ok`` with each of the learned M, B, K within the tolerance of the optimum
+(:data:`hapticopt.analysis.control.ioic_online.IMPEDANCE_TOLERANCE`, else ``not-met`` naming the three
+errors, numbers kept); a refused learning is ``singular`` (data not exciting) or ``failed`` (not
+converged) with the performance metrics null.
 """
 
 from __future__ import annotations
@@ -183,8 +185,8 @@ def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDAR
     if warns:
         problems.append("MuJoCo warnings: " + ", ".join(warns))
     status, message = ioic_online.run_status(stable=stable, unstable_at=(stop + 1) * T, strategy=strategy,
-                                             learning=learning, problems=problems)
-    measures = ioic_online.clean_metrics(measures, ok=status == Status.OK)
+                                             learning=learning, problems=problems, measures=measures)
+    measures = ioic_online.clean_metrics(measures, status=status)
     traces = Traces(period=T, energy=np.zeros((N, 1)), saturated=np.zeros((N, 1), dtype=bool),
                     stop_tick=np.array([stop]), position=P[:, None], hand_force=(-F[:, None, None] * e_ax),
                     velocity=np.zeros((N, 1, 3)))

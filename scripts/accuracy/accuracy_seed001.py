@@ -5,7 +5,9 @@ Run: PYTHONPATH=<shim> python scripts/accuracy/accuracy_seed001.py
    with iterations, rcond of the data matrix and the median wall time of data phase + PI.
 2. Learned-K error vs the RK4 step of the data phase (0.5 s, 50 intervals).
 3. FIC / OIC / IOIC tracking-error and force RMS (Figs 4–6).
-4. Two-link NTSMTC: joint errors and torques vs step size, difference to a 0.1 ms reference,
+4. The boundary-layer width θ of eq 26 (not printed): joint errors and torque chattering vs θ
+   (``--theta`` prints only this table).
+5. Two-link NTSMTC: joint errors and torques vs step size, difference to a 0.1 ms reference,
    median wall time of a 15 s run (compiled), and the effect of the 200π rad/s terms of eq 34.
 Medians of 5 runs. Prints markdown.
 """
@@ -70,11 +72,12 @@ def table_learning():
         wall = median_wall(lambda: learn(0.5, 50, sub)) * 1e3
         print(f"| {10 / sub:g} | {err:.1e} | {res.iterations} | {wall:.1f} |")
     print()
-    print("### Learned K over noise seeds (random phases, 0.5 s, 50 intervals, 1 ms)\n")
+    print("### Learned K over noise seeds (seeded random multi-sines: ten frequencies log-uniform in "
+          f"[{il.MULTISINE_BAND[0]:.1f}, {il.MULTISINE_BAND[1]:g}] rad/s, random phases; 0.5 s, 50 intervals, 1 ms)\n")
     print("| seed | iterations | rcond | ‖K−K*‖/‖K*‖ |")
     print("|---|---|---|---|")
     for seed in range(5):
-        res = learn(0.5, 50, 10, il.ExplorationNoise.random_phases(seed))
+        res = learn(0.5, 50, 10, il.ExplorationNoise.multisine(seed))
         err = np.linalg.norm(res.k - k_star) / np.linalg.norm(k_star)
         print(f"| {seed} | {res.iterations} | {res.rcond:.1e} | {err:.1e} |")
     res = learn(0.5, 50, 10, il.ExplorationNoise.zero())
@@ -146,7 +149,30 @@ def table_two_link():
     print()
 
 
+def table_theta():
+    print("### NTSMTC boundary layer θ (eq 26, not printed) vs Fig 10 (two-link, 1 ms, 15 s)\n")
+    print("| θ [rad/s] | max abs e1 t≥0.5 s [rad] | max abs e2 [rad] | e / Fig 10 (3e-3, 6e-3) "
+          "| torque variation 0.5–4.9 s [N·m/s] (τ1, τ2) |")
+    print("|---|---|---|---|---|")
+    for theta in (0.01, 0.05, 0.2, 0.5, 1.0, 2.0, 5.0):
+        r = tl.simulate(tl.TwoLinkConfig(ctrl=dataclasses.replace(tl.TwoLinkConfig().ctrl, theta=theta)))
+        e = r.max_abs_error(0.5)
+        sel = (r.t >= 0.5) & (r.t < 4.9)
+        tv = np.abs(np.diff(r.tau[sel], axis=0)).sum(axis=0) / 4.4
+        print(f"| {theta:g} | {e[0]:.2e} | {e[1]:.2e} | {e[0] / 3e-3:.2f}, {e[1] / 6e-3:.2f} | {tv[0]:.1f}, {tv[1]:.1f} |")
+    print()
+
+
 if __name__ == "__main__":
+    import sys
+
+    if "--theta" in sys.argv:
+        table_theta()
+        sys.exit(0)
+    if "--seeds" in sys.argv:
+        table_learning()
+        sys.exit(0)
     table_learning()
     table_outer()
+    table_theta()
     table_two_link()

@@ -9,6 +9,11 @@ Run: PYTHONPATH=<shim> python scripts/accuracy/accuracy_seed001_devices.py
 2. Hard case: the data phase without exploration noise (status, rank, rcond).
 3. What limits the learned gain on each device: the master without encoder quantization; the
    3-PRRR with other tracking stiffnesses.
+4. ``--exploration``: the learned M, B, K against the Riccati optimum (the status's three errors)
+   under eq 28 as printed and five seeded random multi-sines (``ioic.noise_seed``), and under eq 28
+   scaled by 0 … 10 (the data matrix's rcond against the learned impedance: the sweep behind
+   ``impedance_learning.RCOND_MIN``). The scaled runs replace the scene's noise through
+   ``ioic_online.outer_config`` (no scene key scales it); 1.2 s runs (learning at 0.5 s).
 Prints markdown. With ``--figure PATH`` it instead draws the IOIC runs of both devices
 (x_d, x_r, x along the axis; the force f; the gain K(t)) to PATH (docs/figures/seed001_devices.png).
 """
@@ -23,7 +28,7 @@ from hapticopt.analysis import verify
 from hapticopt.analysis.loop.scene import Effect, IoicStrategy, load_scene
 from hapticopt.design.io import load_preset
 
-REPS = 3
+REPS = 1  # wall times below are single runs on a shared machine
 DEVICES = (("master", "master-paper", "master-ioic"), ("3-PRRR", "prrr-paper", "prrr-ioic"))
 
 
@@ -40,11 +45,53 @@ def fmt(v, f="{:.4g}"):
     return "—" if v is None else f.format(v)
 
 
+def errs(m):
+    vals = [m.get(f"impedance_{k}_rel_error") for k in ("mass", "damping", "stiffness")]
+    return "—" if any(v is None for v in vals) else ", ".join(f"{100 * v:+.1f} %" for v in vals)
+
+
+def _with_noise(design, scene, noise):
+    """Run ``scene`` with the outer loop's exploration replaced by ``noise``."""
+    from hapticopt.analysis.control import ioic_online
+
+    orig = ioic_online.outer_config
+    ioic_online.outer_config = lambda sc, T: dataclasses.replace(orig(sc, T), noise=noise)
+    try:
+        return verify.simulate(design, scene)
+    finally:
+        ioic_online.outer_config = orig
+
+
+def table_exploration():
+    from hapticopt.analysis.control import impedance_learning as il
+
+    print("### Exploration: eq 28 as printed, seeded random multi-sines, eq 28 scaled (1.2 s runs)\n")
+    print("| device | exploration | status | learning | rcond | ‖K−K*‖/‖K*‖ | M, B, K error to M*, B*, K* |")
+    print("|---|---|---|---|---|---|---|")
+    for dev, preset, name in DEVICES:
+        design, base = load_preset(preset), load_scene(name)
+        base = dataclasses.replace(base, duration=1.2)
+        cases = [("eq 28 as printed", base)]
+        cases += [(f"multi-sine seed {k}", dataclasses.replace(base, ioic=dataclasses.replace(base.ioic, noise_seed=k)))
+                  for k in range(5)]
+        rows = [(label, verify.simulate(design, sc)) for label, sc in cases]
+        printed = il.ExplorationNoise.printed()
+        for scale in (0.0, 1e-3, 1e-2, 0.1, 10.0):
+            noise = dataclasses.replace(printed, amplitudes=tuple(a * scale for a in printed.amplitudes))
+            rows.append((f"eq 28 × {scale:g}", _with_noise(design, base, noise)))
+        for label, r in rows:
+            m = r.metrics()
+            print(f"| {dev} | {label} | {r.status} | {m['learning_status']} | {m['data_matrix_rcond']:.1e} "
+                  f"| {fmt(m['gain_rel_error_to_optimum'], '{:.2e}')} | {errs(m)} |")
+    print()
+
+
 def table_strategies():
     print("### FIC / OIC / IOIC on the devices (after learning: t ≥ 1 s)\n")
-    print("| device | strategy | status | ‖K−K*‖/‖K*‖ | M [kg] | B [N·s/m] | K [N/m] | RMS e_p [mm] | RMS f [N] "
+    print("| device | strategy | status | ‖K−K*‖/‖K*‖ | M [kg] | B [N·s/m] | K [N/m] | M, B, K error to M*, B*, K* "
+          "| RMS e_p [mm] | RMS f [N] "
           "| RMS e_p / OIC | RMS f / OIC | tracking RMS / peak [mm] | peak torque [N·m] or command [N] | wall [s] |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for dev, preset, name in DEVICES:
         design, base = load_preset(preset), load_scene(name)
         rows = {}
@@ -58,7 +105,7 @@ def table_strategies():
             peak_s = ", ".join(f"{v:.3g}" for v in peak) if isinstance(peak, list) else fmt(peak, "{:.4g}")
             print(f"| {dev} | {strat.value} | {status} | {fmt(m['gain_rel_error_to_optimum'], '{:.2e}')} "
                   f"| {fmt(m['impedance_mass_kg'])} | {fmt(m['impedance_damping_Ns_per_m'])} "
-                  f"| {fmt(m['impedance_stiffness_N_per_m'])} | {fmt(m['impedance_error_rms_after_learning_mm'])} "
+                  f"| {fmt(m['impedance_stiffness_N_per_m'])} | {errs(m)} | {fmt(m['impedance_error_rms_after_learning_mm'])} "
                   f"| {fmt(m['interaction_force_rms_after_learning_N'])} "
                   f"| {m['impedance_error_rms_after_learning_mm'] / oic['impedance_error_rms_after_learning_mm']:.4f} "
                   f"| {m['interaction_force_rms_after_learning_N'] / oic['interaction_force_rms_after_learning_N']:.4f} "
@@ -150,6 +197,12 @@ def figure(path):
 if __name__ == "__main__":
     import sys
 
+    if "--exploration" in sys.argv:
+        table_exploration()
+        sys.exit(0)
+    if "--strategies" in sys.argv:
+        table_strategies()
+        sys.exit(0)
     if "--limits" in sys.argv:
         table_limits()
         sys.exit(0)

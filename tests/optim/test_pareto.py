@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from hapticopt.design.errors import InvalidInput
-from hapticopt.optim.pareto import FrontPoint, choose, non_dominated, run_front
+from hapticopt.optim.pareto import FrontPoint, choose, keeps_constraints, non_dominated, run_front
 from hapticopt.optim.problem import Choice, Sense, load_problem, problem_from_text
 from hapticopt.optim.recorder import Recorder
 from hapticopt.optim.runs import RunReader
@@ -138,3 +138,32 @@ def test_bad_pareto_problems(text, match):
 def test_bundled_pareto_problems_load(name, device):
     p = load_problem(name)
     assert p.is_multi_objective and p.device == device and p.pareto is not None
+
+
+def test_master_pareto_carries_the_unbalance_limit_and_its_choice_keeps_it():
+    """Issue 31: master-pareto carries seed 003's 0.1 N unbalance limit (10 % JND of the 1 N mean
+    surgeon force) as a constraint, and a point breaking it — the old knee at 0.177 N — is never a
+    candidate for the choice; 0.1 N exactly is kept, 0.1 N + 1e-12 is not (no constraint_tol slack)."""
+    p = load_problem("master-pareto")
+    assert [(c.metric.text, c.op.value, c.value) for c in p.constraints] == [("max_unbalance_force_N", "<=", 0.1)]
+
+    def point(force):
+        return FrontPoint(run="t", epsilon=math.nan, x=(0.05,), objectives=(8.0, force), feasible=True,
+                          metrics={"max_unbalance_force_N": force, "transparency_bandwidth_Hz": [8.0, 7.8]})
+
+    assert keeps_constraints(p, point(0.05)) and keeps_constraints(p, point(0.1))
+    assert not keeps_constraints(p, point(0.177)) and not keeps_constraints(p, point(0.1 + 1e-12))
+    assert not keeps_constraints(p, point(math.nan))
+
+
+def test_master_pareto_at_a_reduced_budget_chooses_inside_the_limit():
+    """`optimise master-pareto`'s front at 5 points and 5 evaluations per run (draft fidelity): every
+    front point and the chosen knee have unbalance ≤ 0.1 N; the knee is interior (not an anchor) on
+    this nearly straight front."""
+    p = load_problem("master-pareto").with_optimiser(max_evals=25)
+    p = dataclasses.replace(p, pareto=dataclasses.replace(p.pareto, points=5))
+    result = run_front(p)
+    assert len(result.front) >= 3
+    assert all(pt.metrics["max_unbalance_force_N"] <= 0.1 for pt in result.front)
+    assert result.chosen is not None and result.chosen.metrics["max_unbalance_force_N"] <= 0.1
+    assert not result.chosen.run.startswith("anchor")

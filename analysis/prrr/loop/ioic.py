@@ -13,7 +13,8 @@ so the bundled scene keeps friction on. Firmware:
 
 Metrics: the outer loop's (:func:`hapticopt.analysis.control.ioic_online.outer_metrics`) and the
 inner loop's — motor commands, force tracking of the SEA loops (Cartesian actuator force vs F).
-Status as :mod:`hapticopt.analysis.master.ioic`.
+Status as :mod:`hapticopt.analysis.master.ioic` (``not-met`` when the learned M, B or K is outside the
+tolerance of the Riccati optimum).
 """
 
 from __future__ import annotations
@@ -152,8 +153,8 @@ def simulate(design: Any, scene: Scene, *, fidelity: Fidelity = Fidelity.STANDAR
     })
     stable = stop < 0
     status, message = ioic_online.run_status(stable=stable, unstable_at=(stop + 1) * T, strategy=strategy,
-                                             learning=learning, problems=[])
-    measures = ioic_online.clean_metrics(measures, ok=status == Status.OK)
+                                             learning=learning, problems=[], measures=measures)
+    measures = ioic_online.clean_metrics(measures, status=status)
     traces = Traces(period=T, energy=np.zeros((N, 1)), saturated=np.zeros((N, 1), dtype=bool),
                     stop_tick=np.array([stop]), position=P[:, None], hand_force=(-F[:, None, None] * e_ax),
                     actuator_force=FACT[:, None], force_reference=FREF[:, None], velocity=np.zeros((N, 1, 3)))

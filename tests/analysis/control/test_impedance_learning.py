@@ -56,14 +56,31 @@ def test_exploration_noise_eq28_as_printed():
 @pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
 def test_policy_iteration_reaches_riccati_optimum(seed):
     """Seed 001 eq 9 / Fig 8 / eq 32: from K_0 = [10, 4, 0.2] (eq 31), 0.5 s of data on 50
-    intervals, ‖K − K*‖/‖K*‖ ≤ 1e-4 within 10 iterations (paper: 7 iterations, K_7 of eq 32)."""
-    _, res = _learn(il.ExplorationNoise.random_phases(seed))
+    intervals of a seeded random multi-sine, ‖K − K*‖/‖K*‖ ≤ 1e-4 within 10 iterations (paper: 7
+    iterations, K_7 of eq 32)."""
+    _, res = _learn(il.ExplorationNoise.multisine(seed))
     k_star = il.riccati_optimum(A29, B29, Q27, R27).k
     assert res.status is il.LearningStatus.OK, res.message
     assert res.iterations <= 10
     assert res.rank == 9
     assert np.linalg.norm(res.k - k_star) / np.linalg.norm(k_star) <= 1e-4
     np.testing.assert_allclose(res.p, il.riccati_optimum(A29, B29, Q27, R27).p, rtol=1e-4)
+
+
+def test_multisine_is_varied_and_seeded():
+    """The seeded multi-sine: eq 28's amplitudes 0.05/j, ten distinct frequencies inside the band
+    (not eq 28's single 100 rad/s), phases in [0, 2π); the same seed gives the same signal, another
+    seed another one; a band with low ≥ high is refused."""
+    a, b = il.ExplorationNoise.multisine(3), il.ExplorationNoise.multisine(4)
+    assert a == il.ExplorationNoise.multisine(3) and a != b
+    np.testing.assert_allclose(a.amplitudes, [0.05 / j for j in range(1, 11)])
+    lo, hi = il.MULTISINE_BAND
+    assert len(set(a.frequencies)) == 10 and all(lo <= w <= hi for w in a.frequencies)
+    assert all(0 <= p < 2 * np.pi for p in a.phases)
+    t = np.linspace(0.0, 0.5, 1001)
+    assert not np.allclose(a(t), b(t), atol=1e-3)
+    with pytest.raises(ValueError, match="band"):
+        il.ExplorationNoise.multisine(0, band=(100.0, 10.0))
 
 
 def test_printed_noise_matches_paper_k7():
@@ -81,7 +98,7 @@ def test_learner_recovers_another_operator():
     """Recovery: data from an operator with K_r = 1, K_f = 2, K_c = 10 (eq 2) — never shown to
     the learner — give that operator's Riccati optimum (eq 6)."""
     a, b = op_mod.state_space(op_mod.Operator.eq2(k_r=1.0, k_f=2.0, k_c=10.0))
-    _, res = _learn(il.ExplorationNoise.random_phases(7), a=a, b=b)
+    _, res = _learn(il.ExplorationNoise.multisine(7), a=a, b=b)
     k_star = il.riccati_optimum(a, b, Q27, R27).k
     assert res.status is il.LearningStatus.OK
     assert np.linalg.norm(res.k - k_star) / np.linalg.norm(k_star) <= 1e-4

@@ -179,12 +179,15 @@ def test_pose_at_the_parallelogram_singularity_gives_a_clear_status(design, eps)
 
 
 # ------------------------------------------------------------------------------------- the optimiser
-def _optimum(design):
+def _snapshot():
     import json
     from pathlib import Path
 
-    snap = json.loads((Path(__file__).parents[2] / "snapshots" / "master_transparency_optimum.json").read_text())
-    c = snap["counterweights"]
+    return json.loads((Path(__file__).parents[2] / "snapshots" / "master_transparency_optimum.json").read_text())
+
+
+def _optimum(design):
+    c = _snapshot()["counterweights"]
     cw = dataclasses.replace(design.counterweights, upper_mass=c["upper_mass_kg"],
                              upper_distance=c["upper_distance_mm"] * 1e-3, forearm_mass=c["forearm_mass_kg"],
                              forearm_distance=c["forearm_distance_mm"] * 1e-3)
@@ -203,16 +206,43 @@ def test_problem_optimises_counterweight_masses_and_positions_and_verifies_in_tw
     assert set(p.scenes) == {"master-transparency", "master-wall"}
 
 
-def test_optimum_is_lighter_than_balance_faster_on_both_axes_and_on_the_constraint(design):
-    """The recorded optimum (labelled snapshot): counterweights lighter than balance at their own
-    distances, both bandwidths ≥ master-paper's (balanced), unbalance force on the 0.1 N bound."""
+def test_optimum_is_lighter_than_balance_faster_on_both_axes_and_inside_the_constraint(design):
+    """The recorded optimum (labelled snapshot, scripts/master_transparency_optimum.py from the bundled
+    command): counterweights lighter than balance at their own distances, both bandwidths ≥ master-paper's
+    (balanced), the recorded objective and unbalance reproduced by the evaluators to 1e-9, the unbalance
+    ≤ 0.1 N. The constraint is not active (0.0839 N, 16 % inside): the ISRES points near the 0.1 N
+    boundary are sparse and the COBYLA polish converges to an infeasible point (0.134 N), so the best
+    feasible point is ISRES's (docs/master.md)."""
+    snap = _snapshot()
     opt = _optimum(design)
     mu, mf = md.balancing_counterweights(opt)
     assert opt.counterweights.upper_mass < mu and opt.counterweights.forearm_mass < mf
     b = mb.evaluate(opt)
-    assert b.max_force == pytest.approx(0.1, rel=0.01)  # active
-    assert b.max_force <= 0.1 + 1e-9
-    assert np.all(np.array(mt.evaluate(opt).bandwidth) >= np.array(mt.evaluate(design).bandwidth))
+    assert b.max_force == pytest.approx(snap["max_unbalance_force_N"], rel=1e-9)
+    assert b.max_force <= 0.1
+    bw = np.array(mt.evaluate(opt).bandwidth)
+    assert min(bw) == pytest.approx(snap["objective_Hz"], rel=1e-9)
+    assert np.all(bw >= np.array(mt.evaluate(design).bandwidth))
+
+
+def test_bundled_command_reproduces_its_recorded_run_at_a_reduced_budget():
+    """Issue 31: the bundled problem, seeded (GN_ISRES seed 1), run at 20 evaluations asks exactly the
+    first 14 search points of the recorded full run (20 × GLOBAL_SHARE 0.7) and gets the same values
+    (1e-9): the optimum in the snapshot and docs/master.md is what the command yields. No wall-clock
+    limit can cut it short (max_time_s is a day; the evaluation budget ends the run)."""
+    from hapticopt.optim import driver
+    from hapticopt.optim.problem import load_problem
+
+    snap = _snapshot()
+    p = load_problem("master-transparency")
+    assert p.optimiser.max_time_s >= 86400
+    res = driver.run(p.with_optimiser(max_evals=20), only=("workspace", "balance", "transparency"))
+    search = [r for r in res.history if r.stage == "search"]
+    assert len(search) == len(snap["search_prefix"]) == 14
+    for rec, (x, vals) in zip(search, snap["search_prefix"]):
+        np.testing.assert_allclose(rec.x, x, rtol=1e-12)
+        np.testing.assert_allclose([rec.objective, rec.metrics["max_unbalance_force_N"],
+                                    rec.metrics["workspace_coverage"]], vals, rtol=1e-9)
 
 
 def test_optimum_passes_its_verification_scenes(design):

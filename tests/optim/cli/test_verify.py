@@ -88,18 +88,22 @@ def test_verify_handle_scenes():
     assert wrong.exit_code == 2 and "is written for the prrr device" in wrong.output
 
 
-@pytest.mark.parametrize("preset, scene, extra", [
-    ("master-paper", "master-ioic", {"joint_torque_peak_Nm", "joint_error_peak_mrad", "constraint_health_ok"}),
-    ("prrr-paper", "prrr-ioic", {"motor_command_peak_N", "force_tracking_rms_N"}),
+@pytest.mark.parametrize("preset, scene, status, extra", [
+    ("master-paper", "master-ioic", "ok", {"joint_torque_peak_Nm", "joint_error_peak_mrad", "constraint_health_ok"}),
+    ("prrr-paper", "prrr-ioic", "not-met", {"motor_command_peak_N", "force_tracking_rms_N"}),
 ])
-def test_verify_ioic_scenes(preset, scene, extra):
+def test_verify_ioic_scenes(preset, scene, status, extra):
     """Issue 18: seed 001's IOIC firmware mode on both devices from the command line; the learned
-    impedance against the Riccati optimum, tracking error, interaction force, device loads."""
+    impedance against the Riccati optimum, tracking error, interaction force, device loads. Issue 31:
+    the status judges each of M, B, K against the optimum (10 %): the master's are within ≈ 2 % (ok),
+    the 3-PRRR's 21–27 % off (not-met, the three errors in the message; docs/seed001.md)."""
     res = runner.invoke(app, ["verify", "--preset", preset, "--scene", scene, "--json"])
-    assert res.exit_code == 0, res.output
+    assert res.exit_code == (0 if status == "ok" else 3), res.output  # exit 3 unless the verdict is ok
     out = json.loads(res.stdout)
     m = out["metrics"]
-    assert out["status"] == "ok" and m["firmware_mode"] == "ioic" and m["learning_status"] == "ok"
+    assert out["status"] == status and m["firmware_mode"] == "ioic" and m["learning_status"] == "ok"
+    errs = [m[f"impedance_{k}_rel_error"] for k in ("mass", "damping", "stiffness")]
+    assert all(abs(e) <= 0.10 for e in errs) == (status == "ok")
     assert {"impedance_mass_kg", "impedance_damping_Ns_per_m", "impedance_stiffness_N_per_m",
             "optimal_impedance_mass_kg", "optimal_impedance_damping_Ns_per_m", "optimal_impedance_stiffness_N_per_m",
             "gain_rel_error_to_optimum", "tracking_error_rms_mm", "interaction_force_rms_N",

@@ -27,18 +27,23 @@ def runs():
             for s in IoicStrategy}
 
 
-def test_learned_gain_and_the_friction_floor(runs):
-    """The optimum of eq 6 is eq 30's K*. On the 3-PRRR the learned gain is 5.8 % off it (regression
-    snapshot, scripts/accuracy/accuracy_seed001_devices.py): the sliders' 3 N Coulomb friction against the
-    operator's ≈ 0.05 N and the SEA loop's 0.5 mm tracking error against the exploration's 15 µm
-    (docs/seed001.md). The bound here is 10 %; K1 and K2 (stiffness and damping per mass) within 10 %."""
+def test_learned_impedance_is_not_met_with_the_three_errors(runs):
+    """The optimum of eq 6 is eq 30's K*. On the 3-PRRR the learned impedance is 27 % light, 21 % less
+    damped and 24 % softer than M*, B*, K* (regression values, scripts/accuracy/accuracy_seed001_devices.py;
+    docs/seed001.md: the sliders' 3 N Coulomb friction against the operator's ≈ 0.05 N and the SEA loop's
+    0.5 mm tracking error against the exploration's 15 µm), although the gain norm is only 5.8 % off:
+    the status is not-met (tolerance 10 % on each of M, B, K) and the message names the three errors;
+    the numbers are kept (not-met holds its metrics)."""
     r = runs[IoicStrategy.IOIC]
     m = r.metrics()
-    assert r.status == Status.OK, r.message
     np.testing.assert_allclose(m["optimal_gain_SI"], K30, atol=5e-5)
     assert m["learning_status"] == "ok" and m["learning_iterations"] <= 10
-    assert m["gain_rel_error_to_optimum"] <= 0.10
-    np.testing.assert_allclose(m["gain_SI"][:2], K30[:2], rtol=0.10)
+    assert m["impedance_tolerance"] == 0.10
+    errs = [m[f"impedance_{k}_rel_error"] for k in ("mass", "damping", "stiffness")]
+    np.testing.assert_allclose(errs, [-0.2744, -0.2092, -0.2364], atol=5e-3)
+    assert r.status == Status.NOT_MET
+    assert "M -27.4 %" in r.message and "B -20.9 %" in r.message and "K -23.6 %" in r.message, r.message
+    assert m["impedance_mass_kg"] == pytest.approx(m["optimal_impedance_mass_kg"] * (1 + errs[0]), rel=1e-12)
 
 
 def test_ioic_within_5_percent_of_oic_and_fic_worse(runs):
