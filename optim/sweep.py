@@ -46,8 +46,10 @@ from hapticopt.optim.recorder import Recorder, point_key
 from hapticopt.optim.runs import software_versions
 from hapticopt.design.errors import short
 
-#: at most this many points in one sweep (a typo such as n = 10000 × 10000 is refused)
-MAX_POINTS = 200_000
+#: at most this many points in one sweep (a typo such as n = 10000 × 10000 is refused). The sweep holds
+#: every point's result (≈ 8 kB each for a 3-PRRR draft design) until it writes its table: at 200,000
+#: points the process passed 2.1 GB (scripts/bounds_rss.py); 100,000 keeps it near 1.2 GB
+MAX_POINTS = 100_000
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _AXIS_RE = re.compile(rf"^\s*([^=\s]+)\s*=\s*({_NUMBER})\s*:\s*({_NUMBER})\s*:\s*(\S+)\s*$")
 

@@ -34,7 +34,7 @@ def test_axis_values_include_both_ends():
 @pytest.mark.parametrize("text, match", [
     ("geometry.gamma_deg=1:2:3", "is not a numeric key of the design: allowed keys in \\[geometry\\]"),
     ("geometry.beta_deg=70:30:3", "lo = 70 must be below hi = 30 \\(deg\\)"),
-    ("geometry.beta_deg=30:70:1", "n = 1 is out of range: allowed 2 ≤ n ≤ 200000"),
+    ("geometry.beta_deg=30:70:1", "n = 1 is out of range: allowed 2 ≤ n ≤ 100000"),
     ("geometry.beta_deg=30:70:x", "n = 'x' must be a whole number"),
     ("name=1:2:3", "is not a numeric design key"),
     ("description=1:2:3", "is not a numeric design key"),

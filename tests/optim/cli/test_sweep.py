@@ -34,9 +34,9 @@ def test_sweep_writes_table_plots_and_record(tmp_path):
 @pytest.mark.parametrize("axis, match", [
     ("geometry.nope_mm=1:2:3", "is not a numeric key of the design"),
     ("geometry.beta_deg=70:30:3", "lo = 70 must be below hi = 30 (deg)"),
-    ("geometry.beta_deg=30:70:1", "n = 1 is out of range: allowed 2 ≤ n ≤ 200000 (points"),
+    ("geometry.beta_deg=30:70:1", "n = 1 is out of range: allowed 2 ≤ n ≤ 100000 (points"),
     # issue 37: an integer key's grid was built (2.6 GB) before the point limit was checked
-    ("geometry.beta_deg=30:70:300000001", "n = 300000001 is out of range: allowed 2 ≤ n ≤ 200000"),
+    ("geometry.beta_deg=30:70:300000001", "n = 300000001 is out of range: allowed 2 ≤ n ≤ 100000"),
     ("geometry.beta_deg=30:70:1" + "0" * 5000, "must be a whole number of points"),
     ("name=1:2:3", "is not a numeric design key"),
     # issue 37: the scheduler was checked after the run directory's lock and record were made
@@ -77,13 +77,13 @@ def test_an_integer_key_is_bounded_before_its_values_exist(tmp_path, monkeypatch
 
 
 def test_two_axes_are_refused_by_their_product_before_the_grid_exists(tmp_path, monkeypatch):
-    """Issue 37: 200,000-point limit checked from the axes' sizes, never by building the grid."""
+    """Issue 37: 100,000-point limit checked from the axes' sizes, never by building the grid."""
     from hapticopt.optim import sweep as sw
 
     monkeypatch.setattr(sw.Sweep, "points", lambda self: pytest.fail("the grid was built"))
     res = runner.invoke(app, ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=30:70:1000",
                               "actuator.spring_N_per_mm=40:60:1000", "--out", str(tmp_path / "o"), "--quiet"])
-    assert res.exit_code == 2 and "the sweep has 1000000 points: allowed at most 200000" in res.stderr
+    assert res.exit_code == 2 and "the sweep has 1000000 points: allowed at most 100000" in res.stderr
 
 
 @pytest.mark.parametrize("workers", ["0", "257", "100000"])
