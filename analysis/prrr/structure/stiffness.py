@@ -190,7 +190,7 @@ def _finish(design: PrrrDesign, result: StructuralStiffness, fidelity: Fidelity)
 
     bonded = structural_stiffness(design, options=fm.FrameOptions(joints=fm.Joints.BONDED, branch=DEFAULT_BRANCH))
     try:
-        fea_result = fea_cad.cad_fea(design, level=fea_cad.DEFAULT_LEVEL, keep_fields=True)
+        fea_result = fea_cad.fine_fea(design)  # level DEFAULT_LEVEL with fields; shared with the strength evaluator
     except Exception as exc:  # CAD/gmsh failures become a status, the frame metrics stay
         return replace(result, status=Status.FAILED, message=f"CAD FEA failed: {exc}")
     status, message = result.status, result.message
