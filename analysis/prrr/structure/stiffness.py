@@ -102,8 +102,17 @@ def structural_stiffness(design: PrrrDesign, *, p=(0.0, 0.0, 0.0), load_height: 
     if not np.isfinite(load_height):
         raise InvalidInput(f"load_height = {load_height!r} m is not finite: allowed any finite height (m)")
     p = np.asarray(p, dtype=float)
-    # numpy parameters: solve_frame takes numpy arrays (jax scalars here cost an XLA transfer each, same values)
-    out = fm.solve_frame(fm.frame_params_of(design, xp=np), p=p, load_height=load_height, options=options)
+    out = None
+    if options == fm.FrameOptions() and not np.any(p):  # home: the legs the strength evaluator reads too
+        from hapticopt.analysis.prrr.structure import strength
+
+        try:
+            out = strength.home_arrays(design, load_height)
+        except np.linalg.LinAlgError:  # solve_frame's fallback (the jax path) decides
+            out = None
+    if out is None:
+        # numpy parameters: solve_frame takes numpy arrays (jax scalars here cost an XLA transfer each, same values)
+        out = fm.solve_frame(fm.frame_params_of(design, xp=np), p=p, load_height=load_height, options=options)
     return from_arrays(design, out, p=p, load_height=load_height, options=options)
 
 

@@ -41,8 +41,9 @@ for the part where the FEA's stress is largest is reported.
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -82,7 +83,6 @@ def rated_force(design: PrrrDesign) -> np.ndarray:
     """(3,) [N] the largest end-effector force per axis the actuators can produce (the statics'
     ``max_force_N``: F_max Σ_j |J⁻ᵀ_ij|, seed 002 Table 1)."""
     from hapticopt.analysis.prrr.structure import statics
-    from hapticopt.design.prrr.kinematics import PrrrParams  # noqa: F401  (statics' params type)
 
     st = statics.evaluate(design)
     return np.asarray(st.max_force, dtype=float)
@@ -137,18 +137,16 @@ _MEMBERS = ("carriage_{i}", "carriage_{i}", "platform", "link1_{i}", "link2_{i}"
 _PINS = (None, None, "pin_r1_{i}", "pin_r2_{i}", "pin_r3_{i}")
 
 
-def part_stresses(fp, p, wrenches: np.ndarray, options: fm.FrameOptions = fm.FrameOptions()
-                  ) -> tuple[dict[str, np.ndarray], bool]:
-    """Peak von Mises stress [Pa] of every part for each wrench at the end-effector (6, m) at pose
-    ``p`` (3,) [m]: part name → (m,), and whether ``p`` is reachable (an empty dict when not). Numpy
-    path of the frame model (``fp`` its numpy parameters)."""
+def frame_parts(fp, p, options: fm.FrameOptions = fm.FrameOptions()):
+    """The frame model of one design at pose ``p`` (3,) [m] with its members kept: per leg (w, elements,
+    springs, K), the condensation (each leg's K_PP − K_Pi K_ii⁻¹ K_iP, condition estimates, recovery
+    K_ii⁻¹ K_iP) and the inverse kinematics; the steps of :func:`.frame_model.frame_arrays` (numpy path),
+    whose elements the stresses need. Raises ``LinAlgError`` where numpy's solve does."""
     if not (options.pins and options.offsets == fm.Offsets.BEAM and options.pin_model == fm.PinModel.NECK):
         raise ValueError("strength: the frame options must be the default layered-pin model (pins, beam "
                          "offsets, neck springs)")
     n, L = fm._leg_layout(options)
     leg, args, ik = fm._leg_inputs(fp, np.asarray(p, dtype=float), options, None, None, np)
-    if not bool(ik.reachable):
-        return {}, False
     legs = []
     for k in range(3):
         w, S, A, B, Q, bp, zr, Kb = (a[k] for a in args)
@@ -156,7 +154,40 @@ def part_stresses(fp, p, wrenches: np.ndarray, options: fm.FrameOptions = fm.Fra
         if len(elems) != len(_MEMBERS) or len(springs) != len(_PINS):
             raise AssertionError("frame topology differs from the strength model's part list")  # a programming error
         legs.append((w, elems, springs, fm._assemble(n, L, elems, fp.section, fp.spring, options, np, springs)))
-    contrib, _, recovery = fm.condense_legs(np.stack([g[3] for g in legs]), np)
+    contrib, cond_legs, recovery = fm.condense_legs(np.stack([g[3] for g in legs]), np)
+    return legs, contrib, cond_legs, recovery, ik
+
+
+@functools.lru_cache(maxsize=4)
+def home_frame(design: PrrrDesign):
+    """(numpy frame parameters, :func:`frame_parts` at the home pose with the default options) of
+    ``design``: made once per design and process for the stiffness evaluator's home solve
+    (:func:`.stiffness.structural_stiffness`) and the strength's draft pose, which share it."""
+    fp = fm.frame_params_of(design, xp=np)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return fp, frame_parts(fp, np.zeros(3))
+
+
+def home_arrays(design: PrrrDesign, load_height: float) -> dict[str, np.ndarray]:
+    """:func:`.frame_model.solve_frame` of ``design`` at the home pose with the default options, from
+    :func:`home_frame` (the same steps: the same numbers)."""
+    fp, (legs, contrib, cond_legs, recovery, ik) = home_frame(design)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        out = fm.compliance_outputs(np.sum(contrib, axis=0), np.max(cond_legs),
+                                    np.asarray(float(load_height)), np)
+    out.update(reachable=ik.reachable, reach_margin=ik.reach_margin)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def part_stresses(fp, p, wrenches: np.ndarray, options: fm.FrameOptions = fm.FrameOptions(), parts=None
+                  ) -> tuple[dict[str, np.ndarray], bool]:
+    """Peak von Mises stress [Pa] of every part for each wrench at the end-effector (6, m) at pose
+    ``p`` (3,) [m]: part name → (m,), and whether ``p`` is reachable (an empty dict when not). Numpy
+    path of the frame model (``fp`` its numpy parameters; ``parts``: its :func:`frame_parts` at ``p``
+    when the caller has them)."""
+    legs, contrib, _, recovery, ik = frame_parts(fp, p, options) if parts is None else parts
+    if not bool(ik.reachable):
+        return {}, False
     KP = 0.5 * (np.sum(contrib, axis=0) + np.sum(contrib, axis=0).T)
     uP = np.linalg.solve(KP, wrenches)  # (6, m)
     m = wrenches.shape[1]
@@ -252,7 +283,6 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     if blocked:
         return Strength(**base, part_stress={}, part_pose={}, part_load={}, n_poses=0, n_unreachable=0,
                         status=Status.NOT_ASSEMBLABLE, message=blocked)
-    fp = fm.frame_params_of(design, xp=np)
     W, labels = load_cases(design, force, fm.LOAD_HEIGHT)
     stress: dict[str, float] = {}
     where: dict[str, np.ndarray] = {}
@@ -260,9 +290,10 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     P = poses(design, fidelity)
     skipped = 0
     try:
+        fp, home = home_frame(design)
         for p in P:
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                parts, ok = part_stresses(fp, p, W)
+                parts, ok = part_stresses(fp, p, W, parts=home if not np.any(p) else None)
             if not ok:
                 skipped += 1
                 continue
@@ -287,8 +318,6 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
 
 def _with_fea(design: PrrrDesign, result: Strength) -> Strength:
     """``result`` with the FEA's per-part stress and the frame's for the FEA's case (fine)."""
-    from dataclasses import replace
-
     from hapticopt.analysis.prrr.structure import stiffness
     from hapticopt.design.prrr.cad import DEFAULT_BRANCH
 
