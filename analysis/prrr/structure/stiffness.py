@@ -104,10 +104,8 @@ def structural_stiffness(design: PrrrDesign, *, p=(0.0, 0.0, 0.0), load_height: 
     p = np.asarray(p, dtype=float)
     out = None
     if options == fm.FrameOptions() and not np.any(p):  # home: the legs the strength evaluator reads too
-        from hapticopt.analysis.prrr.structure import strength
-
         try:
-            out = strength.home_arrays(design, load_height)
+            out = fm.home_arrays(design, load_height)
         except np.linalg.LinAlgError:  # solve_frame's fallback (the jax path) decides
             out = None
     if out is None:

@@ -41,7 +41,6 @@ for the part where the FEA's stress is largest is reported.
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -137,57 +136,20 @@ _MEMBERS = ("carriage_{i}", "carriage_{i}", "platform", "link1_{i}", "link2_{i}"
 _PINS = (None, None, "pin_r1_{i}", "pin_r2_{i}", "pin_r3_{i}")
 
 
-def frame_parts(fp, p, options: fm.FrameOptions = fm.FrameOptions()):
-    """The frame model of one design at pose ``p`` (3,) [m] with its members kept: per leg (w, elements,
-    springs, K), the condensation (each leg's K_PP − K_Pi K_ii⁻¹ K_iP, condition estimates, recovery
-    K_ii⁻¹ K_iP) and the inverse kinematics; the steps of :func:`.frame_model.frame_arrays` (numpy path),
-    whose elements the stresses need. Raises ``LinAlgError`` where numpy's solve does."""
-    if not (options.pins and options.offsets == fm.Offsets.BEAM and options.pin_model == fm.PinModel.NECK):
-        raise ValueError("strength: the frame options must be the default layered-pin model (pins, beam "
-                         "offsets, neck springs)")
-    n, L = fm._leg_layout(options)
-    leg, args, ik = fm._leg_inputs(fp, np.asarray(p, dtype=float), options, None, None, np)
-    legs = []
-    for k in range(3):
-        w, S, A, B, Q, bp, zr, Kb = (a[k] for a in args)
-        elems, springs = leg(w, S, A, B, Q, (bp, zr, Kb), parts_only=True)
-        if len(elems) != len(_MEMBERS) or len(springs) != len(_PINS):
-            raise AssertionError("frame topology differs from the strength model's part list")  # a programming error
-        legs.append((w, elems, springs, fm._assemble(n, L, elems, fp.section, fp.spring, options, np, springs)))
-    contrib, cond_legs, recovery = fm.condense_legs(np.stack([g[3] for g in legs]), np)
-    return legs, contrib, cond_legs, recovery, ik
-
-
-@functools.lru_cache(maxsize=4)
-def home_frame(design: PrrrDesign):
-    """(numpy frame parameters, :func:`frame_parts` at the home pose with the default options) of
-    ``design``: made once per design and process for the stiffness evaluator's home solve
-    (:func:`.stiffness.structural_stiffness`) and the strength's draft pose, which share it."""
-    fp = fm.frame_params_of(design, xp=np)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return fp, frame_parts(fp, np.zeros(3))
-
-
-def home_arrays(design: PrrrDesign, load_height: float) -> dict[str, np.ndarray]:
-    """:func:`.frame_model.solve_frame` of ``design`` at the home pose with the default options, from
-    :func:`home_frame` (the same steps: the same numbers)."""
-    fp, (legs, contrib, cond_legs, recovery, ik) = home_frame(design)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        out = fm.compliance_outputs(np.sum(contrib, axis=0), np.max(cond_legs),
-                                    np.asarray(float(load_height)), np)
-    out.update(reachable=ik.reachable, reach_margin=ik.reach_margin)
-    return {k: np.asarray(v) for k, v in out.items()}
-
-
 def part_stresses(fp, p, wrenches: np.ndarray, options: fm.FrameOptions = fm.FrameOptions(), parts=None
                   ) -> tuple[dict[str, np.ndarray], bool]:
     """Peak von Mises stress [Pa] of every part for each wrench at the end-effector (6, m) at pose
     ``p`` (3,) [m]: part name → (m,), and whether ``p`` is reachable (an empty dict when not). Numpy
-    path of the frame model (``fp`` its numpy parameters; ``parts``: its :func:`frame_parts` at ``p``
+    path of the frame model (``fp`` its numpy parameters; ``parts``: its :func:`.frame_model.frame_parts` at ``p``
     when the caller has them)."""
-    legs, contrib, _, recovery, ik = frame_parts(fp, p, options) if parts is None else parts
+    if not (options.pins and options.offsets == fm.Offsets.BEAM and options.pin_model == fm.PinModel.NECK):
+        raise ValueError("strength: the frame options must be the default layered-pin model (pins, beam "
+                         "offsets, neck springs)")
+    legs, contrib, _, recovery, ik = fm.frame_parts(fp, p, options) if parts is None else parts
     if not bool(ik.reachable):
         return {}, False
+    if any(len(g[1]) != len(_MEMBERS) or len(g[2]) != len(_PINS) for g in legs):
+        raise AssertionError("frame topology differs from the strength model's part list")  # a programming error
     KP = 0.5 * (np.sum(contrib, axis=0) + np.sum(contrib, axis=0).T)
     uP = np.linalg.solve(KP, wrenches)  # (6, m)
     m = wrenches.shape[1]
@@ -290,7 +252,7 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
     P = poses(design, fidelity)
     skipped = 0
     try:
-        fp, home = home_frame(design)
+        fp, home = fm.home_frame(design)
         for p in P:
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
                 parts, ok = part_stresses(fp, p, W, parts=home if not np.any(p) else None)
