@@ -6,6 +6,8 @@ Writes into ``out_dir``::
     parts/<part>.stl       every posed part, mm, binary STL
     <name>.xml             MJCF (inertias from the CAD)
     mass_properties.json   per part and per body, CAD volume integrals (SI values in mm/kg units)
+    drawings/<part>.svg    a dimensioned 2-D drawing per manufactured part (and .dxf; design.drawings):
+                           parts that name a material, the legs' identical copies on one drawing
     <name>.png             with ``render=True``: off-screen pyvista picture
 
 Everything is computed in memory first (a design that cannot be built raises before any file
@@ -24,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticopt.design import atomic, cad_import, offscreen
+from hapticopt.design import atomic, cad_import, drawings, offscreen
 from hapticopt.design.errors import InvalidDesign
 from hapticopt.design.paths import check_name, inside
 from hapticopt.design import mass_properties as mp
@@ -62,7 +64,7 @@ def _mjcf(design: Any, p, masses, joint_limits: Any = None) -> str:
 
 
 #: the steps of :func:`export`, in order (``on_step(step, done, total)`` names them)
-STEPS = ("cad", "mass properties + MJCF", "STEP", "STL", "render")
+STEPS = ("cad", "mass properties + MJCF", "STEP", "STL", "drawings", "render")
 
 
 def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False,
@@ -130,6 +132,16 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False,
                 export_stl(solid, tmp, tolerance=0.01, angular_tolerance=0.1)
             files.append(target)
         timings["stl"] = time.perf_counter() - t
+        t = time.perf_counter()
+        step("drawings")
+        for name, parts in drawings.groups(specs).items():
+            svg, dxf = (inside(out_dir, Path("drawings") / f"{name}.{ext}") for ext in ("svg", "dxf"))
+            spec = specs[parts[0]]
+            mass = spec.density * solids[parts[0]].volume * 1e-9  # the CAD solid is in mm
+            with atomic.atomic_path(staged(svg)) as tmp_svg, atomic.atomic_path(staged(dxf)) as tmp_dxf:
+                drawings.draw(solids[parts[0]], name, parts, spec.material, mass, Path(tmp_svg), Path(tmp_dxf))
+            files += [svg, dxf]
+        timings["drawings"] = time.perf_counter() - t
         atomic.write_text(staged(xml_path), mjcf)
         files.append(xml_path)
         atomic.write_text(staged(json_path), masses.to_json())

@@ -18,7 +18,7 @@ from hapticopt.design.atomic import write_text
 from hapticopt.design import tomlsafe
 from hapticopt.design.errors import InputFileError, InvalidDesign, short, short_key
 from hapticopt.design.paths import check_name
-from hapticopt.design.schema import section_from_table, section_to_table, specs
+from hapticopt.design.schema import choices, section_from_table, section_to_table, specs
 
 Design = Union[prrr.PrrrDesign, master.MasterDesign, handle.HandleDesign]
 
@@ -136,6 +136,7 @@ def apply_overrides(design: Design, assignments: list[str]) -> Design:
     if not assignments:
         return design
     data = design_to_dict(design)
+    set_keys: set[tuple[str, str]] = set()
     for assignment in assignments:
         if "=" not in assignment:
             raise InvalidDesign(f"--set {short(assignment)} must have the form section.key=value, e.g. geometry.beta_deg=50")
@@ -150,6 +151,7 @@ def apply_overrides(design: Design, assignments: list[str]) -> Design:
             raise InvalidDesign(f"--set {short_key(lhs)}: {short_key(section)} is not a section of a {design.device} design: "
                                 f"allowed {', '.join(design.SECTIONS)}")
         allowed_keys = {s.key for s in specs(getattr(design, section)).values()}
+        allowed_keys |= {c.key for c in choices(getattr(design, section)).values()}
         if key not in allowed_keys:
             raise InvalidDesign(f"--set {short_key(lhs)} is not a known parameter: allowed keys in [{section}] are "
                                 f"{', '.join(sorted(allowed_keys))}")
@@ -158,4 +160,13 @@ def apply_overrides(design: Design, assignments: list[str]) -> Design:
         except InputFileError:
             value = rhs  # not a TOML value: checked (and refused as "not a number") below
         data[section][key] = value
+        set_keys.add((section, key))
+    for section, key in set_keys:  # a choice set here refills what it sets (a material's density and moduli)
+        for cspec in choices(getattr(design, section)).values():
+            if cspec.key == key and cspec.fills is not None:
+                sec_specs = specs(getattr(design, section))
+                for fname in cspec.fills(data[section][key]):
+                    fkey = sec_specs[fname].key
+                    if (section, fkey) not in set_keys:
+                        data[section].pop(fkey, None)
     return design_from_dict(data, source="--set")

@@ -65,6 +65,7 @@ class PartSpec:
     body: str  # rigid body that carries the part (MJCF body name)
     density: float  # [kg/m³]
     primitives: tuple[Primitive, ...]
+    material: str = ""  # name in design/materials.toml ('' for a lumped catalogue part: motor, housing)
 
 
 # ---------------------------------------------------------------------------- frames

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -74,6 +74,31 @@ def param(
     return field(default=to_si(default, unit), metadata={"spec": spec})
 
 
+@dataclass(frozen=True, kw_only=True)
+class ChoiceSpec:
+    """Metadata of one categorical design parameter (a name from a fixed list, e.g. a material).
+
+    ``check(value, where)`` raises :class:`InvalidDesign` (one line naming ``where`` and the allowed
+    names) unless ``value`` is allowed; ``fills(value)`` gives the numeric fields (field name -> SI
+    value) the choice sets where the table does not give them (a material's density and moduli)."""
+
+    key: str
+    check: Callable[[Any, str], None]
+    fills: Callable[[str], dict[str, float]] | None = None
+    doc: str = ""
+
+
+def choice(key: str, *, default: str, check: Callable[[Any, str], None],
+           fills: Callable[[str], dict[str, float]] | None = None, doc: str = "") -> Any:
+    """Declare a categorical field (a string from a fixed list; not a continuous optimisation variable)."""
+    return field(default=default, metadata={"choice": ChoiceSpec(key=key, check=check, fills=fills, doc=doc)})
+
+
+def choices(section_cls: type) -> dict[str, ChoiceSpec]:
+    """Field name -> :class:`ChoiceSpec` for a section class (or instance)."""
+    return {f.name: f.metadata["choice"] for f in dataclasses.fields(section_cls) if "choice" in f.metadata}
+
+
 def specs(section_cls: type) -> dict[str, ParamSpec]:
     """Field name -> :class:`ParamSpec` for a section class (or instance)."""
     return {f.name: f.metadata["spec"] for f in dataclasses.fields(section_cls) if "spec" in f.metadata}
@@ -84,6 +109,8 @@ def validate_section(section: Any, prefix: str) -> None:
     for name, spec in specs(section).items():
         value = getattr(section, name)
         spec.check(f"{prefix}.{spec.key}", from_si(float(value), spec.unit))
+    for name, cspec in choices(section).items():
+        cspec.check(getattr(section, name), f"{prefix}.{cspec.key}")
 
 
 def _as_number(where: str, raw: Any, spec: ParamSpec) -> float:
@@ -97,24 +124,36 @@ def section_from_table(section_cls: type, table: Any, prefix: str) -> Any:
     if not isinstance(table, Mapping):
         raise InvalidDesign(f"{prefix} = {short(table)} must be a table of parameters")
     by_key = {spec.key: (name, spec) for name, spec in specs(section_cls).items()}
-    values: dict[str, float] = {}
+    by_choice = {c.key: (name, c) for name, c in choices(section_cls).items()}
+    values: dict[str, Any] = {}
     for key, raw in table.items():
         where = f"{prefix}.{key}"
+        if key in by_choice:
+            name, cspec = by_choice[key]
+            cspec.check(raw, where)
+            values[name] = raw
+            continue
         if key not in by_key:
-            known = ", ".join(sorted(by_key))
+            known = ", ".join(sorted(set(by_key) | set(by_choice)))
             raise InvalidDesign(f"{prefix}.{short_key(key)} is not a known parameter: allowed keys in [{prefix}] are {known}")
         name, spec = by_key[key]
         value = _as_number(where, raw, spec)
         spec.check(where, value)
         values[name] = to_si(value, spec.unit)
+    for key, (name, cspec) in by_choice.items():  # a named choice fills the fields the table leaves out
+        if key in table and cspec.fills is not None:
+            for fname, v in cspec.fills(table[key]).items():
+                values.setdefault(fname, v)
     return section_cls(**values)
 
 
-def section_to_table(section: Any) -> dict[str, float]:
+def section_to_table(section: Any) -> dict[str, Any]:
     """The TOML table of a section, in edge units (inverse of :func:`section_from_table`)."""
-    out: dict[str, float] = {}
+    out: dict[str, Any] = {}
     for name, spec in specs(section).items():
         value = from_si(float(getattr(section, name)), spec.unit)
         # 15 significant digits: deg/rad round trips must not print 59.99999999999999
         out[spec.key] = int(round(value)) if spec.integer else float(f"{value:.15g}")
+    for name, cspec in choices(section).items():
+        out[cspec.key] = getattr(section, name)
     return out

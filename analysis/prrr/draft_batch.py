@@ -56,6 +56,7 @@ from hapticopt.analysis.prrr.collision import interference as IF
 from hapticopt.analysis.prrr.collision import interference_fast as FAST
 from hapticopt.analysis.prrr.geometry import joint_limits as JL
 from hapticopt.analysis.prrr.loop import stability
+from hapticopt.analysis.prrr.structure import strength
 from hapticopt.analysis.prrr.structure import statics, stiffness as structure
 from hapticopt.analysis.prrr.geometry import workspace as WS
 from hapticopt.design.errors import HapticoptError, InvalidInput
@@ -380,7 +381,7 @@ def evaluate_many(designs: list[PrrrDesign], *, only: tuple[str, ...] | None = N
 def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None, compute: Compute
            ) -> list[tuple[dict[str, Any], dict[str, float]]]:
     n = len(designs)
-    want = [name for name in BATCHED + ("stability",) if only is None or name in only]
+    want = [name for name in BATCHED + ("stability", "strength") if only is None or name in only]
     res: list[dict[str, Any]] = [{} for _ in designs]
     tim: dict[str, float] = {}
     draft = Fidelity.DRAFT
@@ -474,6 +475,11 @@ def _chunk(designs: list[PrrrDesign], only: tuple[str, ...] | None, compute: Com
     if "workspace" not in want:
         for r in res:
             r.pop("workspace", None)
+    if "strength" in want:  # the frame's member stresses: the per-design step (one frame solve at the home pose)
+        t5 = time.perf_counter()
+        for i, d in enumerate(designs):
+            res[i]["strength"] = _guard(strength.evaluate, d, fidelity=draft)
+        tim["strength"] = (time.perf_counter() - t5) / n
     if "stability" in want:
         t4 = time.perf_counter()
         _stability(designs, arrays, res)

@@ -251,7 +251,9 @@ def part_specs(design: PrrrDesign, *, lay: PrrrLayout | None = None) -> dict[str
         src = k if same is None else same
         if src not in shared:
             shared[src] = tuple(prims.get(src, ()))
-        out[name] = PartSpec(name=name, body=body, density=float(density), primitives=shared[src])
+        made = float(density) == design.structure.density  # the parts of the mechanism's material
+        out[name] = PartSpec(name=name, body=body, density=float(density), primitives=shared[src],
+                             material=design.structure.material if made else "")
     return out
 
 

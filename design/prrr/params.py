@@ -16,8 +16,9 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
+from hapticopt.design import materials
 from hapticopt.design.errors import InvalidDesign
-from hapticopt.design.schema import param, validate_section
+from hapticopt.design.schema import choice, param, validate_section
 
 DEVICE = "prrr"
 #: Leg directions γ_i (seed 002, eq 2: γ1 = 0, γ2 = +2π/3, γ3 = −2π/3).
@@ -92,6 +93,12 @@ class EndEffector:
                                    doc="handle ball diameter")
 
 
+def _material_fields(name: str) -> dict[str, float]:
+    """The numeric fields of :class:`Structure` a named material sets [SI]."""
+    m = materials.material(name)
+    return {"density": m.density, "youngs_modulus": m.youngs_modulus, "poisson_ratio": m.poisson_ratio}
+
+
 @dataclass(frozen=True, kw_only=True)
 class Structure:
     """Cross-sections and material of the links (not given in seed 002; documented defaults)."""
@@ -104,6 +111,11 @@ class Structure:
                                  doc="joint boss outer diameter")
     bore_diameter: float = param("bore_diameter_mm", "mm", default=8.0, lo=0.0, hi=500.0, lo_open=True,
                                  doc="joint pin bore diameter")
+    material: str = choice("material", default="6061-T6", check=lambda v, where: materials.material(v, where),
+                           fills=lambda name: _material_fields(name),
+                           doc="material of the mechanism's parts (links, carriage brackets, platform, pins): a name "
+                               "of design/materials.toml; sets density and moduli unless the table gives them, and "
+                               "the strength check reads its yield and fatigue strength")
     density: float = param("density_kg_per_m3", "kg_per_m3", default=2700.0, lo=0.0, hi=25000.0, lo_open=True,
                            doc="material density (aluminium 6061)")
     youngs_modulus: float = param("youngs_modulus_GPa", "GPa", default=68.9, lo=0.0, hi=1500.0, lo_open=True,
@@ -187,6 +199,13 @@ def validate(design: PrrrDesign) -> None:
             f"structure.bore_diameter_mm = {s.bore_diameter * 1e3:g} must be smaller than "
             f"structure.boss_diameter_mm = {s.boss_diameter * 1e3:g} (mm)"
         )
+
+
+def with_material(design: PrrrDesign, name: str) -> PrrrDesign:
+    """``design`` with its mechanism made of library material ``name``: the material and its density,
+    Young's modulus and Poisson's ratio together (the discrete outer loop's step, docs/strength.md)."""
+    return dataclasses.replace(design, structure=dataclasses.replace(design.structure, material=name,
+                                                                     **_material_fields(name)))
 
 
 def replace(design: PrrrDesign, **sections: object) -> PrrrDesign:

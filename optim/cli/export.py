@@ -55,7 +55,8 @@ def export(
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, device, out_dir, files, total_mass_kg, "
                                                          "interference, timings_s}.")] = False,
 ) -> None:
-    """Export the CAD of a design: DIR/<name>.step, DIR/parts/*.stl, DIR/<name>.xml, DIR/mass_properties.json."""
+    """Export the CAD of a design: DIR/<name>.step, DIR/parts/*.stl, DIR/drawings/*.svg|dxf (a dimensioned drawing
+    per manufactured part), DIR/<name>.xml, DIR/mass_properties.json."""
     t0 = time.perf_counter()
     from hapticopt.analysis import interference  # heavy (CAD, jax): imported when the command runs
     from hapticopt.design.export import export as run_export

@@ -17,6 +17,10 @@ PARTS = {"base", "platform"} | {f"{k}_{i}" for k in ("rail", "screw", "motor", "
                                  for i in (1, 2, 3)}
 
 
+#: one drawing per manufactured part geometry (the legs' identical parts share one; rails are placed per leg)
+DRAWINGS = {"base", "rail_1", "rail_2", "rail_3", "carriage", "link1", "link2", "platform"}
+
+
 @pytest.fixture(scope="module")
 def paper():
     return io.load_preset("prrr-paper")
@@ -38,7 +42,8 @@ def cad_volumes_mm3(paper):
 def test_files(exported, paper):
     names = {f.relative_to(exported.out_dir).as_posix() for f in exported.files}
     assert names == ({f"{paper.name}.step", f"{paper.name}.xml", "mass_properties.json"}
-                     | {f"parts/{n}.stl" for n in PARTS})
+                     | {f"parts/{n}.stl" for n in PARTS}
+                     | {f"drawings/{n}.{e}" for n in DRAWINGS for e in ("svg", "dxf")})
     assert not list(exported.out_dir.rglob("*.tmp*"))
 
 
@@ -173,3 +178,35 @@ def test_handle_has_no_cad_one_line(tmp_path):
     with pytest.raises(InvalidDesign, match=r"^device = 'handle' of design 'handle-paper' has no CAD model to export: "
                                             r"allowed prrr, master$"):
         export.export(io.load_preset("handle-paper"), tmp_path)
+
+
+def test_drawings_overall_dimensions_match_the_step_to_001_mm(exported, paper):
+    """Every drawing's overall size (its title block, measured from the projected views) equals the
+    bounding box of each of its parts in the exported STEP, moved back into the part's frame, to 0.01 mm;
+    the title names the material and the mass; the DXF holds the same layers."""
+    import re
+
+    import ezdxf
+
+    from hapticopt.design import cad_import, parts
+    from hapticopt.design.prrr import cad as cad_prrr
+
+    cad_import.build123d()
+    from build123d import import_step
+
+    step = import_step(str(exported.out_dir / f"{paper.name}.step"))
+    solids = {c.label: c for c in step.children}  # the flat assembly: one labelled solid per part
+    frames = cad_prrr.part_frames(paper, cad_prrr.solve_pose(paper, np.array([0.01, -0.02, 0.015])))
+    for name in DRAWINGS:
+        svg = (exported.out_dir / "drawings" / f"{name}.svg").read_text()
+        desc = re.search(r"<desc>(.*?)</desc>", svg).group(1)
+        assert "material 6061-T6" in desc and re.search(r"mass \d+\.\d g each", desc), desc
+        size = [float(v) for v in re.search(r"overall ([\d.]+) x ([\d.]+) x ([\d.]+) mm", desc).groups()]
+        shown = re.search(r"qty (\d+)(: (.*?))?\)", desc)
+        members = shown.group(3).split(", ") if shown.group(3) else [name]
+        for part in members:
+            local = solids[part].moved(parts.location(frames[part]).inverse()).bounding_box(optimal=True)
+            np.testing.assert_allclose(size, [local.size.X, local.size.Y, local.size.Z], atol=0.01, err_msg=part)
+        doc = ezdxf.readfile(str(exported.out_dir / "drawings" / f"{name}.dxf"))
+        layers = {e.dxf.layer for e in doc.modelspace()}
+        assert {"visible", "dimensions"} <= layers, layers

@@ -29,6 +29,7 @@ stem (handle post) bends too — the physical handle, reported separately (docs/
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -252,6 +253,14 @@ def cad_fea(design, *, level: int = 0, size: float | None = None, p=(0.0, 0.0, 0
                         timings_s={"mesh": t_mesh, **sol.timings_s}, branch=info["branch"], status=status,
                         message=message, mesh=mesh if keep_fields else None, displacement=disp,
                         displacement_edges=disp_edges)
+
+
+@functools.lru_cache(maxsize=2)
+def fine_fea(design) -> CadFeaResult:
+    """The ``fine`` level's FEA of ``design`` (level :data:`DEFAULT_LEVEL`, fields kept), made once per
+    process for the evaluators that read it (structural stiffness and strength); an exception is not
+    cached."""
+    return cad_fea(design, level=DEFAULT_LEVEL, keep_fields=True)
 
 
 #: released part per joint kind: the frame model's hinge at the pin's link-side end (frame_model.py)

@@ -208,6 +208,13 @@ def beam_global_stiffness(x1, x2, zref, section: Section, a1=0.0, a2=0.0, xp=jnp
     ``xp``: the array module (``jax.numpy``, or ``numpy`` for the jit-free single-design path).
     ``props``: section properties overriding the rectangle of ``section`` (E is read from ``section``).
     """
+    k, T = _beam_local(x1, x2, zref, section, a1, a2, xp, props)
+    return xp.swapaxes(T, -1, -2) @ k @ T
+
+
+def _beam_local(x1, x2, zref, section: Section, a1, a2, xp, props: SectionProperties | None):
+    """The flexible part's local stiffness k (12 × 12) and the map T (12 × 12) of the nodes' global DOFs
+    to its ends' local DOFs (rigid end zones a1, a2 clipped to 40 % of the length)."""
     R, length = beam_axes(x1, x2, zref, xp)
     a1 = xp.minimum(xp.asarray(a1), 0.4 * length)
     a2 = xp.minimum(xp.asarray(a2), 0.4 * length)
@@ -218,7 +225,18 @@ def beam_global_stiffness(x1, x2, zref, section: Section, a1=0.0, a2=0.0, xp=jnp
     ex = R[..., 0, :]
     R4 = xp.einsum("ab,...ij->...aibj", xp.asarray(np.eye(4)), R).reshape(R.shape[:-2] + (12, 12))
     T = R4 @ _blockdiag2(rigid_map(a1[..., None] * ex, xp), rigid_map(-a2[..., None] * ex, xp), xp)
-    return xp.swapaxes(T, -1, -2) @ k @ T
+    return k, T
+
+
+def beam_end_forces(x1, x2, zref, section: Section, a1=0.0, a2=0.0, d=None, xp=np,
+                    props: SectionProperties | None = None):
+    """End forces of the flexible part of the beam x1→x2 in its local axes, (..., 12, m) [N, N·m]:
+    [N, V_y, V_z, T, M_y, M_z] at its first end, then at its second, for m cases of the nodes' global
+    displacements ``d`` (..., 12, m) [m, rad] (the same axes, end zones and section as
+    :func:`beam_global_stiffness`). The forces act on the beam; with no load along it, its internal
+    force resultants are largest at these ends (the boss edges)."""
+    k, T = _beam_local(x1, x2, zref, section, a1, a2, xp, props)
+    return k @ (T @ d)
 
 
 #: Levi-Civita ε_ijk: [r]× = −ε·r, one contraction instead of nine stacked entries (the numpy path's cost)

@@ -685,8 +685,46 @@ def solve_frame_jax(fp: FrameParams, *, p=(0.0, 0.0, 0.0), load_height: float = 
     return {k: np.asarray(v) for k, v in out.items()}
 
 
+def frame_parts(fp, p, options: FrameOptions = FrameOptions()):
+    """The frame model of one design at pose ``p`` (3,) [m] with its members kept: per leg (w, elements,
+    springs, K), the condensation (each leg's K_PP − K_Pi K_ii⁻¹ K_iP, condition estimates, recovery
+    K_ii⁻¹ K_iP) and the inverse kinematics; the steps of :func:`frame_arrays` (numpy path), whose
+    elements the strength's member stresses need (:mod:`.strength`). Raises ``LinAlgError`` where numpy's solve does."""
+    n, L = _leg_layout(options)
+    leg, args, ik = _leg_inputs(fp, np.asarray(p, dtype=float), options, None, None, np)
+    legs = []
+    for k in range(3):
+        w, S, A, B, Q, bp, zr, Kb = (a[k] for a in args)
+        elems, springs = leg(w, S, A, B, Q, (bp, zr, Kb), parts_only=True)
+        legs.append((w, elems, springs, _assemble(n, L, elems, fp.section, fp.spring, options, np, springs)))
+    contrib, cond_legs, recovery = condense_legs(np.stack([g[3] for g in legs]), np)
+    return legs, contrib, cond_legs, recovery, ik
+
+
+@functools.lru_cache(maxsize=4)
+def home_frame(design):
+    """(numpy frame parameters, :func:`frame_parts` at the home pose with the default options) of
+    ``design``: made once per design and process for the stiffness evaluator's home solve
+    (:func:`.stiffness.structural_stiffness`) and the strength's draft pose (:mod:`.strength`), which share it."""
+    fp = frame_params_of(design, xp=np)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return fp, frame_parts(fp, np.zeros(3))
+
+
+def home_arrays(design, load_height: float) -> dict[str, np.ndarray]:
+    """:func:`solve_frame` of ``design`` at the home pose with the default options, from
+    :func:`home_frame` (the same steps: the same numbers)."""
+    fp, (legs, contrib, cond_legs, recovery, ik) = home_frame(design)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        out = compliance_outputs(np.sum(contrib, axis=0), np.max(cond_legs),
+                                    np.asarray(float(load_height)), np)
+    out.update(reachable=ik.reachable, reach_margin=ik.reach_margin)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
 __all__ = [
     "COND_LIMIT", "LOAD_HEIGHT", "SINGULAR_COND", "FrameOptions", "FrameParams", "Joints", "Offsets", "PinModel",
     "Section", "compliance_outputs", "condense_legs", "frame_arrays", "frame_leg_terms",
-    "frame_legs", "frame_params_of", "solve_frame", "solve_frame_jax", "term_columns",
+    "frame_legs", "frame_params_of", "frame_parts", "home_arrays", "home_frame", "solve_frame", "solve_frame_jax",
+    "term_columns",
 ]

@@ -102,8 +102,15 @@ def structural_stiffness(design: PrrrDesign, *, p=(0.0, 0.0, 0.0), load_height: 
     if not np.isfinite(load_height):
         raise InvalidInput(f"load_height = {load_height!r} m is not finite: allowed any finite height (m)")
     p = np.asarray(p, dtype=float)
-    # numpy parameters: solve_frame takes numpy arrays (jax scalars here cost an XLA transfer each, same values)
-    out = fm.solve_frame(fm.frame_params_of(design, xp=np), p=p, load_height=load_height, options=options)
+    out = None
+    if options == fm.FrameOptions() and not np.any(p):  # home: the legs the strength evaluator reads too
+        try:
+            out = fm.home_arrays(design, load_height)
+        except np.linalg.LinAlgError:  # solve_frame's fallback (the jax path) decides
+            out = None
+    if out is None:
+        # numpy parameters: solve_frame takes numpy arrays (jax scalars here cost an XLA transfer each, same values)
+        out = fm.solve_frame(fm.frame_params_of(design, xp=np), p=p, load_height=load_height, options=options)
     return from_arrays(design, out, p=p, load_height=load_height, options=options)
 
 
@@ -190,7 +197,7 @@ def _finish(design: PrrrDesign, result: StructuralStiffness, fidelity: Fidelity)
 
     bonded = structural_stiffness(design, options=fm.FrameOptions(joints=fm.Joints.BONDED, branch=DEFAULT_BRANCH))
     try:
-        fea_result = fea_cad.cad_fea(design, level=fea_cad.DEFAULT_LEVEL, keep_fields=True)
+        fea_result = fea_cad.fine_fea(design)  # level DEFAULT_LEVEL with fields; shared with the strength evaluator
     except Exception as exc:  # CAD/gmsh failures become a status, the frame metrics stay
         return replace(result, status=Status.FAILED, message=f"CAD FEA failed: {exc}")
     status, message = result.status, result.message
