@@ -260,6 +260,38 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
 }
 
 
+#: device -> "module:function" (design) -> '' when the design can be built, else why not (the message of
+#: :attr:`Status.NOT_ASSEMBLABLE`). The one rule for designs that do not exist: :func:`evaluate_all` then
+#: runs none of the device's evaluators and reports each as ``not-assemblable`` with every metric NaN
+#: (:class:`NotBuilt`), so no evaluator reports ``ok`` (or any number) for a device that cannot be put
+#: together. The 3-PRRR: the chain closes and the CAD lays the parts out
+#: (:func:`hapticopt.analysis.prrr.geometry.assembly.check_built`).
+ASSEMBLY: dict[str, str] = {"prrr": _A + "prrr.geometry.assembly:check_built"}
+
+
+@dataclass(frozen=True, kw_only=True)
+class NotBuilt:
+    """The result of every evaluator of a design that cannot be built (:data:`ASSEMBLY`): the entry's
+    metrics at the fidelity, each NaN (JSON null), status ``not-assemblable`` with the reason."""
+
+    names: tuple[str, ...]
+    message: str
+    status: Status = Status.NOT_ASSEMBLABLE
+
+    def metrics(self) -> dict[str, float]:
+        return dict.fromkeys(self.names, float("nan"))
+
+    @classmethod
+    def of(cls, entry: EvaluatorEntry, fidelity: Fidelity, message: str) -> NotBuilt:
+        return cls(names=tuple(m.name for m in entry.metrics if Fidelity(fidelity) in m.fidelities), message=message)
+
+
+def not_built(design: Any) -> str:
+    """'' when ``design`` can be built (:data:`ASSEMBLY`; a device without a rule always can), else why not."""
+    rule = ASSEMBLY.get(design.device)
+    return _function(rule)(design) if rule is not None else ""
+
+
 #: device -> "module:class" of the steps several of its evaluators take for one design: one object per
 #: :func:`evaluate_all` call, made for that call's design and passed as ``shared=`` to the entries with
 #: ``shared=True``, so that each step runs once per call (none for a device not named here)
@@ -274,14 +306,14 @@ class BatchEntry:
     evaluate_many: str  # "module:function" (designs, *, only, compute) -> per design (name -> result or the
     # exception raised, name -> seconds), every evaluator of the device in ``only``
     single_path: str  # "module:function" (designs, *, compute) -> per design '' (batched) or why it takes the
-    # single path instead (a 3-PRRR chain that does not close returns early from every evaluator)
+    # single path instead (a design that cannot be built, :data:`ASSEMBLY`: :class:`NotBuilt` for every evaluator)
     chunk: int  # designs per pass at most (the single-path check's verdicts stay cached for the evaluators)
 
 
 #: device -> its batch evaluator (none for a device not named here)
 BATCHED: dict[str, BatchEntry] = {
     "prrr": BatchEntry(fidelity=Fidelity.DRAFT, evaluate_many=_A + "prrr.draft_batch:evaluate_many",
-                       single_path=_A + "prrr.geometry.assembly:closure_many", chunk=1024),
+                       single_path=_A + "prrr.geometry.assembly:check_built_many", chunk=1024),
 }
 
 
@@ -441,8 +473,13 @@ def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
                  compute: Compute = DEFAULT) -> Evaluation:
     """Run every evaluator registered for the design's device (or those named in ``only``); the steps
     several of them take for the design (:data:`SHARED_STEPS`) run once for the call; ``compute`` goes to
-    the evaluators whose entry says ``takes_compute``."""
+    the evaluators whose entry says ``takes_compute``. A design that cannot be built (:data:`ASSEMBLY`)
+    runs none: every evaluator is :class:`NotBuilt` (``not-assemblable``, its metrics NaN)."""
     entries = _entries(design.device, only)
+    why = not_built(design)
+    if why:
+        return _collect(fidelity, entries, lambda entry: NotBuilt.of(entry, fidelity, why),
+                        lambda entry, measured: measured, progress)
     shared = None
     if design.device in SHARED_STEPS and any(e.shared for e in entries):
         shared = _function(SHARED_STEPS[design.device])(design)
@@ -469,7 +506,7 @@ def run_plotter(entry: EvaluatorEntry, design: Any, result: Any, out_dir: Path) 
     check_name(design.name, "design name", error=InvalidDesign)
     out_dir = Path(out_dir)
     plotter = entry.plotter()
-    if plotter is None:
+    if plotter is None or isinstance(result, NotBuilt):  # nothing to draw of a device that cannot be built
         return []
     offscreen.configure()  # the plotters draw with pyvista: no X probe, no VTK warning
     written = [Path(p) for p in plotter(design, result, out_dir)]
