@@ -183,7 +183,7 @@ def test_multistart_is_seeded_and_deterministic():
 
 def test_maximise_flips_the_sign():
     p = problem_from_dict({"name": "m", "base": "prrr-paper",
-                           "variables": [{"key": "geometry.beta_deg", "lower": bounds[0], "upper": bounds[1]}],  # buildable
+                           "variables": [{"key": "geometry.beta_deg", "lower": 25.0, "upper": 60.0}],  # buildable
                            "objective": {"metric": "max_force_N[0]", "sense": "maximise"},
                            "optimiser": {"algorithm": "LN_BOBYQA", "xtol_rel": 1e-8, "max_evals": 100}})
     res = run(p)
