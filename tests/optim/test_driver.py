@@ -255,3 +255,21 @@ def test_each_point_gets_the_runs_route(executor, expected_threads):
     run(beta_problem("LN_BOBYQA", max_evals=4), executor=executor, evaluate_fn=evaluate,
         compute=Compute(backend="numba", threads=2))
     assert seen and set(seen) == {Compute(backend="numba", threads=expected_threads)}
+
+
+def test_starts_are_drawn_from_designs_that_can_be_built():
+    """Issue 30 item 4: beta over 10…88°, where prrr-paper can be built only within ≈ 22.5…60° (assembly.check_built):
+    every drawn start's design can be built, the rejected draws are counted, and the run says so."""
+    from hapticopt.analysis.registry import not_built
+
+    p = beta_problem("LN_COBYLA", starts=6, seed=3, max_evals=12, bounds=(10.0, 88.0))
+    draws = driver.start_draws(p)
+    assert len(draws) == 6 and draws[0][1] == 0
+    lo, hi = p.lower[0], p.upper[0]
+    for u, _ in draws[1:]:
+        assert not_built(p.design_at((lo + u[0] * (hi - lo),))) == ""
+    # about half of the range cannot be built: with 5 seeded draws some are rejected
+    assert sum(n for _, n in draws) > 0
+    res = run(p)
+    assert [s.rejected_draws for s in res.starts] == [n for _, n in draws]
+    assert any("rejected and redrawn" in n for n in res.notes)
