@@ -266,10 +266,11 @@ def test_checker_on_two_threads_equals_one_thread_bitwise(both):
 def test_same_results_with_every_backend_and_thread_count(problem_sample):
     """``evaluate_many`` with ``Compute(backend=numpy | numba | auto)`` at 1 and 2 threads: the same
     statuses and messages, and the same metrics — bit for bit between thread counts of one backend (the
-    collision kernel runs on every backend), within 1e-10 relative between backends (the frame
-    condensation's numpy route and numba kernel sum in different orders; the metrics snapshot holds
-    1e-9) — NaN where NaN, on 40 designs within the problem bounds (enough interference poses for two
-    threads' shares)."""
+    collision kernel runs on every backend), within 1e-9 relative between backends, the metrics snapshot's
+    tolerance (the frame condensation's numpy LU and numba Cholesky sum in different orders: on the CAD's
+    elbow branch, the frame model's default since issue 30, design 15 of this sample has structural_condition
+    2.3e5 and differs by 1.9e-10) — NaN where NaN, on 40 designs within the problem bounds (enough
+    interference poses for two threads' shares)."""
     designs = problem_sample(40, seed=2911)
     runs = {(b, t): draft_batch.evaluate_many(designs, compute=Compute(backend=b, threads=t))
             for b in ("numpy", "numba", "auto") for t in (1, 2)}
@@ -290,7 +291,7 @@ def test_same_results_with_every_backend_and_thread_count(problem_sample):
                     assert all(np.array_equal(np.float64(ma[k]).view(np.int64), np.float64(mb[k]).view(np.int64))
                                for k in ma), (key, name)
                 else:
-                    assert all(np.allclose(ma[k], mb[k], rtol=1e-10, atol=0.0, equal_nan=True) for k in ma), (key, name)
+                    assert all(np.allclose(ma[k], mb[k], rtol=1e-9, atol=0.0, equal_nan=True) for k in ma), (key, name)
     assert any(str(r["interference"].status) == "collides" for r, _ in ref)
 
 
