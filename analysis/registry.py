@@ -134,6 +134,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("workspace_required_diameter_mm", "required workspace diameter (design input; seed 002: 140 mm)"),
             _m("footprint_diameter_mm", "diameter of the device body in xy: fixed parts and carriages (seed 002's device size)"),
             _m("link_sweep_diameter_mm", "diameter swept by the links over the reach region (CAD's elbow branch)"),
+            _m("device_diameter_mm", "diameter of the whole device in xy: the body (footprint) or the links' sweep, whichever is larger"),
             _m("workspace_footprint_ratio", "workspace cylinder diameter over footprint diameter (seed 002 Table 1: 140/260)"),
             _m("jacobian_condition_deviation", "largest relative deviation of the finite-difference cond₂(J) over the workspace from the constant one", *_FINE),
             _m("workspace_interference_removed_fraction", "share of the sampled workspace volume lost to part collisions (manifold3d meshes)", *_FINE),
@@ -153,6 +154,7 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("workspace_free_cylinder_height_mm", "height of that cylinder"),
             _m("workspace_free_height_at_diameter_mm", "height of the collision-free cylinder of the required diameter (0: not free)"),
             _m("workspace_free_footprint_ratio", "collision-free cylinder diameter over footprint diameter (seed 002's design goal)"),
+            _m("workspace_free_device_ratio", "collision-free cylinder diameter over the whole device's diameter (device_diameter_mm: body or link sweep)"),
         )),
         EvaluatorEntry(name="device_size", module=_A + "prrr.geometry.device_size", shared=True,
                        fidelity="analytic mass model of the part tables: the same at every level",
@@ -279,6 +281,38 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
 }
 
 
+#: device -> "module:function" (design) -> '' when the design can be built, else why not (the message of
+#: :attr:`Status.NOT_ASSEMBLABLE`). The one rule for designs that do not exist: :func:`evaluate_all` then
+#: runs none of the device's evaluators and reports each as ``not-assemblable`` with every metric NaN
+#: (:class:`NotBuilt`), so no evaluator reports ``ok`` (or any number) for a device that cannot be put
+#: together. The 3-PRRR: the chain closes and the CAD lays the parts out
+#: (:func:`hapticopt.analysis.prrr.geometry.assembly.check_built`).
+ASSEMBLY: dict[str, str] = {"prrr": _A + "prrr.geometry.assembly:check_built"}
+
+
+@dataclass(frozen=True, kw_only=True)
+class NotBuilt:
+    """The result of every evaluator of a design that cannot be built (:data:`ASSEMBLY`): the entry's
+    metrics at the fidelity, each NaN (JSON null), status ``not-assemblable`` with the reason."""
+
+    names: tuple[str, ...]
+    message: str
+    status: Status = Status.NOT_ASSEMBLABLE
+
+    def metrics(self) -> dict[str, float]:
+        return dict.fromkeys(self.names, float("nan"))
+
+    @classmethod
+    def of(cls, entry: EvaluatorEntry, fidelity: Fidelity, message: str) -> NotBuilt:
+        return cls(names=tuple(m.name for m in entry.metrics if Fidelity(fidelity) in m.fidelities), message=message)
+
+
+def not_built(design: Any) -> str:
+    """'' when ``design`` can be built (:data:`ASSEMBLY`; a device without a rule always can), else why not."""
+    rule = ASSEMBLY.get(design.device)
+    return _function(rule)(design) if rule is not None else ""
+
+
 #: device -> "module:class" of the steps several of its evaluators take for one design: one object per
 #: :func:`evaluate_all` call, made for that call's design and passed as ``shared=`` to the entries with
 #: ``shared=True``, so that each step runs once per call (none for a device not named here)
@@ -293,14 +327,14 @@ class BatchEntry:
     evaluate_many: str  # "module:function" (designs, *, only, compute) -> per design (name -> result or the
     # exception raised, name -> seconds), every evaluator of the device in ``only``
     single_path: str  # "module:function" (designs, *, compute) -> per design '' (batched) or why it takes the
-    # single path instead (a 3-PRRR chain that does not close returns early from every evaluator)
+    # single path instead (a design that cannot be built, :data:`ASSEMBLY`: :class:`NotBuilt` for every evaluator)
     chunk: int  # designs per pass at most (the single-path check's verdicts stay cached for the evaluators)
 
 
 #: device -> its batch evaluator (none for a device not named here)
 BATCHED: dict[str, BatchEntry] = {
     "prrr": BatchEntry(fidelity=Fidelity.DRAFT, evaluate_many=_A + "prrr.draft_batch:evaluate_many",
-                       single_path=_A + "prrr.geometry.assembly:closure_many", chunk=1024),
+                       single_path=_A + "prrr.geometry.assembly:check_built_many", chunk=1024),
 }
 
 
@@ -460,8 +494,13 @@ def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
                  compute: Compute = DEFAULT) -> Evaluation:
     """Run every evaluator registered for the design's device (or those named in ``only``); the steps
     several of them take for the design (:data:`SHARED_STEPS`) run once for the call; ``compute`` goes to
-    the evaluators whose entry says ``takes_compute``."""
+    the evaluators whose entry says ``takes_compute``. A design that cannot be built (:data:`ASSEMBLY`)
+    runs none: every evaluator is :class:`NotBuilt` (``not-assemblable``, its metrics NaN)."""
     entries = _entries(design.device, only)
+    why = not_built(design)
+    if why:
+        return _collect(fidelity, entries, lambda entry: NotBuilt.of(entry, fidelity, why),
+                        lambda entry, measured: measured, progress)
     shared = None
     if design.device in SHARED_STEPS and any(e.shared for e in entries):
         shared = _function(SHARED_STEPS[design.device])(design)
@@ -488,7 +527,7 @@ def run_plotter(entry: EvaluatorEntry, design: Any, result: Any, out_dir: Path) 
     check_name(design.name, "design name", error=InvalidDesign)
     out_dir = Path(out_dir)
     plotter = entry.plotter()
-    if plotter is None:
+    if plotter is None or isinstance(result, NotBuilt):  # nothing to draw of a device that cannot be built
         return []
     offscreen.configure()  # the plotters draw with pyvista: no X probe, no VTK warning
     written = [Path(p) for p in plotter(design, result, out_dir)]

@@ -38,6 +38,8 @@ import nlopt
 import numpy as np
 
 from hapticopt.analysis.compute import DEFAULT, Compute
+from hapticopt.analysis.registry import not_built
+from hapticopt.design.errors import HapticoptError
 from hapticopt.optim.evaluation import GradientMode, Outcome, PointResult, PointTask, evaluate_point, jax_twin
 from hapticopt.optim.executor import InlineExecutor, worker_compute, worker_count
 from hapticopt.optim.problem import Algorithm, MetricRef, Problem, Sense
@@ -122,6 +124,7 @@ class StartResult:
     status: StartStatus
     message: str
     n_points: int
+    rejected_draws: int = 0  # start points drawn and rejected before this one: their design cannot be built
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -186,13 +189,43 @@ def metric_sources(metric_modules: dict[str, str], refs: Sequence[MetricRef]) ->
     return tuple(sorted(set(out)))
 
 
-def start_points(problem: Problem) -> list[np.ndarray]:
-    """Normalised start points: start 0 is the problem's start, the rest uniform from the seed."""
+#: draws per start at most before a start is taken as drawn (every one rejected: it says so)
+MAX_DRAWS = 1000
+
+
+def _buildable(problem: Problem, u: np.ndarray) -> bool:
+    """Whether the design at normalised ``u`` is valid and can be built (:func:`registry.not_built`)."""
+    lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
+    try:
+        design = problem.design_at(tuple(lo + u * (hi - lo)))
+    except HapticoptError:
+        return False
+    return not not_built(design)
+
+
+def start_draws(problem: Problem) -> list[tuple[np.ndarray, int]]:
+    """Normalised start points and, per start, the draws rejected before it: start 0 is the problem's start
+    (never redrawn, 0); the others uniform from the seed, each redrawn while its design cannot be built
+    (invalid, or :func:`hapticopt.analysis.registry.not_built`: a start there fails at every point nearby,
+    issue 30: a third of a run's budget was spent on such a start), at most :data:`MAX_DRAWS` draws."""
     lo, hi = np.asarray(problem.lower), np.asarray(problem.upper)
     u0 = (np.asarray(problem.start) - lo) / (hi - lo)
     rng = np.random.default_rng(problem.optimiser.seed)
-    rest = rng.uniform(0.0, 1.0, size=(problem.optimiser.starts - 1, len(lo)))
-    return [np.clip(u0, 0.0, 1.0)] + [r for r in rest]
+    out = [(np.clip(u0, 0.0, 1.0), 0)]
+    for _ in range(problem.optimiser.starts - 1):
+        for rejected in range(MAX_DRAWS):
+            u = rng.uniform(0.0, 1.0, size=len(lo))
+            if _buildable(problem, u):
+                break
+        else:
+            rejected = MAX_DRAWS
+        out.append((u, rejected))
+    return out
+
+
+def start_points(problem: Problem) -> list[np.ndarray]:
+    """Normalised start points (:func:`start_draws`)."""
+    return [u for u, _ in start_draws(problem)]
 
 
 def _budgets(total: int, starts: int) -> list[int]:
@@ -456,14 +489,21 @@ def run(problem: Problem, *, executor: Executor | None = None, recorder: Recorde
     state = _Run(problem, executor=executor, recorder=recorder, evaluate_fn=evaluate_fn, only=only,
                  gradient=gradient, jax_sources=jax_sources, progress=progress,
                  deadline=time.monotonic() + cfg.max_time_s, compute=compute)
-    starts = [_Start(state, i, u0, b) for i, (u0, b) in
-              enumerate(zip(start_points(problem), _budgets(cfg.max_evals, cfg.starts)))]
+    draws = start_draws(problem)
+    starts = [_Start(state, i, u0, b) for i, ((u0, _), b) in enumerate(zip(draws, _budgets(cfg.max_evals, cfg.starts)))]
+    rejected = [n for _, n in draws]
+    if any(rejected):
+        notes.append("start points drawn from designs that can be built: rejected and redrawn "
+                     + ", ".join(f"{n} for start {i}" for i, n in enumerate(rejected) if n)
+                     + (f" (start(s) {', '.join(str(i) for i, n in enumerate(rejected) if n >= MAX_DRAWS)}: "
+                        f"none of {MAX_DRAWS} draws could be built)" if any(n >= MAX_DRAWS for n in rejected) else ""))
     parallel = min(worker_count(executor), len(starts))
     if parallel > 1:
         with ThreadPoolExecutor(max_workers=parallel) as threads:
             results = list(threads.map(lambda s: s.run_start(), starts))
     else:
         results = [s.run_start() for s in starts]
+    results = [dataclasses.replace(r, rejected_draws=n) for r, n in zip(results, rejected)]
     best = state.best
     feasible = best is not None and best.max_violation <= cfg.constraint_tol
     return RunResult(problem_name=problem.name, objective_metric=problem.objective.metric.text,

@@ -92,7 +92,8 @@ def _save(fig: Any, target: Path, fmt: str) -> None:
 # ----------------------------------------------------------------------------- convergence
 def convergence_figure(history: Any, *, metric: str, sense_max: bool) -> Any:
     """Matplotlib figure of every point's objective in the user's sense, one colour per start
-    (filled: feasible, open: infeasible) and the best feasible value so far."""
+    (filled: feasible, open: infeasible; a cross on the lower edge: a failed evaluation, no finite
+    objective) and the best feasible value so far."""
     from matplotlib.lines import Line2D
     from matplotlib.ticker import MaxNLocator
 
@@ -119,10 +120,16 @@ def convergence_figure(history: Any, *, metric: str, sense_max: bool) -> Any:
             line.append((r.index, best))
     if line:
         ax.step(*zip(*line), where="post", color="black", lw=1.5, zorder=2)
+    bad = [r for r in history if not math.isfinite(r.objective)]
+    for s in starts:  # failed evaluations: crosses on the lower edge, in their start's colour
+        at = [r.index for r in bad if r.start == s]
+        if at:
+            ax.scatter(at, [0.0] * len(at), s=22, marker="x", color=colours[s % len(colours)], linewidths=1.0,
+                       transform=ax.get_xaxis_transform(), clip_on=False, zorder=3)
     ax.set_xlabel("evaluation (order of request) [-]")
     ax.set_ylabel(f"{metric} [{unit}]")
     ax.set_title(f"objective ({'maximised' if sense_max else 'minimised'}), {len(starts)} start(s)"
-                 + (f"; {n_bad} point(s) without a finite objective not shown" if n_bad else ""), fontsize=10)
+                 + (f"; {n_bad} failed evaluation(s) (×, no finite objective)" if n_bad else ""), fontsize=10)
     ax.xaxis.set_major_locator(MaxNLocator(integer=True, nbins=8))
     ax.yaxis.set_major_locator(MaxNLocator(nbins=7))
     ax.grid(True, alpha=0.3)
@@ -130,6 +137,7 @@ def convergence_figure(history: Any, *, metric: str, sense_max: bool) -> Any:
     handles += [Line2D([], [], ls="", marker="o", color="grey", label="feasible point"),
                 Line2D([], [], ls="", marker="o", markerfacecolor="none", markeredgecolor="grey",
                        label="infeasible point"),
+                Line2D([], [], ls="", marker="x", color="grey", label="failed evaluation"),
                 Line2D([], [], color="black", lw=1.5, label="best feasible so far")]
     fig.legend(handles=handles, loc="outside right center", fontsize=8, frameon=False)
     if not pts:

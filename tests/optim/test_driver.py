@@ -39,11 +39,13 @@ def run(problem, **kw):
 
 
 def beta_problem(algorithm: str, *, local: str = "LN_BOBYQA", constrained: bool = False, starts: int = 1,
-                 seed: int = 0, max_evals: int = 300, metric: str = "jacobian_condition"):
+                 seed: int = 0, max_evals: int = 300, metric: str = "jacobian_condition",
+                 bounds: tuple[float, float] = (25.0, 60.0)):
     d = {"name": "beta", "base": "prrr-paper",
-         # lower bound 15°: below ≈ 12.5° prrr-paper's chain does not close within its 170 mm stroke
-         # (analysis.prrr.assembly.closure), so those points are not-assemblable, not evaluator answers
-         "variables": [{"key": "geometry.beta_deg", "lower": 15.0, "upper": 80.0}],
+         # 25…60°: prrr-paper can be built there; outside, analysis.prrr.geometry.assembly.check_built refuses it
+         # (below ≈ 21° no carriage face carries the R1 clevis, above 60° the R3 lugs meet the stem), so those
+         # points are not-assemblable, not evaluator answers
+         "variables": [{"key": "geometry.beta_deg", "lower": bounds[0], "upper": bounds[1]}],
          "objective": {"metric": metric, "sense": "minimise"},
          "optimiser": {"algorithm": algorithm, "local": local, "starts": starts, "seed": seed,
                        "xtol_rel": 1e-8, "ftol_rel": 0.0, "max_evals": max_evals}}
@@ -120,7 +122,8 @@ def _nan_above_40(task: PointTask):
 
 @pytest.mark.parametrize("algorithm", ["LN_COBYLA", "LN_BOBYQA", "GN_DIRECT_L"])
 def test_nan_and_failures_are_guarded(algorithm):
-    p = beta_problem(algorithm)
+    # 15…80°: the points outside 25…60° that cannot be built (beta_problem) are failures the guard handles too
+    p = beta_problem(algorithm, bounds=(15.0, 80.0))
     p = dataclasses.replace(p, variables=(dataclasses.replace(p.variables[0], start=30.0),))
     res = run(p, evaluate_fn=_nan_above_40)
     outcomes = {r.outcome for r in res.history}
@@ -180,12 +183,12 @@ def test_multistart_is_seeded_and_deterministic():
 
 def test_maximise_flips_the_sign():
     p = problem_from_dict({"name": "m", "base": "prrr-paper",
-                           "variables": [{"key": "geometry.beta_deg", "lower": 20.0, "upper": 70.0}],
+                           "variables": [{"key": "geometry.beta_deg", "lower": 25.0, "upper": 60.0}],  # buildable
                            "objective": {"metric": "max_force_N[0]", "sense": "maximise"},
                            "optimiser": {"algorithm": "LN_BOBYQA", "xtol_rel": 1e-8, "max_evals": 100}})
     res = run(p)
     # F_x max = 2 F_max / tan β (seed digest) grows as β falls: the optimum is the lower bound
-    assert res.best.x[0] == pytest.approx(20.0, abs=1e-6)
+    assert res.best.x[0] == pytest.approx(25.0, abs=1e-6)
     assert res.best.f == -res.best.objective
 
 
@@ -253,3 +256,21 @@ def test_each_point_gets_the_runs_route(executor, expected_threads):
     run(beta_problem("LN_BOBYQA", max_evals=4), executor=executor, evaluate_fn=evaluate,
         compute=Compute(backend="numba", threads=2))
     assert seen and set(seen) == {Compute(backend="numba", threads=expected_threads)}
+
+
+def test_starts_are_drawn_from_designs_that_can_be_built():
+    """Issue 30 item 4: beta over 10…88°, where prrr-paper can be built only within ≈ 22.5…60° (assembly.check_built):
+    every drawn start's design can be built, the rejected draws are counted, and the run says so."""
+    from hapticopt.analysis.registry import not_built
+
+    p = beta_problem("LN_COBYLA", starts=6, seed=3, max_evals=12, bounds=(10.0, 88.0))
+    draws = driver.start_draws(p)
+    assert len(draws) == 6 and draws[0][1] == 0
+    lo, hi = p.lower[0], p.upper[0]
+    for u, _ in draws[1:]:
+        assert not_built(p.design_at((lo + u[0] * (hi - lo),))) == ""
+    # about half of the range cannot be built: with 5 seeded draws some are rejected
+    assert sum(n for _, n in draws) > 0
+    res = run(p)
+    assert [s.rejected_draws for s in res.starts] == [n for _, n in draws]
+    assert any("rejected and redrawn" in n for n in res.notes)

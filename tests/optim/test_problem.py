@@ -35,8 +35,16 @@ def test_bundled_problems_load():
     assert {"prrr-workspace", "master-transparency"} <= set(problem_names())
     p = load_problem("prrr-workspace")
     assert p.device == "prrr" and p.objective.sense is Sense.MAXIMISE
-    assert p.objective.metric.name == "workspace_free_footprint_ratio"
+    assert p.objective.metric.name == "workspace_free_device_ratio"  # issue 30: the whole device, links included
     assert {v.key for v in p.variables} >= {"geometry.r_p_mm", "geometry.theta_1p_deg"}
+    # issue 30 item 3: both bundled 3-PRRR problems bound the whole device and steer on collision-free metrics
+    for name in ("prrr-workspace", "prrr-pareto"):
+        q = load_problem(name)
+        limits = {c.metric.name: (c.op, c.value) for c in q.constraints}
+        assert limits["device_diameter_mm"][0] is Op.LE and limits["device_height_mm"][0] is Op.LE, name
+        assert limits["workspace_free_height_at_diameter_mm"] == (Op.GE, 89.0), name
+        assert "interference_overlap_fraction" not in limits, name
+    assert [o.metric.name for o in load_problem("prrr-pareto").objectives][0] == "workspace_free_device_ratio"
     m = load_problem("master-transparency")
     assert m.device == "master"
     assert m.constraints[0].op is Op.LE and m.constraints[0].value == 0.1  # seed 003: 0.1 N unbalance

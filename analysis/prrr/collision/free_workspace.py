@@ -39,7 +39,10 @@ Metrics (engineering units at the edge):
   cylinder: R* = min(R_free, L tan β / 3) (the same convention as the reach-only cylinder);
 * ``workspace_free_height_at_diameter_mm`` — height of the collision-free cylinder of the
   required diameter (0 when it is not free or not reachable);
-* ``workspace_free_footprint_ratio`` — free cylinder diameter over the footprint diameter.
+* ``workspace_free_footprint_ratio`` — free cylinder diameter over the footprint diameter;
+* ``workspace_free_device_ratio`` — free cylinder diameter over the whole device's diameter
+  (``device_diameter_mm`` of the workspace evaluator: the body or the links' sweep, whichever is larger).
+  The ratio over the footprint rewards links that reach far outside the body; this one does not.
 
 Status: ``ok`` when the required cylinder (φ140 × 89 mm, seed 002 Table 1) is reachable and
 collision-free; ``not-met`` (numbers kept: an optimiser steers on them) when reach and stroke
@@ -62,10 +65,12 @@ from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.prrr.collision import interference_fast
 from hapticopt.analysis.prrr.geometry import assembly
+from hapticopt.analysis.prrr.geometry.workspace import SAMPLING as WS_SAMPLING
 from hapticopt.analysis.prrr.geometry.workspace import (  # noqa: F401  (DEFAULT_REQUIRED_HEIGHT re-exported)
     DEFAULT_REQUIRED_DIAMETER,
     DEFAULT_REQUIRED_HEIGHT,
     ELBOW_BRANCH,
+    device_diameter,
     workspace_core,
     workspace_params,
 )
@@ -109,6 +114,7 @@ class FreeWorkspace:
     required_height: float  # [m]
     height_at_required: float  # [m] height of the free cylinder of the required diameter (0: not free)
     footprint_diameter: float  # [m]
+    device_diameter: float  # [m] the body or the links' sweep, whichever is larger (workspace.device_diameter)
     poses: int  # poses checked
     colliding: int  # of which colliding
     fidelity: Fidelity
@@ -120,6 +126,10 @@ class FreeWorkspace:
     def footprint_ratio(self) -> float:
         return self.cylinder_diameter / self.footprint_diameter if self.footprint_diameter > 0 else 0.0
 
+    @property
+    def device_ratio(self) -> float:
+        return self.cylinder_diameter / self.device_diameter if self.device_diameter > 0 else 0.0
+
     def metrics(self) -> dict[str, float]:
         return {
             "workspace_free_radius_mm": self.free_radius * 1e3,
@@ -127,6 +137,7 @@ class FreeWorkspace:
             "workspace_free_cylinder_height_mm": self.cylinder_height * 1e3,
             "workspace_free_height_at_diameter_mm": self.height_at_required * 1e3,
             "workspace_free_footprint_ratio": self.footprint_ratio,
+            "workspace_free_device_ratio": self.device_ratio,
         }
 
 
@@ -234,6 +245,11 @@ def evaluate(design: PrrrDesign, *, fidelity: Fidelity = Fidelity.STANDARD,
                           envelope=None if shared is None else shared.envelope(design))
     # the reach radius, emptiness and footprint (all this reads of the core) do not depend on n_r
     core = workspace_core(wp, n_phi=48, n_r=2) if shared is None else shared.reach_core(design, wp, n_phi=48, n_r=2)
+    # the links' sweep (it depends on the radial sampling): the workspace evaluator's core at this fidelity
+    ws = WS_SAMPLING[fidelity]
+    swept = (workspace_core(wp, n_phi=ws.n_phi, n_r=ws.n_r) if shared is None
+             else shared.workspace_core(design, wp, n_phi=ws.n_phi, n_r=ws.n_r))
+    core = {**core, "link_extent": swept["link_extent"]}
     r_max = reach_limit(design, core)
     if bool(core["empty"]) or r_max <= 0.0:
         return finish(design, core, None, fidelity=fidelity, t0=t0, required_diameter=required_diameter,
@@ -259,6 +275,7 @@ def finish(design: PrrrDesign, core: dict, found: tuple[float, int, int] | Excep
     smp = SAMPLING[fidelity]
     g = design.geometry
     footprint = float(core["footprint_diameter"])
+    device = device_diameter(footprint, 2.0 * float(core["link_extent"]))
     cot = 1.0 / math.tan(g.beta)
 
     def result(r_free: float, poses: int, colliding: int, status: Status, message: str) -> FreeWorkspace:
@@ -268,7 +285,7 @@ def finish(design: PrrrDesign, core: dict, found: tuple[float, int, int] | Excep
         h_req = max(g.stroke - 2.0 * r_req * cot, 0.0) if r_req <= r_free else 0.0
         return FreeWorkspace(free_radius=r_free, cylinder_diameter=2.0 * r_cyl, cylinder_height=h_cyl,
                              required_diameter=required_diameter, required_height=required_height,
-                             height_at_required=h_req, footprint_diameter=footprint, poses=poses,
+                             height_at_required=h_req, footprint_diameter=footprint, device_diameter=device, poses=poses,
                              colliding=colliding, fidelity=fidelity, wall_s=time.perf_counter() - t0,
                              status=status, message=message)
 

@@ -11,11 +11,15 @@ Two ways a described 3-PRRR cannot be put together:
   with the pure kinematic annulus (no fold margin: a design that closes only near its folded
   elbow is assemblable, its workspace is ``empty``) on :data:`CLOSURE_RAYS` rays per third of the
   circle (3-fold symmetry); a reachable region thinner than the ray spacing (2.5°) can be missed.
-* **The parts cannot be laid out** (the evaluators that use the parts check this,
-  :func:`parts`): :func:`hapticopt.design.prrr.cad.layout` refuses the design (a wall thinner
-  than the CAD's minimum feature, the R1 clevis inside the carriage block, …). The kinematic
-  evaluators (statics, structure, stability, workspace) describe the kinematic model and do not
-  need the parts.
+* **The parts cannot be laid out** (:func:`parts`): :func:`hapticopt.design.prrr.cad.layout`
+  refuses the design (a wall thinner than the CAD's minimum feature, no face of the carriage block
+  can carry the R1 clevis, …).
+
+Either way the device does not exist, and no number describes it: the registry's one rule
+(:data:`hapticopt.analysis.registry.ASSEMBLY` → :func:`check_built`) reports every evaluator of such
+a design ``not-assemblable`` with every metric NaN — the kinematic ones (statics, stiffness,
+workspace, stability) too, whose model could be evaluated but describes nothing that can be built.
+An evaluator called directly keeps its own early check (:func:`closure`, or :func:`check` with the parts).
 
 Each returns ``''`` when assemblable, else the message of the ``not-assemblable`` status.
 """
@@ -26,7 +30,9 @@ import functools
 
 from hapticopt.analysis.prrr.geometry.workspace import CLOSURE_RAYS, closure, closure_many  # noqa: F401  (re-exported)
 from hapticopt.design.errors import HapticoptError
+from hapticopt.analysis.compute import DEFAULT, Compute
 from hapticopt.design.prrr import cad as cad_prrr
+from hapticopt.design.prrr import layout as prrr_layout
 from hapticopt.design.prrr.params import PrrrDesign
 
 #: cached: one evaluation asks it for each design several times (the registry, statics, stability,
@@ -45,3 +51,20 @@ def check(design: PrrrDesign, *, with_parts: bool = False) -> str:
     """'' when ``design`` can be assembled (the chain closes; and, with ``with_parts``, the CAD lays
     its parts out), else the message of the ``not-assemblable`` status."""
     return closure(design) or (parts(design) if with_parts else "")
+
+
+def check_built(design: PrrrDesign) -> str:
+    """'' when ``design`` can be built (its chain closes and the CAD lays its parts out), else why not:
+    the registry's rule for the 3-PRRR (:data:`hapticopt.analysis.registry.ASSEMBLY`)."""
+    return check(design, with_parts=True)
+
+
+def check_built_many(designs: list[PrrrDesign], *, compute: Compute = DEFAULT) -> list[str]:
+    """:func:`check_built` of many designs: the chain closure of the batch (:func:`closure_many`) and the
+    layout's rules in one array pass (:func:`hapticopt.design.prrr.layout.layouts`); the message of a
+    refused layout is :func:`parts`'s (the same rule, the first one failed)."""
+    if not designs:
+        return []
+    closes = closure_many(designs, compute=compute)
+    refused = prrr_layout.layouts(designs).failed >= 0
+    return [why or (parts(d) if refused[k] else "") for k, (d, why) in enumerate(zip(designs, closes))]

@@ -534,6 +534,12 @@ class PrrrWorkspace:
         """Inscribed-cylinder diameter over footprint diameter (seed 002: φ140 / φ260)."""
         return self.cylinder_diameter / self.footprint_diameter if self.footprint_diameter > 0 else 0.0
 
+    @property
+    def device_diameter(self) -> float:
+        """Diameter of the whole device in xy [m]: the body (fixed parts, carriages) or what the links sweep over
+        the reach region, whichever is larger (:func:`device_diameter`)."""
+        return device_diameter(self.footprint_diameter, self.link_sweep_diameter)
+
     def metrics(self) -> dict[str, object]:
         """Engineering-unit metrics (names carry their units)."""
         out: dict[str, object] = {
@@ -544,6 +550,7 @@ class PrrrWorkspace:
             "workspace_required_diameter_mm": self.required_diameter * 1e3,
             "footprint_diameter_mm": self.footprint_diameter * 1e3,
             "link_sweep_diameter_mm": self.link_sweep_diameter * 1e3,
+            "device_diameter_mm": self.device_diameter * 1e3,
             "workspace_footprint_ratio": self.footprint_ratio,
         }
         if self.condition_deviation is not None:
@@ -553,6 +560,13 @@ class PrrrWorkspace:
         if self.free_volume is not None:
             out["workspace_free_volume_mm3"] = self.free_volume * 1e9
         return out
+
+
+def device_diameter(footprint: float, link_sweep: float) -> float:
+    """The device's diameter in xy [m] from its body's (``footprint``: base plate, rails, carriages, SEA modules)
+    and its links' swept diameter over the reach region (``link_sweep``: 2 × the core's ``link_extent``): the
+    larger — a housing of the body's size alone would be struck by the elbows (issue 30)."""
+    return max(footprint, link_sweep)
 
 
 def _result(arrays: dict, required_radius: float, fidelity: Fidelity,

@@ -80,6 +80,7 @@ from hapticopt.analysis.prrr.structure.frame_beam import (Section, SectionProper
                                                 _skew, beam_global_stiffness, circle_properties, neck_stiffness,
                                                 rigid_map, section_properties)
 from hapticopt.analysis.prrr.structure.frame_params import FrameParams, frame_params_of
+from hapticopt.design.prrr.cad import DEFAULT_BRANCH
 from hapticopt.design.prrr.kinematics import PrrrParams, inverse_kinematics, leg_chain, leg_frames
 
 #: Above this 1-norm condition number (Jacobi-scaled K) a result is reported as ill-conditioned.
@@ -120,7 +121,9 @@ class FrameOptions:
     joints: Joints = Joints.RELEASED
     offsets: Offsets = Offsets.BEAM
     sea: bool = False  # SEA springs in series along z between slider and rail (else locked)
-    branch: int = 0  # elbow branch of the IK: 0 (θ2 ≥ 0) or 1 (θ2 ≤ 0)
+    # elbow branch of the IK: 0 (θ2 ≥ 0) or 1 (θ2 ≤ 0). Default: the branch the device is assembled in, the
+    # CAD's (design.prrr.cad.DEFAULT_BRANCH = 1; branch 0's link2 collide under the platform, docs/cad.md)
+    branch: int = DEFAULT_BRANCH
     joint_zones: bool = True  # beam ends within the boss radius of a joint (A, B, Q) or of P are rigid
     pins: bool = True  # CAD layering: members in their layers along w, joined through pins of the bore
     pin_model: PinModel = PinModel.NECK  # with pins: constriction springs at the gap, or free pin beams

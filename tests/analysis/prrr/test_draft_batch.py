@@ -96,8 +96,8 @@ def test_batch_equals_single_path_within_the_problem_bounds(problem_sample):
     """40 seeded designs within the bounds of the bundled workspace problem (and one whose chain
     does not close): equal statuses,
     messages and metrics, and the sample holds colliding designs, not-met cylinders, designs whose
-    parts cannot be laid out (batched: the kinematic evaluators run) and chains that do not close
-    (single path)."""
+    parts cannot be laid out and chains that do not close (both: the single path, every evaluator
+    not-assemblable)."""
     # + prrr-paper with d2 = 300 mm: |ρ| ≥ 300 mm > d3 + d4 = 171 mm, the chain does not close
     designs = problem_sample(40, seed=2203) + [_geometry(BASE, d2=0.300)]
     single = [evaluate_all(d, fidelity=Fidelity.DRAFT) for d in designs]
@@ -106,9 +106,9 @@ def test_batch_equals_single_path_within_the_problem_bounds(problem_sample):
     for case in [("interference", "collides"), ("interference", "ok"), ("free_workspace", "not-met"),
                  ("device_size", "not-assemblable"), ("device_size", "ok")]:
         assert case in seen, case
-    parts_only = [ev for ev in single if str(ev.statuses["device_size"]) == "not-assemblable"
-                  and str(ev.statuses["statics"]) != "not-assemblable"]
-    assert parts_only, "no design whose parts alone block it"
+    # one rule (issue 30 item 2): a design whose parts cannot be laid out is not-assemblable everywhere
+    assert all(set(map(str, ev.statuses.values())) == {"not-assemblable"} for ev in single
+               if str(ev.statuses["device_size"]) == "not-assemblable")
     assert ("statics", "not-assemblable") in seen
 
 
@@ -144,7 +144,7 @@ def test_envelopes_equal_the_cad_envelope(problem_sample):
 
 
 def test_sample_covers_the_hard_cases(both):
-    """The sample is not all-ok: singular/ill-conditioned statics, collision-free workspaces that miss
+    """The sample is not all-ok: singular/ill-conditioned J (not buildable), collision-free workspaces that miss
     the required cylinder (not-met) and designs that cannot be assembled (the parts cannot be laid
     out: the single path answers them), and colliding poses are in it."""
     _, single, _ = both
@@ -152,8 +152,11 @@ def test_sample_covers_the_hard_cases(both):
     for case in [("statics", "ok"), ("free_workspace", "ok"), ("free_workspace", "not-met"),
                  ("free_workspace", "not-assemblable"), ("interference", "collides")]:
         assert case in seen, case
-    assert ("statics", "singular") in seen and ("statics", "ill-conditioned") in seen
-    assert any(ev.results["free_workspace"].colliding > 0 for ev in single if "free_workspace" in ev.results)
+    # β → 0 and β → 90° (singular, ill-conditioned J): the CAD cannot lay their parts out, so the one rule for
+    # designs that cannot be built answers them (issue 30 item 2), by either path
+    for k in (1, 2):
+        assert set(map(str, single[k].statuses.values())) == {"not-assemblable"}, single[k].statuses
+    assert any(getattr(ev.results.get("free_workspace"), "colliding", 0) > 0 for ev in single)
 
 
 @pytest.mark.parametrize("only", [("statics", "free_workspace"), ("free_workspace",), ("interference",),
@@ -268,10 +271,11 @@ def test_checker_on_two_threads_equals_one_thread_bitwise(both):
 def test_same_results_with_every_backend_and_thread_count(problem_sample):
     """``evaluate_many`` with ``Compute(backend=numpy | numba | auto)`` at 1 and 2 threads: the same
     statuses and messages, and the same metrics — bit for bit between thread counts of one backend (the
-    collision kernel runs on every backend), within 1e-10 relative between backends (the frame
-    condensation's numpy route and numba kernel sum in different orders; the metrics snapshot holds
-    1e-9) — NaN where NaN, on 40 designs within the problem bounds (enough interference poses for two
-    threads' shares)."""
+    collision kernel runs on every backend), within 1e-9 relative between backends, the metrics snapshot's
+    tolerance (the frame condensation's numpy LU and numba Cholesky sum in different orders: on the CAD's
+    elbow branch, the frame model's default since issue 30, design 15 of this sample has structural_condition
+    2.3e5 and differs by 1.9e-10) — NaN where NaN, on 40 designs within the problem bounds (enough
+    interference poses for two threads' shares)."""
     designs = problem_sample(40, seed=2911)
     runs = {(b, t): draft_batch.evaluate_many(designs, compute=Compute(backend=b, threads=t))
             for b in ("numpy", "numba", "auto") for t in (1, 2)}
@@ -295,7 +299,7 @@ def test_same_results_with_every_backend_and_thread_count(problem_sample):
                     assert all(np.array_equal(np.float64(ma[k]).view(np.int64), np.float64(mb[k]).view(np.int64))
                                for k in ma), (key, name)
                 else:
-                    assert all(np.allclose(ma[k], mb[k], rtol=1e-10, atol=0.0, equal_nan=True) for k in ma), (key, name)
+                    assert all(np.allclose(ma[k], mb[k], rtol=1e-9, atol=0.0, equal_nan=True) for k in ma), (key, name)
     assert any(str(r["interference"].status) == "collides" for r, _ in ref)
 
 

@@ -54,6 +54,18 @@ def test_a_design_that_cannot_be_assembled_exits_3_and_says_so():
     assert len(res.stderr.strip().splitlines()) == 1 and "statics (not-assemblable)" in res.stderr
 
 
+def test_a_design_whose_parts_cannot_be_laid_out_has_no_ok_metric():
+    # issue 30 item 2: Table 2's r_p = 100 mm with prrr-paper's rail angle θ_1p = 83° — no face of the carriage
+    # block carries the R1 clevis (design.prrr.layout) — printed footprint 260 mm and k_x 43.3 N/mm with "ok"
+    res = invoke("evaluate", "--preset", "prrr-paper", "--set", "geometry.r_p_mm=100", "--set", "geometry.theta_1p_deg=83",
+                 "--fidelity", "draft", "--json")
+    assert res.exit_code == 3, res.output
+    out = json.loads(res.stdout)
+    assert set(out["status"].values()) == {"not-assemblable"}
+    assert all("the parts cannot be laid out" in m for m in out["messages"].values())
+    assert all(v is None or (isinstance(v, float) and math.isnan(v)) for v in out["metrics"].values())
+
+
 def test_a_missed_workspace_requirement_is_not_met_in_the_table():
     # issue 21: "workspace: ok — a cylinder of diameter 140 mm does not fit"
     res = invoke("evaluate", "--preset", "prrr-paper", "--set", "geometry.d3_mm=60", "--set", "geometry.d4_mm=60",

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from hapticopt.analysis.prrr.geometry import assembly
-from hapticopt.analysis.registry import EVALUATORS, evaluate_all
+from hapticopt.analysis.registry import EVALUATORS, evaluate_all, evaluate_batch
 from hapticopt.analysis.status import Status
 from hapticopt.design import io
 
@@ -32,7 +32,7 @@ def test_chain_that_cannot_close_is_not_assemblable_everywhere(paper):
     assert set(ev.statuses) == {e.name for e in EVALUATORS["prrr"]}
     assert all(s is Status.NOT_ASSEMBLABLE for s in ev.statuses.values()), ev.statuses
     m = ev.metrics()
-    assert math.isnan(m["jacobian_condition"]) and math.isnan(m["max_force_N"][0])  # statics: no plausible numbers
+    assert math.isnan(m["jacobian_condition"]) and math.isnan(m["max_force_N"])  # statics: no plausible numbers
     assert math.isnan(m["force_loop_bandwidth_Hz"]) and math.isnan(m["interference_removed_fraction"])
 
 
@@ -54,6 +54,25 @@ def test_parts_that_cannot_be_laid_out_are_named(paper):
     assert assembly.closure(d) == ""  # the kinematic chain closes ...
     why = assembly.check(d, with_parts=True)  # ... the parts do not fit
     assert why.startswith("the parts cannot be laid out:") and "theta_1p_deg" in why
-    ev = evaluate_all(d, fidelity="draft", only=("statics", "interference", "device_size"))
-    assert ev.statuses == {"statics": Status.OK, "interference": Status.NOT_ASSEMBLABLE,
-                           "device_size": Status.NOT_ASSEMBLABLE}
+    # issue 30 item 2, one rule: a device whose parts cannot be laid out does not exist, so the kinematic
+    # evaluators (statics, stiffness, workspace, stability) give no number for it either
+    ev = evaluate_all(d, fidelity="draft")
+    assert set(ev.statuses) == {e.name for e in EVALUATORS["prrr"]}
+    assert all(s is Status.NOT_ASSEMBLABLE for s in ev.statuses.values()), ev.statuses
+    assert set(ev.messages.values()) == {why}
+    m = ev.metrics()
+    assert all(isinstance(v, float) and math.isnan(v) for v in m.values()), m
+    assert {"jacobian_condition", "structural_stiffness_N_per_mm", "footprint_diameter_mm",
+            "force_loop_bandwidth_Hz"} <= set(m)
+
+
+def test_the_batch_applies_the_same_rule(paper):
+    # the registry's batch sends every design that cannot be built to the single path (check_built_many)
+    designs = [paper, io.apply_overrides(paper, ["geometry.theta_1p_deg=70"]),
+               io.apply_overrides(paper, ["geometry.d2_mm=300"])]
+    assert assembly.check_built_many(designs) == [assembly.check_built(d) for d in designs]
+    assert [bool(w) for w in assembly.check_built_many(designs)] == [False, True, True]
+    evs = evaluate_batch(designs, fidelity="draft")
+    assert all(s is Status.OK for s in evs[0].statuses.values()), evs[0].statuses
+    for ev in evs[1:]:
+        assert all(s is Status.NOT_ASSEMBLABLE for s in ev.statuses.values()), ev.statuses

@@ -435,3 +435,17 @@ def test_scalar_newton_steps_equal_the_array_form_bitwise(problem_sample):
                 assert np.float64(got).tobytes() == want[0].tobytes()
                 n += 1
     assert n == 4 * len(designs)
+
+
+def test_device_diameter_is_the_body_or_the_link_sweep():
+    """Issue 30 item 3: the device's diameter counts what the links sweep. prrr-paper's links sweep beyond its
+    body (the issue measured 367.2 mm against a 267 mm footprint at standard fidelity), so the device diameter
+    is the sweep; the collision-free ratio over it is the free cylinder over that diameter."""
+    from hapticopt.analysis.registry import evaluate_all
+
+    m = evaluate_all(io.load_preset("prrr-paper"), fidelity="standard", only=("workspace", "free_workspace")).metrics()
+    assert m["device_diameter_mm"] == max(m["footprint_diameter_mm"], m["link_sweep_diameter_mm"])
+    assert m["link_sweep_diameter_mm"] > m["footprint_diameter_mm"] + 90.0
+    assert m["workspace_free_device_ratio"] == pytest.approx(
+        m["workspace_free_cylinder_diameter_mm"] / m["device_diameter_mm"], rel=1e-12)
+    assert m["workspace_free_device_ratio"] < m["workspace_free_footprint_ratio"]
