@@ -67,9 +67,14 @@ def _mjcf(design: Any, p, masses, joint_limits: Any = None) -> str:
 STEPS = ("cad", "mass properties + MJCF", "STEP", "STL", "drawings", "render")
 
 
-def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False,
+def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False, drawings_2d: bool = False,
            on_step: Callable[[str, int, int], None] | None = None, joint_limits: Any = None) -> ExportResult:
     """Write the export set of ``design`` posed at end-effector position ``p`` [m] into ``out_dir``.
+
+    ``drawings_2d``: also the dimensioned drawings (SVG + DXF per manufactured part). Off unless asked:
+    build123d's hidden-line projection and its SVG/DXF writers take 5–35 s per part (≈ 100 s for the
+    3-PRRR's five drawings, four times the rest of the export), which the optimiser's export and a
+    quick look at the CAD should not pay.
 
     ``joint_limits``: the 3-PRRR's R-joint ranges for its MJCF (:class:`hapticopt.design.prrr.mjcf.RJointLimits`,
     from the joint-limits evaluator: ``hapticopt.analysis.prrr.loop.mujoco_model.export_joint_limits``; None:
@@ -78,7 +83,7 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False,
     ``on_step(step, done, total)`` is called before each step of :data:`STEPS` (the render only
     with ``render``) and once at the end with ``('', total, total)``.
     """
-    steps = STEPS if render else STEPS[:-1]
+    steps = tuple(s for s in STEPS if (s != "render" or render) and (s != "drawings" or drawings_2d))
 
     def step(name: str) -> None:
         if on_step is not None:
@@ -132,16 +137,17 @@ def export(design: Any, out_dir: str | Path, *, p=None, render: bool = False,
                 export_stl(solid, tmp, tolerance=0.01, angular_tolerance=0.1)
             files.append(target)
         timings["stl"] = time.perf_counter() - t
-        t = time.perf_counter()
-        step("drawings")
-        for name, parts in drawings.groups(specs).items():
-            svg, dxf = (inside(out_dir, Path("drawings") / f"{name}.{ext}") for ext in ("svg", "dxf"))
-            spec = specs[parts[0]]
-            mass = spec.density * solids[parts[0]].volume * 1e-9  # the CAD solid is in mm
-            with atomic.atomic_path(staged(svg)) as tmp_svg, atomic.atomic_path(staged(dxf)) as tmp_dxf:
-                drawings.draw(solids[parts[0]], name, parts, spec.material, mass, Path(tmp_svg), Path(tmp_dxf))
-            files += [svg, dxf]
-        timings["drawings"] = time.perf_counter() - t
+        if drawings_2d:
+            t = time.perf_counter()
+            step("drawings")
+            for name, parts in drawings.groups(specs).items():
+                svg, dxf = (inside(out_dir, Path("drawings") / f"{name}.{ext}") for ext in ("svg", "dxf"))
+                spec = specs[parts[0]]
+                mass = spec.density * solids[parts[0]].volume * 1e-9  # the CAD solid is in mm
+                with atomic.atomic_path(staged(svg)) as tmp_svg, atomic.atomic_path(staged(dxf)) as tmp_dxf:
+                    drawings.draw(solids[parts[0]], name, parts, spec.material, mass, Path(tmp_svg), Path(tmp_dxf))
+                files += [svg, dxf]
+            timings["drawings"] = time.perf_counter() - t
         atomic.write_text(staged(xml_path), mjcf)
         files.append(xml_path)
         atomic.write_text(staged(json_path), masses.to_json())

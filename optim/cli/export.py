@@ -49,14 +49,16 @@ def export(
     out: Annotated[Optional[Path], typer.Option("--out", help="Output directory [default: cad_out/<design-name>/].")] = None,
     pose: Annotated[Optional[str], typer.Option("--pose", help="End-effector position X,Y,Z in mm [default: home].")] = None,
     render_png: Annotated[bool, typer.Option("--render", help="Also write <name>.png (pyvista, off-screen).")] = False,
+    drawings_2d: Annotated[bool, typer.Option("--drawings", help="Also write DIR/drawings/<part>.svg|dxf: a "
+                                              "dimensioned drawing per manufactured part (slow: ~20 s a part).")] = False,
     poses: Annotated[int, typer.Option("--poses", help="Check interference (manifold3d) at N workspace poses "
                                        "instead of only the exported pose (3-PRRR: the reach-and-stroke "
                                        "workspace samples; 0 to 1000).")] = 0,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, device, out_dir, files, total_mass_kg, "
                                                          "interference, timings_s}.")] = False,
 ) -> None:
-    """Export the CAD of a design: DIR/<name>.step, DIR/parts/*.stl, DIR/drawings/*.svg|dxf (a dimensioned drawing
-    per manufactured part), DIR/<name>.xml, DIR/mass_properties.json."""
+    """Export the CAD of a design: DIR/<name>.step, DIR/parts/*.stl, DIR/<name>.xml, DIR/mass_properties.json, and
+    with --drawings DIR/drawings/*.svg|dxf (a dimensioned drawing per manufactured part)."""
     t0 = time.perf_counter()
     from hapticopt.analysis import interference  # heavy (CAD, jax): imported when the command runs
     from hapticopt.design.export import export as run_export
@@ -76,7 +78,8 @@ def export(
         if design.device == "prrr":  # the MJCF's R-joint ranges from the joint-limits evaluator (fine: parts' stops)
             from hapticopt.analysis.prrr.loop.mujoco_model import export_joint_limits
             limits = export_joint_limits(design)
-        result = run_export(design, out_dir, p=p, render=render_png, on_step=line.step, joint_limits=limits)
+        result = run_export(design, out_dir, p=p, render=render_png, drawings_2d=drawings_2d, on_step=line.step,
+                            joint_limits=limits)
         where = "the home pose" if p is None else f"the pose ({pose}) mm"
         line.stage("check", 1, f"interference at {poses} workspace poses" if poses > 0 else f"interference at {where}")
         if poses > 0:

@@ -29,7 +29,7 @@ def paper():
 @pytest.fixture(scope="module")
 def exported(paper, tmp_path_factory):
     out = tmp_path_factory.mktemp("export")
-    return ex.export(paper, out, p=np.array([0.01, -0.02, 0.015]))
+    return ex.export(paper, out, p=np.array([0.01, -0.02, 0.015]), drawings_2d=True)
 
 
 @pytest.fixture(scope="module")

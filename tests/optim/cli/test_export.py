@@ -13,6 +13,8 @@ def test_default_export_names_the_home_pose(tmp_path):
     res = runner.invoke(app, ["export", "--preset", "prrr-paper", "--out", str(tmp_path)])
     assert res.exit_code == 0, res.output
     assert "interference: none at the home pose — only this pose was checked" in res.output
+    # the drawings (≈ 100 s for prrr-paper) are written only with --drawings (tests/design/test_export.py draws them)
+    assert (tmp_path / "prrr-paper.step").is_file() and not (tmp_path / "drawings").exists()
 
 
 def test_poses_option_checks_the_workspace():
