@@ -175,8 +175,11 @@ def part_specs(design: MasterDesign) -> dict[str, PartSpec]:
     tops = {"upper_arm": below_upper, "driver_link": below_upper - ell - s.clearance,
             "coupler": _layer(design, 1) - Tl / 2, "forearm": -Tl / 2}
     targets = model_bodies(design)
+    structure = [p for p in out.values() if p.body in tops]
+    props = _parts.volume_properties_many([p.primitives for p in structure])  # one batched call
     for body, y_top in tops.items():
-        ballast = _ballast(design, body, [p for p in out.values() if p.body == body], targets[body], y_top)
+        own = [(p.density * vp.volume, vp.centroid) for p, vp in zip(structure, props) if p.body == body]
+        ballast = _ballast(design, body, own, targets[body], y_top)
         if ballast is not None:
             out[ballast.name] = ballast
     return out
@@ -194,14 +197,14 @@ def model_bodies(design: MasterDesign) -> dict[str, tuple[float, np.ndarray]]:
     return {k: (m, mc / m if m > 0 else np.zeros(3)) for k, (m, mc) in out.items()}
 
 
-def _ballast(design: MasterDesign, body: str, parts: list[PartSpec], target: tuple[float, np.ndarray],
+def _ballast(design: MasterDesign, body: str, parts: list[tuple[float, np.ndarray]], target: tuple[float, np.ndarray],
              y_top: float) -> PartSpec | None:
-    """The steel disc that brings ``parts`` (one body) to the model's mass and in-plane CoM; None if
-    the structure already weighs the model's mass (within :data:`BALLAST_MIN_MASS`)."""
+    """The steel disc that brings ``parts`` (mass [kg], CoM (3,) [m] of each part of one body) to the
+    model's mass and in-plane CoM ``target``; None if the structure already weighs the model's mass
+    (within :data:`BALLAST_MIN_MASS`)."""
     s = design.structure
-    props = _parts.volume_properties_many([p.primitives for p in parts])
-    m_e = sum(p.density * vp.volume for p, vp in zip(parts, props))
-    mc_e = sum(p.density * vp.volume * vp.centroid for p, vp in zip(parts, props))
+    m_e = sum(m for m, _ in parts)
+    mc_e = sum(m * c for m, c in parts)
     M, c = target
     m_s = M - m_e
     if m_s < -BALLAST_MIN_MASS:
