@@ -111,14 +111,19 @@ class MasterStructure:
                                  doc="joint boss outer diameter")
     bore_diameter: float = param("bore_diameter_mm", "mm", default=6.0, lo=0.0, hi=500.0, lo_open=True,
                                  doc="joint pin bore diameter")
+    light_link_width: float = param("light_link_width_mm", "mm", default=8.0, lo=0.0, hi=500.0, lo_open=True,
+                                    doc="coupler and forearm cross-section, in the arm plane (light links: the "
+                                        "model gives them 30 g and 50 g, below a 14 × 8 mm aluminium bar)")
+    light_link_thickness: float = param("light_link_thickness_mm", "mm", default=4.0, lo=0.0, hi=500.0,
+                                        lo_open=True, doc="coupler and forearm cross-section, along the joint axis")
     clearance: float = param("clearance_mm", "mm", default=0.5, lo=0.0, hi=50.0, lo_open=True,
                              doc="axial gap between stacked links at a joint")
     density: float = param("density_kg_per_m3", "kg_per_m3", default=2700.0, lo=0.0, hi=25000.0, lo_open=True,
                            doc="link material density (aluminium 6061)")
     counterweight_density: float = param("counterweight_density_kg_per_m3", "kg_per_m3", default=7850.0, lo=0.0,
-                                         hi=25000.0, lo_open=True, doc="counterweight material (steel)")
+                                         hi=25000.0, lo_open=True, doc="counterweight and ballast material (steel)")
     counterweight_length: float = param("counterweight_length_mm", "mm", default=20.0, lo=0.0, hi=500.0,
-                                        lo_open=True, doc="counterweight disc length along the joint axis")
+                                        lo_open=True, doc="counterweight and ballast disc length along the joint axis")
     turret_radius: float = param("turret_radius_mm", "mm", default=30.0, lo=0.0, hi=1000.0, lo_open=True,
                                  doc="radius of the turret drum")
     base_radius: float = param("base_radius_mm", "mm", default=110.0, lo=0.0, hi=5000.0, lo_open=True,
