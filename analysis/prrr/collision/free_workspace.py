@@ -70,7 +70,6 @@ from hapticopt.analysis.prrr.geometry.workspace import (  # noqa: F401  (DEFAULT
     DEFAULT_REQUIRED_DIAMETER,
     DEFAULT_REQUIRED_HEIGHT,
     ELBOW_BRANCH,
-    device_diameter,
     workspace_core,
     workspace_params,
 )
@@ -275,7 +274,7 @@ def finish(design: PrrrDesign, core: dict, found: tuple[float, int, int] | Excep
     smp = SAMPLING[fidelity]
     g = design.geometry
     footprint = float(core["footprint_diameter"])
-    device = device_diameter(footprint, 2.0 * float(core["link_extent"]))
+    device = max(footprint, 2.0 * float(core["link_extent"]))  # the body or the links' sweep (workspace.device_diameter)
     cot = 1.0 / math.tan(g.beta)
 
     def result(r_free: float, poses: int, colliding: int, status: Status, message: str) -> FreeWorkspace:

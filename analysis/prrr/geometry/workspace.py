@@ -32,11 +32,9 @@ So the workspace is {(x, y) reached by every leg} × z-interval(x, y), and
   outside every hole), also for R (the feasible centres form a convex 3-fold-symmetric set,
   which contains its centroid, the axis). R_reach is computed exactly (sampled start, Newton
   on the ellipse parameter).
-* **footprint**: the device body in xy, the circle about z of the fixed parts and the carriages
-  with their SEA modules as built by ``hapticopt.design.prrr.cad`` (seed 002's "device size",
-  φ260 mm in Table 1). The links' swept extent (the R1, R2, R3 joint bosses over the sampled reach
-  region, in the CAD's elbow branch) is reported apart, ``link_sweep_diameter_mm``: with Table 2's
-  d1…d4 the elbows swing outside the body (docs/workspace.md).
+* **footprint**: the body in xy (fixed parts, carriages with SEA modules, as built by ``hapticopt.design.prrr.cad``;
+  Table 1's "device size" φ260 mm); ``link_sweep_diameter_mm`` is what the R1, R2, R3 bosses sweep over the
+  reach region (CAD's elbow branch), ``device_diameter_mm`` the larger: Table 2's elbows swing outside the body.
 * **Jacobian constancy**: the IK slider map is differentiated by central differences at
   sampled workspace points; the largest relative deviation of cond₂ from the analytic
   cond₂(J) is reported.
@@ -72,10 +70,9 @@ _GAMMA = np.asarray(GAMMAS)
 _THIRD = 2.0 * math.pi / 3.0
 
 def base_envelope(design: PrrrDesign, *, specs: dict | None = None) -> float:
-    """Radius [m] of the fixed parts' and carriages' envelope in xy, as built by
-    ``hapticopt.design.prrr.cad`` (base plate, rails, screws, motors, carriages with their SEA
-    housings: :func:`hapticopt.design.prrr.cad.envelope_radius`). Where the CAD cannot lay the
-    parts out, the base plate and the rail circle r_p + rail_width/2 (a lower bound)."""
+    """Radius [m] of the fixed parts' and carriages' envelope in xy, as built by the CAD (base plate, rails,
+    screws, motors, carriages with their SEA housings: ``cad.envelope_radius``); :func:`fallback_envelope`
+    where the CAD cannot lay the parts out."""
     try:
         return cad_prrr.envelope_radius(design, specs=specs)
     except HapticoptError:
@@ -89,15 +86,11 @@ def fallback_envelope(design: PrrrDesign) -> float:
     return max(s.base_radius, g.r_p + s.rail_width / 2.0)
 
 
-#: Elbow branch used for the links' swept extent: the CAD's assembly mode
-#: (``hapticopt.design.prrr.cad.DEFAULT_BRANCH``: branch 1 of the IK, elbows outwards, θ2 ≤ 0).
+#: Elbow branch of the links' swept extent: the CAD's (``cad.DEFAULT_BRANCH``: elbows outwards, θ2 ≤ 0).
 ELBOW_BRANCH = 1
 
-#: Default required cylinder diameter for ``workspace_height_at_diameter_mm`` [m]
-#: (seed 002 Table 1: workspace φ140 × 89 mm).
-DEFAULT_REQUIRED_DIAMETER = 0.140
-#: Default required height of that cylinder [m] (seed 002 Table 1: workspace φ140 × 89 mm).
-DEFAULT_REQUIRED_HEIGHT = 0.089
+#: Default required cylinder [m] for ``workspace_height_at_diameter_mm`` (seed 002 Table 1: φ140 × 89 mm).
+DEFAULT_REQUIRED_DIAMETER, DEFAULT_REQUIRED_HEIGHT = 0.140, 0.089
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -536,9 +529,9 @@ class PrrrWorkspace:
 
     @property
     def device_diameter(self) -> float:
-        """Diameter of the whole device in xy [m]: the body (fixed parts, carriages) or what the links sweep over
-        the reach region, whichever is larger (:func:`device_diameter`)."""
-        return device_diameter(self.footprint_diameter, self.link_sweep_diameter)
+        """The whole device's diameter in xy [m]: the body's footprint or the links' sweep over the reach region,
+        whichever is larger (a housing of the body's size alone would be struck by the elbows)."""
+        return max(self.footprint_diameter, self.link_sweep_diameter)
 
     def metrics(self) -> dict[str, object]:
         """Engineering-unit metrics (names carry their units)."""
@@ -560,13 +553,6 @@ class PrrrWorkspace:
         if self.free_volume is not None:
             out["workspace_free_volume_mm3"] = self.free_volume * 1e9
         return out
-
-
-def device_diameter(footprint: float, link_sweep: float) -> float:
-    """The device's diameter in xy [m] from its body's (``footprint``: base plate, rails, carriages, SEA modules)
-    and its links' swept diameter over the reach region (``link_sweep``: 2 × the core's ``link_extent``): the
-    larger — a housing of the body's size alone would be struck by the elbows (issue 30)."""
-    return max(footprint, link_sweep)
 
 
 def _result(arrays: dict, required_radius: float, fidelity: Fidelity,
