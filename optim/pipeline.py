@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
-import json
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -43,7 +42,7 @@ from hapticopt.optim.executor import InlineExecutor, check_scheduler, make_execu
 from hapticopt.optim import side as side_process
 from hapticopt.optim.side import side_executor
 from hapticopt.optim.worker import SupervisedWorker
-from hapticopt.optim import driver, pareto, pareto_report, report
+from hapticopt.optim import driver, pareto, pareto_report, report, strict_json
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, TimeHistory, Verdict
 from hapticopt.analysis import verify as closed_loop_verify
 from hapticopt.optim import cache as evaluation_cache
@@ -497,7 +496,7 @@ def _write_result_json(p: PipelineResult, dest: Path) -> None:
                    for s in p.stages],
         "files": p.files,
     }
-    write_text(inside(dest, "result.json"), json.dumps(payload, indent=2, default=str) + "\n")
+    write_text(inside(dest, "result.json"), strict_json.dumps(payload, indent=2) + "\n")
 
 
 def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False, force: bool = False,
@@ -585,5 +584,5 @@ def _run_front_locked(problem: Problem, out: Path, *, resume: bool, force: bool,
         "files": {"chosen" if feasible_final else "chosen_infeasible": chosen_file, "recorder": "evaluations.sqlite",
                   **files},
     }
-    write_text(inside(out, "result.json"), json.dumps(payload, indent=2, default=str) + "\n")
+    write_text(inside(out, "result.json"), strict_json.dumps(payload, indent=2) + "\n")
     return payload

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import contextlib
-import json
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 from rich.console import Console
 from rich.table import Table
 
@@ -53,7 +54,7 @@ def compare(
         with output_root(folder), run_lock(folder):
             written = cmp.write_report(result, report, renders=renders)
     if as_json:
-        typer.echo(json.dumps(cmp.as_json(result), indent=2))
+        typer.echo(strict_json.dumps(cmp.as_json(result), indent=2))
         return
     console = Console()
     labels = [d.label for d in named]

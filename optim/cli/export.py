@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import contextlib
-import json
 import time
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
@@ -82,7 +83,7 @@ def export(
                 " — only this pose was checked; --poses N checks the workspace"
     wall = time.perf_counter() - t0
     if as_json:
-        typer.echo(json.dumps({"design": design.name, "device": design.device, "out_dir": str(out_dir),
+        typer.echo(strict_json.dumps({"design": design.name, "device": design.device, "out_dir": str(out_dir),
                                "files": [str(f) for f in result.files], "total_mass_kg": result.total_mass_kg,
                                "interference": message, "timings_s": {**result.timings_s, "wall": wall}}, indent=2))
         return

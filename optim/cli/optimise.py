@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 
 from hapticopt.optim.cli.common import (
     CACHE_HELP, MAX_WORKERS, NO_CACHE_HELP, ComputeOption, ThreadsOption, cache_file, not_met, one_line_errors,
@@ -77,7 +78,7 @@ def optimise(
                                      workers=workers, cache=cache_path, progress=on_run, compute=route)
         ch = res["chosen"]
         if as_json:
-            typer.echo(json.dumps(res, indent=2, default=str))
+            typer.echo(strict_json.dumps(res, indent=2))
         else:
             f1, f2 = (o["metric"] for o in res["objectives"])
             typer.echo(f"{prob.name}: Pareto front of {f1} and {f2}: {len(res['front'])} points "
@@ -169,7 +170,7 @@ def problems(
         rows.append({"name": name, "device": p.device, "description": p.description, "objectives": objectives,
                      "variables": [v.key for v in p.variables]})
     if as_json:
-        typer.echo(json.dumps(rows, indent=2, ensure_ascii=False))
+        typer.echo(strict_json.dumps(rows, indent=2, ensure_ascii=False))
         return
     render.console().print(render.table(None, ("problem", "device", "description"),
                                         ((r["name"], r["device"], r["description"]) for r in rows)))

@@ -7,13 +7,14 @@ from __future__ import annotations
 
 import csv
 import io as _io
-import json
 import math
 import sqlite3
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+
+from hapticopt.optim import strict_json
 from rich.console import Console
 from rich.table import Table
 
@@ -48,7 +49,7 @@ def runs(
         except (HapticoptError, sqlite3.Error, OSError, ValueError, KeyError, TypeError) as exc:
             typer.echo(f"warning: skipped {run_dir}: {' '.join(str(exc).split())[:300]}", err=True)
     if as_json:
-        typer.echo(json.dumps([as_dict(s) for s in summaries], indent=2))
+        typer.echo(strict_json.dumps([as_dict(s) for s in summaries], indent=2))
         return
     if not summaries:
         typer.echo(f"no runs under {directory}")
@@ -98,7 +99,7 @@ def show(
                              "statuses": d.statuses} for d in designs],
                 "history": {"columns": cols, "rows": rows},
             }
-            typer.echo(json.dumps(payload, indent=2, default=str))
+            typer.echo(strict_json.dumps(payload, indent=2))
             return
         console = Console()
         console.print(f"[bold]{summary.problem}[/bold] ({summary.kind}, {summary.status}): {summary.n_evaluations} "

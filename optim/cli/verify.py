@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
-import json
 import math
 from pathlib import Path
 from typing import Annotated, Any, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import (
@@ -100,7 +101,7 @@ def verify(
             metrics.update(zwidth.zwidth_map(design, sc, fidelity=level).metrics())
     written = _plot(result, plots, sc.name) if plots is not None else []
     if as_json:
-        typer.echo(json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
+        typer.echo(strict_json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
                                "status": str(result.status), "message": result.message,
                                "plots": [str(p) for p in written]}, indent=2))
         _exit_on_verdict(result, sc.name)
@@ -227,7 +228,7 @@ def design_map(
         written = design_map_plots(dmap, plots)
     metrics = dmap.metrics()
     if as_json:
-        typer.echo(json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
+        typer.echo(strict_json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
                                "plots": [str(p) for p in written]}, indent=2))
         return
     typer.echo(f"design map of {design.name} in {sc.name} ({sc.report.quantity}, axis {metrics['map_axis']}); "
