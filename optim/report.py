@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from hapticopt.analysis.registry import SAME_REL_TOL, judge
 from hapticopt.design.atomic import atomic_path, write_text
 from hapticopt.design.paths import inside
 from hapticopt.design.units import from_si, pretty
@@ -38,8 +39,16 @@ ACTIVE_TOL = 1e-3
 #: verification metrics that describe the run rather than the device (left out of "key numbers")
 _BOOKKEEPING = {"ticks", "plant_substeps", "wall_time_s", "controller_period_ms", "mujoco_timestep_ms", "stable"}
 
-#: a cell is a string or a list of lines
-Cell = str | list[str]
+@dataclasses.dataclass(frozen=True)
+class Judged:
+    """A change cell: its text and its verdict (:func:`hapticopt.analysis.registry.judge`), the HTML class."""
+
+    text: str
+    verdict: str
+
+
+#: a cell is a string, a list of lines or a judged change
+Cell = str | list[str] | Judged
 
 
 def _fmt(value: Any) -> str:
@@ -320,10 +329,10 @@ def _tables(p: PipelineResult) -> dict[str, tuple[list[str], list[list[Cell]]]]:
     out["design"] = (["variable", "unit", "lower", "upper", "baseline", "optimum"], rows)
     rows = []
     for name in sorted(set(p.baseline.metrics) | set(p.optimum.metrics)):
-        rows.append([name, metric_unit(name), _fmt(p.baseline.metrics.get(name, float("nan"))),
-                     _fmt(p.optimum.metrics.get(name, float("nan")))])
-    out["metrics"] = (["metric", "unit", f"baseline ({prob.fidelity_final})", f"optimum ({prob.fidelity_final})"],
-                      rows)
+        b, o = p.baseline.metrics.get(name, float("nan")), p.optimum.metrics.get(name, float("nan"))
+        rows.append([name, metric_unit(name), _fmt(b), _fmt(o), _change(name, b, o)])
+    out["metrics"] = (["metric", "unit", f"baseline ({prob.fidelity_final})", f"optimum ({prob.fidelity_final})",
+                       "change"], rows)
     rows = []
     for name in list(dict.fromkeys([*p.baseline.statuses, *p.optimum.statuses])):
         why = "; ".join(f"{who}: {m}" for who, m in (("baseline", p.baseline.messages.get(name, "")),
@@ -362,7 +371,39 @@ def _tables(p: PipelineResult) -> dict[str, tuple[list[str], list[list[Cell]]]]:
     return out
 
 
+#: the sentence above the metrics table
+CHANGE_LEGEND = (f"Change: optimum minus baseline, judged by each metric's direction (analysis/registry.py DIRECTIONS): "
+                 f"▲ better (green), ▼ worse (red), a neutral metric uncoloured; within {SAME_REL_TOL:g} relative "
+                 "it is rounding, shown as =.")
+#: how a verdict reads in markdown (the HTML also colours the cell by it)
+_MARKS = {"better": " ▲ better", "worse": " ▼ worse"}
+
+
+def _change(name: str, base: Any, opt: Any) -> Cell:
+    """The optimum's change from the baseline, judged by the metric's direction (per component of a
+    vector: the verdicts joined); '—' where either is not a number."""
+    pairs = list(zip(base, opt)) if isinstance(base, (list, tuple)) and isinstance(opt, (list, tuple)) else [(base, opt)]
+    texts, verdicts = [], []
+    for a, b in pairs:
+        v = judge(name, a, b) if not isinstance(a, (list, tuple, str)) and not isinstance(b, (list, tuple, str)) else ""
+        if v == "":
+            texts.append("—")
+        elif v == "same":
+            texts.append("=")
+        else:
+            d = float(b) - float(a)
+            rel = f" ({100 * d / abs(float(a)):+.3g} %)" if float(a) != 0.0 else ""
+            texts.append(f"{d:+.4g}{rel}{_MARKS.get(v, '')}")
+        verdicts.append(v)
+    found = {v for v in verdicts if v}
+    overall = "worse" if "worse" in found else "better" if "better" in found else "changed" if "changed" in found \
+        else "same" if found else ""
+    return Judged("; ".join(texts), overall)
+
+
 def _md_cell(c: Cell) -> str:
+    if isinstance(c, Judged):
+        c = c.text
     text = "<br>".join(c) if isinstance(c, list) else c
     return text.replace("|", "\\|").replace("\n", " ")
 
@@ -376,6 +417,8 @@ def _md_table(head: list[str], rows: list[list[Cell]]) -> str:
 
 
 def _html_cell(c: Cell) -> str:
+    if isinstance(c, Judged):
+        return html.escape(c.text)
     if isinstance(c, list):
         return "<br>".join(html.escape(x) for x in c)
     return html.escape(c)
@@ -385,7 +428,8 @@ def _html_table(head: list[str], rows: list[list[Cell]]) -> str:
     if not rows:
         return "<p><em>(none)</em></p>"
     h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
-    body = "".join("<tr>" + "".join(f"<td>{_html_cell(c)}</td>" for c in r) + "</tr>" for r in rows)
+    body = "".join("<tr>" + "".join(f"<td class='{c.verdict}'>{_html_cell(c)}</td>" if isinstance(c, Judged)
+                                    else f"<td>{_html_cell(c)}</td>" for c in r) + "</tr>" for r in rows)
     return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
 
 
@@ -394,7 +438,8 @@ table{border-collapse:collapse;margin:0.5em 0 1.5em;max-width:100%}td,th{border:
 text-align:left;font-size:13px;vertical-align:top;overflow-wrap:anywhere}th{background:#f0f0f0}
 img{max-width:100%;height:auto;border:1px solid #ddd;margin:4px}figure{margin:0 0 1.5em}
 figcaption{font-size:13px;color:#555}
-.ok{color:#2e7d32}.bad{color:#c62828}code{background:#f5f5f5;padding:1px 3px}"""
+.ok{color:#2e7d32}.bad{color:#c62828}.better{color:#1b5e20;background:#e8f5e9}
+.worse{color:#b71c1c;background:#ffebee}.changed{color:#555}.same{color:#999}code{background:#f5f5f5;padding:1px 3px}"""
 
 
 def _figure_html(src: str, alt: str, caption: str) -> str:
@@ -457,7 +502,7 @@ def write(p: PipelineResult, *, extra_stage: tuple[str, float] | None = None,
     # ------------------------------------------------------------------ markdown
     md = [f"# Optimisation report: {prob.name}", ""] + [f"- {s}" for s in summary] + [""]
     for key in ("design", "statuses", "metrics", "constraints"):
-        md += [f"## {titles[key]}", "", _md_table(*tables[key])]
+        md += [f"## {titles[key]}", ""] + ([CHANGE_LEGEND, ""] if key == "metrics" else []) + [_md_table(*tables[key])]
     md += ["## Convergence", "", "![convergence](convergence.svg)", "", conv_caption, ""]
     md += ["## Starts", "", starts_note, "", _md_table(*tables["starts"])]
     md += ["## Closed-loop verification", "", _md_table(*tables["verdicts"])]
@@ -479,7 +524,8 @@ def write(p: PipelineResult, *, extra_stage: tuple[str, float] | None = None,
     h += [f"<li>{html.escape(s)}</li>" for s in summary]
     h.append("</ul>")
     for key in ("design", "statuses", "metrics", "constraints"):
-        h += [f"<h2>{titles[key]}</h2>", _html_table(*tables[key])]
+        h += [f"<h2>{titles[key]}</h2>"] + ([f"<p>{html.escape(CHANGE_LEGEND)}</p>"] if key == "metrics" else []) \
+            + [_html_table(*tables[key])]
     h += ["<h2>Convergence</h2>", _figure_html("convergence.svg", "convergence plot", conv_caption)]
     h += ["<h2>Starts</h2>", f"<p>{html.escape(starts_note)}</p>", _html_table(*tables["starts"])]
     h += ["<h2>Closed-loop verification</h2>", _html_table(*tables["verdicts"])]

@@ -148,3 +148,25 @@ def test_evaluator_statuses_are_a_table_and_a_summary_line(beta_run, tmp_path):
     html = (tmp_path / "report.html").read_text(encoding="utf-8")
     assert "<h2>Evaluator statuses</h2>" in html and "joint_limits not-met" in html
     assert "a joint limit cuts the φ140 mm cylinder by 22.9 deg" in html
+
+
+def _metrics_rows(page: str) -> list[list[str]]:
+    """The cells of the report's metrics table, with each cell's class (``class|text``)."""
+    import html as _html
+    import re
+
+    table = page.split("<h2>Metrics</h2>", 1)[1].split("</table>", 1)[0]
+    rows = re.findall(r"<tr>(.*?)</tr>", table.split("<tbody>", 1)[1])
+    return [[f"{cls}|{_html.unescape(text)}" for cls, text in re.findall(r"<td(?: class='(\w*)')?>(.*?)</td>", r)]
+            for r in rows]
+
+
+def test_report_units_come_from_the_registry_and_changes_are_judged(beta_run):
+    """issue 33: every metric row's unit is the registry's (analysis/registry.metric_unit); the change
+    column is coloured by the metric's direction: cond(J) from √6 to 1 (seed 002 eq 2) is better."""
+    rows = _metrics_rows((beta_run.out_dir / "report.html").read_text(encoding="utf-8"))
+    assert len(rows) == len(set(beta_run.baseline.metrics) | set(beta_run.optimum.metrics))
+    by_name = {r[0].split("|", 1)[1]: r for r in rows}
+    assert by_name["jacobian_condition"][4].startswith("better|") and "▲ better" in by_name["jacobian_condition"][4]
+    assert by_name["workspace_required_diameter_mm"][4] == "same|="  # a design input, unchanged
+    assert "rounding, shown as =" in (beta_run.out_dir / "report.md").read_text(encoding="utf-8")
