@@ -31,7 +31,7 @@ from hapticopt.design.schema import specs
 from hapticopt.design.units import pretty
 from hapticopt.optim.recorder import FILENAME
 from hapticopt.optim.runs import RunReader
-from hapticopt.optim.sweep import scalars, unit_of_metric
+from hapticopt.optim.sweep import scalars, unit_label
 from hapticopt.design.errors import short
 
 
@@ -118,7 +118,7 @@ def compare(designs: Sequence[Named], *, fidelity: Fidelity = Fidelity.STANDARD,
     for name in names:
         values = tuple(float(m.get(name, math.nan)) for m in per_design)
         deltas = tuple(v - values[0] for v in values)
-        rows.append(Row(metric=name, unit=pretty(unit_of_metric(name)), values=values, deltas=deltas,
+        rows.append(Row(metric=name, unit=unit_label(name), values=values, deltas=deltas,
                         relative=tuple(_rel(d, values[0]) for d in deltas),
                         verdicts=tuple(judge(name, values[0], v) for v in values)))
     tables = [io.design_to_dict(d.design) for d in designs]

@@ -31,7 +31,7 @@ from hapticopt.design.paths import inside
 from hapticopt.design.units import from_si, pretty
 from hapticopt.optim.problem import Algorithm, OptimiserConfig, Problem
 from hapticopt.optim.results import PipelineResult, StageOutcome, TimeHistory, Verdict
-from hapticopt.optim.sweep import unit_of_metric
+from hapticopt.optim.sweep import unit_label
 
 #: a constraint whose normalised margin is within this is reported as active
 ACTIVE_TOL = 1e-3
@@ -67,10 +67,7 @@ def metric_unit(name: str) -> str:
     """The unit of a metric or metric reference as printed (``stiffness_limit_N_per_mm[0]`` → ``N/mm``,
     ``min(max_force_N)`` → ``N``, ``stiffness_error_pct`` → ``%``; ``-`` for a dimensionless one)."""
     m = re.fullmatch(r"\s*(?:min|max)\(\s*(\w+)\s*\)\s*", name)
-    base = (m.group(1) if m else name).split("[")[0]
-    if base.endswith("_pct"):
-        return "%"
-    return pretty(unit_of_metric(base))
+    return unit_label(m.group(1) if m else name)
 
 
 def svg_frame(width: int, height: int, left: int, top: int, plot_w: int, plot_h: int) -> list[str]:

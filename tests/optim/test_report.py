@@ -29,7 +29,10 @@ def beta_run(tmp_path_factory):
 
 @pytest.mark.parametrize("name, unit", [("stiffness_limit_N_per_mm[0]", "N/mm"), ("min(max_force_N)", "N"),
                                         ("stiffness_error_pct", "%"), ("jacobian_condition", "-"),
-                                        ("workspace_volume_mm3", "mm³"), ("transparency_bandwidth_Hz", "Hz")])
+                                        ("workspace_volume_mm3", "mm³"), ("transparency_bandwidth_Hz", "Hz"),
+                                        # issue 33: von Mises per newton was printed "N"
+                                        ("structural_fea_max_von_mises_MPa_per_N", "MPa/N"),
+                                        ("zwidth_peak_damping_Ns_per_m", "N·s/m"), ("pade_minus_exact_pct", "%")])
 def test_metric_unit_from_the_name(name, unit):
     assert report.metric_unit(name) == unit
 
@@ -164,8 +167,13 @@ def _metrics_rows(page: str) -> list[list[str]]:
 def test_report_units_come_from_the_registry_and_changes_are_judged(beta_run):
     """issue 33: every metric row's unit is the registry's (analysis/registry.metric_unit); the change
     column is coloured by the metric's direction: cond(J) from √6 to 1 (seed 002 eq 2) is better."""
+    from hapticopt.analysis.registry import metric_unit
+
     rows = _metrics_rows((beta_run.out_dir / "report.html").read_text(encoding="utf-8"))
     assert len(rows) == len(set(beta_run.baseline.metrics) | set(beta_run.optimum.metrics))
+    for row in rows:
+        name, unit = row[0].split("|", 1)[1], row[1].split("|", 1)[1]
+        assert unit == (metric_unit(name) or "-"), (name, unit)
     by_name = {r[0].split("|", 1)[1]: r for r in rows}
     assert by_name["jacobian_condition"][4].startswith("better|") and "▲ better" in by_name["jacobian_condition"][4]
     assert by_name["workspace_required_diameter_mm"][4] == "same|="  # a design input, unchanged

@@ -3,6 +3,7 @@ delta; presets, files and run directories resolve; bad input is one line, exit 2
 
 from __future__ import annotations
 
+import html
 import json
 import math
 import re
@@ -14,7 +15,7 @@ from typer.testing import CliRunner
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
-from hapticopt.analysis.registry import evaluate_all
+from hapticopt.analysis.registry import evaluate_all, metric_unit
 from hapticopt.design import io
 from hapticopt.optim.cli import app
 from hapticopt.optim.sweep import scalars
@@ -137,3 +138,7 @@ def test_compare_colours_by_better_or_worse_not_by_sign(run_dir, tmp_path):
     assert _delta_classes(page, "workspace_required_diameter_mm") == ["same", "same"]  # a design input: equal
     assert _delta_classes(page, "elastic_centre_mm")[0] == "changed"  # neutral: neither colour
     assert "rounding and shown as =" in page  # the tolerance is stated
+    units = re.findall(r"<tr data-metric='([^']+)'><td>[^<]*</td><td>([^<]*)</td>", page)
+    assert len(units) > 50
+    for name, unit in units:  # issue 33: units from the registry (von Mises per newton was "N")
+        assert html.unescape(unit) == (metric_unit(name) or "-"), (name, unit)
