@@ -15,6 +15,7 @@ import contextlib
 import dataclasses
 import functools
 import math
+import shutil
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future
@@ -27,6 +28,7 @@ from hapticopt.analysis.status import Status
 from hapticopt.design import io
 from hapticopt.design.atomic import write_text
 from hapticopt.optim.driver import EvalRecord, ProgressFn
+from hapticopt.design.errors import InvalidInput, UnknownName
 from hapticopt.optim.problem import Problem, check_metrics
 from hapticopt.analysis.registry import EVALUATORS, describe_failure, jsonable, run_plotter
 from hapticopt.design.paths import inside
@@ -218,7 +220,32 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     # cheap checks first: a writable --out, the run lock, a reachable scheduler, then the baseline
     check_scheduler(scheduler)
     out = writable_dir(out_dir)
+    existed = out.exists()
+    fresh = not existed or not any(out.iterdir())  # nothing of a run here before this call
     out.mkdir(parents=True, exist_ok=True)
+    try:
+        return _run_in(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
+                       progress=progress, export=export, verify=verify, on_stage=on_stage, verifier=verifier,
+                       on_step=on_step, cache=cache, compute=compute)
+    except ProblemRejected:
+        if fresh:  # bad input leaves no partial files: the corrected rerun needs no --force
+            if existed:
+                for child in out.iterdir():
+                    shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
+            else:
+                shutil.rmtree(out, ignore_errors=True)
+        raise
+
+
+class ProblemRejected(InvalidInput):
+    """The baseline evaluation shows the problem cannot run (a metric reference that picks no number):
+    bad input, found after the run directory was made; a fresh run's files are removed."""
+
+
+def _run_in(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str, workers: int | None,
+            progress: ProgressFn | None, export: bool, verify: bool, on_stage: Callable[[str], None] | None,
+            verifier: Callable[[Any, str], Any] | None, on_step: StepFn | None, cache: str | Path | None,
+            compute: Compute) -> PipelineResult:
     with output_root(out), run_lock(out), children_die_with_this_process(), \
             verification_worker(problem.scenes if verify else ()) as verify_worker, side_executor(scheduler) as side:
         remove_stale_temp_files(out)
@@ -340,7 +367,10 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
                     submit_base(slow, side)
         base_opt = _recorded_evaluation(rec, problem.base, problem.fidelity_optimise, "baseline",
                                         at(problem.fidelity_optimise), ecache, compute)
-        check_metrics(problem, base_opt.metrics)
+        try:
+            check_metrics(problem, base_opt.metrics)
+        except (InvalidInput, UnknownName) as exc:
+            raise ProblemRejected(str(exc)) from None
         only = evaluators_for(problem, base_opt)
         if fid == problem.fidelity_optimise:
             baseline = base_opt
