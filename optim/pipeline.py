@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
+import json
 import math
 import shutil
 import time
@@ -422,7 +423,9 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         here = tuple(e.name for e in EVALUATORS[problem.device] if e.name not in there)
         pending_final = side.submit(side_process.evaluate, optimum_design, fid, there, out / "plots",
                                     compute=worker_compute(side, compute)) if there else None
-        pending_export = side.submit(side_process.export, optimum_design, out) if export and beside else None
+        kept_export = _kept_export(out, optimum_design) if export and resume else None
+        pending_export = side.submit(side_process.export, optimum_design, out) \
+            if export and beside and kept_export is None else None
         parts = [evaluation_cache.evaluate(optimum_design, fid, cache=None, only=here, progress=at(fid),
                                            compute=compute)]
         side_drawn: dict[str, tuple[list[str], str]] = {}
@@ -477,7 +480,11 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         on_step("", len(drawn), len(drawn))
     stages.append(StageOutcome(name="plots", status="ok", wall_s=time.perf_counter() - t, files=tuple(plot_files)))
 
-    if export:
+    if export and kept_export is not None:  # a resumed run whose optimum did not change: its export stands
+        stages.append(StageOutcome(name="export", status="ok", wall_s=0.0, files=kept_export,
+                                   message="the optimum is the one exported before: its files are kept, not "
+                                           "recomputed"))
+    elif export:
         t = stage("export")
         # beside: its own time there, and what this process waited for it; else (or its process died) here
         status, message, exported, wall_s = side_process.collect(
@@ -506,6 +513,25 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
     return pres
 
 
+def _kept_export(out: Path, design: Any) -> tuple[str, ...] | None:
+    """The files of the run's earlier export when it exported this very design (its optimum file holds
+    the same TOML, result.json lists an ok export and every file is still there), else None."""
+    try:
+        previous = json.loads((out / "result.json").read_text(encoding="utf-8"))
+        written = (out / OPTIMUM_FILE if (out / OPTIMUM_FILE).is_file() else out / INFEASIBLE_FILE).read_text(
+            encoding="utf-8")
+    except (OSError, ValueError):
+        return None
+    exported = previous.get("exported") if isinstance(previous, dict) else None
+    ok = any(s.get("stage") == "export" and s.get("status") == "ok" for s in previous.get("stages", [])
+             if isinstance(s, dict))
+    if not ok or not isinstance(exported, list) or not exported or written != io.dumps(design):
+        return None
+    if not all(isinstance(f, str) and (out / f).is_file() for f in exported):
+        return None
+    return tuple(exported)
+
+
 def _write_result_json(p: PipelineResult, dest: Path) -> None:
     best: EvalRecord | None = p.run.best
     payload = {
@@ -525,6 +551,7 @@ def _write_result_json(p: PipelineResult, dest: Path) -> None:
         "stages": [{"stage": s.name, "status": s.status, "wall_s": s.wall_s, "message": s.message}
                    for s in p.stages],
         "files": p.files,
+        "exported": [f for s in p.stages if s.name == "export" and s.status == "ok" for f in s.files],
     }
     write_text(inside(dest, "result.json"), strict_json.dumps(payload, indent=2) + "\n")
 

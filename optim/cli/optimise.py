@@ -22,6 +22,36 @@ from hapticopt.optim.recorder import check_run_dir
 
 
 
+def previous_budget(out_dir: Path) -> tuple[int, int] | None:
+    """(budget of the last recorded session, evaluations recorded) of the run in ``out_dir``, or None
+    (no record, or a record without session counts)."""
+    from hapticopt.optim.runs import RunReader
+
+    try:
+        with RunReader(out_dir) as reader:
+            sessions = [s for s in reader.sessions() if s.get("max_evals") is not None]
+            recorded = len(reader)
+    except Exception:  # noqa: BLE001 - no readable record: the resume itself says why
+        return None
+    return (int(sessions[-1]["max_evals"]), recorded) if sessions else None
+
+
+def resume_note(cfg, previous: tuple[int, int], result) -> str:
+    """The one line a resume that evaluated nothing prints: whether the budget was extended and why the
+    optimiser still stopped where it had (its starts' stop reasons), and whether the export was kept."""
+    budget, recorded = previous
+    stops = ", ".join(f"start {s.start}: {s.status}" for s in result.run.starts) or "no start ran"
+    kept = any(s.name == "export" and "kept" in s.message for s in result.stages)
+    tail = "; the optimum did not change, its export was kept" if kept else ""
+    if cfg.max_evals > budget:
+        return (f"resume: 0 new evaluations: the recorded run had stopped on its own before its budget of {budget} "
+                f"({stops}; xtol_rel {cfg.xtol_rel:g}, ftol_rel {cfg.ftol_rel:g}), and replaying it stops at the same "
+                f"point, so --max-evals {cfg.max_evals} adds nothing; tighten xtol_rel/ftol_rel or add starts in the "
+                f"problem (a new run) to search further{tail}")
+    return (f"resume: the run had already finished with its budget of {budget} ({recorded} evaluations recorded, "
+            f"{stops}): nothing new to evaluate; give --max-evals above {budget} to extend it{tail}")
+
+
 @one_line_errors
 def optimise(
     problem: Annotated[str, typer.Argument(help="Bundled problem name (see `hapticopt problems`) or a problem TOML file.",
@@ -56,6 +86,7 @@ def optimise(
         raise InvalidInput(f"--workers = {workers} is out of range: allowed 1 ≤ --workers ≤ {MAX_WORKERS}")
     out_dir = out if out is not None else Path("cad_out") / prob.name
     check_run_dir(out_dir, resume=resume, force=force)  # before anything is computed or written
+    previous = previous_budget(out_dir) if resume else None
     cache_path = cache_file(cache, no_cache, out_dir)
 
     from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline, status_holds
@@ -126,6 +157,8 @@ def optimise(
                               on_step=line.step, cache=cache_path, compute=route)
         line.stage("done", 1, f"{out_dir / 'report.html'}")
         line.count(1)
+    if previous is not None and result.run.n_evaluated == 0:  # one line: why a resume added nothing
+        typer.echo(resume_note(prob.optimiser, previous, result), err=True)
     if as_json:  # the exit code below still says whether the requirement holds
         typer.echo((out_dir / "result.json").read_text(encoding="utf-8"), nl=False)
     else:

@@ -206,3 +206,29 @@ def test_a_failed_export_exits_5_with_one_line(tmp_path, monkeypatch):
     (line,) = res.stderr.strip().splitlines()
     assert line.startswith("error: export failed: No space left on device: parts/base.stl")
     assert (out / "report.html").is_file() and (out / "optimum.toml").is_file()  # the rest of the run is written
+
+
+def test_resume_that_adds_nothing_says_why_in_one_line_and_keeps_the_export(tmp_path):
+    """issue 33: `--resume --max-evals 600` on a finished run reported 0 new evaluations, redid export and
+    report, and did not say why. β alone with xtol_rel 1e-3 converges (COBYLA) inside 40 evaluations."""
+    problem = _write(tmp_path, (DATA / "beta-isotropic.toml").read_text().replace("xtol_rel = 1e-8", "xtol_rel = 1e-3"))
+    args = ["optimise", problem, "--out", str(tmp_path / "run"), "--scheduler", "inline", "--no-verify", "--quiet"]
+    tmp_path = tmp_path / "run"
+    first = invoke(*args, "--max-evals", "40")
+    assert first.exit_code == 0, first.output
+    r1 = json.loads((tmp_path / "result.json").read_text())
+    assert all(s["status"] != "maxeval_reached" for s in r1["starts"]), r1["starts"]  # converged on its own
+    assert r1["exported"] and all((tmp_path / f).is_file() for f in r1["exported"])
+    stamps = {f: (tmp_path / f).stat().st_mtime_ns for f in r1["exported"]}
+    same = invoke(*args, "--resume", "--max-evals", "40")  # no new budget
+    assert same.exit_code == 0, same.output
+    (line,) = [ln for ln in same.stderr.splitlines() if ln.startswith("resume:")]
+    assert "already finished with its budget of 40" in line and "its export was kept" in line
+    assert {f: (tmp_path / f).stat().st_mtime_ns for f in r1["exported"]} == stamps  # not recomputed
+    r2 = json.loads((tmp_path / "result.json").read_text())
+    assert r2["n_evaluated"] == 0 and r2["exported"] == r1["exported"]
+    more = invoke(*args, "--resume", "--max-evals", "80")  # a larger budget the converged optimiser cannot use
+    assert more.exit_code == 0, more.output
+    (line,) = [ln for ln in more.stderr.splitlines() if ln.startswith("resume:")]
+    assert "0 new evaluations" in line and "stopped on its own before its budget of 40" in line
+    assert "xtol_reached" in line or "ftol_reached" in line or "success" in line
