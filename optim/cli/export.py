@@ -42,6 +42,22 @@ def parse_pose_mm(text: str):
     return np.asarray(values) * 1e-3
 
 
+def exported_name(design, assignments: list[str]):
+    """The design named after what is exported: with ``--set`` overrides (and no ``--set name=…``), its name
+    plus ``-`` and the first 8 hex digits of the SHA-256 of its TOML without the name (the same design:
+    the same name; ``prrr-paper-1a2b3c4d.step`` is not mistaken for the preset)."""
+    if not assignments or any(a.split("=", 1)[0].strip() == "name" for a in assignments):
+        return design
+    import dataclasses
+    import hashlib
+
+    from hapticopt.design import io
+    from hapticopt.design.paths import NAME_MAX
+
+    digest = hashlib.sha256(io.dumps(dataclasses.replace(design, name="")).encode()).hexdigest()[:8]
+    return dataclasses.replace(design, name=f"{design.name[:NAME_MAX - 9]}-{digest}")
+
+
 @one_line_errors
 def export(
     file: Annotated[Optional[Path], typer.Argument(help="Design TOML file (or use --preset).", show_default=False)] = None,
@@ -63,7 +79,7 @@ def export(
 
     if not 0 <= poses <= MAX_POSES:
         raise InvalidInput(f"--poses = {poses} is out of range: allowed 0 ≤ --poses ≤ {MAX_POSES} (poses)")
-    design = load_design_arg(file, preset, set_)
+    design = exported_name(load_design_arg(file, preset, set_), set_ or [])
     p = parse_pose_mm(pose) if pose is not None else None
 
     target = out if out is not None else Path("cad_out") / design.name

@@ -44,3 +44,20 @@ def test_poses_are_bounded_in_one_line(tmp_path):
         (line,) = res.stderr.strip().splitlines()
         assert f"--poses = {n} is out of range: allowed 0 ≤ --poses ≤ 1000 (poses)" in line
     assert not (tmp_path / "e").exists()
+
+
+def test_exports_are_named_after_the_design_exported():
+    """issue 33: `export --preset prrr-paper --set geometry.beta_deg=45` wrote prrr-paper.step. The name is
+    the design's plus a short hash of its TOML: equal designs, equal names; another design, another name."""
+    from hapticopt.optim.cli.export import exported_name
+
+    paper = io.load_preset("prrr-paper")
+    b45 = io.apply_overrides(paper, ["geometry.beta_deg=45"])
+    named = exported_name(b45, ["geometry.beta_deg=45"]).name
+    assert named.startswith("prrr-paper-") and len(named) == len("prrr-paper-") + 8
+    assert exported_name(io.apply_overrides(paper, ["geometry.beta_deg=45.0"]), ["geometry.beta_deg=45.0"]).name == named
+    b50 = io.apply_overrides(paper, ["geometry.beta_deg=50"])
+    assert exported_name(b50, ["geometry.beta_deg=50"]).name != named
+    assert exported_name(paper, []).name == "prrr-paper"  # no override: the preset's own name
+    mine = io.apply_overrides(paper, ["geometry.beta_deg=45", "name=beta45"])
+    assert exported_name(mine, ["geometry.beta_deg=45", "name=beta45"]).name == "beta45"  # a chosen name stands
