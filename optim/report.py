@@ -274,6 +274,54 @@ def improvement_text(p: PipelineResult) -> tuple[str, str]:
     return "not improved", f"not improved{delta}"
 
 
+def headline(p: PipelineResult) -> str:
+    """The report's opening paragraph: what was optimised, by how much, which constraints are active
+    (within ACTIVE_TOL of their limit) and which variables sit at a bound, and what to check next."""
+    prob = p.problem
+    obj = prob.objective.metric
+    unit = metric_unit(obj.text)
+    b, o = obj.value(p.baseline.metrics), obj.value(p.optimum.metrics)
+    word, _ = improvement_text(p)
+    u = "" if unit == "-" else f" {unit}"
+    by = ""
+    if math.isfinite(b) and math.isfinite(o):
+        by = f" from {_fmt(b)}{u} to {_fmt(o)}{u}" + (f" ({100 * (o - b) / abs(b):+.3g} %)" if b != 0 else "")
+    keys = ", ".join(v.key for v in prob.variables)
+    text = [f"{prob.objective.sense.value.capitalize()} {obj.text} of {prob.base_source} over {keys}: {word}{by} "
+            f"at {prob.fidelity_final} fidelity."]
+    tol = prob.optimiser.constraint_tol
+    active, violated = [], []
+    for c, (ctext, value, ok) in zip(prob.constraints, p.constraints_final):
+        margin = -c.normalised(value) if math.isfinite(value) else float("nan")
+        if not ok:
+            violated.append(ctext)
+        elif math.isfinite(margin) and abs(margin) <= max(ACTIVE_TOL, tol):
+            active.append(ctext)
+    if prob.constraints:
+        text.append(f"Active constraints: {', '.join(active)}." if active else "No constraint is active.")
+    at_bound = []
+    for v in prob.variables:
+        x = from_si(float(getattr(getattr(p.optimum_design, v.section), v.field)), v.unit)
+        if min(x - v.lower, v.upper - x) <= 1e-6 * (v.upper - v.lower):
+            at_bound.append(f"{v.key} = {_fmt(x)} {pretty(v.unit)}")
+    nxt = []
+    if violated:
+        nxt.append(f"the violated constraints ({', '.join(violated)})")
+    if at_bound:
+        nxt.append(f"the variables at a bound ({', '.join(at_bound)}): widen the bound if the design allows")
+    failed = [v.scene for v in p.verdicts if not v.passed]
+    if failed:
+        nxt.append(f"the closed-loop scenes that did not pass ({', '.join(failed)})")
+    elif not p.verdicts:
+        nxt.append("closed-loop behaviour (no scene was verified: `hapticopt verify`)")
+    bad = [k for k, st in p.optimum.statuses.items() if str(st) != "ok"]
+    if bad:
+        nxt.append(f"the evaluators not ok at the optimum ({', '.join(bad)})")
+    text.append("Check next: " + "; ".join(nxt) + "." if nxt else
+                "Check next: the renders and the metrics table below (nothing is flagged).")
+    return " ".join(text)
+
+
 # --------------------------------------------------------------------------------- tables
 def _start_rows(p: PipelineResult) -> tuple[list[str], list[list[Cell]]]:
     prob = p.problem
@@ -497,7 +545,8 @@ def write(p: PipelineResult, *, extra_stage: tuple[str, float] | None = None,
                    "nlopt returned; feasible means every constraint holds within the constraint tolerance "
                    f"({prob.optimiser.constraint_tol:g} of each limit).")
     # ------------------------------------------------------------------ markdown
-    md = [f"# Optimisation report: {prob.name}", ""] + [f"- {s}" for s in summary] + [""]
+    head = headline(p)
+    md = [f"# Optimisation report: {prob.name}", "", head, ""] + [f"- {s}" for s in summary] + [""]
     for key in ("design", "statuses", "metrics", "constraints"):
         md += [f"## {titles[key]}", ""] + ([CHANGE_LEGEND, ""] if key == "metrics" else []) + [_md_table(*tables[key])]
     md += ["## Convergence", "", "![convergence](convergence.svg)", "", conv_caption, ""]
@@ -517,7 +566,8 @@ def write(p: PipelineResult, *, extra_stage: tuple[str, float] | None = None,
     h = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
          '<meta name="viewport" content="width=device-width, initial-scale=1">',
          f"<title>Optimisation report: {html.escape(prob.name)}</title><style>{_CSS}</style></head><body>",
-         f"<h1>Optimisation report: {html.escape(prob.name)}</h1><ul>"]
+         f"<h1>Optimisation report: {html.escape(prob.name)}</h1>",
+         f"<p class='headline'><b>{html.escape(head)}</b></p><ul>"]
     h += [f"<li>{html.escape(s)}</li>" for s in summary]
     h.append("</ul>")
     for key in ("design", "statuses", "metrics", "constraints"):

@@ -178,3 +178,18 @@ def test_report_units_come_from_the_registry_and_changes_are_judged(beta_run):
     assert by_name["jacobian_condition"][4].startswith("better|") and "▲ better" in by_name["jacobian_condition"][4]
     assert by_name["workspace_required_diameter_mm"][4] == "same|="  # a design input, unchanged
     assert "rounding, shown as =" in (beta_run.out_dir / "report.md").read_text(encoding="utf-8")
+
+
+def test_report_opens_with_a_headline(beta_run):
+    """issue 33: the report opens with one paragraph: what was optimised, by how much (cond(J) from √6 at
+    60° to 1 at the isotropic β, seed 002 eq 2: -59.2 %), the active constraints, what to check next."""
+    head = report.headline(beta_run)
+    b, o = (beta_run.problem.objective.metric.value(e.metrics) for e in (beta_run.baseline, beta_run.optimum))
+    assert b == pytest.approx(6 ** 0.5) and 1.0 <= o < 1.01  # 30 evaluations come within 1 % of the isotropic 1
+    assert head.startswith("Minimise jacobian_condition of preset prrr-paper over geometry.beta_deg: improved "
+                           f"from 2.44949 to {o:.6g} ({100 * (o - b) / b:+.3g} %)")  # about -59 %
+    assert "No constraint is active." in head  # max_force_N[2] ≥ 1000 N holds with margin at the isotropic β
+    assert "Check next:" in head and "no scene was verified" in head  # verify=False in this run
+    md = (beta_run.out_dir / "report.md").read_text(encoding="utf-8").splitlines()
+    assert md[2] == head  # right under the title
+    assert f"<p class='headline'><b>{head}</b></p>" in (beta_run.out_dir / "report.html").read_text(encoding="utf-8")
