@@ -200,8 +200,10 @@ def history_figure(v: Verdict) -> Any:
             ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     axes[-1].set_xlabel("time t [s]")
     every = f"one sample per {h.stride} controller ticks, " if h.stride > 1 else ""
-    fig.suptitle(f"{v.scene}: {'PASS' if v.passed else 'FAIL'} ({every}controller period {h.period_s * 1e3:g} ms)",
-                 fontsize=10)
+    word = "PASS" if v.passed else "FAIL" + (f" — {v.message}" if v.message and len(v.message) <= 40 else "")
+    stop = (f"; stopped at t = {h.stopped_at_s:.4g} s (instability detected), nothing drawn after"
+            if h.stopped_at_s is not None else "")
+    fig.suptitle(f"{v.scene}: {word} ({every}controller period {h.period_s * 1e3:g} ms{stop})", fontsize=10)
     return fig
 
 

@@ -193,3 +193,26 @@ def test_report_opens_with_a_headline(beta_run):
     md = (beta_run.out_dir / "report.md").read_text(encoding="utf-8").splitlines()
     assert md[2] == head  # right under the title
     assert f"<p class='headline'><b>{head}</b></p>" in (beta_run.out_dir / "report.html").read_text(encoding="utf-8")
+
+
+def test_verify_plot_of_a_stopped_run_marks_the_stop_and_the_verdict(tmp_path):
+    """issue 33: an unstable run "stopped at 0.1 s" was plotted by `verify --plots` as 3 s of bounded trace
+    with no marker and no title. The standalone plot is the report's: the scene and verdict in the title,
+    the traces up to the stop tick (1000 ticks of 1 ms here: 1 s), that tick marked."""
+    from types import SimpleNamespace
+
+    from hapticopt.optim.cli.verify import _plot
+
+    written = _plot(SimpleNamespace(traces=_traces(stop=1000), status="unstable"), tmp_path, "wall")
+    assert [p.name for p in written] == ["verify-wall.png"] and written[0].stat().st_size > 0
+    fig = report.history_figure(Verdict(scene="wall", passed=False, metrics={}, message="unstable",
+                                        history=TimeHistory.from_traces(_traces(stop=1000))))
+    title = fig._suptitle.get_text()
+    assert title.startswith("wall: FAIL — unstable") and "stopped at t = 1 s" in title
+    for ax in fig.axes:
+        drawn = [line for line in ax.get_lines() if line.get_label() != "run stopped (instability detected)"]
+        assert all(max(line.get_xdata()) < 1.0 for line in drawn)  # nothing drawn after the stop
+        assert any(line.get_label() == "run stopped (instability detected)" for line in ax.get_lines())
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
