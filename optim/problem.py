@@ -61,6 +61,7 @@ from typing import Any
 
 from hapticopt.design import bundled
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.registry import EVALUATORS
 from hapticopt.analysis.loop.scene import load_scene
 from hapticopt.design import io, tomlsafe
 from hapticopt.design.errors import InputFileError, InvalidDesign, InvalidInput, UnknownName, short, short_key
@@ -677,8 +678,6 @@ def _optimiser(table: dict[str, Any], source: str, constrained: bool) -> Optimis
 def check_metric_names(device: str, refs: Sequence[tuple[str, MetricRef]], levels: Sequence[Fidelity]) -> None:
     """One line (exit 2) for a metric reference the device's evaluators never report (with the closest
     name), or report only at other fidelity levels than ``levels`` (the optimisation's and the final one)."""
-    from hapticopt.analysis.registry import EVALUATORS
-
     docs = {m.name: m for e in EVALUATORS.get(device, ()) for m in e.metrics}
     for where, ref in refs:
         doc = docs.get(ref.name)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+
 import contextlib
 import time
 from pathlib import Path
@@ -18,7 +21,8 @@ import math
 import numpy as np
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design import paths
-from hapticopt.design.paths import writable_dir
+from hapticopt.design import io
+from hapticopt.design.paths import NAME_MAX, writable_dir
 from hapticopt.optim.recorder import run_lock
 from hapticopt.analysis.status import Status
 
@@ -48,12 +52,6 @@ def exported_name(design, assignments: list[str]):
     the same name; ``prrr-paper-1a2b3c4d.step`` is not mistaken for the preset)."""
     if not assignments or any(a.split("=", 1)[0].strip() == "name" for a in assignments):
         return design
-    import dataclasses
-    import hashlib
-
-    from hapticopt.design import io
-    from hapticopt.design.paths import NAME_MAX
-
     digest = hashlib.sha256(io.dumps(dataclasses.replace(design, name="")).encode()).hexdigest()[:8]
     return dataclasses.replace(design, name=f"{design.name[:NAME_MAX - 9]}-{digest}")
 

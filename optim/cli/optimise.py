@@ -19,14 +19,13 @@ from hapticopt.optim.cli import render
 from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.optim.problem import problem_names
 from hapticopt.optim.recorder import check_run_dir
+from hapticopt.optim.runs import RunReader
 
 
 
 def previous_budget(out_dir: Path) -> tuple[int, int] | None:
     """(budget of the last recorded session, evaluations recorded) of the run in ``out_dir``, or None
     (no record, or a record without session counts)."""
-    from hapticopt.optim.runs import RunReader
-
     try:
         with RunReader(out_dir) as reader:
             sessions = [s for s in reader.sessions() if s.get("max_evals") is not None]

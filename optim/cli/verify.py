@@ -30,8 +30,6 @@ def _plot(result: Any, out_dir: Path, name: str) -> list[Path]:
     """The run's time histories as the report draws them (:func:`hapticopt.optim.report.history_figure`):
     the scene, the verdict and the stop time in the title, the traces only up to the tick where an
     unstable run stopped, that tick marked (matplotlib if installed; otherwise nothing)."""
-    import importlib.util
-
     from hapticopt.optim import report
     from hapticopt.optim.results import TimeHistory, Verdict
 
