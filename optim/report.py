@@ -420,31 +420,35 @@ def _tables(p: PipelineResult) -> dict[str, tuple[list[str], list[list[Cell]]]]:
 
 #: the sentence above the metrics table
 CHANGE_LEGEND = (f"Change: optimum minus baseline, judged by each metric's direction (analysis/registry.py DIRECTIONS): "
-                 f"▲ better (green), ▼ worse (red), a neutral metric uncoloured; within {SAME_REL_TOL:g} relative "
+                 f"▲ better (green), ▼ worse (red), a vector with both yellow, a neutral metric uncoloured; within "
+                 f"{SAME_REL_TOL:g} relative "
                  "it is rounding, shown as =.")
 #: how a verdict reads in markdown (the HTML also colours the cell by it)
 _MARKS = {"better": " ▲ better", "worse": " ▼ worse"}
 
 
 def _change(name: str, base: Any, opt: Any) -> Cell:
-    """The optimum's change from the baseline, judged by the metric's direction (per component of a
-    vector: the verdicts joined); '—' where either is not a number."""
-    pairs = list(zip(base, opt)) if isinstance(base, (list, tuple)) and isinstance(opt, (list, tuple)) else [(base, opt)]
+    """The optimum's change from the baseline, judged by the metric's direction: a scalar as
+    ``+d (+r %) ▲ better``; a vector per component (``▲ +d (+r %); =; ▼ …``), its class ``mixed`` when some
+    components are better and others worse; '—' where either is not a number (or a matrix)."""
+    vector = isinstance(base, (list, tuple)) and isinstance(opt, (list, tuple)) and len(base) == len(opt)
+    pairs = list(zip(base, opt)) if vector else [(base, opt)]
+    if any(isinstance(v, (list, tuple, str)) for pair in pairs for v in pair):
+        return Judged("—", "")
     texts, verdicts = [], []
     for a, b in pairs:
-        v = judge(name, a, b) if not isinstance(a, (list, tuple, str)) and not isinstance(b, (list, tuple, str)) else ""
-        if v == "":
-            texts.append("—")
-        elif v == "same":
-            texts.append("=")
+        v = judge(name, a, b)
+        if v in ("", "same"):
+            texts.append("—" if v == "" else "=")
         else:
             d = float(b) - float(a)
-            rel = f" ({100 * d / abs(float(a)):+.3g} %)" if float(a) != 0.0 else ""
-            texts.append(f"{d:+.4g}{rel}{_MARKS.get(v, '')}")
+            text = f"{d:+.4g}" + (f" ({100 * d / abs(float(a)):+.3g} %)" if float(a) != 0.0 else "")
+            mark = _MARKS.get(v, "")
+            texts.append(text + mark if not vector else (mark.split()[0] + " " + text if mark else text))
         verdicts.append(v)
     found = {v for v in verdicts if v}
-    overall = "worse" if "worse" in found else "better" if "better" in found else "changed" if "changed" in found \
-        else "same" if found else ""
+    overall = ("mixed" if {"better", "worse"} <= found else "worse" if "worse" in found else
+               "better" if "better" in found else "changed" if "changed" in found else "same" if found else "")
     return Judged("; ".join(texts), overall)
 
 
@@ -486,7 +490,7 @@ text-align:left;font-size:13px;vertical-align:top;overflow-wrap:anywhere}th{back
 img{max-width:100%;height:auto;border:1px solid #ddd;margin:4px}figure{margin:0 0 1.5em}
 figcaption{font-size:13px;color:#555}
 .ok{color:#2e7d32}.bad{color:#c62828}.better{color:#1b5e20;background:#e8f5e9}
-.worse{color:#b71c1c;background:#ffebee}.changed{color:#555}.same{color:#999}code{background:#f5f5f5;padding:1px 3px}"""
+.worse{color:#b71c1c;background:#ffebee}.mixed{background:#fff8e1}.changed{color:#555}.same{color:#999}code{background:#f5f5f5;padding:1px 3px}"""
 
 
 def _figure_html(src: str, alt: str, caption: str) -> str:
