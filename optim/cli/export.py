@@ -120,17 +120,23 @@ def _check_many(design, n: int) -> str:
         from hapticopt.design.master import cad as cad_master
 
         pts = np.atleast_2d(cad_master.home_point(design))
+        why = f"{len(pts)} checked of the {n} asked: the {design.device} export checks its home pose only"
     else:
         from hapticopt.analysis.prrr.geometry.workspace import sample_points, workspace_params
 
         k = max(1, round((n / 3) ** (1 / 3)))  # 3·k_phi·k_r·k_z ≈ n
-        pts = sample_points(workspace_params(design), n_phi=k, n_r=k, n_z=max(1, round(n / (3 * k * k))))
+        kz = max(1, round(n / (3 * k * k)))
+        pts = sample_points(workspace_params(design), n_phi=k, n_r=k, n_z=kz)
+        why = (f"{len(pts)} checked of the {n} asked: the workspace samples form a grid of 3 × {k} angles × {k} radii × {kz} "
+               "heights, the nearest to the number asked" if len(pts) != n else "")
     res = interference.check_poses(design, pts)
     bad = [r for r in res if r.status == Status.COLLIDES]
+    note = f" ({why})" if why else ""
     if not bad:
-        return f"none at {len(res)} workspace poses"
+        return f"none at {len(res)} workspace poses{note}"
     pairs = sorted({f"{a} × {b}" for r in bad for a, b in r.pairs})
-    return f"{len(bad)} of {len(res)} workspace poses collide ({', '.join(pairs[:4])}{', …' if len(pairs) > 4 else ''})"
+    return (f"{len(bad)} of {len(res)} workspace poses collide ({', '.join(pairs[:4])}"
+            f"{', …' if len(pairs) > 4 else ''}){note}")
 
 
 def result_pose(design, p):

@@ -17,7 +17,11 @@ def test_default_export_names_the_home_pose(tmp_path):
 
 def test_poses_option_checks_the_workspace():
     paper = io.load_preset("prrr-paper")
-    assert cli_export._check_many(paper, 24).startswith("none at ")
+    assert cli_export._check_many(paper, 24) == "none at 24 workspace poses"  # 3 × 2 × 2 × 2: exactly 24
+    # issue 33: --poses 216 checked 192 poses without saying so; 30 asks for 3 × 2 × 2 × 2.5 heights → 24
+    assert cli_export._check_many(paper, 30) == ("none at 24 workspace poses (24 checked of the 30 asked: the "
+                                                 "workspace samples form a grid of 3 × 2 angles × 2 radii × 2 "
+                                                 "heights, the nearest to the number asked)")
     # the layout before issue 15 (rails on u_i at r_p = 100, the old part sizes): part of the
     # workspace collides, and the line says how much
     legacy = io.apply_overrides(paper, ["geometry.theta_1p_deg=0", "geometry.r_p_mm=100", "structure.rail_width_mm=20",
