@@ -16,7 +16,6 @@ import dataclasses
 import functools
 import json
 import math
-import shutil
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future
@@ -221,32 +220,7 @@ def run_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False,
     # cheap checks first: a writable --out, the run lock, a reachable scheduler, then the baseline
     check_scheduler(scheduler)
     out = writable_dir(out_dir)
-    existed = out.exists()
-    fresh = not existed or not any(out.iterdir())  # nothing of a run here before this call
     out.mkdir(parents=True, exist_ok=True)
-    try:
-        return _run_in(problem, out, resume=resume, force=force, scheduler=scheduler, workers=workers,
-                       progress=progress, export=export, verify=verify, on_stage=on_stage, verifier=verifier,
-                       on_step=on_step, cache=cache, compute=compute)
-    except ProblemRejected:
-        if fresh:  # bad input leaves no partial files: the corrected rerun needs no --force
-            if existed:
-                for child in out.iterdir():
-                    shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
-            else:
-                shutil.rmtree(out, ignore_errors=True)
-        raise
-
-
-class ProblemRejected(InvalidInput):
-    """The baseline evaluation shows the problem cannot run (a metric reference that picks no number):
-    bad input, found after the run directory was made; a fresh run's files are removed."""
-
-
-def _run_in(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str, workers: int | None,
-            progress: ProgressFn | None, export: bool, verify: bool, on_stage: Callable[[str], None] | None,
-            verifier: Callable[[Any, str], Any] | None, on_step: StepFn | None, cache: str | Path | None,
-            compute: Compute) -> PipelineResult:
     with output_root(out), run_lock(out), children_die_with_this_process(), \
             verification_worker(problem.scenes if verify else ()) as verify_worker, side_executor(scheduler) as side:
         remove_stale_temp_files(out)
@@ -312,6 +286,11 @@ def _provenance_note(*evaluations: DesignEvaluation) -> str:
     or served from the evaluation cache (then the cache entry is named)."""
     unique = {id(ev): ev for ev in evaluations}.values()
     return "; ".join(f"{ev.fidelity} fidelity " + (ev.provenance or "computed") for ev in unique)
+
+
+class ProblemRejected(InvalidInput):
+    """The baseline evaluation shows the problem cannot run (a metric reference that picks no number):
+    bad input found after the run directory was made (the CLI removes a fresh run's files)."""
 
 
 def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str, workers: int | None,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -21,6 +22,18 @@ from hapticopt.optim.problem import problem_names
 from hapticopt.optim.recorder import check_run_dir
 from hapticopt.optim.runs import RunReader
 
+
+
+def remove_fresh_run(out_dir: Path, *, keep_folder: bool) -> None:
+    """Remove what a run rejected after its baseline wrote into a folder that held nothing of a run
+    (the folder itself unless it existed before)."""
+    for child in out_dir.iterdir():
+        if child.is_dir() and not child.is_symlink():
+            shutil.rmtree(child)
+        else:
+            child.unlink()
+    if not keep_folder:
+        out_dir.rmdir()
 
 
 def previous_budget(out_dir: Path) -> tuple[int, int] | None:
@@ -88,7 +101,7 @@ def optimise(
     previous = previous_budget(out_dir) if resume else None
     cache_path = cache_file(cache, no_cache, out_dir)
 
-    from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline, status_holds
+    from hapticopt.optim.pipeline import ProblemRejected, run_front_pipeline, run_pipeline, status_holds
 
     console = render.console(stderr=True, quiet=quiet)
     if prob.is_multi_objective:
@@ -151,9 +164,16 @@ def optimise(
                      "report": "report.html, result.json"}
             line.stage(name, totals.get(name, 1), texts.get(name, ""))
 
-        result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler, workers=workers,
-                              progress=on_point, export=export, verify=verify, on_stage=on_stage,
-                              on_step=line.step, cache=cache_path, compute=route)
+        existed = out_dir.exists()
+        fresh = not existed or not any(out_dir.iterdir())  # nothing of a run there before this call
+        try:
+            result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
+                                  workers=workers, progress=on_point, export=export, verify=verify, on_stage=on_stage,
+                                  on_step=line.step, cache=cache_path, compute=route)
+        except ProblemRejected:
+            if fresh:  # bad input leaves no partial files: the corrected rerun needs no --force
+                remove_fresh_run(out_dir, keep_folder=existed)
+            raise
         line.stage("done", 1, f"{out_dir / 'report.html'}")
         line.count(1)
     if previous is not None and result.run.n_evaluated == 0:  # one line: why a resume added nothing
