@@ -165,7 +165,7 @@ def optimise(
             line.stage(name, totals.get(name, 1), texts.get(name, ""))
 
         existed = out_dir.exists()
-        fresh = not existed or not any(out_dir.iterdir())  # nothing of a run there before this call
+        fresh = not existed or (out_dir.is_dir() and not any(out_dir.iterdir()))  # nothing of a run there before
         try:
             result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
                                   workers=workers, progress=on_point, export=export, verify=verify, on_stage=on_stage,
