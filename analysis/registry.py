@@ -367,6 +367,13 @@ DIRECTIONS: dict[str, Direction] = {
     "upsampling_as_intended_vs_none_pct": _H, "upsampling_default_variant": _0,
     "zwidth_wall_damping_Ns_per_m": _0, "zwidth_boundary_N_per_mm": _H, "zwidth_peak_stiffness_N_per_mm": _H,
     "zwidth_peak_damping_Ns_per_m": _0, "zwidth_max_stable_damping_Ns_per_m": _H, "zwidth_stable_fraction": _H,
+    # size and strength (issues 30 and 32; the part, load, pose and material named are neutral)
+    "device_diameter_mm": _L, "workspace_free_device_ratio": _H, "safety_factor_yield": _H,
+    "safety_factor_fatigue": _H, "safety_factor_yield_per_part": _H, "strength_max_von_mises_MPa": _L,
+    "strength_fea_max_von_mises_MPa_per_N_per_part": _L, "strength_frame_max_von_mises_MPa_per_N_per_part": _L,
+    "strength_frame_vs_fea_pct": _0, "strength_fea_governing_part": _0, "strength_governing_part": _0,
+    "strength_governing_load": _0, "strength_governing_pose_mm": _0, "strength_material": _0,
+    "strength_poses_unreachable": _0, "strength_rated_force_N": _0,
 }
 
 #: a change smaller than this, relative to the larger magnitude of the two values, is no change (rounding:
