@@ -30,6 +30,7 @@ import time
 import traceback
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
@@ -362,6 +363,97 @@ def metric_unit(name: str) -> str:
     if len(parts) >= 2 and parts[-1] in UNIT_SYMBOLS:
         return UNIT_SYMBOLS[parts[-1]]
     return ""
+
+
+class Direction(StrEnum):
+    """Which way a metric is better: ``compare`` and the reports colour a change by it."""
+
+    HIGHER = "higher"  # a larger value is better (stiffness, workspace, bandwidth, force)
+    LOWER = "lower"  # a smaller value is better (mass, condition number, stress, size)
+    NEUTRAL = "neutral"  # neither: a location, a design input, a range, a count, a time
+
+
+_H, _L, _0 = Direction.HIGHER, Direction.LOWER, Direction.NEUTRAL
+
+#: metric name (every device: a name means one thing) -> which way it is better; the one table.
+#: A metric registered in :data:`EVALUATORS` without a line here fails tests/analysis/test_registry.py
+#: (add it here); at run time an unknown name (a verification metric, a record from an older version)
+#: is neutral. A vector metric has one direction for all its components.
+DIRECTIONS: dict[str, Direction] = {
+    # 3-PRRR statics
+    "jacobian_condition": _L, "jacobian_condition_frobenius": _L, "max_force_N": _H, "max_pure_force_N": _H,
+    "stiffness_limit_N_per_mm": _H, "effective_mass_kg": _L,
+    # 3-PRRR structure
+    "structural_stiffness_N_per_mm": _H, "elastic_centre_mm": _0, "structural_stiffness_at_elastic_centre_N_per_mm": _H,
+    "structural_load_height_mm": _0, "structural_condition": _L, "structural_stiffness_fea_bonded_N_per_mm": _H,
+    "structural_stiffness_frame_bonded_N_per_mm": _H, "structural_fea_dofs": _0, "structural_fea_wall_s": _0,
+    "structural_fea_max_von_mises_MPa_per_N": _L, "structural_fea_max_von_mises_at_mm": _0,
+    # 3-PRRR workspace, interference, free workspace
+    "workspace_volume_mm3": _H, "workspace_cylinder_diameter_mm": _H, "workspace_cylinder_height_mm": _H,
+    "workspace_height_at_diameter_mm": _H, "workspace_required_diameter_mm": _0, "footprint_diameter_mm": _L,
+    "link_sweep_diameter_mm": _L, "workspace_footprint_ratio": _H, "jacobian_condition_deviation": _L,
+    "workspace_interference_removed_fraction": _L, "workspace_free_volume_mm3": _H,
+    "interference_removed_fraction": _L, "interference_overlap_fraction": _L,
+    "workspace_free_radius_mm": _H, "workspace_free_cylinder_diameter_mm": _H, "workspace_free_cylinder_height_mm": _H,
+    "workspace_free_height_at_diameter_mm": _H, "workspace_free_footprint_ratio": _H,
+    # 3-PRRR size, joints, loop
+    "device_mass_kg": _L, "device_mass_sea_modules_kg": _L, "device_mass_links_kg": _L, "device_mass_frame_kg": _L,
+    "device_height_mm": _L, "joint_elbow_limit_deg": _H, "joint_limit_margin_deg": _H, "joint_range_r1_deg": _0,
+    "joint_range_r2_deg": _0, "joint_range_r3_deg": _0, "force_loop_bandwidth_Hz": _H,
+    "closed_loop_stiffness_limit_N_per_mm": _H,
+    # master workspace, balance, transparency
+    "workspace_coverage": _H, "workspace_required_box_mm": _0, "workspace_centroid_mm": _0, "workspace_box_centre_mm": _0,
+    "global_conditioning_index": _H, "jacobian_condition_min": _L, "jacobian_condition_max": _L,
+    "max_unbalance_force_N": _L, "unbalance_radius_mm": _H, "com_offset_mm": _0, "com_inside_unbalance_radius": _H,
+    "unbalance_ellipse_axes_mm": _H, "unbalance_ellipse_overlap_pct": _0, "unbalance_ellipse_fit_mm": _0,
+    "unbalance_ellipse_tilt_deg": _0, "balancing_counterweights_kg": _L, "moving_mass_kg": _L,
+    "transparency_bandwidth_Hz": _H, "transparency_bandwidth_min_Hz": _H, "apparent_mass_kg": _L,
+    "transparency_bandwidth_worst_Hz": _H,
+    # handle stability, upsampling, Z-width (model cross-checks and sweep axes are neutral)
+    "max_stable_stiffness_N_per_mm": _H, "pade_stable_stiffness_N_per_mm": _0, "pade_minus_exact_pct": _0,
+    "eq19_stable_stiffness_N_per_mm": _0, "wall_stable": _H, "wall_margin": _H, "eq22_operator_stiffness_N_per_mm": _0,
+    "critical_operator_stiffness_N_per_mm": _H, "max_stable_stiffness_vs_period_N_per_mm": _H, "sweep_period_ms": _0,
+    "max_stable_stiffness_vs_wall_damping_N_per_mm": _H, "sweep_wall_damping_Ns_per_m": _0,
+    "max_stable_stiffness_vs_operator_stiffness_N_per_mm": _H, "sweep_operator_stiffness_N_per_mm": _0,
+    "upsampling": _0, "max_stable_stiffness_none_N_per_mm": _H, "max_stable_stiffness_as_printed_N_per_mm": _H,
+    "upsampling_as_printed_vs_none_pct": _H, "max_stable_stiffness_as_intended_N_per_mm": _H,
+    "upsampling_as_intended_vs_none_pct": _H, "upsampling_default_variant": _0,
+    "zwidth_wall_damping_Ns_per_m": _0, "zwidth_boundary_N_per_mm": _H, "zwidth_peak_stiffness_N_per_mm": _H,
+    "zwidth_peak_damping_Ns_per_m": _0, "zwidth_max_stable_damping_Ns_per_m": _H, "zwidth_stable_fraction": _H,
+    # size and strength (issues 30 and 32; the part, load, pose and material named are neutral)
+    "device_diameter_mm": _L, "workspace_free_device_ratio": _H, "safety_factor_yield": _H,
+    "safety_factor_fatigue": _H, "safety_factor_yield_per_part": _H, "strength_max_von_mises_MPa": _L,
+    "strength_fea_max_von_mises_MPa_per_N_per_part": _L, "strength_frame_max_von_mises_MPa_per_N_per_part": _L,
+    "strength_frame_vs_fea_pct": _0, "strength_fea_governing_part": _0, "strength_governing_part": _0,
+    "strength_governing_load": _0, "strength_governing_pose_mm": _0, "strength_material": _0,
+    "strength_poses_unreachable": _0, "strength_rated_force_N": _0,
+}
+
+#: a change smaller than this, relative to the larger magnitude of the two values, is no change (rounding:
+#: another BLAS kernel, a reordered sum); ``compare`` and the reports state it
+SAME_REL_TOL = 1e-6
+
+
+def metric_direction(name: str) -> Direction:
+    """Which way ``name`` (``name[i]`` allowed) is better; neutral for a name not in :data:`DIRECTIONS`."""
+    return DIRECTIONS.get(name.split("[")[0], Direction.NEUTRAL)
+
+
+def judge(name: str, reference: float, value: float, *, rel_tol: float = SAME_REL_TOL) -> str:
+    """``value`` against ``reference`` for metric ``name``: ``better``, ``worse``, ``changed`` (a neutral
+    metric moved), ``same`` (within ``rel_tol`` of the larger magnitude) or ``''`` (either not a finite number)."""
+    try:
+        a, b = float(reference), float(value)
+    except (TypeError, ValueError):
+        return ""
+    if not (np.isfinite(a) and np.isfinite(b)):
+        return ""
+    if abs(b - a) <= rel_tol * max(abs(a), abs(b)):
+        return "same"
+    direction = metric_direction(name)
+    if direction is Direction.NEUTRAL:
+        return "changed"
+    return "better" if (b > a) == (direction is Direction.HIGHER) else "worse"
 
 
 def glossary(device: str | None = None) -> list[dict[str, Any]]:

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.registry import SAME_REL_TOL, judge, metric_direction
 from hapticopt.optim import cache as evaluation_cache
 from hapticopt.optim.cache import EvaluationCache
 from hapticopt.design import io, tomlsafe
@@ -30,7 +31,7 @@ from hapticopt.design.schema import specs
 from hapticopt.design.units import pretty
 from hapticopt.optim.recorder import FILENAME
 from hapticopt.optim.runs import RunReader
-from hapticopt.optim.sweep import scalars, unit_of_metric
+from hapticopt.optim.sweep import scalars, unit_label
 from hapticopt.design.errors import short
 
 
@@ -50,6 +51,8 @@ class Row:
     values: tuple[float, ...]  # one per design (NaN: not computed or not ok)
     deltas: tuple[float, ...]  # values[i] − values[0]
     relative: tuple[float, ...]  # deltas[i] / |values[0]| (NaN where values[0] is 0 or NaN)
+    verdicts: tuple[str, ...] = ()  # per design against the first: better, worse, changed, same or ''
+    # (:func:`hapticopt.analysis.registry.judge`: the metric's direction, SAME_REL_TOL)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -115,8 +118,9 @@ def compare(designs: Sequence[Named], *, fidelity: Fidelity = Fidelity.STANDARD,
     for name in names:
         values = tuple(float(m.get(name, math.nan)) for m in per_design)
         deltas = tuple(v - values[0] for v in values)
-        rows.append(Row(metric=name, unit=pretty(unit_of_metric(name)), values=values, deltas=deltas,
-                        relative=tuple(_rel(d, values[0]) for d in deltas)))
+        rows.append(Row(metric=name, unit=unit_label(name), values=values, deltas=deltas,
+                        relative=tuple(_rel(d, values[0]) for d in deltas),
+                        verdicts=tuple(judge(name, values[0], v) for v in values)))
     tables = [io.design_to_dict(d.design) for d in designs]
     design_rows = []
     for section in designs[0].design.SECTIONS:
@@ -140,20 +144,32 @@ def fmt(v: float) -> str:
     return "—" if not math.isfinite(v) else f"{v:.6g}"
 
 
-def fmt_delta(d: float, r: float) -> str:
+#: how a verdict reads in markdown and in the terminal (the HTML colours the cell by its class)
+MARKS = {"better": "▲ better", "worse": "▼ worse", "changed": "", "same": "", "": ""}
+#: the sentence every comparison states about its colours
+LEGEND = (f"Δ coloured by the metric's direction (analysis/registry.py DIRECTIONS): green better, red worse, "
+          f"grey a neutral metric that changed; a change within {SAME_REL_TOL:g} of the larger value (relative) is "
+          "rounding and shown as =")
+
+
+def verdict(r: Row, i: int) -> str:
+    return r.verdicts[i] if i < len(r.verdicts) else ""
+
+
+def fmt_delta(d: float, r: float, same: bool = False) -> str:
     if not math.isfinite(d):
         return "—"
-    if d == 0.0:
-        return "0"
+    if d == 0.0 or same:
+        return "0" if d == 0.0 else "="
     return f"{d:+.4g}" + (f" ({100 * r:+.3g} %)" if math.isfinite(r) else "")
 
 
-def fmt_short(d: float, r: float) -> str:
+def fmt_short(d: float, r: float, same: bool = False) -> str:
     """The delta for a narrow terminal: relative where the reference is a nonzero number."""
     if not math.isfinite(d):
         return "—"
-    if d == 0.0:
-        return "0"
+    if d == 0.0 or same:
+        return "0" if d == 0.0 else "="
     return f"{100 * r:+.3g} %" if math.isfinite(r) else f"{d:+.4g}"
 
 
@@ -163,11 +179,13 @@ def as_json(c: Comparison) -> dict[str, Any]:
 
     return {
         "fidelity": str(c.fidelity),
+        "same_rel_tol": SAME_REL_TOL,
         "designs": [{"label": d.label, "source": d.source, "name": d.design.name, "device": d.design.device,
                      "statuses": s, "messages": m, "evaluation": p or "computed"}
                     for d, s, m, p in zip(c.designs, c.statuses, c.messages, _provenance(c))],
         "metrics": [{"metric": r.metric, "unit": r.unit, "values": [num(v) for v in r.values],
-                     "deltas": [num(v) for v in r.deltas], "relative": [num(v) for v in r.relative]}
+                     "deltas": [num(v) for v in r.deltas], "relative": [num(v) for v in r.relative],
+                     "direction": str(metric_direction(r.metric)), "verdicts": list(r.verdicts)}
                     for r in c.rows],
         "design_differences": [{"key": k, "unit": u, "values": list(v)} for k, u, v in c.design_rows],
     }
@@ -178,12 +196,14 @@ def markdown(c: Comparison, renders: Sequence[str | None] = ()) -> str:
     lines = [f"# Comparison at {c.fidelity} fidelity", ""]
     lines += [f"- **{d.label}**: {d.source} ({d.design.device}, name {d.design.name})" + (f"; values {p}" if p else "")
               for d, p in zip(c.designs, _provenance(c))]
-    lines += ["", "## Metrics (Δ from " + labels[0] + ")", "",
+    lines += ["", "## Metrics (Δ from " + labels[0] + ")", "", LEGEND + ".", "",
               "| metric | unit | " + " | ".join([labels[0]] + [f"{b} | Δ {b}" for b in labels[1:]]) + " |",
               "|---|---|" + "---:|" * (1 + 2 * (len(labels) - 1))]
     for r in c.rows:
         cells = [fmt(r.values[0])] + [x for i in range(1, len(labels))
-                                      for x in (fmt(r.values[i]), fmt_delta(r.deltas[i], r.relative[i]))]
+                                      for x in (fmt(r.values[i]),
+                                                (fmt_delta(r.deltas[i], r.relative[i], verdict(r, i) == "same")
+                                                 + (" " + MARKS[verdict(r, i)] if MARKS[verdict(r, i)] else "")))]
         lines.append(f"| {r.metric} | {r.unit} | " + " | ".join(cells) + " |")
     lines += ["", "## Statuses", "", "| evaluator | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
     for name in dict.fromkeys(k for s in c.statuses for k in s):
@@ -205,7 +225,8 @@ def html_page(c: Comparison, renders: Sequence[str | None] = ()) -> str:
     out = ["<!doctype html><html><head><meta charset='utf-8'><title>hapticopt compare</title>",
            "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
            "td,th{border:1px solid #ccc;padding:2px 8px}td.n{text-align:right}"
-           ".up{color:#060}.down{color:#a00}</style></head><body>",
+           ".better{color:#1b5e20;background:#e8f5e9}.worse{color:#b71c1c;background:#ffebee}"
+           ".changed{color:#555}.same{color:#999}.legend{font-size:13px;color:#555}</style></head><body>",
            f"<h1>Comparison at {e(str(c.fidelity))} fidelity</h1><ul>"]
     out += [f"<li><b>{e(d.label)}</b>: {e(d.source)} ({e(d.design.device)}, name {e(d.design.name)})</li>"
             for d in c.designs]
@@ -214,14 +235,15 @@ def html_page(c: Comparison, renders: Sequence[str | None] = ()) -> str:
         out.append("<div>" + "".join(f"<figure style='display:inline-block'><img src='{e(src)}' width='360'>"
                                      f"<figcaption>{e(d.label)}</figcaption></figure>"
                                      for d, src in zip(c.designs, renders) if src) + "</div>")
-    out.append(f"<h2>Metrics (Δ from {e(labels[0])})</h2><table><tr><th>metric</th><th>unit</th><th>{e(labels[0])}</th>"
+    out.append(f"<h2>Metrics (Δ from {e(labels[0])})</h2><p class='legend'>{e(LEGEND)}.</p><table><tr><th>metric</th><th>unit</th><th>{e(labels[0])}</th>"
                + "".join(f"<th>{e(b)}</th><th>Δ {e(b)}</th>" for b in labels[1:]) + "</tr>")
     for r in c.rows:
         cells = f"<td class='n'>{fmt(r.values[0])}</td>"
         for i in range(1, len(labels)):
-            cls = "up" if r.deltas[i] > 0 else "down" if r.deltas[i] < 0 else ""
-            cells += f"<td class='n'>{fmt(r.values[i])}</td><td class='n {cls}'>{e(fmt_delta(r.deltas[i], r.relative[i]))}</td>"
-        out.append(f"<tr><td>{e(r.metric)}</td><td>{e(r.unit)}</td>{cells}</tr>")
+            cls = verdict(r, i)
+            cells += (f"<td class='n'>{fmt(r.values[i])}</td><td class='n {cls}' title='{e(cls)}'>"
+                      f"{e(fmt_delta(r.deltas[i], r.relative[i], cls == 'same'))}</td>")
+        out.append(f"<tr data-metric='{e(r.metric)}'><td>{e(r.metric)}</td><td>{e(r.unit)}</td>{cells}</tr>")
     out.append("</table><h2>Statuses</h2><table><tr><th>evaluator</th>" + "".join(f"<th>{e(b)}</th>" for b in labels)
                + "</tr>")
     for name in dict.fromkeys(k for s in c.statuses for k in s):

@@ -96,11 +96,11 @@ def _cache(path: str) -> EvaluationCache:
 
 
 def run_evaluators(design: Any, fidelity: Fidelity, only: tuple[str, ...] | None, compute: Compute = DEFAULT
-                   ) -> tuple[dict[str, Any], dict[str, str], dict[str, float], str]:
-    """metrics, statuses, timings, failure message ('' if none): the registry's one loop, flattened
+                   ) -> tuple[dict[str, Any], dict[str, str], dict[str, float], dict[str, str]]:
+    """metrics, statuses, timings, each evaluator's message: the registry's one loop, flattened
     to plain values for the record (exceptions are already statuses there)."""
     ev = evaluate_all(design, fidelity=fidelity, only=only, compute=compute)
-    return ev.metrics(), {k: str(v) for k, v in ev.statuses.items()}, dict(ev.timings_s), ev.failures()
+    return ev.metrics(), {k: str(v) for k, v in ev.statuses.items()}, dict(ev.timings_s), dict(ev.messages)
 
 
 def evaluate_point(task: PointTask) -> PointResult:
@@ -116,11 +116,10 @@ def evaluate_point(task: PointTask) -> PointResult:
         ev = evaluation_cache.evaluate(design, task.fidelity, cache=_cache(task.cache), only=task.only,
                                        written_by="hapticopt sweep", compute=task.compute)
         metrics, statuses, timings, provenance = ev.metrics, ev.statuses, dict(ev.timings_s), ev.provenance
-        failure = "; ".join(f"{name}: {ev.messages.get(name) or 'failed'}"
-                            for name, st in statuses.items() if st == str(Status.FAILED))
+        messages = dict(ev.messages)
     else:
-        metrics, statuses, timings, failure = run_evaluators(design, task.fidelity, task.only, task.compute)
-    return _point(task, x, metrics, statuses, timings, failure, provenance)
+        metrics, statuses, timings, messages = run_evaluators(design, task.fidelity, task.only, task.compute)
+    return _point(task, x, metrics, statuses, timings, messages, provenance)
 
 
 def evaluate_points(tasks: Sequence[PointTask]) -> list[PointResult]:
@@ -143,18 +142,25 @@ def evaluate_points(tasks: Sequence[PointTask]) -> list[PointResult]:
         for (i, _), ev in zip(members, evs):
             task = tasks[i]
             out[i] = _point(task, tuple(float(v) for v in task.x), ev.metrics(),
-                            {k: str(v) for k, v in ev.statuses.items()}, dict(ev.timings_s), ev.failures())
+                            {k: str(v) for k, v in ev.statuses.items()}, dict(ev.timings_s), dict(ev.messages))
     return [r for r in out if r is not None]
 
 
+def failure_message(statuses: Mapping[str, str], messages: Mapping[str, str]) -> str:
+    """``evaluator: status — message`` of every evaluator whose numbers do not hold, joined by '; ' ('' when
+    all hold): the reason the record keeps for a failed point (``hapticopt show`` counts them)."""
+    return "; ".join(f"{name}: {st}" + (f" — {messages[name]}" if messages.get(name) else "")
+                     for name, st in statuses.items() if not Status(st).metrics_hold)
+
+
 def _point(task: PointTask, x: tuple[float, ...], metrics: dict[str, Any], statuses: dict[str, str],
-           timings: dict[str, float], failure: str, provenance: str = "") -> PointResult:
-    """The outcome, picked values and (if asked) gradients of one evaluated design point."""
+           timings: dict[str, float], messages: Mapping[str, str], provenance: str = "") -> PointResult:
+    """The outcome, picked values and (if asked) gradients of one evaluated design point; a point whose
+    evaluators' numbers do not hold keeps each one's status and message as its message."""
     values = tuple(ref.value(metrics) for ref in task.refs)
-    not_holding = [f"{name}: {st}" for name, st in statuses.items()
-                   if not Status(st).metrics_hold and Status(st) is not Status.FAILED]
-    if failure or not_holding:
-        outcome, message = Outcome.EVALUATOR_FAILED, "; ".join(not_holding + ([failure] if failure else []))
+    failure = failure_message(statuses, messages)
+    if failure:
+        outcome, message = Outcome.EVALUATOR_FAILED, failure
         values = tuple(math.nan for _ in task.refs)  # a singular or unstable point is never a number
     elif not all(math.isfinite(v) for v in values):
         bad = [r.text for r, v in zip(task.refs, values) if not math.isfinite(v)]

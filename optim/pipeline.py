@@ -28,6 +28,7 @@ from hapticopt.analysis.status import Status
 from hapticopt.design import io
 from hapticopt.design.atomic import write_text
 from hapticopt.optim.driver import EvalRecord, ProgressFn
+from hapticopt.design.errors import InvalidInput, UnknownName
 from hapticopt.optim.problem import Problem, check_metrics
 from hapticopt.analysis.registry import EVALUATORS, describe_failure, jsonable, run_plotter
 from hapticopt.design.paths import inside
@@ -43,7 +44,7 @@ from hapticopt.optim.executor import InlineExecutor, check_scheduler, make_execu
 from hapticopt.optim import side as side_process
 from hapticopt.optim.side import side_executor
 from hapticopt.optim.worker import SupervisedWorker
-from hapticopt.optim import driver, pareto, pareto_report, report
+from hapticopt.optim import driver, pareto, pareto_report, report, strict_json
 from hapticopt.optim.results import DesignEvaluation, PipelineResult, StageOutcome, TimeHistory, Verdict
 from hapticopt.analysis import verify as closed_loop_verify
 from hapticopt.optim import cache as evaluation_cache
@@ -287,6 +288,11 @@ def _provenance_note(*evaluations: DesignEvaluation) -> str:
     return "; ".join(f"{ev.fidelity} fidelity " + (ev.provenance or "computed") for ev in unique)
 
 
+class ProblemRejected(InvalidInput):
+    """The baseline evaluation shows the problem cannot run (a metric reference that picks no number):
+    bad input found after the run directory was made (the CLI removes a fresh run's files)."""
+
+
 def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, scheduler: str, workers: int | None,
                 progress: ProgressFn | None, export: bool, verify: bool, on_stage: Callable[[str], None] | None,
                 verifier: Callable[[Any, str], Any] | None, on_step: StepFn | None = None,
@@ -341,7 +347,10 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
                     submit_base(slow, side)
         base_opt = _recorded_evaluation(rec, problem.base, problem.fidelity_optimise, "baseline",
                                         at(problem.fidelity_optimise), ecache, compute)
-        check_metrics(problem, base_opt.metrics)
+        try:
+            check_metrics(problem, base_opt.metrics)
+        except (InvalidInput, UnknownName) as exc:
+            raise ProblemRejected(str(exc)) from None
         only = evaluators_for(problem, base_opt)
         if fid == problem.fidelity_optimise:
             baseline = base_opt
@@ -393,7 +402,9 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         here = tuple(e.name for e in EVALUATORS[problem.device] if e.name not in there)
         pending_final = side.submit(side_process.evaluate, optimum_design, fid, there, out / "plots",
                                     compute=worker_compute(side, compute)) if there else None
-        pending_export = side.submit(side_process.export, optimum_design, out) if export and beside else None
+        kept_export = _kept_export(out, optimum_design) if export and resume else None
+        pending_export = side.submit(side_process.export, optimum_design, out) \
+            if export and beside and kept_export is None else None
         parts = [evaluation_cache.evaluate(optimum_design, fid, cache=None, only=here, progress=at(fid),
                                            compute=compute)]
         side_drawn: dict[str, tuple[list[str], str]] = {}
@@ -448,7 +459,11 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
         on_step("", len(drawn), len(drawn))
     stages.append(StageOutcome(name="plots", status="ok", wall_s=time.perf_counter() - t, files=tuple(plot_files)))
 
-    if export:
+    if export and kept_export is not None:  # a resumed run whose optimum did not change: its export stands
+        stages.append(StageOutcome(name="export", status="ok", wall_s=0.0, files=kept_export,
+                                   message="the optimum is the one exported before: its files are kept, not "
+                                           "recomputed"))
+    elif export:
         t = stage("export")
         # beside: its own time there, and what this process waited for it; else (or its process died) here
         status, message, exported, wall_s = side_process.collect(
@@ -477,6 +492,25 @@ def _run_locked(problem: Problem, out: Path, *, resume: bool, force: bool, sched
     return pres
 
 
+def _kept_export(out: Path, design: Any) -> tuple[str, ...] | None:
+    """The files of the run's earlier export when it exported this very design (its optimum file holds
+    the same TOML, result.json lists an ok export and every file is still there), else None."""
+    try:
+        previous = json.loads((out / "result.json").read_text(encoding="utf-8"))
+        written = (out / OPTIMUM_FILE if (out / OPTIMUM_FILE).is_file() else out / INFEASIBLE_FILE).read_text(
+            encoding="utf-8")
+    except (OSError, ValueError):
+        return None
+    exported = previous.get("exported") if isinstance(previous, dict) else None
+    ok = any(s.get("stage") == "export" and s.get("status") == "ok" for s in previous.get("stages", [])
+             if isinstance(s, dict))
+    if not ok or not isinstance(exported, list) or not exported or written != io.dumps(design):
+        return None
+    if not all(isinstance(f, str) and (out / f).is_file() for f in exported):
+        return None
+    return tuple(exported)
+
+
 def _write_result_json(p: PipelineResult, dest: Path) -> None:
     best: EvalRecord | None = p.run.best
     payload = {
@@ -497,8 +531,9 @@ def _write_result_json(p: PipelineResult, dest: Path) -> None:
         "stages": [{"stage": s.name, "status": s.status, "wall_s": s.wall_s, "message": s.message}
                    for s in p.stages],
         "files": p.files,
+        "exported": [f for s in p.stages if s.name == "export" and s.status == "ok" for f in s.files],
     }
-    write_text(inside(dest, "result.json"), json.dumps(payload, indent=2, default=str) + "\n")
+    write_text(inside(dest, "result.json"), strict_json.dumps(payload, indent=2) + "\n")
 
 
 def run_front_pipeline(problem: Problem, *, out_dir: str | Path, resume: bool = False, force: bool = False,
@@ -586,5 +621,5 @@ def _run_front_locked(problem: Problem, out: Path, *, resume: bool, force: bool,
         "files": {"chosen" if feasible_final else "chosen_infeasible": chosen_file, "recorder": "evaluations.sqlite",
                   **files},
     }
-    write_text(inside(out, "result.json"), json.dumps(payload, indent=2, default=str) + "\n")
+    write_text(inside(out, "result.json"), strict_json.dumps(payload, indent=2) + "\n")
     return payload

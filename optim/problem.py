@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import difflib
 import math
 import re
 from collections.abc import Mapping, Sequence
@@ -60,6 +61,7 @@ from typing import Any
 
 from hapticopt.design import bundled
 from hapticopt.analysis.fidelity import Fidelity
+from hapticopt.analysis.registry import EVALUATORS
 from hapticopt.analysis.loop.scene import load_scene
 from hapticopt.design import io, tomlsafe
 from hapticopt.design.errors import InputFileError, InvalidDesign, InvalidInput, UnknownName, short, short_key
@@ -377,13 +379,27 @@ def problem_from_text(text: str, *, source: str, base_dir: Path | None) -> Probl
     return problem_from_dict(data, source=source, base_dir=base_dir, source_text=text)
 
 
+def did_you_mean(word: Any, choices: Any) -> str:
+    """``"; did you mean X?"`` for the closest of ``choices`` to ``word`` (difflib), '' when none is close."""
+    if not isinstance(word, str):
+        return ""
+    close = difflib.get_close_matches(word, [str(c) for c in choices], n=1, cutoff=0.6)
+    return f"; did you mean {close[0]}?" if close else ""
+
+
+def _unknown_key(where: str, key: Any, allowed: Any) -> InvalidInput:
+    allowed = sorted(allowed)
+    return InvalidInput(f"{where}{short_key(key)} is not a known key: allowed {', '.join(allowed)}"
+                        f"{did_you_mean(key, allowed)}")
+
+
 def _table(data: Mapping[str, Any], key: str, source: str, allowed: set[str]) -> dict[str, Any]:
     table = data.get(key, {})
     if not isinstance(table, Mapping):
         raise InvalidInput(f"{source}: [{key}] must be a table")
     for k in table:
         if k not in allowed:
-            raise InvalidInput(f"{source}: {key}.{short_key(k)} is not a known key: allowed {', '.join(sorted(allowed))}")
+            raise _unknown_key(f"{source}: {key}.", k, allowed)
     return dict(table)
 
 
@@ -398,17 +414,21 @@ def _enum(cls: type, value: Any, where: str) -> Any:
         return cls(value)
     except ValueError:
         allowed = ", ".join(m.value for m in cls)  # type: ignore[attr-defined]
-        raise InvalidInput(f"{where} = {short(value)} is not allowed: allowed {allowed}") from None
+        raise InvalidInput(f"{where} = {short(value)} is not allowed: allowed {allowed}"
+                           f"{did_you_mean(value, [m.value for m in cls])}") from None  # type: ignore[attr-defined]
 
 
 def problem_from_dict(data: Mapping[str, Any], *, source: str = "problem", base_dir: Path | None = None,
                       source_text: str = "") -> Problem:
-    """Build and validate a :class:`Problem` (metric names are checked later against an evaluation)."""
+    """Build and validate a :class:`Problem` completely, before any work: every key (with a did-you-mean),
+    range, constraint bound, fidelity level and metric name (against the registry's metrics of the device,
+    at both fidelities the problem evaluates them at); the baseline evaluation still checks that each
+    reference picks one number (:func:`check_metrics`)."""
     if not isinstance(data, Mapping):
         raise InvalidInput(f"{source}: a problem must be a table of keys, got {short(data)}")
     for key in data:
         if key not in _TOP_KEYS:
-            raise InvalidInput(f"{source}: {short_key(key)} is not a known key: allowed {', '.join(sorted(_TOP_KEYS))}")
+            raise _unknown_key(f"{source}: ", key, _TOP_KEYS)
     # the optimum is named NAME-optimum, and both become file names
     name = data.get("name")
     if isinstance(name, str) and len(name) > PROBLEM_NAME_MAX:
@@ -463,6 +483,10 @@ def problem_from_dict(data: Mapping[str, Any], *, source: str = "problem", base_
     fidelity_optimise = _enum(Fidelity, fid.get("optimise", "draft"), f"{source}: fidelity.optimise")
     fidelity_final = _enum(Fidelity, fid.get("final", "fine"), f"{source}: fidelity.final")
     fidelity_verify = _enum(Fidelity, fid.get("verify", "standard"), f"{source}: fidelity.verify")
+    refs = [(f"{source}: objective.metric" if len(objectives) == 1 else f"{source}: objectives[{i}].metric", o.metric)
+            for i, o in enumerate(objectives)]
+    refs += [(f"{source}: constraints ({c.text}).metric", c.metric) for c in constraints]
+    check_metric_names(device, refs, (fidelity_optimise, fidelity_final))
     ver = _table(data, "verify", source, set(TABLE_KEYS["verify"]))
     verify_max_time_s = _number(ver.get("max_time_s", 60.0), f"{source}: verify.max_time_s")
     if not 0 < verify_max_time_s <= MAX_TIME_S:
@@ -512,11 +536,11 @@ def numeric_key(base: Any, key: str, where: str, *, role: str) -> tuple[str, str
     section, tkey = key.split(".")
     if section not in base.SECTIONS:
         raise InvalidInput(f"{where}: {section} is not a section of a {base.device} design: "
-                           f"allowed {', '.join(base.SECTIONS)}")
+                           f"allowed {', '.join(base.SECTIONS)}{did_you_mean(section, base.SECTIONS)}")
     by_key = {s.key: (fname, s) for fname, s in specs(getattr(base, section)).items()}
     if tkey not in by_key:
         raise InvalidInput(f"{where} is not {role} of the design: allowed keys in [{section}] are "
-                           f"{', '.join(sorted(by_key))}")
+                           f"{', '.join(sorted(by_key))}{did_you_mean(tkey, by_key)}")
     fname, spec = by_key[tkey]
     return section, fname, spec
 
@@ -532,7 +556,7 @@ def _variables(raw: Any, base: Any, source: str) -> tuple[Variable, ...]:
             raise InvalidInput(f"{where} must be a table with key, lower, upper")
         for k in table:
             if k not in TABLE_KEYS["variables"]:
-                raise InvalidInput(f"{where}.{short_key(k)} is not a known key: allowed key, lower, upper, start")
+                raise _unknown_key(f"{where}.", k, TABLE_KEYS["variables"])
         key = table.get("key")
         if not isinstance(key, str) or key.count(".") != 1:
             raise InvalidInput(f"{where}.key = {short(key)} must name section.key, e.g. \"geometry.beta_deg\"")
@@ -578,7 +602,7 @@ def _objective(raw: Any, source: str) -> Objective:
         raise InvalidInput(f"{source}: [objective] must be a table with metric and sense")
     for k in raw:
         if k not in TABLE_KEYS["objective"]:
-            raise InvalidInput(f"{source}: objective.{short_key(k)} is not a known key: allowed metric, sense")
+            raise _unknown_key(f"{source}: objective.", k, TABLE_KEYS["objective"])
     if "metric" not in raw:
         raise InvalidInput(f"{source}: objective.metric is missing, e.g. metric = \"jacobian_condition\"")
     metric = MetricRef.parse(raw["metric"], f"{source}: objective.metric")
@@ -596,7 +620,7 @@ def _constraints(raw: Any, source: str) -> tuple[Constraint, ...]:
             raise InvalidInput(f"{where} must be a table with metric and min and/or max")
         for k in table:
             if k not in TABLE_KEYS["constraints"]:
-                raise InvalidInput(f"{where}.{short_key(k)} is not a known key: allowed metric, min, max")
+                raise _unknown_key(f"{where}.", k, TABLE_KEYS["constraints"])
         if "metric" not in table:
             raise InvalidInput(f"{where}.metric is missing")
         metric = MetricRef.parse(table["metric"], f"{where}.metric")
@@ -649,6 +673,23 @@ def _optimiser(table: dict[str, Any], source: str, constrained: bool) -> Optimis
     if cfg.starts > cfg.max_evals:
         raise InvalidInput(f"{where}.starts = {cfg.starts} exceeds max_evals = {cfg.max_evals}")
     return cfg
+
+
+def check_metric_names(device: str, refs: Sequence[tuple[str, MetricRef]], levels: Sequence[Fidelity]) -> None:
+    """One line (exit 2) for a metric reference the device's evaluators never report (with the closest
+    name), or report only at other fidelity levels than ``levels`` (the optimisation's and the final one)."""
+    docs = {m.name: m for e in EVALUATORS.get(device, ()) for m in e.metrics}
+    for where, ref in refs:
+        doc = docs.get(ref.name)
+        if doc is None:
+            raise UnknownName(f"{where} = {short(ref.text)}: {short(ref.name)} is not a metric of a {device} design"
+                              f"{did_you_mean(ref.name, docs) or '; no metric name is close'} "
+                              f"(`hapticopt metrics --device {device}` lists them)")
+        missing = [str(f) for f in dict.fromkeys(levels) if f not in doc.fidelities]
+        if missing:
+            raise InvalidInput(f"{where} = {short(ref.text)} is reported only at {', '.join(map(str, doc.fidelities))} "
+                               f"fidelity, but the problem evaluates it at {', '.join(missing)}: allowed "
+                               "[fidelity] optimise and final at those levels")
 
 
 def check_metrics(problem: Problem, metrics: Mapping[str, Any]) -> None:

@@ -25,12 +25,13 @@ from typing import Any
 
 import numpy as np
 
+from hapticopt.analysis.registry import SAME_REL_TOL, judge
 from hapticopt.design.atomic import atomic_path, write_text
 from hapticopt.design.paths import inside
 from hapticopt.design.units import from_si, pretty
 from hapticopt.optim.problem import Algorithm, OptimiserConfig, Problem
 from hapticopt.optim.results import PipelineResult, StageOutcome, TimeHistory, Verdict
-from hapticopt.optim.sweep import unit_of_metric
+from hapticopt.optim.sweep import unit_label
 
 #: a constraint whose normalised margin is within this is reported as active
 ACTIVE_TOL = 1e-3
@@ -38,8 +39,16 @@ ACTIVE_TOL = 1e-3
 #: verification metrics that describe the run rather than the device (left out of "key numbers")
 _BOOKKEEPING = {"ticks", "plant_substeps", "wall_time_s", "controller_period_ms", "mujoco_timestep_ms", "stable"}
 
-#: a cell is a string or a list of lines
-Cell = str | list[str]
+@dataclasses.dataclass(frozen=True)
+class Judged:
+    """A change cell: its text and its verdict (:func:`hapticopt.analysis.registry.judge`), the HTML class."""
+
+    text: str
+    verdict: str
+
+
+#: a cell is a string, a list of lines or a judged change
+Cell = str | list[str] | Judged
 
 
 def _fmt(value: Any) -> str:
@@ -58,10 +67,7 @@ def metric_unit(name: str) -> str:
     """The unit of a metric or metric reference as printed (``stiffness_limit_N_per_mm[0]`` → ``N/mm``,
     ``min(max_force_N)`` → ``N``, ``stiffness_error_pct`` → ``%``; ``-`` for a dimensionless one)."""
     m = re.fullmatch(r"\s*(?:min|max)\(\s*(\w+)\s*\)\s*", name)
-    base = (m.group(1) if m else name).split("[")[0]
-    if base.endswith("_pct"):
-        return "%"
-    return pretty(unit_of_metric(base))
+    return unit_label(m.group(1) if m else name)
 
 
 def svg_frame(width: int, height: int, left: int, top: int, plot_w: int, plot_h: int) -> list[str]:
@@ -202,8 +208,10 @@ def history_figure(v: Verdict) -> Any:
             ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     axes[-1].set_xlabel("time t [s]")
     every = f"one sample per {h.stride} controller ticks, " if h.stride > 1 else ""
-    fig.suptitle(f"{v.scene}: {'PASS' if v.passed else 'FAIL'} ({every}controller period {h.period_s * 1e3:g} ms)",
-                 fontsize=10)
+    word = "PASS" if v.passed else "FAIL" + (f" — {v.message}" if v.message and len(v.message) <= 40 else "")
+    stop = (f"; stopped at t = {h.stopped_at_s:.4g} s (instability detected), nothing drawn after"
+            if h.stopped_at_s is not None else "")
+    fig.suptitle(f"{v.scene}: {word} ({every}controller period {h.period_s * 1e3:g} ms{stop})", fontsize=10)
     return fig
 
 
@@ -276,6 +284,54 @@ def improvement_text(p: PipelineResult) -> tuple[str, str]:
     return "not improved", f"not improved{delta}"
 
 
+def headline(p: PipelineResult) -> str:
+    """The report's opening paragraph: what was optimised, by how much, which constraints are active
+    (within ACTIVE_TOL of their limit) and which variables sit at a bound, and what to check next."""
+    prob = p.problem
+    obj = prob.objective.metric
+    unit = metric_unit(obj.text)
+    b, o = obj.value(p.baseline.metrics), obj.value(p.optimum.metrics)
+    word, _ = improvement_text(p)
+    u = "" if unit == "-" else f" {unit}"
+    by = ""
+    if math.isfinite(b) and math.isfinite(o):
+        by = f" from {_fmt(b)}{u} to {_fmt(o)}{u}" + (f" ({100 * (o - b) / abs(b):+.3g} %)" if b != 0 else "")
+    keys = ", ".join(v.key for v in prob.variables)
+    text = [f"{prob.objective.sense.value.capitalize()} {obj.text} of {prob.base_source} over {keys}: {word}{by} "
+            f"at {prob.fidelity_final} fidelity."]
+    tol = prob.optimiser.constraint_tol
+    active, violated = [], []
+    for c, (ctext, value, ok) in zip(prob.constraints, p.constraints_final):
+        margin = -c.normalised(value) if math.isfinite(value) else float("nan")
+        if not ok:
+            violated.append(ctext)
+        elif math.isfinite(margin) and abs(margin) <= max(ACTIVE_TOL, tol):
+            active.append(ctext)
+    if prob.constraints:
+        text.append(f"Active constraints: {', '.join(active)}." if active else "No constraint is active.")
+    at_bound = []
+    for v in prob.variables:
+        x = from_si(float(getattr(getattr(p.optimum_design, v.section), v.field)), v.unit)
+        if min(x - v.lower, v.upper - x) <= 1e-6 * (v.upper - v.lower):
+            at_bound.append(f"{v.key} = {_fmt(x)} {pretty(v.unit)}")
+    nxt = []
+    if violated:
+        nxt.append(f"the violated constraints ({', '.join(violated)})")
+    if at_bound:
+        nxt.append(f"the variables at a bound ({', '.join(at_bound)}): widen the bound if the design allows")
+    failed = [v.scene for v in p.verdicts if not v.passed]
+    if failed:
+        nxt.append(f"the closed-loop scenes that did not pass ({', '.join(failed)})")
+    elif not p.verdicts:
+        nxt.append("closed-loop behaviour (no scene was verified: `hapticopt verify`)")
+    bad = [k for k, st in p.optimum.statuses.items() if str(st) != "ok"]
+    if bad:
+        nxt.append(f"the evaluators not ok at the optimum ({', '.join(bad)})")
+    text.append("Check next: " + "; ".join(nxt) + "." if nxt else
+                "Check next: the renders and the metrics table below (nothing is flagged).")
+    return " ".join(text)
+
+
 # --------------------------------------------------------------------------------- tables
 def _start_rows(p: PipelineResult) -> tuple[list[str], list[list[Cell]]]:
     prob = p.problem
@@ -328,10 +384,10 @@ def _tables(p: PipelineResult) -> dict[str, tuple[list[str], list[list[Cell]]]]:
     out["design"] = (["variable", "unit", "lower", "upper", "baseline", "optimum"], rows)
     rows = []
     for name in sorted(set(p.baseline.metrics) | set(p.optimum.metrics)):
-        rows.append([name, metric_unit(name), _fmt(p.baseline.metrics.get(name, float("nan"))),
-                     _fmt(p.optimum.metrics.get(name, float("nan")))])
-    out["metrics"] = (["metric", "unit", f"baseline ({prob.fidelity_final})", f"optimum ({prob.fidelity_final})"],
-                      rows)
+        b, o = p.baseline.metrics.get(name, float("nan")), p.optimum.metrics.get(name, float("nan"))
+        rows.append([name, metric_unit(name), _fmt(b), _fmt(o), _change(name, b, o)])
+    out["metrics"] = (["metric", "unit", f"baseline ({prob.fidelity_final})", f"optimum ({prob.fidelity_final})",
+                       "change"], rows)
     rows = []
     for name in list(dict.fromkeys([*p.baseline.statuses, *p.optimum.statuses])):
         why = "; ".join(f"{who}: {m}" for who, m in (("baseline", p.baseline.messages.get(name, "")),
@@ -370,7 +426,43 @@ def _tables(p: PipelineResult) -> dict[str, tuple[list[str], list[list[Cell]]]]:
     return out
 
 
+#: the sentence above the metrics table
+CHANGE_LEGEND = (f"Change: optimum minus baseline, judged by each metric's direction (analysis/registry.py DIRECTIONS): "
+                 f"▲ better (green), ▼ worse (red), a vector with both yellow, a neutral metric uncoloured; within "
+                 f"{SAME_REL_TOL:g} relative "
+                 "it is rounding, shown as =.")
+#: how a verdict reads in markdown (the HTML also colours the cell by it)
+_MARKS = {"better": " ▲ better", "worse": " ▼ worse"}
+
+
+def _change(name: str, base: Any, opt: Any) -> Cell:
+    """The optimum's change from the baseline, judged by the metric's direction: a scalar as
+    ``+d (+r %) ▲ better``; a vector per component (``▲ +d (+r %); =; ▼ …``), its class ``mixed`` when some
+    components are better and others worse; '—' where either is not a number (or a matrix)."""
+    vector = isinstance(base, (list, tuple)) and isinstance(opt, (list, tuple)) and len(base) == len(opt)
+    pairs = list(zip(base, opt)) if vector else [(base, opt)]
+    if any(isinstance(v, (list, tuple, str)) for pair in pairs for v in pair):
+        return Judged("—", "")
+    texts, verdicts = [], []
+    for a, b in pairs:
+        v = judge(name, a, b)
+        if v in ("", "same"):
+            texts.append("—" if v == "" else "=")
+        else:
+            d = float(b) - float(a)
+            text = f"{d:+.4g}" + (f" ({100 * d / abs(float(a)):+.3g} %)" if float(a) != 0.0 else "")
+            mark = _MARKS.get(v, "")
+            texts.append(text + mark if not vector else (mark.split()[0] + " " + text if mark else text))
+        verdicts.append(v)
+    found = {v for v in verdicts if v}
+    overall = ("mixed" if {"better", "worse"} <= found else "worse" if "worse" in found else
+               "better" if "better" in found else "changed" if "changed" in found else "same" if found else "")
+    return Judged("; ".join(texts), overall)
+
+
 def _md_cell(c: Cell) -> str:
+    if isinstance(c, Judged):
+        c = c.text
     text = "<br>".join(c) if isinstance(c, list) else c
     return text.replace("|", "\\|").replace("\n", " ")
 
@@ -384,6 +476,8 @@ def _md_table(head: list[str], rows: list[list[Cell]]) -> str:
 
 
 def _html_cell(c: Cell) -> str:
+    if isinstance(c, Judged):
+        return html.escape(c.text)
     if isinstance(c, list):
         return "<br>".join(html.escape(x) for x in c)
     return html.escape(c)
@@ -393,7 +487,8 @@ def _html_table(head: list[str], rows: list[list[Cell]]) -> str:
     if not rows:
         return "<p><em>(none)</em></p>"
     h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
-    body = "".join("<tr>" + "".join(f"<td>{_html_cell(c)}</td>" for c in r) + "</tr>" for r in rows)
+    body = "".join("<tr>" + "".join(f"<td class='{c.verdict}'>{_html_cell(c)}</td>" if isinstance(c, Judged)
+                                    else f"<td>{_html_cell(c)}</td>" for c in r) + "</tr>" for r in rows)
     return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
 
 
@@ -402,7 +497,8 @@ table{border-collapse:collapse;margin:0.5em 0 1.5em;max-width:100%}td,th{border:
 text-align:left;font-size:13px;vertical-align:top;overflow-wrap:anywhere}th{background:#f0f0f0}
 img{max-width:100%;height:auto;border:1px solid #ddd;margin:4px}figure{margin:0 0 1.5em}
 figcaption{font-size:13px;color:#555}
-.ok{color:#2e7d32}.bad{color:#c62828}code{background:#f5f5f5;padding:1px 3px}"""
+.ok{color:#2e7d32}.bad{color:#c62828}.better{color:#1b5e20;background:#e8f5e9}
+.worse{color:#b71c1c;background:#ffebee}.mixed{background:#fff8e1}.changed{color:#555}.same{color:#999}code{background:#f5f5f5;padding:1px 3px}"""
 
 
 def _figure_html(src: str, alt: str, caption: str) -> str:
@@ -463,9 +559,10 @@ def write(p: PipelineResult, *, extra_stage: tuple[str, float] | None = None,
                    "nlopt returned; feasible means every constraint holds within the constraint tolerance "
                    f"({prob.optimiser.constraint_tol:g} of each limit).")
     # ------------------------------------------------------------------ markdown
-    md = [f"# Optimisation report: {prob.name}", ""] + [f"- {s}" for s in summary] + [""]
+    head = headline(p)
+    md = [f"# Optimisation report: {prob.name}", "", head, ""] + [f"- {s}" for s in summary] + [""]
     for key in ("design", "statuses", "metrics", "constraints"):
-        md += [f"## {titles[key]}", "", _md_table(*tables[key])]
+        md += [f"## {titles[key]}", ""] + ([CHANGE_LEGEND, ""] if key == "metrics" else []) + [_md_table(*tables[key])]
     md += ["## Convergence", "", "![convergence](convergence.svg)", "", conv_caption, ""]
     md += ["## Starts", "", starts_note, "", _md_table(*tables["starts"])]
     md += ["## Closed-loop verification", "", _md_table(*tables["verdicts"])]
@@ -483,11 +580,13 @@ def write(p: PipelineResult, *, extra_stage: tuple[str, float] | None = None,
     h = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
          '<meta name="viewport" content="width=device-width, initial-scale=1">',
          f"<title>Optimisation report: {html.escape(prob.name)}</title><style>{_CSS}</style></head><body>",
-         f"<h1>Optimisation report: {html.escape(prob.name)}</h1><ul>"]
+         f"<h1>Optimisation report: {html.escape(prob.name)}</h1>",
+         f"<p class='headline'><b>{html.escape(head)}</b></p><ul>"]
     h += [f"<li>{html.escape(s)}</li>" for s in summary]
     h.append("</ul>")
     for key in ("design", "statuses", "metrics", "constraints"):
-        h += [f"<h2>{titles[key]}</h2>", _html_table(*tables[key])]
+        h += [f"<h2>{titles[key]}</h2>"] + ([f"<p>{html.escape(CHANGE_LEGEND)}</p>"] if key == "metrics" else []) \
+            + [_html_table(*tables[key])]
     h += ["<h2>Convergence</h2>", _figure_html("convergence.svg", "convergence plot", conv_caption)]
     h += ["<h2>Starts</h2>", f"<p>{html.escape(starts_note)}</p>", _html_table(*tables["starts"])]
     h += ["<h2>Closed-loop verification</h2>", _html_table(*tables["verdicts"])]

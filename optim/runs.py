@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import platform
 import sqlite3
 from collections.abc import Iterator, Mapping, Sequence
@@ -110,6 +111,10 @@ class RunSummary:
     objective: str  # its metric reference ('' if unknown)
     feasible: bool | None  # None: the record does not say what feasible means
     repeated: int  # evaluations of a point already recorded (counted by the recorder)
+    best_fidelity: str = ""  # the fidelity at which ``best`` holds (the optimisation's: draft, usually)
+    final: float = math.nan  # the first objective of the recorded final design (the optimum re-evaluated)
+    final_fidelity: str = ""  # its fidelity ('' when no final design is recorded)
+    n_failed: int = 0  # evaluations whose outcome is not ok
 
 
 class RunReader:
@@ -267,10 +272,20 @@ class RunReader:
     def summary(self) -> RunSummary:
         best = self.best()
         objs = self.objectives or []
+        final = self.design("final") if objs else None
         return RunSummary(path=self.run_dir, kind=self.kind, problem=self.problem, status=self.status,
                           n_evaluations=len(self), objective=objs[0]["metric"] if objs else "",
                           best=self.objective_values(best)[0] if best is not None else math.nan,
-                          feasible=None if best is None else self.feasible(best), repeated=self.n_repeated)
+                          feasible=None if best is None else self.feasible(best), repeated=self.n_repeated,
+                          best_fidelity=best.fidelity if best is not None else "",
+                          final=self.objective_values(final)[0] if final is not None else math.nan,
+                          final_fidelity=final.fidelity if final is not None else "",
+                          n_failed=int(self._rows("SELECT COUNT(*) FROM evaluations WHERE outcome != 'ok'")[0][0]))
+
+    def failures(self) -> list[Case]:
+        """Every recorded evaluation whose outcome is not ok, in order: its outcome, message (each
+        evaluator's status and message) and statuses."""
+        return [c for c in self.cases() if c.outcome != "ok"]
 
     def history_table(self) -> tuple[list[str], list[list[Any]]]:
         """Columns and rows of the history: id, session, start, stage, outcome, each variable (edge
@@ -337,5 +352,29 @@ def find_runs(root: str | Path, *, depth: int = 3) -> Iterator[Path]:
 def as_dict(summary: RunSummary) -> Mapping[str, Any]:
     return {"path": str(summary.path), "kind": summary.kind, "problem": summary.problem, "status": summary.status,
             "evaluations": summary.n_evaluations, "objective": summary.objective,
-            "best": None if math.isnan(summary.best) else summary.best, "feasible": summary.feasible,
-            "repeated": summary.repeated}
+            "best": None if math.isnan(summary.best) else summary.best, "best_fidelity": summary.best_fidelity,
+            "final": None if math.isnan(summary.final) else summary.final, "final_fidelity": summary.final_fidelity,
+            "feasible": summary.feasible, "repeated": summary.repeated, "failed": summary.n_failed}
+
+
+_EVALUATOR_STATUS = re.compile(r"(?:^|; )(\w+): ([a-z][a-z-]*)(?= — |;|$)")
+_NUMBER = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?")
+
+
+def failure_reason(outcome: str, message: str) -> str:
+    """What a failed evaluation's reasons have in common with others: its outcome and, per evaluator,
+    ``name: status`` (an evaluator failure), else the message with its numbers as ``#``."""
+    parts = [f"{name}: {status}" for name, status in _EVALUATOR_STATUS.findall(message)]
+    if outcome == "evaluator_failed" and parts:
+        return f"{outcome}: " + "; ".join(dict.fromkeys(parts))
+    text = _NUMBER.sub("#", message.strip())
+    return f"{outcome}: {text[:160]}" if text else outcome
+
+
+def failure_counts(cases: Sequence[Case]) -> dict[str, int]:
+    """Failed evaluations per :func:`failure_reason`, most frequent first."""
+    counts: dict[str, int] = {}
+    for c in cases:
+        reason = failure_reason(c.outcome, c.message)
+        counts[reason] = counts.get(reason, 0) + 1
+    return dict(sorted(counts.items(), key=lambda kv: -kv[1]))

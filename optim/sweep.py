@@ -38,7 +38,7 @@ from hapticopt.design import io
 from hapticopt.design import paths
 from hapticopt.design.atomic import atomic_path, write_text
 from hapticopt.design.errors import InvalidDesign, InvalidInput
-from hapticopt.design.units import TO_SI, pretty
+from hapticopt.design.units import pretty
 from hapticopt.optim.evaluation import Outcome, PointResult, PointTask, evaluate_point, evaluate_points
 from hapticopt.optim.executor import worker_compute
 from hapticopt.optim.problem import Variable, numeric_key
@@ -276,16 +276,15 @@ def run_sweep(sweep: Sweep, *, executor: Executor, recorder: Recorder | None = N
 
 
 # ------------------------------------------------------------------------------ outputs
-def unit_of_metric(name: str) -> str:
-    """The unit a metric name ends with (``stiffness_limit_N_per_mm`` → ``N_per_mm``), '' if none."""
-    base = name.split("[")[0]
-    found = [u for u in TO_SI if u and base.endswith("_" + u)]
-    return max(found, key=len) if found else ""
+def unit_label(name: str) -> str:
+    """The printed unit of a metric or a component ``name[i]``, from the registry
+    (:func:`hapticopt.analysis.registry.metric_unit`: ``…_MPa_per_N`` → ``MPa/N``); ``-`` when dimensionless."""
+    return registry.metric_unit(name) or "-"
 
 
 def metric_label(name: str) -> str:
-    unit = unit_of_metric(name)
-    return f"{name} [{pretty(unit)}]" if unit else f"{name} [-]"
+    """An axis label: ``name [unit]``."""
+    return f"{name} [{unit_label(name)}]"
 
 
 def scalar_columns(results: Sequence[PointResult]) -> list[str]:

@@ -57,7 +57,10 @@ EXIT_CODES_HELP = (
     "     Other commands never exit 3.\n"
     "  4  internal error (a bug; hapticopt --debug shows the traceback)\n"
     "  5  optimise: a stage after the optimisation failed (export, a plot);\n"
-    "     the record, the optimum and the report are written"
+    "     the record, the optimum and the report are written\n"
+    "\b\n--json prints strict RFC 8259 JSON: a non-finite number is null, and\n"
+    "the payload's null_numbers names each one by its JSON path (NaN, Infinity);\n"
+    "the status beside it says why."
 )
 #: most processes of the local pool (``--workers``)
 MAX_WORKERS = 256

@@ -3,19 +3,25 @@
 from __future__ import annotations
 
 import contextlib
-import json
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design.paths import output_root, writable_dir
 from hapticopt.optim.cache import EvaluationCache
 from hapticopt.optim.recorder import run_lock
 from hapticopt.optim.cli.common import CACHE_HELP, NO_CACHE_HELP, cache_file, one_line_errors, parse_fidelity
+
+
+#: terminal style of a delta by its verdict
+_STYLE = {"better": "green", "worse": "red", "changed": "dim"}
 
 
 @one_line_errors
@@ -53,7 +59,7 @@ def compare(
         with output_root(folder), run_lock(folder):
             written = cmp.write_report(result, report, renders=renders)
     if as_json:
-        typer.echo(json.dumps(cmp.as_json(result), indent=2))
+        typer.echo(strict_json.dumps(cmp.as_json(result), indent=2))
         return
     console = Console()
     labels = [d.label for d in named]
@@ -66,13 +72,16 @@ def compare(
         table.add_column(b, justify="right", overflow="fold")
         table.add_column(f"Δ {b}", justify="right", overflow="fold")
     for r in result.rows:
-        if changed_only and all(d == 0.0 for d in r.deltas):
+        if changed_only and all(v == "same" for v in r.verdicts[1:]):
             continue
-        cells = [cmp.fmt(r.values[0])]
+        cells: list[str | Text] = [cmp.fmt(r.values[0])]
         for i in range(1, len(labels)):
-            cells += [cmp.fmt(r.values[i]), cmp.fmt_short(r.deltas[i], r.relative[i])]
+            v = cmp.verdict(r, i)
+            cells += [cmp.fmt(r.values[i]), Text(cmp.fmt_short(r.deltas[i], r.relative[i], v == "same")
+                                                 + (f" {cmp.MARKS[v][0]}" if cmp.MARKS[v] else ""), style=_STYLE.get(v, ""))]
         table.add_row(r.metric, r.unit, *cells)
     console.print(table)
+    console.print(cmp.LEGEND.replace("green better, red worse", "▲ green better, ▼ red worse"))
     for d, st, msg, prov in zip(named, result.statuses, result.messages, result.provenance):
         bad = {k: v for k, v in st.items() if v != "ok"}
         line = "all evaluators ok" if not bad else "; ".join(f"{k}: {v}" + (f" — {msg[k]}" if k in msg else "")

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 
 from hapticopt.optim.cli.common import (
     ComputeOption, ThreadsOption, load_design_arg, not_met, one_line_errors, parse_compute, parse_fidelity,
@@ -68,7 +69,7 @@ def evaluate(
             "timings_s": timings,
             "plots": [str(p) for p in written],
         }
-        typer.echo(json.dumps(payload, indent=2))
+        typer.echo(strict_json.dumps(payload, indent=2))
         if statuses_not_ok(status):
             not_met(statuses_not_ok(status))
         return
@@ -102,7 +103,7 @@ def presets(
         design = io.load_preset(name)
         rows.append({"name": name, "device": design.device, "description": design.description})
     if as_json:
-        typer.echo(json.dumps(rows, indent=2))
+        typer.echo(strict_json.dumps(rows, indent=2))
         return
     render.console().print(render.table(None, ("preset", "device", "description"),
                                         ((r["name"], r["device"], r["description"]) for r in rows)))

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+
 import contextlib
-import json
 import time
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import load_design_arg, one_line_errors
@@ -17,7 +21,8 @@ import math
 import numpy as np
 from hapticopt.design.errors import InvalidInput
 from hapticopt.design import paths
-from hapticopt.design.paths import writable_dir
+from hapticopt.design import io
+from hapticopt.design.paths import NAME_MAX, writable_dir
 from hapticopt.optim.recorder import run_lock
 from hapticopt.analysis.status import Status
 
@@ -39,6 +44,16 @@ def parse_pose_mm(text: str):
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
         raise InvalidInput(f"--pose = {text!r} must be three numbers X,Y,Z in mm, e.g. --pose 10,0,-20")
     return np.asarray(values) * 1e-3
+
+
+def exported_name(design, assignments: list[str]):
+    """The design named after what is exported: with ``--set`` overrides (and no ``--set name=…``), its name
+    plus ``-`` and the first 8 hex digits of the SHA-256 of its TOML without the name (the same design:
+    the same name; ``prrr-paper-1a2b3c4d.step`` is not mistaken for the preset)."""
+    if not assignments or any(a.split("=", 1)[0].strip() == "name" for a in assignments):
+        return design
+    digest = hashlib.sha256(io.dumps(dataclasses.replace(design, name="")).encode()).hexdigest()[:8]
+    return dataclasses.replace(design, name=f"{design.name[:NAME_MAX - 9]}-{digest}")
 
 
 @one_line_errors
@@ -65,7 +80,7 @@ def export(
 
     if not 0 <= poses <= MAX_POSES:
         raise InvalidInput(f"--poses = {poses} is out of range: allowed 0 ≤ --poses ≤ {MAX_POSES} (poses)")
-    design = load_design_arg(file, preset, set_)
+    design = exported_name(load_design_arg(file, preset, set_), set_ or [])
     p = parse_pose_mm(pose) if pose is not None else None
 
     target = out if out is not None else Path("cad_out") / design.name
@@ -90,7 +105,7 @@ def export(
                 " — only this pose was checked; --poses N checks the workspace"
     wall = time.perf_counter() - t0
     if as_json:
-        typer.echo(json.dumps({"design": design.name, "device": design.device, "out_dir": str(out_dir),
+        typer.echo(strict_json.dumps({"design": design.name, "device": design.device, "out_dir": str(out_dir),
                                "files": [str(f) for f in result.files], "total_mass_kg": result.total_mass_kg,
                                "interference": message, "timings_s": {**result.timings_s, "wall": wall}}, indent=2))
         return
@@ -113,17 +128,23 @@ def _check_many(design, n: int) -> str:
         from hapticopt.design.master import cad as cad_master
 
         pts = np.atleast_2d(cad_master.home_point(design))
+        why = f"{len(pts)} checked of the {n} asked: the {design.device} export checks its home pose only"
     else:
         from hapticopt.analysis.prrr.geometry.workspace import sample_points, workspace_params
 
         k = max(1, round((n / 3) ** (1 / 3)))  # 3·k_phi·k_r·k_z ≈ n
-        pts = sample_points(workspace_params(design), n_phi=k, n_r=k, n_z=max(1, round(n / (3 * k * k))))
+        kz = max(1, round(n / (3 * k * k)))
+        pts = sample_points(workspace_params(design), n_phi=k, n_r=k, n_z=kz)
+        why = (f"{len(pts)} checked of the {n} asked: the workspace samples form a grid of 3 × {k} angles × {k} radii × {kz} "
+               "heights, the nearest to the number asked" if len(pts) != n else "")
     res = interference.check_poses(design, pts)
     bad = [r for r in res if r.status == Status.COLLIDES]
+    note = f" ({why})" if why else ""
     if not bad:
-        return f"none at {len(res)} workspace poses"
+        return f"none at {len(res)} workspace poses{note}"
     pairs = sorted({f"{a} × {b}" for r in bad for a, b in r.pairs})
-    return f"{len(bad)} of {len(res)} workspace poses collide ({', '.join(pairs[:4])}{', …' if len(pairs) > 4 else ''})"
+    return (f"{len(bad)} of {len(res)} workspace poses collide ({', '.join(pairs[:4])}"
+            f"{', …' if len(pairs) > 4 else ''}){note}")
 
 
 def result_pose(design, p):

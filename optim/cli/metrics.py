@@ -8,10 +8,11 @@ the file is stale).
 
 from __future__ import annotations
 
-import json
 from typing import Annotated, Any, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 
 from hapticopt.analysis.registry import ALL_LEVELS, EVALUATORS, glossary
 from hapticopt.optim.cli import render
@@ -69,7 +70,7 @@ def metrics(
     """List every metric: unit, meaning, fidelity levels, evaluator and device (the glossary)."""
     sections = _sections(device)  # checks --device
     if as_json:
-        typer.echo(json.dumps([r for *_, rows in sections for r in rows], indent=2, ensure_ascii=False))
+        typer.echo(strict_json.dumps([r for *_, rows in sections for r in rows], indent=2, ensure_ascii=False))
         return
     console = render.console()
     for dev, name, module, note, rows in sections:

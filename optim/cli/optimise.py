@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-import json
+import shutil
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 
 from hapticopt.optim.cli.common import (
     CACHE_HELP, MAX_WORKERS, NO_CACHE_HELP, ComputeOption, ThreadsOption, cache_file, not_met, one_line_errors,
@@ -18,7 +20,48 @@ from hapticopt.optim.cli import render
 from hapticopt.optim.cli.progress import StageLine, make_progress
 from hapticopt.optim.problem import problem_names
 from hapticopt.optim.recorder import check_run_dir
+from hapticopt.optim.runs import RunReader
 
+
+
+def remove_fresh_run(out_dir: Path, *, keep_folder: bool) -> None:
+    """Remove what a run rejected after its baseline wrote into a folder that held nothing of a run
+    (the folder itself unless it existed before)."""
+    for child in out_dir.iterdir():
+        if child.is_dir() and not child.is_symlink():
+            shutil.rmtree(child)
+        else:
+            child.unlink()
+    if not keep_folder:
+        out_dir.rmdir()
+
+
+def previous_budget(out_dir: Path) -> tuple[int, int] | None:
+    """(budget of the last recorded session, evaluations recorded) of the run in ``out_dir``, or None
+    (no record, or a record without session counts)."""
+    try:
+        with RunReader(out_dir) as reader:
+            sessions = [s for s in reader.sessions() if s.get("max_evals") is not None]
+            recorded = len(reader)
+    except Exception:  # noqa: BLE001 - no readable record: the resume itself says why
+        return None
+    return (int(sessions[-1]["max_evals"]), recorded) if sessions else None
+
+
+def resume_note(cfg, previous: tuple[int, int], result) -> str:
+    """The one line a resume that evaluated nothing prints: whether the budget was extended and why the
+    optimiser still stopped where it had (its starts' stop reasons), and whether the export was kept."""
+    budget, recorded = previous
+    stops = ", ".join(f"start {s.start}: {s.status}" for s in result.run.starts) or "no start ran"
+    kept = any(s.name == "export" and "kept" in s.message for s in result.stages)
+    tail = "; the optimum did not change, its export was kept" if kept else ""
+    if cfg.max_evals > budget:
+        return (f"resume: 0 new evaluations: the recorded run had stopped on its own before its budget of {budget} "
+                f"({stops}; xtol_rel {cfg.xtol_rel:g}, ftol_rel {cfg.ftol_rel:g}), and replaying it stops at the same "
+                f"point, so --max-evals {cfg.max_evals} adds nothing; tighten xtol_rel/ftol_rel or add starts in the "
+                f"problem (a new run) to search further{tail}")
+    return (f"resume: the run had already finished with its budget of {budget} ({recorded} evaluations recorded, "
+            f"{stops}): nothing new to evaluate; give --max-evals above {budget} to extend it{tail}")
 
 
 @one_line_errors
@@ -55,9 +98,10 @@ def optimise(
         raise InvalidInput(f"--workers = {workers} is out of range: allowed 1 ≤ --workers ≤ {MAX_WORKERS}")
     out_dir = out if out is not None else Path("cad_out") / prob.name
     check_run_dir(out_dir, resume=resume, force=force)  # before anything is computed or written
+    previous = previous_budget(out_dir) if resume else None
     cache_path = cache_file(cache, no_cache, out_dir)
 
-    from hapticopt.optim.pipeline import run_front_pipeline, run_pipeline, status_holds
+    from hapticopt.optim.pipeline import ProblemRejected, run_front_pipeline, run_pipeline, status_holds
 
     console = render.console(stderr=True, quiet=quiet)
     if prob.is_multi_objective:
@@ -77,7 +121,7 @@ def optimise(
                                      workers=workers, cache=cache_path, progress=on_run, compute=route)
         ch = res["chosen"]
         if as_json:
-            typer.echo(json.dumps(res, indent=2, default=str))
+            typer.echo(strict_json.dumps(res, indent=2))
         else:
             f1, f2 = (o["metric"] for o in res["objectives"])
             typer.echo(f"{prob.name}: Pareto front of {f1} and {f2}: {len(res['front'])} points "
@@ -120,11 +164,20 @@ def optimise(
                      "report": "report.html, result.json"}
             line.stage(name, totals.get(name, 1), texts.get(name, ""))
 
-        result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler, workers=workers,
-                              progress=on_point, export=export, verify=verify, on_stage=on_stage,
-                              on_step=line.step, cache=cache_path, compute=route)
+        existed = out_dir.exists()
+        fresh = not existed or (out_dir.is_dir() and not any(out_dir.iterdir()))  # nothing of a run there before
+        try:
+            result = run_pipeline(prob, out_dir=out_dir, resume=resume, force=force, scheduler=scheduler,
+                                  workers=workers, progress=on_point, export=export, verify=verify, on_stage=on_stage,
+                                  on_step=line.step, cache=cache_path, compute=route)
+        except ProblemRejected:
+            if fresh:  # bad input leaves no partial files: the corrected rerun needs no --force
+                remove_fresh_run(out_dir, keep_folder=existed)
+            raise
         line.stage("done", 1, f"{out_dir / 'report.html'}")
         line.count(1)
+    if previous is not None and result.run.n_evaluated == 0:  # one line: why a resume added nothing
+        typer.echo(resume_note(prob.optimiser, previous, result), err=True)
     if as_json:  # the exit code below still says whether the requirement holds
         typer.echo((out_dir / "result.json").read_text(encoding="utf-8"), nl=False)
     else:
@@ -169,7 +222,7 @@ def problems(
         rows.append({"name": name, "device": p.device, "description": p.description, "objectives": objectives,
                      "variables": [v.key for v in p.variables]})
     if as_json:
-        typer.echo(json.dumps(rows, indent=2, ensure_ascii=False))
+        typer.echo(strict_json.dumps(rows, indent=2, ensure_ascii=False))
         return
     render.console().print(render.table(None, ("problem", "device", "description"),
                                         ((r["name"], r["device"], r["description"]) for r in rows)))

@@ -7,19 +7,20 @@ from __future__ import annotations
 
 import csv
 import io as _io
-import json
 import math
 import sqlite3
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+
+from hapticopt.optim import strict_json
 from rich.console import Console
 from rich.table import Table
 
 from hapticopt.design.errors import HapticoptError, InvalidInput
 from hapticopt.optim.cli.common import one_line_errors
-from hapticopt.optim.runs import RunReader, as_dict, find_runs
+from hapticopt.optim.runs import RunReader, RunSummary, as_dict, failure_counts, find_runs
 
 
 def _fmt(value: Any) -> str:
@@ -48,18 +49,29 @@ def runs(
         except (HapticoptError, sqlite3.Error, OSError, ValueError, KeyError, TypeError) as exc:
             typer.echo(f"warning: skipped {run_dir}: {' '.join(str(exc).split())[:300]}", err=True)
     if as_json:
-        typer.echo(json.dumps([as_dict(s) for s in summaries], indent=2))
+        typer.echo(strict_json.dumps([as_dict(s) for s in summaries], indent=2))
         return
     if not summaries:
         typer.echo(f"no runs under {directory}")
         return
     table = Table(title=f"runs under {directory}")
-    for col in ("run", "problem", "kind", "status", "evals", "best objective", "feasible"):
+    for col in ("run", "problem", "kind", "status", "evals (failed)", "best objective (fidelity)", "feasible"):
         table.add_column(col, overflow="fold")
     for s in summaries:
         rel = s.path.relative_to(directory) if s.path != directory else Path(".")
-        table.add_row(str(rel), s.problem, s.kind, s.status, str(s.n_evaluations), _fmt(s.best), _fmt(s.feasible))
+        table.add_row(str(rel), s.problem, s.kind, s.status, f"{s.n_evaluations} ({s.n_failed})", _best(s),
+                      _fmt(s.feasible))
     Console().print(table)
+
+
+def _best(s: RunSummary) -> str:
+    """The best value with the fidelity it holds at, and the final design's value at its own fidelity."""
+    if math.isnan(s.best):
+        return "—"
+    text = f"{_fmt(s.best)} ({s.best_fidelity or '?'})"
+    if s.final_fidelity and s.final_fidelity != s.best_fidelity:
+        text += f"; final {_fmt(s.final)} ({s.final_fidelity})"
+    return text
 
 
 @one_line_errors
@@ -86,6 +98,7 @@ def show(
             return
         summary = reader.summary()
         designs = reader.designs()
+        failed = reader.failures()
         if as_json:
             payload = {
                 **as_dict(summary),
@@ -97,8 +110,13 @@ def show(
                 "designs": [{"role": d.role, "fidelity": d.fidelity, "x": list(d.x), "metrics": d.metrics,
                              "statuses": d.statuses} for d in designs],
                 "history": {"columns": cols, "rows": rows},
+                "failures": {"count_by_reason": failure_counts(failed),
+                             "evaluations": [{"id": c.id, "outcome": c.outcome, "message": c.message,
+                                              "fidelity": c.fidelity,
+                                              "statuses": {k: v for k, v in c.statuses.items() if v != "ok"}}
+                                             for c in failed]},
             }
-            typer.echo(json.dumps(payload, indent=2, default=str))
+            typer.echo(strict_json.dumps(payload, indent=2))
             return
         console = Console()
         console.print(f"[bold]{summary.problem}[/bold] ({summary.kind}, {summary.status}): {summary.n_evaluations} "
@@ -112,7 +130,11 @@ def show(
             objs = ", ".join(f"{o['metric']} ({o['sense']}) = {_fmt(v)}"
                              for o, v in zip(reader.objectives or [], reader.objective_values(best)))
             which = "best by the first objective" if len(reader.objectives or []) > 1 else "best"
-            console.print(f"{which}: evaluation {best.id}, {objs}, feasible {_fmt(reader.feasible(best))}")
+            console.print(f"{which}: evaluation {best.id} at {best.fidelity} fidelity, {objs}, feasible "
+                          f"{_fmt(reader.feasible(best))}")
+            if summary.final_fidelity:
+                console.print(f"final design (the optimum re-evaluated) at {summary.final_fidelity} fidelity: "
+                              f"{(reader.objectives or [{}])[0].get('metric', '')} = {_fmt(summary.final)}")
             table = Table(title="best design")
             for col in ("variable", "unit", "lower", "upper", "start", "best"):
                 table.add_column(col)
@@ -131,6 +153,14 @@ def show(
                              for o, v in zip(reader.objectives or [], reader.objective_values(chosen)))
             n_front = sum(d.role == "front" and d.session == chosen.session for d in designs)
             console.print(f"Pareto front: {n_front} points; chosen design at {chosen.fidelity} fidelity: {vals}")
+        if failed:
+            console.print(f"failed evaluations: {len(failed)} of {summary.n_evaluations}; by reason:")
+            for reason, n in failure_counts(failed).items():
+                console.print(f"  {n} × {reason}")
+            for c in failed[-min(len(failed), 5):]:
+                console.print(f"  evaluation {c.id} ({c.fidelity}): {c.outcome}: {c.message}", soft_wrap=False)
+            if len(failed) > 5:
+                console.print(f"  … {len(failed) - 5} more (--json has every message)")
         shown = [i for i, c in enumerate(cols) if c not in ("session", "start", "stage")]  # in --csv/--json
         table = Table(title=f"history (last {min(last, len(rows))} of {len(rows)}; --csv for all)")
         for i in shown:

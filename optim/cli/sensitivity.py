@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 
 from hapticopt.analysis.registry import EVALUATORS
 from hapticopt.design.errors import InvalidInput
@@ -87,9 +88,9 @@ def sensitivity(
         inside(plots, path.absolute())
         written.append(tornado(rows, path, f"{design.name}: largest elasticities ({level})"))
     if as_json:
-        typer.echo(json.dumps({"design": design.name, "device": design.device, "fidelity": str(level),
+        typer.echo(strict_json.dumps({"design": design.name, "device": design.device, "fidelity": str(level),
                                "sensitivities": rows_json(rows), "plots": [str(p) for p in written]},
-                              indent=2, allow_nan=False))
+                              indent=2))
         return
     shown = [r for r in rows if r.status != "zero"][:top]
     table = render.table(f"{design.name}: sensitivities at {level} fidelity (largest |elasticity| first)",

@@ -4,11 +4,12 @@ executor, recorded like a run: :mod:`hapticopt.optim.sweep`) and ``hapticopt eva
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Any, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 
 from hapticopt.design.atomic import write_text
 from hapticopt.design.errors import InvalidInput
@@ -112,7 +113,7 @@ def sweep(
                                       console=console, level=level, route=route)
     n_fail = spec.n_points - result.n_ok
     if as_json:
-        typer.echo(json.dumps({"design": design.name, "axes": [{"key": a.key, "n": a.n} for a in axes],
+        typer.echo(strict_json.dumps({"design": design.name, "axes": [{"key": a.key, "n": a.n} for a in axes],
                                "fidelity": str(level), "points": spec.n_points, "ok": result.n_ok,
                                "evaluated": result.n_evaluated, "replayed": result.n_replayed,
                                "out_dir": str(out_dir), "files": [str(p) for p in written]}, indent=2))

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import json
 import math
 from typing import Annotated, Optional
 from pathlib import Path
 
 import numpy as np
 import typer
+
+from hapticopt.optim import strict_json
 
 from hapticopt.design.errors import InvalidInput
 from hapticopt.optim.cli import render
@@ -75,7 +76,7 @@ def tolerance(
     the_spec = tol.load_spec(design, spec)
     out = report(design, the_spec, samples=samples, seed=seed, requirements=reqs)
     if as_json:
-        typer.echo(json.dumps(out, indent=2, allow_nan=False))
+        typer.echo(strict_json.dumps(out, indent=2))
         return
     console = render.console()
     scale = {"rotation": ("mrad", 1e3), "misfit": ("mrad", 1e3), "margin_loss": ("mm", 1e3), "margin": ("mm", 1e3)}

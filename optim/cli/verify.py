@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
-import json
 import math
 from pathlib import Path
 from typing import Annotated, Any, Optional
 
 import typer
+
+from hapticopt.optim import strict_json
 
 from hapticopt.optim.cli import render
 from hapticopt.optim.cli.common import (
@@ -26,32 +27,24 @@ from hapticopt.design.errors import short
 
 
 def _plot(result: Any, out_dir: Path, name: str) -> list[Path]:
-    """Position and hand force over time (matplotlib if installed; otherwise nothing)."""
-    try:
-        import matplotlib
+    """The run's time histories as the report draws them (:func:`hapticopt.optim.report.history_figure`):
+    the scene, the verdict and the stop time in the title, the traces only up to the tick where an
+    unstable run stopped, that tick marked (matplotlib if installed; otherwise nothing)."""
+    from hapticopt.optim import report
+    from hapticopt.optim.results import TimeHistory, Verdict
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+    if importlib.util.find_spec("matplotlib") is None:
         return []
-
-
-    tr = result.traces
-    if tr is None or tr.position is None:
+    history = TimeHistory.from_traces(result.traces)
+    if history is None:
         return []
-    t = np.arange(tr.position.shape[0]) * tr.period
-    fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(7, 5))
-    for i, lab in enumerate("xyz"):
-        a1.plot(t, tr.position[:, 0, i] * 1e3, label=lab)
-        a2.plot(t, tr.hand_force[:, 0, i], label=lab)
-    a1.set_ylabel("p [mm]")
-    a2.set_ylabel("hand force [N]")
-    a2.set_xlabel("t [s]")
-    a1.legend()
+    status = str(result.status)
+    verdict = Verdict(scene=name, passed=status == "ok", metrics={}, message=status, history=history)
+    fig = report.history_figure(verdict)
     target = inside(out_dir, f"verify-{check_name(name, 'scene name')}.png")
     with atomic_path(target) as tmp:
         fig.savefig(tmp, format="png", dpi=100)
-    plt.close(fig)
+    report._pyplot().close(fig)
     return [target]
 
 
@@ -100,7 +93,7 @@ def verify(
             metrics.update(zwidth.zwidth_map(design, sc, fidelity=level).metrics())
     written = _plot(result, plots, sc.name) if plots is not None else []
     if as_json:
-        typer.echo(json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
+        typer.echo(strict_json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
                                "status": str(result.status), "message": result.message,
                                "plots": [str(p) for p in written]}, indent=2))
         _exit_on_verdict(result, sc.name)
@@ -229,7 +222,7 @@ def design_map(
         written = design_map_plots(dmap, plots)
     metrics = dmap.metrics()
     if as_json:
-        typer.echo(json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
+        typer.echo(strict_json.dumps({"design": design.name, "scene": sc.name, "metrics": metrics,
                                "plots": [str(p) for p in written]}, indent=2))
         return
     typer.echo(f"design map of {design.name} in {sc.name} ({sc.report.quantity}, axis {metrics['map_axis']}); "

@@ -131,3 +131,27 @@ def test_evaluate_batch_of_other_levels_or_devices_is_evaluate_all_of_each(monke
     assert registry.evaluate_batch([master], fidelity=Fidelity.DRAFT, compute=route) == [master.name]
     assert registry.evaluate_batch([], fidelity=Fidelity.DRAFT) == []
     assert calls == [(prrr.name, route)] * 2 + [(master.name, route)]
+
+
+def test_every_registered_metric_declares_its_direction():
+    """issue 33: compare and the reports colour a change by better/worse; a metric without a direction
+    would silently be neutral."""
+    missing = sorted({m.name for entries in registry.EVALUATORS.values() for e in entries for m in e.metrics}
+                     - set(registry.DIRECTIONS))
+    assert not missing, ("metrics without a direction: add each to DIRECTIONS in analysis/registry.py as "
+                         "_H (higher is better), _L (lower is better) or _0 (neutral): " + ", ".join(missing))
+
+
+@pytest.mark.parametrize(("name", "ref", "value", "verdict"), [
+    ("device_mass_kg", 4.4, 4.6, "worse"),  # heavier
+    ("device_mass_kg", 4.4, 4.2, "better"),
+    ("jacobian_condition", 2.449, 2.6, "worse"),
+    ("stiffness_limit_N_per_mm[1]", 40.0, 45.0, "better"),  # a component: the vector's direction
+    ("elastic_centre_mm", 10.0, 12.0, "changed"),  # neutral
+    ("not_a_registered_metric", 1.0, 2.0, "changed"),  # unknown: neutral at run time
+    ("jacobian_condition", 2.449, 2.449 * (1 + 2.8e-15), "same"),  # rounding (issue 33: +2.8e-13 % was coloured)
+    ("jacobian_condition", 0.0, 0.0, "same"),
+    ("jacobian_condition", float("nan"), 1.0, ""),
+])
+def test_judge_by_direction_and_tolerance(name, ref, value, verdict):
+    assert registry.judge(name, ref, value) == verdict

@@ -84,9 +84,8 @@ def test_metric_refs_pick_components():
 
 
 def test_check_metrics_names_unknown_metric_and_missing_index():
-    p = problem_from_dict(base_problem(objective={"metric": "no_such_metric"}))
-    with pytest.raises(UnknownName, match="no_such_metric.*known metrics are"):
-        check_metrics(p, {"jacobian_condition": 1.0, "max_force_N": [1.0, 2.0, 3.0]})
+    with pytest.raises(UnknownName, match="no_such_metric.*is not a metric of a prrr design; no metric name is close"):
+        problem_from_dict(base_problem(objective={"metric": "no_such_metric"}))  # found before any evaluation
     p = problem_from_dict(base_problem(objective={"metric": "max_force_N"}))
     with pytest.raises(InvalidInput, match=r"give a component index such as max_force_N\[0\]"):
         check_metrics(p, {"jacobian_condition": 1.0, "max_force_N": [1.0, 2.0, 3.0]})
@@ -113,6 +112,17 @@ def test_check_metrics_names_unknown_metric_and_missing_index():
     ({"base": "no-such-preset"}, "preset 'no-such-preset' does not exist"),
     ({"colour": "red"}, "colour is not a known key"),
     ({"fidelity": {"optimise": "ultra"}}, "allowed draft, standard, fine"),
+    # issue 33: did-you-mean for metric names, keys and values; fidelity of a metric; all before any work
+    ({"constraints": [{"metric": "workspace_volum_mm3", "min": 1.0}]},
+     r"constraints \(workspace_volum_mm3 >= 1\)\.metric = 'workspace_volum_mm3': .*did you mean workspace_volume_mm3\?"),
+    ({"objective": {"metric": "max_forse_N[0]", "sense": "maximise"}}, "did you mean max_force_N"),
+    ({"objective": {"metric": "jacobian_condition", "sense": "minimize"}}, "did you mean minimise"),
+    ({"optimiser": {"max_eval": 10}}, "optimiser.max_eval is not a known key.*did you mean max_evals"),
+    ({"constraints": [{"metric": "max_force_N[0]", "minimum": 1.0}]}, "did you mean min"),
+    ({"variables": [{"key": "geometry.beta_dg"}]}, "did you mean beta_deg"),
+    ({"fidelity": {"optimise": "darft"}}, "did you mean draft"),
+    ({"objective": {"metric": "structural_fea_max_von_mises_MPa_per_N"}},
+     "reported only at fine fidelity, but the problem evaluates it at draft"),
 ])
 def test_bad_problems_raise_one_line_errors(changes, match):
     with pytest.raises((InvalidInput, UnknownName, InputFileError)) as info:

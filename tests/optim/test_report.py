@@ -29,7 +29,10 @@ def beta_run(tmp_path_factory):
 
 @pytest.mark.parametrize("name, unit", [("stiffness_limit_N_per_mm[0]", "N/mm"), ("min(max_force_N)", "N"),
                                         ("stiffness_error_pct", "%"), ("jacobian_condition", "-"),
-                                        ("workspace_volume_mm3", "mm³"), ("transparency_bandwidth_Hz", "Hz")])
+                                        ("workspace_volume_mm3", "mm³"), ("transparency_bandwidth_Hz", "Hz"),
+                                        # issue 33: von Mises per newton was printed "N"
+                                        ("structural_fea_max_von_mises_MPa_per_N", "MPa/N"),
+                                        ("zwidth_peak_damping_Ns_per_m", "N·s/m"), ("pade_minus_exact_pct", "%")])
 def test_metric_unit_from_the_name(name, unit):
     assert report.metric_unit(name) == unit
 
@@ -148,3 +151,68 @@ def test_evaluator_statuses_are_a_table_and_a_summary_line(beta_run, tmp_path):
     html = (tmp_path / "report.html").read_text(encoding="utf-8")
     assert "<h2>Evaluator statuses</h2>" in html and "joint_limits not-met" in html
     assert "a joint limit cuts the φ140 mm cylinder by 22.9 deg" in html
+
+
+def _metrics_rows(page: str) -> list[list[str]]:
+    """The cells of the report's metrics table, with each cell's class (``class|text``)."""
+    import html as _html
+    import re
+
+    table = page.split("<h2>Metrics</h2>", 1)[1].split("</table>", 1)[0]
+    rows = re.findall(r"<tr>(.*?)</tr>", table.split("<tbody>", 1)[1])
+    return [[f"{cls}|{_html.unescape(text)}" for cls, text in re.findall(r"<td(?: class='(\w*)')?>(.*?)</td>", r)]
+            for r in rows]
+
+
+def test_report_units_come_from_the_registry_and_changes_are_judged(beta_run):
+    """issue 33: every metric row's unit is the registry's (analysis/registry.metric_unit); the change
+    column is coloured by the metric's direction: cond(J) from √6 to 1 (seed 002 eq 2) is better."""
+    from hapticopt.analysis.registry import metric_unit
+
+    rows = _metrics_rows((beta_run.out_dir / "report.html").read_text(encoding="utf-8"))
+    assert len(rows) == len(set(beta_run.baseline.metrics) | set(beta_run.optimum.metrics))
+    for row in rows:
+        name, unit = row[0].split("|", 1)[1], row[1].split("|", 1)[1]
+        assert unit == (metric_unit(name) or "-"), (name, unit)
+    by_name = {r[0].split("|", 1)[1]: r for r in rows}
+    assert by_name["jacobian_condition"][4].startswith("better|") and "▲ better" in by_name["jacobian_condition"][4]
+    assert by_name["workspace_required_diameter_mm"][4] == "same|="  # a design input, unchanged
+    assert "rounding, shown as =" in (beta_run.out_dir / "report.md").read_text(encoding="utf-8")
+
+
+def test_report_opens_with_a_headline(beta_run):
+    """issue 33: the report opens with one paragraph: what was optimised, by how much (cond(J) from √6 at
+    60° to 1 at the isotropic β, seed 002 eq 2: -59.2 %), the active constraints, what to check next."""
+    head = report.headline(beta_run)
+    b, o = (beta_run.problem.objective.metric.value(e.metrics) for e in (beta_run.baseline, beta_run.optimum))
+    assert b == pytest.approx(6 ** 0.5) and 1.0 <= o < 1.01  # 30 evaluations come within 1 % of the isotropic 1
+    assert head.startswith("Minimise jacobian_condition of preset prrr-paper over geometry.beta_deg: improved "
+                           f"from 2.44949 to {o:.6g} ({100 * (o - b) / b:+.3g} %)")  # about -59 %
+    assert "No constraint is active." in head  # max_force_N[2] ≥ 1000 N holds with margin at the isotropic β
+    assert "Check next:" in head and "no scene was verified" in head  # verify=False in this run
+    md = (beta_run.out_dir / "report.md").read_text(encoding="utf-8").splitlines()
+    assert md[2] == head  # right under the title
+    assert f"<p class='headline'><b>{head}</b></p>" in (beta_run.out_dir / "report.html").read_text(encoding="utf-8")
+
+
+def test_verify_plot_of_a_stopped_run_marks_the_stop_and_the_verdict(tmp_path):
+    """issue 33: an unstable run "stopped at 0.1 s" was plotted by `verify --plots` as 3 s of bounded trace
+    with no marker and no title. The standalone plot is the report's: the scene and verdict in the title,
+    the traces up to the stop tick (1000 ticks of 1 ms here: 1 s), that tick marked."""
+    from types import SimpleNamespace
+
+    from hapticopt.optim.cli.verify import _plot
+
+    written = _plot(SimpleNamespace(traces=_traces(stop=1000), status="unstable"), tmp_path, "wall")
+    assert [p.name for p in written] == ["verify-wall.png"] and written[0].stat().st_size > 0
+    fig = report.history_figure(Verdict(scene="wall", passed=False, metrics={}, message="unstable",
+                                        history=TimeHistory.from_traces(_traces(stop=1000))))
+    title = fig._suptitle.get_text()
+    assert title.startswith("wall: FAIL — unstable") and "stopped at t = 1 s" in title
+    for ax in fig.axes:
+        drawn = [line for line in ax.get_lines() if line.get_label() != "run stopped (instability detected)"]
+        assert all(max(line.get_xdata()) < 1.0 for line in drawn)  # nothing drawn after the stop
+        assert any(line.get_label() == "run stopped (instability detected)" for line in ax.get_lines())
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)

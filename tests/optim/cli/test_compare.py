@@ -3,8 +3,10 @@ delta; presets, files and run directories resolve; bad input is one line, exit 2
 
 from __future__ import annotations
 
+import html
 import json
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -13,7 +15,7 @@ from typer.testing import CliRunner
 
 from hapticopt.analysis.fidelity import Fidelity
 from hapticopt.analysis.status import Status
-from hapticopt.analysis.registry import evaluate_all
+from hapticopt.analysis.registry import evaluate_all, metric_unit
 from hapticopt.design import io
 from hapticopt.optim.cli import app
 from hapticopt.optim.sweep import scalars
@@ -107,3 +109,36 @@ def test_compare_reuses_the_evaluation_cache_and_says_so(run_dir, tmp_path):
     assert a["metrics"] == b["metrics"]
     off = runner.invoke(app, args[:-2] + ["--no-cache"])
     assert off.exit_code == 0 and [d["evaluation"] for d in json.loads(off.stdout)["designs"]] == ["computed"] * 2
+
+
+def _delta_classes(page: str, metric: str) -> list[str]:
+    """The verdict class of each Δ cell of ``metric``'s row in the compare HTML."""
+    row = re.search(rf"<tr data-metric='{re.escape(metric)}'>(.*?)</tr>", page)
+    assert row, metric
+    return re.findall(r"<td class='n (\w*)' title=", row.group(1))
+
+
+def test_compare_colours_by_better_or_worse_not_by_sign(run_dir, tmp_path):
+    """issue 33: a heavier device and a worse Jacobian condition were green (the delta was positive).
+    The prrr-workspace optimum is heavier (mass +0.7 %) with a better cond(J) (β 60° → nearer the isotropic
+    35.26°, seed 002 eq 2); β = 75° is farther from isotropic: a worse (larger) cond(J)."""
+    paper = (Path(io.__file__).parent / "presets" / "prrr-paper.toml").read_text(encoding="utf-8")
+    beta75 = tmp_path / "beta75.toml"
+    beta75.write_text(paper.replace("beta_deg = 60.0", "beta_deg = 75.0").replace('name = "prrr-paper"', 'name = "beta75"'))
+    res = runner.invoke(app, ["compare", "prrr-paper", str(run_dir), str(beta75), "--fidelity", "draft",
+                              "--report", str(tmp_path / "c.html")])
+    assert res.exit_code == 0, res.output
+    page = (tmp_path / "c.html").read_text(encoding="utf-8")
+    values = {m: [float(v) for v in re.findall(r"<td class='n'>([-+0-9.e]+)</td>", re.search(
+        rf"<tr data-metric='{m}'>(.*?)</tr>", page).group(1))] for m in ("device_mass_kg", "jacobian_condition")}
+    assert values["device_mass_kg"][1] > values["device_mass_kg"][0]  # the optimum is heavier …
+    assert _delta_classes(page, "device_mass_kg")[0] == "worse"  # … and that is worse
+    assert values["jacobian_condition"][2] > values["jacobian_condition"][0]  # β = 75°: larger cond(J) …
+    assert _delta_classes(page, "jacobian_condition") == ["better", "worse"]  # … worse; the optimum's better
+    assert _delta_classes(page, "workspace_required_diameter_mm") == ["same", "same"]  # a design input: equal
+    assert _delta_classes(page, "elastic_centre_mm")[0] == "changed"  # neutral: neither colour
+    assert "rounding and shown as =" in page  # the tolerance is stated
+    units = re.findall(r"<tr data-metric='([^']+)'><td>[^<]*</td><td>([^<]*)</td>", page)
+    assert len(units) > 50
+    for name, unit in units:  # issue 33: units from the registry (von Mises per newton was "N")
+        assert html.unescape(unit) == (metric_unit(name) or "-"), (name, unit)

@@ -100,7 +100,7 @@ OBJ = '[objective]\nmetric = "jacobian_condition"\n'
 
 
 @pytest.mark.parametrize("text, match", [
-    (HEAD + VAR + '[objective]\nmetric = "no_such_metric_N"\n', "metric 'no_such_metric_N' is not computed"),
+    (HEAD + VAR + '[objective]\nmetric = "no_such_metric_N"\n', "'no_such_metric_N' is not a metric of a prrr design"),
     (HEAD + '[[variables]]\nkey = "geometry.beta_deg"\nlower = 70.0\nupper = 20.0\n' + OBJ, "must be below upper"),
     (HEAD + '[[variables]]\nkey = "geometry.gamma_deg"\n' + OBJ, "is not a variable of the design"),
     (HEAD + '[[variables]]\nkey = "geometry.beta_deg"\nlower = 20.0\nupper = 50.0\n' + OBJ, "infeasible start"),
@@ -114,6 +114,30 @@ def test_bad_problem_files_one_line_exit_2(tmp_path, text, match):
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ")
     assert match in lines[0]
+    assert not (tmp_path / "run").exists()  # no partial run: the corrected rerun needs no --force
+
+
+def test_a_misspelt_metric_is_found_before_any_work_and_the_fixed_rerun_needs_no_force(tmp_path, monkeypatch):
+    """issue 33 acceptance: `workspace_volum_mm3` took 12 s of work to find, without a did-you-mean, and
+    left a partial run that the corrected rerun refused without --force."""
+    from hapticopt.optim import pipeline
+
+    text = (DATA / "beta-isotropic.toml").read_text()
+    typo = _write(tmp_path, text.replace('[[constraints]]\nmetric = "max_force_N[2]"\nmin = 1000.0',
+                                         '[[constraints]]\nmetric = "workspace_volum_mm3"\nmin = 1.0'))
+    out = tmp_path / "run"
+    args = ["--out", str(out), "--quiet", "--scheduler", "inline", "--no-export", "--no-verify", "--max-evals", "4"]
+    with monkeypatch.context() as m:  # nothing is evaluated before the problem is found bad
+        m.setattr(pipeline, "run_pipeline", lambda *a, **k: pytest.fail("the pipeline ran on a bad problem"))
+        res = invoke("optimise", typo, *args)
+    assert res.exit_code == 2
+    (line,) = res.stderr.strip().splitlines()
+    assert "did you mean workspace_volume_mm3?" in line and "constraints (workspace_volum_mm3 >= 1)" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.toml"]  # no files written
+    fixed = _write(tmp_path, text.replace('metric = "max_force_N[2]"\nmin = 1000.0',
+                                          'metric = "workspace_volume_mm3"\nmin = 1.0'))
+    again = invoke("optimise", fixed, *args)  # no --force
+    assert again.exit_code == 0, again.output
 
 
 def test_missing_problem_and_bad_options(tmp_path):
@@ -182,3 +206,29 @@ def test_a_failed_export_exits_5_with_one_line(tmp_path, monkeypatch):
     (line,) = res.stderr.strip().splitlines()
     assert line.startswith("error: export failed: No space left on device: parts/base.stl")
     assert (out / "report.html").is_file() and (out / "optimum.toml").is_file()  # the rest of the run is written
+
+
+def test_resume_that_adds_nothing_says_why_in_one_line_and_keeps_the_export(tmp_path):
+    """issue 33: `--resume --max-evals 600` on a finished run reported 0 new evaluations, redid export and
+    report, and did not say why. β alone with xtol_rel 1e-3 converges (COBYLA) inside 40 evaluations."""
+    problem = _write(tmp_path, (DATA / "beta-isotropic.toml").read_text().replace("xtol_rel = 1e-8", "xtol_rel = 1e-3"))
+    args = ["optimise", problem, "--out", str(tmp_path / "run"), "--scheduler", "inline", "--no-verify", "--quiet"]
+    tmp_path = tmp_path / "run"
+    first = invoke(*args, "--max-evals", "40")
+    assert first.exit_code == 0, first.output
+    r1 = json.loads((tmp_path / "result.json").read_text())
+    assert all(s["status"] != "maxeval_reached" for s in r1["starts"]), r1["starts"]  # converged on its own
+    assert r1["exported"] and all((tmp_path / f).is_file() for f in r1["exported"])
+    stamps = {f: (tmp_path / f).stat().st_mtime_ns for f in r1["exported"]}
+    same = invoke(*args, "--resume", "--max-evals", "40")  # no new budget
+    assert same.exit_code == 0, same.output
+    (line,) = [ln for ln in same.stderr.splitlines() if ln.startswith("resume:")]
+    assert "already finished with its budget of 40" in line and "its export was kept" in line
+    assert {f: (tmp_path / f).stat().st_mtime_ns for f in r1["exported"]} == stamps  # not recomputed
+    r2 = json.loads((tmp_path / "result.json").read_text())
+    assert r2["n_evaluated"] == 0 and r2["exported"] == r1["exported"]
+    more = invoke(*args, "--resume", "--max-evals", "80")  # a larger budget the converged optimiser cannot use
+    assert more.exit_code == 0, more.output
+    (line,) = [ln for ln in more.stderr.splitlines() if ln.startswith("resume:")]
+    assert "0 new evaluations" in line and "stopped on its own before its budget of 40" in line
+    assert "xtol_reached" in line or "ftol_reached" in line or "success" in line
