@@ -8,7 +8,9 @@ site-packages as plain path lines (so neither tree's editable install leaks into
 ``make setup``. Each round runs the stage once per
 tree, each in a fresh process, in an order that alternates by round; every process does the stage once
 untimed first (jit traces, numba loads, caches) unless the stage is a whole command (make-run, startup). Prints the medians,
-the ratio new/old (per round and its median) and the load average before and after.
+the ratio new/old (per round and its median), for the in-process stages also of the CPU time of all the
+process's threads (less moved by other jobs on a loaded machine than the wall time), and the load average
+before and after.
 
 Stages (the figures docs/performance.md quotes):
 
@@ -89,9 +91,10 @@ def _stage_fn(stage: str, n: int | None, scene: str):
 def child(stage: str, n: int | None, scene: str) -> None:
     fn, units, unit = _stage_fn(stage, n, scene)
     fn()  # untimed: traces, compiled kernels, caches
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     fn()
-    print(json.dumps({"value": 1e3 * (time.perf_counter() - t) / units, "unit": unit}))
+    t, c = time.perf_counter() - t, time.process_time() - c
+    print(json.dumps({"value": 1e3 * t / units, "cpu": 1e3 * c / units, "unit": unit}))
 
 
 # ---- the parent ----
@@ -120,18 +123,19 @@ def _first_output(py: str, work: Path) -> float:
     return t
 
 
-def once(py: str, stage: str, n: int | None, scene: str) -> tuple[float, str]:
+def once(py: str, stage: str, n: int | None, scene: str) -> tuple[float, float | None, str]:
+    """(wall time, CPU time of the process's threads or None for whole commands, unit) of one run."""
     with tempfile.TemporaryDirectory(prefix="ab-run-") as work:
         if stage == "make-run":
-            return _make_run(py, Path(work)), "s"
+            return _make_run(py, Path(work)), None, "s"
         if stage == "startup":
-            return _first_output(py, Path(work)), "s"
+            return _first_output(py, Path(work)), None, "s"
         args = [py, str(Path(__file__).resolve()), "--child", stage, "--scene", scene]
         out = subprocess.run(args + (["--n", str(n)] if n else []), cwd=work, capture_output=True, text=True)
         if out.returncode:
             raise SystemExit(f"{py} {stage} exited {out.returncode}:\n{out.stderr[-3000:]}")
         r = json.loads(out.stdout.strip().splitlines()[-1])
-        return r["value"], r["unit"]
+        return r["value"], r.get("cpu"), r["unit"]
 
 
 def site_paths() -> list[str]:
@@ -188,13 +192,19 @@ def main(argv: list[str] | None = None) -> None:
                 warm(py)
         load0 = os.getloadavg()
         times: dict[str, list[float]] = {"old": [], "new": []}
+        cpu: dict[str, list[float]] = {"old": [], "new": []}
         unit = ""
         for r in range(a.rounds):
             for name in (("old", "new") if r % 2 == 0 else ("new", "old")):
-                v, unit = once(trees[name], a.stage, a.n, a.scene)
+                v, c, unit = once(trees[name], a.stage, a.n, a.scene)
                 times[name].append(v)
-            print(f"round {r + 1}: old {times['old'][-1]:.3f}, new {times['new'][-1]:.3f} {unit}, "
-                  f"new/old {times['new'][-1] / times['old'][-1]:.3f}; load {os.getloadavg()[0]:.2f}", flush=True)
+                if c is not None:
+                    cpu[name].append(c)
+            line = (f"round {r + 1}: old {times['old'][-1]:.3f}, new {times['new'][-1]:.3f} {unit}, "
+                    f"new/old {times['new'][-1] / times['old'][-1]:.3f}")
+            if cpu["new"]:
+                line += f"; CPU old {cpu['old'][-1]:.3f}, new {cpu['new'][-1]:.3f}"
+            print(f"{line}; load {os.getloadavg()[0]:.2f}", flush=True)
         mo, mn = statistics.median(times["old"]), statistics.median(times["new"])
         ratios = [b / o for o, b in zip(times["old"], times["new"])]
         load1 = os.getloadavg()
@@ -203,6 +213,11 @@ def main(argv: list[str] | None = None) -> None:
               f"new/old {mn / mo:.3f} (median of per-round ratios {statistics.median(ratios):.3f}, "
               f"{a.rounds} interleaved rounds); load {load0[0]:.2f}/{load0[1]:.2f}/{load0[2]:.2f} before, "
               f"{load1[0]:.2f}/{load1[1]:.2f}/{load1[2]:.2f} after")
+        if cpu["new"]:
+            co, cn = statistics.median(cpu["old"]), statistics.median(cpu["new"])
+            per_round = statistics.median(b / o for o, b in zip(cpu["old"], cpu["new"]))
+            print(f"CPU time (all threads): old {co:.3f} {unit}, new {cn:.3f} {unit}; new/old {cn / co:.3f} "
+                  f"(median of per-round ratios {per_round:.3f})")
     finally:
         if not a.keep:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(where)], capture_output=True)
