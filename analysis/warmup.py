@@ -30,6 +30,10 @@ def warm() -> list[tuple[str, str | None, float]]:
     if reason is None:
         model = interference_fast.prepare(io.load_preset("prrr-paper"))
         interference_fast.check_points(model, np.array([[0.0, 0.0, 0.0]]))
+        # the batched check's compiled IK (one pose)
+        geo = {f: np.array([float(getattr(model.design.geometry, f))]) for f in interference_fast.IK_FIELDS}
+        joints = (np.empty((1, 3)),) + tuple(np.empty((1, 3)) for _ in range(4)) + (np.empty(1, bool),)
+        interference_fast.pose_joints(np.zeros(1, int), np.zeros(1, int), np.zeros((1, 3)), geo, 0, joints)
     out.append(("collision check", reason, time.perf_counter() - t0))
     t0 = time.perf_counter()
     out.append(("MuJoCo closed loops", prrr_mujoco.warm_up(), time.perf_counter() - t0))

@@ -7,8 +7,12 @@ site-packages as plain path lines (so neither tree's editable install leaks into
 ``pip install --no-deps -e .``. For whole-command stages both trees first run the numba warm-up of
 ``make setup``. Each round runs the stage once per
 tree, each in a fresh process, in an order that alternates by round; every process does the stage once
-untimed first (jit traces, numba loads, caches) unless the stage is a whole command (make-run, startup). Prints the medians,
-the ratio new/old (per round and its median) and the load average before and after.
+untimed first (jit traces, numba loads, caches) unless the stage is a whole command (make-run, startup);
+with ``--fresh`` that first call evaluates other designs, so no memo (the closure verdicts) has seen the timed
+ones. Prints the medians,
+the ratio new/old (per round and its median), for the in-process stages also of the CPU time of all the
+process's threads (less moved by other jobs on a loaded machine than the wall time), and the load average
+before and after.
 
 Stages (the figures docs/performance.md quotes):
 
@@ -62,15 +66,16 @@ def _designs(n: int, seed: int = 0) -> list:
     return out
 
 
-def _stage_fn(stage: str, n: int | None, scene: str):
-    """(the stage as a function of no arguments, the number of units its time is divided by, the unit)."""
+def _stage_fn(stage: str, n: int | None, scene: str, seed: int = 0):
+    """(the stage as a function of no arguments, the number of units its time is divided by, the unit);
+    the draft stages' designs drawn with ``seed``."""
     from hapticopt.analysis import registry
     from hapticopt.analysis.fidelity import Fidelity
     if stage == "draft-batch":
-        ds = _designs(n or 1024)
+        ds = _designs(n or 1024, seed)
         return (lambda: registry.evaluate_batch(ds, fidelity=Fidelity.DRAFT)), len(ds), "ms/design"
     if stage == "draft-one":
-        ds = _designs(n or 16)
+        ds = _designs(n or 16, seed)
         return (lambda: [registry.evaluate_all(d, fidelity=Fidelity.DRAFT) for d in ds]), len(ds), "ms/design"
     if stage == "fea-fine":
         from hapticopt.design import io
@@ -86,12 +91,15 @@ def _stage_fn(stage: str, n: int | None, scene: str):
     raise SystemExit(f"unknown stage {stage!r}; one of {', '.join(STAGES)}")
 
 
-def child(stage: str, n: int | None, scene: str) -> None:
+def child(stage: str, n: int | None, scene: str, fresh: bool = False) -> None:
     fn, units, unit = _stage_fn(stage, n, scene)
-    fn()  # untimed: traces, compiled kernels, caches
-    t = time.perf_counter()
+    # untimed: traces, compiled kernels, caches; with ``fresh`` on other designs of the same number, so the
+    # timed call meets designs no memo has seen (as an optimiser's next batch does)
+    (_stage_fn(stage, n, scene, seed=1)[0] if fresh else fn)()
+    t, c = time.perf_counter(), time.process_time()
     fn()
-    print(json.dumps({"value": 1e3 * (time.perf_counter() - t) / units, "unit": unit}))
+    t, c = time.perf_counter() - t, time.process_time() - c
+    print(json.dumps({"value": 1e3 * t / units, "cpu": 1e3 * c / units, "unit": unit}))
 
 
 # ---- the parent ----
@@ -120,18 +128,20 @@ def _first_output(py: str, work: Path) -> float:
     return t
 
 
-def once(py: str, stage: str, n: int | None, scene: str) -> tuple[float, str]:
+def once(py: str, stage: str, n: int | None, scene: str, fresh: bool = False) -> tuple[float, float | None, str]:
+    """(wall time, CPU time of the process's threads or None for whole commands, unit) of one run."""
     with tempfile.TemporaryDirectory(prefix="ab-run-") as work:
         if stage == "make-run":
-            return _make_run(py, Path(work)), "s"
+            return _make_run(py, Path(work)), None, "s"
         if stage == "startup":
-            return _first_output(py, Path(work)), "s"
+            return _first_output(py, Path(work)), None, "s"
         args = [py, str(Path(__file__).resolve()), "--child", stage, "--scene", scene]
-        out = subprocess.run(args + (["--n", str(n)] if n else []), cwd=work, capture_output=True, text=True)
+        args += (["--n", str(n)] if n else []) + (["--fresh"] if fresh else [])
+        out = subprocess.run(args, cwd=work, capture_output=True, text=True)
         if out.returncode:
             raise SystemExit(f"{py} {stage} exited {out.returncode}:\n{out.stderr[-3000:]}")
         r = json.loads(out.stdout.strip().splitlines()[-1])
-        return r["value"], r["unit"]
+        return r["value"], r.get("cpu"), r["unit"]
 
 
 def site_paths() -> list[str]:
@@ -166,10 +176,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--n", type=int, default=None, help="designs (draft-batch, draft-one)")
     ap.add_argument("--scene", default="stiffness-25", help="the verify stage's scene")
     ap.add_argument("--keep", type=Path, help="build the old tree here and keep it (reused when it exists)")
+    ap.add_argument("--fresh", action="store_true",
+                    help="draft stages: the untimed first call evaluates other designs (seed 1), so the timed "
+                         "call's designs are new to every memo (an optimiser's next batch)")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
-        return child(a.stage, a.n, a.scene)
+        return child(a.stage, a.n, a.scene, a.fresh)
     if not a.rev:
         ap.error("REV is required")
     tmp = Path(tempfile.mkdtemp(prefix="ab-"))
@@ -188,21 +201,33 @@ def main(argv: list[str] | None = None) -> None:
                 warm(py)
         load0 = os.getloadavg()
         times: dict[str, list[float]] = {"old": [], "new": []}
+        cpu: dict[str, list[float]] = {"old": [], "new": []}
         unit = ""
         for r in range(a.rounds):
             for name in (("old", "new") if r % 2 == 0 else ("new", "old")):
-                v, unit = once(trees[name], a.stage, a.n, a.scene)
+                v, c, unit = once(trees[name], a.stage, a.n, a.scene, a.fresh)
                 times[name].append(v)
-            print(f"round {r + 1}: old {times['old'][-1]:.3f}, new {times['new'][-1]:.3f} {unit}, "
-                  f"new/old {times['new'][-1] / times['old'][-1]:.3f}; load {os.getloadavg()[0]:.2f}", flush=True)
+                if c is not None:
+                    cpu[name].append(c)
+            line = (f"round {r + 1}: old {times['old'][-1]:.3f}, new {times['new'][-1]:.3f} {unit}, "
+                    f"new/old {times['new'][-1] / times['old'][-1]:.3f}")
+            if cpu["new"]:
+                line += f"; CPU old {cpu['old'][-1]:.3f}, new {cpu['new'][-1]:.3f}"
+            print(f"{line}; load {os.getloadavg()[0]:.2f}", flush=True)
         mo, mn = statistics.median(times["old"]), statistics.median(times["new"])
         ratios = [b / o for o, b in zip(times["old"], times["new"])]
         load1 = os.getloadavg()
-        stage = a.stage + (f" {a.scene}" if a.stage == "verify" else "") + (f" n={a.n}" if a.n else "")
+        stage = (a.stage + (f" {a.scene}" if a.stage == "verify" else "") + (f" n={a.n}" if a.n else "")
+                 + (" fresh" if a.fresh else ""))
         print(f"{stage}: old {a.rev} ({sha}) {mo:.3f} {unit}, new {ROOT.name} {mn:.3f} {unit}; "
               f"new/old {mn / mo:.3f} (median of per-round ratios {statistics.median(ratios):.3f}, "
               f"{a.rounds} interleaved rounds); load {load0[0]:.2f}/{load0[1]:.2f}/{load0[2]:.2f} before, "
               f"{load1[0]:.2f}/{load1[1]:.2f}/{load1[2]:.2f} after")
+        if cpu["new"]:
+            co, cn = statistics.median(cpu["old"]), statistics.median(cpu["new"])
+            per_round = statistics.median(b / o for o, b in zip(cpu["old"], cpu["new"]))
+            print(f"CPU time (all threads): old {co:.3f} {unit}, new {cn:.3f} {unit}; new/old {cn / co:.3f} "
+                  f"(median of per-round ratios {per_round:.3f})")
     finally:
         if not a.keep:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(where)], capture_output=True)

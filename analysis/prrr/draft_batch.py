@@ -194,31 +194,55 @@ class _Checker:
             self.groups.append((local, FAST.joint_tables(batch, geometry)))
 
     def __call__(self, owner: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``: the
-        one IK over every pose (each pose with its design's parameters), then
-        ``interference_fast.deepest_joints`` per layout group, in shares of whole designs on
-        :func:`_kernel_threads` threads of the checker's ``compute``."""
+        """(collides, reachable, deepest overlap [m]) at poses ``pts`` (n, 3) of designs ``owner``: the one
+        IK (each pose with its design's parameters) and ``interference_fast.deepest_trig`` per layout group,
+        in shares of whole designs on :func:`_kernel_threads` threads of the checker's ``compute``. The IK
+        runs as the checker's ``compute`` says (:func:`_ik_compiled`): compiled per pose inside each thread's
+        share (``interference_fast.pose_joints``: the same text and bits as the numpy IK), or
+        ``kinematics.inverse_kinematics`` in numpy over every pose first."""
         n = len(pts)
         collides, depth = np.zeros(n, bool), np.zeros(n)
         if n == 0:
             return collides, np.zeros(n, bool), depth
-        ik = inverse_kinematics(PrrrParams(*(self.geo[f][owner] for f in _KIN_FIELDS)), pts, xp=np)
-        sliders, theta, ok = ik.sliders, ik.theta[:, WS.ELBOW_BRANCH], ik.reachable
-        jobs = []
+        owner = np.ascontiguousarray(owner, dtype=np.int64)
+        pts = np.ascontiguousarray(pts, dtype=np.float64)
+        compiled = _ik_compiled(n, self.compute)
+        if compiled:
+            joints = (np.empty((n, 3)),) + tuple(np.empty((n, 3)) for _ in range(4)) + (np.zeros(n, bool),)
+        else:
+            ik = inverse_kinematics(PrrrParams(*(self.geo[f][owner] for f in _KIN_FIELDS)), pts, xp=np)
+            joints = (ik.sliders,) + FAST.joint_trig(ik.theta[:, WS.ELBOW_BRANCH]) + (ik.reachable,)
+        jobs, covered = [], np.zeros(n, bool)
         for local, tables in self.groups:
             lo = local[owner]
             sel = np.flatnonzero(lo >= 0)
+            covered[sel] = True
             jobs += [(part, lo, tables) for part in _shares(sel, owner, _kernel_threads(len(sel), self.compute))]
+        if compiled and not covered.all():  # poses of designs without part tables: reachability only
+            FAST.pose_joints(np.flatnonzero(~covered), owner, pts, self.geo, WS.ELBOW_BRANCH, joints)
 
         def run(job) -> None:
             part, lo, tables = job
+            if compiled:
+                FAST.pose_joints(part, owner, pts, self.geo, WS.ELBOW_BRANCH, joints)
             if part[-1] - part[0] + 1 == len(part):  # a contiguous share: views, no copies
                 part = slice(int(part[0]), int(part[-1]) + 1)
-            collides[part], depth[part] = FAST.deepest_joints(lo[part], pts[part], sliders[part], theta[part],
-                                                              ok[part], tables)
+            sliders, *trig, ok = (x[part] for x in joints)
+            collides[part], depth[part] = FAST.deepest_trig(lo[part], pts[part], sliders, tuple(trig), ok, tables)
 
         _run_threaded(run, jobs)
-        return collides, ok, depth
+        return collides, joints[-1], depth
+
+
+#: fewest poses of a check whose IK runs compiled with ``Compute(backend="auto")`` (below, numpy's array
+#: IK costs less than the call's set-up; the collision kernel is loaded either way)
+IK_COMPILED_FROM_POSES = 512
+
+
+def _ik_compiled(n: int, compute: Compute) -> bool:
+    """Whether a check of ``n`` poses runs the compiled IK (``interference_fast.pose_joints``):
+    ``compute.use_numba(n, IK_COMPILED_FROM_POSES)``, where the collision kernel loads."""
+    return compute.use_numba(n, IK_COMPILED_FROM_POSES) and FAST.availability() is None
 
 
 #: fewest poses per thread of a check (below, one thread: the hand-off costs more than it saves)

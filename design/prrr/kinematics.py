@@ -12,7 +12,10 @@ leg; joint angles ``theta`` are ``(..., 3 legs, 3 joints)`` [rad].
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import functools
+import math
+from types import SimpleNamespace
+from typing import Any, Callable, NamedTuple
 
 from hapticopt.design import jax_config  # noqa: F401  (float64 before any jax array)
 import jax
@@ -94,7 +97,7 @@ def r5_of(params: PrrrParams, xp=jnp) -> jax.Array:
 def slider_offset(params: PrrrParams, xp=jnp) -> jax.Array:
     """c_e of eq (1) [m]: −(b5 + r4)/sin β + r5 + d1·cot β; also the home-pose slider position."""
     b = params.beta
-    return -(params.b5 + params.r4) / xp.sin(b) + r5_of(params, xp=xp) + params.d1 / xp.tan(b)
+    return _ik_of(xp).offset(xp.sin(b), xp.tan(b), params.b5, params.r4, params.d1)
 
 
 def jacobian_inverse(beta: jax.Array, xp=jnp) -> jax.Array:
@@ -130,6 +133,89 @@ def condition_frobenius(J: jax.Array, xp=jnp) -> jax.Array:
     return xp.sqrt(xp.sum(J**2, axis=(-2, -1)) * xp.sum(Ji**2, axis=(-2, -1))) / 3.0
 
 
+class IkOps(NamedTuple):
+    """The primitives :func:`make_ik` is written in besides + − × ÷, ``**2`` and ``abs`` (elementwise for
+    arrays): ``arccos``, ``arctan2``, ``sqrt``, ``clip(x, lo, hi)``, ``mod(x, y)`` (the sign of y, as
+    ``numpy.mod`` and Python's ``%``)."""
+
+    arccos: Callable
+    arctan2: Callable
+    sqrt: Callable
+    clip: Callable
+    mod: Callable
+
+
+def make_ik(ops: IkOps, wrap: Callable[[Callable], Any] = lambda f: f) -> SimpleNamespace:
+    """The 3-PRRR inverse kinematics of one leg, written once over ``ops`` (each function passed through
+    ``wrap``: ``njit(inline="always")`` for numba), as the firmware law is
+    (:func:`hapticopt.analysis.prrr.loop.firmware_law.make_law`). Every argument is a scalar or an array
+    (broadcasting) and nothing is written in place, so one text serves :func:`inverse_kinematics` (numpy or
+    jax arrays, every leg at once) and the collision check's compiled per-pose loop (numba, scalars); the same
+    operations in the same order give the same bits.
+
+    Returns a namespace of ``leg`` (the slider and the planar two-link angles of one leg), ``joints`` (the
+    joint angles of one elbow branch from them) and ``offset`` (c_e, the slider offset of eq 1)."""
+    arccos, arctan2, sqrt, clip, mod = ops
+    pi = math.pi
+
+    @wrap
+    def leg(px, py, pz, cb, sb, b5, d1, d2, d3, d4, r4, ux, uy, tx, ty):
+        """One leg at end-effector point (px, py, pz) [m], cos β, sin β, the design's lengths [m] and the
+        leg's in-plane axes u = (ux, uy, 0), t = (tx, ty, 0): (slider D [m], reach ok (|cos θ2| ≤ 1),
+        in-plane R1→R3 distance ρ [m], elbow angle |θ2|, φ, ψ [rad]; θ1 = φ ∓ ψ for θ2 = ±elbow).
+
+        The slider closes the leg along its joint axis w (the in-plane links have no w component):
+        w·(Q − A) = r4 with w = −cos β u + sin β e_z, v = sin β u + cos β e_z, Q = p − b5 w + r5 e_z the R3
+        axis point, A − D e_z = d1 u + d2 t the R1 offset; the angles from the planar two-link problem in
+        the (v, t) plane (clipped outside the reach: nothing returns NaN)."""
+        wx, wy = -cb * ux, -cb * uy
+        relx = (px - b5 * wx) - (d1 * ux + d2 * tx)
+        rely = (py - b5 * wy) - (d1 * uy + d2 * ty)
+        relz = (pz - b5 * sb) + b5 * sb  # − b5 w_z + r5, r5 = b5 sin β
+        slider = (((relx * wx + rely * wy) + relz * sb) - r4) / sb  # w·(Q − A) = r4; w·e_z = sin β
+        relz = relz - slider
+        rho_v = (relx * (sb * ux) + rely * (sb * uy)) + relz * cb
+        rho_t = relx * tx + rely * ty
+        rho2 = rho_v**2 + rho_t**2
+        c2 = (rho2 - d3**2 - d4**2) / (2.0 * d3 * d4)
+        reach_ok = abs(c2) <= 1.0 + 1e-12
+        c2 = clip(c2, -1.0, 1.0)
+        elbow = arccos(c2)
+        s2 = sqrt(1.0 - c2**2)  # sin of the elbow angle, ≥ 0
+        # the two branches share every transcendental: θ1 = φ ∓ ψ for θ2 = ±elbow
+        return slider, reach_ok, sqrt(rho2), elbow, arctan2(rho_t, rho_v), arctan2(d4 * s2, d3 + d4 * c2)
+
+    @wrap
+    def joints(elbow, phi, psi, branch):
+        """(θ1, θ2, θ3) [rad] of elbow ``branch`` (0: θ2 ≥ 0, 1: θ2 ≤ 0), θ1 wrapped to [−π, π),
+        θ3 = −(θ1 + θ2) (the platform only translates)."""
+        if branch == 0:
+            th1, th2 = phi - psi, elbow
+        else:
+            th1, th2 = phi + psi, -elbow
+        th1 = mod(th1 + pi, 2.0 * pi) - pi
+        return th1, th2, -(th1 + th2)
+
+    @wrap
+    def offset(sb, tb, b5, r4, d1):
+        """c_e of eq (1) [m] from sin β, tan β: −(b5 + r4)/sin β + r5 + d1·cot β."""
+        return -(b5 + r4) / sb + b5 * sb + d1 / tb
+
+    return SimpleNamespace(leg=leg, joints=joints, offset=offset)
+
+
+#: the scalar primitives (``math``; also the functions numba compiles for the collision check's loop)
+SCALAR_IK_OPS = dict(arccos=lambda x: math.acos(x), arctan2=lambda y, x: math.atan2(y, x),
+                     sqrt=lambda x: math.sqrt(x), clip=lambda x, lo, hi: min(max(x, lo), hi),
+                     mod=lambda x, y: x % y)
+
+
+@functools.cache
+def _ik_of(xp) -> SimpleNamespace:
+    """:func:`make_ik` over the array module ``xp`` (numpy or jax.numpy)."""
+    return make_ik(IkOps(arccos=xp.arccos, arctan2=xp.arctan2, sqrt=xp.sqrt, clip=xp.clip, mod=xp.mod))
+
+
 class IkSolution(NamedTuple):
     """Inverse kinematics of points ``p`` (..., 3) for both elbow branches."""
 
@@ -146,44 +232,20 @@ def inverse_kinematics(params: PrrrParams, p: jax.Array, xp=jnp) -> IkSolution:
     """Geometric IK of end-effector positions ``p`` (..., 3) [m]: of one design (``params`` scalars) or
     batch-first, one design per point (each entry of ``params`` broadcasting with ``p``'s leading shape ``...``).
 
-    Slider positions follow from closing each leg along its joint axis w (the in-plane links
-    have no w component): w·(Q − A) = r4. Joint angles from the planar two-link problem in
-    the (v, t) plane. Points outside the reach get clipped angles and ``reachable = False``;
-    nothing here returns NaN. ``xp``: array module (``numpy`` for jit-free single calls).
+    :func:`make_ik`'s ``leg`` for the three legs at once (arrays (..., 3 legs)), both elbow branches.
+    Points outside the reach get clipped angles and ``reachable = False``; nothing here returns NaN.
+    ``xp``: array module (``numpy`` for jit-free single calls).
     """
+    ik = _ik_of(xp)
     p = xp.asarray(p)
     params = PrrrParams(*(xp.asarray(x)[..., None] for x in params))  # (..., 1): against the legs axis
     u, t, _ = _IN_PLANE_NP if xp is np else _in_plane(xp)
-    ux, uy, tx, ty = u[:, 0], u[:, 1], t[:, 0], t[:, 1]  # (3 legs,); u and t have no z
     cb, sb = xp.cos(params.beta), xp.sin(params.beta)
-    # per leg, component by component ((..., 3 legs) each): w = −cos β u + sin β e_z, v = sin β u + cos β e_z
-    # (leg_frames), the R3 axis point Q = p − b5 w + r5 e_z less the R1 offset d1 u + d2 t
-    wx, wy = -cb * ux, -cb * uy
-    px, py, pz = p[..., 0, None], p[..., 1, None], p[..., 2, None]
-    relx = (px - params.b5 * wx) - (params.d1 * ux + params.d2 * tx)
-    rely = (py - params.b5 * wy) - (params.d1 * uy + params.d2 * ty)
-    relz = (pz - params.b5 * sb) + r5_of(params, xp=xp)
-    sliders = (((relx * wx + rely * wy) + relz * sb) - params.r4) / sb  # w·(Q − A) = r4; w·e_z = sin β
-    relz = relz - sliders
-    rho_v = (relx * (sb * ux) + rely * (sb * uy)) + relz * cb
-    rho_t = relx * tx + rely * ty
-    rho2 = rho_v**2 + rho_t**2
     d3, d4 = params.d3, params.d4
-    c2 = (rho2 - d3**2 - d4**2) / (2.0 * d3 * d4)
-    reach_ok = xp.abs(c2) <= 1.0 + 1e-12
-    c2 = xp.clip(c2, -1.0, 1.0)
-    elbow = xp.arccos(c2)
-    s2 = xp.sqrt(1.0 - c2**2)  # sin of the elbow angle, ≥ 0
-    rho = xp.sqrt(rho2)
-    # the two branches share every transcendental: θ1 = φ ∓ ψ for θ2 = ±elbow
-    phi = xp.arctan2(rho_t, rho_v)
-    psi = xp.arctan2(d4 * s2, d3 + d4 * c2)
-
-    def branch(th1: jax.Array, th2: jax.Array) -> tuple:
-        th1 = xp.mod(th1 + xp.pi, 2.0 * xp.pi) - xp.pi  # wrap to [−π, π)
-        return th1, th2, -(th1 + th2)
-
-    branches = (branch(phi - psi, elbow), branch(phi + psi, -elbow))
+    sliders, reach_ok, rho, elbow, phi, psi = ik.leg(p[..., 0, None], p[..., 1, None], p[..., 2, None], cb, sb,
+                                                     params.b5, params.d1, params.d2, d3, d4, params.r4,
+                                                     u[:, 0], u[:, 1], t[:, 0], t[:, 1])
+    branches = (ik.joints(elbow, phi, psi, 0), ik.joints(elbow, phi, psi, 1))
     if xp is np:  # the same numbers written into one array (cheaper than numpy's stack)
         theta = np.empty(phi.shape[:-1] + (2, 3, 3))
         for k, joints in enumerate(branches):
@@ -191,7 +253,7 @@ def inverse_kinematics(params: PrrrParams, p: jax.Array, xp=jnp) -> IkSolution:
                 theta[..., k, :, j] = angle
     else:
         theta = xp.stack([xp.stack(joints, axis=-1) for joints in branches], axis=-3)
-    c_e = slider_offset(params, xp=xp)
+    c_e = ik.offset(sb, xp.tan(params.beta), params.b5, params.r4, params.d1)
     half = params.stroke / 2.0
     s_dev = sliders - c_e
     stroke_ok = xp.abs(s_dev) <= half * (1.0 + 1e-12)

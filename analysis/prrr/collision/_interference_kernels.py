@@ -13,14 +13,23 @@ term by term and in its order (fixed-order 3-vector sums; numba does not contrac
 without ``fastmath``), so the depths are bitwise equal to it; a pair stops at the first axis whose overlap
 is ≤ 0 (its clipped depth is 0 either way). Compiled ``nogil``, allocating its own scratch: calls on
 disjoint outputs may run in parallel threads.
+
+:func:`pose_joints`: the joint values the check reads (sliders, cos / sin of the joint angles, reachability) per
+pose, from the one IK's text (:func:`hapticopt.design.prrr.kinematics.make_ik`) compiled over scalar primitives.
+numba's on-disk cache keys a function on its own bytecode and closure values, not on the functions it calls, so
+it is built in a closure holding the kinematics module's source hash: an edit of the IK recompiles it.
 """
 
 from __future__ import annotations
 
+import hashlib
+import inspect
 import math
 
 import numpy as np
 from numba import njit
+
+from hapticopt.design.prrr import kinematics
 
 _BOX, _CYL = 0, 1
 
@@ -565,3 +574,47 @@ def check_joint_poses(rule, leg, D, c1, s1, c12, s12, pts, owner, reachable, Rsl
 
 
 
+
+
+_inline = njit(inline="always")
+#: the one 3-PRRR IK (:func:`hapticopt.design.prrr.kinematics.make_ik`) over numba-compiled scalar primitives,
+#: each of its functions inlined into :func:`pose_joints`
+IK = kinematics.make_ik(kinematics.IkOps(**{k: _inline(f) for k, f in kinematics.SCALAR_IK_OPS.items()}), _inline)
+_ik_leg, _ik_joints, _ik_offset = IK.leg, IK.joints, IK.offset
+
+
+def _build_pose_joints(ik_hash: str):
+    @njit(cache=True, nogil=True)
+    def pose_joints(idx, owner, pts, beta, d1, d2, d3, d4, r4, b5, stroke, U, T, branch, D, c1, s1, c12, s12, ok):
+        """The collision check's joint values at the poses ``idx`` (rows of ``pts`` (n, 3) [m]; design
+        ``owner[q]``'s parameters, arrays per design [m, rad]): sliders ``D`` (n, 3) [m], the cos / sin of θ₁
+        and of θ₁ + θ₂ of elbow ``branch`` (``c1, s1, c12, s12`` (n, 3 legs)) and reachability ``ok`` (n,),
+        written at rows ``idx``; U, T (3 legs, 3) the legs' u and t. What
+        ``kinematics.inverse_kinematics`` and ``interference_fast.joint_trig`` give (the same ``make_ik``
+        text, the same operations and libm functions: the same bits, tested), per pose in registers, with no
+        array of both branches. nogil: threads may fill disjoint rows at once."""
+        _ = ik_hash  # in the closure: numba's cache key (see the module docstring)
+        for j in range(idx.shape[0]):
+            q = idx[j]
+            m = owner[q]
+            b = beta[m]
+            cb, sb = math.cos(b), math.sin(b)
+            c_e = _ik_offset(sb, math.tan(b), b5[m], r4[m], d1[m])
+            half = stroke[m] / 2.0
+            good = True
+            for k in range(3):
+                sl, reach, _rho, elbow, phi, psi = _ik_leg(pts[q, 0], pts[q, 1], pts[q, 2], cb, sb, b5[m], d1[m],
+                                                           d2[m], d3[m], d4[m], r4[m], U[k, 0], U[k, 1], T[k, 0],
+                                                           T[k, 1])
+                th1, th2, _th3 = _ik_joints(elbow, phi, psi, branch)
+                th12 = th1 + th2
+                D[q, k] = sl
+                c1[q, k], s1[q, k] = math.cos(th1), math.sin(th1)
+                c12[q, k], s12[q, k] = math.cos(th12), math.sin(th12)
+                good = good and reach and abs(sl - c_e) <= half * (1.0 + 1e-12)
+            ok[q] = good
+
+    return pose_joints
+
+
+pose_joints = _build_pose_joints(hashlib.sha256(inspect.getsource(kinematics).encode()).hexdigest())

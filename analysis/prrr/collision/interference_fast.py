@@ -49,7 +49,7 @@ from hapticopt.analysis.compute import unavailable
 from hapticopt.design.prrr import cad as cad_prrr
 from hapticopt.design.parts import Kind, Role
 from hapticopt.design.prrr.params import GAMMAS, PrrrDesign
-from hapticopt.design.prrr.kinematics import inverse_kinematics, params_np
+from hapticopt.design.prrr.kinematics import inverse_kinematics, leg_frames, params_np
 from hapticopt.analysis.prrr.geometry.workspace import ELBOW_BRANCH, workspace_sample_weights
 
 
@@ -415,12 +415,37 @@ def deepest_joints(owner: np.ndarray, points: np.ndarray, sliders: np.ndarray, t
                    reachable: np.ndarray, tables: JointTables) -> tuple[np.ndarray, np.ndarray]:
     """(collides (n,), deepest part-pair overlap (n,) [m]): :func:`check_joints`' ``collides`` and
     ``depth.max(axis=1)`` bit for bit, the kernel keeping only each pose's deepest overlap (no
-    (n, part pairs) array; the batched draft evaluator's check, one call per thread's share)."""
+    (n, part pairs) array)."""
+    return deepest_trig(owner, points, sliders, joint_trig(theta), reachable, tables)
+
+
+def deepest_trig(owner: np.ndarray, points: np.ndarray, sliders: np.ndarray, trig: tuple[np.ndarray, ...],
+                 reachable: np.ndarray, tables: JointTables) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`deepest_joints` from the joint angles' :func:`joint_trig` (c1, s1, c12, s12) instead of the
+    angles (the batched draft evaluator's check, one call per thread's share)."""
     depth = np.zeros((len(points), 1))
-    _run_kernel(owner, points, sliders, joint_trig(theta), reachable, tables,
+    _run_kernel(owner, points, sliders, trig, reachable, tables,
                 np.zeros(len(tables.tail[2]), dtype=np.int64), depth)
     deepest = depth[:, 0]
     return deepest > DEPTH_TOL, deepest
+
+
+#: the legs' in-plane axes u and t (3 legs, 3), writable copies (numba compiles one signature)
+_IN_PLANE = tuple(np.array(x) for x in leg_frames(0.0, xp=np)[:2])
+#: the IK parameters :func:`pose_joints` reads per design, in its order
+IK_FIELDS = ("beta", "d1", "d2", "d3", "d4", "r4", "b5", "stroke")
+
+
+def pose_joints(idx: np.ndarray, owner: np.ndarray, points: np.ndarray, geo: dict[str, np.ndarray], branch: int,
+                out: tuple[np.ndarray, ...]) -> None:
+    """The joint values of elbow ``branch`` at the poses ``idx`` (rows of ``points`` (n, 3) [m], design
+    ``owner[q]`` of the per-design arrays ``geo[f]`` for f in :data:`IK_FIELDS`) written into ``out`` =
+    (sliders (n, 3), c1, s1, c12, s12 (n, 3), reachable (n,)): ``kinematics.inverse_kinematics``' sliders
+    and reachability and :func:`joint_trig` of its angles, bit for bit, compiled per pose
+    (:func:`._interference_kernels.pose_joints`, nogil)."""
+    f64 = functools.partial(np.ascontiguousarray, dtype=np.float64)
+    _kernels().pose_joints(np.ascontiguousarray(idx, dtype=np.int64), np.ascontiguousarray(owner, dtype=np.int64),
+                           f64(points), *(f64(geo[f]) for f in IK_FIELDS), *_IN_PLANE, int(branch), *out)
 
 
 def check_points(model: FastModel, points, *, branch: int = cad_prrr.DEFAULT_BRANCH) -> FastResult:
