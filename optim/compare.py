@@ -62,7 +62,7 @@ class Comparison:
     rows: tuple[Row, ...]
     statuses: tuple[dict[str, str], ...]  # evaluator -> status, per design
     messages: tuple[dict[str, str], ...]
-    design_rows: tuple[tuple[str, str, tuple[float, ...]], ...]  # (section.key, unit, values) that differ
+    design_rows: tuple[tuple[str, str, tuple[float | str, ...]], ...]  # (section.key, unit, values) that differ
     provenance: tuple[str, ...] = ()  # per design: '' computed here, else where its values came from (the cache)
 
 
@@ -126,7 +126,7 @@ def compare(designs: Sequence[Named], *, fidelity: Fidelity = Fidelity.STANDARD,
     for section in designs[0].design.SECTIONS:
         units = {s.key: s.unit for s in specs(getattr(designs[0].design, section)).values()}
         for key in tables[0].get(section, {}):
-            vals = tuple(float(t.get(section, {}).get(key, math.nan)) for t in tables)
+            vals = tuple(_design_value(t.get(section, {}).get(key, math.nan)) for t in tables)
             if any(v != vals[0] for v in vals):
                 design_rows.append((f"{section}.{key}", pretty(units.get(key, "")), vals))
     return Comparison(designs=tuple(designs), fidelity=fidelity, rows=tuple(rows),
@@ -140,7 +140,14 @@ def _provenance(c: Comparison) -> tuple[str, ...]:
     return c.provenance if len(c.provenance) == len(c.designs) else ("",) * len(c.designs)
 
 
-def fmt(v: float) -> str:
+def _design_value(v: Any) -> float | str:
+    """A design key's value as compared: a number, or the text of a named choice (``structure.material``)."""
+    return v if isinstance(v, str) else float(v)
+
+
+def fmt(v: float | str) -> str:
+    if isinstance(v, str):
+        return v
     return "—" if not math.isfinite(v) else f"{v:.6g}"
 
 

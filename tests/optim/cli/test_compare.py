@@ -121,24 +121,40 @@ def _delta_classes(page: str, metric: str) -> list[str]:
 def test_compare_colours_by_better_or_worse_not_by_sign(run_dir, tmp_path):
     """issue 33: a heavier device and a worse Jacobian condition were green (the delta was positive).
     The prrr-workspace optimum is heavier (mass +0.7 %) with a better cond(J) (β 60° → nearer the isotropic
-    35.26°, seed 002 eq 2); β = 75° is farther from isotropic: a worse (larger) cond(J)."""
-    paper = (Path(io.__file__).parent / "presets" / "prrr-paper.toml").read_text(encoding="utf-8")
-    beta75 = tmp_path / "beta75.toml"
-    beta75.write_text(paper.replace("beta_deg = 60.0", "beta_deg = 75.0").replace('name = "prrr-paper"', 'name = "beta75"'))
-    res = runner.invoke(app, ["compare", "prrr-paper", str(run_dir), str(beta75), "--fidelity", "draft",
-                              "--report", str(tmp_path / "c.html")])
-    assert res.exit_code == 0, res.output
-    page = (tmp_path / "c.html").read_text(encoding="utf-8")
-    values = {m: [float(v) for v in re.findall(r"<td class='n'>([-+0-9.e]+)</td>", re.search(
-        rf"<tr data-metric='{m}'>(.*?)</tr>", page).group(1))] for m in ("device_mass_kg", "jacobian_condition")}
+    35.26°, seed 002 eq 2); against the optimum, prrr-paper has the worse (larger) cond(J). (β beyond 60° is
+    not a buildable prrr-paper: the R3 lugs hit the stem.)"""
+    def page_of(*designs: str) -> tuple[str, dict[str, list[float]]]:
+        out = tmp_path / f"c{len(list(tmp_path.iterdir()))}.html"
+        res = runner.invoke(app, ["compare", *designs, "--fidelity", "draft", "--report", str(out)])
+        assert res.exit_code == 0, res.output
+        page = out.read_text(encoding="utf-8")
+        return page, {m: [float(v) for v in re.findall(r"<td class='n'>([-+0-9.e]+)</td>", re.search(
+            rf"<tr data-metric='{m}'>(.*?)</tr>", page).group(1))] for m in ("device_mass_kg", "jacobian_condition")}
+
+    page, values = page_of("prrr-paper", str(run_dir))
     assert values["device_mass_kg"][1] > values["device_mass_kg"][0]  # the optimum is heavier …
-    assert _delta_classes(page, "device_mass_kg")[0] == "worse"  # … and that is worse
-    assert values["jacobian_condition"][2] > values["jacobian_condition"][0]  # β = 75°: larger cond(J) …
-    assert _delta_classes(page, "jacobian_condition") == ["better", "worse"]  # … worse; the optimum's better
-    assert _delta_classes(page, "workspace_required_diameter_mm") == ["same", "same"]  # a design input: equal
+    assert _delta_classes(page, "device_mass_kg") == ["worse"]  # … and that is worse
+    assert values["jacobian_condition"][1] < values["jacobian_condition"][0]  # its cond(J) is smaller: better
+    assert _delta_classes(page, "jacobian_condition") == ["better"]
+    assert _delta_classes(page, "workspace_required_diameter_mm") == ["same"]  # a design input: equal
     assert _delta_classes(page, "elastic_centre_mm")[0] == "changed"  # neutral: neither colour
     assert "rounding and shown as =" in page  # the tolerance is stated
     units = re.findall(r"<tr data-metric='([^']+)'><td>[^<]*</td><td>([^<]*)</td>", page)
     assert len(units) > 50
     for name, unit in units:  # issue 33: units from the registry (von Mises per newton was "N")
         assert html.unescape(unit) == (metric_unit(name) or "-"), (name, unit)
+    page, values = page_of(str(run_dir), "prrr-paper")  # the other way round: a larger cond(J) is worse
+    assert values["jacobian_condition"][1] > values["jacobian_condition"][0]
+    assert _delta_classes(page, "jacobian_condition") == ["worse"]
+    assert _delta_classes(page, "device_mass_kg") == ["better"]
+
+
+def test_a_named_choice_that_differs_is_shown_as_text(tmp_path):
+    """A design key that is a name (``structure.material``) compared as text, not as a number (the
+    compare of prrr-paper against any design ended in an internal error once designs carried a material)."""
+    other = io.apply_overrides(io.load_preset("prrr-paper"), ["structure.material=7075-T6", "name=prrr-7075"])
+    io.save_design(other, tmp_path / "d.toml")
+    res = runner.invoke(app, ["compare", "prrr-paper", str(tmp_path / "d.toml"), "--fidelity", "draft", "--json"])
+    assert res.exit_code == 0, res.output
+    rows = {r["key"]: r["values"] for r in json.loads(res.stdout)["design_differences"]}
+    assert rows["structure.material"] == ["6061-T6", "7075-T6"]
