@@ -76,6 +76,10 @@ class EvaluatorEntry:
     metrics: tuple[MetricDoc, ...] = ()  # every metric it can report (tests/analysis/test_registry.py checks)
     shared: bool = False  # its evaluate() takes ``shared=``, the call's SHARED_STEPS of the design
     takes_compute: bool = False  # its evaluate() takes ``compute=``, the caller's route (more than one route)
+    #: fidelities at which it runs only when the call names it in ``only`` (an effect the caller asks for:
+    #: at draft the strength check costs ~10x the rest of a draft evaluation, so the optimiser's draft loop
+    #: and a draft sweep do not pay for it unless a metric of it is wanted)
+    on_request_at: tuple[str, ...] = ()
 
     def load(self) -> Any:
         return importlib.import_module(self.module)
@@ -182,8 +186,8 @@ EVALUATORS: dict[str, tuple[EvaluatorEntry, ...]] = {
             _m("closed_loop_stiffness_limit_N_per_mm", "largest stable virtual stiffness x, y, z of the continuous closed loop at the force gain, zero virtual damping (Routh–Hurwitz)"),
         )),
         EvaluatorEntry(name="strength", module=_A + "prrr.structure.strength", takes_compute=True,
-                       fidelity="draft: frame stresses at the home pose; standard: the worst of 9 workspace poses; fine: also the solid FEA's stress per part for its 1 N x case",
-                       slow_at=_FINE,
+                       fidelity="draft (only when asked for by name, e.g. --only strength): frame stresses at the home pose; standard: the worst of 9 workspace poses; fine: also the solid FEA's stress per part for its 1 N x case",
+                       slow_at=_FINE, on_request_at=("draft",),
                        metrics=(
             _m("safety_factor_yield", "material yield strength over the largest von Mises stress of any part (frame model: members and pin necks) at the rated force along ±x, ±y, ±z with own weight, worst pose (higher is better)"),
             _m("safety_factor_fatigue", "material fatigue strength (S-N at 1e7 or the library's count) over the stress amplitude of the rated force fully reversed, 1e7 cycles assumed (higher is better)"),
@@ -577,8 +581,12 @@ def _record(ev: Evaluation, entry: EvaluatorEntry, result: Any) -> None:
         ev.sources.update(dict.fromkeys(names, entry.module))
 
 
-def _entries(device: str, only: tuple[str, ...] | None) -> list[EvaluatorEntry]:
-    return [e for e in EVALUATORS[device] if only is None or e.name in only]
+def _entries(device: str, only: tuple[str, ...] | None, fidelity: Fidelity) -> list[EvaluatorEntry]:
+    """The evaluators a call runs: those named in ``only``, else every one of the device except those
+    that run at this fidelity only on request (:attr:`EvaluatorEntry.on_request_at`)."""
+    if only is not None:
+        return [e for e in EVALUATORS[device] if e.name in only]
+    return [e for e in EVALUATORS[device] if str(Fidelity(fidelity)) not in e.on_request_at]
 
 
 def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
@@ -588,7 +596,7 @@ def evaluate_all(design: Any, *, fidelity: Fidelity = Fidelity.STANDARD,
     several of them take for the design (:data:`SHARED_STEPS`) run once for the call; ``compute`` goes to
     the evaluators whose entry says ``takes_compute``. A design that cannot be built (:data:`ASSEMBLY`)
     runs none: every evaluator is :class:`NotBuilt` (``not-assemblable``, its metrics NaN)."""
-    entries = _entries(design.device, only)
+    entries = _entries(design.device, only, fidelity)
     why = not_built(design)
     if why:
         return _collect(fidelity, entries, lambda entry: NotBuilt.of(entry, fidelity, why),
@@ -652,7 +660,8 @@ def evaluate_batch(designs: list[Any], *, fidelity: Fidelity = Fidelity.STANDARD
     if batch is None or Fidelity(fidelity) is not batch.fidelity:
         return [evaluate_all(d, fidelity=fidelity, only=only, compute=compute) for d in designs]
     single_path, evaluate_many = _function(batch.single_path), _function(batch.evaluate_many)
-    entries = _entries(designs[0].device, only)
+    entries = _entries(designs[0].device, only, fidelity)
+    only = tuple(e.name for e in entries)  # the batch runs exactly these (no on-request evaluator unasked)
     out: list[Evaluation] = []
     for c in range(0, len(designs), batch.chunk):
         chunk = designs[c:c + batch.chunk]

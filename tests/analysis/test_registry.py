@@ -19,7 +19,8 @@ PRESETS = {"prrr": "prrr-paper", "master": "master-paper", "handle": "handle-pap
 def test_entries_describe_exactly_the_reported_metrics(device: str, level: Fidelity):
     """Fine (the 3-PRRR's solid FEA takes a minute) was checked the same way when the descriptions
     were written: its extra metrics are the entries marked fine-only."""
-    ev = registry.evaluate_all(io.load_preset(PRESETS[device]), fidelity=level)
+    every = tuple(e.name for e in registry.EVALUATORS[device])  # on-request evaluators included
+    ev = registry.evaluate_all(io.load_preset(PRESETS[device]), fidelity=level, only=every)
     for entry in registry.EVALUATORS[device]:
         assert ev.statuses[entry.name] == "ok", (entry.name, ev.messages[entry.name])
         reported = set(ev.results[entry.name].metrics())
@@ -102,14 +103,14 @@ def test_compute_goes_only_to_the_entries_that_take_it(monkeypatch):
 
     monkeypatch.setattr(registry.EvaluatorEntry, "load", load)
     route = Compute(backend="numpy", threads=1)
-    ev = registry.evaluate_all(io.load_preset("prrr-paper"), fidelity=Fidelity.DRAFT, compute=route)
+    ev = registry.evaluate_all(io.load_preset("prrr-paper"), fidelity=Fidelity.STANDARD, compute=route)
     for entry in registry.EVALUATORS["prrr"]:
         expected = {k for k, on in (("shared", entry.shared), ("compute", entry.takes_compute)) if on}
         assert seen[entry.name] == expected, entry.name
         assert ev.statuses[entry.name] == "failed"
     assert got and all(c is route for c in got)
     assert {e.name for e in registry.EVALUATORS["prrr"] if e.takes_compute} == {
-        "structural_stiffness", "interference", "free_workspace"}
+        "structural_stiffness", "interference", "free_workspace", "strength"}
 
 
 def test_batch_entries_name_functions_that_exist():
@@ -155,3 +156,19 @@ def test_every_registered_metric_declares_its_direction():
 ])
 def test_judge_by_direction_and_tolerance(name, ref, value, verdict):
     assert registry.judge(name, ref, value) == verdict
+
+
+def test_an_on_request_evaluator_runs_at_that_fidelity_only_when_named():
+    """The strength check runs at draft only when asked for (``only``), in the single path and the batch
+    alike; at standard it is part of every evaluation (registry.EvaluatorEntry.on_request_at)."""
+    from hapticopt.analysis.registry import evaluate_all, evaluate_batch
+    from hapticopt.design import io
+
+    d = io.load_preset("prrr-paper")
+    assert "strength" not in evaluate_all(d, fidelity=Fidelity.DRAFT).results
+    assert "strength" not in evaluate_batch([d, d], fidelity=Fidelity.DRAFT)[1].results
+    asked = evaluate_all(d, fidelity=Fidelity.DRAFT, only=("strength",))
+    batch = evaluate_batch([d], fidelity=Fidelity.DRAFT, only=("statics", "strength"))[0]
+    assert asked.statuses["strength"] == batch.statuses["strength"] == "ok"
+    assert asked.metrics()["safety_factor_yield"] == batch.metrics()["safety_factor_yield"] > 0
+    assert "strength" in evaluate_all(d, fidelity=Fidelity.STANDARD, only=None).results
