@@ -139,8 +139,10 @@ def _panel_2d(fig: Any, ax: Any, axes: Sequence[Any], y: np.ndarray, classes: np
 def _title(result: Any, classes: np.ndarray) -> str:
     sw = result.sweep
     keys = " × ".join(f"{a.key} ({a.n})" for a in sw.axes)
+    n_met, n_unmet = int(np.sum(classes == OK)), int(np.sum(classes == NOT_MET))
+    # "ok" counts outcomes, as the command's summary line does; the not-met ones among them are named
     return (f"{sw.base.name}: sweep of {keys} at {sw.fidelity} fidelity — {len(classes)} points, "
-            f"{int(np.sum(classes == OK))} ok, {int(np.sum(classes == NOT_MET))} not met, "
+            f"{n_met + n_unmet} ok ({n_unmet} of them with a requirement not met), "
             f"{int(np.sum(classes == NOT_OK))} not ok")
 
 

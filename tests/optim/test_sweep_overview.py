@@ -68,7 +68,7 @@ def test_the_point_that_is_not_ok_is_classed_and_listed_with_its_reason(one_d):
     classes = [ov.point_class(r) for r in result.results]
     assert classes == [ov.OK, ov.OK, ov.OK, ov.NOT_OK]  # 40, 50, 60 deg build; 70 deg does not
     page = (out / "overview.html").read_text()
-    assert "4 points, 3 ok, 0 not met, 1 not ok" in page
+    assert "4 points, 3 ok (0 of them with a requirement not met), 1 not ok" in page
     assert re.search(r"<td class='n'>70</td><td>evaluator_failed</td><td>statics: not-assemblable", page)
 
 
@@ -97,6 +97,6 @@ def test_a_2d_sweep_draws_heat_maps(tmp_path):
     written = write_outputs(result, tmp_path)
     assert tmp_path / "overview.png" in written
     page = (tmp_path / "overview.html").read_text()
-    assert "geometry.beta_deg (3) × actuator.spring_N_per_mm (2)" in page and "6 points, 4 ok, 0 not met, 2 not ok" in page
+    assert "geometry.beta_deg (3) × actuator.spring_N_per_mm (2)" in page and "6 points, 4 ok (0 of them with a requirement not met), 2 not ok" in page
     shown = _metrics_on_page(page)
     assert shown["stiffness_limit_N_per_mm[0]"] == "N/mm"  # varies with the spring and with beta
