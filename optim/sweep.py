@@ -45,6 +45,7 @@ from hapticopt.optim.executor import worker_compute
 from hapticopt.optim.problem import Variable, numeric_key
 from hapticopt.optim.recorder import Recorder, point_key
 from hapticopt.optim.runs import software_versions
+from hapticopt.optim import sweep_overview
 from hapticopt.design.errors import short
 
 #: at most this many points in one sweep (a typo such as n = 10000 × 10000 is refused). The sweep holds
@@ -349,8 +350,6 @@ def write_outputs(result: SweepResult, out_dir: Path, *, plots: bool = True) -> 
 
 def write_overview(result: SweepResult, out_dir: Path) -> list[Path]:
     """``overview.png`` and ``overview.html`` in ``out_dir`` (:mod:`hapticopt.optim.sweep_overview`)."""
-    from hapticopt.optim import sweep_overview
-
     return sweep_overview.write(result, *table(result), out_dir)
 
 

@@ -85,7 +85,6 @@ def sweep(
     """Sweep one or two numeric design keys over a grid; writes sweep.csv, a plot per metric, an overview page
     (overview.html, overview.png) and the record."""
     from hapticopt.optim import sweep as sw  # heavy (evaluators, jax): imported when the command runs
-    from hapticopt.optim import sweep_overview
 
     level = parse_fidelity(fidelity)
     route = parse_compute(compute, threads)
@@ -127,7 +126,7 @@ def sweep(
                                                    if result.n_cached else ""))
     n_plots = sum(p.parent == out_dir / "plots" for p in written)
     typer.echo(f"table: {written[0]}" + (f"; {n_plots} plots in {out_dir / 'plots'}" if n_plots else ""))
-    overview = [p for p in written if p.name == sweep_overview.HTML]
+    overview = [p for p in written if p.suffix == ".html"]  # the one page a sweep writes
     if overview:
         typer.echo(f"overview: {overview[0]} (every metric against the swept key{'s' if len(axes) > 1 else ''})")
 
