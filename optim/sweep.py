@@ -8,9 +8,10 @@ executor. Every point is recorded in ``DIR/evaluations.sqlite`` under its exact 
 completes, so an interrupted sweep resumes (``--resume``) and recomputes nothing it recorded.
 
 Outputs (written by :func:`write_outputs`): ``sweep.csv`` (one row per point: the keys with
-units, the outcome, every scalar metric and every component ``name[i]`` of a vector metric)
-and ``plots/sweep_<metric>.png`` (1-D: metric against the key; 2-D: a filled contour map), the
-unit on each axis.
+units, the outcome, every scalar metric and every component ``name[i]`` of a vector metric),
+``plots/sweep_<metric>.png`` (1-D: metric against the key; 2-D: a filled contour map), the
+unit on each axis, and one overview page (:mod:`hapticopt.optim.sweep_overview`: ``overview.png``, every
+metric that varies on one sheet with the points that are not ok shaded, and ``overview.html`` around it).
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ from hapticopt.optim.executor import worker_compute
 from hapticopt.optim.problem import Variable, numeric_key
 from hapticopt.optim.recorder import Recorder, point_key
 from hapticopt.optim.runs import software_versions
+from hapticopt.optim import sweep_overview
 from hapticopt.design.errors import short
 
 #: at most this many points in one sweep (a typo such as n = 10000 × 10000 is refused). The sweep holds
@@ -334,14 +336,21 @@ def csv_text(result: SweepResult) -> str:
 
 
 def write_outputs(result: SweepResult, out_dir: Path, *, plots: bool = True) -> list[Path]:
-    """``sweep.csv`` and one plot per scalar metric column (PNG, units on both axes)."""
+    """``sweep.csv``; with ``plots`` also one plot per scalar metric column (PNG, units on both axes) and the
+    overview page (:func:`write_overview`: ``overview.html`` and ``overview.png``)."""
     out_dir = Path(out_dir)
     written = [out_dir / "sweep.csv"]
     with paths.output_root(out_dir):  # no write follows a link planted below out_dir
         write_text(written[0], csv_text(result))
         if plots:
             written += write_plots(result, out_dir / "plots")
+            written += write_overview(result, out_dir)
     return written
+
+
+def write_overview(result: SweepResult, out_dir: Path) -> list[Path]:
+    """``overview.png`` and ``overview.html`` in ``out_dir`` (:mod:`hapticopt.optim.sweep_overview`)."""
+    return sweep_overview.write(result, *table(result), out_dir)
 
 
 def _safe(name: str) -> str:

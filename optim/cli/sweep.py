@@ -71,7 +71,8 @@ def sweep(
     force: Annotated[bool, typer.Option("--force", help="Replace the run already recorded in --out.")] = False,
     scheduler: Annotated[str, typer.Option("--scheduler", help="local (process pool), inline, or a Dask scheduler address tcp://HOST:PORT.")] = "local",
     workers: Annotated[Optional[int], typer.Option("--workers", help="Processes of the local pool (default: min(4, CPUs)).")] = None,
-    plots: Annotated[bool, typer.Option("--plots/--no-plots", help="One PNG per metric under DIR/plots/.")] = True,
+    plots: Annotated[bool, typer.Option("--plots/--no-plots", help="One PNG per metric under DIR/plots/ and the overview "
+                                                           "page DIR/overview.html (+ overview.png).")] = True,
     batch: Annotated[bool, typer.Option("--batch", help="Evaluate in one process with the batched evaluators (3-PRRR at draft: every evaluator; other fidelities: --only statics).")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", help="No progress display.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON {design, axes, fidelity, points, ok, evaluated, "
@@ -81,7 +82,8 @@ def sweep(
     compute: ComputeOption = "auto",
     threads: ThreadsOption = None,
 ) -> None:
-    """Sweep one or two numeric design keys over a grid; writes sweep.csv, a plot per metric and the record."""
+    """Sweep one or two numeric design keys over a grid; writes sweep.csv, a plot per metric, an overview page
+    (overview.html, overview.png) and the record."""
     from hapticopt.optim import sweep as sw  # heavy (evaluators, jax): imported when the command runs
 
     level = parse_fidelity(fidelity)
@@ -122,8 +124,11 @@ def sweep(
                f"{spec.n_points} points, {result.n_ok} ok, {n_fail} not ok; {result.n_evaluated} evaluated, "
                f"{result.n_replayed} replayed" + (f" ({result.n_cached} from the evaluation cache {cache_path})"
                                                    if result.n_cached else ""))
-    n_plots = len(written) - 1
+    n_plots = sum(p.parent == out_dir / "plots" for p in written)
     typer.echo(f"table: {written[0]}" + (f"; {n_plots} plots in {out_dir / 'plots'}" if n_plots else ""))
+    overview = [p for p in written if p.suffix == ".html"]  # the one page a sweep writes
+    if overview:
+        typer.echo(f"overview: {overview[0]} (every metric against the swept key{'s' if len(axes) > 1 else ''})")
 
 
 def _run_locked(spec: Any, out_dir: Path, *, resume: bool, force: bool, quiet: bool, scheduler: str,

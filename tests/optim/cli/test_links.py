@@ -24,11 +24,11 @@ DATA = Path(__file__).resolve().parents[1] / "data"
 
 SWEEP = ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=50:70:2", "--only", "statics", "--scheduler", "inline",
          "--quiet"]
-#: names a sweep writes (the record and cache with their SQLite side files, the lock, the table, plots)
+#: names a sweep writes (the record and cache with their SQLite side files, the lock, the table, plots, overview)
 SWEEP_NAMES = [".hapticopt.lock", "evaluations.sqlite", "evaluations.sqlite-wal", "evaluations.sqlite-shm",
                "evaluations.sqlite-journal", "evaluation-cache.sqlite", "evaluation-cache.sqlite-wal",
                "evaluation-cache.sqlite-shm", "evaluation-cache.sqlite-journal", "sweep.csv", "plots",
-               "plots/sweep_jacobian_condition.png"]
+               "plots/sweep_jacobian_condition.png", "overview.png", "overview.html"]
 FIRST_WRITES = [".hapticopt.lock", "evaluations.sqlite", "evaluations.sqlite-wal", "evaluations.sqlite-shm",
                 "evaluation-cache.sqlite", "evaluation-cache.sqlite-wal"]
 KINDS = ["to-a-file", "dangling"]

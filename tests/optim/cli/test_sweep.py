@@ -1,4 +1,4 @@
-"""``hapticopt sweep``: files written (CSV with units, one plot per metric), bad input exits 2 with
+"""``hapticopt sweep``: files written (CSV with units, one plot per metric, the overview page), bad input exits 2 with
 one line and writes nothing, an existing sweep is refused and resumed."""
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ runner = CliRunner()
 
 def test_sweep_writes_table_plots_and_record(tmp_path):
     out = tmp_path / "s"
-    args = ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=50:70:3", "actuator.spring_N_per_mm=40:60:2",
+    # beta <= 60 deg: prrr-paper's parts lay out (at 70 deg its R3 lugs run into the stem: not-assemblable)
+    args = ["sweep", "--preset", "prrr-paper", "geometry.beta_deg=50:60:3", "actuator.spring_N_per_mm=40:60:2",
             "--only", "statics", "--scheduler", "inline", "--quiet", "--out", str(out)]
     res = runner.invoke(app, args)
     assert res.exit_code == 0, res.output
@@ -22,6 +23,8 @@ def test_sweep_writes_table_plots_and_record(tmp_path):
     rows = (out / "sweep.csv").read_text().splitlines()
     assert rows[0].startswith("geometry.beta_deg [deg],actuator.spring_N_per_mm [N/mm],outcome,") and len(rows) == 7
     assert (out / "plots" / "sweep_stiffness_limit_N_per_mm_0.png").stat().st_size > 1000
+    assert f"overview: {out / 'overview.html'} (every metric against the swept keys)" in res.stdout
+    assert (out / "overview.png").stat().st_size > 1000
     with RunReader(out) as r:
         assert r.kind == "sweep" and r.status == "finished" and len(r) == 6
         assert [v["key"] for v in r.variables] == ["geometry.beta_deg", "actuator.spring_N_per_mm"]
