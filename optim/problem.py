@@ -445,7 +445,10 @@ def problem_from_dict(data: Mapping[str, Any], *, source: str = "problem", base_
         if key in data and (not isinstance(data[key], str) or not data[key] or "\0" in data[key]):
             raise InvalidInput(f"{source}: {key} = {short(data[key])} must be a preset name or a file path string")
     if "base" in data:
-        base = io.load_preset(data["base"])
+        try:
+            base = io.load_preset(data["base"])
+        except UnknownName as exc:
+            raise UnknownName(f"{source}: base = {short(data['base'])}: {exc}") from None
         base_source = f"preset {data['base']}"
     else:
         p = Path(data["base_file"])
@@ -485,7 +488,7 @@ def problem_from_dict(data: Mapping[str, Any], *, source: str = "problem", base_
     fidelity_verify = _enum(Fidelity, fid.get("verify", "standard"), f"{source}: fidelity.verify")
     refs = [(f"{source}: objective.metric" if len(objectives) == 1 else f"{source}: objectives[{i}].metric", o.metric)
             for i, o in enumerate(objectives)]
-    refs += [(f"{source}: constraints ({c.text}).metric", c.metric) for c in constraints]
+    refs += [(f"{source}: constraints ({clip(c.text)}).metric", c.metric) for c in constraints]
     check_metric_names(device, refs, (fidelity_optimise, fidelity_final))
     ver = _table(data, "verify", source, set(TABLE_KEYS["verify"]))
     verify_max_time_s = _number(ver.get("max_time_s", 60.0), f"{source}: verify.max_time_s")
@@ -675,6 +678,11 @@ def _optimiser(table: dict[str, Any], source: str, constrained: bool) -> Optimis
     return cfg
 
 
+def clip(text: str, n: int = 60) -> str:
+    """``text`` cut to ``n`` characters for a one-line message (a constraint's own text may be long)."""
+    return text if len(text) <= n else text[:n - 3] + "..."
+
+
 def check_metric_names(device: str, refs: Sequence[tuple[str, MetricRef]], levels: Sequence[Fidelity]) -> None:
     """One line (exit 2) for a metric reference the device's evaluators never report (with the closest
     name), or report only at other fidelity levels than ``levels`` (the optimisation's and the final one)."""
@@ -698,4 +706,4 @@ def check_metrics(problem: Problem, metrics: Mapping[str, Any]) -> None:
     for i, o in enumerate(problem.objectives[1:], start=1):
         o.metric.check(metrics, f"objectives[{i}].metric")
     for i, c in enumerate(problem.constraints):
-        c.metric.check(metrics, f"constraints ({c.text})")
+        c.metric.check(metrics, f"constraints ({clip(c.text)})")
