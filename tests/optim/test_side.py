@@ -18,8 +18,9 @@ from hapticopt.optim.executor import InlineExecutor
 
 
 def test_the_cad_fea_is_the_slow_evaluator_at_fine_fidelity_only():
-    # registry: structural_stiffness adds the CAD solid FEA at fine fidelity ("tens of seconds")
-    assert side.slow_evaluators("prrr", Fidelity.FINE) == ("structural_stiffness",)
+    # registry: structural_stiffness adds the CAD solid FEA at fine fidelity ("tens of seconds"), and the
+    # strength check that FEA's stress per part (its slow_at)
+    assert side.slow_evaluators("prrr", Fidelity.FINE) == ("structural_stiffness", "strength")
     assert side.slow_evaluators("prrr", Fidelity.DRAFT) == side.slow_evaluators("prrr", Fidelity.STANDARD) == ()
     assert side.slow_evaluators("handle", Fidelity.FINE) == ()
 
