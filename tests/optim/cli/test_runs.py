@@ -119,23 +119,8 @@ def test_show_on_a_recursive_view_returns_within_5_s(runs_dir, tmp_path):
     assert "view sessions" in line and "refused" in line
 
 
-FAILING = """name = "failing"
-base = "prrr-paper"
-[[variables]]
-key = "geometry.d2_mm"
-lower = 120.0
-upper = 300.0
-start = 290.0
-[objective]
-metric = "jacobian_condition"
-[optimiser]
-algorithm = "LN_COBYLA"
-starts = 1
-max_evals = 4
-[fidelity]
-optimise = "draft"
-final = "draft"
-"""
+#: a problem whose start and neighbours cannot be assembled (failed evaluations in its record)
+FAILING = (Path(__file__).parents[1] / "data" / "failing-start.toml").read_text()
 
 
 def test_show_keeps_each_failure_reason_and_counts_them(tmp_path):

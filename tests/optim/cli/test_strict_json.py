@@ -19,23 +19,7 @@ README = Path(__file__).parents[3] / "README.md"
 PRESETS = Path(__file__).parents[3] / "design" / "presets"
 
 #: a problem whose start (d2 = 290 mm) and neighbours cannot be assembled: its history holds NaN values
-FAILING_PROBLEM = """name = "strict"
-base = "prrr-paper"
-[[variables]]
-key = "geometry.d2_mm"
-lower = 120.0
-upper = 300.0
-start = 290.0
-[objective]
-metric = "jacobian_condition"
-[optimiser]
-algorithm = "LN_COBYLA"
-starts = 1
-max_evals = 4
-[fidelity]
-optimise = "draft"
-final = "draft"
-"""
+FAILING_PROBLEM = (Path(__file__).parents[1] / "data" / "failing-start.toml").read_text()
 SCENE = ('name = "short"\nduration_s = 0.5\n[environment]\nkind = "spring"\nstiffness_N_per_mm = [25.0, 0, 0]\n'
          '[motion]\namplitude_mm = [4.0, 0, 0]\n')
 
